@@ -1,0 +1,51 @@
+"""Command line ``prismstation``.
+
+Each module of this package (other than ones starting with ``_``) defines
+``register(subparsers)``, which adds one or more sub-commands and sets ``func`` on them:
+``func(args) -> int`` (the exit status). Modules are discovered, so adding a command is
+adding a module. Bad input raises :class:`prismstation.errors.PrismError`; :func:`main`
+prints it as one line on stderr and exits 2 — never a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+
+from prismstation import __version__
+from prismstation.errors import PrismError
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="prismstation", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"prismstation {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        if not info.name.startswith("_"):
+            importlib.import_module(f"{__name__}.{info.name}").register(sub)
+    return parser
+
+
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        if args.command is None:  # bare `prismstation` opens the workstation
+            args = parser.parse_args(["gui"] + list(argv or sys.argv[1:]))
+        else:
+            parser.print_help()
+            return 2
+    try:
+        return int(args.func(args) or 0)
+    except PrismError as exc:
+        print(f"prismstation {args.command}: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
