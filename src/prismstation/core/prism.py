@@ -1,0 +1,242 @@
+"""The empirical PRISM 1B2 model of seed 000 (MODEL.md §2): relief, bias, parallax.
+
+Map points ``en`` are ``(..., 2)`` metres, heights ``h`` ellipsoidal metres (broadcastable to
+``en[..., 0]``), image points ``xy`` ``(..., 2)`` pixels (x = column, y = row).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from prismstation.core import lsq
+from prismstation.core.affine import Affine2D
+from prismstation.core.scene import Scene, View
+from prismstation.errors import ModelError
+
+#: bias models and their parameter counts (= 2 × minimum GCPs)
+BIAS_MODELS = {"shift": 2, "similarity": 4, "affine": 6}
+PARALLAX_MODELS = ("line", "offset", "theoretical")
+
+
+# ---------------------------------------------------------------- relief displacement
+def relief_shift(scene: Scene, view: View, en, h) -> np.ndarray:
+    """Map displacement ``(..., 2)`` of a point at height ``h`` in a 1B2 image of ``view``.
+
+    Across track ``h·tanβ·u`` with ``tanβ = d / Hs`` — i.e. ``(h / Hs)·(P − foot)`` — and
+    along track ``± h·tanθ·t`` for the forward (+) and backward (−) views.
+    """
+    en = np.asarray(en, dtype=float)
+    h = np.asarray(h, dtype=float)[..., None]
+    foot, t = scene.track.foot(en)
+    shift = (h / scene.satellite_altitude_m) * (en - foot)
+    if view.look_sign:
+        shift = shift + view.look_sign * view.tan_theta * h * t
+    return shift
+
+
+def ground_to_ancillary(scene: Scene, view: View, en, h) -> np.ndarray:
+    """Image position ``x0'`` (eq. 1 + 2): ``map_to_image(P + relief_shift)`` before bias."""
+    en = np.asarray(en, dtype=float)
+    return view.map_to_image(en + relief_shift(scene, view, en, h))
+
+
+def ancillary_to_ground(scene: Scene, view: View, xy0, h, iterations: int = 4) -> np.ndarray:
+    """Invert :func:`ground_to_ancillary` at known height ``h``: image ``x0'`` → map ``(E, N)``.
+
+    The relief shift depends on the point's own position (β), hence the fixed-point
+    iteration; it contracts by ~h/Hs, so 4 iterations reach well below a millimetre.
+    """
+    apparent = view.map_to_image.inverse()(xy0)
+    en = apparent
+    for _ in range(iterations):
+        en = apparent - relief_shift(scene, view, en, h)
+    return en
+
+
+def to_nadir_space(scene: Scene, view: View) -> Affine2D:
+    """Affine carrying ``view`` image coordinates into N image space through the map (§3.1)."""
+    return scene.views["N"].map_to_image @ view.map_to_image.inverse()
+
+
+def along_track_unit(scene: Scene, en) -> np.ndarray:
+    """Unit vector ``(..., 2)`` of the flight direction in N image space at map points ``en``."""
+    _, t = scene.track.foot(en)
+    s = scene.views["N"].map_to_image.apply_linear(t)
+    return s / np.linalg.norm(s, axis=-1, keepdims=True)
+
+
+def theoretical_c1(scene: Scene) -> float:
+    """``p / (tanθF + tanθB)``: metres of height per pixel of F−B parallax (eq. 4)."""
+    v = scene.views
+    return v["N"].pixel_size_m / (v["F"].tan_theta + v["B"].tan_theta)
+
+
+# ---------------------------------------------------------------- bias compensation (eq. 3)
+_BIAS_NAMES = {
+    "none": (),
+    "shift": ("b1", "b2"),
+    "similarity": ("a", "c", "b1", "b2"),
+    "affine": ("B1", "B2", "B3", "B4", "B5", "B6"),
+}
+
+
+def _bias_design(model: str, q: np.ndarray) -> np.ndarray:
+    """Rows for ``Δ = M·q + b`` (x rows then y rows interleaved) in normalised coordinates."""
+    n = len(q)
+    A = np.zeros((2 * n, BIAS_MODELS[model]))
+    qx, qy = q[:, 0], q[:, 1]
+    if model == "shift":
+        A[0::2, 0] = 1; A[1::2, 1] = 1
+    elif model == "similarity":  # M = [[a, -c], [c, a]]
+        A[0::2, 0], A[0::2, 1], A[0::2, 2] = qx, -qy, 1
+        A[1::2, 0], A[1::2, 1], A[1::2, 3] = qy, qx, 1
+    else:  # affine, the paper's B1..B6
+        A[0::2, 0], A[0::2, 1], A[0::2, 4] = qx, qy, 1
+        A[1::2, 2], A[1::2, 3], A[1::2, 5] = qx, qy, 1
+    return A
+
+
+def _bias_matrix(model: str, p) -> tuple[np.ndarray, np.ndarray]:
+    """``(M, b)`` from parameters in the model's order."""
+    if model == "shift":
+        return np.zeros((2, 2)), np.array(p[:2], float)
+    if model == "similarity":
+        a, c, b1, b2 = p
+        return np.array([[a, -c], [c, a]], float), np.array([b1, b2], float)
+    B1, B2, B3, B4, B5, B6 = p
+    return np.array([[B1, B2], [B3, B4]], float), np.array([B5, B6], float)
+
+
+@dataclass(frozen=True, eq=False)
+class BiasFit:
+    """Bias compensation in image space: ``x = x0' + M·x0' + b`` (pixels; eq. 3).
+
+    ``params`` and ``std`` are in the published (un-normalised) form named by ``names``.
+    ``lsq`` holds the adjustment (residuals ordered x0, y0, x1, y1, …) or None.
+    """
+
+    model: str
+    M: np.ndarray
+    b: np.ndarray
+    params: np.ndarray
+    std: np.ndarray
+    names: tuple[str, ...]
+    lsq: lsq.LsqResult | None = None
+
+    @classmethod
+    def identity(cls) -> "BiasFit":
+        return cls("none", np.zeros((2, 2)), np.zeros(2), np.zeros(0), np.zeros(0), ())
+
+    def apply(self, xy0) -> np.ndarray:
+        xy0 = np.asarray(xy0, dtype=float)
+        return xy0 + xy0 @ self.M.T + self.b
+
+    def invert(self, xy) -> np.ndarray:
+        xy = np.asarray(xy, dtype=float)
+        return (xy - self.b) @ np.linalg.inv(np.eye(2) + self.M).T
+
+    @property
+    def sigma0(self) -> float | None:
+        return None if self.lsq is None else self.lsq.sigma0
+
+
+def fit_bias(xy0, xy, model: str, sigma=None, *, what: str = "bias") -> BiasFit:
+    """Fit the bias model from ancillary positions ``xy0`` ``(n, 2)`` to measured ``xy`` ``(n, 2)``.
+
+    ``sigma`` (n,) a-priori σ of each measurement in pixels (default 1). Coordinates are
+    centred and scaled before solving; parameters and covariance are returned published.
+    Raises :class:`ModelError` when there are too few points or they are collinear.
+    """
+    if model not in BIAS_MODELS:
+        raise ModelError(f"unknown bias model {model!r}; choose one of {', '.join(BIAS_MODELS)}")
+    xy0 = np.asarray(xy0, dtype=float).reshape(-1, 2)
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    u = BIAS_MODELS[model]
+    need = u // 2
+    if len(xy0) < need:
+        raise ModelError(f"{what}: the {model} model needs at least {need} GCP{'s' * (need > 1)} "
+                         f"measured in this view, have {len(xy0)}")
+    c = xy0.mean(axis=0)
+    s = max(float(np.abs(xy0 - c).max()), 1.0)
+    A = _bias_design(model, (xy0 - c) / s)
+    sig = None if sigma is None else np.repeat(np.asarray(sigma, float), 2)
+    try:
+        res = lsq.solve(A, (xy - xy0).ravel(), sig, what=f"{what} ({model})")
+    except ModelError as exc:
+        if "do not determine" in str(exc):
+            raise ModelError(f"{what}: the GCPs lie on one line; the {model} model needs them "
+                             f"spread in two directions") from None
+        raise
+
+    def published(pn):
+        Mn, bn = _bias_matrix(model, pn)
+        M = Mn / s
+        b = bn - M @ c
+        if model == "shift":
+            return b
+        if model == "similarity":
+            return np.array([M[0, 0], M[1, 0], b[0], b[1]])
+        return np.array([M[0, 0], M[0, 1], M[1, 0], M[1, 1], b[0], b[1]])
+
+    J = np.column_stack([published(e) for e in np.eye(u)])
+    p = J @ res.params
+    cov = J @ res.cov @ J.T
+    M, b = _bias_matrix(model, p)
+    return BiasFit(model, M, b, p, np.sqrt(np.diag(cov)), _BIAS_NAMES[model], res)
+
+
+# ---------------------------------------------------------------- parallax line (eq. 4)
+@dataclass(frozen=True, eq=False)
+class ParallaxLine:
+    """``h = c0 + c1·py`` (metres from pixels). ``used`` says what was fitted:
+    ``line`` (c0, c1), ``offset`` (c0; c1 theoretical) or ``theoretical`` (nothing)."""
+
+    requested: str
+    used: str
+    c0: float
+    c1: float
+    c1_theory: float
+    std_c0: float | None = None
+    std_c1: float | None = None
+    lsq: lsq.LsqResult | None = None
+    note: str = ""
+
+    def height(self, py) -> np.ndarray:
+        return self.c0 + self.c1 * np.asarray(py, dtype=float)
+
+    @property
+    def sigma0(self) -> float | None:
+        return None if self.lsq is None else self.lsq.sigma0
+
+
+def fit_parallax(py, h, mode: str, c1_theory: float) -> ParallaxLine:
+    """Fit the height–parallax relation over GCPs (``py`` pixels, ``h`` metres, ``(n,)``).
+
+    Degrades as MODEL.md says: ``line`` with one GCP fits only ``c0``; with none, the
+    theoretical line through the origin. σ0 is in metres (unit weights).
+    """
+    if mode not in PARALLAX_MODELS:
+        raise ModelError(f"unknown parallax model {mode!r}; choose one of {', '.join(PARALLAX_MODELS)}")
+    py = np.asarray(py, dtype=float)
+    h = np.asarray(h, dtype=float)
+    n = len(py)
+    used, note = mode, ""
+    if used == "line" and (n < 2 or np.ptp(py) < 1.0):
+        used, note = "offset", (f"{n} GCP with parallax: only the offset c0 is fitted, c1 is theoretical"
+                                if n < 2 else "GCPs have no spread in parallax: c1 kept theoretical")
+    if used == "offset" and n < 1:
+        used, note = "theoretical", "no GCP measured in F and B: theoretical parallax line"
+    if used == "theoretical":
+        return ParallaxLine(mode, used, 0.0, c1_theory, c1_theory, note=note)
+    if used == "offset":
+        res = lsq.solve(np.ones((n, 1)), h - c1_theory * py, what="parallax offset")
+        return ParallaxLine(mode, used, float(res.params[0]), c1_theory, c1_theory,
+                            float(res.std[0]), None, res, note)
+    pc, ps = py.mean(), max(float(np.ptp(py)), 1.0)
+    A = np.column_stack([np.ones(n), (py - pc) / ps])
+    res = lsq.solve(A, h, what="parallax line")
+    J = np.array([[1.0, -pc / ps], [0.0, 1.0 / ps]])
+    p, cov = J @ res.params, J @ res.cov @ J.T
+    return ParallaxLine(mode, used, float(p[0]), float(p[1]), c1_theory,
+                        float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1])), res, note)

@@ -1,0 +1,89 @@
+"""A product as the model sees it: views with their ancillary affine, and the ground track."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from prismstation.core.affine import Affine2D
+
+#: sign of the along-track relief shift of each view: forward ahead, backward behind (MODEL.md §2)
+LOOK_SIGN = {"F": 1.0, "B": -1.0}
+
+
+@dataclass(frozen=True, eq=False)
+class GroundTrack:
+    """Sub-satellite points ``(K, 2)`` in map metres, in flight order (K ≥ 2).
+
+    The first and last segments are extended indefinitely, so every map point has a foot.
+    """
+
+    points: np.ndarray
+
+    def __post_init__(self):
+        p = np.asarray(self.points, dtype=float)
+        p.setflags(write=False)
+        object.__setattr__(self, "points", p)
+
+    def foot(self, en) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest track point and unit flight direction for map points ``en`` ``(..., 2)``.
+
+        Returns ``(foot, t)``, both ``(..., 2)``.
+        """
+        en = np.asarray(en, dtype=float)
+        q = en.reshape(-1, 2)
+        a, b = self.points[:-1], self.points[1:]
+        d = b - a
+        L2 = np.einsum("ij,ij->i", d, d)
+        s = np.einsum("nij,ij->ni", q[:, None, :] - a[None], d) / L2  # (n, K-1)
+        lo = np.zeros(len(d)); hi = np.ones(len(d))
+        lo[0], hi[-1] = -np.inf, np.inf
+        s = np.clip(s, lo, hi)
+        feet = a[None] + s[..., None] * d[None]
+        k = np.argmin(np.einsum("nik,nik->ni", q[:, None] - feet, q[:, None] - feet), axis=1)
+        f = feet[np.arange(len(q)), k]
+        t = d[k] / np.sqrt(L2[k])[:, None]
+        return f.reshape(en.shape), t.reshape(en.shape)
+
+    def mean_direction(self) -> np.ndarray:
+        d = self.points[-1] - self.points[0]
+        return d / np.hypot(*d)
+
+
+@dataclass(frozen=True, eq=False)
+class View:
+    """One image of the product.
+
+    ``map_to_image`` maps map metres ``(E, N)`` at the ellipsoid to image pixels (eq. 1).
+    ``along_track_angle_deg`` is the viewing angle at the ground, positive for F and B.
+    """
+
+    name: str
+    map_to_image: Affine2D
+    pixel_size_m: float
+    along_track_angle_deg: float = 0.0
+    image: str | None = None
+    shape: tuple[int, int] | None = None  # (rows, cols)
+
+    @property
+    def look_sign(self) -> float:
+        return LOOK_SIGN.get(self.name, 0.0)
+
+    @property
+    def tan_theta(self) -> float:
+        return math.tan(math.radians(self.along_track_angle_deg))
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    crs: str
+    satellite_altitude_m: float
+    track: GroundTrack
+    views: dict[str, View]
+    geoid_undulation_m: float | None = None
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def is_triplet(self) -> bool:
+        return all(v in self.views for v in "NFB")

@@ -1,0 +1,291 @@
+"""Fit the empirical model to a project's points and compute everything the operator reads.
+
+:func:`solve` never raises for data the operator can fix (too few GCPs, collinear GCPs, a
+point seen in too few views): such parts are left out of the :class:`Solution` and
+:attr:`Solution.messages` says why.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Callable, Mapping
+
+import numpy as np
+
+from prismstation.core import prism
+from prismstation.core.prism import BiasFit, ParallaxLine
+from prismstation.core.scene import Scene
+from prismstation.core.stats import ComponentStats, VectorStats
+from prismstation.errors import ModelError
+
+HeightFn = Callable[[np.ndarray], np.ndarray]  # (n, 2) map metres -> (n,) ellipsoidal metres
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Model choices. ``sigma_px``: a-priori σ of a measurement without its own (σ0 then
+    reads in pixels). ``blunder_threshold``: |standardised residual| that marks a blunder."""
+
+    bias_model: str = "affine"
+    parallax_model: str = "line"
+    sigma_px: float = 1.0
+    blunder_threshold: float = 3.0
+    mean_height: float | None = None
+
+
+@dataclass(frozen=True)
+class PointObs:
+    """A point as the solver sees it: ``ground`` = (E, N, h ellipsoidal) or None (tie);
+    ``image`` maps view name → (x, y) pixels; ``sigma_px`` view → σ (optional)."""
+
+    id: str
+    kind: str
+    ground: tuple[float, float, float] | None
+    image: Mapping[str, tuple[float, float]]
+    sigma_px: Mapping[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class PointResult:
+    """Everything computed for one point. Residuals are measured − predicted (pixels);
+    ``ground_residual`` is estimated − known (E, N, h metres)."""
+
+    id: str
+    kind: str
+    measured: dict
+    predicted: dict
+    residual_px: dict
+    parallax_px: float | None
+    across_px: dict               # 'F', 'B' -> across-track difference to N (pixels)
+    ground_est: tuple[float, float, float] | None
+    height_source: str | None     # 'parallax', 'reference', 'mean'
+    ground_residual: tuple[float, float, float] | None
+    std_residual: float | None    # largest |standardised residual| of this GCP
+    redundancy: float | None      # smallest redundancy number of its N observations
+    blunder: bool = False
+    note: str = ""
+
+
+@dataclass(frozen=True, eq=False)
+class Solution:
+    """An immutable fit: bias per view, parallax line, per-point results and statistics."""
+
+    scene: Scene
+    settings: Settings
+    bias: dict                    # view -> BiasFit (identity where it could not be fitted)
+    parallax: ParallaxLine | None
+    points: tuple
+    stats: dict
+    messages: tuple
+    mean_height: float
+    revision: int = 0
+
+    # ---- geometry through the current model (linked cursors, predictions)
+    def ground_to_image(self, view: str, en, h) -> np.ndarray:
+        v = self.scene.views[view]
+        return self.bias[view].apply(prism.ground_to_ancillary(self.scene, v, en, h))
+
+    def image_to_ground(self, view: str, xy, h) -> np.ndarray:
+        v = self.scene.views[view]
+        return prism.ancillary_to_ground(self.scene, v, self.bias[view].invert(xy), h)
+
+    def transfer(self, view: str, xy, h=None) -> dict:
+        """Where the ground point under ``xy`` in ``view`` (at height ``h``, default the mean
+        height) falls in every view: ``{view: (..., 2)}``."""
+        h = self.mean_height if h is None else h
+        en = self.image_to_ground(view, xy, h)
+        return {name: self.ground_to_image(name, en, h) for name in self.scene.views}
+
+    def point(self, pid: str) -> PointResult | None:
+        return next((p for p in self.points if p.id == pid), None)
+
+    @property
+    def ok(self) -> bool:
+        return self.bias.get(self.reference_view, BiasFit.identity()).model != "none"
+
+    @property
+    def reference_view(self) -> str:
+        return "N" if "N" in self.scene.views else next(iter(self.scene.views))
+
+
+def solve(scene: Scene, points, settings: Settings = Settings(), *,
+          height_of: HeightFn | None = None, revision: int = 0) -> Solution:
+    """Fit the model of MODEL.md §2 to ``points`` (iterable of :class:`PointObs`)."""
+    points = list(points)
+    messages: list[str] = []
+    gcps = [p for p in points if p.kind == "GCP" and p.ground is not None]
+    heights = [p.ground[2] for p in points if p.ground is not None]
+    mean_h = (settings.mean_height if settings.mean_height is not None
+              else float(np.mean([p.ground[2] for p in gcps])) if gcps
+              else float(np.mean(heights)) if heights else 0.0)
+
+    # 1. bias per view, fitted on the GCPs measured in it
+    bias: dict[str, BiasFit] = {}
+    for name, view in scene.views.items():
+        sel = [p for p in gcps if name in p.image]
+        fit = BiasFit.identity()
+        model = settings.bias_model
+        if sel:
+            xy0 = prism.ground_to_ancillary(scene, view, [p.ground[:2] for p in sel],
+                                            [p.ground[2] for p in sel])
+            xy = np.array([p.image[name] for p in sel], float)
+            sig = [p.sigma_px.get(name, settings.sigma_px) for p in sel]
+            ladder = [m for m in prism.BIAS_MODELS if prism.BIAS_MODELS[m] <= prism.BIAS_MODELS[model]]
+            for m in reversed(ladder):  # N follows the setting; F, B may step down for prediction
+                try:
+                    fit = prism.fit_bias(xy0, xy, m, sig, what=f"view {name}")
+                    break
+                except ModelError as exc:
+                    if name == "N" or name == next(iter(scene.views)):
+                        messages.append(str(exc))
+                        break
+        elif name in ("N",) or len(scene.views) == 1:
+            messages.append(f"view {name}: no GCP measured; the ancillary model is used without bias correction")
+        bias[name] = fit
+
+    # 2. parallax line over GCPs measured in F and B
+    triplet = scene.is_triplet
+    parallax = None
+    if triplet:
+        fb = [p for p in gcps if "F" in p.image and "B" in p.image]
+        py = _parallax(scene, fb)
+        try:
+            parallax = prism.fit_parallax(py, [p.ground[2] for p in fb], settings.parallax_model,
+                                          prism.theoretical_c1(scene))
+            if parallax.note:
+                messages.append(parallax.note)
+        except ModelError as exc:
+            messages.append(str(exc))
+
+    # 3. per point
+    results = [_point_result(scene, p, bias, parallax, mean_h, height_of, settings) for p in points]
+    results = _attach_adjustment_stats(results, gcps, bias, parallax, scene, settings)
+    stats = _statistics(scene, results)
+    return Solution(scene, settings, bias, parallax, tuple(results), stats, tuple(messages),
+                    mean_h, revision)
+
+
+def _parallax(scene: Scene, pts) -> np.ndarray:
+    """F−B parallax (pixels, along track in N space) of points measured in F and B."""
+    if not pts:
+        return np.zeros(0)
+    f = prism.to_nadir_space(scene, scene.views["F"])(np.array([p.image["F"] for p in pts], float))
+    b = prism.to_nadir_space(scene, scene.views["B"])(np.array([p.image["B"] for p in pts], float))
+    en = scene.views["N"].map_to_image.inverse()((f + b) / 2)
+    return np.einsum("ij,ij->i", f - b, prism.along_track_unit(scene, en))
+
+
+def _point_result(scene, p: PointObs, bias, parallax, mean_h, height_of, settings) -> PointResult:
+    views = scene.views
+    measured = {v: tuple(map(float, xy)) for v, xy in p.image.items() if v in views}
+    note = ""
+    py = None
+    across = {}
+    if scene.is_triplet and "F" in measured and "B" in measured:
+        py = float(_parallax(scene, [p])[0])
+    if scene.is_triplet and "N" in measured:
+        xn = np.array(measured["N"])
+        en_n = views["N"].map_to_image.inverse()(xn)
+        ct = prism.along_track_unit(scene, en_n)
+        cross = np.array([ct[1], -ct[0]])  # across-track unit in N image (x for 1B2-R)
+        for v in ("F", "B"):
+            if v in measured:
+                d = prism.to_nadir_space(scene, views[v])(np.array(measured[v])) - xn
+                across[v] = float(d @ cross)
+
+    # ground estimate: height from parallax, else reference DEM, else mean height
+    est, source = None, None
+    plan_views = ["N"] if "N" in measured else [v for v in measured if v != "N"]
+    if not measured:
+        note = "not measured in any view"
+    else:
+        if py is not None and parallax is not None:
+            h, source = float(parallax.height(py)), "parallax"
+        else:
+            h, source = mean_h, "mean"
+        for _ in range(3 if (source != "parallax" and height_of is not None) else 1):
+            ens = [prism.ancillary_to_ground(scene, views[v], bias[v].invert(np.array(measured[v])), h)
+                   for v in plan_views]
+            en = np.mean(ens, axis=0)
+            if source != "parallax" and height_of is not None:
+                hr = float(np.asarray(height_of(en[None]))[0])
+                if np.isfinite(hr):
+                    h, source = hr, "reference"
+        est = (float(en[0]), float(en[1]), float(h))
+        if scene.is_triplet and source != "parallax":
+            note = "height not from parallax: measure the point in F and B"
+
+    if p.ground is not None:
+        en_k, h_k = np.array(p.ground[:2]), p.ground[2]
+    elif est is not None:
+        en_k, h_k = np.array(est[:2]), est[2]
+    else:
+        en_k = None
+    predicted = {} if en_k is None else {
+        v: tuple(map(float, bias[v].apply(prism.ground_to_ancillary(scene, views[v], en_k, h_k))))
+        for v in views}
+    residual = {}
+    if p.ground is not None:
+        residual = {v: (measured[v][0] - predicted[v][0], measured[v][1] - predicted[v][1])
+                    for v in measured}
+    g_res = None
+    if p.ground is not None and est is not None:
+        g_res = (est[0] - p.ground[0], est[1] - p.ground[1], est[2] - p.ground[2])
+    return PointResult(p.id, p.kind, measured, predicted, residual, py, across, est, source,
+                       g_res, None, None, False, note)
+
+
+def _attach_adjustment_stats(results, gcps, bias, parallax, scene, settings):
+    """Standardised residuals and redundancy of each GCP from the N bias and parallax fits."""
+    ref = "N" if "N" in scene.views else next(iter(scene.views))
+    w = {}
+    fit = bias[ref]
+    if fit.lsq is not None:
+        ids = [p.id for p in gcps if ref in p.image]
+        for i, pid in enumerate(ids):
+            s = fit.lsq.std_residuals[2 * i:2 * i + 2]
+            r = fit.lsq.redundancy[2 * i:2 * i + 2]
+            w[pid] = [np.nanmax(np.abs(s)) if np.any(np.isfinite(s)) else np.nan, float(r.min())]
+    if parallax is not None and parallax.lsq is not None:
+        ids = [p.id for p in gcps if "F" in p.image and "B" in p.image]
+        for i, pid in enumerate(ids):
+            s = abs(parallax.lsq.std_residuals[i])
+            cur = w.setdefault(pid, [np.nan, float(parallax.lsq.redundancy[i])])
+            cur[0] = s if not np.isfinite(cur[0]) else max(cur[0], s)
+    # data snooping: one blunder at a time — the largest standardised residual above the
+    # threshold (a blunder distorts the fit and drags its neighbours' residuals up too)
+    finite = {k: v[0] for k, v in w.items() if np.isfinite(v[0])}
+    worst = max(finite, key=finite.get) if finite else None
+    if worst is not None and finite[worst] <= settings.blunder_threshold:
+        worst = None
+    out = []
+    for r in results:
+        if r.id in w and r.kind == "GCP":
+            s, red = w[r.id]
+            r = replace(r, std_residual=float(s) if np.isfinite(s) else None, redundancy=red,
+                        blunder=r.id == worst)
+        out.append(r)
+    return out
+
+
+def _statistics(scene: Scene, results) -> dict:
+    """Tables 1–3 of the paper and their extensions, for GCPs and ICPs."""
+    stats: dict = {}
+    ref = "N" if "N" in scene.views else next(iter(scene.views))
+    for v, view in scene.views.items():
+        for kind in ("GCP", "ICP"):
+            res = [r.residual_px[v] for r in results if r.kind == kind and v in r.residual_px]
+            px = VectorStats.of(res)
+            stats.setdefault("image", {}).setdefault(v, {})[kind] = {
+                "px": px, "m": px.scaled(view.pixel_size_m)}
+    for kind in ("GCP", "ICP"):
+        g = np.array([r.ground_residual for r in results
+                      if r.kind == kind and r.ground_residual is not None]).reshape(-1, 3)
+        stats.setdefault("ground", {})[kind] = VectorStats.of(g[:, :2])
+        hs = np.array([r.ground_residual[2] for r in results if r.kind == kind
+                       and r.ground_residual is not None and r.height_source == "parallax"])
+        stats.setdefault("height", {})[kind] = ComponentStats.of(hs)
+    if scene.is_triplet:
+        for v in ("F", "B"):
+            stats[f"{v}-N"] = ComponentStats.of([r.across_px[v] for r in results if v in r.across_px])
+    stats["reference_view"] = ref
+    return stats

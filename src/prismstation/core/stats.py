@@ -1,0 +1,62 @@
+"""Residual statistics per component (MODEL.md §2, the paper's Tables 1–3)."""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ComponentStats:
+    """Statistics of one residual component over ``n`` points (NaN when ``n == 0``)."""
+
+    n: int
+    min: float
+    max: float
+    mean: float
+    rms: float
+    std: float
+
+    @classmethod
+    def of(cls, values) -> "ComponentStats":
+        v = np.asarray(values, dtype=float)
+        v = v[np.isfinite(v)]
+        if v.size == 0:
+            return cls(0, *(float("nan"),) * 5)
+        std = float(v.std(ddof=1)) if v.size > 1 else float("nan")
+        return cls(int(v.size), float(v.min()), float(v.max()), float(v.mean()),
+                   float(np.sqrt(np.mean(v**2))), std)
+
+    def scaled(self, k: float) -> "ComponentStats":
+        return ComponentStats(self.n, self.min * k, self.max * k, self.mean * k, self.rms * k, self.std * k)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class VectorStats:
+    """Statistics of 2-D residuals ``(n, 2)``: per component and planimetric RMS."""
+
+    x: ComponentStats
+    y: ComponentStats
+
+    @classmethod
+    def of(cls, xy) -> "VectorStats":
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        ok = np.all(np.isfinite(xy), axis=1)
+        return cls(ComponentStats.of(xy[ok, 0]), ComponentStats.of(xy[ok, 1]))
+
+    @property
+    def n(self) -> int:
+        return self.x.n
+
+    @property
+    def planimetric_rms(self) -> float:
+        return float(np.hypot(self.x.rms, self.y.rms))
+
+    def scaled(self, k: float) -> "VectorStats":
+        return VectorStats(self.x.scaled(k), self.y.scaled(k))
+
+    def to_dict(self) -> dict:
+        return {"x": self.x.to_dict(), "y": self.y.to_dict(), "planimetric_rms": self.planimetric_rms}
