@@ -1,0 +1,278 @@
+"""ImageView: a pyqtgraph view of a whole (large) image, panned and zoomed without full reads.
+
+What is drawn: an always-present coarse overview of the whole image (one read of about 1000 px),
+and on top of it the tiles of the overview level matching the current zoom for the visible area.
+Tiles are read by a :class:`~prismstation.gui.tiles.TileLoader` in worker threads and delivered to
+the GUI thread by signals; requests are dropped when the view has moved on; tiles come from the
+source's LRU cache when they are there.
+
+Coordinates (MODEL.md §1): scene coordinates of the view box are image pixels, x = column to the
+right, y = row down (the y axis is inverted), origin at the top-left corner of the top-left pixel;
+the centre of pixel (i, j) is (i + 0.5, j + 0.5).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import QPointF, QRectF, Qt, QTimer, Signal
+from PySide6.QtWidgets import QVBoxLayout, QWidget
+
+from prismstation.gui.tiles import TileLoader, tiles_for_rect
+from prismstation.io.raster import RasterSource
+
+_COARSE_Z = -100
+
+
+def _image_item(arr: np.ndarray, rect_xywh, levels, z: float) -> pg.ImageItem:
+    item = pg.ImageItem(axisOrder="row-major")
+    item.setImage(arr, autoLevels=False, levels=levels)
+    item.setRect(QRectF(*rect_xywh))
+    item.setZValue(z)
+    return item
+
+
+class ImageView(QWidget):
+    """A view of one :class:`RasterSource` (band 1, grey).
+
+    The widget holds a ``pg.GraphicsView`` (``self.graphics``) whose central item is a
+    ``pg.ViewBox`` (``self.vb``) in image coordinates: overlays (markers, vectors) are added to
+    ``self.vb`` in image pixels. Left-drag pans, the wheel zooms.
+
+    Signals
+    -------
+    cursor_moved(x, y)
+        Image coordinates (pixels, continuous) under the mouse.
+    clicked(x, y, modifiers)
+        Left click (not a drag) at image coordinates; ``modifiers`` is a Qt.KeyboardModifier.
+    view_changed()
+        The visible rectangle changed (pan, zoom, resize).
+    levels_changed(lo, hi)
+        The display levels changed (data units).
+    tiles_settled()
+        Every tile wanted for the current view is displayed.
+    """
+
+    cursor_moved = Signal(float, float)
+    clicked = Signal(float, float, object)
+    view_changed = Signal()
+    levels_changed = Signal(float, float)
+    tiles_settled = Signal()
+
+    def __init__(self, parent=None, threads: int = 2):
+        super().__init__(parent)
+        self.graphics = pg.GraphicsView(self, background="k")
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addWidget(self.graphics)
+        self.vb = pg.ViewBox(lockAspect=True, invertY=True, enableMenu=False, defaultPadding=0.0)
+        self.graphics.setCentralItem(self.vb)
+        self.source: RasterSource | None = None
+        self.loader: TileLoader | None = None
+        self._threads = threads
+        self._coarse_item: pg.ImageItem | None = None
+        self._tiles: dict = {}  # key -> ImageItem
+        self._wanted: list = []
+        self._level = 0
+        self._levels = (0.0, 255.0)
+        self._update_timer = QTimer(self)
+        self._update_timer.setSingleShot(True)
+        self._update_timer.setInterval(0)
+        self._update_timer.timeout.connect(self._update_tiles)
+        self.vb.sigRangeChanged.connect(self._on_range_changed)
+        self.graphics.scene().sigMouseMoved.connect(self._on_mouse_moved)
+        self.graphics.scene().sigMouseClicked.connect(self._on_mouse_clicked)
+
+    # ------------------------------------------------------------------ source
+    def set_source(self, source: RasterSource | None, levels=None) -> None:
+        """Show ``source`` whole (fit), with ``levels`` or the 0.5–99.5 percentile stretch.
+
+        Reads only the coarse overview here; tiles follow in worker threads.
+        """
+        self._clear()
+        self.source = source
+        if source is None:
+            return
+        self.loader = TileLoader(source, self._threads, self)
+        self.loader.tile_loaded.connect(self._on_tile_loaded)
+        arr, _ = source.coarse()
+        if levels is None:
+            st = source.statistics((0.5, 99.5))
+            levels = (st.percentiles[0.5], st.percentiles[99.5])
+        self._levels = (float(levels[0]), float(levels[1]))
+        self._coarse_item = _image_item(arr, (0, 0, source.width, source.height),
+                                        self._levels, _COARSE_Z)
+        self.vb.addItem(self._coarse_item)
+        w, h = source.width, source.height
+        self.vb.setLimits(xMin=-w, xMax=2 * w, yMin=-h, yMax=2 * h,
+                          minXRange=4, minYRange=4)
+        self.fit()
+        self.levels_changed.emit(*self._levels)
+
+    def _clear(self) -> None:
+        if self.loader is not None:
+            self.loader.tile_loaded.disconnect(self._on_tile_loaded)
+            self.loader.shutdown()
+            self.loader.deleteLater()
+            self.loader = None
+        for item in self._tiles.values():
+            self.vb.removeItem(item)
+        self._tiles.clear()
+        if self._coarse_item is not None:
+            self.vb.removeItem(self._coarse_item)
+            self._coarse_item = None
+        self._wanted = []
+
+    def closeEvent(self, ev):
+        if self.loader is not None:
+            self.loader.shutdown()
+        super().closeEvent(ev)
+
+    # ------------------------------------------------------------------ geometry
+    def scale(self) -> float:
+        """Image pixels per screen pixel (>1 zoomed out, <1 zoomed in)."""
+        w = self.vb.width()
+        return float(self.vb.viewRect().width() / w) if w > 0 else 1.0
+
+    def visible_rect(self) -> tuple[float, float, float, float]:
+        """Visible area ``(x, y, w, h)`` in image pixels (may extend beyond the image)."""
+        r = self.vb.viewRect()
+        return float(r.x()), float(r.y()), float(r.width()), float(r.height())
+
+    def center(self) -> tuple[float, float]:
+        """Image coordinates at the centre of the view."""
+        x, y, w, h = self.visible_rect()
+        return x + w / 2, y + h / 2
+
+    def center_on(self, x: float, y: float, scale: float | None = None) -> None:
+        """Centre the view on image point ``(x, y)``, optionally at ``scale`` (image px/screen px)."""
+        s = self.scale() if scale is None else float(scale)
+        hw, hh = self.vb.width() * s / 2, self.vb.height() * s / 2
+        self.vb.setRange(xRange=(x - hw, x + hw), yRange=(y - hh, y + hh), padding=0)
+
+    def set_scale(self, pixels_per_screen_pixel: float) -> None:
+        """Zoom about the view centre to ``pixels_per_screen_pixel`` image pixels per screen pixel."""
+        self.center_on(*self.center(), scale=pixels_per_screen_pixel)
+
+    def zoom(self, factor: float) -> None:
+        """Magnify by ``factor`` about the view centre (2 = twice as large on screen)."""
+        self.set_scale(self.scale() / float(factor))
+
+    def fit(self) -> None:
+        """Show the whole image."""
+        if self.source is not None:
+            self.vb.setRange(QRectF(0, 0, self.source.width, self.source.height), padding=0)
+
+    def map_from_viewport(self, pos: QPointF) -> tuple[float, float]:
+        """Image coordinates of a position in ``self.graphics.viewport()`` (pixels, float)."""
+        p = self.vb.mapSceneToView(self.graphics.mapToScene(0, 0) + QPointF(pos))
+        return float(p.x()), float(p.y())
+
+    def map_to_viewport(self, x: float, y: float) -> QPointF:
+        """Position in ``self.graphics.viewport()`` of image coordinates ``(x, y)``."""
+        return self.vb.mapViewToScene(QPointF(x, y)) - self.graphics.mapToScene(0, 0)
+
+    # ------------------------------------------------------------------ levels
+    def levels(self) -> tuple[float, float]:
+        return self._levels
+
+    def set_levels(self, lo: float, hi: float) -> None:
+        """Display levels in data units: ``lo`` shows black, ``hi`` white (overview and tiles)."""
+        lo, hi = float(lo), float(hi)
+        if hi <= lo:
+            hi = lo + 1e-6
+        if (lo, hi) == self._levels:
+            return
+        self._levels = (lo, hi)
+        for item in ([self._coarse_item] if self._coarse_item else []) + list(self._tiles.values()):
+            item.setLevels(self._levels)
+        self.levels_changed.emit(lo, hi)
+
+    # ------------------------------------------------------------------ tiles
+    def current_level(self) -> int:
+        """Decimation level of the tiles wanted for the current view (0: the overview suffices)."""
+        return self._level
+
+    def displayed_tiles(self) -> list:
+        """Keys ``(level, col, row)`` of the tiles shown."""
+        return list(self._tiles)
+
+    def tiles_complete(self) -> bool:
+        """True when every wanted tile of the current view is displayed."""
+        return all(k in self._tiles for k in self._wanted)
+
+    def _on_range_changed(self, *args) -> None:
+        self._update_timer.start()
+        self.view_changed.emit()
+
+    def resizeEvent(self, ev):
+        super().resizeEvent(ev)
+        self._update_timer.start()
+
+    def _update_tiles(self) -> None:
+        src = self.source
+        if src is None or self.loader is None or self.vb.width() <= 0:
+            return
+        level = src.level_for(self.scale())
+        _, coarse_f = src.coarse()
+        if level >= coarse_f:  # the overview is as fine as the screen: no tiles
+            self._level, self._wanted = 0, []
+            self._drop_tiles(lambda k: True)
+            self.loader.request([])
+            self.tiles_settled.emit()
+            return
+        self._level = level
+        x, y, w, h = self.visible_rect()
+        self._wanted = tiles_for_rect(src, level, (x, y, w, h))
+        wanted = set(self._wanted)
+        missing = []
+        for key in self._wanted:
+            if key in self._tiles:
+                continue
+            arr = src.cached_tile(*key)
+            if arr is not None:
+                self._show_tile(key, arr)
+            else:
+                missing.append(key)
+        # tiles of this level off screen go; other levels stay as a backdrop until complete
+        self._drop_tiles(lambda k: k[0] == level and k not in wanted)
+        self._drop_tiles(lambda k: k[0] != level and not self._intersects(k))
+        if not missing:
+            self._drop_tiles(lambda k: k[0] != level)
+            self.tiles_settled.emit()
+        self.loader.request(missing)
+
+    def _intersects(self, key) -> bool:
+        x, y, w, h = self.source.tile_rect(*key)
+        vx, vy, vw, vh = self.visible_rect()
+        return x < vx + vw and vx < x + w and y < vy + vh and vy < y + h
+
+    def _drop_tiles(self, predicate) -> None:
+        for key in [k for k in self._tiles if predicate(k)]:
+            self.vb.removeItem(self._tiles.pop(key))
+
+    def _show_tile(self, key, arr) -> None:
+        level = key[0]
+        item = _image_item(arr, self.source.tile_rect(*key), self._levels, -np.log2(level))
+        self.vb.addItem(item)
+        self._tiles[key] = item
+
+    def _on_tile_loaded(self, source, key, arr) -> None:
+        if source is not self.source or key in self._tiles or key not in self._wanted:
+            return
+        self._show_tile(key, arr)
+        if self.tiles_complete():
+            self._drop_tiles(lambda k: k[0] != self._level)
+            self.tiles_settled.emit()
+
+    # ------------------------------------------------------------------ mouse
+    def _on_mouse_moved(self, scene_pos) -> None:
+        if self.source is None:
+            return
+        p = self.vb.mapSceneToView(scene_pos)
+        self.cursor_moved.emit(float(p.x()), float(p.y()))
+
+    def _on_mouse_clicked(self, ev) -> None:
+        if self.source is None or ev.button() != Qt.MouseButton.LeftButton:
+            return
+        p = self.vb.mapSceneToView(ev.scenePos())
+        self.clicked.emit(float(p.x()), float(p.y()), ev.modifiers())
