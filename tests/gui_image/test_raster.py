@@ -1,0 +1,116 @@
+"""RasterSource: windows, decimated reads, tiles, cache, statistics, overviews, errors (no Qt)."""
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+import rasterio
+from rasterio.windows import Window
+
+from prismstation.errors import RasterReadError
+from prismstation.io.raster import TILE_SIZE, RasterSource
+
+from .conftest import H, W, pattern
+
+
+def test_metadata(pattern_tif, pattern_tif16):
+    src = RasterSource(pattern_tif)
+    assert (src.width, src.height) == (W, H)
+    assert src.dtype == np.uint8
+    assert src.levels == (1, 2, 4, 8)
+    assert RasterSource(pattern_tif16).dtype == np.uint16
+
+
+def test_full_resolution_window_matches_pattern(pattern_tif16):
+    src = RasterSource(pattern_tif16)
+    arr = src.read((1234, 567, 40, 30))
+    yy, xx = np.mgrid[567:597, 1234:1274]
+    np.testing.assert_array_equal(arr, pattern(xx, yy, np.uint16))
+
+
+def test_decimated_read_uses_the_overview(pattern_tif):
+    src = RasterSource(pattern_tif)
+    arr = src.read((0, 0, 1024, 1024), (256, 256))
+    with rasterio.open(pattern_tif, overview_level=1) as ov:  # factor 4
+        ref = ov.read(1, window=Window(0, 0, 256, 256))
+    np.testing.assert_array_equal(arr, ref)
+
+
+def test_tiles_are_cached_and_bounded(pattern_tif):
+    src = RasterSource(pattern_tif, cache_mb=0.6)
+    t = src.read_tile(1, 2, 1)
+    x, y, w, h = src.tile_rect(1, 2, 1)
+    assert (x, y, w, h) == (2 * TILE_SIZE, TILE_SIZE, TILE_SIZE, TILE_SIZE)
+    yy, xx = np.mgrid[y:y + h, x:x + w]
+    np.testing.assert_array_equal(t, pattern(xx, yy))
+    assert src.cached_tile(1, 2, 1) is t
+    # edge tile is clipped to the image
+    last = src.read_tile(2, 2, 1)
+    assert last.shape == (np.ceil((H - 1024) / 2), np.ceil((W - 2048) / 2))
+    for c in range(4):
+        src.read_tile(1, c, 0)
+    assert src.cache.nbytes <= 0.6 * 1024 * 1024
+    assert src.cached_tile(1, 2, 1) is None  # least recently used went first
+
+
+def test_read_pixels_outside_is_filled(pattern_tif):
+    src = RasterSource(pattern_tif)
+    arr = src.read_pixels(-3, -2, 8, 6, fill=0)
+    yy, xx = np.mgrid[0:4, 0:5]
+    np.testing.assert_array_equal(arr[2:, 3:], pattern(xx, yy))
+    assert not arr[:2].any() and not arr[:, :3].any()
+
+
+def test_threads_get_their_own_handles(pattern_tif):
+    src = RasterSource(pattern_tif, cache_mb=0)
+    errors = []
+
+    def work(i):
+        try:
+            for k in range(5):
+                a = src.read((i * 100 + k, 50, 64, 64))
+                yy, xx = np.mgrid[50:114, i * 100 + k:i * 100 + k + 64]
+                assert np.array_equal(a, pattern(xx, yy))
+        except Exception as exc:  # noqa: BLE001
+            errors.append(exc)
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(4)]
+    [t.start() for t in threads]
+    [t.join() for t in threads]
+    assert not errors
+    assert len({id(d) for d in src._handles}) == len(src._handles) >= 4
+
+
+def test_statistics_from_coarse_read(pattern_tif):
+    src = RasterSource(pattern_tif)
+    st = src.statistics((0.5, 50, 99.5))
+    arr, f = src.coarse()
+    assert f == 4 and arr.shape == (500, 750)
+    # the pattern is close to uniform on 0..250
+    assert st.minimum == 0 and st.maximum == 250
+    assert abs(st.percentiles[50.0] - 125) < 5
+    assert st.histogram.sum() == arr.size
+
+
+def test_missing_and_unreadable_files(tmp_path):
+    with pytest.raises(RasterReadError, match="nope.tif"):
+        RasterSource(tmp_path / "nope.tif")
+    bad = tmp_path / "bad.tif"
+    bad.write_bytes(b"not a tiff at all")
+    with pytest.raises(RasterReadError, match="bad.tif"):
+        RasterSource(bad)
+
+
+def test_build_overviews_external_with_progress_and_cancel(plain_tif):
+    src = RasterSource(plain_tif)
+    assert src.levels == (1,)
+    seen = []
+    assert src.build_overviews(lambda f: seen.append(f) or len(seen) < 2) is False
+    assert not (plain_tif.parent / "plain.tif.ovr").exists()
+    seen.clear()
+    assert src.build_overviews(lambda f: seen.append(f) or True) is True
+    assert seen[0] == 0 and seen[-1] == 1.0 and seen == sorted(seen)
+    assert (plain_tif.parent / "plain.tif.ovr").exists()
+    assert src.levels == (1, 2, 4, 8)
+    assert RasterSource(plain_tif).levels == (1, 2, 4, 8)
