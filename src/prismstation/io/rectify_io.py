@@ -1,0 +1,276 @@
+"""Reading control points for a single image, and writing a rectified GeoTIFF (MODEL.md §4).
+
+Image coordinates ``(x, y)``: column, row in pixels, origin at the top-left corner of the
+top-left pixel. Map coordinates ``(E, N)`` in metres of the points' CRS.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from prismstation.errors import InputError, ModelError, PrismError, RasterReadError
+
+
+class RectifyCancelled(PrismError):
+    """The rectification was cancelled through its progress callback."""
+
+
+@dataclass(frozen=True, eq=False)
+class PointPairs:
+    """Points with both image and ground coordinates, in file order.
+
+    ``xy`` (n, 2) pixels; ``en`` (n, 2) metres; ``h`` (n,) heights as given (NaN if absent);
+    ``is_check`` (n,) True for ICPs; ``view`` the view the measurements came from.
+    """
+
+    ids: tuple
+    xy: np.ndarray
+    en: np.ndarray
+    h: np.ndarray
+    is_check: np.ndarray
+    view: str | None = None
+
+
+def _float(row: dict, key: str, path, line: int, required: bool = True) -> float:
+    text = (row.get(key) or "").strip()
+    if not text:
+        if required:
+            raise InputError(f"column {key!r} is empty", file=path, line=line)
+        return float("nan")
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputError(f"column {key!r}: {text!r} is not a number", file=path, line=line) from None
+    if not math.isfinite(value):
+        raise InputError(f"column {key!r}: {text!r} is not a finite number", file=path, line=line)
+    return value
+
+
+def _rows(path, required: tuple[str, ...]):
+    """Yield (line number, row dict) of a CSV with a header; check the required columns."""
+    path = Path(path)
+    try:
+        fh = open(path, newline="", encoding="utf-8-sig")
+    except OSError as exc:
+        raise InputError(f"cannot open: {exc.strerror}", file=path) from None
+    with fh:
+        reader = csv.DictReader(fh)
+        try:
+            header = [h.strip() for h in (reader.fieldnames or [])]
+        except (csv.Error, UnicodeDecodeError) as exc:
+            raise InputError(f"not a readable CSV file ({exc})", file=path, line=1) from None
+        reader.fieldnames = header
+        missing = [c for c in required if c not in header]
+        if missing:
+            raise InputError(f"header lacks column(s) {', '.join(missing)} "
+                             f"(has {', '.join(header) or 'none'})", file=path, line=1)
+        try:
+            for row in reader:
+                if not any((v or "").strip() for v in row.values() if isinstance(v, str)):
+                    continue
+                if None in row:
+                    raise InputError("more fields than the header", file=path, line=reader.line_num)
+                yield reader.line_num, row
+        except (csv.Error, UnicodeDecodeError) as exc:
+            raise InputError(f"unreadable CSV ({exc})", file=path, line=reader.line_num) from None
+
+
+def read_point_pairs(points_csv, measurements_csv=None, view: str | None = None) -> PointPairs:
+    """Join ground points (``id,E,N[,H][,kind]``) with one view's measurements (``id,view,x,y``).
+
+    Without ``measurements_csv`` the points file itself must carry ``x`` and ``y`` columns.
+    ``view`` picks the view in the measurements (required when there is more than one).
+    Points measured but without ground coordinates (tie points) and ground points not measured
+    are left out. Raises :class:`InputError` naming file, line and problem.
+    """
+    need = ("id", "E", "N") if measurements_csv else ("id", "E", "N", "x", "y")
+    ground: dict[str, tuple] = {}
+    for line, row in _rows(points_csv, need):
+        pid = row["id"].strip()
+        if not pid:
+            raise InputError("empty id", file=points_csv, line=line)
+        if pid in ground:
+            raise InputError(f"duplicate point id {pid!r}", file=points_csv, line=line)
+        kind = (row.get("kind") or "GCP").strip().upper() or "GCP"
+        if kind not in ("GCP", "ICP"):
+            raise InputError(f"kind {kind!r} is neither GCP nor ICP", file=points_csv, line=line)
+        e, n = _float(row, "E", points_csv, line), _float(row, "N", points_csv, line)
+        h = _float(row, "H", points_csv, line, required=False)
+        xy = None
+        if not measurements_csv:
+            xy = (_float(row, "x", points_csv, line), _float(row, "y", points_csv, line))
+        ground[pid] = (e, n, h, kind == "ICP", xy)
+    meas: dict[str, tuple] = {}
+    if measurements_csv:
+        by_view: dict[str, dict] = {}
+        for line, row in _rows(measurements_csv, ("id", "view", "x", "y")):
+            pid, v = row["id"].strip(), row["view"].strip()
+            xy = (_float(row, "x", measurements_csv, line), _float(row, "y", measurements_csv, line))
+            if pid in by_view.setdefault(v, {}):
+                raise InputError(f"point {pid!r} measured twice in view {v!r}",
+                                 file=measurements_csv, line=line)
+            by_view[v][pid] = xy
+        if view is None:
+            if len(by_view) > 1:
+                raise InputError(f"measurements of several views ({', '.join(sorted(by_view))}); "
+                                 f"choose one with --view", file=measurements_csv)
+            view = next(iter(by_view), None)
+        if view not in by_view:
+            raise InputError(f"no measurements in view {view!r}", file=measurements_csv)
+        meas = by_view[view]
+    ids, xy, en, h, chk = [], [], [], [], []
+    for pid, (e, n, hh, is_icp, own_xy) in ground.items():
+        m = own_xy if not measurements_csv else meas.get(pid)
+        if m is None:
+            continue
+        ids.append(pid)
+        xy.append(m)
+        en.append((e, n))
+        h.append(hh)
+        chk.append(is_icp)
+    if not ids:
+        raise InputError("no point has both ground and image coordinates",
+                         file=measurements_csv or points_csv)
+    return PointPairs(tuple(ids), np.array(xy, float), np.array(en, float), np.array(h, float),
+                      np.array(chk, bool), view)
+
+
+@dataclass(frozen=True)
+class RectifyResult:
+    """What :func:`rectify_raster` wrote: path, CRS, size and grid (affine, GDAL order)."""
+
+    path: str
+    crs: str
+    width: int
+    height: int
+    resolution: float
+    geotransform: tuple
+
+
+def _sample(src, x: np.ndarray, y: np.ndarray, nodata: float, resampling: str) -> np.ndarray:
+    """Sample all bands of open dataset ``src`` at image points (x, y) (pixels, corner origin)."""
+    import cv2
+    import rasterio.windows
+
+    count = src.count
+    out = np.full((count,) + x.shape, nodata, dtype=np.float32)
+    inside = np.isfinite(x) & np.isfinite(y) & (x >= 0) & (y >= 0) & (x <= src.width) & (y <= src.height)
+    if not inside.any():
+        return out
+    c0 = int(max(0, math.floor(x[inside].min()) - 2))
+    r0 = int(max(0, math.floor(y[inside].min()) - 2))
+    c1 = int(min(src.width, math.ceil(x[inside].max()) + 2))
+    r1 = int(min(src.height, math.ceil(y[inside].max()) + 2))
+    win = rasterio.windows.Window(c0, r0, c1 - c0, r1 - r0)
+    try:
+        data = src.read(window=win).astype(np.float32)
+    except Exception as exc:  # rasterio raises its own errors for broken files
+        raise RasterReadError(f"{src.name}: cannot read pixels ({exc})") from None
+    mx = np.where(inside, x - 0.5 - c0, -1e6).astype(np.float32)
+    my = np.where(inside, y - 0.5 - r0, -1e6).astype(np.float32)
+    interp = cv2.INTER_NEAREST if resampling == "nearest" else cv2.INTER_LINEAR
+    for b in range(count):
+        s = cv2.remap(data[b], mx, my, interp, borderMode=cv2.BORDER_REPLICATE)
+        out[b] = np.where(inside, s, nodata)
+    return out
+
+
+def rectify_raster(image, transform, out_path, *, points_crs, out_crs=None,
+                   resolution: float | None = None, block: int = 512,
+                   progress: Callable[[float], bool] | None = None,
+                   resampling: str = "bilinear") -> RectifyResult:
+    """Warp ``image`` through a fitted image→map ``transform`` into a GeoTIFF (inverse mapping).
+
+    Parameters
+    ----------
+    image : path of any raster rasterio opens (its own georeferencing is ignored).
+    transform : a :class:`prismstation.core.rectify.FittedTransform` (pixels → ``points_crs``).
+    points_crs : CRS of the ground points the transform was fitted to.
+    out_crs : output CRS (default ``points_crs``); pyproj converts between the two.
+    resolution : output cell size in ``out_crs`` units (default: the image's own, mapped).
+    block : output block size in pixels; ``progress(fraction)`` is called after each block
+        and the work stops with :class:`RectifyCancelled` (the partial file removed) when it
+        returns ``False``.
+    resampling : ``"bilinear"`` or ``"nearest"``.
+    """
+    import rasterio
+    from pyproj import CRS, Transformer
+    from pyproj.exceptions import CRSError
+    from rasterio.transform import Affine
+
+    try:
+        pcrs = CRS.from_user_input(points_crs)
+        ocrs = pcrs if out_crs is None else CRS.from_user_input(out_crs)
+    except CRSError as exc:
+        raise InputError(f"unknown CRS ({exc})") from None
+    to_out = Transformer.from_crs(pcrs, ocrs, always_xy=True)
+    to_pts = Transformer.from_crs(ocrs, pcrs, always_xy=True)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            src = rasterio.open(image)
+    except rasterio.errors.RasterioIOError as exc:
+        raise RasterReadError(f"{image}: cannot open raster ({exc})") from None
+    out_path = str(out_path)
+    with src:
+        W, H = src.width, src.height
+        t = np.linspace(0, 1, 65)
+        border = np.concatenate([np.column_stack([t * W, 0 * t]), np.column_stack([t * W, H + 0 * t]),
+                                 np.column_stack([0 * t, t * H]), np.column_stack([W + 0 * t, t * H])])
+        e, n = to_out.transform(*transform(border).T)
+        if not (np.all(np.isfinite(e)) and np.all(np.isfinite(n))):
+            raise ModelError("the transform maps part of the image outside the output CRS")
+        if resolution is None:
+            c = np.array([[W / 2, H / 2], [W / 2 + 1, H / 2], [W / 2, H / 2 + 1]])
+            ce, cn = to_out.transform(*transform(c).T)
+            dx = math.hypot(ce[1] - ce[0], cn[1] - cn[0])
+            dy = math.hypot(ce[2] - ce[0], cn[2] - cn[0])
+            resolution = math.sqrt(dx * dy)
+        if not (resolution > 0 and math.isfinite(resolution)):
+            raise InputError(f"resolution must be a positive number, got {resolution}")
+        r = float(resolution)
+        left, top = math.floor(e.min() / r) * r, math.ceil(n.max() / r) * r
+        width = int(math.ceil((e.max() - left) / r))
+        height = int(math.ceil((top - n.min()) / r))
+        if width * height > 2_000_000_000 or width < 1 or height < 1:
+            raise InputError(f"output of {width} × {height} cells at resolution {r}: "
+                             f"check --resolution and the CRS units")
+        geo = Affine(r, 0.0, left, 0.0, -r, top)
+        nodata = src.nodata if src.nodata is not None else 0
+        dtype = src.dtypes[0]
+        profile = dict(driver="GTiff", width=width, height=height, count=src.count, dtype=dtype,
+                       crs=ocrs.to_wkt(), transform=geo, nodata=nodata, tiled=True,
+                       blockxsize=512, blockysize=512, compress="deflate",
+                       BIGTIFF="IF_SAFER")
+        bs = int(block)
+        windows = [(r0, c0) for r0 in range(0, height, bs) for c0 in range(0, width, bs)]
+        cancelled = False
+        with rasterio.open(out_path, "w", **profile) as dst:
+            for k, (r0, c0) in enumerate(windows):
+                h, w = min(bs, height - r0), min(bs, width - c0)
+                cols, rows = np.meshgrid(np.arange(c0, c0 + w) + 0.5, np.arange(r0, r0 + h) + 0.5)
+                oe, on = left + cols * r, top - rows * r
+                pe, pn = to_pts.transform(oe.ravel(), on.ravel())
+                xy = transform.inverse(np.column_stack([pe, pn]))
+                vals = _sample(src, xy[:, 0].reshape(h, w), xy[:, 1].reshape(h, w), nodata, resampling)
+                if np.issubdtype(np.dtype(dtype), np.integer):
+                    info = np.iinfo(dtype)
+                    vals = np.clip(np.rint(vals), info.min, info.max)
+                dst.write(vals.astype(dtype), window=rasterio.windows.Window(c0, r0, w, h))
+                if progress is not None and progress((k + 1) / len(windows)) is False:
+                    cancelled = True
+                    break
+        if cancelled:
+            try:
+                os.remove(out_path)
+            except OSError:
+                pass
+            raise RectifyCancelled("rectification cancelled")
+    return RectifyResult(out_path, ocrs.to_string(), width, height, r, geo.to_gdal())
