@@ -1,0 +1,118 @@
+"""Geoid undulation ``Ngeoid`` (metres) so that ``h = H + Ngeoid`` (MODEL.md §1).
+
+A constant, or a geoid grid (EGM96 ``egm96_15.gtx`` or any grid GDAL reads) sampled
+bilinearly at the points' geographic position (converted from the project CRS by pyproj).
+Never a silent no-op: a missing grid is an error, not zero.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pyproj
+import rasterio
+from scipy.ndimage import map_coordinates
+
+from prismstation.errors import InputError
+
+GRID_NAMES = ("egm96_15.gtx", "us_nga_egm96_15.tif", "egm08_25.gtx", "us_nga_egm08_25.tif")
+
+
+def search_paths() -> list[Path]:
+    """Where geoid grids are looked for: PROJ's data directories, its user directory, Debian's."""
+    paths = [Path(p) for p in pyproj.datadir.get_data_dir().split(os.pathsep) if p]
+    try:
+        paths.append(Path(pyproj.datadir.get_user_data_dir()))
+    except Exception:  # pragma: no cover - depends on the PROJ build
+        pass
+    paths.append(Path("/usr/share/proj"))
+    paths.append(Path("/usr/local/share/proj"))
+    return paths
+
+
+def find_grid(names=GRID_NAMES) -> Path | None:
+    """The first geoid grid found on :func:`search_paths`, or None."""
+    for d in search_paths():
+        for n in names:
+            if (d / n).is_file():
+                return d / n
+    return None
+
+
+@dataclass(frozen=True)
+class ConstantGeoid:
+    value: float
+
+    def undulation(self, E, N, crs=None) -> np.ndarray:
+        return np.full(np.shape(E), float(self.value))
+
+    def describe(self) -> str:
+        return f"constant {self.value:g} m"
+
+    def to_dict(self) -> dict:
+        return {"kind": "constant", "value": self.value}
+
+
+class GridGeoid:
+    """A geoid grid read once into memory (EGM96 15′ is 4 MB)."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+        try:
+            with rasterio.open(self.path) as ds:
+                if ds.crs is not None and not ds.crs.is_geographic:
+                    raise InputError("a geoid grid must be in geographic coordinates", self.path)
+                grid = ds.read(1, masked=True).astype(float).filled(np.nan)
+                t = ds.transform
+        except rasterio.errors.RasterioError as exc:
+            raise InputError(f"cannot read the geoid grid: {exc}", self.path) from None
+        if t.b or t.d:
+            raise InputError("a rotated geoid grid is not supported", self.path)
+        self._grid = grid
+        self._x0, self._dx, self._y0, self._dy = t.c, t.a, t.f, t.e
+        self._wraps = abs(grid.shape[1] * t.a - 360.0) < 1e-6
+        self._transformers: dict = {}
+
+    def undulation(self, E, N, crs) -> np.ndarray:
+        """Undulation at map points ``E``, ``N`` (any shape) of ``crs``; NaN outside the grid."""
+        key = str(crs)
+        if key not in self._transformers:
+            self._transformers[key] = pyproj.Transformer.from_crs(crs, "EPSG:4326", always_xy=True)
+        lon, lat = self._transformers[key].transform(np.asarray(E, float), np.asarray(N, float))
+        col = (np.asarray(lon) - self._x0) / self._dx - 0.5
+        row = (np.asarray(lat) - self._y0) / self._dy - 0.5
+        grid = self._grid
+        if self._wraps:
+            col = np.mod(col, grid.shape[1])
+            grid = np.concatenate([grid, grid[:, :1]], axis=1)
+        return map_coordinates(grid, [np.ravel(row), np.ravel(col)], order=1, mode="constant",
+                               cval=np.nan).reshape(np.shape(lon))
+
+    def describe(self) -> str:
+        return f"grid {self.path.name}"
+
+    def to_dict(self) -> dict:
+        return {"kind": "grid", "path": str(self.path)}
+
+
+def geoid_from_setting(setting: dict | None, base_dir=None, default: float = 0.0):
+    """Geoid from a project's setting ``{"kind": "constant", "value": 55}`` or
+    ``{"kind": "grid", "path": "..."}`` (relative to ``base_dir``) or ``{"kind": "auto"}``
+    (the first grid on PROJ's paths, else the constant ``default``)."""
+    setting = setting or {"kind": "constant", "value": default}
+    kind = setting.get("kind")
+    if kind == "constant":
+        return ConstantGeoid(float(setting.get("value", default)))
+    if kind == "grid":
+        p = Path(setting["path"])
+        if not p.is_absolute() and base_dir is not None:
+            p = Path(base_dir) / p
+        if not p.is_file():
+            raise InputError(f"geoid grid not found: {p}", setting.get("path"))
+        return GridGeoid(p)
+    if kind == "auto":
+        g = find_grid()
+        return GridGeoid(g) if g else ConstantGeoid(float(setting.get("value", default)))
+    raise InputError(f"unknown geoid setting {setting!r}")

@@ -1,0 +1,64 @@
+"""JSON files with errors that name the file and the line, and atomic writes."""
+from __future__ import annotations
+
+import json
+import os
+import re
+import tempfile
+from pathlib import Path
+
+from prismstation.errors import InputError
+
+
+def read_json(path) -> tuple[dict, str]:
+    """Parse a JSON object; returns ``(data, text)``. Bad JSON → InputError with its line."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError("file not found", path) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read: {exc}", path) from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"not valid JSON: {exc.msg}", path, exc.lineno) from None
+    if not isinstance(data, dict):
+        raise InputError("expected a JSON object at the top level", path, 1)
+    return data, text
+
+
+def line_of(text: str, key: str) -> int | None:
+    """1-based line of the first ``"key":`` in ``text`` (best effort, for messages)."""
+    m = re.search(r'"%s"\s*:' % re.escape(key), text)
+    return None if m is None else text.count("\n", 0, m.start()) + 1
+
+
+def write_atomic(path, text: str, keep_backup: bool = True) -> None:
+    """Write ``text`` to ``path`` atomically: temporary file, flush, fsync, rename.
+
+    With ``keep_backup`` the previous version is kept as ``path + '.bak'``.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        if keep_backup and path.exists():
+            os.replace(path, path.with_name(path.name + ".bak"))
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    try:  # make the rename durable
+        dfd = os.open(path.parent, os.O_RDONLY)
+        try:
+            os.fsync(dfd)
+        finally:
+            os.close(dfd)
+    except OSError:
+        pass

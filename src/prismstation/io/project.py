@@ -1,0 +1,177 @@
+"""``*.prismproj`` files (FORMATS.md): versioned JSON, saved atomically with a backup.
+
+Also :func:`solve_project`, which turns the project's heights ellipsoidal through its geoid
+setting and fits the model.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import asdict
+from functools import lru_cache
+from pathlib import Path
+
+from prismstation import __version__
+from prismstation.core.solve import Settings, Solution, solve
+from prismstation.errors import InputError
+from prismstation.io import geoid as geoid_mod
+from prismstation.io.jsonfile import line_of, read_json, write_atomic
+from prismstation.io.points import to_ellipsoidal
+from prismstation.io.scene import read_scene
+from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint, Measurement
+from prismstation.model.project import Project, has_ground
+
+FORMAT_NAME = "prismstation-project"
+VERSION = 1
+SUFFIX = ".prismproj"
+
+
+def _num(v):
+    return None if v is None or (isinstance(v, float) and not math.isfinite(v)) else v
+
+
+def project_to_dict(project: Project, path) -> dict:
+    """The JSON document of ``project`` saved at ``path`` (scene path made relative to it)."""
+    base = Path(path).resolve().parent
+    scene = project.scene_path
+    if scene is not None:
+        scene = os.path.relpath(Path(scene).resolve(), base)
+    geoid = dict(project.geoid)
+    if geoid.get("kind") == "grid" and geoid.get("path"):
+        g = Path(geoid["path"])
+        geoid["path"] = str(g) if not g.is_absolute() else g.as_posix()
+    return {
+        "format": f"{FORMAT_NAME}/{VERSION}",
+        "saved_by": f"prismstation {__version__}",
+        "scene": scene,
+        "settings": asdict(project.settings),
+        "geoid": geoid,
+        "points": [
+            {"id": p.id, "kind": p.kind, "E": _num(p.E), "N": _num(p.N), "H": _num(p.H),
+             "height": p.height_kind, "sigma_xy_m": p.sigma_xy_m, "sigma_h_m": p.sigma_h_m,
+             **({"extra": p.extra} if p.extra else {})}
+            for p in project.points.values()],
+        "measurements": [
+            {"id": m.id, "view": m.view, "x": m.x, "y": m.y,
+             **({"sigma_px": m.sigma_px} if m.sigma_px is not None else {})}
+            for m in project.measurements.values()],
+        **project.extra,
+    }
+
+
+def save_project(project: Project, path) -> None:
+    """Save atomically (temporary file, fsync, rename), keeping the previous version as ``.bak``."""
+    text = json.dumps(project_to_dict(project, path), indent=1, ensure_ascii=False) + "\n"
+    write_atomic(path, text)
+
+
+def load_project(path, *, scene_override=None) -> Project:
+    """Read a project; refuses a newer format version without touching the file.
+
+    ``scene_override``: path of the scene to use instead of the recorded one (relocated files).
+    """
+    path = Path(path)
+    data, text = read_json(path)
+    fmt = data.get("format")
+    if not isinstance(fmt, str) or not fmt.startswith(FORMAT_NAME + "/"):
+        raise InputError(f'not a prismstation project ("format" is {fmt!r})', path, line_of(text, "format"))
+    try:
+        version = int(fmt.split("/", 1)[1])
+    except ValueError:
+        raise InputError(f"unreadable format version in {fmt!r}", path, line_of(text, "format")) from None
+    if version > VERSION:
+        raise InputError(f"this project was written by a newer prismstation (format {fmt}); this "
+                         f"program reads up to {FORMAT_NAME}/{VERSION}. The file was not changed.",
+                         path, line_of(text, "format"))
+    scene_rel = scene_override or data.get("scene")
+    if not isinstance(scene_rel, str):
+        raise InputError('"scene": expected the path of the scene.json', path, line_of(text, "scene"))
+    scene_path = (path.parent / scene_rel).resolve() if scene_override is None else Path(scene_override).resolve()
+    if not scene_path.is_file():
+        raise InputError(f"scene file not found: {scene_path} (moved? open it with the scene relocated)",
+                         path, line_of(text, "scene"))
+    scene = read_scene(scene_path)
+    try:
+        settings = Settings(**data.get("settings", {}))
+    except TypeError as exc:
+        raise InputError(f'"settings": {exc}', path, line_of(text, "settings")) from None
+    project = Project(scene, str(scene_path), settings=settings, geoid=data.get("geoid"))
+    points, measurements = [], []
+    for i, d in enumerate(_list(data, "points", path, text)):
+        where = f'"points"[{i}]'
+        try:
+            kind = d.get("kind", "GCP")
+            hk = d.get("height", "ellipsoidal")
+            if kind not in KINDS or hk not in HEIGHT_KINDS or not isinstance(d["id"], str):
+                raise ValueError("bad kind, height or id")
+            vals = [math.nan if d.get(k) is None else float(d[k]) for k in ("E", "N", "H")]
+            p = GroundPoint(d["id"], *vals, height_kind=hk, kind=kind,
+                            sigma_xy_m=d.get("sigma_xy_m"), sigma_h_m=d.get("sigma_h_m"),
+                            extra=d.get("extra", {}))
+            if kind != "TIE" and not has_ground(p):
+                raise ValueError("a GCP or ICP needs E, N and H")
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise InputError(f"{where}: malformed point ({exc})", path, _line_of_id(text, d)) from None
+        points.append(p)
+    for i, d in enumerate(_list(data, "measurements", path, text)):
+        try:
+            m = Measurement(str(d["id"]), str(d["view"]), float(d["x"]), float(d["y"]),
+                            None if d.get("sigma_px") is None else float(d["sigma_px"]))
+            if not (math.isfinite(m.x) and math.isfinite(m.y)):
+                raise ValueError("non-finite coordinates")
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise InputError(f'"measurements"[{i}]: malformed measurement ({exc})', path,
+                             _line_of_id(text, d)) from None
+        measurements.append(m)
+    try:
+        project.load(points, measurements)
+    except InputError as exc:
+        raise InputError(exc.problem, path) from None
+    known = {"format", "saved_by", "scene", "settings", "geoid", "points", "measurements"}
+    project.extra = {k: v for k, v in data.items() if k not in known}
+    project.revision = 0
+    return project
+
+
+def _list(data, key, path, text) -> list:
+    v = data.get(key, [])
+    if not isinstance(v, list):
+        raise InputError(f'"{key}": expected a list', path, line_of(text, key))
+    return v
+
+
+def _line_of_id(text, d):
+    if isinstance(d, dict) and isinstance(d.get("id"), str):
+        i = text.find(json.dumps(d["id"]))
+        return text.count("\n", 0, i) + 1 if i >= 0 else None
+    return None
+
+
+@lru_cache(maxsize=8)
+def _grid(path: str):
+    return geoid_mod.GridGeoid(path)
+
+
+def project_geoid(project: Project):
+    """The geoid object of the project's setting (grids read once and cached)."""
+    s = project.geoid or {}
+    base = Path(project.scene_path).parent if project.scene_path else None
+    if s.get("kind") == "grid":
+        p = Path(s.get("path", ""))
+        if not p.is_absolute() and base is not None:
+            p = base / p
+        if not p.is_file():
+            raise InputError(f"geoid grid not found: {p}")
+        return _grid(str(p))
+    return geoid_mod.geoid_from_setting(s, base)
+
+
+def solve_project(project: Project, *, height_of=None) -> Solution:
+    """Fit the model to the project (heights made ellipsoidal through its geoid)."""
+    ground = [p for p in project.points.values() if has_ground(p)]
+    geoid = project_geoid(project) if any(p.height_kind == "orthometric" for p in ground) else None
+    hs = to_ellipsoidal(ground, geoid, project.scene.crs) if ground else []
+    h = {p.id: float(v) for p, v in zip(ground, hs)}
+    return solve(project.scene, project.point_obs(h), project.settings,
+                 height_of=height_of, revision=project.revision)

@@ -1,0 +1,128 @@
+"""``scene.json`` (FORMATS.md) → :class:`prismstation.core.scene.Scene`.
+
+Each view's ``map_to_image`` comes from its ``map_to_image`` key when present, else from the
+inverse of the image's geotransform (rotated ones included), read through rasterio.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import rasterio
+from pyproj import CRS
+from pyproj.exceptions import CRSError
+
+from prismstation.core.affine import Affine2D
+from prismstation.core.scene import GroundTrack, Scene, View
+from prismstation.errors import InputError
+from prismstation.io.jsonfile import line_of, read_json
+
+FORMAT = "prismstation-scene/1"
+
+
+def read_scene(path) -> Scene:
+    """Read and validate a scene file; every malformed field gets an :class:`InputError`."""
+    path = Path(path)
+    data, text = read_json(path)
+    return scene_from_dict(data, path.parent, str(path), text)
+
+
+def scene_from_dict(data: dict, base_dir, source: str = "scene", text: str = "") -> Scene:
+    """Build a Scene from the scene.json dict; image paths are relative to ``base_dir``."""
+    base_dir = Path(base_dir)
+
+    def fail(problem, key=None):
+        raise InputError(problem, source, line_of(text, key) if key and text else None)
+
+    fmt = data.get("format")
+    if fmt != FORMAT:
+        if isinstance(fmt, str) and fmt.startswith("prismstation-scene/"):
+            fail(f"scene format {fmt!r} is newer than this program reads ({FORMAT}); upgrade prismstation", "format")
+        fail(f'"format" must be "{FORMAT}", found {fmt!r}', "format")
+    crs = data.get("crs")
+    try:
+        crs_obj = CRS.from_user_input(crs)
+    except (CRSError, TypeError):
+        fail(f'"crs": {crs!r} is not a coordinate reference system pyproj knows', "crs")
+    if crs_obj.is_geographic:
+        fail(f'"crs": {crs} is geographic; a 1B2 scene needs a projected CRS in metres (UTM)', "crs")
+    hs = _number(data.get("satellite_altitude_m"), "satellite_altitude_m", fail, positive=True)
+    track = data.get("ground_track")
+    try:
+        tr = np.asarray(track, dtype=float)
+        ok = tr.ndim == 2 and tr.shape[1] == 2 and len(tr) >= 2 and np.all(np.isfinite(tr))
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        fail('"ground_track": expected a list of two or more [E, N] points in flight order', "ground_track")
+    if np.any(np.hypot(*np.diff(tr, axis=0).T) == 0):
+        fail('"ground_track": two consecutive points coincide', "ground_track")
+    views_in = data.get("views")
+    if not isinstance(views_in, dict) or not views_in:
+        fail('"views": expected an object of views, e.g. {"N": {...}, "F": {...}, "B": {...}}', "views")
+    if any(v in views_in for v in "NFB") and not all(v in views_in for v in "NFB"):
+        missing = [v for v in "NFB" if v not in views_in]
+        fail(f'"views": a triplet needs N, F and B; missing {", ".join(missing)}', "views")
+    views = {name: _view(name, v, base_dir, fail) for name, v in views_in.items()}
+    geoid = data.get("geoid_undulation_m")
+    if geoid is not None:
+        geoid = _number(geoid, "geoid_undulation_m", fail)
+    known = {"format", "crs", "satellite_altitude_m", "ground_track", "views", "geoid_undulation_m"}
+    extra = {k: v for k, v in data.items() if k not in known}
+    return Scene(crs_obj.to_string(), hs, GroundTrack(tr), views, geoid, extra)
+
+
+def _number(value, key, fail, positive=False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        fail(f'"{key}": expected a number, found {value!r}', key.split(".")[-1])
+    if positive and value <= 0:
+        fail(f'"{key}": must be positive, found {value}', key.split(".")[-1])
+    return float(value)
+
+
+def _view(name: str, v, base_dir: Path, fail) -> View:
+    key = f"views.{name}"
+    if not isinstance(v, dict):
+        fail(f'"{key}": expected an object with "image" and "pixel_size_m"', name)
+    p = _number(v.get("pixel_size_m"), f"{key}.pixel_size_m", fail, positive=True)
+    ang = _number(v.get("along_track_angle_deg", 0.0), f"{key}.along_track_angle_deg", fail)
+    if not -60 < ang < 60:
+        fail(f'"{key}.along_track_angle_deg": {ang} is not a plausible viewing angle', "along_track_angle_deg")
+    if name in ("F", "B") and ang <= 0:
+        fail(f'"{key}.along_track_angle_deg": the {name} view needs a positive angle, found {ang}',
+             "along_track_angle_deg")
+    image = v.get("image")
+    if not isinstance(image, str) or not image:
+        fail(f'"{key}.image": expected the path of the image file', "image")
+    img_path = (base_dir / image).resolve()
+    m2i = v.get("map_to_image")
+    shape, gt_affine = None, None
+    if img_path.exists():
+        try:
+            with rasterio.open(img_path) as ds:
+                shape = (ds.height, ds.width)
+                t = ds.transform
+                if not t.is_identity:
+                    gt_affine = Affine2D([[t.a, t.b, t.c], [t.d, t.e, t.f]])
+        except rasterio.errors.RasterioError as exc:
+            fail(f'"{key}.image": {image} cannot be read as a raster ({exc})', "image")
+    if m2i is not None:
+        try:
+            c = np.asarray(m2i, dtype=float)
+            ok = c.shape == (6,) and np.all(np.isfinite(c))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            fail(f'"{key}.map_to_image": expected six numbers [A1, A2, A3, A4, A5, A6]', "map_to_image")
+        affine = Affine2D.from_coeffs(*c)
+    elif gt_affine is not None:
+        affine = gt_affine.inverse() if abs(np.linalg.det(gt_affine.linear)) > 0 else None
+    else:
+        affine = None
+    if affine is None:
+        why = "the image has no geotransform" if img_path.exists() else f"the image {image} is not found"
+        fail(f'"{key}": no "map_to_image" and {why}, so the view cannot be placed on the map', name)
+    if abs(np.linalg.det(affine.linear)) < 1e-18:
+        fail(f'"{key}.map_to_image": the affine is singular', "map_to_image")
+    return View(name, affine, p, ang, str(img_path), shape)

@@ -1,0 +1,57 @@
+"""Plain-text residual report laid out like the paper's Tables 1–3 (for the terminal)."""
+from __future__ import annotations
+
+
+def _f(v, nd=2):
+    return "—" if v is None else f"{v:+.{nd}f}" if isinstance(v, float) else str(v)
+
+
+def _table(title, cols, rows) -> list[str]:
+    w = max(len(r[0]) for r in rows) if rows else 8
+    out = [title, " " * (w + 2) + "".join(f"{c:>11}" for c in cols)]
+    out += [f"{r[0]:<{w + 2}}" + "".join(f"{x:>11}" for x in r[1:]) for r in rows]
+    return out + [""]
+
+
+def format_report(r: dict) -> str:
+    lines = [f"prismstation report — {r.get('project') or ''}  CRS {r['crs']}  geoid {r.get('geoid')}", ""]
+    b = r["model"]["bias"].get("N") or next(iter(r["model"]["bias"].values()))
+    lines.append(f"Bias compensation ({b['model']}), σ0 = {_f(b.get('sigma0'), 3)}  dof = {b.get('dof')}")
+    for name, p in b["parameters"].items():
+        lines.append(f"  {name:>3} = {p['value']:+.6g}  ± {p['std']:.2g}")
+    par = r["model"].get("parallax")
+    if par:
+        lines.append(f"Parallax line ({par['used']}): h = {par['c0']:+.2f} + {par['c1']:.4f}·py"
+                     f"   (theoretical c1 = {par['c1_theoretical']:.4f}; σ0 = {_f(par['sigma0_m'])} m)")
+    lines.append("")
+    st = r["statistics"]
+    ref = "N" if "N" in st["image"] else next(iter(st["image"]))
+    rows = []
+    for stat in ("n", "min", "max", "mean", "rms"):
+        row = [stat]
+        for kind in ("GCP", "ICP"):
+            m = st["image"][ref][kind]["m"]
+            for c in ("x", "y"):
+                v = m[c][stat]
+                row.append(str(v) if stat == "n" else _f(v))
+        rows.append(row)
+    rows.append(["planimetric RMS", "", _f(st["image"][ref]["GCP"]["m"]["planimetric_rms"]), "",
+                 _f(st["image"][ref]["ICP"]["m"]["planimetric_rms"])])
+    lines += _table(f"Image residuals, view {ref} (m)   [Table 1]", ["GCP Rx", "GCP Ry", "ICP Rx", "ICP Ry"], rows)
+    if "F-N" in st:
+        rows = [[s] + [_f(st[k][s]) if s != "n" else str(st[k][s]) for k in ("F-N", "B-N")]
+                for s in ("n", "min", "max", "mean", "std")]
+        lines += _table("Across-track differences to N (px)   [Table 2]", ["F−N", "B−N"], rows)
+        rows = [[s] + [_f(st["height"][k][s]) if s != "n" else str(st["height"][k][s]) for k in ("GCP", "ICP")]
+                for s in ("n", "min", "max", "mean", "rms")]
+        lines += _table("Height residuals (m)   [Table 3]", ["GCP Rh", "ICP Rh"], rows)
+    g = st["ground"]
+    rows = [[s] + [_f(g[k][c][s]) if s != "n" else str(g[k][c][s]) for k in ("GCP", "ICP") for c in ("x", "y")]
+            for s in ("n", "mean", "rms")]
+    rows.append(["planimetric RMS", "", _f(g["GCP"]["planimetric_rms"]), "", _f(g["ICP"]["planimetric_rms"])])
+    lines += _table("Ground residuals, estimated − known (m)", ["GCP dE", "GCP dN", "ICP dE", "ICP dN"], rows)
+    flagged = [p["id"] for p in r["points"] if p.get("blunder")]
+    if flagged:
+        lines.append("Possible blunder (largest standardised residual): " + ", ".join(flagged))
+    lines += [f"note: {m}" for m in r.get("messages", [])]
+    return "\n".join(lines)
