@@ -1,0 +1,58 @@
+"""``prismstation demo [--no-gui | --screenshot PNG]``: the bundled demo project.
+
+The demo is a simulated PRISM 1B2-R triplet (``prismstation simulate``) with 9 GCPs, 41 ICPs
+and 20 tie points, made once into the user's data folder and then reused.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+DEMO_SEED = 2008
+DEMO_SIZE = 2000
+
+
+def default_dir() -> Path:
+    env = os.environ.get("PRISMSTATION_DEMO_DIR")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share"
+    return Path(base) / "prismstation" / "demo"
+
+
+def ensure_demo(directory=None, *, rebuild: bool = False, progress=None) -> Path:
+    """Make the demo project if absent; returns the project path."""
+    from prismstation.cli.new import create
+    from prismstation.sim import simulate
+
+    d = Path(directory or default_dir())
+    project = d / "demo.prismproj"
+    if project.exists() and not rebuild:
+        return project
+    data = d / "triplet"
+    simulate(data, size=DEMO_SIZE, seed=DEMO_SEED, progress=progress)
+    create(project, data / "scene.json", data / "points.csv", data / "measurements.csv", force=True)
+    return project
+
+
+def register(sub) -> None:
+    p = sub.add_parser("demo", help="open the bundled demo project (made on first use)")
+    p.add_argument("--dir", help=f"where the demo lives (default {default_dir()})")
+    p.add_argument("--no-gui", action="store_true", help="print the demo's report instead of opening the window")
+    p.add_argument("--screenshot", metavar="PNG", help="load and fit the demo, save a PNG of the window, exit")
+    p.add_argument("--rebuild", action="store_true", help="make the demo again")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    project = ensure_demo(args.dir, rebuild=args.rebuild)
+    if args.no_gui:
+        from prismstation.io.project import load_project, project_geoid, solve_project
+        from prismstation.io.report import report_dict
+        from prismstation.io.text_report import format_report
+        proj = load_project(project)
+        sol = solve_project(proj)
+        print(format_report(report_dict(sol, project_path=project, geoid=project_geoid(proj).describe())))
+        return 0
+    from prismstation.gui.app import run as run_gui
+    return run_gui(str(project), screenshot=args.screenshot)
