@@ -1,0 +1,123 @@
+"""Ground texture of the simulator: a believable landscape as a north-up uint8 grid.
+
+Field patchworks in two orientations with hedges and ploughing stripes, forest on steep and
+wet ground, bare rock on the summits, two road networks, brightness noise at several scales,
+all multiplied by hill shading from a sun direction. Generated in row blocks (bounded memory).
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from prismstation.sim.terrain import Grid
+
+_PERIOD = 1024  # cells of a wrapped value-noise lattice
+
+
+def remap_points(src: np.ndarray, col, row, interpolation=cv2.INTER_LINEAR) -> np.ndarray:
+    """``src`` sampled at continuous indices (``col``, ``row``; cell centres at integers) of
+    any shape, through ``cv2.remap`` (whose 1/32-pixel weights are fine for rendering)."""
+    shape = np.shape(col)
+    col = np.asarray(col, dtype=np.float32).ravel()
+    row = np.asarray(row, dtype=np.float32).ravel()
+    n = col.size
+    width = 4096
+    m = -(-n // width) if n else 1
+    pad = m * width - n
+    mc = np.pad(col, (0, pad)).reshape(m, width)
+    mr = np.pad(row, (0, pad)).reshape(m, width)
+    out = np.empty((m, width), dtype=src.dtype)
+    for r0 in range(0, m, 4096):   # cv2 wants < 32767 rows
+        out[r0:r0 + 4096] = cv2.remap(src, mc[r0:r0 + 4096], mr[r0:r0 + 4096], interpolation,
+                                      borderMode=cv2.BORDER_REPLICATE)
+    return out.ravel()[:n].reshape(shape)
+
+
+class _Noise:
+    """Smooth value noise of feature size ``scale`` (m), ~unit variance, wrapped."""
+
+    def __init__(self, rng, scale: float, cells: int = _PERIOD):
+        self.scale = scale
+        self.lattice = rng.standard_normal((cells, cells)).astype(np.float32)
+        self._grad = None
+
+    def _remap(self, arr, x, y):
+        return cv2.remap(arr, (x / self.scale).astype(np.float32),
+                         (y / self.scale).astype(np.float32), cv2.INTER_CUBIC,
+                         borderMode=cv2.BORDER_WRAP)
+
+    def __call__(self, x, y):
+        return self._remap(self.lattice, x, y)
+
+    def gradient_norm(self, x, y):
+        if self._grad is None:
+            gy, gx = np.gradient(self.lattice)
+            self._grad = (gx / self.scale, gy / self.scale)
+        return np.hypot(self._remap(self._grad[0], x, y), self._remap(self._grad[1], x, y))
+
+
+class _Fields:
+    """Parcels on a rotated, warped lattice: per-parcel brightness, hedges, stripes."""
+
+    def __init__(self, rng, angle, size_u, size_v):
+        self.c, self.s = np.cos(angle), np.sin(angle)
+        self.lu, self.lv = size_u, size_v
+        self.table = rng.uniform(0, 1, (3, 257, 263)).astype(np.float32)
+        self.warp = (_Noise(rng, 350.0, 256), _Noise(rng, 350.0, 256))
+
+    def __call__(self, x, y):
+        u = self.c * x + self.s * y + 35.0 * self.warp[0](x, y)
+        v = -self.s * x + self.c * y + 35.0 * self.warp[1](x, y)
+        fu, fv = u / self.lu, v / self.lv
+        iu = np.floor(fu).astype(np.int64) % 257
+        iv = np.floor(fv).astype(np.int64) % 263
+        tone = self.table[0][iu, iv]
+        crop = 0.30 + 0.38 * tone ** 1.3
+        stripes = np.where(self.table[1][iu, iv] > 0.55,
+                           0.05 * np.sin(2 * np.pi * v / (4.0 + 6.0 * self.table[2][iu, iv])), 0)
+        du = np.minimum(fu % 1, 1 - fu % 1) * self.lu
+        dv = np.minimum(fv % 1, 1 - fv % 1) * self.lv
+        hedge = np.minimum(du, dv) < 1.6
+        return np.where(hedge, 0.5 * crop, crop + stripes).astype(np.float32)
+
+
+def make_texture(rng, e0: float, n0: float, shape, spacing: float, heights: Grid,
+                 shade: Grid, slope: Grid, block_rows: int = 512, progress=None) -> Grid:
+    """uint8 ground texture grid over ``shape`` cells of ``spacing`` m from (e0, n0).
+
+    ``heights`` orthometric (m), ``shade`` (≈1 flat) and ``slope`` (tan) grids drive land
+    cover and shading.
+    """
+    f1 = _Fields(rng, rng.uniform(0, np.pi), rng.uniform(90, 200), rng.uniform(60, 130))
+    f2 = _Fields(rng, rng.uniform(0, np.pi), rng.uniform(120, 260), rng.uniform(50, 110))
+    region, forest_n = _Noise(rng, 1800.0, 512), _Noise(rng, 450.0, 512)
+    crowns, crowns2 = _Noise(rng, 4.0), _Noise(rng, 11.0)
+    rock1, rock2 = _Noise(rng, 7.0), _Noise(rng, 35.0)
+    roads = (_Noise(rng, 1400.0, 256), _Noise(rng, 900.0, 256))
+    mod = (_Noise(rng, 60.0, 1024), _Noise(rng, 6.0), _Noise(rng, 2.5))
+    rows, cols = shape
+    out = np.empty(shape, dtype=np.uint8)
+    x = ((np.arange(cols) + 0.5) * spacing).astype(np.float32)
+    for r0 in range(0, rows, block_rows):
+        r1 = min(rows, r0 + block_rows)
+        y = ((np.arange(r0, r1) + 0.5) * spacing).astype(np.float32)
+        xx, yy = np.meshgrid(x, y)
+        e, n = e0 + xx.astype(np.float64), n0 - yy.astype(np.float64)
+        gh = [remap_points(g.values, *g.to_pixel(e, n)) for g in (heights, shade, slope)]
+        hgt, shd, slp = gh
+        fields = np.where(region(xx, yy) > 0, f1(xx, yy), f2(xx, yy))
+        forest = 0.15 + 0.05 * crowns(xx, yy) + 0.035 * crowns2(xx, yy)
+        fscore = forest_n(xx, yy) + 2.2 * slp - 0.9 + 0.15 * crowns2(xx, yy)
+        w = np.clip(fscore * 4.0, 0, 1)
+        land = (1 - w) * fields + w * forest
+        rock = 0.52 + 0.10 * rock1(xx, yy) + 0.07 * rock2(xx, yy)
+        wr = np.clip((hgt - 1050.0) / 150.0 + 0.3 * rock2(xx, yy), 0, 1)
+        land = (1 - wr) * land + wr * rock
+        for net, width in zip(roads, (3.5, 2.5)):
+            dist = np.abs(net(xx, yy)) / (net.gradient_norm(xx, yy) + 1e-6)
+            land = np.where(dist < width, 0.78 + 0.03 * mod[2](xx, yy), land)
+        land *= 1 + 0.07 * mod[0](xx, yy) + 0.04 * mod[1](xx, yy) + 0.03 * mod[2](xx, yy)
+        out[r0:r1] = np.clip(land * shd * 215.0, 0, 255).astype(np.uint8)
+        if progress:
+            progress(r1 / rows)
+    return Grid(out, e0, n0, spacing)
