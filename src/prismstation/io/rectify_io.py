@@ -274,3 +274,31 @@ def rectify_raster(image, transform, out_path, *, points_crs, out_crs=None,
                 pass
             raise RectifyCancelled("rectification cancelled")
     return RectifyResult(out_path, ocrs.to_string(), width, height, r, geo.to_gdal())
+
+
+def json_ready(obj):
+    """``obj`` with numpy scalars/arrays made plain and non-finite floats made ``None``."""
+    if isinstance(obj, dict):
+        return {str(k): json_ready(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_ready(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return json_ready(obj.tolist())
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    return obj
+
+
+def write_json(path, obj) -> None:
+    """Write ``obj`` as indented JSON (atomically); an unwritable path → InputError."""
+    import json
+
+    from prismstation.io.jsonfile import write_atomic
+
+    try:
+        write_atomic(path, json.dumps(json_ready(obj), indent=2, allow_nan=False) + "\n",
+                     keep_backup=False)
+    except OSError as exc:
+        raise InputError(f"cannot write: {exc.strerror or exc}", file=path) from None

@@ -1,0 +1,101 @@
+"""``prismstation rectify IMAGE POINTS.csv --transform KIND -o OUT.tif`` (MODEL.md §4).
+
+Fits every image→map transform on the GCPs of one view, prints the side-by-side RMSE table
+(GCPs and ICPs, seed 002's Table 4.1) and the chosen transform's residuals, and writes the
+image rectified through the chosen transform as a GeoTIFF.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from prismstation.core.rectify import KINDS, compare_transforms, format_rmse_table
+from prismstation.errors import InputError, ModelError
+from prismstation.io.rectify_io import read_point_pairs, rectify_raster, write_json
+
+
+def register(sub) -> None:
+    p = sub.add_parser("rectify", help="fit image-to-map transforms and write a rectified GeoTIFF")
+    p.add_argument("image", help="raster to rectify (anything rasterio opens)")
+    p.add_argument("points", help="ground points CSV (id,E,N[,H][,kind]); with x,y columns "
+                                  "when --measurements is not given")
+    p.add_argument("--measurements", metavar="M.csv", help="image measurements CSV (id,view,x,y)")
+    p.add_argument("--view", help="view whose measurements to use (default: the only one)")
+    p.add_argument("--transform", choices=KINDS, default="affine", help="transform to warp with")
+    p.add_argument("-o", "--output", metavar="OUT.tif", help="rectified GeoTIFF to write")
+    p.add_argument("--resolution", type=float, metavar="R", help="output cell size (output CRS units)")
+    p.add_argument("--crs", help="output CRS (default: the points' CRS)")
+    p.add_argument("--points-crs", help="CRS of the ground points (default: --crs, else the image's)")
+    p.add_argument("--resampling", choices=("bilinear", "nearest"), default="bilinear")
+    p.add_argument("--json", metavar="OUT", help="write the RMSE table and residuals as JSON")
+    p.set_defaults(func=run)
+
+
+def _points_crs(args):
+    if args.points_crs:
+        return args.points_crs
+    if args.crs:
+        return args.crs
+    import warnings
+
+    import rasterio
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            with rasterio.open(args.image) as ds:
+                if ds.crs is not None:
+                    return ds.crs.to_wkt()
+    except rasterio.errors.RasterioIOError as exc:
+        raise InputError(f"cannot open as a raster ({exc})", file=args.image) from None
+    raise InputError("the image has no CRS: give the points' CRS with --points-crs or --crs",
+                     file=args.image)
+
+
+def run(args) -> int:
+    if not Path(args.image).exists():
+        raise InputError("image not found", file=args.image)
+    pairs = read_point_pairs(args.points, args.measurements, args.view)
+    reports = compare_transforms(pairs.xy, pairs.en, pairs.is_check)
+    name = pairs.view or Path(args.image).stem
+    print(f"{len(pairs.ids)} points ({int((~pairs.is_check).sum())} GCP, "
+          f"{int(pairs.is_check.sum())} ICP), view {name}; planimetric RMSE:")
+    print(format_rmse_table({name: reports}))
+    chosen = next(r for r in reports if r.kind == args.transform)
+    if not chosen.ok:
+        raise ModelError(f"{args.transform}: {chosen.error}")
+    print(f"\nresiduals of {chosen.kind} (observed − computed, m):")
+    print(f"{'id':<12}{'kind':<6}{'vE':>10}{'vN':>10}")
+    for pid, icp, (vx, vy) in zip(pairs.ids, pairs.is_check, chosen.residuals):
+        print(f"{pid:<12}{'ICP' if icp else 'GCP':<6}{vx:>10.3f}{vy:>10.3f}")
+    if args.json:
+        write_json(args.json, {
+            "image": str(args.image), "view": pairs.view, "chosen": chosen.kind,
+            "transforms": [{
+                "kind": r.kind, "n_params": r.n_params, "n_gcp": r.n_gcp, "n_icp": r.n_icp,
+                "rmse_gcp_m": r.rmse_gcp, "rmse_icp_m": r.rmse_icp,
+                "rmse_gcp_xy_m": list(r.rmse_gcp_xy), "rmse_icp_xy_m": list(r.rmse_icp_xy),
+                "sigma0_m": r.transform.sigma0 if r.ok else None,
+                "params": r.transform.params if r.ok else None,
+                "params_std": r.transform.std if r.ok else None,
+                "error": r.error,
+                "points": [{"id": i, "kind": "ICP" if c else "GCP", "vE": v[0], "vN": v[1]}
+                           for i, c, v in zip(pairs.ids, pairs.is_check, r.residuals)],
+            } for r in reports]})
+    if args.output:
+        show = sys.stderr.isatty()
+
+        def progress(f):
+            if show:
+                print(f"\rwriting {args.output}: {100 * f:3.0f}%", end="", file=sys.stderr)
+            return True
+
+        res = rectify_raster(args.image, chosen.transform, args.output,
+                             points_crs=_points_crs(args), out_crs=args.crs,
+                             resolution=args.resolution, progress=progress,
+                             resampling=args.resampling)
+        if show:
+            print(file=sys.stderr)
+        print(f"\nwrote {res.path}: {res.width} x {res.height} cells of {res.resolution:g} "
+              f"({res.crs}) through {chosen.kind}")
+    return 0
