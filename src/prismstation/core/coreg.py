@@ -1,0 +1,301 @@
+"""DEM-to-DEM co-registration by least-squares surface matching, and affine shift fields.
+
+Grid convention: both DEMs are 2-D arrays on ONE grid (rows, cols), NaN where void; the
+grid's affine ``transform = (a, b, c, d, e, f)`` (rasterio ``Affine`` order) maps a grid
+position ``(col, row)`` (MODEL.md §1: pixel centre at ``i + 0.5``) to CRS coordinates
+``x = a·col + b·row + c``, ``y = d·col + e·row + f``.
+
+Shift convention (FORMATS.md, ``coregister``): ``(dcol, drow)`` is what to add to the DEM's
+pixel positions to lay it on the reference, and ``dz`` is added to its heights::
+
+    reference(col, row) ≈ dem(col - dcol, row - drow) + dz
+
+so a DEM whose content sits 3 columns left of and 5 rows above where the reference has it
+gives ``dcol = 3, drow = 5``.
+
+The estimator is least-squares surface matching restricted to a 3-D translation (Gruen &
+Akca 2005): Gauss–Newton on the height differences, linearised with the gradients of the
+shifted DEM, outliers (beyond ``k``·NMAD) and very steep cells left out, run coarse-to-fine
+on a block-averaged pyramid so that multi-pixel shifts converge. σ's come from
+``σ0²·(AᵀA)⁻¹``; height errors of neighbouring cells are correlated, so they are optimistic
+(a lower bound), as in any per-cell adjustment.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+IDENTITY = (1.0, 0.0, 0.0, 0.0, -1.0, 0.0)
+
+
+@dataclass(frozen=True)
+class CoregResult:
+    """3-D shift laying a DEM on a reference DEM (see the module docstring for signs).
+
+    Attributes
+    ----------
+    dcol, drow : float
+        Shift in reference-grid pixels (add to the DEM's pixel positions).
+    dx, dy : float
+        The same shift in CRS units (x east, y north for a north-up grid).
+    dz : float
+        Height shift (metres), added to the DEM's heights.
+    sigma_dcol, sigma_drow, sigma_dx, sigma_dy, sigma_dz : float
+        Formal standard deviations from the adjustment.
+    iterations : int
+        Gauss–Newton iterations, all pyramid levels together.
+    count : int
+        Cells used in the final adjustment.
+    nmad_before, nmad_after, mean_after, std_after : float
+        Statistics of ``reference − dem`` before and after applying the shift (metres).
+    converged : bool
+        Whether the finest level converged within ``max_iter``.
+    """
+
+    dcol: float
+    drow: float
+    dx: float
+    dy: float
+    dz: float
+    sigma_dcol: float
+    sigma_drow: float
+    sigma_dx: float
+    sigma_dy: float
+    sigma_dz: float
+    iterations: int
+    count: int
+    nmad_before: float
+    nmad_after: float
+    mean_after: float
+    std_after: float
+    converged: bool
+
+
+def nmad(values: np.ndarray) -> float:
+    """Normalised median absolute deviation (1.4826·median|v − median v|) of finite values."""
+    v = values[np.isfinite(values)]
+    if v.size == 0:
+        return float("nan")
+    return float(1.4826 * np.median(np.abs(v - np.median(v))))
+
+
+def shift_grid(a: np.ndarray, dcol: float, drow: float) -> np.ndarray:
+    """Return ``out(col, row) = a(col − dcol, row − drow)``, bilinear, NaN outside or near voids.
+
+    Parameters
+    ----------
+    a : ndarray (rows, cols), float
+    dcol, drow : float
+        Shift in pixels.
+    """
+    a = np.asarray(a, float)
+    rows, cols = a.shape
+    ic, fc = int(np.floor(dcol)), dcol - np.floor(dcol)
+    ir, fr = int(np.floor(drow)), drow - np.floor(drow)
+    # out[r, c] = a[r - drow, c - dcol]: bilinear between a[r-ir-1 .. r-ir, c-ic-1 .. c-ic]
+    pad = np.full((rows + 2, cols + 2), np.nan)
+    pad[1:-1, 1:-1] = a
+
+    def take(sr, sc):                     # a[r - sr, c - sc] for all r, c (NaN outside)
+        out = np.full((rows, cols), np.nan)
+        r_lo, r_hi = max(0, sr), min(rows, rows + sr)
+        c_lo, c_hi = max(0, sc), min(cols, cols + sc)
+        if r_lo < r_hi and c_lo < c_hi:
+            out[r_lo:r_hi, c_lo:c_hi] = a[r_lo - sr:r_hi - sr, c_lo - sc:c_hi - sc]
+        return out
+
+    out = (1 - fr) * ((1 - fc) * take(ir, ic) + fc * take(ir, ic + 1)) \
+        + fr * ((1 - fc) * take(ir + 1, ic) + fc * take(ir + 1, ic + 1))
+    if fc == 0 and fr == 0:
+        out = take(ir, ic)
+    return out
+
+
+def _downsample(a: np.ndarray, f: int) -> np.ndarray:
+    """Block mean by ``f`` (NaN where a block has fewer than half valid cells)."""
+    if f == 1:
+        return a
+    rows, cols = (a.shape[0] // f) * f, (a.shape[1] // f) * f
+    blocks = a[:rows, :cols].reshape(rows // f, f, cols // f, f)
+    valid = np.isfinite(blocks).sum(axis=(1, 3))
+    with np.errstate(invalid="ignore"):
+        mean = np.nansum(blocks, axis=(1, 3)) / np.maximum(valid, 1)
+    mean[valid < f * f / 2] = np.nan
+    return mean
+
+
+def _lsm_level(ref, dem, dcol, drow, dz, max_iter, tol, k_outlier, max_slope):
+    """Gauss–Newton on one level; returns (dcol, drow, dz, cov, iterations, count, converged)."""
+    cov, count, converged = np.full((3, 3), np.nan), 0, False
+    it = 0
+    for it in range(1, max_iter + 1):
+        s = shift_grid(dem, dcol, drow)
+        gy, gx = np.gradient(s)
+        v = ref - s - dz
+        ok = np.isfinite(v) & np.isfinite(gx) & np.isfinite(gy)
+        if ok.sum() < 10:
+            break
+        med, spread = np.median(v[ok]), nmad(v[ok])
+        ok &= np.abs(v - med) <= k_outlier * max(spread, 1e-9)
+        ok &= np.hypot(gx, gy) <= max_slope
+        A = np.column_stack([-gx[ok], -gy[ok], np.ones(ok.sum())])
+        y = v[ok]
+        count = y.size
+        if count < 10:
+            break
+        N = A.T @ A
+        try:
+            delta = np.linalg.solve(N, A.T @ y)
+        except np.linalg.LinAlgError:
+            break
+        res = y - A @ delta
+        cov = float(res @ res) / max(count - 3, 1) * np.linalg.inv(N)
+        dcol, drow, dz = dcol + delta[0], drow + delta[1], dz + delta[2]
+        if abs(delta[0]) < tol and abs(delta[1]) < tol:
+            converged = True
+            break
+    return dcol, drow, dz, cov, it, count, converged
+
+
+def coregister(reference: np.ndarray, dem: np.ndarray, transform=IDENTITY, *, levels: int | None = None,
+               max_iter: int = 30, tol: float = 1e-3, k_outlier: float = 3.0,
+               max_slope_deg: float = 70.0) -> CoregResult:
+    """Estimate the 3-D shift laying ``dem`` on ``reference`` (least-squares surface matching).
+
+    Parameters
+    ----------
+    reference, dem : ndarray, shape (rows, cols)
+        Heights (metres, same kind) on one grid, NaN where void.
+    transform : 6 numbers (a, b, c, d, e, f)
+        Grid → CRS affine (rasterio ``Affine`` order); only ``a, b, d, e`` (pixel size and
+        rotation) matter for the shift.
+    levels : int, optional
+        Pyramid levels (block averaging by 2 per level); default: as many as keep the
+        coarsest grid at 48 cells or more on its short side, at most 4.
+    max_iter, tol : int, float
+        Gauss–Newton limit per level and convergence threshold (pixels).
+    k_outlier : float
+        Cells with a residual beyond ``k_outlier``·NMAD of the median are left out.
+    max_slope_deg : float
+        Cells steeper than this (from the grid's pixel size) are left out.
+
+    Returns
+    -------
+    CoregResult
+    """
+    ref = np.asarray(reference, float)
+    dm = np.asarray(dem, float)
+    if ref.shape != dm.shape or ref.ndim != 2:
+        raise ValueError(f"reference {ref.shape} and dem {dm.shape} must be 2-D arrays on one grid")
+    a, b, _, d, e, _ = (float(t) for t in tuple(transform)[:6])
+    pixel = np.sqrt(abs(a * e - b * d))
+    if levels is None:
+        levels = 1
+        while levels < 4 and min(ref.shape) // 2 ** levels >= 48:
+            levels += 1
+    before = ref - dm
+    dz = float(np.nanmedian(before)) if np.isfinite(before).any() else 0.0
+    dcol = drow = 0.0
+    total = 0
+    for level in reversed(range(levels)):
+        f = 2 ** level
+        r_l, d_l = _downsample(ref, f), _downsample(dm, f)
+        slope = np.tan(np.radians(max_slope_deg)) * pixel * f
+        c, r, dz, cov, it, count, converged = _lsm_level(
+            r_l, d_l, dcol / f, drow / f, dz, max_iter, tol / f if level else tol,
+            k_outlier, slope)
+        dcol, drow = c * f, r * f
+        total += it
+    jac = np.array([[a, b], [d, e]])
+    cov_xy = jac @ cov[:2, :2] @ jac.T
+    after = ref - shift_grid(dm, dcol, drow) - dz
+    fin = after[np.isfinite(after)]
+    return CoregResult(
+        dcol=float(dcol), drow=float(drow), dx=float(a * dcol + b * drow),
+        dy=float(d * dcol + e * drow), dz=float(dz),
+        sigma_dcol=float(np.sqrt(cov[0, 0])), sigma_drow=float(np.sqrt(cov[1, 1])),
+        sigma_dx=float(np.sqrt(cov_xy[0, 0])), sigma_dy=float(np.sqrt(cov_xy[1, 1])),
+        sigma_dz=float(np.sqrt(cov[2, 2])), iterations=total, count=int(count),
+        nmad_before=nmad(before), nmad_after=nmad(after),
+        mean_after=float(fin.mean()) if fin.size else float("nan"),
+        std_after=float(fin.std()) if fin.size else float("nan"), converged=bool(converged))
+
+
+@dataclass(frozen=True)
+class ShiftField:
+    """Affine model of shifts vs position: ``shift_k(x, y) = p[k,0] + p[k,1]·x + p[k,2]·y``.
+
+    Attributes
+    ----------
+    params : ndarray (k, 3)
+        Coefficients per shift component, in the units of the inputs (positions as given,
+        e.g. N-image pixels; shifts e.g. metres).
+    cov : ndarray (k, 3, 3)
+        Covariance of each component's coefficients (a posteriori, scaled by σ0² when
+        there is redundancy, else a priori from the given σ's).
+    sigma0 : ndarray (k,)
+        A-posteriori standard deviation of unit weight per component (NaN with no redundancy).
+    residuals : ndarray (n, k)
+        Observed minus modelled shift.
+    """
+
+    params: np.ndarray
+    cov: np.ndarray
+    sigma0: np.ndarray
+    residuals: np.ndarray
+
+    def predict(self, x, y) -> np.ndarray:
+        """Modelled shifts at positions ``x, y`` (arrays of one shape) → shape (..., k)."""
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        return self.params[:, 0] + x[..., None] * self.params[:, 1] + y[..., None] * self.params[:, 2]
+
+    def predict_sigma(self, x, y) -> np.ndarray:
+        """Standard deviation of the modelled shifts at ``x, y`` → shape (..., k)."""
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        j = np.stack([np.ones_like(x), x, y], -1)
+        return np.sqrt(np.einsum("...i,kij,...j->...k", j, self.cov, j))
+
+
+def fit_shift_field(x, y, shifts, sigmas=None) -> ShiftField:
+    """Least-squares affine fit of per-patch shifts vs patch position (MODEL.md §3 step 4).
+
+    Parameters
+    ----------
+    x, y : array_like (n,)
+        Patch positions (e.g. N-image pixels, MODEL.md §1); n ≥ 3, not collinear.
+    shifts : array_like (n, k)
+        Shift components per patch (e.g. dE, dN, dh in metres).
+    sigmas : array_like (n, k), optional
+        Their standard deviations (weights 1/σ²); default all 1.
+
+    Returns
+    -------
+    ShiftField
+    """
+    x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
+    s = np.asarray(shifts, float).reshape(x.size, -1)
+    n, k = s.shape
+    sig = np.ones_like(s) if sigmas is None else np.asarray(sigmas, float).reshape(n, k)
+    if n < 3:
+        raise ValueError(f"an affine shift field needs 3 patches or more, got {n}")
+    # centre and scale the positions: a well-conditioned solve, converted back at the end
+    xm, ym = x.mean(), y.mean()
+    scale = max(np.abs(x - xm).max(), np.abs(y - ym).max(), 1e-12)
+    A = np.column_stack([np.ones(n), (x - xm) / scale, (y - ym) / scale])
+    if np.linalg.matrix_rank(A) < 3:
+        raise ValueError("patch positions are collinear: an affine shift field is undetermined")
+    back = np.array([[1, -xm / scale, -ym / scale], [0, 1 / scale, 0], [0, 0, 1 / scale]])
+    params, covs, s0s, res = np.zeros((k, 3)), np.zeros((k, 3, 3)), np.full(k, np.nan), np.zeros((n, k))
+    for i in range(k):
+        w = 1.0 / sig[:, i] ** 2
+        N = A.T @ (A * w[:, None])
+        p = np.linalg.solve(N, A.T @ (w * s[:, i]))
+        res[:, i] = s[:, i] - A @ p
+        q = np.linalg.inv(N)
+        if n > 3:
+            s0s[i] = np.sqrt(float(res[:, i] ** 2 @ w) / (n - 3))
+            q = q * s0s[i] ** 2
+        params[i] = back @ p
+        covs[i] = back @ q @ back.T
+    return ShiftField(params, covs, s0s, res)

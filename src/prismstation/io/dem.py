@@ -1,0 +1,167 @@
+"""Reference DEMs: read (SRTM ``.hgt`` or GeoTIFF, geographic or projected) onto a target grid,
+convert orthometric → ellipsoidal heights, and write a DEM GeoTIFF.
+
+Grids are ``(crs, transform, shape)``: ``transform`` a rasterio ``Affine`` from pixel
+``(col, row)`` (MODEL.md §1, origin at the top-left corner of the top-left pixel) to CRS
+coordinates; arrays are ``(rows, cols)`` float64 with NaN for voids.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import rasterio
+from rasterio.crs import CRS
+from rasterio.enums import Resampling
+from rasterio.errors import RasterioError
+from rasterio.transform import Affine
+from rasterio.warp import reproject
+
+from prismstation.errors import InputError, RasterReadError
+
+SRTM_VOID = -32768
+
+
+@dataclass(frozen=True)
+class DemGrid:
+    """Heights on a grid.
+
+    Attributes
+    ----------
+    heights : ndarray (rows, cols), float64
+        Metres, NaN where void or outside the source.
+    crs : rasterio.crs.CRS
+    transform : affine.Affine
+        Pixel (col, row) → CRS (x, y).
+    height_kind : str
+        ``"orthometric"`` or ``"ellipsoidal"``.
+    """
+
+    heights: np.ndarray
+    crs: CRS
+    transform: Affine
+    height_kind: str
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.heights.shape
+
+
+def grid_coordinates(transform, shape) -> tuple[np.ndarray, np.ndarray]:
+    """CRS coordinates ``(x, y)`` of every pixel centre of a grid, each of shape ``shape``."""
+    rows, cols = np.mgrid[0:shape[0], 0:shape[1]].astype(float)
+    t = Affine(*tuple(transform)[:6])
+    x = t.a * (cols + 0.5) + t.b * (rows + 0.5) + t.c
+    y = t.d * (cols + 0.5) + t.e * (rows + 0.5) + t.f
+    return x, y
+
+
+def to_ellipsoidal(H, geoid, E=None, N=None, crs=None) -> np.ndarray:
+    """Ellipsoidal heights ``h = H + Ngeoid`` (MODEL.md §1).
+
+    Parameters
+    ----------
+    H : array_like
+        Orthometric heights (metres), NaN allowed.
+    geoid : float or object with ``undulation(E, N, crs) -> array``
+        A constant undulation (metres) or a geoid model (e.g. ``io.geoid.GridGeoid``).
+    E, N : array_like, optional
+        Map coordinates of ``H`` (same shape) in ``crs``; needed for a geoid model.
+    crs : optional
+        CRS of ``E, N``.
+    """
+    H = np.asarray(H, float)
+    if isinstance(geoid, (int, float, np.floating, np.integer)):
+        return H + float(geoid)
+    if not hasattr(geoid, "undulation"):
+        raise TypeError("geoid must be a number or have an undulation(E, N, crs) method")
+    if E is None or N is None:
+        raise ValueError("a geoid model needs the map coordinates E, N of the heights")
+    return H + np.asarray(geoid.undulation(np.asarray(E, float), np.asarray(N, float), crs), float)
+
+
+def _read_source(path: Path):
+    try:
+        with rasterio.open(path) as ds:
+            if ds.crs is None:
+                raise InputError("the DEM has no coordinate reference system", file=path)
+            data = ds.read(1, masked=True)
+            arr = data.astype(np.float64).filled(np.nan)
+            if ds.dtypes[0] == "int16":
+                arr[arr <= SRTM_VOID] = np.nan        # SRTM voids even without a nodata tag
+            return arr, ds.crs, ds.transform
+    except RasterioError as exc:
+        raise RasterReadError(f"{path}: cannot read the DEM ({exc})") from None
+
+
+def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
+             resampling: str = "bilinear") -> DemGrid:
+    """Read a DEM, optionally resampled onto a target grid and made ellipsoidal.
+
+    Parameters
+    ----------
+    path : str or Path
+        SRTM ``.hgt``, GeoTIFF, or any single-band raster GDAL reads, with a CRS.
+    crs, transform, shape : optional
+        Target grid (all three, or none for the file's own grid).
+    geoid : float or object with ``undulation(E, N, crs)``, optional
+        If given, the stored (orthometric) heights are converted to ellipsoidal.
+    resampling : str
+        A ``rasterio.enums.Resampling`` name (``"bilinear"``, ``"average"``, ``"cubic"``...).
+
+    Returns
+    -------
+    DemGrid
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError("no such file", file=path)
+    src, src_crs, src_transform = _read_source(path)
+    if crs is None and transform is None and shape is None:
+        heights, out_crs, out_t = src, src_crs, src_transform
+    elif crs is None or transform is None or shape is None:
+        raise ValueError("give the target grid's crs, transform and shape together, or none")
+    else:
+        out_crs, out_t = CRS.from_user_input(crs), Affine(*tuple(transform)[:6])
+        heights = np.full(tuple(shape), np.nan)
+        try:
+            reproject(src, heights, src_transform=src_transform, src_crs=src_crs,
+                      src_nodata=np.nan, dst_transform=out_t, dst_crs=out_crs, dst_nodata=np.nan,
+                      resampling=Resampling[resampling])
+        except (RasterioError, KeyError) as exc:
+            raise RasterReadError(f"{path}: cannot resample the DEM ({exc})") from None
+    kind = "orthometric"
+    if geoid is not None:
+        if isinstance(geoid, (int, float)):
+            heights = to_ellipsoidal(heights, geoid)
+        else:
+            E, N = grid_coordinates(out_t, heights.shape)
+            heights = to_ellipsoidal(heights, geoid, E, N, out_crs)
+        kind = "ellipsoidal"
+    return DemGrid(heights, out_crs, out_t, kind)
+
+
+def write_dem(path, heights, crs, transform) -> None:
+    """Write a single-band float32 GeoTIFF (deflate, nodata NaN).
+
+    Parameters
+    ----------
+    heights : ndarray (rows, cols)
+        Metres, NaN for voids.
+    crs : anything ``rasterio.crs.CRS.from_user_input`` takes
+    transform : affine.Affine or 6 numbers (a, b, c, d, e, f)
+    """
+    h = np.asarray(heights, np.float32)
+    if h.ndim != 2:
+        raise ValueError(f"heights must be 2-D, got shape {h.shape}")
+    profile = dict(driver="GTiff", width=h.shape[1], height=h.shape[0], count=1,
+                   dtype="float32", crs=CRS.from_user_input(crs),
+                   transform=Affine(*tuple(transform)[:6]), nodata=np.nan, compress="deflate")
+    if h.shape[0] >= 256 and h.shape[1] >= 256:
+        profile.update(tiled=True, blockxsize=256, blockysize=256)
+    try:
+        with rasterio.open(Path(path), "w", **profile) as ds:
+            ds.write(h, 1)
+    except RasterioError as exc:
+        raise RasterReadError(f"{path}: cannot write the DEM ({exc})") from None
