@@ -28,7 +28,7 @@ class Settings:
     bias_model: str = "affine"
     parallax_model: str = "line"
     sigma_px: float = 1.0
-    blunder_threshold: float = 3.0
+    blunder_threshold: float = 3.29
     mean_height: float | None = None
 
 
@@ -234,33 +234,49 @@ def _point_result(scene, p: PointObs, bias, parallax, mean_h, height_of, setting
                        g_res, None, None, False, note)
 
 
+def critical_value(threshold: float, dof: int) -> float:
+    """Critical |externally studentised residual| for ``dof`` redundancy: Student's t with
+    ``dof − 1`` degrees of freedom at the two-sided α of ``threshold`` under the normal law
+    (3.29 ↔ α = 0.001, Baarda). With few GCPs the t tails are heavy, hence a larger value."""
+    from scipy import stats
+    alpha = 2 * stats.norm.sf(threshold)
+    return float(stats.t.isf(alpha / 2, max(dof - 1, 1)))
+
+
 def _attach_adjustment_stats(results, gcps, bias, parallax, scene, settings):
     """Standardised residuals and redundancy of each GCP from the N bias and parallax fits."""
     ref = "N" if "N" in scene.views else next(iter(scene.views))
-    w = {}
+    w: dict[str, list] = {}  # id -> [max |w|, min redundancy, max |w| / critical]
+
+    def add(pid, s, r, crit):
+        cur = w.setdefault(pid, [np.nan, r, 0.0])
+        if np.isfinite(s):
+            cur[0] = s if not np.isfinite(cur[0]) else max(cur[0], s)
+            cur[2] = max(cur[2], s / crit)
+        cur[1] = min(cur[1], r)
+
     fit = bias[ref]
     if fit.lsq is not None:
+        crit = critical_value(settings.blunder_threshold, fit.lsq.dof)
         ids = [p.id for p in gcps if ref in p.image]
         for i, pid in enumerate(ids):
-            s = fit.lsq.std_residuals[2 * i:2 * i + 2]
-            r = fit.lsq.redundancy[2 * i:2 * i + 2]
-            w[pid] = [np.nanmax(np.abs(s)) if np.any(np.isfinite(s)) else np.nan, float(r.min())]
+            s = np.abs(fit.lsq.std_residuals[2 * i:2 * i + 2])
+            add(pid, np.nanmax(s) if np.any(np.isfinite(s)) else np.nan,
+                float(fit.lsq.redundancy[2 * i:2 * i + 2].min()), crit)
     if parallax is not None and parallax.lsq is not None:
+        crit = critical_value(settings.blunder_threshold, parallax.lsq.dof)
         ids = [p.id for p in gcps if "F" in p.image and "B" in p.image]
         for i, pid in enumerate(ids):
-            s = abs(parallax.lsq.std_residuals[i])
-            cur = w.setdefault(pid, [np.nan, float(parallax.lsq.redundancy[i])])
-            cur[0] = s if not np.isfinite(cur[0]) else max(cur[0], s)
-    # data snooping: one blunder at a time — the largest standardised residual above the
-    # threshold (a blunder distorts the fit and drags its neighbours' residuals up too)
-    finite = {k: v[0] for k, v in w.items() if np.isfinite(v[0])}
-    worst = max(finite, key=finite.get) if finite else None
-    if worst is not None and finite[worst] <= settings.blunder_threshold:
+            add(pid, abs(parallax.lsq.std_residuals[i]), float(parallax.lsq.redundancy[i]), crit)
+    # data snooping: one blunder at a time — the largest exceedance of the critical value
+    # (a blunder distorts the fit and drags its neighbours' residuals up too)
+    worst = max(w, key=lambda k: w[k][2]) if w else None
+    if worst is not None and w[worst][2] <= 1.0:
         worst = None
     out = []
     for r in results:
         if r.id in w and r.kind == "GCP":
-            s, red = w[r.id]
+            s, red, _ = w[r.id]
             r = replace(r, std_residual=float(s) if np.isfinite(s) else None, redundancy=red,
                         blunder=r.id == worst)
         out.append(r)
