@@ -2,15 +2,15 @@
 
 A tile key is ``(level, col, row)``: ``level`` is the decimation factor (1 = full resolution),
 and the tile covers the full-resolution rectangle ``RasterSource.tile_rect(level, col, row)``.
-Reads run in a private ``QThreadPool``; results come back to the GUI thread by a queued signal.
-A request that is no longer wanted when a worker picks it up is dropped without reading.
+Reads run in worker threads fed by one queue; results come back to the GUI thread by a queued
+signal. A request that is no longer wanted is dropped before a worker picks it up.
 """
 from __future__ import annotations
 
 import math
 import threading
 
-from PySide6.QtCore import QObject, QRunnable, QThreadPool, Signal
+from PySide6.QtCore import QObject, Signal
 
 from prismstation.errors import RasterReadError
 from prismstation.io.raster import TILE_SIZE, RasterSource
@@ -43,35 +43,12 @@ def tiles_for_rect(source: RasterSource, level: int, rect_xywh) -> list[tuple[in
     return keys
 
 
-class _TileJob(QRunnable):
-    def __init__(self, loader: "TileLoader", key):
-        super().__init__()
-        self.loader = loader
-        self.key = key
-        self.setAutoDelete(True)
-
-    def run(self) -> None:  # worker thread
-        loader, key = self.loader, self.key
-        if not loader._still_wanted(key):
-            return
-        try:
-            arr = loader.source.read_tile(*key)
-        except RasterReadError as exc:
-            loader._done(key)
-            try:
-                loader.tile_failed.emit(key, str(exc))
-            except RuntimeError:  # the loader was deleted meanwhile
-                pass
-            return
-        loader._done(key)
-        try:
-            loader.tile_loaded.emit(loader.source, key, arr)
-        except RuntimeError:
-            pass
-
-
 class TileLoader(QObject):
     """Reads tiles of one :class:`RasterSource` in worker threads.
+
+    The workers take keys from one queue that each :meth:`request` replaces: reads the view no
+    longer wants are dropped before they start (a read already running completes and only fills
+    the cache). Each worker thread has its own rasterio handle (``RasterSource`` sees to it).
 
     Signals
     -------
@@ -86,46 +63,58 @@ class TileLoader(QObject):
     def __init__(self, source: RasterSource, threads: int = 2, parent=None):
         super().__init__(parent)
         self.source = source
-        self.pool = QThreadPool(self)
-        self.pool.setMaxThreadCount(threads)
-        self._lock = threading.Lock()
-        self._wanted: set = set()
-        self._pending: set = set()
+        self._cond = threading.Condition()
+        self._queue: list = []  # keys to read, most wanted first
+        self._running: set = set()
+        self._stop = False
+        self._threads = [threading.Thread(target=self._work, daemon=True,
+                                          name=f"tiles-{source.path.name}-{i}")
+                         for i in range(max(1, threads))]
+        for t in self._threads:
+            t.start()
 
     def request(self, keys) -> None:
-        """Make ``keys`` the wanted set; queue reads for the ones not yet pending.
-
-        Keys queued earlier and not in ``keys`` are dropped when a worker reaches them.
-        """
-        keys = list(keys)
-        with self._lock:
-            self._wanted = set(keys)
-            new = [k for k in keys if k not in self._pending]
-            self._pending.update(new)
-        for key in new:
-            self.pool.start(_TileJob(self, key))
+        """Make ``keys`` (most wanted first) the queue; queued keys not among them are dropped."""
+        with self._cond:
+            self._queue = [k for k in keys if k not in self._running]
+            self._cond.notify_all()
 
     def pending(self) -> int:
         """Number of tile reads queued or running."""
-        with self._lock:
-            return len(self._pending)
+        with self._cond:
+            return len(self._queue) + len(self._running)
 
-    def _still_wanted(self, key) -> bool:
-        with self._lock:
-            if key in self._wanted:
-                return True
-            self._pending.discard(key)
-            return False
-
-    def _done(self, key) -> None:
-        with self._lock:
-            self._pending.discard(key)
+    def _work(self) -> None:  # worker thread
+        while True:
+            with self._cond:
+                while not self._queue and not self._stop:
+                    self._cond.wait()
+                if self._stop:
+                    return
+                key = self._queue.pop(0)
+                self._running.add(key)
+            try:
+                arr = self.source.read_tile(*key)
+                error = None
+            except RasterReadError as exc:
+                arr, error = None, str(exc)
+            with self._cond:
+                self._running.discard(key)
+                if self._stop:
+                    return
+            try:  # the loader may have been deleted meanwhile
+                if error is None:
+                    self.tile_loaded.emit(self.source, key, arr)
+                else:
+                    self.tile_failed.emit(key, error)
+            except RuntimeError:
+                return
 
     def shutdown(self) -> None:
-        """Drop queued reads and wait for running ones."""
-        with self._lock:
-            self._wanted = set()
-        self.pool.clear()
-        self.pool.waitForDone()
-        with self._lock:
-            self._pending.clear()
+        """Drop queued reads, let running ones finish, and end the worker threads."""
+        with self._cond:
+            self._stop = True
+            self._queue = []
+            self._cond.notify_all()
+        for t in self._threads:
+            t.join(timeout=10)
