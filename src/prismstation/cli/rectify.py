@@ -63,7 +63,7 @@ def run(args) -> int:
     print(format_rmse_table({name: reports}))
     chosen = next(r for r in reports if r.kind == args.transform)
     if not chosen.ok:
-        raise ModelError(f"{args.transform}: {chosen.error}")
+        raise ModelError(chosen.error)
     print(f"\nresiduals of {chosen.kind} (observed − computed, m):")
     print(f"{'id':<12}{'kind':<6}{'vE':>10}{'vN':>10}")
     for pid, icp, (vx, vy) in zip(pairs.ids, pairs.is_check, chosen.residuals):

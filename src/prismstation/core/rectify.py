@@ -394,7 +394,8 @@ def format_rmse_table(reports_by_image: dict) -> str:
         for n in names:
             r = reports_by_image[n][i]
             if r.ok:
-                row += f"{r.rmse_gcp:>14.3f} m{r.rmse_icp:>14.3f} m"
+                row += "".join(f"{v:>14.3f} m" if np.isfinite(v) else f"{'—':>16}"
+                               for v in (r.rmse_gcp, r.rmse_icp))
             else:
                 row += f"{'—':>16}{'—':>16}"
                 notes.append(f"{n}: {r.error}")
