@@ -1,0 +1,482 @@
+"""Live plots of a fitted :class:`~prismstation.core.solve.Solution` (issue 3, item 6).
+
+Four pyqtgraph plots in a 2 × 2 grid, each a ``pg.PlotWidget`` whose items are created once and
+only get new data on :meth:`PlotsWidget.set_solution` (no rebuilding):
+
+(a) ellipsoidal height of GCPs and ICPs vs F−B parallax with the fitted and the theoretical
+    parallax line (the seed paper's Fig. 4);
+(b) height minus the theoretical prediction ``c1_theory·py`` vs parallax with the fitted line
+    in the same form (Fig. 5);
+(c) residual vectors (measured − predicted) in the image space of the reference view (N),
+    exaggerated, drawn from the measured position (x = column, y = row, pixels, y down);
+(d) standardised residual of each GCP against ``Settings.blunder_threshold``, the blunder red.
+
+The same drawing serves the report writer: :class:`PlotData` is built from a Solution or from
+the report dict of :func:`prismstation.io.report.report_dict`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtGui import QImage
+from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QGridLayout, QHBoxLayout, QLabel,
+                               QVBoxLayout, QWidget)
+
+GCP_COLOR = (31, 100, 200)
+ICP_COLOR = (230, 120, 20)
+FIT_COLOR = (20, 20, 20)
+THEORY_COLOR = (0, 150, 60)
+BLUNDER_COLOR = (220, 20, 20)
+PLOT_NAMES = ("height", "height_minus_theory", "vectors", "std_residuals")
+PLOT_TITLES = {
+    "height": "Height vs F−B parallax (Fig. 4)",
+    "height_minus_theory": "Height − theoretical prediction vs parallax (Fig. 5)",
+    "vectors": "Residual vectors, view {view}",
+    "std_residuals": "Standardised residuals of the GCPs",
+}
+
+
+def _arr(values) -> np.ndarray:
+    return np.asarray(values, dtype=float).reshape(-1)
+
+
+def _xy(values) -> np.ndarray:
+    return np.asarray(values, dtype=float).reshape(-1, 2)
+
+
+@dataclass(frozen=True)
+class PlotData:
+    """Everything the four plots draw, as flat arrays.
+
+    Attributes
+    ----------
+    gcp_py, gcp_h, icp_py, icp_h : (n,) arrays
+        F−B parallax (pixels) and known ellipsoidal height (metres) of GCPs / ICPs that have both.
+    gcp_ids, icp_ids : tuples of str, the ids of those points (same order).
+    c0, c1, c1_theory : float or None
+        Parallax line ``h = c0 + c1·py`` (metres, pixels); ``c1_theory`` of eq. 4.
+    view : str, the view of the residual vectors (the reference view, N for a triplet).
+    vec_gcp_xy, vec_gcp_v, vec_icp_xy, vec_icp_v : (n, 2) arrays
+        Measured image position (x column, y row, pixels) and residual (measured − predicted).
+    std_ids : tuple of str, GCPs with a standardised residual; ``std_values`` (n,) their values.
+    blunder : str or None, the id of the flagged GCP. ``threshold``: the rejection threshold.
+    image_shape : (rows, cols) of the view, or None.
+    critical : tuple of (label, value)
+        The critical values the threshold becomes for each fit's redundancy (Student's t).
+    """
+
+    gcp_py: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    gcp_h: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    icp_py: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    icp_h: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    gcp_ids: tuple = ()
+    icp_ids: tuple = ()
+    c0: float | None = None
+    c1: float | None = None
+    c1_theory: float | None = None
+    view: str = "N"
+    vec_gcp_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    vec_gcp_v: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    vec_icp_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    vec_icp_v: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    vec_gcp_ids: tuple = ()
+    vec_icp_ids: tuple = ()
+    std_ids: tuple = ()
+    std_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    blunder: str | None = None
+    threshold: float = 3.0
+    image_shape: tuple | None = None
+    critical: tuple = ()
+
+    @classmethod
+    def from_records(cls, records, *, parallax=None, view="N", threshold=3.0,
+                     image_shape=None, dofs=()) -> "PlotData":
+        """From per-point tuples ``(id, kind, py, h_known, xy, v, std_residual, blunder)``
+        (``py``, ``h_known``, ``xy``, ``v``, ``std_residual`` may be None)."""
+        h_rows = {"GCP": ([], [], []), "ICP": ([], [], [])}
+        v_rows = {"GCP": ([], [], []), "ICP": ([], [], [])}
+        std_ids, std_vals, blunder = [], [], None
+        for pid, kind, py, h, xy, v, s, bl in records:
+            if kind not in h_rows:
+                continue
+            if py is not None and h is not None:
+                for lst, x in zip(h_rows[kind], (pid, py, h)):
+                    lst.append(x)
+            if xy is not None and v is not None:
+                for lst, x in zip(v_rows[kind], (pid, xy, v)):
+                    lst.append(x)
+            if kind == "GCP" and s is not None:
+                std_ids.append(pid)
+                std_vals.append(s)
+            if bl:
+                blunder = pid
+        c0, c1, c1t = (None, None, None) if parallax is None else parallax
+        return cls(_arr(h_rows["GCP"][1]), _arr(h_rows["GCP"][2]), _arr(h_rows["ICP"][1]),
+                   _arr(h_rows["ICP"][2]), tuple(h_rows["GCP"][0]), tuple(h_rows["ICP"][0]),
+                   c0, c1, c1t, view, _xy(v_rows["GCP"][1]), _xy(v_rows["GCP"][2]),
+                   _xy(v_rows["ICP"][1]), _xy(v_rows["ICP"][2]), tuple(v_rows["GCP"][0]),
+                   tuple(v_rows["ICP"][0]), tuple(std_ids), _arr(std_vals), blunder,
+                   float(threshold), image_shape, _critical(threshold, dofs))
+
+    @classmethod
+    def from_solution(cls, sol) -> "PlotData":
+        """From a :class:`~prismstation.core.solve.Solution` (``None`` gives empty plots)."""
+        if sol is None:
+            return cls()
+        view = sol.reference_view
+        recs = []
+        for p in sol.points:
+            h = None
+            if p.ground_est is not None and p.ground_residual is not None:
+                h = p.ground_est[2] - p.ground_residual[2]
+            recs.append((p.id, p.kind, p.parallax_px, h, p.measured.get(view),
+                         p.residual_px.get(view), p.std_residual, p.blunder))
+        par = sol.parallax
+        line = None if par is None else (par.c0, par.c1, par.c1_theory)
+        v = sol.scene.views[view]
+        lsq_n = getattr(sol.bias.get(view), "lsq", None)
+        dofs = [(f"{view} bias", None if lsq_n is None else lsq_n.dof),
+                ("parallax", None if par is None or par.lsq is None else par.lsq.dof)]
+        return cls.from_records(recs, parallax=line, view=view,
+                                threshold=sol.settings.blunder_threshold,
+                                image_shape=getattr(v, "shape", None), dofs=dofs)
+
+    @classmethod
+    def from_report(cls, report: dict) -> "PlotData":
+        """From the dict of :func:`prismstation.io.report.report_dict` (or its JSON)."""
+        bias = report.get("model", {}).get("bias", {})
+        view = "N" if "N" in bias else next(iter(bias), "N")
+        recs = []
+        for p in report.get("points", []):
+            h = None
+            if p.get("h_est") is not None and p.get("dh") is not None:
+                h = p["h_est"] - p["dh"]
+            recs.append((p["id"], p["kind"], p.get("parallax_px"), h,
+                         (p.get("measured") or {}).get(view),
+                         (p.get("residual_px") or {}).get(view), p.get("std_residual"),
+                         p.get("blunder")))
+        par = report.get("model", {}).get("parallax")
+        line = None if not par else (par.get("c0"), par.get("c1"), par.get("c1_theoretical"))
+        thr = (report.get("settings") or {}).get("blunder_threshold", 3.0)
+        dofs = [(f"{view} bias", (bias.get(view) or {}).get("dof")),
+                ("parallax", (par or {}).get("dof"))]
+        return cls.from_records(recs, parallax=line, view=view, threshold=thr, dofs=dofs)
+
+
+def _critical(threshold, dofs) -> tuple:
+    """``((label, critical value), ...)`` for the fits with a redundancy (see core.solve)."""
+    try:
+        from prismstation.core.solve import critical_value
+    except ImportError:  # an engine without the t-based critical value
+        return ()
+    out = []
+    for label, dof in dofs:
+        if dof:
+            c = critical_value(threshold, int(dof))
+            if np.isfinite(c) and abs(c - threshold) > 1e-3:
+                out.append((f"{label} (dof {int(dof)})", float(c)))
+    return tuple(out)
+
+
+def auto_exaggeration(data: PlotData) -> float:
+    """A 1-2-5 factor that draws the median residual vector ~4 % of the image (or points')
+    extent, the longest at most ~35 %."""
+    v = np.vstack([data.vec_gcp_v, data.vec_icp_v])
+    xy = np.vstack([data.vec_gcp_xy, data.vec_icp_xy])
+    if len(v) == 0:
+        return 100.0
+    length = np.hypot(v[:, 0], v[:, 1])
+    longest, median = float(np.nanmax(length)), float(np.nanmedian(length))
+    extent = float(np.nanmax(np.ptp(xy, axis=0))) if len(xy) > 1 else 1000.0
+    if data.image_shape:
+        extent = max(extent, float(max(data.image_shape)))
+    if not np.isfinite(longest) or longest <= 0:
+        return 100.0
+    raw = min(0.04 * extent / max(median, 1e-9), 0.35 * extent / longest)
+    exp = np.floor(np.log10(raw))
+    mant = raw / 10 ** exp
+    step = 1 if mant < 2 else 2 if mant < 5 else 5
+    return float(step * 10 ** exp)
+
+
+def _segments(xy: np.ndarray, v: np.ndarray, k: float) -> tuple[np.ndarray, np.ndarray]:
+    """x, y arrays of ``[start, end]`` pairs for ``connect='pairs'``."""
+    seg = np.empty((2 * len(xy), 2))
+    seg[0::2] = xy
+    seg[1::2] = xy + k * v
+    return seg[:, 0], seg[:, 1]
+
+
+def _line_x(data: PlotData) -> np.ndarray:
+    py = np.concatenate([data.gcp_py, data.icp_py])
+    if py.size == 0:
+        return np.zeros(0)
+    lo, hi = float(py.min()), float(py.max())
+    pad = 0.05 * max(hi - lo, 1.0)
+    return np.array([min(lo - pad, 0.0) if lo >= 0 else lo - pad, hi + pad])
+
+
+class PlotsWidget(QWidget):
+    """The four live plots of a Solution (see the module docstring).
+
+    Signals
+    -------
+    point_clicked(str) : the id of a point clicked in any plot (for drive-to).
+    """
+
+    point_clicked = Signal(str)
+
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        self._data = PlotData()
+        self._exaggeration = 100.0
+        self.plots: dict[str, pg.PlotWidget] = {}
+        grid = QGridLayout()
+        grid.setContentsMargins(0, 0, 0, 0)
+        grid.setSpacing(2)
+        for i, name in enumerate(PLOT_NAMES):
+            pw = pg.PlotWidget(background="w")
+            pw.getPlotItem().showGrid(x=True, y=True, alpha=0.25)
+            pw.setMinimumSize(160, 120)
+            self.plots[name] = pw
+            grid.addWidget(pw, i // 2, i % 2)
+        self._build_items()
+        self.auto_box = QCheckBox("auto")
+        self.auto_box.setChecked(True)
+        self.spin = QDoubleSpinBox()
+        self.spin.setRange(1.0, 1e6)
+        self.spin.setDecimals(0)
+        self.spin.setValue(self._exaggeration)
+        self.spin.setPrefix("×")
+        self.spin.valueChanged.connect(self._on_spin)
+        self.auto_box.toggled.connect(self._on_auto)
+        bar = QHBoxLayout()
+        bar.setContentsMargins(4, 0, 4, 0)
+        bar.addWidget(QLabel("Residual vector exaggeration"))
+        bar.addWidget(self.spin)
+        bar.addWidget(self.auto_box)
+        bar.addStretch(1)
+        self.summary = QLabel()
+        bar.addWidget(self.summary)
+        lay = QVBoxLayout(self)
+        lay.setContentsMargins(0, 0, 0, 0)
+        lay.addLayout(grid, 1)
+        lay.addLayout(bar)
+
+    # ------------------------------------------------------------------ construction
+    def _scatter(self, pw, color, symbol, name, size=8, filled=True):
+        brush = pg.mkBrush(*color) if filled else pg.mkBrush(255, 255, 255, 0)
+        item = pw.plot([], [], pen=None, symbol=symbol, symbolSize=size, symbolBrush=brush,
+                       symbolPen=pg.mkPen(color, width=1.5), name=name)
+        item.sigPointsClicked.connect(self._on_clicked)
+        return item
+
+    def _build_items(self) -> None:
+        p = self.plots
+        for name in ("height", "height_minus_theory"):
+            pi = p[name].getPlotItem()
+            pi.addLegend(offset=(8, 8), labelTextSize="8pt")
+            pi.setLabel("bottom", "F−B parallax", units="px")
+        p["height"].setLabel("left", "h (ellipsoidal)", units="m")
+        p["height_minus_theory"].setLabel("left", "h − c1ₜₕ·py", units="m")
+        dash = Qt.PenStyle.DashLine
+        self.fit_line = p["height"].plot([], [], pen=pg.mkPen(FIT_COLOR, width=1.5), name="fitted line")
+        self.theory_line = p["height"].plot([], [], pen=pg.mkPen(THEORY_COLOR, width=1.5, style=dash),
+                                            name="theoretical (eq. 4)")
+        self.h_gcp = self._scatter(p["height"], GCP_COLOR, "o", "GCP")
+        self.h_icp = self._scatter(p["height"], ICP_COLOR, "t", "ICP", filled=False)
+        self.d_fit_line = p["height_minus_theory"].plot([], [], pen=pg.mkPen(FIT_COLOR, width=1.5),
+                                                        name="fitted − theoretical")
+        zero = pg.InfiniteLine(0.0, angle=0, pen=pg.mkPen(THEORY_COLOR, width=1, style=dash))
+        p["height_minus_theory"].addItem(zero)
+        self.d_gcp = self._scatter(p["height_minus_theory"], GCP_COLOR, "o", "GCP")
+        self.d_icp = self._scatter(p["height_minus_theory"], ICP_COLOR, "t", "ICP", filled=False)
+
+        pv = p["vectors"].getPlotItem()
+        pv.invertY(True)
+        pv.setAspectLocked(True)
+        pv.setLabel("bottom", "x (column)", units="px")
+        pv.setLabel("left", "y (row)", units="px")
+        pv.addLegend(offset=(8, 8), labelTextSize="8pt")
+        self.v_gcp_seg = pv.plot([], [], pen=pg.mkPen(GCP_COLOR, width=2), connect="pairs")
+        self.v_icp_seg = pv.plot([], [], pen=pg.mkPen(ICP_COLOR, width=2), connect="pairs")
+        self.v_gcp = self._scatter(p["vectors"], GCP_COLOR, "o", "GCP", size=6)
+        self.v_icp = self._scatter(p["vectors"], ICP_COLOR, "t", "ICP", size=7, filled=False)
+        self.frame = pv.plot([], [], pen=pg.mkPen((150, 150, 150), width=1, style=dash))
+
+        ps = p["std_residuals"].getPlotItem()
+        ps.setLabel("left", "|standardised residual|")
+        ps.setLabel("bottom", "GCP")
+        self.stems = ps.plot([], [], pen=pg.mkPen(GCP_COLOR, width=3), connect="pairs")
+        self.std_pts = self._scatter(p["std_residuals"], GCP_COLOR, "o", "GCP", size=7)
+        self.blunder_pt = self._scatter(p["std_residuals"], BLUNDER_COLOR, "s", "blunder", size=12)
+        self.threshold_line = pg.InfiniteLine(3.0, angle=0, pen=pg.mkPen(BLUNDER_COLOR, width=1.5, style=dash),
+                                              label="threshold {value:.2f}",
+                                              labelOpts={"position": 0.9, "color": BLUNDER_COLOR})
+        ps.addItem(self.threshold_line)
+        self.blunder_label = pg.TextItem("", color=BLUNDER_COLOR, anchor=(0.5, 1.2))
+        ps.addItem(self.blunder_label)
+        self.critical_lines = []
+        for _ in range(2):
+            line = pg.InfiniteLine(0.0, angle=0, pen=pg.mkPen((120, 120, 120), width=1,
+                                                             style=Qt.PenStyle.DotLine),
+                                   label="", labelOpts={"position": 0.3, "color": (90, 90, 90)})
+            line.setVisible(False)
+            ps.addItem(line)
+            self.critical_lines.append(line)
+        # the blunder (if any) ringed in the other plots too
+        self.blunder_rings = {name: self._scatter(p[name], BLUNDER_COLOR, "o", None, size=16,
+                                                  filled=False)
+                              for name in ("height", "height_minus_theory", "vectors")}
+        for pw in p.values():
+            for ax in ("left", "bottom"):
+                pw.getPlotItem().getAxis(ax).enableAutoSIPrefix(False)
+        self._titles: dict = {}
+        self._set_titles()
+
+    def _set_titles(self) -> None:
+        for name, pw in self.plots.items():
+            title = PLOT_TITLES[name].format(view=self._data.view)
+            if name == "vectors":
+                title += f" (×{self._exaggeration:g})"
+            if self._titles.get(name) != title:
+                pw.setTitle(title, size="9pt")
+                self._titles[name] = title
+
+    # ------------------------------------------------------------------ public
+    def set_solution(self, solution) -> None:
+        """Show ``solution`` (a :class:`~prismstation.core.solve.Solution` or None)."""
+        self.set_plot_data(PlotData.from_solution(solution))
+
+    def set_report(self, report: dict) -> None:
+        """Show a report dict (:func:`prismstation.io.report.report_dict`)."""
+        self.set_plot_data(PlotData.from_report(report))
+
+    def set_plot_data(self, data: PlotData) -> None:
+        """Update every item from ``data`` (items are reused, never rebuilt)."""
+        self._data = data
+        d = data
+        if self.auto_box.isChecked():
+            self._exaggeration = auto_exaggeration(d)
+            self.spin.blockSignals(True)
+            self.spin.setValue(self._exaggeration)
+            self.spin.blockSignals(False)
+        self.h_gcp.setData(d.gcp_py, d.gcp_h, data=list(d.gcp_ids))
+        self.h_icp.setData(d.icp_py, d.icp_h, data=list(d.icp_ids))
+        x = _line_x(d)
+        if d.c0 is not None and d.c1 is not None and x.size:
+            self.fit_line.setData(x, d.c0 + d.c1 * x)
+            self.d_fit_line.setData(x, d.c0 + (d.c1 - d.c1_theory) * x)
+        else:
+            self.fit_line.setData([], [])
+            self.d_fit_line.setData([], [])
+        if d.c1_theory is not None and x.size:
+            self.theory_line.setData(x, d.c1_theory * x)
+            self.d_gcp.setData(d.gcp_py, d.gcp_h - d.c1_theory * d.gcp_py, data=list(d.gcp_ids))
+            self.d_icp.setData(d.icp_py, d.icp_h - d.c1_theory * d.icp_py, data=list(d.icp_ids))
+        else:
+            for item in (self.theory_line, self.d_gcp, self.d_icp):
+                item.setData([], [])
+        self._update_vectors()
+        n = len(d.std_ids)
+        xs = np.arange(1, n + 1, dtype=float)
+        stem_x = np.repeat(xs, 2)
+        stem_y = np.zeros(2 * n)
+        stem_y[1::2] = d.std_values
+        self.stems.setData(stem_x, stem_y)
+        self.std_pts.setData(xs, d.std_values, data=list(d.std_ids))
+        self.threshold_line.setValue(d.threshold)
+        for line, crit in zip(self.critical_lines, list(d.critical) + [None] * 2):
+            line.setVisible(crit is not None and n > 0)
+            if crit is not None:
+                line.setValue(crit[1])
+                line.label.setFormat(f"critical {crit[0]}: {{value:.2f}}")
+        if d.blunder in d.std_ids:
+            i = d.std_ids.index(d.blunder)
+            self.blunder_pt.setData([xs[i]], [d.std_values[i]], data=[d.blunder])
+            self.blunder_label.setText(d.blunder)
+            self.blunder_label.setPos(xs[i], d.std_values[i])
+        else:
+            self.blunder_pt.setData([], [])
+            self.blunder_label.setText("")
+        ax = self.plots["std_residuals"].getPlotItem().getAxis("bottom")
+        ax.setTicks([list(zip(xs, d.std_ids))] if 0 < n <= 25 else None)
+        top = max([d.threshold * 1.15, float(np.max(d.std_values)) * 1.1 if n else 0.0]
+                  + [c[1] * 1.1 for c in d.critical])
+        self._update_rings()
+        self.plots["std_residuals"].setYRange(0, top, padding=0)
+        self.plots["std_residuals"].setXRange(0.3, n + 0.7, padding=0)
+        self.summary.setText(f"{len(d.gcp_ids)} GCP, {len(d.icp_ids)} ICP with parallax"
+                             + (f"; blunder: {d.blunder}" if d.blunder else ""))
+        self._set_titles()
+
+    def set_exaggeration(self, k: float | None) -> None:
+        """Residual vectors drawn ``k`` times their length; ``None`` returns to automatic."""
+        if k is None:
+            self.auto_box.setChecked(True)
+        else:
+            self.spin.setValue(float(k))
+
+    @property
+    def exaggeration(self) -> float:
+        return self._exaggeration
+
+    def render_images(self, size=(900, 600)) -> dict:
+        """Each plot as a QImage of ``size`` pixels (for reports): ``{name: QImage}``."""
+        out = {}
+        for name, pw in self.plots.items():
+            old = pw.size()
+            pw.resize(*size)
+            pw.getPlotItem().setTitle(pw.getPlotItem().titleLabel.text, size="12pt")
+            out[name] = pw.grab().toImage().convertToFormat(QImage.Format.Format_RGB32)
+            pw.resize(old)
+        self._set_titles()
+        return out
+
+    # ------------------------------------------------------------------ internals
+    def _update_vectors(self) -> None:
+        d, k = self._data, self._exaggeration
+        self.v_gcp_seg.setData(*_segments(d.vec_gcp_xy, d.vec_gcp_v, k))
+        self.v_icp_seg.setData(*_segments(d.vec_icp_xy, d.vec_icp_v, k))
+        self.v_gcp.setData(d.vec_gcp_xy[:, 0], d.vec_gcp_xy[:, 1], data=list(d.vec_gcp_ids))
+        self.v_icp.setData(d.vec_icp_xy[:, 0], d.vec_icp_xy[:, 1], data=list(d.vec_icp_ids))
+        if d.image_shape:
+            r, c = d.image_shape[:2]
+            self.frame.setData([0, c, c, 0, 0], [0, 0, r, r, 0])
+        else:
+            self.frame.setData([], [])
+
+    def _update_rings(self) -> None:
+        d, b = self._data, self._data.blunder
+        pos = {"height": (d.gcp_ids, d.gcp_py, d.gcp_h),
+               "height_minus_theory": (d.gcp_ids, d.gcp_py,
+                                       d.gcp_h - (d.c1_theory or 0.0) * d.gcp_py),
+               "vectors": (d.vec_gcp_ids, d.vec_gcp_xy[:, 0], d.vec_gcp_xy[:, 1])}
+        for name, (ids, x, y) in pos.items():
+            ring = self.blunder_rings[name]
+            if b is not None and b in ids and not (name == "height_minus_theory" and d.c1_theory is None):
+                i = ids.index(b)
+                ring.setData([x[i]], [y[i]], data=[b])
+            else:
+                ring.setData([], [])
+
+    def _on_spin(self, value: float) -> None:
+        self.auto_box.blockSignals(True)
+        self.auto_box.setChecked(False)
+        self.auto_box.blockSignals(False)
+        self._exaggeration = float(value)
+        self._update_vectors()
+        self._set_titles()
+
+    def _on_auto(self, on: bool) -> None:
+        if on:
+            self.set_plot_data(self._data)
+
+    def _on_clicked(self, item, points, *_):
+        if len(points):
+            pid = points[0].data()
+            if pid is not None:
+                self.point_clicked.emit(str(pid))
