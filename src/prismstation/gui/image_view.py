@@ -12,6 +12,8 @@ the centre of pixel (i, j) is (i + 0.5, j + 0.5).
 """
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt, QTimer, Signal
@@ -21,6 +23,8 @@ from prismstation.gui.tiles import TileLoader, tiles_for_rect
 from prismstation.io.raster import RasterSource
 
 _COARSE_Z = -100
+TILE_BUDGET_S = 0.004
+"""GUI-thread time per event-loop turn spent turning delivered tiles into images (seconds)."""
 
 
 def _image_item(arr: np.ndarray, rect_xywh, levels, z: float) -> pg.ImageItem:
@@ -78,6 +82,11 @@ class ImageView(QWidget):
         self._update_timer.setSingleShot(True)
         self._update_timer.setInterval(0)
         self._update_timer.timeout.connect(self._update_tiles)
+        self._arrived: list = []  # (key, array) delivered, not yet shown
+        self._drain_timer = QTimer(self)
+        self._drain_timer.setSingleShot(True)
+        self._drain_timer.setInterval(0)
+        self._drain_timer.timeout.connect(self._drain_arrived)
         self.vb.sigRangeChanged.connect(self._on_range_changed)
         self.graphics.scene().sigMouseMoved.connect(self._on_mouse_moved)
         self.graphics.scene().sigMouseClicked.connect(self._on_mouse_clicked)
@@ -121,6 +130,7 @@ class ImageView(QWidget):
             self.vb.removeItem(self._coarse_item)
             self._coarse_item = None
         self._wanted = []
+        self._arrived = []
 
     def closeEvent(self, ev):
         if self.loader is not None:
@@ -216,6 +226,7 @@ class ImageView(QWidget):
         _, coarse_f = src.coarse()
         if level >= coarse_f:  # the overview is as fine as the screen: no tiles
             self._level, self._wanted = 0, []
+            self._coarse_item.setVisible(True)
             self._drop_tiles(lambda k: True)
             self.loader.request([])
             self.tiles_settled.emit()
@@ -236,9 +247,9 @@ class ImageView(QWidget):
         # tiles of this level off screen go; other levels stay as a backdrop until complete
         self._drop_tiles(lambda k: k[0] == level and k not in wanted)
         self._drop_tiles(lambda k: k[0] != level and not self._intersects(k))
+        self._coarse_item.setVisible(bool(missing))
         if not missing:
-            self._drop_tiles(lambda k: k[0] != level)
-            self.tiles_settled.emit()
+            self._settled()
         self.loader.request(missing)
 
     def _intersects(self, key) -> bool:
@@ -250,19 +261,38 @@ class ImageView(QWidget):
         for key in [k for k in self._tiles if predicate(k)]:
             self.vb.removeItem(self._tiles.pop(key))
 
-    def _show_tile(self, key, arr) -> None:
+    def _show_tile(self, key, arr) -> pg.ImageItem:
         level = key[0]
         item = _image_item(arr, self.source.tile_rect(*key), self._levels, -np.log2(level))
         self.vb.addItem(item)
         self._tiles[key] = item
+        return item
 
     def _on_tile_loaded(self, source, key, arr) -> None:
-        if source is not self.source or key in self._tiles or key not in self._wanted:
-            return
-        self._show_tile(key, arr)
-        if self.tiles_complete():
-            self._drop_tiles(lambda k: k[0] != self._level)
-            self.tiles_settled.emit()
+        if source is self.source:
+            self._arrived.append((key, arr))
+            self._drain_timer.start()
+
+    def _drain_arrived(self) -> None:
+        """Show delivered tiles for at most TILE_BUDGET_S, then yield to the event loop."""
+        t0 = time.perf_counter()
+        shown = False
+        while self._arrived and time.perf_counter() - t0 < TILE_BUDGET_S:
+            key, arr = self._arrived.pop(0)
+            if key in self._tiles or key not in self._wanted:
+                continue
+            self._show_tile(key, arr).render()  # convert now, inside the budget
+            shown = True
+        if self._arrived:
+            self._drain_timer.start()
+        elif shown and self.tiles_complete():
+            self._settled()
+
+    def _settled(self) -> None:
+        """All wanted tiles shown: they cover the view, so backdrop tiles and overview go."""
+        self._drop_tiles(lambda k: k[0] != self._level)
+        self._coarse_item.setVisible(False)
+        self.tiles_settled.emit()
 
     # ------------------------------------------------------------------ mouse
     def _on_mouse_moved(self, scene_pos) -> None:
