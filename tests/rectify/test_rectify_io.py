@@ -1,0 +1,201 @@
+"""Rectified GeoTIFF export and the ``rectify`` command."""
+import json
+import warnings
+
+import numpy as np
+import pytest
+import rasterio
+
+from prismstation.cli import main
+from prismstation.core.rectify import compare_transforms, fit_transform
+from prismstation.errors import InputError
+from prismstation.io.rectify_io import RectifyCancelled, read_point_pairs, rectify_raster
+
+CRS = "EPSG:32631"
+
+
+def _image(path, rows=240, cols=320, seed=0):
+    rng = np.random.default_rng(seed)
+    img = (rng.random((rows, cols)) * 250 + 1).astype(np.uint8)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with rasterio.open(path, "w", driver="GTiff", width=cols, height=rows, count=1,
+                           dtype="uint8") as ds:
+            ds.write(img, 1)
+    return img
+
+
+def _points(n=12, seed=1, rows=240, cols=320):
+    rng = np.random.default_rng(seed)
+    src = rng.uniform(0, 1, (n, 2)) * [cols, rows]
+    dst = src @ np.array([[10.0, 1.0], [1.5, -10.0]]).T + [500000.0, 4600000.0]
+    return src, dst
+
+
+def _apply(geo, col, row):
+    return geo.a * col + geo.b * row + geo.c, geo.d * col + geo.e * row + geo.f
+
+
+def _read(path):
+    with rasterio.open(path) as ds:
+        return ds.read(1), ds.transform, ds.crs
+
+
+@pytest.mark.parametrize("kind", ["affine", "projective", "poly2"])
+def test_nearest_rectification_is_the_inverse_mapping(tmp_path, kind):
+    img = _image(tmp_path / "img.tif")
+    src, dst = _points()
+    t = fit_transform(kind, src, dst)
+    res = rectify_raster(tmp_path / "img.tif", t, tmp_path / "out.tif", points_crs=CRS,
+                         resolution=7.0, block=100, resampling="nearest")
+    out, geo, crs = _read(tmp_path / "out.tif")
+    assert crs.to_epsg() == 32631 and geo.a == 7.0 and out.shape == (res.height, res.width)
+    rows, cols = np.mgrid[0:out.shape[0], 0:out.shape[1]]
+    e, n = _apply(geo, cols.ravel() + 0.5, rows.ravel() + 0.5)
+    xy = t.inverse(np.column_stack([e, n]))
+    inside = np.all((xy > 0.01) & (xy < [319.99, 239.99]), axis=1)
+    expect = img[xy[inside, 1].astype(int), xy[inside, 0].astype(int)]
+    assert np.mean(out.ravel()[inside] == expect) > 0.999
+    outside = np.any((xy < -0.01) | (xy > [320.01, 240.01]), axis=1)
+    assert np.all(out.ravel()[outside] == 0)
+    # the footprint of the image lies inside the output grid
+    corners = t(np.array([[0, 0], [320, 0], [0, 240], [320, 240]]))
+    left, top = geo.c, geo.f
+    assert np.all(corners[:, 0] >= left) and np.all(corners[:, 0] <= left + 7 * res.width)
+    assert np.all(corners[:, 1] <= top) and np.all(corners[:, 1] >= top - 7 * res.height)
+
+
+def test_rectification_agrees_with_gdal_gcp_warp(tmp_path):
+    """Exact affine data: GDAL's order-1 GCP warp (rasterio.warp.reproject) is the same map."""
+    from rasterio.control import GroundControlPoint
+    from rasterio.enums import Resampling
+    from rasterio.warp import reproject
+
+    img = _image(tmp_path / "img.tif")
+    src, dst = _points(n=5)
+    t = fit_transform("affine", src, dst)
+    rectify_raster(tmp_path / "img.tif", t, tmp_path / "out.tif", points_crs=CRS, resolution=6.0,
+                   resampling="nearest")
+    ours, geo, _ = _read(tmp_path / "out.tif")
+    gcps = [GroundControlPoint(row=y, col=x, x=X, y=Y) for (x, y), (X, Y) in zip(src, dst)]
+    ref = np.zeros_like(ours)
+    reproject(img, ref, gcps=gcps, src_crs=CRS, dst_transform=geo, dst_crs=CRS,
+              resampling=Resampling.nearest, src_nodata=0, dst_nodata=0)
+    both = (ours > 0) & (ref > 0)
+    assert both.sum() > 0.9 * max((ours > 0).sum(), (ref > 0).sum())
+    assert np.mean(ours[both] == ref[both]) > 0.995
+
+
+def test_output_crs_and_bilinear(tmp_path):
+    rows, cols = np.mgrid[0:240, 0:320]
+    img = (rows + cols).astype(np.uint16)     # a plane: bilinear reproduces it exactly
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with rasterio.open(tmp_path / "ramp.tif", "w", driver="GTiff", width=320, height=240,
+                           count=1, dtype="uint16") as ds:
+            ds.write(img, 1)
+    src, dst = _points()
+    t = fit_transform("affine", src, dst)
+    res = rectify_raster(tmp_path / "ramp.tif", t, tmp_path / "geo.tif", points_crs=CRS,
+                         out_crs="EPSG:4326")
+    out, geo, crs = _read(tmp_path / "geo.tif")
+    assert crs.to_epsg() == 4326 and 1e-5 < res.resolution < 1e-3
+    from pyproj import Transformer
+    tr = Transformer.from_crs("EPSG:4326", CRS, always_xy=True)
+    r, c = np.mgrid[5:out.shape[0]:17, 5:out.shape[1]:13]
+    lon, lat = _apply(geo, c.ravel() + 0.5, r.ravel() + 0.5)
+    xy = t.inverse(np.column_stack(tr.transform(lon, lat)))
+    ok = np.all((xy > 1) & (xy < [319, 239]), axis=1)
+    expect = (xy[ok, 0] - 0.5) + (xy[ok, 1] - 0.5)
+    assert ok.sum() > 50
+    assert np.abs(out[r.ravel()[ok], c.ravel()[ok]] - expect).max() <= 0.51
+
+
+def test_progress_reports_and_cancels(tmp_path):
+    _image(tmp_path / "img.tif")
+    src, dst = _points()
+    t = fit_transform("affine", src, dst)
+    seen = []
+    rectify_raster(tmp_path / "img.tif", t, tmp_path / "a.tif", points_crs=CRS, resolution=5,
+                   block=64, progress=lambda f: seen.append(f) or True)
+    assert len(seen) > 4 and seen[-1] == 1.0 and seen == sorted(seen)
+    with pytest.raises(RectifyCancelled):
+        rectify_raster(tmp_path / "img.tif", t, tmp_path / "b.tif", points_crs=CRS, resolution=5,
+                       block=64, progress=lambda f: f < 0.3)
+    assert not (tmp_path / "b.tif").exists()
+
+
+def _csvs(tmp_path, src, dst, icp=()):
+    pts = tmp_path / "pts.csv"
+    meas = tmp_path / "meas.csv"
+    pts.write_text("id,E,N,H,kind,note\n" + "".join(
+        f"G{i},{e:.4f},{n:.4f},10,{'ICP' if i in icp else 'GCP'},x\n" for i, (e, n) in enumerate(dst)))
+    meas.write_text("id,view,x,y\n" + "".join(f"G{i},N,{x:.4f},{y:.4f}\n" for i, (x, y) in enumerate(src))
+                    + "T1,N,3,4\n" + "".join(f"G{i},F,{x:.4f},{y:.4f}\n" for i, (x, y) in enumerate(src)))
+    return pts, meas
+
+
+def test_read_point_pairs_one_view_and_kinds(tmp_path):
+    src, dst = _points()
+    pts, meas = _csvs(tmp_path, src, dst, icp=(2, 5))
+    with pytest.raises(InputError, match="several views"):
+        read_point_pairs(pts, meas)
+    p = read_point_pairs(pts, meas, view="N")
+    assert p.ids[0] == "G0" and len(p.ids) == 12 and "T1" not in p.ids
+    assert np.allclose(p.xy, np.round(src, 4)) and list(np.nonzero(p.is_check)[0]) == [2, 5]
+
+
+def test_rectify_command_table_json_and_image(tmp_path, capsys):
+    _image(tmp_path / "img.tif")
+    rng = np.random.default_rng(4)
+    src, dst = _points(n=16)
+    dst = dst + rng.normal(0, 2.0, dst.shape)
+    pts, meas = _csvs(tmp_path, src, dst, icp=(0, 7, 11))
+    rc = main(["rectify", str(tmp_path / "img.tif"), str(pts), "--measurements", str(meas),
+               "--view", "N", "--transform", "projective", "-o", str(tmp_path / "o.tif"),
+               "--points-crs", CRS, "--resolution", "8", "--json", str(tmp_path / "r.json")])
+    assert rc == 0
+    text = capsys.readouterr().out
+    icp = np.zeros(16, bool)
+    icp[[0, 7, 11]] = True
+    reports = compare_transforms(np.round(src, 4), np.round(dst, 4), icp)
+    for r in reports:
+        assert r.kind in text and f"{r.rmse_gcp:.3f}" in text and f"{r.rmse_icp:.3f}" in text
+    d = json.loads((tmp_path / "r.json").read_text())
+    assert d["chosen"] == "projective"
+    assert [t["rmse_icp_m"] for t in d["transforms"]] == pytest.approx([r.rmse_icp for r in reports])
+    out, geo, crs = _read(tmp_path / "o.tif")
+    assert geo.a == 8.0 and crs.to_epsg() == 32631 and out.any()
+
+
+@pytest.mark.parametrize("content,where", [
+    ("id,E,N\nA,1,2\nB,1,oops\n", "line 3"),
+    ("id,E\nA,1\n", "line 1"),
+    ("id,E,N,kind\nA,1,2,TIE\n", "line 2"),
+    ("id,E,N\nA,1,2\nA,3,4\n", "line 3"),
+])
+def test_rectify_command_bad_points_exit_2(tmp_path, capsys, content, where):
+    _image(tmp_path / "img.tif")
+    pts = tmp_path / "bad.csv"
+    pts.write_text(content)
+    meas = tmp_path / "m.csv"
+    meas.write_text("id,view,x,y\nA,N,1,2\n")
+    rc = main(["rectify", str(tmp_path / "img.tif"), str(pts), "--measurements", str(meas),
+               "-o", str(tmp_path / "x.tif"), "--points-crs", CRS])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1
+    assert "bad.csv" in err and where in err
+
+
+def test_rectify_command_too_few_points_and_missing_image(tmp_path, capsys):
+    _image(tmp_path / "img.tif")
+    src, dst = _points(n=4)
+    pts, meas = _csvs(tmp_path, src, dst)
+    rc = main(["rectify", str(tmp_path / "img.tif"), str(pts), "--measurements", str(meas),
+               "--view", "N", "--transform", "poly2", "-o", str(tmp_path / "x.tif"),
+               "--points-crs", CRS])
+    cap = capsys.readouterr()
+    assert rc == 2 and "at least 6" in cap.err and len(cap.err.strip().splitlines()) == 1
+    rc = main(["rectify", str(tmp_path / "nope.tif"), str(pts), "--measurements", str(meas),
+               "-o", str(tmp_path / "x.tif")])
+    assert rc == 2 and "nope.tif" in capsys.readouterr().err
