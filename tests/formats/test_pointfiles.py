@@ -227,3 +227,23 @@ def test_cli_converts_and_reports_bad_input(shared_data, tmp_path, capsys):
     assert main(["points", str(bad), "-o", str(tmp_path / "x.csv")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "bad.txt, line 2" in err[0] and "im_y" in err[0]
+
+
+def test_odm_written_in_a_feet_grid_gives_feet_heights(shared_data, tmp_path):
+    utm = pfm.read_point_file(_real(shared_data, "ODM_tests/gcp_utm_north_valid.txt"))
+    out = tmp_path / "ft.txt"
+    pfm.write_point_file(pfm.convert_point_file(utm, "EPSG:2251"), out)
+    lines = out.read_text().splitlines()
+    assert lines[0] == "EPSG:2251"
+    x, y, z = (float(v) for v in lines[1].split()[:3])
+    # the Michigan example holds this very point: 26607594.75468351 -26813.882366498266 563.1987598425
+    assert x == pytest.approx(26607594.75468351, abs=0.01)
+    assert y == pytest.approx(-26813.882366498266, abs=0.01)
+    assert z == pytest.approx(563.1987598425, abs=1e-6)
+
+
+def test_odm_comment_before_crs_line(tmp_path):
+    f = tmp_path / "gcp_list.txt"
+    f.write_text("# made by hand\nEPSG:32629\n512000 4601000 100 10 20 a.jpg P1\n")
+    pf = pfm.read_point_file(f)
+    assert pf.format == "odm" and pf.crs == "EPSG:32629" and pf.points[0].id == "P1"

@@ -44,4 +44,6 @@ def run(args) -> int:
         with open(args.measurements, "w", encoding="utf-8", newline="") as fh:
             fh.write(pfm.format_measurements_csv(pf))
     print(f"{len(pf.points)} points, {len(pf.measurements)} measurements -> {args.output}")
+    if str(args.output).lower().endswith(".csv") and pf.crs:
+        print(f"note: the CSV states no CRS; its E, N are in {pf.crs}")
     return 0

@@ -154,7 +154,7 @@ def detect_format(path) -> str:
     content = [ln for ln in lines if not ln.lstrip().startswith("#")]
     if content and re.match(r"^\s*id\s*,", content[0], re.IGNORECASE):
         return "csv"
-    if first.upper().startswith(("EPSG:", "+PROJ", "WGS84", "WGS 84")):
+    if content and content[0].strip().upper().startswith(("EPSG:", "+PROJ", "WGS84", "WGS 84")):
         return "odm"
     if content and len(re.split(r"[,\s]+", content[0].strip())) >= 12:
         return "asp"
@@ -306,7 +306,8 @@ def format_qgis_points(pf: PointFile, *, view: str | None = None) -> str:
 def read_odm_gcp(path, *, height: str = "ellipsoidal") -> PointFile:
     """Read an OpenDroneMap ``gcp_list.txt`` (see the module docstring)."""
     lines = _lines(path)
-    first = next((i for i, ln in enumerate(lines) if ln.strip()), None)
+    first = next((i for i, ln in enumerate(lines)
+                  if ln.strip() and not ln.lstrip().startswith("#")), None)
     if first is None:
         raise InputError("empty file", path)
     header = lines[first].strip()
