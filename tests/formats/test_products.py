@@ -50,6 +50,9 @@ def test_map_to_image_by_hand(triplet):
         assert (x, y) == (pytest.approx(30 + {"N": 0, "F": 3, "B": -2}[letter], abs=1e-6),
                           pytest.approx(20.0, abs=1e-6))
         assert scene["views"][letter]["pixel_size_m"] == 2.5
+        # the leader's scene-centre position (G, km fields) lands on the image centre
+        assert scene["views"][letter]["centre_check_px"] == pytest.approx(
+            {"N": 0.0, "F": 3.0, "B": 2.0}[letter], abs=0.01)
         # 2.5 m pixels: one metre east moves 0.4 px along the rotated axes
         assert math.hypot(m[0], m[2]) == pytest.approx(0.4, rel=1e-9)
 

@@ -63,6 +63,17 @@ def _tif_dir(img: Path, image_dir) -> Path:
     return img.parent if os.access(img.parent, os.W_OK) else Path.cwd()
 
 
+def _centre_check(v) -> float | None:
+    """Pixels between the leader's scene-centre position mapped through the F4 affine and the
+    image centre: a few pixels confirm the reading of the F4 relation on a real product."""
+    if v.centre_en is None:
+        return None
+    m = v.map_to_image
+    x = m[0] * v.centre_en[0] + m[1] * v.centre_en[1] + m[4]
+    y = m[2] * v.centre_en[0] + m[3] * v.centre_en[1] + m[5]
+    return round(float(np.hypot(x - v.width / 2.0, y - v.height / 2.0)), 3)
+
+
 def _ceos_views(leds: list[Path], image_dir) -> dict:
     views = {}
     for led in leds:
@@ -81,7 +92,8 @@ def _ceos_views(leds: list[Path], image_dir) -> dict:
             "scene_id": v.scene_id, "product_id": v.product_id, "summary": v.summary,
             "leader": led, "state_vectors": v.state_vectors, "altitude_m": v.altitude_m,
             "extra": {"source": str(v.image_file), "ceos_f4": list(v.f4),
-                      "line_spacing_m": v.line_spacing_m, "nominal_heading": v.heading},
+                      "line_spacing_m": v.line_spacing_m, "nominal_heading": v.heading,
+                      "centre_check_px": _centre_check(v)},
         }
     return views
 
