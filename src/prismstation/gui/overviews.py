@@ -31,6 +31,7 @@ class OverviewBuilder(QObject):
         self.source = source
         self.external = external
         self.cancelled = threading.Event()
+        self.result: tuple[bool, str] | None = None
         self.thread = QThread()
         self.moveToThread(self.thread)
         self.thread.started.connect(self._run)
@@ -47,10 +48,10 @@ class OverviewBuilder(QObject):
             return not self.cancelled.is_set()
 
         try:
-            done = self.source.build_overviews(progress, external=self.external)
-            self.finished.emit(bool(done), "")
+            self.result = (bool(self.source.build_overviews(progress, external=self.external)), "")
         except RasterReadError as exc:
-            self.finished.emit(False, str(exc))
+            self.result = (False, str(exc))
+        self.finished.emit(*self.result)
         self.thread.quit()
 
 
@@ -94,10 +95,13 @@ def build_overviews_with_progress(parent, source, external: bool = True) -> bool
     dialog.canceled.connect(waiter.cancel)
     builder.start()
     dialog.exec()  # the queued `finished` can only arrive inside this event loop
+    if waiter.ok is None:  # the dialog went away before the end (Cancel, Esc, close)
+        builder.cancel()
     builder.thread.wait()
-    if waiter.message:
-        QMessageBox.warning(parent, "Overviews", waiter.message)
-    return bool(waiter.ok)
+    ok, message = builder.result or (False, "")
+    if message:
+        QMessageBox.warning(parent, "Overviews", message)
+    return ok
 
 
 def offer_overviews(parent, source, min_size: int = 4096) -> bool:

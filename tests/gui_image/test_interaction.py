@@ -1,0 +1,97 @@
+"""Mouse pan and wheel zoom on the real widget; the overview-building dialog."""
+from __future__ import annotations
+
+import time
+from types import SimpleNamespace
+
+import pytest
+
+pytest.importorskip("pytestqt")
+from PySide6.QtCore import QPoint, QPointF, Qt, QTimer  # noqa: E402
+from PySide6.QtGui import QWheelEvent  # noqa: E402
+from PySide6.QtWidgets import QApplication, QMessageBox, QProgressDialog, QPushButton  # noqa: E402
+
+from prismstation.gui import overviews  # noqa: E402
+from prismstation.gui.image_view import ImageView  # noqa: E402
+from prismstation.io.raster import RasterSource  # noqa: E402
+
+pytestmark = pytest.mark.gui
+
+
+@pytest.fixture()
+def view(qtbot, pattern_tif):
+    v = ImageView()
+    qtbot.addWidget(v)
+    v.resize(600, 400)
+    v.show()
+    qtbot.waitExposed(v)
+    v.set_source(RasterSource(pattern_tif))
+    yield v
+    v.close()
+
+
+def test_left_drag_pans_the_image_with_the_mouse(qtbot, view):
+    view.center_on(1500, 1000, scale=2.0)
+    vp = view.graphics.viewport()
+    under = view.map_from_viewport(QPointF(300, 200))
+    qtbot.mousePress(vp, Qt.MouseButton.LeftButton, pos=QPoint(300, 200))
+    for x in range(305, 361, 5):
+        qtbot.mouseMove(vp, QPoint(x, 200))
+    qtbot.mouseRelease(vp, Qt.MouseButton.LeftButton, pos=QPoint(360, 200))
+    # the image point that was under the mouse followed it, 60 screen px = 120 image px
+    assert view.center()[0] == pytest.approx(1500 - 120, abs=2 * 2.0)
+    after = view.map_from_viewport(QPointF(360, 200))
+    assert after[0] == pytest.approx(under[0], abs=2 * 2.0)
+
+
+def test_wheel_zooms_in(qtbot, view):
+    view.center_on(1500, 1000, scale=2.0)
+    vp = view.graphics.viewport()
+    pos = QPointF(300, 200)
+    ev = QWheelEvent(pos, vp.mapToGlobal(pos), QPoint(0, 0), QPoint(0, 120),
+                     Qt.MouseButton.NoButton, Qt.KeyboardModifier.NoModifier,
+                     Qt.ScrollPhase.NoScrollPhase, False)
+    QApplication.sendEvent(vp, ev)
+    assert view.scale() < 2.0
+
+
+def test_build_overviews_with_progress_dialog(qtbot, plain_tif):
+    src = RasterSource(plain_tif)
+    assert src.needs_overviews(min_size=1000)
+    assert overviews.build_overviews_with_progress(None, src) is True
+    assert src.levels == (1, 2, 4, 8) and not src.needs_overviews(min_size=1000)
+
+
+def test_offer_overviews_asks_then_builds(qtbot, plain_tif, monkeypatch):
+    src = RasterSource(plain_tif)
+    monkeypatch.setattr(QMessageBox, "question", lambda *a, **k: QMessageBox.StandardButton.No)
+    assert overviews.offer_overviews(None, src, min_size=1000) is False
+    assert src.levels == (1,)
+    monkeypatch.setattr(QMessageBox, "question", lambda *a, **k: QMessageBox.StandardButton.Yes)
+    assert overviews.offer_overviews(None, src, min_size=1000) is True
+    assert src.levels == (1, 2, 4, 8)
+
+
+def test_cancel_in_the_dialog_stops_the_build(qtbot, tmp_path):
+    steps = []
+
+    def slow_build(progress, external=True):
+        for i in range(200):
+            if progress(i / 200) is False:
+                return False
+            steps.append(i)
+            time.sleep(0.01)
+        return True
+
+    fake = SimpleNamespace(path=tmp_path / "big.tif", build_overviews=slow_build)
+
+    def press_cancel():
+        dlg = QApplication.activeModalWidget()
+        if isinstance(dlg, QProgressDialog) and steps:
+            qtbot.mouseClick(dlg.findChild(QPushButton), Qt.MouseButton.LeftButton)
+        else:
+            QTimer.singleShot(20, press_cancel)
+
+    QTimer.singleShot(100, press_cancel)
+    assert overviews.build_overviews_with_progress(None, fake) is False
+    assert 0 < len(steps) < 200
