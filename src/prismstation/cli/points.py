@@ -7,6 +7,8 @@ its extension and content, the output format from the output's extension (``.txt
 """
 from __future__ import annotations
 
+import csv
+import io
 from dataclasses import replace
 
 from prismstation.io import pointfiles as pfm
@@ -32,6 +34,17 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
+def measurements_csv(pf) -> str:
+    """Text of the FORMATS.md measurement CSV: ``id,view,x,y,sigma_px`` (MODEL.md pixels)."""
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    w.writerow(["id", "view", "x", "y", "sigma_px"])
+    for m in pf.measurements:
+        w.writerow([m.id, m.view, repr(round(m.x, 9)), repr(round(m.y, 9)),
+                    "" if m.sigma_px is None else repr(m.sigma_px)])
+    return out.getvalue()
+
+
 def run(args) -> int:
     pf = pfm.read_point_file(args.input, args.fmt_in, height=args.height)
     if args.crs:
@@ -42,7 +55,7 @@ def run(args) -> int:
     pfm.write_point_file(pf, args.output, args.fmt_out, view=args.view)
     if args.measurements:
         with open(args.measurements, "w", encoding="utf-8", newline="") as fh:
-            fh.write(pfm.format_measurements_csv(pf))
+            fh.write(measurements_csv(pf))
     print(f"{len(pf.points)} points, {len(pf.measurements)} measurements -> {args.output}")
     if str(args.output).lower().endswith(".csv") and pf.crs:
         print(f"note: the CSV states no CRS; its E, N are in {pf.crs}")

@@ -73,8 +73,6 @@ class PointFile:
     header: str | None = field(default=None, compare=False)
 
 
-# ----------------------------------------------------------------------------- helpers
-
 
 def _fmt(value: float) -> str:
     """Shortest text that reads back to the same float."""
@@ -131,8 +129,6 @@ def _lines(path: Path):
         raise InputError(f"cannot read: {exc.strerror or exc}", path) from None
     return text.splitlines()
 
-
-# ----------------------------------------------------------------------------- detection
 
 
 def detect_format(path) -> str:
@@ -210,8 +206,6 @@ def write_point_file(pf: PointFile, path, fmt: str | None = None, *, view: str |
     except OSError as exc:
         raise InputError(f"cannot write: {exc.strerror or exc}", path) from None
 
-
-# ----------------------------------------------------------------------------- QGIS
 
 
 def read_qgis_points(path, *, height: str = "ellipsoidal", view: str = "N") -> PointFile:
@@ -300,8 +294,6 @@ def format_qgis_points(pf: PointFile, *, view: str | None = None) -> str:
     return out.getvalue()
 
 
-# ----------------------------------------------------------------------------- ODM
-
 
 def read_odm_gcp(path, *, height: str = "ellipsoidal") -> PointFile:
     """Read an OpenDroneMap ``gcp_list.txt`` (see the module docstring)."""
@@ -370,8 +362,6 @@ def format_odm_gcp(pf: PointFile) -> str:
     return out.getvalue()
 
 
-# ----------------------------------------------------------------------------- ASP
-
 
 def read_asp_gcp(path) -> PointFile:
     """Read an Ames Stereo Pipeline ``.gcp`` file (see the module docstring)."""
@@ -439,8 +429,6 @@ def format_asp_gcp(pf: PointFile) -> str:
     return out.getvalue()
 
 
-# ----------------------------------------------------------------------------- CSV
-
 
 def read_ground_csv(path, *, height: str = "ellipsoidal") -> PointFile:
     """Read the ground-point CSV of FORMATS.md (extra columns kept in ``extra``)."""
@@ -496,20 +484,6 @@ def format_ground_csv(pf: PointFile) -> str:
                     "" if p.sigma_h_m is None else _fmt(p.sigma_h_m)]
                    + [str(p.extra.get(k, "")) for k in extras])
     return out.getvalue()
-
-
-def format_measurements_csv(pf: PointFile) -> str:
-    """Text of the FORMATS.md measurement CSV: ``id,view,x,y,sigma_px``."""
-    out = io.StringIO()
-    w = csv.writer(out, lineterminator="\n")
-    w.writerow(["id", "view", "x", "y", "sigma_px"])
-    for m in pf.measurements:
-        w.writerow([m.id, m.view, _fmt_px(m.x), _fmt_px(m.y),
-                    "" if m.sigma_px is None else _fmt(m.sigma_px)])
-    return out.getvalue()
-
-
-# ----------------------------------------------------------------------------- conversion
 
 
 def convert_point_file(pf: PointFile, to_crs: str) -> PointFile:
