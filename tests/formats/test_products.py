@@ -140,6 +140,7 @@ def test_geotiff_product(tmp_path):
         with rasterio.open(folder / name, "w", driver="GTiff", width=50, height=30, count=1,
                            dtype="uint8", crs="EPSG:32629", transform=tr) as ds:
             ds.write(np.full((30, 50), 7, np.uint8), 1)
+        (folder / f"RPC-ALPSM{letter}061122750-O1B2R_U{letter}.txt").write_text("rpc\n")
         (folder / f"summary_ALPSM{letter}061122750.txt").write_text(
             f'Scs_SceneID="ALPSM{letter}061122750"\nPds_ProductID="O1B2R_U{letter}"\n'
             f'Img_SceneCenterDateTime="20070321 11:19:{10 + dt // 45 * 5:02d}.000"\n')
@@ -150,6 +151,8 @@ def test_geotiff_product(tmp_path):
     N = 4400000 + 2.5 * s * 10 - 2.5 * c * 20
     assert _apply(m, E, N) == (pytest.approx(10.0, abs=1e-7), pytest.approx(20.0, abs=1e-7))
     assert scene["views"]["N"]["pixel_size_m"] == pytest.approx(2.5)
+    assert scene["views"]["B"]["rpc_file"].endswith("RPC-ALPSMB061122750-O1B2R_UB.txt")
+    assert scene["times"]["B"] == "2007-03-21T11:19:15+00:00"
     assert scene["satellite_altitude_m"] == ceos.NOMINAL_ALTITUDE_M
     # no state vectors: PRISM's 23.8 deg tilt on a spherical Earth
     assert scene["views"]["F"]["along_track_angle_deg"] == pytest.approx(

@@ -31,6 +31,18 @@ def find_summary(tif_path) -> Path | None:
     return None
 
 
+def side_file(tif_path, prefix: str) -> Path | None:
+    """``HDR``/``RPC`` text file of an ``IMG-`` GeoTIFF, named as GDAL's ALOS reader expects:
+    the prefix replaces the first 6 (``IMG-01-``) or 3 characters of the name, ``.txt``."""
+    tif_path = Path(tif_path)
+    for cut in (6, 3):
+        for ext in (".txt", ".TXT"):
+            cand = tif_path.with_name(prefix + tif_path.stem[cut:] + ext)
+            if len(tif_path.stem) >= cut and cand.is_file():
+                return cand
+    return None
+
+
 def read_geotiff_view(tif_path, summary_path=None) -> dict:
     """One view of a JAXA GeoTIFF 1B2 product.
 
@@ -40,7 +52,7 @@ def read_geotiff_view(tif_path, summary_path=None) -> dict:
         ``view`` (N/F/B or None), ``image`` (path), ``crs``, ``map_to_image`` [A1..A6] (inverse
         geotransform, metres -> MODEL.md pixels), ``pixel_size_m``, ``width``, ``height``,
         ``time`` (scene centre, aware datetime or None), ``scene_id``, ``product_id``,
-        ``summary`` (dict).
+        ``summary`` (dict), ``extra`` (paths of the ``RPC``/``HDR`` files found beside it).
     """
     tif_path = Path(tif_path)
     try:
@@ -66,4 +78,6 @@ def read_geotiff_view(tif_path, summary_path=None) -> dict:
         "time": summary_time(summary, "Img_SceneCenterDateTime", summary_path),
         "scene_id": summary.get("Scs_SceneID", tif_path.stem[4:].split("-")[0]),
         "product_id": product_id, "summary": summary,
+        "extra": {k: str(f) for k, f in (("rpc_file", side_file(tif_path, "RPC")),
+                                         ("hdr_file", side_file(tif_path, "HDR"))) if f},
     }
