@@ -95,3 +95,29 @@ def test_cancel_in_the_dialog_stops_the_build(qtbot, tmp_path):
     QTimer.singleShot(100, press_cancel)
     assert overviews.build_overviews_with_progress(None, fake) is False
     assert 0 < len(steps) < 200
+
+
+def test_large_file_without_overviews_reads_its_overview_off_the_gui_thread(
+        qtbot, plain_tif, monkeypatch):
+    monkeypatch.setattr(ImageView, "sync_coarse_pixels", 0)  # treat the 6 MP file as large
+    src = RasterSource(plain_tif)
+    gui_thread_reads = []
+    real = src.coarse
+
+    def coarse():
+        gui_thread_reads.append(QApplication.instance().thread().isCurrentThread())
+        return real()
+
+    src.coarse = coarse
+    v = ImageView()
+    qtbot.addWidget(v)
+    v.resize(400, 300)
+    v.show()
+    with qtbot.waitSignal(v.source_ready, timeout=5000):
+        v.set_source(src)
+        assert not v.is_ready()
+    assert gui_thread_reads[0] is False  # the whole-image read ran in a worker
+    assert v.is_ready() and v.levels()[1] > v.levels()[0]
+    v.center_on(100, 100, scale=1.0)
+    qtbot.waitUntil(lambda: v.current_level() == 1 and v.tiles_complete(), timeout=5000)
+    v.close()

@@ -30,8 +30,8 @@ class ContrastPanel(QWidget):
     Parameters
     ----------
     view : ImageView
-        The view whose display levels this panel sets; rebinds itself when the view's source
-        changes through :meth:`refresh`.
+        The view whose display levels this panel sets; the histogram follows the view's source
+        (``source_ready``).
     """
 
     def __init__(self, view, parent=None):
@@ -62,11 +62,12 @@ class ContrastPanel(QWidget):
         layout.addWidget(self.plot, 1)
         self._syncing = False
         view.levels_changed.connect(self._on_view_levels)
+        view.source_ready.connect(self.refresh)
         self.refresh()
 
     def refresh(self) -> None:
         """Reload the histogram from the view's current source."""
-        if self.view.source is None:
+        if self.view.source is None or not self.view.is_ready():
             self.curve.setData([0, 1], [0])
             return
         st = self.view.source.statistics(())

@@ -19,7 +19,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt, QTimer, Signal
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
-from prismstation.gui.tiles import TileLoader, tiles_for_rect
+from prismstation.gui.tiles import COARSE_KEY, TileLoader, tiles_for_rect
 from prismstation.io.raster import RasterSource
 
 _COARSE_Z = -100
@@ -54,13 +54,22 @@ class ImageView(QWidget):
         The display levels changed (data units).
     tiles_settled()
         Every tile wanted for the current view is displayed.
+    source_changed()
+        A new source (or None) was set; geometry is known, levels may follow.
+    source_ready()
+        The coarse overview of the new source is shown; levels and statistics are known.
     """
+
+    sync_coarse_pixels = 40_000_000
+    """Files without overviews larger than this (pixels) get their coarse read in a worker."""
 
     cursor_moved = Signal(float, float)
     clicked = Signal(float, float, object)
     view_changed = Signal()
     levels_changed = Signal(float, float)
     tiles_settled = Signal()
+    source_changed = Signal()
+    source_ready = Signal()
 
     def __init__(self, parent=None, threads: int = 2):
         super().__init__(parent)
@@ -95,15 +104,34 @@ class ImageView(QWidget):
     def set_source(self, source: RasterSource | None, levels=None) -> None:
         """Show ``source`` whole (fit), with ``levels`` or the 0.5–99.5 percentile stretch.
 
-        Reads only the coarse overview here; tiles follow in worker threads.
+        Reads only the coarse overview (about 1000 px) on the GUI thread, and only when the file
+        has overviews or is small (:attr:`sync_coarse_pixels`); otherwise that read, which GDAL
+        must make from the full-resolution data, runs in a worker and the image appears when it
+        is done (``source_ready``). Tiles always follow in worker threads.
         """
         self._clear()
         self.source = source
+        self._pending_levels = levels
         if source is None:
+            self.source_changed.emit()
             return
         self.loader = TileLoader(source, self._threads, self)
         self.loader.tile_loaded.connect(self._on_tile_loaded)
-        arr, _ = source.coarse()
+        w, h = source.width, source.height
+        self.vb.setLimits(xMin=-w, xMax=2 * w, yMin=-h, yMax=2 * h, minXRange=4, minYRange=4)
+        self.fit()
+        self.source_changed.emit()
+        if source.has_overviews() or w * h <= self.sync_coarse_pixels:
+            self._install_coarse(source.coarse()[0])
+        else:
+            self.loader.request([COARSE_KEY])
+
+    def is_ready(self) -> bool:
+        """True once the coarse overview is shown (levels and statistics are known)."""
+        return self._coarse_item is not None
+
+    def _install_coarse(self, arr) -> None:
+        source, levels = self.source, self._pending_levels
         if levels is None:
             st = source.statistics((0.5, 99.5))
             levels = (st.percentiles[0.5], st.percentiles[99.5])
@@ -111,11 +139,9 @@ class ImageView(QWidget):
         self._coarse_item = _image_item(arr, (0, 0, source.width, source.height),
                                         self._levels, _COARSE_Z)
         self.vb.addItem(self._coarse_item)
-        w, h = source.width, source.height
-        self.vb.setLimits(xMin=-w, xMax=2 * w, yMin=-h, yMax=2 * h,
-                          minXRange=4, minYRange=4)
-        self.fit()
+        self._update_timer.start()
         self.levels_changed.emit(*self._levels)
+        self.source_ready.emit()
 
     def _clear(self) -> None:
         if self.loader is not None:
@@ -190,6 +216,8 @@ class ImageView(QWidget):
         lo, hi = float(lo), float(hi)
         if hi <= lo:
             hi = lo + 1e-6
+        if self._coarse_item is None:  # not ready yet: these levels win over the statistics
+            self._pending_levels = (lo, hi)
         if (lo, hi) == self._levels:
             return
         self._levels = (lo, hi)
@@ -220,7 +248,7 @@ class ImageView(QWidget):
 
     def _update_tiles(self) -> None:
         src = self.source
-        if src is None or self.loader is None or self.vb.width() <= 0:
+        if src is None or self._coarse_item is None or self.vb.width() <= 0:
             return
         level = src.level_for(self.scale())
         _, coarse_f = src.coarse()
@@ -269,7 +297,10 @@ class ImageView(QWidget):
         return item
 
     def _on_tile_loaded(self, source, key, arr) -> None:
-        if source is self.source:
+        if source is self.source and key == COARSE_KEY:
+            if self._coarse_item is None:
+                self._install_coarse(arr)
+        elif source is self.source:
             self._arrived.append((key, arr))
             self._drain_timer.start()
 

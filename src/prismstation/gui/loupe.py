@@ -51,6 +51,7 @@ class Loupe(QWidget):
         self.levels = view.levels()
         view.cursor_moved.connect(self.set_position)
         view.levels_changed.connect(self.set_levels)
+        view.source_changed.connect(lambda: self.set_source(view.source))
         self._view = view
 
     def set_source(self, source) -> None:
@@ -65,9 +66,6 @@ class Loupe(QWidget):
 
     def set_position(self, x: float, y: float) -> None:
         """Show the pixels around image point ``(x, y)``."""
-        view = getattr(self, "_view", None)
-        if view is not None and view.source is not self.source:
-            self.source = view.source
         if self.source is None:
             return
         self.position = (float(x), float(y))

@@ -16,6 +16,10 @@ from prismstation.errors import RasterReadError
 from prismstation.io.raster import TILE_SIZE, RasterSource
 
 
+COARSE_KEY = "coarse"
+"""Key of the request for the source's coarse whole-image read (``RasterSource.coarse``)."""
+
+
 def tiles_for_rect(source: RasterSource, level: int, rect_xywh) -> list[tuple[int, int, int]]:
     """Keys of the tiles of ``level`` that intersect a full-resolution rectangle.
 
@@ -85,6 +89,12 @@ class TileLoader(QObject):
             return len(self._queue) + len(self._running)
 
     def _work(self) -> None:  # worker thread
+        try:
+            self._loop()
+        finally:
+            self.source.release_thread()
+
+    def _loop(self) -> None:
         while True:
             with self._cond:
                 while not self._queue and not self._stop:
@@ -94,7 +104,7 @@ class TileLoader(QObject):
                 key = self._queue.pop(0)
                 self._running.add(key)
             try:
-                arr = self.source.read_tile(*key)
+                arr = self.source.coarse()[0] if key == COARSE_KEY else self.source.read_tile(*key)
                 error = None
             except RasterReadError as exc:
                 arr, error = None, str(exc)

@@ -162,6 +162,15 @@ class RasterSource:
     def _read_overviews(self, ds) -> None:
         self.overview_factors = tuple(int(f) for f in ds.overviews(self.band))
 
+    def release_thread(self) -> None:
+        """Close the calling thread's handle (a worker about to end calls this)."""
+        ds = getattr(self._local, "ds", None)
+        if ds is not None:
+            ds.close()
+            self._local.ds = None
+            with self._handles_lock:
+                self._handles = [d for d in self._handles if d is not ds]
+
     def close(self) -> None:
         """Close every thread's handle and drop the cache."""
         with self._handles_lock:
