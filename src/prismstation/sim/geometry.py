@@ -241,6 +241,9 @@ def intersect_terrain(origin, direction, sample: Callable, h_min: float, h_max: 
     o = origin.reshape(-1, 3)
     d = direction.reshape(-1, 3)
     n = o.shape[0]
+    # horizontal position at height h: base + (top − h)·slope_xy (direction has d_z = −1)
+    ox, oy, top = o[:, 0].copy(), o[:, 1].copy(), o[:, 2].copy()
+    dx, dy = d[:, 0] / -d[:, 2], d[:, 1] / -d[:, 2]
     lo = np.full(n, h_min - 1.0)
     hi = np.full(n, h_max + 1.0)
     h = np.full(n, 0.5 * (h_min + h_max))
@@ -249,20 +252,22 @@ def intersect_terrain(origin, direction, sample: Callable, h_min: float, h_max: 
     out = np.empty(n)
     idx = np.arange(n)
     for _ in range(max_iter):
-        en = ray_at_height(o[idx], d[idx], h)
-        g = sample(en[:, 0], en[:, 1]) - h
+        lam = top - h
+        g = sample(ox + lam * dx, oy + lam * dy) - h
         done = np.abs(g) < tol
         out[idx[done]] = h[done]
         keep = ~done
         if not keep.any():
             idx = idx[:0]
             break
-        idx, h, g, lo, hi, h_prev, g_prev = (v[keep] for v in (idx, h, g, lo, hi, h_prev, g_prev))
+        if done.any():
+            idx, h, g, lo, hi, h_prev, g_prev, ox, oy, top, dx, dy = (
+                v[keep] for v in (idx, h, g, lo, hi, h_prev, g_prev, ox, oy, top, dx, dy))
         lo = np.where(g > 0, h, lo)
         hi = np.where(g <= 0, h, hi)
         with np.errstate(divide="ignore", invalid="ignore"):
-            secant = h - g * (h - h_prev) / (g - g_prev)
-        cand = np.where(np.isfinite(secant), secant, h + g)
+            cand = h - g * (h - h_prev) / (g - g_prev)
+        cand = np.where(np.isfinite(cand), cand, h + g)
         bad = ~((cand > lo) & (cand < hi))
         cand = np.where(bad, 0.5 * (lo + hi), cand)
         h_prev, g_prev, h = h, g, cand

@@ -16,7 +16,7 @@ from prismstation.sim.terrain import Grid, hillshade, synthesize_relief
 from prismstation.sim.texture import make_texture
 
 RELIEF = 1400.0
-TEXTURE_SPACING = 2.0
+TEXTURE_SPACING = 2.5
 PSF_SIGMA_PX = 0.6
 IMAGE_NOISE_DN = 1.2
 VIEWS = ("N", "F", "B")

@@ -60,27 +60,25 @@ def spectral_noise(shape, spacing, rng, beta, lambda_min, lambda_max) -> np.ndar
 
 
 def synthesize_relief(shape, spacing, rng, relief=1400.0, sea_fraction=0.03) -> np.ndarray:
-    """Orthometric heights (m, float32) from 0 to ``relief``: a fractal base, sharp ridged
-    crests, and a flat plain at sea level over ``sea_fraction`` of the area."""
+    """Orthometric heights (m, float32) from 0 to ``relief``: a smooth fractal base, ridged
+    crests, a regional tilt (stronger on small areas so that slopes stay believable), a flat
+    plain at sea level over ``sea_fraction`` of the area and a few metres of fine detail."""
     extent = max(shape) * spacing
-    base = spectral_noise(shape, spacing, rng, 3.6, 40.0, 3.0 * extent)
-    ridge_src = spectral_noise(shape, spacing, rng, 3.0, 60.0, 0.6 * extent)
-    ridged = 1.0 - np.abs(ridge_src)          # sharp crests where ridge_src crosses 0
-    ridged = ridged ** 2
-    detail = spectral_noise(shape, spacing, rng, 2.6, 3.0 * spacing, 400.0)
-    # a regional tilt: plain on one side, mountains on the other
+    base = spectral_noise(shape, spacing, rng, 4.5, 250.0, 2.0 * extent)
+    ridged = (1.0 - np.abs(spectral_noise(shape, spacing, rng, 4.0, 300.0, 0.5 * extent))) ** 2
+    detail = spectral_noise(shape, spacing, rng, 3.0, 3.0 * spacing, 300.0)
     yy, xx = np.meshgrid(np.linspace(-1, 1, shape[0], dtype=np.float32),
                          np.linspace(-1, 1, shape[1], dtype=np.float32), indexing="ij")
     ang = rng.uniform(0, 2 * np.pi)
     tilt = np.cos(ang) * xx + np.sin(ang) * yy
-    z = 1.0 * base + 0.9 * ridged * (0.6 + 0.4 * np.tanh(base)) + 0.8 * tilt + 0.06 * detail
-    lo = np.quantile(z, sea_fraction)
-    hi = z.max()
-    h = (z - lo) / (hi - lo)
-    h = np.where(h > 0, h, 0.0)
-    # soften the shoreline: a plain that rises gently instead of a kink
-    h = h ** 1.15
-    return (relief * h / h.max()).astype(np.float32)
+    w_tilt = float(np.clip(3.2 - extent / 10000.0, 0.7, 2.6))
+    z = base + 0.35 * ridged * (1 + np.tanh(base)) + w_tilt * tilt
+    lo, hi = np.quantile(z, sea_fraction), np.quantile(z, 0.9995)
+    h = np.clip((z - lo) / (hi - lo), 0, None)
+    h = np.where(h > 1, 1 + 0.02 * np.tanh(h - 1), h) ** 1.2   # rounded summits
+    h = relief * h / h.max()
+    h = h + 4.0 * detail * np.clip(h / 50.0, 0, 1)
+    return (relief * np.clip(h, 0, None) / h.max()).astype(np.float32)
 
 
 def hillshade(heights: np.ndarray, spacing: float, sun_azimuth_deg=135.0,

@@ -60,23 +60,24 @@ class _Fields:
     """Parcels on a rotated, warped lattice: per-parcel brightness, hedges, stripes."""
 
     def __init__(self, rng, angle, size_u, size_v):
-        self.c, self.s = np.cos(angle), np.sin(angle)
+        self.c, self.s = float(np.cos(angle)), float(np.sin(angle))
         self.lu, self.lv = size_u, size_v
-        self.table = rng.uniform(0, 1, (3, 257, 263)).astype(np.float32)
+        self.table = rng.uniform(0, 1, (256, 256, 3)).astype(np.float32)
         self.warp = (_Noise(rng, 350.0, 256), _Noise(rng, 350.0, 256))
 
     def __call__(self, x, y):
         u = self.c * x + self.s * y + 35.0 * self.warp[0](x, y)
         v = -self.s * x + self.c * y + 35.0 * self.warp[1](x, y)
         fu, fv = u / self.lu, v / self.lv
-        iu = np.floor(fu).astype(np.int64) % 257
-        iv = np.floor(fv).astype(np.int64) % 263
-        tone = self.table[0][iu, iv]
-        crop = 0.30 + 0.38 * tone ** 1.3
-        stripes = np.where(self.table[1][iu, iv] > 0.55,
-                           0.05 * np.sin(2 * np.pi * v / (4.0 + 6.0 * self.table[2][iu, iv])), 0)
-        du = np.minimum(fu % 1, 1 - fu % 1) * self.lu
-        dv = np.minimum(fv % 1, 1 - fv % 1) * self.lv
+        # per-parcel random values: nearest lattice cell (cell i covers [i, i+1))
+        cell = cv2.remap(self.table, fu - 0.5, fv - 0.5, cv2.INTER_NEAREST,
+                         borderMode=cv2.BORDER_WRAP)
+        crop = 0.36 + 0.44 * cell[..., 0] ** 1.3
+        stripes = np.where(cell[..., 1] > 0.55,
+                           0.05 * np.sin(v * (2 * np.pi) / (4.0 + 6.0 * cell[..., 2])), 0)
+        ru, rv = fu - np.floor(fu), fv - np.floor(fv)
+        du = np.minimum(ru, 1 - ru) * self.lu
+        dv = np.minimum(rv, 1 - rv) * self.lv
         hedge = np.minimum(du, dv) < 1.6
         return np.where(hedge, 0.5 * crop, crop + stripes).astype(np.float32)
 
@@ -95,6 +96,7 @@ def make_texture(rng, e0: float, n0: float, shape, spacing: float, heights: Grid
     rock1, rock2 = _Noise(rng, 7.0), _Noise(rng, 35.0)
     roads = (_Noise(rng, 1400.0, 256), _Noise(rng, 900.0, 256))
     mod = (_Noise(rng, 60.0, 1024), _Noise(rng, 6.0), _Noise(rng, 2.5))
+    stack = np.dstack([heights.values, shade.values, slope.values]).astype(np.float32)
     rows, cols = shape
     out = np.empty(shape, dtype=np.uint8)
     x = ((np.arange(cols) + 0.5) * spacing).astype(np.float32)
@@ -103,11 +105,13 @@ def make_texture(rng, e0: float, n0: float, shape, spacing: float, heights: Grid
         y = ((np.arange(r0, r1) + 0.5) * spacing).astype(np.float32)
         xx, yy = np.meshgrid(x, y)
         e, n = e0 + xx.astype(np.float64), n0 - yy.astype(np.float64)
-        gh = [remap_points(g.values, *g.to_pixel(e, n)) for g in (heights, shade, slope)]
-        hgt, shd, slp = gh
+        col, row = heights.to_pixel(e, n)
+        gh = cv2.remap(stack, col.astype(np.float32), row.astype(np.float32),
+                       cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        hgt, shd, slp = gh[..., 0], gh[..., 1], gh[..., 2]
         fields = np.where(region(xx, yy) > 0, f1(xx, yy), f2(xx, yy))
-        forest = 0.15 + 0.05 * crowns(xx, yy) + 0.035 * crowns2(xx, yy)
-        fscore = forest_n(xx, yy) + 2.2 * slp - 0.9 + 0.15 * crowns2(xx, yy)
+        forest = 0.24 + 0.07 * crowns(xx, yy) + 0.04 * crowns2(xx, yy)
+        fscore = forest_n(xx, yy) + 1.0 * slp - 0.85 + 0.15 * crowns2(xx, yy)
         w = np.clip(fscore * 4.0, 0, 1)
         land = (1 - w) * fields + w * forest
         rock = 0.52 + 0.10 * rock1(xx, yy) + 0.07 * rock2(xx, yy)
@@ -117,7 +121,7 @@ def make_texture(rng, e0: float, n0: float, shape, spacing: float, heights: Grid
             dist = np.abs(net(xx, yy)) / (net.gradient_norm(xx, yy) + 1e-6)
             land = np.where(dist < width, 0.78 + 0.03 * mod[2](xx, yy), land)
         land *= 1 + 0.07 * mod[0](xx, yy) + 0.04 * mod[1](xx, yy) + 0.03 * mod[2](xx, yy)
-        out[r0:r1] = np.clip(land * shd * 215.0, 0, 255).astype(np.uint8)
+        out[r0:r1] = np.clip(land * shd * 230.0, 0, 255).astype(np.uint8)
         if progress:
             progress(r1 / rows)
     return Grid(out, e0, n0, spacing)
