@@ -278,7 +278,7 @@ class PlotsWidget(QWidget):
         p = self.plots
         for name in ("height", "height_minus_theory"):
             pi = p[name].getPlotItem()
-            pi.addLegend(offset=(8, 8), labelTextSize="8pt")
+            pi.addLegend(offset=(8, 8), labelTextSize="8pt", labelTextColor=(30, 30, 30))
             pi.setLabel("bottom", "F−B parallax", units="px")
         p["height"].setLabel("left", "h (ellipsoidal)", units="m")
         p["height_minus_theory"].setLabel("left", "h − c1ₜₕ·py", units="m")
@@ -300,7 +300,7 @@ class PlotsWidget(QWidget):
         pv.setAspectLocked(True)
         pv.setLabel("bottom", "x (column)", units="px")
         pv.setLabel("left", "y (row)", units="px")
-        pv.addLegend(offset=(8, 8), labelTextSize="8pt")
+        pv.addLegend(offset=(8, 8), labelTextSize="8pt", labelTextColor=(30, 30, 30))
         self.v_gcp_seg = pv.plot([], [], pen=pg.mkPen(GCP_COLOR, width=2), connect="pairs")
         self.v_icp_seg = pv.plot([], [], pen=pg.mkPen(ICP_COLOR, width=2), connect="pairs")
         self.v_gcp = self._scatter(p["vectors"], GCP_COLOR, "o", "GCP", size=6)
@@ -333,7 +333,10 @@ class PlotsWidget(QWidget):
                               for name in ("height", "height_minus_theory", "vectors")}
         for pw in p.values():
             for ax in ("left", "bottom"):
-                pw.getPlotItem().getAxis(ax).enableAutoSIPrefix(False)
+                axis = pw.getPlotItem().getAxis(ax)
+                axis.enableAutoSIPrefix(False)
+                axis.setTextPen((40, 40, 40))
+                axis.setPen((110, 110, 110))
         self._titles: dict = {}
         self._set_titles()
 
@@ -343,7 +346,7 @@ class PlotsWidget(QWidget):
             if name == "vectors":
                 title += f" (×{self._exaggeration:g})"
             if self._titles.get(name) != title:
-                pw.setTitle(title, size="9pt")
+                pw.setTitle(title, size="9pt", color=(30, 30, 30))
                 self._titles[name] = title
 
     # ------------------------------------------------------------------ public
@@ -424,17 +427,29 @@ class PlotsWidget(QWidget):
     def exaggeration(self) -> float:
         return self._exaggeration
 
-    def render_images(self, size=(900, 600)) -> dict:
-        """Each plot as a QImage of ``size`` pixels (for reports): ``{name: QImage}``."""
-        out = {}
-        for name, pw in self.plots.items():
-            old = pw.size()
-            pw.resize(*size)
-            pw.getPlotItem().setTitle(pw.getPlotItem().titleLabel.text, size="12pt")
-            out[name] = pw.grab().toImage().convertToFormat(QImage.Format.Format_RGB32)
-            pw.resize(old)
-        self._set_titles()
-        return out
+    def render_images(self, size=(900, 560)) -> dict:
+        """Each plot as a QImage of ``size`` pixels (for reports): ``{name: QImage}``.
+
+        Drawn by a hidden copy of this widget laid out at that size, so a docked, visible
+        widget is not disturbed."""
+        from PySide6.QtWidgets import QApplication
+        tmp = PlotsWidget()
+        try:
+            tmp.setAttribute(Qt.WidgetAttribute.WA_DontShowOnScreen, True)
+            if not self.auto_box.isChecked():
+                tmp.set_exaggeration(self._exaggeration)
+            tmp.set_plot_data(self._data)
+            for name in tmp._titles:
+                tmp.plots[name].setTitle(tmp._titles[name], size="12pt", color=(30, 30, 30))
+            bar = tmp.summary.sizeHint().height() + 8
+            tmp.resize(2 * size[0] + 2, 2 * size[1] + 2 + bar)
+            tmp.show()
+            QApplication.processEvents()
+            return {name: pw.grab().toImage().convertToFormat(QImage.Format.Format_RGB32)
+                    for name, pw in tmp.plots.items()}
+        finally:
+            tmp.hide()
+            tmp.deleteLater()
 
     # ------------------------------------------------------------------ internals
     def _update_vectors(self) -> None:
