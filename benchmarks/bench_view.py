@@ -88,6 +88,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dir", default="/tmp/prismstation_bench", type=Path)
     ap.add_argument("--frames", type=int, default=40, help="frames per pan/zoom segment")
+    ap.add_argument("--screenshot", type=Path, help="save a PNG of the window at the end")
     ap.add_argument("--make-only", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.make_only:
@@ -201,6 +202,14 @@ def main(argv=None) -> int:
     print(f"{'resident memory (VmRSS), three views open':46s} {rss:9.0f} MB   <= 500 MB")
     print(f"{'  of which before opening (Qt, numpy, ...)':46s} {rss0:9.0f} MB")
     print(f"{'  tile caches (3 sources)':46s} {cache:9.0f} MB")
+    if args.screenshot:
+        views[0].fit()
+        views[1].center_on(WIDTH / 2, HEIGHT / 2, 4.0)
+        views[2].center_on(WIDTH / 2, HEIGHT / 2, 0.5)
+        settle()
+        app.processEvents()
+        win.grab().save(str(args.screenshot))
+        print(f"screenshot: {args.screenshot}")
     ok = (max(opens) <= 0.5 and t_all <= 0.5 and pct(times, 50) <= 16 and rss <= 500)
     print("all targets met" if ok else "SOME TARGETS MISSED")
     for v in views:

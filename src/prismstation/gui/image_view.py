@@ -235,7 +235,9 @@ class ImageView(QWidget):
         return list(self._tiles)
 
     def tiles_complete(self) -> bool:
-        """True when every wanted tile of the current view is displayed."""
+        """True when every wanted tile of the current view is displayed (and no update waits)."""
+        if self._update_timer.isActive() or (self.source is not None and not self.is_ready()):
+            return False
         return all(k in self._tiles for k in self._wanted)
 
     def _on_range_changed(self, *args) -> None:
