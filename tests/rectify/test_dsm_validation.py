@@ -193,3 +193,25 @@ def test_validate_dsm_command_bad_input(shared_data, tmp_path, capsys):
         rc = main(["validate-dsm", *args, "--json", str(tmp_path / "o.json")])
         err = capsys.readouterr().err.strip()
         assert rc == 2 and len(err.splitlines()) == 1, err
+
+
+def test_hillshade_and_histogram_by_hand():
+    from prismstation.core.dsmstats import hillshade, histogram
+
+    rows, cols = np.mgrid[0:20, 0:30]
+    flat = np.zeros((20, 30))
+    assert np.allclose(hillshade(flat, 10.0), math.sin(math.radians(45)))
+    # a plane rising 1 m per 10 m to the east faces west: lit from the west at 45°, the
+    # light meets it 5.7° steeper; lit from the east, 5.7° shallower
+    east = cols * 1.0
+    slope = math.atan(0.1)
+    s = hillshade(east, 10.0, azimuth_deg=270, altitude_deg=45)
+    assert np.allclose(s, math.sin(math.radians(45) + slope))
+    s = hillshade(east, 10.0, azimuth_deg=90, altitude_deg=45)
+    assert np.allclose(s, math.sin(math.radians(45) - slope))
+    # rising to the north (row numbers grow southwards), lit from the north
+    north = -rows * 1.0
+    s = hillshade(north, 10.0, azimuth_deg=0, altitude_deg=45)
+    assert np.allclose(s, math.sin(math.radians(45) - slope))
+    counts, edges = histogram([0, 1, 1, 2, 2, 2, np.nan], bins=3, clip_percent=0)
+    assert list(counts) == [1, 2, 3] and edges[0] == 0 and edges[-1] == 2

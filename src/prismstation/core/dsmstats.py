@@ -153,3 +153,34 @@ def residual_sd_by_view(views, residuals, scenes=None) -> tuple[ViewResidualSD, 
         n_sc = len(set(sc[sel])) if sc is not None else 1
         out.append(ViewResidualSD(str(v), n_sc, n, float(sd[0]), float(sd[1])))
     return tuple(out)
+
+
+def histogram(d, bins: int = 50, clip_percent: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """Histogram of the finite values of ``d`` for display: ``(counts (bins,), edges (bins+1,))``
+    over the ``clip_percent`` … ``100 − clip_percent`` percentile range (outliers counted in
+    the end bins)."""
+    d = np.asarray(d, float).ravel()
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return np.zeros(bins, int), np.linspace(0.0, 1.0, bins + 1)
+    lo, hi = np.percentile(d, [clip_percent, 100 - clip_percent])
+    if hi <= lo:
+        lo, hi = lo - 0.5, hi + 0.5
+    counts, edges = np.histogram(np.clip(d, lo, hi), bins=bins, range=(lo, hi))
+    return counts, edges
+
+
+def hillshade(z, cellsize: float, azimuth_deg: float = 315.0, altitude_deg: float = 45.0) -> np.ndarray:
+    """Shaded relief in [0, 1] of heights ``z`` (rows, cols; metres, NaN = no data) on square
+    cells of ``cellsize`` metres, rows running south; light from ``azimuth_deg`` (clockwise
+    from north) at ``altitude_deg`` above the horizon. NaN where ``z`` or a neighbour is NaN."""
+    z = np.asarray(z, float)
+    if z.ndim != 2 or min(z.shape) < 2 or not cellsize > 0:
+        raise ModelError("hillshade needs a 2-D grid of at least 2 × 2 cells and a positive cell size")
+    dz_dy_rows, dz_dx = np.gradient(z, cellsize)
+    dz_dn = -dz_dy_rows                        # rows run south: northward slope is the negative
+    az, alt = np.radians(azimuth_deg), np.radians(altitude_deg)
+    lx, ly, lz = np.sin(az) * np.cos(alt), np.cos(az) * np.cos(alt), np.sin(alt)
+    # unit normal of the surface (−∂z/∂E, −∂z/∂N, 1) / norm, dotted with the light direction
+    shade = (-dz_dx * lx - dz_dn * ly + lz) / np.sqrt(1 + dz_dx ** 2 + dz_dn ** 2)
+    return np.clip(shade, 0.0, 1.0)
