@@ -1,0 +1,97 @@
+"""Application set-up and :func:`run`: the workstation window, or a screenshot of it.
+
+``run(project, screenshot=PNG)`` loads the project, fits, waits for the images to settle,
+writes a PNG of the whole main window (``QWidget.grab``) and returns 0; it works with
+``QT_QPA_PLATFORM=offscreen`` and never asks a question.
+"""
+from __future__ import annotations
+
+import sys
+import tempfile
+from pathlib import Path
+
+from prismstation.errors import InputError
+
+
+def make_app():
+    """The QApplication (created once), with names, settings location and pyqtgraph options."""
+    import pyqtgraph as pg
+    from PySide6.QtWidgets import QApplication
+
+    from prismstation.gui import settings
+
+    app = QApplication.instance() or QApplication(sys.argv[:1])
+    settings.configure()
+    pg.setConfigOptions(imageAxisOrder="row-major", antialias=True)
+    app.setStyle("Fusion")
+    return app
+
+
+def wait_settled(window, timeout_ms: int = 15000) -> bool:
+    """Process events until images are loaded, the fit published and every tile shown."""
+    from PySide6.QtCore import QCoreApplication, QElapsedTimer, QThread
+
+    t = QElapsedTimer()
+    t.start()
+    window.views.wait_loaded(timeout_ms)
+
+    def settled():
+        return (not window.views.loading() and not window.solver.busy()
+                and all(v.tiles_complete() for v in window.views.views.values()))
+
+    while not settled() and t.elapsed() < timeout_ms:
+        QCoreApplication.processEvents()
+        QThread.msleep(5)
+    for _ in range(5):
+        QCoreApplication.processEvents()
+    return settled()
+
+
+def take_screenshot(window, path, size=(1680, 1050)) -> None:
+    """Fit the views, let everything settle and save a PNG of the whole window."""
+    window.resize(*size)
+    window.show()
+    wait_settled(window)
+    window.views.fit_all()
+    if window.solver.solution is None and window.project is not None:
+        window.solver.refit_now()
+    wait_settled(window)
+    sol = window.solver.solution
+    if sol is not None and window.current is None:
+        gcp = next((r.id for r in sol.points if r.kind == "GCP" and r.measured), None)
+        if gcp is not None:
+            window.set_current(gcp, drive=False)
+    wait_settled(window)
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    if not window.grab().save(str(path)):
+        raise InputError("could not write the screenshot", path)
+
+
+def run(project_path=None, screenshot=None) -> int:
+    """Open the window (on ``project_path``) and run the event loop; with ``screenshot`` (a PNG
+    path) write a picture of the loaded, fitted window instead and return 0."""
+    screenshot_path = screenshot
+    if screenshot_path is not None:
+        import os
+        if "PRISMSTATION_SETTINGS_DIR" not in os.environ:  # never the user's layout in a picture
+            os.environ["PRISMSTATION_SETTINGS_DIR"] = tempfile.mkdtemp(prefix="prismstation-settings-")
+    app = make_app()
+    from prismstation.gui.main_window import MainWindow
+
+    interactive = screenshot_path is None
+    win = MainWindow(interactive=interactive)
+    win.files.interactive = interactive
+    if project_path is not None:
+        if not Path(project_path).exists():
+            raise InputError("project not found", project_path)
+        win.show()
+        if not win.open_project(str(project_path), recover=None if interactive else False):
+            if not interactive:
+                return 2
+    if screenshot_path is not None:
+        take_screenshot(win, screenshot_path)
+        win.files.stack.setClean()
+        win.close()
+        return 0
+    win.show()
+    return app.exec()

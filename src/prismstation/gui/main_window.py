@@ -1,0 +1,474 @@
+"""The main window: wiring only (views, table, model panel, plots, files, undo, solver).
+
+Data flow for one click (ARCHITECTURE.md): a gesture in :class:`TripletViews` becomes a
+command pushed on the one ``QUndoStack``; the command edits the Project; the :class:`Solver`
+refits and publishes a Solution; views, table, model panel and plots read it.
+"""
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+
+from PySide6.QtCore import Qt, QTimer
+from PySide6.QtGui import QAction, QKeySequence, QUndoStack
+from PySide6.QtWidgets import (QDockWidget, QDoubleSpinBox, QFileDialog, QLabel, QMainWindow,
+                               QMessageBox, QStyle, QTabWidget, QHBoxLayout, QWidget)
+
+from prismstation.errors import PrismError
+from prismstation.gui import commands as cmd
+from prismstation.gui import settings as st
+from prismstation.gui.contrast import ContrastPanel
+from prismstation.gui.loupe import Loupe
+from prismstation.gui.model_panel import ModelPanel
+from prismstation.gui.point_table import PointTableModel, PointTableView
+from prismstation.gui.project_io import ProjectFiles
+from prismstation.gui.solver import Solver
+from prismstation.gui.views import TripletViews
+
+
+def optional(module: str, name: str):
+    """``module.name`` when that module exists (written by another engineer), else None."""
+    try:
+        return getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError):
+        return None
+
+
+class MainWindow(QMainWindow):
+    """The measurement workstation. ``interactive=False`` (tests, screenshots) never offers to
+    build overviews."""
+
+    def __init__(self, interactive: bool = True, threaded_fit: bool = True):
+        super().__init__()
+        self.setObjectName("MainWindow")
+        self.setWindowTitle("prismstation")
+        self.interactive = interactive
+        self.project = None
+        self.current: str | None = None
+        self.undo_stack = QUndoStack(self)
+        self.files = ProjectFiles(self.undo_stack, self)
+        self.solver = Solver(self, threaded=threaded_fit)
+        self.views = TripletViews(self)
+        self.setCentralWidget(self.views)
+        self.table_model = PointTableModel(self)
+        self.table = PointTableView(self.table_model)
+        self.panel = ModelPanel()
+        self.loupes = {}
+        self.loupe_box = QWidget()
+        QHBoxLayout(self.loupe_box).setContentsMargins(2, 2, 2, 2)
+        self.contrast_tabs = QTabWidget()
+        plots_cls = optional("prismstation.gui.plots", "PlotsWidget")
+        self.plots = plots_cls() if plots_cls is not None else None
+        self.docks = {}
+        self._dock("points", "Points", self.table, Qt.DockWidgetArea.BottomDockWidgetArea)
+        self._dock("model", "Model", self.panel, Qt.DockWidgetArea.RightDockWidgetArea)
+        self._dock("plots", "Plots", self.plots if self.plots is not None else
+                   QLabel("Plots are not available in this build (prismstation.gui.plots is missing)."),
+                   Qt.DockWidgetArea.BottomDockWidgetArea)
+        self._dock("loupe", "Loupe", self.loupe_box, Qt.DockWidgetArea.RightDockWidgetArea)
+        self._dock("contrast", "Contrast", self.contrast_tabs, Qt.DockWidgetArea.RightDockWidgetArea)
+        self.tabifyDockWidget(self.docks["loupe"], self.docks["contrast"])
+        self.docks["loupe"].raise_()
+        self.splitDockWidget(self.docks["points"], self.docks["plots"], Qt.Orientation.Horizontal)
+        self._status_widgets()
+        self._actions()
+        self._menus()
+        self._toolbar()
+        self._connect()
+        if interactive:
+            self.views.offer_overviews = self._offer_overviews
+        self._measured_timer = QTimer(self)
+        self._measured_timer.setSingleShot(True)
+        self._measured_timer.setInterval(0)
+        self._measured_timer.timeout.connect(self.views.refresh_measured)
+        self.restore_layout()
+        self._update_actions()
+
+    # ------------------------------------------------------------------ construction
+    def _dock(self, key, title, widget, area) -> QDockWidget:
+        d = QDockWidget(title, self)
+        d.setObjectName(f"dock_{key}")
+        d.setWidget(widget)
+        self.addDockWidget(area, d)
+        self.docks[key] = d
+        return d
+
+    def _status_widgets(self) -> None:
+        sb = self.statusBar()
+        self.status_xy = {}
+        for v in ("N", "F", "B"):
+            lab = QLabel(f"{v}  —")
+            lab.setMinimumWidth(150)
+            sb.addPermanentWidget(lab)
+            self.status_xy[v] = lab
+        self.status_ground = QLabel("E —  N —  h —")
+        self.status_ground.setMinimumWidth(280)
+        sb.addPermanentWidget(self.status_ground)
+        self.status_fit = QLabel("")
+        sb.addPermanentWidget(self.status_fit)
+
+    def _act(self, text, slot, shortcut=None, icon=None, tip=None, checkable=False) -> QAction:
+        a = QAction(text, self)
+        if shortcut is not None:
+            a.setShortcuts(shortcut if isinstance(shortcut, list) else [QKeySequence(shortcut)])
+        if icon is not None:
+            a.setIcon(self.style().standardIcon(icon))
+        if tip:
+            a.setStatusTip(tip)
+            a.setToolTip(tip)
+        a.setCheckable(checkable)
+        if slot is not None:
+            a.triggered.connect(slot)
+        self.addAction(a)
+        return a
+
+    def _actions(self) -> None:
+        K, S = QKeySequence.StandardKey, QStyle.StandardPixmap
+        self.a_new = self._act("&New project…", lambda: self.files.new_project(), K.New, S.SP_FileIcon)
+        self.a_open = self._act("&Open…", lambda: self.files.open_project(), K.Open, S.SP_DialogOpenButton,
+                                "Open a project")
+        self.a_save = self._act("&Save", self.files.save, K.Save, S.SP_DialogSaveButton, "Save the project")
+        self.a_save_as = self._act("Save &as…", lambda: self.files.save_as(), K.SaveAs)
+        self.a_import = self._act("&Import points…", self.import_points, "Ctrl+I")
+        self.a_export = self._act("&Export report…", self.export_report, "Ctrl+E")
+        self.a_quit = self._act("&Quit", self.close, K.Quit)
+        self.a_undo = self.undo_stack.createUndoAction(self, "&Undo")
+        self.a_undo.setShortcuts(QKeySequence.StandardKey.Undo)
+        self.a_undo.setIcon(self.style().standardIcon(S.SP_ArrowBack))
+        self.a_redo = self.undo_stack.createRedoAction(self, "&Redo")
+        self.a_redo.setShortcuts([QKeySequence(K.Redo), QKeySequence("Ctrl+Y")])
+        self.a_redo.setIcon(self.style().standardIcon(S.SP_ArrowForward))
+        self.addActions([self.a_undo, self.a_redo])
+        self.a_new_point = self._act("New &point", self.new_point, "Insert", S.SP_FileDialogNewFolder,
+                                     "New tie point: click in each view to place it")
+        self.a_del_point = self._act("&Delete point", self.delete_point, "Shift+Del", S.SP_TrashIcon,
+                                     "Delete the current point and its measurements")
+        self.a_del_meas = self._act("Delete &measurement", self.delete_measurement, "Del",
+                                    tip="Delete the current point's measurement in the view under the cursor")
+        self.a_kind = {k: self._act(f"Make {k}", lambda _=False, k=k: self.set_kind(k), f"Ctrl+{i + 1}")
+                       for i, k in enumerate(("GCP", "ICP", "TIE"))}
+        self.a_zoom_in = self._act("Zoom &in", lambda: self.views.zoom_all(1.5), [QKeySequence(K.ZoomIn),
+                                   QKeySequence("Ctrl+=")], S.SP_ArrowUp)
+        self.a_zoom_out = self._act("Zoom &out", lambda: self.views.zoom_all(1 / 1.5), K.ZoomOut, S.SP_ArrowDown)
+        self.a_fit = self._act("&Fit images", self.views.fit_all, "Ctrl+0", S.SP_TitleBarMaxButton)
+        self.a_goto = self._act("&Go to point", self.drive_to_current, "Space")
+        self.a_next = self._act("&Next point", lambda: self.step_point(1), [QKeySequence("PgDown"),
+                                QKeySequence("Ctrl+Right")], S.SP_MediaSeekForward)
+        self.a_prev = self._act("&Previous point", lambda: self.step_point(-1), [QKeySequence("PgUp"),
+                                QKeySequence("Ctrl+Left")], S.SP_MediaSeekBackward)
+        self.a_labels = self._act("Point &labels", self.views.set_show_labels, "Ctrl+L", checkable=True)
+        self.a_labels.setChecked(st.value(st.Key.SHOW_LABELS))
+        self.a_about = self._act("&About", self.about)
+
+    def _menus(self) -> None:
+        mb = self.menuBar()
+        m = mb.addMenu("&File")
+        m.addActions([self.a_new, self.a_open])
+        self.recent_menu = m.addMenu("Open &recent")
+        m.addSeparator()
+        m.addActions([self.a_save, self.a_save_as])
+        m.addSeparator()
+        m.addActions([self.a_import, self.a_export])
+        m.addSeparator()
+        m.addAction(self.a_quit)
+        m = mb.addMenu("&Edit")
+        m.addActions([self.a_undo, self.a_redo])
+        m.addSeparator()
+        m.addActions([self.a_new_point, self.a_del_point, self.a_del_meas])
+        m.addSeparator()
+        m.addActions(list(self.a_kind.values()))
+        m = mb.addMenu("&View")
+        m.addActions([self.a_zoom_in, self.a_zoom_out, self.a_fit])
+        m.addSeparator()
+        m.addActions([self.a_goto, self.a_next, self.a_prev, self.a_labels])
+        m.addSeparator()
+        for d in self.docks.values():
+            m.addAction(d.toggleViewAction())
+        mb.addMenu("&Help").addAction(self.a_about)
+        self._fill_recent(st.value(st.Key.RECENT_FILES))
+
+    def _toolbar(self) -> None:
+        tb = self.addToolBar("Main")
+        tb.setObjectName("toolbar_main")
+        tb.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
+        tb.addActions([self.a_open, self.a_save])
+        tb.addSeparator()
+        tb.addActions([self.a_undo, self.a_redo])
+        tb.addSeparator()
+        tb.addActions([self.a_new_point, self.a_del_point])
+        for a in self.a_kind.values():
+            tb.addAction(a)
+            a.setText(a.text().replace("Make ", ""))
+        tb.addSeparator()
+        tb.addActions([self.a_prev, self.a_next])
+        tb.addSeparator()
+        tb.addActions([self.a_zoom_in, self.a_zoom_out, self.a_fit])
+        tb.addSeparator()
+        tb.addWidget(QLabel(" Residual ×"))
+        self.exaggeration = QDoubleSpinBox(decimals=0, minimum=1, maximum=5000, singleStep=10)
+        self.exaggeration.setToolTip("Exaggeration of the residual vectors drawn on the images")
+        self.exaggeration.setValue(st.value(st.Key.RESIDUAL_SCALE))
+        tb.addWidget(self.exaggeration)
+
+    def _connect(self) -> None:
+        self.files.project_opened.connect(self.set_project)
+        self.files.path_changed.connect(self._update_title)
+        self.files.message.connect(lambda m: self.statusBar().showMessage(m, 8000))
+        self.files.recent_changed.connect(self._fill_recent)
+        self.undo_stack.cleanChanged.connect(lambda clean: self.setWindowModified(not clean))
+        self.undo_stack.indexChanged.connect(lambda *_: self._update_actions())
+        self.solver.solution_changed.connect(self.on_solution)
+        self.solver.failed.connect(lambda m: self.statusBar().showMessage(m, 10000))
+        self.views.place_requested.connect(self.place)
+        self.views.move_requested.connect(self.move)
+        self.views.point_picked.connect(lambda pid: self.set_current(pid, drive=False))
+        self.views.cursor_info.connect(self.on_cursor)
+        self.views.message.connect(lambda m: self.statusBar().showMessage(m, 10000))
+        self.views.images_loaded.connect(self._on_images_loaded)
+        self.table.selectionModel().selectionChanged.connect(self._on_table_selection)
+        self.panel.settings_requested.connect(self.change_settings)
+        self.exaggeration.valueChanged.connect(self._on_exaggeration)
+
+    # ------------------------------------------------------------------ project
+    def open_project(self, path, **kw) -> bool:
+        return self.files.open_project(str(path), **kw)
+
+    def set_project(self, project) -> None:
+        if self.project is not None:
+            self.project.changed.disconnect(self._on_project_changed)
+        self.project, self.current = project, None
+        project.changed.connect(self._on_project_changed)
+        self.views.set_project(project)
+        self.views.set_exaggeration(self.exaggeration.value())
+        self.views.set_show_labels(self.a_labels.isChecked())
+        self.table_model.set_project(project)
+        self.panel.set_settings(project.settings)
+        self._bind_image_tools()
+        self.solver.set_project(project)
+        self._update_actions()
+
+    def _bind_image_tools(self) -> None:
+        lay = self.loupe_box.layout()
+        while lay.count():
+            w = lay.takeAt(0).widget()
+            if w is not None:
+                w.deleteLater()
+        self.contrast_tabs.clear()
+        self.loupes = {}
+        for name, iv in self.views.views.items():
+            lp = Loupe(zoom=6, pixels=25)
+            lp.attach(iv)
+            lay.addWidget(lp)
+            self.loupes[name] = lp
+            self.contrast_tabs.addTab(ContrastPanel(iv), name)
+
+    def _on_images_loaded(self) -> None:
+        for i in range(self.contrast_tabs.count()):
+            self.contrast_tabs.widget(i).refresh()
+
+    def _on_project_changed(self, revision) -> None:
+        self._measured_timer.start()
+
+    def _update_title(self, path: str) -> None:
+        name = Path(path).name if path else "untitled"
+        self.setWindowTitle(f"{name}[*] — prismstation")
+        self.setWindowModified(not self.undo_stack.isClean())
+
+    def _fill_recent(self, files) -> None:
+        self.recent_menu.clear()
+        for f in files:
+            self.recent_menu.addAction(f, lambda f=f: self.files.open_project(f))
+        self.recent_menu.setEnabled(bool(files))
+
+    # ------------------------------------------------------------------ solution
+    def on_solution(self, sol) -> None:
+        self.views.set_solution(sol)
+        self.table_model.set_solution(sol)
+        self.table.select_id(self.current)
+        self.panel.set_solution(sol)
+        if self.plots is not None:
+            self.plots.set_solution(sol)
+        self.status_fit.setText(f"fit {self.solver.last_fit_ms:.0f} ms · σ0 "
+                                + (f"{sol.bias[sol.reference_view].sigma0:.3f}"
+                                   if sol.bias[sol.reference_view].sigma0 is not None else "—"))
+        self._update_actions()
+
+    # ------------------------------------------------------------------ current point
+    def set_current(self, pid: str | None, drive: bool = True) -> None:
+        if pid is not None and (self.project is None or pid not in self.project.points):
+            pid = None
+        changed = pid != self.current
+        self.current = pid
+        self.views.set_current(pid)
+        self.table.select_id(pid)
+        if pid is not None and drive and changed:
+            self.views.drive_to(pid)
+        self._update_actions()
+
+    def _on_table_selection(self, *_) -> None:
+        pid = self.table.current_id()
+        if pid is not None and pid != self.current:
+            self.set_current(pid, drive=True)
+
+    def drive_to_current(self) -> None:
+        if self.current is not None:
+            self.views.drive_to(self.current)
+
+    def step_point(self, step: int) -> None:
+        ids = self.table.ordered_ids()
+        if not ids:
+            return
+        i = ids.index(self.current) + step if self.current in ids else (0 if step > 0 else -1)
+        self.set_current(ids[i % len(ids)], drive=True)
+        self.views.drive_to(self.current)
+
+    # ------------------------------------------------------------------ edits
+    def place(self, view: str, x: float, y: float) -> None:
+        if self.project is None:
+            return
+        c = cmd.place_command(self.project, self.current, view, x, y)
+        self.undo_stack.push(c)
+        if c.pid != self.current:
+            self.set_current(c.pid, drive=False)
+
+    def move(self, pid: str, view: str, x: float, y: float, finished: bool) -> None:
+        if self.project is not None and pid in self.project.points:
+            self.undo_stack.push(cmd.PlaceMeasurement(self.project, pid, view, x, y, merge=True))
+            if pid != self.current:
+                self.set_current(pid, drive=False)
+
+    def new_point(self) -> None:
+        if self.project is None:
+            return
+        c = cmd.AddPoint(self.project)
+        self.undo_stack.push(c)
+        self.set_current(c.pid, drive=False)
+        self.statusBar().showMessage(f"{c.pid}: click in each view to place it", 8000)
+
+    def delete_point(self) -> None:
+        if self.project is not None and self.current in self.project.points:
+            self.undo_stack.push(cmd.DeletePoint(self.project, self.current))
+            self.set_current(None)
+
+    def delete_measurement(self) -> None:
+        v = self.views.active_view
+        if self.project is not None and self.current and v and self.project.measurement(self.current, v):
+            self.undo_stack.push(cmd.DeleteMeasurement(self.project, self.current, v))
+
+    def set_kind(self, kind: str) -> None:
+        if self.project is None or self.current not in self.project.points:
+            return
+        if self.project.points[self.current].kind == kind:
+            return
+        try:
+            self.undo_stack.push(cmd.SetKind(self.project, self.current, kind))
+        except PrismError as exc:
+            self.statusBar().showMessage(str(exc), 8000)
+
+    def change_settings(self, settings) -> None:
+        if self.project is not None and settings != self.project.settings:
+            self.undo_stack.push(cmd.ChangeSettings(self.project, settings))
+
+    def _on_exaggeration(self, k) -> None:
+        self.views.set_exaggeration(k)
+        st.set_value(st.Key.RESIDUAL_SCALE, float(k))
+
+    def _update_actions(self) -> None:
+        has_p = self.project is not None
+        has_c = has_p and self.current in (self.project.points if has_p else {})
+        for a in (self.a_save, self.a_save_as, self.a_import, self.a_export, self.a_new_point,
+                  self.a_next, self.a_prev, self.a_fit, self.a_zoom_in, self.a_zoom_out):
+            a.setEnabled(has_p)
+        for a in [self.a_del_point, self.a_del_meas, self.a_goto] + list(self.a_kind.values()):
+            a.setEnabled(bool(has_c))
+
+    # ------------------------------------------------------------------ cursor and status
+    def on_cursor(self, view, x, y, linked, ground) -> None:
+        pos = dict(linked)
+        pos[view] = (x, y)
+        for v, lab in self.status_xy.items():
+            xy = pos.get(v)
+            lab.setText(f"{v}  x {xy[0]:8.1f}  y {xy[1]:8.1f}" if xy is not None else f"{v}  —")
+            if v != view and xy is not None and v in self.loupes:
+                self.loupes[v].set_position(*xy)
+        if ground is not None:
+            self.status_ground.setText(f"E {ground[0]:.1f}  N {ground[1]:.1f}  h {ground[2]:.1f} m")
+
+    # ------------------------------------------------------------------ import / export
+    def import_points(self) -> None:
+        dialog_cls = optional("prismstation.gui.import_dialog", "ImportDialog")
+        if dialog_cls is None:
+            QMessageBox.information(self, "Import", "The import dialog is not available in this build "
+                                    "(prismstation.gui.import_dialog is missing).")
+            return
+        dlg = dialog_cls(self.project, self)
+        if dlg.exec():
+            points = list(getattr(dlg, "points", []) or [])
+            ms = list(getattr(dlg, "measurements", []) or [])
+            if points or ms:
+                self.undo_stack.push(cmd.Import(self.project, points, ms,
+                                                f"Import {len(points)} points, {len(ms)} measurements"))
+
+    def export_report(self, path: str | None = None) -> bool:
+        sol = self.solver.solution
+        if sol is None:
+            return False
+        if path is None:
+            path, _ = QFileDialog.getSaveFileName(
+                self, "Export report", st.value(st.Key.LAST_EXPORT_DIR),
+                "HTML (*.html);;PDF (*.pdf);;CSV (*.csv);;JSON (*.json)")
+            if not path:
+                return False
+        from prismstation.io.report import report_dict, write_report
+        rep = report_dict(sol, project_path=self.files.path)
+        try:
+            if Path(path).suffix.lower() in (".html", ".htm", ".pdf"):
+                writer = optional("prismstation.gui.report_writer", "write_document")
+                if writer is None:
+                    QMessageBox.information(self, "Export report", "HTML and PDF reports are not "
+                                            "available in this build (prismstation.gui.report_writer "
+                                            "is missing); choose CSV or JSON.")
+                    return False
+                writer(rep, path)
+            else:
+                write_report(rep, path)
+        except (PrismError, OSError) as exc:
+            QMessageBox.warning(self, "Export report", str(exc))
+            return False
+        st.set_value(st.Key.LAST_EXPORT_DIR, str(Path(path).parent))
+        self.statusBar().showMessage(f"Report written to {path}", 8000)
+        return True
+
+    # ------------------------------------------------------------------ misc
+    def _offer_overviews(self, source) -> None:
+        from prismstation.gui.overviews import offer_overviews
+        offer_overviews(self, source)
+
+    def about(self) -> None:
+        from prismstation import __version__
+        QMessageBox.about(self, "prismstation", f"prismstation {__version__}\n"
+                          "Orientation of ALOS-PRISM stereo triplets (empirical model).")
+
+    def restore_layout(self) -> None:
+        g, s = st.value(st.Key.GEOMETRY), st.value(st.Key.STATE)
+        if g is not None and not g.isEmpty():
+            self.restoreGeometry(g)
+        else:
+            self.resize(1600, 1000)
+        if s is not None and not s.isEmpty():
+            self.restoreState(s)
+
+    def save_layout(self) -> None:
+        st.set_value(st.Key.GEOMETRY, self.saveGeometry())
+        st.set_value(st.Key.STATE, self.saveState())
+        st.set_value(st.Key.SHOW_LABELS, self.a_labels.isChecked())
+
+    def closeEvent(self, ev) -> None:
+        if not self.files.maybe_save():
+            ev.ignore()
+            return
+        self.save_layout()
+        self.files.close()
+        self.solver.shutdown()
+        self.views.shutdown()
+        super().closeEvent(ev)

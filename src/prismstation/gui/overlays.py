@@ -1,0 +1,181 @@
+"""What is drawn over one image: measured markers, predicted positions, residual vectors,
+labels, the current point and the linked-cursor crosshair.
+
+All items live in the view box of an :class:`~prismstation.gui.image_view.ImageView`, in image
+pixels (x = column, y = row, origin at the top-left corner of the top-left pixel). Markers keep
+their size on screen (pyqtgraph ``pxMode``). Updates are incremental where it matters: labels are
+created once per point and only moved, so a click repaints in a few milliseconds.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import QPointF, Qt
+from PySide6.QtGui import QColor, QPainterPath, QPen
+
+KIND_COLORS = {"GCP": QColor(255, 70, 70), "ICP": QColor(70, 200, 255), "TIE": QColor(255, 210, 60)}
+BLUNDER_COLOR = QColor(255, 0, 255)
+CURRENT_COLOR = QColor(255, 255, 255)
+CURSOR_COLOR = QColor(80, 255, 80)
+
+
+def _cross(gap: float = 0.18) -> QPainterPath:
+    """A cross with an open centre (unit symbol, -0.5..0.5) that leaves the point visible."""
+    p = QPainterPath()
+    for a, b in (((-0.5, 0), (-gap, 0)), ((gap, 0), (0.5, 0)), ((0, -0.5), (0, -gap)), ((0, gap), (0, 0.5))):
+        p.moveTo(*a)
+        p.lineTo(*b)
+    return p
+
+
+MEASURED_SYMBOL = _cross()
+CROSSHAIR_SYMBOL = _cross(0.08)
+
+
+class MarkerItem(pg.ScatterPlotItem):
+    """Measured markers that can be dragged with the left button.
+
+    ``on_drag(pid, x, y, finished)`` is called with image coordinates during a drag that
+    started on a marker; a drag elsewhere is left to the view box (pan).
+    """
+
+    def __init__(self, on_drag, **kw):
+        super().__init__(**kw)
+        self.on_drag = on_drag
+        self._dragging = None
+
+    def mouseDragEvent(self, ev):
+        if ev.button() != Qt.MouseButton.LeftButton:
+            ev.ignore()
+            return
+        if ev.isStart():
+            hits = self.pointsAt(ev.buttonDownPos())
+            if len(hits) == 0:
+                ev.ignore()
+                return
+            self._dragging = hits[0].data()
+        if self._dragging is None:
+            ev.ignore()
+            return
+        ev.accept()
+        p = ev.pos()
+        self.on_drag(self._dragging, float(p.x()), float(p.y()), bool(ev.isFinish()))
+        if ev.isFinish():
+            self._dragging = None
+
+
+class ViewOverlay:
+    """The overlay items of one view (``name``) in view box ``vb``."""
+
+    def __init__(self, name: str, vb: pg.ViewBox, on_drag=None):
+        self.name = name
+        self.vb = vb
+        self.exaggeration = 50.0
+        self.show_labels = True
+        self.measured = MarkerItem(on_drag or (lambda *a: None), symbol=MEASURED_SYMBOL, size=19,
+                                   pxMode=True, brush=None, hoverable=False)
+        self.predicted = pg.ScatterPlotItem(symbol="o", size=15, pxMode=True, brush=None)
+        self.current = pg.ScatterPlotItem(symbol="s", size=27, pxMode=True, brush=None,
+                                          pen=pg.mkPen(CURRENT_COLOR, width=1.5))
+        self.vectors = pg.PlotCurveItem(connect="pairs", pen=pg.mkPen(255, 120, 0, width=2))
+        self.crosshair = pg.ScatterPlotItem(symbol=CROSSHAIR_SYMBOL, size=46, pxMode=True, brush=None,
+                                            pen=pg.mkPen(CURSOR_COLOR, width=1.5))
+        for z, item in ((20, self.vectors), (21, self.predicted), (22, self.measured),
+                        (23, self.current), (30, self.crosshair)):
+            item.setZValue(z)
+            vb.addItem(item)
+        self.crosshair.setVisible(False)
+        self._labels: dict[str, pg.TextItem] = {}
+        self._label_state: dict[str, tuple] = {}
+        self.ids = np.zeros(0, dtype=object)      # ids of measured markers, in order
+        self.xy = np.zeros((0, 2))                 # their image positions
+
+    # ------------------------------------------------------------------ measured (project)
+    def update_measured(self, project, solution=None) -> None:
+        """Markers at the project's measurements in this view (immediately, without the fit)."""
+        ms = [m for (pid, v), m in project.measurements.items() if v == self.name]
+        self.ids = np.array([m.id for m in ms], dtype=object)
+        self.xy = np.array([(m.x, m.y) for m in ms], float).reshape(-1, 2)
+        blunders = set()
+        if solution is not None:
+            blunders = {r.id for r in solution.points if r.blunder}
+        pens = [pg.mkPen(BLUNDER_COLOR if m.id in blunders else
+                         KIND_COLORS.get(project.points[m.id].kind, CURRENT_COLOR), width=2)
+                for m in ms]
+        self.measured.setData(pos=self.xy, data=self.ids, pen=pens) if ms else self.measured.clear()
+
+    # ------------------------------------------------------------------ from the solution
+    def update_solution(self, project, solution) -> None:
+        """Predicted positions (hollow, unmeasured views), residual vectors, labels."""
+        pred, pred_pens, segs, label_pos = [], [], [], {}
+        for pid, xy in zip(self.ids, self.xy):
+            label_pos[pid] = (xy[0], xy[1])
+        if solution is not None:
+            for r in solution.points:
+                if r.id not in project.points:
+                    continue
+                kind = project.points[r.id].kind
+                if self.name not in r.measured and self.name in r.predicted and \
+                        (project.measurement(r.id, self.name) is None):
+                    x, y = r.predicted[self.name]
+                    if np.isfinite(x) and np.isfinite(y):
+                        pred.append((x, y))
+                        pred_pens.append(pg.mkPen(KIND_COLORS.get(kind, CURRENT_COLOR), width=1.5,
+                                                  style=Qt.PenStyle.DashLine))
+                        label_pos.setdefault(r.id, (x, y))
+                if self.name in r.residual_px and self.name in r.measured:
+                    (x, y), (vx, vy) = r.measured[self.name], r.residual_px[self.name]
+                    k = self.exaggeration
+                    segs += [(x, y), (x + k * vx, y + k * vy)]
+        if pred:
+            self.predicted.setData(pos=np.array(pred), pen=pred_pens)
+        else:
+            self.predicted.clear()
+        s = np.array(segs, float).reshape(-1, 2)
+        self.vectors.setData(s[:, 0], s[:, 1], connect="pairs")
+        self._update_labels(project, label_pos)
+
+    def _update_labels(self, project, label_pos: dict) -> None:
+        for pid in [p for p in self._labels if p not in label_pos or not self.show_labels]:
+            self.vb.removeItem(self._labels.pop(pid))
+            self._label_state.pop(pid, None)
+        if not self.show_labels:
+            return
+        for pid, (x, y) in label_pos.items():
+            kind = project.points[pid].kind
+            state = (x, y, kind)
+            if self._label_state.get(pid) == state:
+                continue
+            item = self._labels.get(pid)
+            if item is None:
+                item = pg.TextItem(pid, anchor=(-0.15, 1.1))
+                item.setZValue(24)
+                self.vb.addItem(item)
+                self._labels[pid] = item
+            if self._label_state.get(pid, (None, None, None))[2] != kind:
+                item.setColor(KIND_COLORS.get(kind, CURRENT_COLOR))
+            item.setPos(QPointF(x, y))
+            self._label_state[pid] = state
+
+    def set_current(self, xy) -> None:
+        """Highlight the current point at image ``(x, y)`` (None: nothing)."""
+        if xy is None:
+            self.current.clear()
+        else:
+            self.current.setData(pos=[tuple(xy)])
+
+    def set_crosshair(self, xy) -> None:
+        """The linked-cursor crosshair at image ``(x, y)`` (None hides it)."""
+        if xy is None or not np.all(np.isfinite(xy)):
+            self.crosshair.setVisible(False)
+            return
+        self.crosshair.setData(pos=[tuple(map(float, xy))])
+        self.crosshair.setVisible(True)
+
+    def nearest(self, x: float, y: float, tolerance: float):
+        """Id of the measured marker nearest image ``(x, y)`` within ``tolerance`` pixels, or None."""
+        if len(self.xy) == 0:
+            return None
+        d = np.hypot(self.xy[:, 0] - x, self.xy[:, 1] - y)
+        i = int(np.argmin(d))
+        return self.ids[i] if d[i] <= tolerance else None

@@ -1,0 +1,176 @@
+"""The point table: one row per point with its kind, views, residuals and ground estimate.
+
+A ``QAbstractTableModel`` reading the project (ids, kinds, measurements) and the current
+:class:`~prismstation.core.solve.Solution` (residuals, estimates, standardised residuals).
+GCPs flagged as blunders get a red background; residuals are in pixels of the reference view.
+"""
+from __future__ import annotations
+
+import math
+
+from PySide6.QtCore import QAbstractTableModel, QModelIndex, QSortFilterProxyModel, Qt
+from PySide6.QtGui import QBrush, QColor
+from PySide6.QtWidgets import QAbstractItemView, QHeaderView, QTableView
+
+from prismstation.gui.overlays import KIND_COLORS
+
+COLUMNS = ("ID", "Kind", "Views", "vx (px)", "vy (px)", "|v| max (px)", "E est (m)", "N est (m)",
+           "h est (m)", "dh (m)", "std. res.")
+BLUNDER_BG = QColor(255, 190, 190)
+TOLERANCE_BG = QColor(255, 235, 180)
+
+
+def _fmt(v, nd=2):
+    return "" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{nd}f}"
+
+
+class PointTableModel(QAbstractTableModel):
+    """Rows: the project's points in creation order. :meth:`refresh` after every change."""
+
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        self.project = None
+        self.solution = None
+        self.ids: list[str] = []
+        self._rows: list[tuple] = []
+
+    def set_project(self, project) -> None:
+        self.project, self.solution = project, None
+        self.refresh()
+
+    def set_solution(self, solution) -> None:
+        self.solution = solution
+        self.refresh()
+
+    def refresh(self) -> None:
+        """Rebuild the rows from the project and the solution (one reset)."""
+        self.beginResetModel()
+        self._rows = self._build() if self.project is not None else []
+        self.ids = [r[0] for r in self._rows]
+        self.endResetModel()
+
+    def _build(self) -> list[tuple]:
+        p, sol = self.project, self.solution
+        views = list(p.scene.views)
+        ref = "N" if "N" in views else views[0]
+        measured: dict[str, set] = {}
+        for pid, v in p.measurements:
+            measured.setdefault(pid, set()).add(v)
+        results = {r.id: r for r in sol.points} if sol is not None else {}
+        rows = []
+        for pid, pt in p.points.items():
+            r = results.get(pid)
+            have = measured.get(pid, set())
+            vs = " ".join(v if v in have else "·" for v in views)
+            vx = vy = vmax = e = n = h = dh = sr = None
+            blunder = False
+            if r is not None:
+                if ref in r.residual_px:
+                    vx, vy = r.residual_px[ref]
+                if r.residual_px:
+                    vmax = max(math.hypot(*v) for v in r.residual_px.values())
+                if r.ground_est is not None:
+                    e, n, h = r.ground_est
+                if r.ground_residual is not None:
+                    dh = r.ground_residual[2]
+                sr, blunder = r.std_residual, r.blunder
+            rows.append((pid, pt.kind, vs, vx, vy, vmax, e, n, h, dh, sr, blunder))
+        return rows
+
+    # ------------------------------------------------------------------ Qt model
+    def rowCount(self, parent=QModelIndex()) -> int:
+        return 0 if parent.isValid() else len(self._rows)
+
+    def columnCount(self, parent=QModelIndex()) -> int:
+        return 0 if parent.isValid() else len(COLUMNS)
+
+    def headerData(self, section, orientation, role=Qt.ItemDataRole.DisplayRole):
+        if orientation == Qt.Orientation.Horizontal and role == Qt.ItemDataRole.DisplayRole:
+            return COLUMNS[section]
+        return None
+
+    def data(self, index, role=Qt.ItemDataRole.DisplayRole):
+        if not index.isValid():
+            return None
+        row = self._rows[index.row()]
+        c = index.column()
+        if role == Qt.ItemDataRole.DisplayRole:
+            v = row[c]
+            if c <= 2:
+                return v
+            return _fmt(v, 3 if c in (3, 4, 5) else 2 if c in (6, 7, 8, 9) else 2)
+        if role == Qt.ItemDataRole.UserRole:  # sort key
+            v = row[c]
+            return (-math.inf if v is None else v) if c > 2 else v
+        if role == Qt.ItemDataRole.BackgroundRole:
+            if row[11]:
+                return QBrush(BLUNDER_BG)
+            return None
+        if role == Qt.ItemDataRole.ForegroundRole and c == 1:
+            return QBrush(KIND_COLORS.get(row[1], QColor(0, 0, 0)).darker(140))
+        if role == Qt.ItemDataRole.TextAlignmentRole and c > 2:
+            return int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+        if role == Qt.ItemDataRole.ToolTipRole and row[11]:
+            return f"{row[0]}: standardised residual {_fmt(row[10])} above the blunder threshold"
+        return None
+
+    def row_of(self, pid: str) -> int:
+        try:
+            return self.ids.index(pid)
+        except ValueError:
+            return -1
+
+    def cell(self, pid: str, column: str) -> str:
+        """Displayed text of ``column`` (a COLUMNS name) in the row of ``pid`` (tests, scripts)."""
+        r = self.row_of(pid)
+        return self.data(self.index(r, COLUMNS.index(column))) if r >= 0 else None
+
+    def is_blunder(self, pid: str) -> bool:
+        r = self.row_of(pid)
+        return r >= 0 and bool(self._rows[r][11])
+
+
+class PointTableView(QTableView):
+    """Sortable table view of a :class:`PointTableModel` with single-row selection."""
+
+    def __init__(self, model: PointTableModel, parent=None):
+        super().__init__(parent)
+        self.source_model = model
+        self.proxy = QSortFilterProxyModel(self)
+        self.proxy.setSourceModel(model)
+        self.proxy.setSortRole(Qt.ItemDataRole.UserRole)
+        self.setModel(self.proxy)
+        self.setSortingEnabled(True)
+        self.sortByColumn(-1, Qt.SortOrder.AscendingOrder)
+        self.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
+        self.setSelectionMode(QAbstractItemView.SelectionMode.SingleSelection)
+        self.setAlternatingRowColors(True)
+        self.verticalHeader().setVisible(False)
+        self.verticalHeader().setDefaultSectionSize(20)
+        self.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
+        self.horizontalHeader().setStretchLastSection(True)
+
+    def current_id(self) -> str | None:
+        rows = self.selectionModel().selectedRows()
+        if not rows:
+            return None
+        src = self.proxy.mapToSource(rows[0])
+        return self.source_model.ids[src.row()] if 0 <= src.row() < len(self.source_model.ids) else None
+
+    def select_id(self, pid: str | None) -> None:
+        """Select the row of ``pid`` (clears the selection for None) without emitting twice."""
+        sm = self.selectionModel()
+        r = -1 if pid is None else self.source_model.row_of(pid)
+        if r < 0:
+            sm.clearSelection()
+            return
+        idx = self.proxy.mapFromSource(self.source_model.index(r, 0))
+        if self.current_id() != pid or not sm.isSelected(idx):
+            sm.select(idx, sm.SelectionFlag.ClearAndSelect | sm.SelectionFlag.Rows)
+            sm.setCurrentIndex(idx, sm.SelectionFlag.NoUpdate)
+        self.scrollTo(idx)
+
+    def ordered_ids(self) -> list[str]:
+        """Ids in the order shown (after sorting)."""
+        return [self.source_model.ids[self.proxy.mapToSource(self.proxy.index(i, 0)).row()]
+                for i in range(self.proxy.rowCount())]

@@ -1,0 +1,301 @@
+"""Project files in the window: new, open, save, save as, recent files, the unsaved-changes
+prompt (driven by ``QUndoStack.isClean``), autosave for crash recovery, relocating missing files.
+
+Autosave writes the project every N seconds while it has unsaved changes to a side file
+``<project>.autosave`` (``untitled.autosave.prismproj`` in the settings directory for a project
+never saved); opening a project whose side file is newer offers to recover it. A clean save or
+close removes the side file.
+
+Dialogs go through small methods (:meth:`ProjectFiles.ask`, :meth:`ProjectFiles.choose_open`, ...)
+so that tests can answer them.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+from PySide6.QtCore import QObject, QSettings, QTimer, Signal
+from PySide6.QtWidgets import QFileDialog, QMessageBox
+
+from prismstation.errors import InputError, PrismError
+from prismstation.gui import settings as st
+from prismstation.io.project import SUFFIX, load_project, save_project
+from prismstation.io.scene import read_scene
+from prismstation.model.project import Project
+
+FILTER = f"prismstation projects (*{SUFFIX});;All files (*)"
+RELOCATED_KEY = "relocated_images"
+
+
+def autosave_path(path) -> Path:
+    """Side file of the project at ``path`` (None: the untitled project's)."""
+    if path is None:
+        base = Path(QSettings().fileName()).parent if QSettings().fileName() else Path.home()
+        return base / "untitled.autosave.prismproj"
+    return Path(str(path) + ".autosave")
+
+
+def missing_images(project) -> list[str]:
+    """Views whose image file does not exist."""
+    return [n for n, v in project.scene.views.items() if not v.image or not Path(v.image).is_file()]
+
+
+def apply_relocations(project) -> None:
+    """Point the scene's views at the image files recorded in ``project.extra``."""
+    reloc = project.extra.get(RELOCATED_KEY) or {}
+    if not reloc:
+        return
+    views = dict(project.scene.views)
+    for name, path in reloc.items():
+        if name in views and Path(path).is_file():
+            views[name] = dataclasses.replace(views[name], image=str(path))
+    project.scene = dataclasses.replace(project.scene, views=views)
+
+
+class ProjectFiles(QObject):
+    """Owns the current project's path and its life cycle in the window.
+
+    Signals
+    -------
+    project_opened(project)
+        A project was created, opened or recovered (the window rebinds everything).
+    path_changed(str)
+        The file name changed (save as).
+    message(str)
+        Something to show in the status bar.
+    """
+
+    project_opened = Signal(object)
+    path_changed = Signal(str)
+    message = Signal(str)
+    recent_changed = Signal(list)
+
+    def __init__(self, undo_stack, parent_widget=None):
+        super().__init__(parent_widget)
+        self.stack = undo_stack
+        self.widget = parent_widget
+        self.project: Project | None = None
+        self.path: Path | None = None
+        self._autosaved_revision = -1
+        self.interactive = True  # False: every question is answered "No" (screenshots, scripts)
+        self.timer = QTimer(self)
+        self.timer.timeout.connect(self.autosave)
+        self.set_autosave_interval(st.value(st.Key.AUTOSAVE_SECONDS))
+
+    # ------------------------------------------------------------------ dialogs (overridable)
+    def ask(self, title: str, text: str, buttons=None, default=None):
+        b = QMessageBox.StandardButton
+        if not self.interactive:
+            return b.No
+        buttons = buttons or (b.Yes | b.No)
+        return QMessageBox.question(self.widget, title, text, buttons, default or b.Yes)
+
+    def warn(self, title: str, text: str) -> None:
+        self.message.emit(f"{title}: {text}")
+        if not self.interactive:
+            import sys
+            print(f"{title}: {text}", file=sys.stderr)
+            return
+        QMessageBox.warning(self.widget, title, text)
+
+    def choose_open(self, title=None, filt=FILTER) -> str:
+        path, _ = QFileDialog.getOpenFileName(self.widget, title or "Open project",
+                                              st.value(st.Key.LAST_PROJECT_DIR), filt)
+        return path
+
+    def choose_save(self) -> str:
+        path, _ = QFileDialog.getSaveFileName(self.widget, "Save project as",
+                                              st.value(st.Key.LAST_PROJECT_DIR), FILTER)
+        if path and not path.endswith(SUFFIX):
+            path += SUFFIX
+        return path
+
+    def choose_dir(self, title: str) -> str:
+        return QFileDialog.getExistingDirectory(self.widget, title, st.value(st.Key.LAST_PROJECT_DIR))
+
+    # ------------------------------------------------------------------ life cycle
+    def set_autosave_interval(self, seconds: int) -> None:
+        self.timer.stop()
+        if seconds and seconds > 0:
+            self.timer.start(int(seconds * 1000))
+
+    def _install(self, project: Project, path) -> None:
+        self.project = project
+        self.path = None if path is None else Path(path).resolve()
+        self._autosaved_revision = -1
+        self.stack.clear()
+        self.stack.setClean()
+        self.project_opened.emit(project)
+        self.path_changed.emit("" if self.path is None else str(self.path))
+
+    def new_project(self, scene_path: str | None = None) -> bool:
+        """A project on ``scene_path`` (asked for when None), untitled until saved."""
+        if not self.maybe_save():
+            return False
+        scene_path = scene_path or self.choose_open("Scene of the new project", "Scene (*.json);;All files (*)")
+        if not scene_path:
+            return False
+        try:
+            scene = read_scene(scene_path)
+        except PrismError as exc:
+            self.warn("New project", str(exc))
+            return False
+        self._install(Project(scene, str(Path(scene_path).resolve())), None)
+        self.message.emit(f"New project on {scene_path}")
+        return True
+
+    def open_project(self, path: str | None = None, *, recover: bool | None = None,
+                     check_unsaved: bool = True) -> bool:
+        """Open ``path`` (asked for when None). ``recover``: use a newer autosave (None asks)."""
+        if check_unsaved and not self.maybe_save():
+            return False
+        path = path or self.choose_open()
+        if not path:
+            return False
+        path = Path(path)
+        side = autosave_path(path)
+        source = path
+        if side.is_file() and (not path.exists() or side.stat().st_mtime > path.stat().st_mtime):
+            if recover is None:
+                b = QMessageBox.StandardButton
+                recover = self.ask("Recover", f"{path.name} has autosaved changes newer than the file "
+                                   "(the program did not close cleanly). Recover them?") == b.Yes
+            if recover:
+                source = side
+        try:
+            project = self._load(source)
+        except PrismError as exc:
+            self.warn("Open project", str(exc))
+            return False
+        if project is None:
+            return False
+        self._install(project, path)
+        if source is side:
+            self.stack.resetClean()  # recovered changes are not saved yet
+            self.message.emit(f"Recovered autosaved changes of {path.name}; save to keep them")
+        else:
+            self.message.emit(f"Opened {path}")
+        st.add_recent(str(path))
+        st.set_value(st.Key.LAST_PROJECT_DIR, str(path.parent))
+        self.recent_changed.emit(st.value(st.Key.RECENT_FILES))
+        return True
+
+    def _load(self, path: Path) -> Project | None:
+        """Load, offering to relocate a missing scene or missing images."""
+        try:
+            project = load_project(path)
+        except InputError as exc:
+            if "scene file not found" not in str(exc):
+                raise
+            b = QMessageBox.StandardButton
+            if self.ask("Scene not found", f"{exc}\n\nLocate the scene.json?") != b.Yes:
+                return None
+            scene = self.choose_open("Locate the scene", "Scene (*.json);;All files (*)")
+            if not scene:
+                return None
+            project = load_project(path, scene_override=scene)
+        apply_relocations(project)
+        missing = missing_images(project)
+        if missing:
+            self.relocate_images(project, missing)
+        return project
+
+    def relocate_images(self, project, missing: list[str]) -> bool:
+        """Ask for a folder holding the missing images (same file names); record where they are."""
+        names = ", ".join(f"{v} ({Path(project.scene.views[v].image or '?').name})" for v in missing)
+        b = QMessageBox.StandardButton
+        if self.ask("Images not found", f"Image files not found for view(s) {names}.\n\n"
+                    "Choose the folder that holds them now?") != b.Yes:
+            return False
+        folder = self.choose_dir("Folder with the images")
+        if not folder:
+            return False
+        reloc = dict(project.extra.get(RELOCATED_KEY) or {})
+        for v in missing:
+            cand = Path(folder) / Path(project.scene.views[v].image or "").name
+            if cand.is_file():
+                reloc[v] = str(cand.resolve())
+        project.extra[RELOCATED_KEY] = reloc
+        apply_relocations(project)
+        still = missing_images(project)
+        if still:
+            self.warn("Images not found", f"Still missing: {', '.join(still)}")
+        return not still
+
+    def save(self) -> bool:
+        if self.project is None:
+            return False
+        if self.path is None:
+            return self.save_as()
+        try:
+            save_project(self.project, self.path)
+        except (PrismError, OSError) as exc:
+            self.warn("Save", f"Could not save {self.path}: {exc}")
+            return False
+        self.stack.setClean()
+        self._remove_autosave()
+        self.message.emit(f"Saved {self.path}")
+        return True
+
+    def save_as(self, path: str | None = None) -> bool:
+        if self.project is None:
+            return False
+        path = path or self.choose_save()
+        if not path:
+            return False
+        old_side = autosave_path(self.path)
+        self.path = Path(path).resolve()
+        if self.save():
+            if old_side.exists():
+                old_side.unlink()
+            st.add_recent(str(self.path))
+            st.set_value(st.Key.LAST_PROJECT_DIR, str(self.path.parent))
+            self.recent_changed.emit(st.value(st.Key.RECENT_FILES))
+            self.path_changed.emit(str(self.path))
+            return True
+        return False
+
+    def maybe_save(self) -> bool:
+        """The unsaved-changes prompt; True when it is fine to go on (saved or discarded)."""
+        if self.project is None or self.stack.isClean():
+            return True
+        b = QMessageBox.StandardButton
+        name = self.path.name if self.path else "The untitled project"
+        answer = self.ask("Unsaved changes", f"{name} has unsaved changes. Save them?",
+                          b.Save | b.Discard | b.Cancel, b.Save)
+        if answer == b.Save:
+            return self.save()
+        if answer == b.Discard:
+            self._remove_autosave()
+            return True
+        return False
+
+    def close(self) -> None:
+        """The window closes (after :meth:`maybe_save`)."""
+        self.timer.stop()
+        if self.stack.isClean():
+            self._remove_autosave()
+
+    # ------------------------------------------------------------------ autosave
+    def autosave(self) -> bool:
+        """Write the side file if there are unsaved changes since the last autosave."""
+        p = self.project
+        if p is None or self.stack.isClean() or p.revision == self._autosaved_revision:
+            return False
+        try:
+            save_project(p, autosave_path(self.path))
+        except (PrismError, OSError) as exc:
+            self.message.emit(f"Autosave failed: {exc}")
+            return False
+        self._autosaved_revision = p.revision
+        return True
+
+    def _remove_autosave(self) -> None:
+        side = autosave_path(self.path)
+        for f in (side, Path(str(side) + ".bak")):
+            if f.exists():
+                try:
+                    os.unlink(f)
+                except OSError:
+                    pass

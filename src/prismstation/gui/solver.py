@@ -1,0 +1,154 @@
+"""Refit after every change of the project, off the GUI thread, and publish the Solution.
+
+Data flow (ARCHITECTURE.md): a command edits the :class:`Project`; ``Project.changed`` arms a
+zero-delay timer, so that many edits in one event-loop turn (an import, an undo macro) cause one
+refit. The refit runs on a snapshot of the project in a worker thread; when it finishes, the
+:class:`Solution` is published by :attr:`Solver.solution_changed` on the GUI thread. A result
+older than the newest one published is dropped (by revision number); edits made while a fit runs
+start one more fit when it ends.
+"""
+from __future__ import annotations
+
+import copy
+import time
+
+from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
+
+from prismstation.errors import PrismError
+from prismstation.io.project import solve_project
+
+
+def snapshot(project):
+    """A shallow copy of ``project`` whose point and measurement dicts are its own (the values
+    are frozen dataclasses), safe to solve in another thread while the original is edited."""
+    snap = copy.copy(project)
+    snap.points = dict(project.points)
+    snap.measurements = dict(project.measurements)
+    snap.changed = None
+    return snap
+
+
+class _Relay(QObject):
+    done = Signal(object, object, float)  # solution or None, error message or None, seconds
+
+
+class _FitJob(QRunnable):
+    def __init__(self, snap, relay: _Relay):
+        super().__init__()
+        self.snap = snap
+        self.relay = relay
+        self.setAutoDelete(True)
+
+    def run(self) -> None:  # worker thread
+        t0 = time.perf_counter()
+        try:
+            sol, err = solve_project(self.snap), None
+        except PrismError as exc:
+            sol, err = None, str(exc)
+        except Exception as exc:  # never let a fit kill the window; say what happened
+            sol, err = None, f"the fit failed: {type(exc).__name__}: {exc}"
+        self.relay.done.emit(sol, err, time.perf_counter() - t0)
+
+
+class Solver(QObject):
+    """Keeps :attr:`solution` current for one project.
+
+    Signals
+    -------
+    solution_changed(Solution)
+        A newer fit is available (GUI thread).
+    failed(str)
+        The fit raised an error the operator can fix (e.g. a geoid grid not found).
+
+    Attributes
+    ----------
+    last_fit_ms : float
+        Duration of the last fit in the worker, milliseconds.
+    """
+
+    solution_changed = Signal(object)
+    failed = Signal(str)
+
+    def __init__(self, parent=None, threaded: bool = True):
+        super().__init__(parent)
+        self.project = None
+        self.solution = None
+        self.last_fit_ms = float("nan")
+        self.threaded = threaded
+        self._running = False
+        self._dirty = False
+        self._pool = QThreadPool(self)
+        self._pool.setMaxThreadCount(1)
+        self._relay = _Relay()
+        self._relay.done.connect(self._on_done)
+        self._timer = QTimer(self)
+        self._timer.setSingleShot(True)
+        self._timer.setInterval(0)
+        self._timer.timeout.connect(self._start)
+
+    def set_project(self, project) -> None:
+        if self.project is not None:
+            self.project.changed.disconnect(self._on_changed)
+        self.project = project
+        self.solution = None
+        if project is not None:
+            project.changed.connect(self._on_changed)
+            self._on_changed()
+
+    def _on_changed(self, *_) -> None:
+        self._dirty = True
+        self._timer.start()
+
+    def busy(self) -> bool:
+        """True while a change waits for its fit or a fit runs."""
+        return self._dirty or self._running
+
+    def refit_now(self):
+        """Fit synchronously on this thread and publish (scripts, screenshots)."""
+        self._timer.stop()
+        self._pool.waitForDone()
+        self._dirty = False
+        t0 = time.perf_counter()
+        try:
+            sol, err = solve_project(snapshot(self.project)), None
+        except PrismError as exc:
+            sol, err = None, str(exc)
+        self._publish(sol, err, time.perf_counter() - t0)
+        return self.solution
+
+    def _start(self) -> None:
+        if self.project is None or self._running or not self._dirty:
+            return
+        self._dirty = False
+        snap = snapshot(self.project)
+        if not self.threaded:
+            t0 = time.perf_counter()
+            try:
+                sol, err = solve_project(snap), None
+            except PrismError as exc:
+                sol, err = None, str(exc)
+            self._publish(sol, err, time.perf_counter() - t0)
+            return
+        self._running = True
+        self._pool.start(_FitJob(snap, self._relay))
+
+    def _on_done(self, sol, err, seconds) -> None:
+        self._running = False
+        self._publish(sol, err, seconds)
+        if self._dirty:
+            self._timer.start()
+
+    def _publish(self, sol, err, seconds) -> None:
+        self.last_fit_ms = seconds * 1000.0
+        if err is not None:
+            self.failed.emit(err)
+            return
+        if self.solution is not None and sol.revision < self.solution.revision \
+                and self.project is not None and sol.revision != self.project.revision:
+            return  # stale
+        self.solution = sol
+        self.solution_changed.emit(sol)
+
+    def shutdown(self) -> None:
+        self._timer.stop()
+        self._pool.waitForDone(5000)

@@ -1,0 +1,308 @@
+"""The N, F, B views side by side, with overlays, linked cursors and drive-to.
+
+Views of different images are not linked by pyqtgraph's ``setXLink`` (their geometries differ):
+the cursor in one view goes through the current :class:`~prismstation.core.solve.Solution`
+(pixel → ground at a height → pixel) to the others (ARCHITECTURE.md). The height is that of the
+point under the cursor when there is one (its estimated or known height), else the mean scene
+height of the solution.
+
+Image coordinates: x = column, y = row, pixels, origin at the top-left corner of the top-left
+pixel (MODEL.md §1).
+"""
+from __future__ import annotations
+
+import numpy as np
+from PySide6.QtCore import QObject, QRunnable, Qt, QThreadPool, Signal
+from PySide6.QtWidgets import QLabel, QSplitter, QVBoxLayout, QWidget
+
+from prismstation.errors import PrismError
+from prismstation.gui.image_view import ImageView
+from prismstation.gui.overlays import ViewOverlay
+from prismstation.io.raster import RasterSource
+
+VIEW_TITLES = {"N": "N — nadir", "F": "F — forward", "B": "B — backward"}
+PICK_TOLERANCE_SCREEN_PX = 8.0
+DRIVE_TO_MAX_SCALE = 1.0  # image px per screen px at most after a drive-to (zooms in to detail)
+
+
+class _LoadRelay(QObject):
+    loaded = Signal(str, object, object, str)  # view, source, (lo, hi), error
+
+
+class _LoadJob(QRunnable):
+    """Open a raster and read its coarse overview and statistics (worker thread)."""
+
+    def __init__(self, view: str, path: str, generation: int, relay: _LoadRelay):
+        super().__init__()
+        self.view, self.path, self.generation, self.relay = view, path, generation, relay
+
+    def run(self) -> None:
+        try:
+            src = RasterSource(self.path)
+            src.coarse()
+            st = src.statistics((0.5, 99.5))
+            levels = (st.percentiles[0.5], st.percentiles[99.5])
+            self.relay.loaded.emit(self.view, (self.generation, src), levels, "")
+        except (PrismError, OSError, ValueError) as exc:
+            self.relay.loaded.emit(self.view, (self.generation, None), None, str(exc))
+
+
+class TripletViews(QWidget):
+    """Three (or one, two) :class:`ImageView` panes in a splitter with measurement overlays.
+
+    Signals
+    -------
+    place_requested(view, x, y)
+        A click on the image away from any marker: place the current point there.
+    move_requested(pid, view, x, y, finished)
+        A marker is being dragged (``finished`` on release).
+    point_picked(pid)
+        A click on a marker.
+    cursor_info(view, x, y, linked, ground)
+        The cursor is at ``(x, y)`` in ``view``; ``linked`` maps the other views to ``(x, y)``
+        through the model; ``ground`` is ``(E, N, h)`` or None.
+    images_loaded()
+        Every image of the project is displayed (or failed with a message).
+    """
+
+    place_requested = Signal(str, float, float)
+    move_requested = Signal(str, str, float, float, bool)
+    point_picked = Signal(str)
+    cursor_info = Signal(str, float, float, object, object)
+    images_loaded = Signal()
+    message = Signal(str)
+
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        self.splitter = QSplitter(Qt.Orientation.Horizontal, self)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addWidget(self.splitter)
+        self.views: dict[str, ImageView] = {}
+        self.overlays: dict[str, ViewOverlay] = {}
+        self.headers: dict[str, QLabel] = {}
+        self.panes: dict[str, QWidget] = {}
+        self.project = None
+        self.solution = None
+        self.current: str | None = None
+        self.active_view: str | None = None
+        self._pending: set[str] = set()
+        self._generation = 0
+        self._relay = _LoadRelay()
+        self._relay.loaded.connect(self._on_loaded)
+        self._pool = QThreadPool(self)
+        self._pool.setMaxThreadCount(3)
+        self.offer_overviews = None  # callable(source) set by the window when interactive
+
+    # ------------------------------------------------------------------ project and images
+    def set_project(self, project) -> None:
+        """Build one pane per view of ``project.scene`` and load the images in workers."""
+        for v in self.views.values():
+            v.set_source(None)
+        for pane in self.panes.values():
+            pane.setParent(None)
+            pane.deleteLater()
+        self.views, self.overlays, self.headers, self.panes = {}, {}, {}, {}
+        self.project, self.solution, self.current = project, None, None
+        self._generation += 1
+        if project is None:
+            return
+        for name, view in project.scene.views.items():
+            pane = QWidget()
+            lay = QVBoxLayout(pane)
+            lay.setContentsMargins(1, 1, 1, 1)
+            lay.setSpacing(0)
+            header = QLabel(VIEW_TITLES.get(name, name))
+            header.setObjectName("viewHeader")
+            header.setStyleSheet("QLabel#viewHeader { background: #2b2f36; color: #e8e8e8;"
+                                 " padding: 3px 6px; font-weight: bold; }")
+            iv = ImageView(pane)
+            iv.graphics.viewport().setCursor(Qt.CursorShape.CrossCursor)
+            lay.addWidget(header)
+            lay.addWidget(iv, 1)
+            self.splitter.addWidget(pane)
+            self.views[name], self.headers[name], self.panes[name] = iv, header, pane
+            self.overlays[name] = ViewOverlay(name, iv.vb, self._drag_handler(name))
+            iv.clicked.connect(lambda x, y, mods, n=name: self._on_clicked(n, x, y, mods))
+            iv.cursor_moved.connect(lambda x, y, n=name: self.on_cursor(n, x, y))
+            iv.view_changed.connect(lambda n=name: self._update_header(n))
+        self.splitter.setSizes([1000] * len(self.views))
+        self._pending = set()
+        for name, view in project.scene.views.items():
+            if view.image:
+                self._pending.add(name)
+                self._pool.start(_LoadJob(name, view.image, self._generation, self._relay))
+            else:
+                self.headers[name].setText(f"{VIEW_TITLES.get(name, name)} — no image")
+        self.refresh_measured()
+        if not self._pending:
+            self.images_loaded.emit()
+
+    def _on_loaded(self, name, gen_src, levels, error) -> None:
+        gen, src = gen_src
+        if gen != self._generation or name not in self.views:
+            if src is not None:
+                src.close()
+            return
+        self._pending.discard(name)
+        if src is None:
+            self.headers[name].setText(f"{VIEW_TITLES.get(name, name)} — image not readable")
+            self.message.emit(f"view {name}: {error}")
+        else:
+            if self.offer_overviews is not None:
+                self.offer_overviews(src)
+            self.views[name].set_source(src, levels)
+            self._update_header(name)
+        if not self._pending:
+            self.images_loaded.emit()
+
+    def loading(self) -> bool:
+        return bool(self._pending)
+
+    def wait_loaded(self, timeout_ms: int = 10000) -> bool:
+        """Process events until every image is displayed (scripts and tests)."""
+        from PySide6.QtCore import QCoreApplication, QElapsedTimer
+        t = QElapsedTimer()
+        t.start()
+        while self._pending and t.elapsed() < timeout_ms:
+            QCoreApplication.processEvents()
+            self._pool.waitForDone(10)
+        QCoreApplication.processEvents()
+        return not self._pending
+
+    def _update_header(self, name: str) -> None:
+        iv = self.views.get(name)
+        if iv is None or iv.source is None:
+            return
+        zoom = 1.0 / iv.scale() if iv.scale() > 0 else 0.0
+        self.headers[name].setText(f"{VIEW_TITLES.get(name, name)}   ·   {iv.source.path.name}   ·   "
+                                   f"{iv.source.width} × {iv.source.height} px   ·   zoom {zoom:.3g}×")
+
+    # ------------------------------------------------------------------ overlays
+    def refresh_measured(self) -> None:
+        """Redraw the measured markers from the project (no fit needed)."""
+        if self.project is None:
+            return
+        for ov in self.overlays.values():
+            ov.update_measured(self.project, self.solution)
+        self._update_current()
+
+    def set_solution(self, solution) -> None:
+        self.solution = solution
+        if self.project is None:
+            return
+        for ov in self.overlays.values():
+            ov.update_measured(self.project, solution)
+            ov.update_solution(self.project, solution)
+        self._update_current()
+
+    def set_exaggeration(self, k: float) -> None:
+        for ov in self.overlays.values():
+            ov.exaggeration = float(k)
+        self.set_solution(self.solution)
+
+    def set_show_labels(self, on: bool) -> None:
+        for ov in self.overlays.values():
+            ov.show_labels = bool(on)
+        self.set_solution(self.solution)
+
+    def set_current(self, pid: str | None) -> None:
+        self.current = pid
+        self._update_current()
+
+    def _update_current(self) -> None:
+        for name, ov in self.overlays.items():
+            ov.set_current(None if self.current is None else self.point_position(self.current, name))
+
+    def point_position(self, pid: str, view: str):
+        """Image ``(x, y)`` of ``pid`` in ``view``: measured, else predicted by the model, else None."""
+        if self.project is None:
+            return None
+        m = self.project.measurement(pid, view)
+        if m is not None:
+            return (m.x, m.y)
+        r = self.solution.point(pid) if self.solution is not None else None
+        if r is not None and view in r.predicted and np.all(np.isfinite(r.predicted[view])):
+            return tuple(r.predicted[view])
+        return None
+
+    # ------------------------------------------------------------------ navigation
+    def drive_to(self, pid: str, scale: float | None = None) -> None:
+        """Centre every view on ``pid`` (measured or predicted position) at one common scale."""
+        if not self.views:
+            return
+        if scale is None:
+            ref = self.views.get("N") or next(iter(self.views.values()))
+            scale = min(ref.scale(), DRIVE_TO_MAX_SCALE)
+        for name, iv in self.views.items():
+            xy = self.point_position(pid, name)
+            if xy is not None:
+                iv.center_on(xy[0], xy[1], scale)
+            else:
+                iv.set_scale(scale)
+
+    def fit_all(self) -> None:
+        for iv in self.views.values():
+            iv.fit()
+
+    def zoom_all(self, factor: float) -> None:
+        for iv in self.views.values():
+            iv.zoom(factor)
+
+    # ------------------------------------------------------------------ mouse
+    def _on_clicked(self, name, x, y, mods) -> None:
+        self.active_view = name
+        iv = self.views[name]
+        if not (mods & Qt.KeyboardModifier.ShiftModifier):
+            pid = self.overlays[name].nearest(x, y, PICK_TOLERANCE_SCREEN_PX * iv.scale())
+            if pid is not None:
+                self.point_picked.emit(str(pid))
+                return
+        self.place_requested.emit(name, x, y)
+
+    def _drag_handler(self, name):
+        def handler(pid, x, y, finished):
+            self.active_view = name
+            self.move_requested.emit(str(pid), name, x, y, finished)
+        return handler
+
+    def cursor_height(self, name: str, x: float, y: float) -> float | None:
+        """Height for the linked cursor: the point under the cursor (its estimate or known
+        height), else the solution's mean scene height."""
+        sol = self.solution
+        if sol is None:
+            return None
+        iv = self.views[name]
+        pid = self.overlays[name].nearest(x, y, PICK_TOLERANCE_SCREEN_PX * iv.scale())
+        if pid is not None:
+            r = sol.point(str(pid))
+            if r is not None and r.ground_est is not None and np.isfinite(r.ground_est[2]):
+                return float(r.ground_est[2])
+        return float(sol.mean_height)
+
+    def linked(self, name: str, x: float, y: float, h: float | None = None):
+        """``(positions, ground)``: where image ``(x, y)`` of ``name`` falls in the other views
+        at height ``h`` (default :meth:`cursor_height`), and its ground ``(E, N, h)``."""
+        sol = self.solution
+        if sol is None:
+            return {}, None
+        h = self.cursor_height(name, x, y) if h is None else h
+        try:
+            en = sol.image_to_ground(name, np.array([x, y], float), h)
+            out = {v: tuple(map(float, sol.ground_to_image(v, en, h))) for v in self.views if v != name}
+        except (PrismError, ValueError, np.linalg.LinAlgError):
+            return {}, None
+        return out, (float(en[0]), float(en[1]), float(h))
+
+    def on_cursor(self, name: str, x: float, y: float) -> None:
+        """The cursor moved to ``(x, y)`` in ``name``: crosshairs in the other views, info out."""
+        self.active_view = name
+        positions, ground = self.linked(name, x, y)
+        for v, ov in self.overlays.items():
+            ov.set_crosshair(positions.get(v) if v != name else None)
+        self.cursor_info.emit(name, x, y, positions, ground)
+
+    def shutdown(self) -> None:
+        self._pool.waitForDone(5000)
+        for iv in self.views.values():
+            iv.set_source(None)
