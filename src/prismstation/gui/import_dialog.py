@@ -1,0 +1,621 @@
+"""Import of ground points or image measurements (issue 3, item 8).
+
+:class:`ImportDialog` reads a CSV with any delimiter and any column names (one combo per field
+maps a file column onto FORMATS.md's names), or another tool's point file (QGIS ``.points``,
+OpenDroneMap ``gcp_list.txt``, Ames Stereo Pipeline ``.gcp``) through
+:mod:`prismstation.io.pointfiles`. It shows a preview of the first rows and every bad line as
+``file, line N: problem``. On accept, :meth:`ImportDialog.result` gives
+``(points: list[GroundPoint], measurements: list[Measurement])`` in the project CRS.
+
+The CSV path never re-implements the readers: :func:`read_mapped` writes a normalised copy of
+the file (canonical column names, comma-delimited, every row on its original line number) and
+hands it to :func:`prismstation.io.points.read_ground_points` / ``read_measurements``; a line
+they reject is commented out and the file read again, so that all bad lines are listed, each
+with the readers' own message and the original file and line.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import os
+import tempfile
+from dataclasses import replace
+from pathlib import Path
+
+from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt, QTimer
+from PySide6.QtGui import QColor
+from PySide6.QtWidgets import (QCheckBox, QComboBox, QDialog, QDialogButtonBox, QFileDialog,
+                               QFormLayout, QGroupBox, QHBoxLayout, QLabel, QLineEdit,
+                               QListWidget, QPushButton, QSplitter, QTableView, QVBoxLayout,
+                               QWidget)
+
+from prismstation.errors import InputError
+from prismstation.io import pointfiles
+from prismstation.io.points import read_ground_points, read_measurements
+from prismstation.model.points import HEIGHT_KINDS
+
+GROUND_FIELDS = (("id", True), ("E", True), ("N", True), ("H", True), ("kind", False),
+                 ("height", False), ("sigma_xy_m", False), ("sigma_h_m", False))
+MEASUREMENT_FIELDS = (("id", True), ("view", True), ("x", True), ("y", True), ("sigma_px", False))
+ALIASES = {
+    "id": ("id", "name", "point", "point_id", "pid", "gcp", "label", "nr", "no"),
+    "E": ("e", "east", "easting", "x", "mapx", "lon", "long", "longitude"),
+    "N": ("n", "north", "northing", "y", "mapy", "lat", "latitude"),
+    "H": ("h", "z", "elevation", "elev", "alt", "altitude", "height_m", "ortho_h"),
+    "kind": ("kind", "type", "role"),
+    "height": ("height", "height_kind", "datum"),
+    "view": ("view", "image", "img", "band"),
+    "x": ("x", "col", "column", "sample", "px", "image_x"),
+    "y": ("y", "row", "line", "py", "image_y"),
+}
+DELIMITERS = {"auto": None, "comma ,": ",", "semicolon ;": ";", "tab": "\t", "space": " ",
+              "bar |": "|"}
+NONE = "(none)"
+MAX_ERRORS = 200
+PREVIEW_ROWS = 200
+
+
+# ------------------------------------------------------------------------- pure helpers
+def guess_delimiter(lines) -> str:
+    """The delimiter of CSV ``lines``: the one of ``, ; tab |`` that splits the header and most
+    of the first 20 data lines into the same number of fields, else blanks, else ``,``."""
+    rows = [ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")][:21]
+    if not rows:
+        return ","
+    best, score = None, (0, 0.0)
+    for d in (",", ";", "\t", "|"):
+        n = rows[0].count(d)
+        if n == 0:
+            continue
+        same = sum(ln.count(d) == n for ln in rows) / len(rows)
+        if (same, n) > (score[1], score[0]):
+            best, score = d, (n, same)
+    if best is not None:
+        return best
+    return " " if len(rows[0].split()) > 1 else ","
+
+
+def split_lines(text: str, delimiter: str, header: bool = True):
+    """``(header_line, header_cells, [(line_number, cells)])`` of the data lines of ``text``.
+
+    Blank lines and ``#`` comments are skipped; line numbers are 1-based in ``text``. Without a
+    header the columns are named ``column 1``, ``column 2``, …
+    """
+    rows = []
+    for no, ln in enumerate(text.splitlines(), 1):
+        if not ln.strip() or ln.lstrip().startswith("#"):
+            continue
+        if delimiter == " ":
+            cells = ln.split()
+        else:
+            cells = next(csv.reader([ln], delimiter=delimiter, skipinitialspace=True), [])
+        rows.append((no, [c.strip() for c in cells]))
+    if not rows:
+        return None, [], []
+    if header:
+        hno, names = rows[0]
+        return hno, [n or f"column {i + 1}" for i, n in enumerate(names)], rows[1:]
+    width = max(len(c) for _, c in rows)
+    return None, [f"column {i + 1}" for i in range(width)], rows
+
+
+def guess_mapping(columns, fields) -> dict:
+    """``{field: column}`` matching names case-insensitively, then by :data:`ALIASES`."""
+    low = {c.lower(): c for c in columns}
+    out, used = {}, set()
+    for f, _ in fields:  # exact names first: 'height' is a kind, not the H column
+        if f.lower() in low:
+            out[f] = low[f.lower()]
+            used.add(out[f])
+    for f, _ in fields:
+        if f in out:
+            continue
+        for a in ALIASES.get(f, ()):
+            c = low.get(a)
+            if c is not None and c not in used:
+                out[f], _ = c, used.add(c)
+                break
+    return out
+
+
+def normalised_csv(n_lines, header_line, columns, rows, mapping, constants=None) -> str:
+    """Text of a comma-delimited CSV with canonical column names, every row on its own line.
+
+    ``mapping`` ``{field: column}``; ``constants`` ``{field: value}`` for fields given one value
+    for all rows (e.g. the view of a single-image file). Unmapped columns are kept (renamed when
+    their name is a canonical one). Lines that are not data become ``#``.
+    """
+    constants = constants or {}
+    canon = {f.lower() for f in mapping} | {f.lower() for f in constants}
+    index = {c: i for i, c in enumerate(columns)}
+    out_cols = list(mapping) + list(constants)
+    extra = [c for c in columns if c not in mapping.values()]
+    names = out_cols + [f"{c} (file)" if c.lower() in canon else c for c in extra]
+    src = [index[mapping[f]] for f in mapping] + [None] * len(constants) + [index[c] for c in extra]
+    const_vals = list(constants.values())
+    lines = ["#"] * max(n_lines, 1)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="")
+
+    def fmt(cells):
+        buf.seek(0)
+        buf.truncate()
+        w.writerow(cells)
+        return buf.getvalue()
+
+    lines[(header_line or 1) - 1] = fmt(names)
+    width = len(columns)
+    for no, cells in rows:
+        if len(cells) != width:  # let the reader name the field-count problem
+            lines[no - 1] = fmt(cells + [""] * len(constants))
+            continue
+        k = 0
+        out = []
+        for s in src:
+            if s is None:
+                out.append(const_vals[k])
+                k += 1
+            else:
+                out.append(cells[s])
+        lines[no - 1] = fmt(out)
+    return "\n".join(lines) + "\n"
+
+
+def read_mapped(path, what, text, mapping, *, delimiter=",", header=True, constants=None,
+                crs=None, to_crs=None, height="ellipsoidal", views=None):
+    """Read a CSV through a column mapping with the io readers.
+
+    Returns ``(records, errors)``: ``records`` a list of GroundPoint (``what == "points"``) or
+    Measurement, ``errors`` a list of :class:`InputError` naming ``path`` and its lines.
+    """
+    header_line, columns, rows = split_lines(text, delimiter, header)
+    if not columns:
+        return [], [InputError("no data in the file", path)]
+    n_lines = len(text.splitlines()) or 1
+    if header_line is None:  # no header in the file: the normalised copy needs a line for it
+        n_lines += 1
+        rows = [(no + 1, c) for no, c in rows]
+        header_line = 1
+    lines = normalised_csv(n_lines, header_line, columns, rows, mapping, constants).split("\n")
+    errors: list[InputError] = []
+    fd, tmp = tempfile.mkstemp(suffix=".csv", prefix="prismstation-import-")
+    os.close(fd)
+    shift = 0 if header else 1
+    try:
+        for _ in range(MAX_ERRORS + 1):
+            Path(tmp).write_text("\n".join(lines), encoding="utf-8")
+            try:
+                if what == "points":
+                    recs = read_ground_points(tmp, crs=crs, to_crs=to_crs, height=height)
+                else:
+                    recs = read_measurements(tmp, views=views)
+                return (recs if not errors else []), errors
+            except InputError as exc:
+                line = None if exc.line is None else exc.line - shift
+                errors.append(InputError(exc.problem, path, line))
+                if exc.line is None or exc.line == header_line or exc.line > len(lines):
+                    return [], errors
+                lines[exc.line - 1] = "#"
+        return [], errors
+    finally:
+        os.unlink(tmp)
+
+
+def guess_view(image_name: str, views) -> str | None:
+    """The scene view an image name refers to (``N.tif`` → N; ALOS ``ALPSMF…`` → F)."""
+    stem = Path(str(image_name)).stem
+    for cand in (str(image_name), stem, stem.upper()):
+        if cand in views:
+            return cand
+    up = stem.upper()
+    if up.startswith("ALPSM") and len(up) > 5 and up[5] in views:
+        return up[5]
+    return None
+
+
+def is_point_file(path) -> bool:
+    """True for another tool's point file (QGIS, ODM, ASP), False for a CSV to map."""
+    p = Path(path)
+    if p.suffix.lower() in (".points", ".gcp"):
+        return True
+    if p.suffix.lower() == ".csv":
+        return False
+    try:
+        return pointfiles.detect_format(p) in ("qgis", "odm", "asp")
+    except InputError:
+        return False
+
+
+# ------------------------------------------------------------------------- preview model
+class PreviewModel(QAbstractTableModel):
+    """Rows of text; rows with a problem tinted red with the problem as tooltip."""
+
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        self.columns: list[str] = []
+        self.rows: list[list[str]] = []
+        self.line_numbers: list = []
+        self.problems: dict = {}  # row -> text
+
+    def set_content(self, columns, rows, line_numbers=None, problems=None) -> None:
+        self.beginResetModel()
+        self.columns = list(columns)
+        self.rows = [list(r) for r in rows]
+        self.line_numbers = list(line_numbers or [])
+        self.problems = dict(problems or {})
+        self.endResetModel()
+
+    def rowCount(self, parent=QModelIndex()):
+        return 0 if parent.isValid() else len(self.rows)
+
+    def columnCount(self, parent=QModelIndex()):
+        return 0 if parent.isValid() else len(self.columns)
+
+    def data(self, index, role=Qt.ItemDataRole.DisplayRole):
+        if not index.isValid():
+            return None
+        r, c = index.row(), index.column()
+        if role == Qt.ItemDataRole.DisplayRole:
+            row = self.rows[r]
+            return row[c] if c < len(row) else ""
+        if role == Qt.ItemDataRole.BackgroundRole and r in self.problems:
+            return QColor(255, 205, 205)
+        if role == Qt.ItemDataRole.ToolTipRole and r in self.problems:
+            return self.problems[r]
+        return None
+
+    def headerData(self, section, orientation, role=Qt.ItemDataRole.DisplayRole):
+        if role != Qt.ItemDataRole.DisplayRole:
+            return None
+        if orientation == Qt.Orientation.Horizontal:
+            return self.columns[section] if section < len(self.columns) else None
+        if section < len(self.line_numbers):
+            return str(self.line_numbers[section])
+        return str(section + 1)
+
+
+# ------------------------------------------------------------------------- the dialog
+class ImportDialog(QDialog):
+    """Import ground points or image measurements into a project.
+
+    Parameters
+    ----------
+    scene_views : iterable of str
+        The scene's view names (``N``, ``F``, ``B``); measurements must name one of them.
+    crs : str
+        The project CRS; ground points are converted into it from the source CRS.
+    parent : QWidget, optional
+    """
+
+    def __init__(self, scene_views, crs, parent=None):
+        super().__init__(parent)
+        self.setWindowTitle("Import points or measurements")
+        self.views = list(scene_views)
+        self.crs = crs
+        self.path: Path | None = None
+        self._text = ""
+        self._result: tuple[list, list] = ([], [])
+        self._errors: list[InputError] = []
+        self._pf = None
+        self._timer = QTimer(self, singleShot=True, interval=0)
+        self._timer.timeout.connect(self.refresh)
+
+        self.path_edit = QLineEdit()
+        self.path_edit.setPlaceholderText("a CSV, QGIS .points, ODM gcp_list.txt or ASP .gcp file")
+        self.path_edit.editingFinished.connect(lambda: self.set_path(self.path_edit.text()))
+        browse = QPushButton("Browse…")
+        browse.clicked.connect(self._browse)
+        self.what = QComboBox()
+        self.what.addItem("Ground points", "points")
+        self.what.addItem("Image measurements", "measurements")
+        self.format_label = QLabel()
+        self.delimiter = QComboBox()
+        self.delimiter.addItems(list(DELIMITERS))
+        self.has_header = QCheckBox("first row is a header")
+        self.has_header.setChecked(True)
+        self.crs_edit = QLineEdit(crs or "")
+        self.crs_status = QLabel()
+        self.height_kind = QComboBox()
+        self.height_kind.addItems(list(HEIGHT_KINDS))
+        self.columns_box = QGroupBox("Columns")
+        self.columns_form = QFormLayout(self.columns_box)
+        self.combos: dict[str, QComboBox] = {}
+        self.preview_model = PreviewModel(self)
+        self.preview = QTableView()
+        self.preview.setModel(self.preview_model)
+        self.preview.verticalHeader().setDefaultSectionSize(20)
+        self.error_list = QListWidget()
+        self.error_list.currentRowChanged.connect(self._show_error_row)
+        self.status = QLabel()
+        self.buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok
+                                        | QDialogButtonBox.StandardButton.Cancel)
+        self.buttons.button(QDialogButtonBox.StandardButton.Ok).setText("Import")
+        self.buttons.accepted.connect(self.accept)
+        self.buttons.rejected.connect(self.reject)
+
+        top = QFormLayout()
+        row = QHBoxLayout()
+        row.addWidget(self.path_edit, 1)
+        row.addWidget(browse)
+        top.addRow("File", row)
+        row = QHBoxLayout()
+        row.addWidget(self.what)
+        row.addWidget(self.format_label, 1)
+        top.addRow("Content", row)
+        row = QHBoxLayout()
+        row.addWidget(self.delimiter)
+        row.addWidget(self.has_header)
+        row.addStretch(1)
+        top.addRow("Delimiter", row)
+        row = QHBoxLayout()
+        row.addWidget(self.crs_edit, 1)
+        row.addWidget(self.crs_status, 1)
+        top.addRow("Source CRS", row)
+        top.addRow("Heights without a kind", self.height_kind)
+        left = QWidget()
+        lv = QVBoxLayout(left)
+        lv.setContentsMargins(0, 0, 0, 0)
+        lv.addLayout(top)
+        lv.addWidget(self.columns_box)
+        lv.addStretch(1)
+        right = QSplitter(Qt.Orientation.Vertical)
+        right.addWidget(self.preview)
+        box = QGroupBox("Problems (file, line: problem)")
+        QVBoxLayout(box).addWidget(self.error_list)
+        right.addWidget(box)
+        right.setSizes([300, 120])
+        split = QSplitter()
+        split.addWidget(left)
+        split.addWidget(right)
+        split.setSizes([380, 520])
+        lay = QVBoxLayout(self)
+        lay.addWidget(split, 1)
+        bottom = QHBoxLayout()
+        bottom.addWidget(self.status, 1)
+        bottom.addWidget(self.buttons)
+        lay.addLayout(bottom)
+        self.resize(960, 560)
+
+        self.what.currentIndexChanged.connect(self._rebuild_columns)
+        self.delimiter.currentIndexChanged.connect(self._rebuild_columns)
+        self.has_header.toggled.connect(self._rebuild_columns)
+        self.crs_edit.textChanged.connect(self.schedule)
+        self.height_kind.currentIndexChanged.connect(self.schedule)
+        self._set_ok(False)
+        self.status.setText("Choose a file.")
+
+    # ---------------------------------------------------------------- public
+    def set_path(self, path) -> None:
+        """Load ``path`` (as the Browse button does): guess content, delimiter, columns."""
+        if not path:
+            return
+        path = Path(path)
+        if self.path == path and self.path_edit.text() == str(path):
+            return
+        self.path = path
+        self.path_edit.setText(str(path))
+        self._pf = None
+        try:
+            self._text = path.read_text(encoding="utf-8-sig")
+        except (OSError, UnicodeDecodeError) as exc:
+            self._text = ""
+            self._show_errors([InputError(f"cannot read: {exc}", path)])
+            return
+        point_file = is_point_file(path)
+        self.delimiter.setEnabled(not point_file)
+        self.has_header.setEnabled(not point_file)
+        self.what.setEnabled(not point_file)
+        if point_file:
+            fmt = pointfiles.detect_format(path)
+            self.format_label.setText({"qgis": "QGIS .points", "odm": "OpenDroneMap gcp_list.txt",
+                                       "asp": "Ames Stereo Pipeline .gcp"}[fmt])
+        else:
+            lines = self._text.splitlines()
+            d = guess_delimiter(lines)
+            self.format_label.setText(f"CSV, delimiter {d!r} guessed")
+            header = next((ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")), "")
+            cols = {c.strip().lower() for c in header.replace(d, ",").split(",")} if d != " " \
+                else {c.lower() for c in header.split()}
+            self.what.blockSignals(True)
+            self.what.setCurrentIndex(1 if {"view", "x", "y"} <= cols else 0)
+            self.what.blockSignals(False)
+        self._rebuild_columns()
+
+    def set_mapping(self, field: str, column: str) -> None:
+        """Map ``field`` onto the file column ``column`` (or ``'(none)'``, or ``'= N'``)."""
+        combo = self.combos[field]
+        i = combo.findText(column)
+        if i < 0:
+            raise KeyError(f"no column {column!r} for {field}")
+        combo.setCurrentIndex(i)
+        self.refresh()
+
+    def mapping(self) -> tuple[dict, dict]:
+        """``({field: column}, {field: constant})`` as the combos say."""
+        cols, consts = {}, {}
+        for f, combo in self.combos.items():
+            t = combo.currentText()
+            if t.startswith("= "):
+                consts[f] = t[2:]
+            elif t and t != NONE:
+                cols[f] = t
+        return cols, consts
+
+    def errors(self) -> list[str]:
+        """The problems shown, as ``file, line N: problem`` texts."""
+        return [str(e) for e in self._errors]
+
+    def result(self):  # noqa: D401 — overrides QDialog.result() (the dialog code is exec()'s)
+        """``(points: list[GroundPoint], measurements: list[Measurement])`` read from the file."""
+        return self._result
+
+    def schedule(self) -> None:
+        """Re-read the file at the next event-loop turn (changes coalesce)."""
+        self._timer.start()
+
+    # ---------------------------------------------------------------- building
+    def _fields(self):
+        return GROUND_FIELDS if self.what.currentData() == "points" else MEASUREMENT_FIELDS
+
+    def _delimiter(self) -> str:
+        d = DELIMITERS[self.delimiter.currentText()]
+        return guess_delimiter(self._text.splitlines()) if d is None else d
+
+    def _clear_form(self) -> None:
+        while self.columns_form.rowCount():
+            self.columns_form.removeRow(0)
+        self.combos = {}
+
+    def _rebuild_columns(self) -> None:
+        self._clear_form()
+        if self.path is None:
+            return
+        if not self.what.isEnabled():  # a point file: map its image names onto views
+            self.columns_box.setTitle("Images → views")
+            self._build_point_file_form()
+        else:
+            self.columns_box.setTitle("Columns")
+            _, columns, _ = split_lines(self._text, self._delimiter(), self.has_header.isChecked())
+            guess = guess_mapping(columns, self._fields())
+            for f, required in self._fields():
+                combo = QComboBox()
+                items = [NONE] + columns
+                if f == "view":
+                    items += [f"= {v}" for v in self.views]
+                combo.addItems(items)
+                if f in guess:
+                    combo.setCurrentText(guess[f])
+                elif f == "view" and self.views:
+                    combo.setCurrentText(f"= {self.views[0]}")
+                combo.currentIndexChanged.connect(self.schedule)
+                self.combos[f] = combo
+                self.columns_form.addRow(f + (" *" if required else ""), combo)
+        self.refresh()
+
+    def _build_point_file_form(self) -> None:
+        fmt = pointfiles.detect_format(self.path)
+        try:
+            pf = pointfiles.read_point_file(self.path, fmt, height=self.height_kind.currentText(),
+                                            view=self.path.stem)
+        except InputError as exc:
+            self._pf = None
+            self._show_errors([exc])
+            return
+        self._pf = pf
+        if pf.crs:
+            self.crs_edit.blockSignals(True)
+            self.crs_edit.setText(pf.crs)
+            self.crs_edit.blockSignals(False)
+        for name in dict.fromkeys(m.view for m in pf.measurements):
+            combo = QComboBox()
+            combo.addItems([NONE] + self.views)
+            combo.setCurrentText(guess_view(name, self.views) or NONE)
+            combo.currentIndexChanged.connect(self.schedule)
+            self.combos[name] = combo
+            self.columns_form.addRow(name, combo)
+
+    # ---------------------------------------------------------------- reading
+    def _source_crs(self):
+        text = self.crs_edit.text().strip()
+        if not text:
+            self.crs_status.setText("project CRS")
+            return None
+        try:
+            crs = pointfiles.parse_crs(text)
+        except InputError as exc:
+            self.crs_status.setText(f'<span style="color:#c00">{exc.problem}</span>')
+            raise
+        self.crs_status.setText(crs.name)
+        return crs
+
+    def refresh(self) -> None:
+        """Re-read the file with the current choices; update preview, problems, OK button."""
+        if self.path is None:
+            return
+        try:
+            src = self._source_crs()
+        except InputError as exc:
+            self._show_errors([InputError(f"source CRS: {exc.problem}")])
+            return
+        if not self.what.isEnabled():
+            self._refresh_point_file(src)
+        else:
+            self._refresh_csv(src)
+
+    def _refresh_csv(self, src) -> None:
+        what = self.what.currentData()
+        cols, consts = self.mapping()
+        missing = [f for f, req in self._fields() if req and f not in cols and f not in consts]
+        delim, header = self._delimiter(), self.has_header.isChecked()
+        hline, columns, rows = split_lines(self._text, delim, header)
+        errors = [InputError(f"map a column onto {f}", self.path) for f in missing]
+        recs = []
+        if not errors:
+            recs, errors = read_mapped(self.path, what, self._text, cols, delimiter=delim,
+                                       header=header, constants=consts, crs=src,
+                                       to_crs=self.crs if src is not None else None,
+                                       height=self.height_kind.currentText(), views=self.views)
+        inverse = {c: f for f, c in cols.items()}
+        heads = [f"{inverse[c]} ← {c}" if c in inverse else c for c in columns]
+        shown = rows[:PREVIEW_ROWS]
+        by_line = {no: i for i, (no, _) in enumerate(shown)}
+        problems = {by_line[e.line]: e.problem for e in errors if e.line in by_line}
+        self.preview_model.set_content(heads, [c for _, c in shown], [no for no, _ in shown], problems)
+        self._result = (recs, []) if what == "points" else ([], recs)
+        self._show_errors(errors, f"{len(recs)} {'ground points' if what == 'points' else 'measurements'} "
+                                  f"read from {len(rows)} rows" if recs else None)
+
+    def _refresh_point_file(self, src) -> None:
+        pf = self._pf
+        if pf is None:
+            return
+        errors = []
+        try:
+            pf = pointfiles.read_point_file(self.path, height=self.height_kind.currentText(),
+                                            view=self.path.stem)
+            if src is not None and self.crs:
+                pf = pointfiles.convert_point_file(replace(pf, crs=src.to_wkt()), self.crs)
+        except InputError as exc:
+            errors.append(exc)
+        views = {name: combo.currentText() for name, combo in self.combos.items()}
+        meas = [replace(m, view=views[m.view]) for m in pf.measurements
+                if views.get(m.view, NONE) != NONE]
+        points = list(pf.points)
+        seen = {}
+        for m in pf.measurements:
+            if views.get(m.view, NONE) != NONE:
+                seen.setdefault(m.id, []).append(views[m.view])
+        rows = [[p.id, p.kind, f"{p.E:.3f}", f"{p.N:.3f}", f"{p.H:.3f}", p.height_kind,
+                 " ".join(seen.get(p.id, []))] for p in points[:PREVIEW_ROWS]]
+        self.preview_model.set_content(["id", "kind", "E", "N", "H", "height", "measured in"], rows)
+        self._result = ([], []) if errors else (points, meas)
+        self._show_errors(errors, f"{len(points)} ground points and {len(meas)} measurements "
+                                  f"({len(pf.measurements) - len(meas)} in images not mapped)")
+
+    def _show_errors(self, errors, ok_text=None) -> None:
+        self._errors = list(errors)
+        self.error_list.clear()
+        self.error_list.addItems([str(e) for e in errors])
+        if errors:
+            self._result = ([], [])
+            self.status.setText(f'<span style="color:#c00">{len(errors)} problem'
+                                f'{"s" * (len(errors) > 1)}: fix the file or the choices</span>')
+        else:
+            self.status.setText(ok_text or "nothing to import")
+        self._set_ok(not errors and bool(self._result[0] or self._result[1]))
+
+    def _set_ok(self, on: bool) -> None:
+        self.buttons.button(QDialogButtonBox.StandardButton.Ok).setEnabled(on)
+
+    def _show_error_row(self, i: int) -> None:
+        if 0 <= i < len(self._errors) and self._errors[i].line in self.preview_model.line_numbers:
+            row = self.preview_model.line_numbers.index(self._errors[i].line)
+            self.preview.selectRow(row)
+            self.preview.scrollTo(self.preview_model.index(row, 0))
+
+    def _browse(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(
+            self, "Import points or measurements", str(self.path.parent if self.path else ""),
+            "Point and measurement files (*.csv *.txt *.points *.gcp);;All files (*)")
+        if path:
+            self.set_path(path)
