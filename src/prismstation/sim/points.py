@@ -58,7 +58,7 @@ def choose_points(rng, scenario: Scenario, dem: Grid, n_gcp: int, n_icp: int,
         cx = lo + (cell % k + 0.5) * (hi - lo) / k
         cy = lo + (cell // k + 0.5) * (hi - lo) / k
         for attempt in range(400):
-            jitter = 0.3 * (hi - lo) / k * (1 + attempt / 100)
+            jitter = (hi - lo) / k * (0.3 if attempt < 100 else 0.45 if attempt < 300 else 1.0)
             x = float(np.clip(cx + rng.uniform(-jitter, jitter), lo, hi))
             y = float(np.clip(cy + rng.uniform(-jitter, jitter), lo, hi))
             got = _candidate(rng, scenario, dem, x, y, margin)

@@ -64,7 +64,8 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
     Parameters
     ----------
     outdir : str or Path, created if absent.
-    size : pixels per side of each image (2.5 m pixels).
+    size : pixels per side of each image (2.5 m pixels). Relief spans 0–1400 m orthometric
+        from 2000 px up; smaller test scenes scale it by ``size / 2000``.
     seed : everything is deterministic given the arguments.
     n_gcp, n_icp, n_tie : numbers of points; ties appear only in ``measurements.csv``.
     noise_px : σ (px) of the Gaussian measurement noise per image coordinate.
@@ -89,13 +90,14 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
         np.random.default_rng(s) for s in ss.spawn(6))
 
     scenario = build_scenario(r_att, size, north_up, ascending)
-    h_min, h_max = GEOID - 1.0, GEOID + RELIEF + 1.0
+    relief = RELIEF * min(1.0, size / 2000.0)  # small test scenes get proportionally less
+    h_min, h_max = GEOID - 1.0, GEOID + relief + 1.0
     lo, hi = _ground_bbox(scenario, h_min - 50.0, h_max + 50.0)
 
     # terrain (ellipsoidal heights) and its derived grids
     dem_spacing = 5.0 if size <= 6000 else 10.0
     e0, n0, shape = _grid_over(lo, hi, dem_spacing)
-    ortho = synthesize_relief(shape, dem_spacing, r_terrain, relief=RELIEF)
+    ortho = synthesize_relief(shape, dem_spacing, r_terrain, relief=relief)
     dem = Grid((ortho + GEOID).astype(np.float32), e0, n0, dem_spacing)
     ortho_grid = Grid(ortho, e0, n0, dem_spacing)
     shade = Grid(hillshade(ortho, dem_spacing), e0, n0, dem_spacing)
@@ -214,7 +216,7 @@ def _write_tables(out, scenario, dem, points, rng, noise_px, sxy, sh, m2i_json, 
                       "track_origin": list(o.track_origin), "tan_beta0": o.tan_beta0,
                       "col0": o.col0, "ifov_rad": o.ifov, "line_period_s": o.line_period,
                       "image_noise_dn": IMAGE_NOISE_DN, "psf_sigma_px": PSF_SIGMA_PX,
-                      "relief_m": RELIEF},
+                      "relief_m": float(dem.values.max() - GEOID)},
         "platform_attitude": asdict(scenario.platform),
         "views": {name: {"theta_rad": v.theta, "tau0_s": v.tau0,
                          "attitude": {f: getattr(v.attitude, f) for f in
