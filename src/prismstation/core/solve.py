@@ -30,6 +30,7 @@ class Settings:
     sigma_px: float = 1.0
     blunder_threshold: float = 3.29
     mean_height: float | None = None
+    orientation: str = "gcp"      # "gcp": fitted to GCPs; "dem": from reference-DEM control
 
 
 @dataclass(frozen=True)
@@ -107,16 +108,39 @@ class Solution:
         return "N" if "N" in self.scene.views else next(iter(self.scene.views))
 
 
+@dataclass(frozen=True, eq=False)
+class Control:
+    """An orientation obtained without GCPs (MODEL.md §3): bias per view and parallax line
+    derived elsewhere (from a reference DEM); :func:`solve` then only evaluates points."""
+
+    bias: dict
+    parallax: ParallaxLine | None
+    source: str
+    mean_height: float
+
+
 def solve(scene: Scene, points, settings: Settings = Settings(), *,
-          height_of: HeightFn | None = None, revision: int = 0) -> Solution:
-    """Fit the model of MODEL.md §2 to ``points`` (iterable of :class:`PointObs`)."""
+          height_of: HeightFn | None = None, revision: int = 0,
+          control: Control | None = None) -> Solution:
+    """Fit the model of MODEL.md §2 to ``points`` (iterable of :class:`PointObs`).
+
+    With ``control`` the model is taken as given and every point with ground coordinates is
+    in effect a check point.
+    """
     points = list(points)
     messages: list[str] = []
     gcps = [p for p in points if p.kind == "GCP" and p.ground is not None]
     heights = [p.ground[2] for p in points if p.ground is not None]
     mean_h = (settings.mean_height if settings.mean_height is not None
+              else control.mean_height if control is not None
               else float(np.mean([p.ground[2] for p in gcps])) if gcps
               else float(np.mean(heights)) if heights else 0.0)
+    if control is not None:
+        messages.append(f"oriented by {control.source}: no GCP used in the fit; every ground point checks it")
+        results = [_point_result(scene, p, control.bias, control.parallax, mean_h, height_of, settings)
+                   for p in points]
+        return Solution(scene, settings, dict(control.bias), control.parallax, tuple(results),
+                        _statistics(scene, results), tuple(messages), mean_h, revision)
 
     # 1. bias per view, fitted on the GCPs measured in it
     bias: dict[str, BiasFit] = {}

@@ -1,0 +1,174 @@
+"""Orientation without GCPs from a reference DEM (seed 003, MODEL.md §3) — the pure parts.
+
+The workflow (``prismstation.io.orient_dem``) matches F and B densely in N space per patch,
+turns parallax into a *relative DEM* placed on the map by the ancillary model, and finds the
+3-D shift ``(dE, dN, dh)`` laying each patch on the reference DEM. This module turns those
+shifts into the sensor model: the shifts are modelled as an affine function of the patch
+position in the N image, and virtual control points on a grid over the image then give the
+bias affine of every view and the parallax line's offset.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from prismstation.core import prism
+from prismstation.core.prism import BiasFit, ParallaxLine
+from prismstation.core.scene import Scene
+from prismstation.core.solve import Control
+
+
+def patch_windows(shape, patch_px: int, margin_px: int = 0) -> list[tuple[int, int, int, int]]:
+    """Cut an image of ``shape`` (rows, cols) into patches ``(col0, row0, cols, rows)`` of
+    about ``patch_px`` pixels, keeping ``margin_px`` from the borders; the last row and
+    column of patches share the remainder so that none is a sliver."""
+    rows, cols = (int(v) for v in shape)
+    out = []
+
+    def cuts(n):
+        usable = n - 2 * margin_px
+        k = max(1, int(round(usable / patch_px)))
+        edges = np.linspace(margin_px, n - margin_px, k + 1).round().astype(int)
+        return list(zip(edges[:-1], edges[1:]))
+
+    for r0, r1 in cuts(rows):
+        for c0, c1 in cuts(cols):
+            out.append((c0, r0, c1 - c0, r1 - r0))
+    return out
+
+
+def relative_dem_points(scene: Scene, py: np.ndarray, window, c1: float, step: int = 1):
+    """Ground points ``(E, N, h)`` of a parallax map: ``h = c1·py`` (no offset yet) and the
+    ancillary N model (no bias) places each cell on the map (MODEL.md §3 step 2).
+
+    ``py`` ``(rows, cols)`` on the N pixel grid of ``window = (col0, row0, cols, rows)``
+    (cell ``[j, i]`` centred at ``(col0 + i + 0.5, row0 + j + 0.5)``); every ``step``-th cell.
+    Returns three 1-D arrays (valid cells only).
+    """
+    col0, row0 = window[0], window[1]
+    sub = py[::step, ::step]
+    j, i = np.nonzero(np.isfinite(sub))
+    xy = np.column_stack([col0 + i * step + 0.5, row0 + j * step + 0.5])
+    h = c1 * sub[j, i].astype(float)
+    en = prism.ancillary_to_ground(scene, scene.views["N"], xy, h, iterations=3)
+    return en[:, 0], en[:, 1], h
+
+
+def grid_points(E, N, h, transform, shape, min_count: int = 3) -> np.ndarray:
+    """Mean height per cell of a north-up grid (``transform`` = (a, b, c, d, e, f), rasterio
+    order, ``b = d = 0``); NaN where fewer than ``min_count`` points fall."""
+    a, _, c, _, e, f = (float(v) for v in tuple(transform)[:6])
+    rows, cols = shape
+    ci = np.floor((np.asarray(E) - c) / a).astype(int)
+    ri = np.floor((np.asarray(N) - f) / e).astype(int)
+    ok = (ci >= 0) & (ci < cols) & (ri >= 0) & (ri < rows)
+    k = ri[ok] * cols + ci[ok]
+    n = np.bincount(k, minlength=rows * cols)
+    s = np.bincount(k, weights=np.asarray(h)[ok], minlength=rows * cols)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g = np.where(n >= min_count, s / n, np.nan)
+    return g.reshape(rows, cols)
+
+
+@dataclass(frozen=True)
+class PatchShift:
+    """One patch's result: N-image window, centre, shift (metres) with σ, and whether used."""
+
+    window: tuple
+    x: float
+    y: float
+    dE: float
+    dN: float
+    dh: float
+    sigma_E: float
+    sigma_N: float
+    sigma_h: float
+    count: int
+    valid_fraction: float
+    used: bool = True
+    reason: str = ""
+
+
+def affine_field(patches: list[PatchShift]):
+    """Least-squares affine field ``shift(x, y) = p0 + p1·x + p2·y`` per component over the
+    used patches; fewer than 3 (or collinear) → a constant field (weighted mean)."""
+    use = [p for p in patches if p.used]
+    x = np.array([p.x for p in use]); y = np.array([p.y for p in use])
+    s = np.array([[p.dE, p.dN, p.dh] for p in use]).reshape(-1, 3)
+    sig = np.array([[max(p.sigma_E, 0.1), max(p.sigma_N, 0.1), max(p.sigma_h, 0.1)] for p in use]).reshape(-1, 3)
+    if len(use) == 0:
+        return lambda xx, yy: np.zeros(np.shape(xx) + (3,))
+    A = np.column_stack([np.ones(len(use)), x - x.mean(), y - y.mean()])
+    if len(use) < 3 or np.linalg.matrix_rank(A) < 3:
+        w = 1 / sig**2
+        mean = (s * w).sum(0) / w.sum(0)
+        return lambda xx, yy: np.broadcast_to(mean, np.shape(xx) + (3,)).copy()
+    params = []
+    for k in range(3):
+        wk = 1 / sig[:, k]
+        params.append(np.linalg.lstsq(A * wk[:, None], s[:, k] * wk, rcond=None)[0])
+    P = np.array(params)  # (3, 3)
+    xm, ym = x.mean(), y.mean()
+    return lambda xx, yy: (P[:, 0] + (np.asarray(xx, float) - xm)[..., None] * P[:, 1]
+                           + (np.asarray(yy, float) - ym)[..., None] * P[:, 2])
+
+
+def reject_outlier_patches(patches: list[PatchShift], k: float = 3.0, floor_m: float = 2.0):
+    """Mark patches whose shift departs from the affine field of the others by more than
+    ``k``·NMAD (at least ``floor_m``); one pass, worst first, until none is left."""
+    patches = list(patches)
+    while sum(p.used for p in patches) > 4:
+        field = affine_field(patches)
+        use = [i for i, p in enumerate(patches) if p.used]
+        res = np.array([np.array([patches[i].dE, patches[i].dN, patches[i].dh])
+                        - field(patches[i].x, patches[i].y) for i in use])
+        norm = np.abs(res)
+        scale = np.maximum(1.4826 * np.median(np.abs(norm - np.median(norm, 0)), 0), floor_m / k)
+        ratio = (norm / scale).max(axis=1)
+        worst = int(np.argmax(ratio))
+        if ratio[worst] <= k:
+            break
+        i = use[worst]
+        from dataclasses import replace
+        patches[i] = replace(patches[i], used=False, reason="shift departs from the other patches' field")
+    return patches
+
+
+def control_from_shifts(scene: Scene, patches: list[PatchShift], mean_height: float,
+                        grid: int = 7, bias_model: str = "affine") -> Control:
+    """The sensor model implied by the patches' shifts (MODEL.md §3 step 4).
+
+    Virtual control points on a ``grid × grid`` lattice over the N image, at the relative
+    height ``mean_height − dh``: the ancillary model places them at ``P``; the truth is
+    ``P + (dE, dN)`` at height ``+ dh``. Fitting each view's bias to them and taking the
+    parallax line's offset ``c0`` as the mean ``dh`` gives a model that carries every
+    measurement to the reference DEM's frame. ``c1`` stays theoretical.
+    """
+    field = affine_field(patches)
+    views = scene.views
+    rows, cols = views["N"].shape or (14000, 14000)
+    g = (np.arange(grid) + 0.5) / grid
+    xy = np.column_stack([np.tile(g * cols, grid), np.repeat(g * rows, grid)])
+    s = field(xy[:, 0], xy[:, 1])
+    h_rel = mean_height - s[:, 2]
+    en_anc = prism.ancillary_to_ground(scene, views["N"], xy, h_rel)
+    en_true, h_true = en_anc + s[:, :2], h_rel + s[:, 2]
+    bias = {}
+    for name, view in views.items():
+        measured = xy if name == "N" else prism.ground_to_ancillary(scene, view, en_anc, h_rel)
+        truth0 = prism.ground_to_ancillary(scene, view, en_true, h_true)
+        bias[name] = prism.fit_bias(truth0, measured, bias_model, what=f"view {name} (DEM control)")
+    c1 = prism.theoretical_c1(scene)
+    dh = s[:, 2]
+    parallax = ParallaxLine("offset", "offset", float(dh.mean()), c1, c1, None, None, None,
+                            f"from reference-DEM control: c0 = mean dh over the image "
+                            f"(dh ranges {dh.min():+.1f} to {dh.max():+.1f} m); c1 theoretical")
+    return Control(bias, parallax, "reference DEM", float(mean_height))
+
+
+def identity_control(scene: Scene, mean_height: float) -> Control:
+    """The ancillary model alone (MODEL.md §3 step 1)."""
+    c1 = prism.theoretical_c1(scene)
+    return Control({v: BiasFit.identity() for v in scene.views},
+                   ParallaxLine("theoretical", "theoretical", 0.0, c1, c1), "ancillary data", mean_height)
