@@ -95,3 +95,17 @@ def test_affine_shift_field_recovers_a_known_field():
     assert f.predict_sigma(4000.0, 4000.0).shape == (3,)
     with pytest.raises(ValueError):
         fit_shift_field([0, 1, 2], [0, 1, 2], np.zeros((3, 3)))
+
+
+@pytest.mark.parametrize("dcol, drow, dz", [(0.3, -0.45, 2.0), (-4.4, 2.6, 12.0)])
+def test_nuth_kaab_finds_the_same_known_shifts(tile, dcol, drow, dz):
+    from prismstation.core.coreg import nuth_kaab
+    h, transform, _, _ = tile
+    ref = h[300:800, 200:700].copy()
+    dem = moved(h, dcol, drow, dz, noise=3.0, seed=1)[300:800, 200:700]
+    r = nuth_kaab(ref, dem, tuple(transform)[:6])
+    assert r.converged
+    assert r.dcol == pytest.approx(dcol, abs=0.05)
+    assert r.drow == pytest.approx(drow, abs=0.05)
+    assert r.dz == pytest.approx(dz, abs=0.5)
+    assert r.sigma_dcol > 0 and r.sigma_dz > 0

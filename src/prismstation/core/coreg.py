@@ -93,9 +93,6 @@ def shift_grid(a: np.ndarray, dcol: float, drow: float) -> np.ndarray:
     rows, cols = a.shape
     ic, fc = int(np.floor(dcol)), dcol - np.floor(dcol)
     ir, fr = int(np.floor(drow)), drow - np.floor(drow)
-    # out[r, c] = a[r - drow, c - dcol]: bilinear between a[r-ir-1 .. r-ir, c-ic-1 .. c-ic]
-    pad = np.full((rows + 2, cols + 2), np.nan)
-    pad[1:-1, 1:-1] = a
 
     def take(sr, sc):                     # a[r - sr, c - sc] for all r, c (NaN outside)
         out = np.full((rows, cols), np.nan)
@@ -105,10 +102,11 @@ def shift_grid(a: np.ndarray, dcol: float, drow: float) -> np.ndarray:
             out[r_lo:r_hi, c_lo:c_hi] = a[r_lo - sr:r_hi - sr, c_lo - sc:c_hi - sc]
         return out
 
-    out = (1 - fr) * ((1 - fc) * take(ir, ic) + fc * take(ir, ic + 1)) \
-        + fr * ((1 - fc) * take(ir + 1, ic) + fc * take(ir + 1, ic + 1))
-    if fc == 0 and fr == 0:
-        out = take(ir, ic)
+    out = np.zeros((rows, cols))
+    for sr, wr in ((ir, 1 - fr), (ir + 1, fr)):           # zero weights skipped: no NaN leak
+        for sc, wc in ((ic, 1 - fc), (ic + 1, fc)):
+            if wr * wc > 0:
+                out += wr * wc * take(sr, sc)
     return out
 
 
@@ -207,6 +205,11 @@ def coregister(reference: np.ndarray, dem: np.ndarray, transform=IDENTITY, *, le
             k_outlier, slope)
         dcol, drow = c * f, r * f
         total += it
+    return _result(ref, dm, transform, dcol, drow, dz, cov, total, count, converged)
+
+
+def _result(ref, dm, transform, dcol, drow, dz, cov, total, count, converged) -> CoregResult:
+    a, b, _, d, e, _ = (float(t) for t in tuple(transform)[:6])
     jac = np.array([[a, b], [d, e]])
     cov_xy = jac @ cov[:2, :2] @ jac.T
     after = ref - shift_grid(dm, dcol, drow) - dz
@@ -216,10 +219,60 @@ def coregister(reference: np.ndarray, dem: np.ndarray, transform=IDENTITY, *, le
         dy=float(d * dcol + e * drow), dz=float(dz),
         sigma_dcol=float(np.sqrt(cov[0, 0])), sigma_drow=float(np.sqrt(cov[1, 1])),
         sigma_dx=float(np.sqrt(cov_xy[0, 0])), sigma_dy=float(np.sqrt(cov_xy[1, 1])),
-        sigma_dz=float(np.sqrt(cov[2, 2])), iterations=total, count=int(count),
-        nmad_before=nmad(before), nmad_after=nmad(after),
+        sigma_dz=float(np.sqrt(cov[2, 2])), iterations=int(total), count=int(count),
+        nmad_before=nmad(ref - dm), nmad_after=nmad(after),
         mean_after=float(fin.mean()) if fin.size else float("nan"),
         std_after=float(fin.std()) if fin.size else float("nan"), converged=bool(converged))
+
+
+def nuth_kaab(reference: np.ndarray, dem: np.ndarray, transform=IDENTITY, *, max_iter: int = 30,
+              tol: float = 1e-3, k_outlier: float = 3.0, min_slope_deg: float = 2.0,
+              max_slope_deg: float = 70.0) -> CoregResult:
+    """Nuth & Kääb (2011): the same shift as :func:`coregister`, by their slope/aspect fit.
+
+    Each iteration fits ``dh / tanα = −δcol·sinψ − δrow·cosψ + c`` over the cells (``dh`` the
+    height difference ``reference − dem − dz``, ``α`` the slope and ``ψ`` the aspect of the
+    shifted DEM in grid axes), moves the DEM by ``(δcol, δrow)`` and takes ``dz`` as the
+    median of ``dh``. Same arguments, conventions and result as :func:`coregister`; flat cells
+    (slope below ``min_slope_deg``) are left out. σ's come from the last fit.
+    """
+    ref = np.asarray(reference, float)
+    dm = np.asarray(dem, float)
+    if ref.shape != dm.shape or ref.ndim != 2:
+        raise ValueError(f"reference {ref.shape} and dem {dm.shape} must be 2-D arrays on one grid")
+    a, b, _, d, e, _ = (float(t) for t in tuple(transform)[:6])
+    pixel = np.sqrt(abs(a * e - b * d))
+    lo, hi = (np.tan(np.radians(v)) * pixel for v in (min_slope_deg, max_slope_deg))
+    dcol = drow = 0.0
+    dz = float(np.nanmedian(ref - dm))
+    cov, count, converged, it = np.full((3, 3), np.nan), 0, False, 0
+    for it in range(1, max_iter + 1):
+        s = shift_grid(dm, dcol, drow)
+        gy, gx = np.gradient(s)
+        t = np.hypot(gx, gy)                            # slope, height per pixel
+        dh = ref - s
+        ok = np.isfinite(dh) & np.isfinite(t) & (t >= lo) & (t <= hi)
+        dz = float(np.median(dh[ok]))
+        y = (dh - dz) / np.where(t > 0, t, np.nan)
+        ok &= np.abs(y - np.median(y[ok])) <= k_outlier * max(nmad(y[ok]), 1e-9)
+        count = int(ok.sum())
+        if count < 10:
+            break
+        psi = np.arctan2(gx[ok], gy[ok])
+        A = np.column_stack([-np.sin(psi), -np.cos(psi), np.ones(count)])
+        N = A.T @ A
+        p = np.linalg.solve(N, A.T @ y[ok])
+        res = y[ok] - A @ p
+        cov = float(res @ res) / max(count - 3, 1) * np.linalg.inv(N)
+        dcol, drow = dcol + p[0], drow + p[1]
+        if np.hypot(p[0], p[1]) < tol:
+            converged = True
+            break
+    after = ref - shift_grid(dm, dcol, drow)
+    fin = np.isfinite(after)
+    dz = float(np.median(after[fin])) if fin.any() else dz
+    cov[2, 2] = (1.2533 * nmad(after) / np.sqrt(max(fin.sum(), 1))) ** 2   # σ of a median
+    return _result(ref, dm, transform, dcol, drow, dz, cov, it, count, converged)
 
 
 @dataclass(frozen=True)
