@@ -33,6 +33,22 @@ TILE_SIZE = 512
 COARSE_MAX = 1024
 """Longest side, in pixels, of the coarse whole-image overview read for display and statistics."""
 
+GDAL_CACHE_MB = 32
+"""GDAL's block cache (process-wide) once a RasterSource exists, unless GDAL_CACHEMAX is set in
+the environment. GDAL's default (5 % of RAM, 1.2 GB here) duplicates the tile cache and alone
+takes the workstation past its memory budget."""
+
+_gdal_cache_limited = False
+
+
+def _limit_gdal_cache() -> None:
+    global _gdal_cache_limited
+    if not _gdal_cache_limited and "GDAL_CACHEMAX" not in os.environ:
+        from rasterio.env import set_gdal_config
+
+        set_gdal_config("GDAL_CACHEMAX", GDAL_CACHE_MB * 1024 * 1024)
+    _gdal_cache_limited = True
+
 
 @dataclass(frozen=True)
 class RasterStatistics:
@@ -118,11 +134,12 @@ class RasterSource:
         The file is missing or rasterio cannot open it; the message names the file.
     """
 
-    def __init__(self, path, cache_mb: float = 96, band: int = 1):
+    def __init__(self, path, cache_mb: float = 64, band: int = 1):
         self.path = Path(path)
         self.band = int(band)
         if not self.path.exists():
             raise RasterReadError(f"{self.path}: no such file")
+        _limit_gdal_cache()
         self._local = threading.local()
         self._handles: list = []
         self._handles_lock = threading.Lock()
