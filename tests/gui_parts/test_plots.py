@@ -1,0 +1,122 @@
+"""PlotsWidget: the plotted data are the Solution's, items are reused, updates are fast."""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+
+from prismstation.core.solve import solve
+from prismstation.gui.plots import PlotData, PlotsWidget
+from tests.core.synth import make_points, make_scene
+from tests.gui_parts.conftest import BLUNDER_ID
+
+
+@pytest.fixture
+def widget(qtbot):
+    w = PlotsWidget()
+    qtbot.addWidget(w)
+    w.resize(1000, 700)
+    return w
+
+
+def _xy(item):
+    x, y = item.getData()
+    return (np.zeros(0), np.zeros(0)) if x is None else (np.asarray(x), np.asarray(y))
+
+
+def test_height_plots_hold_parallax_and_known_heights(widget, fitted):
+    scene, pts, sol = fitted
+    widget.set_solution(sol)
+    truth = {p.id: p.ground for p in pts}
+    for kind, item, item5 in (("GCP", widget.h_gcp, widget.d_gcp), ("ICP", widget.h_icp, widget.d_icp)):
+        res = [r for r in sol.points if r.kind == kind and r.parallax_px is not None]
+        x, y = _xy(item)
+        assert len(x) == len(res) > 0
+        np.testing.assert_allclose(x, [r.parallax_px for r in res])
+        np.testing.assert_allclose(y, [truth[r.id][2] for r in res], atol=1e-6)
+        # Fig. 5: minus the theoretical line of eq. 4, computed here from the angles
+        v = scene.views
+        c1t = v["N"].pixel_size_m / (math.tan(math.radians(26.4)) + math.tan(math.radians(26.8)))
+        x5, y5 = _xy(item5)
+        np.testing.assert_allclose(x5, x)
+        np.testing.assert_allclose(y5, y - c1t * x, atol=1e-6)
+    par = sol.parallax
+    x, y = _xy(widget.fit_line)
+    np.testing.assert_allclose(y, par.c0 + par.c1 * x)
+    x, y = _xy(widget.theory_line)
+    np.testing.assert_allclose(y, par.c1_theory * x)
+    x, y = _xy(widget.d_fit_line)
+    np.testing.assert_allclose(y, par.c0 + (par.c1 - par.c1_theory) * x)
+
+
+def test_residual_vectors_start_at_measurement_and_scale(widget, fitted):
+    scene, pts, sol = fitted
+    widget.set_solution(sol)
+    widget.set_exaggeration(250)
+    assert widget.exaggeration == 250
+    gcps = [p for p in pts if p.kind == "GCP"]
+    x, y = _xy(widget.v_gcp_seg)
+    assert len(x) == 2 * len(gcps)
+    for i, p in enumerate(gcps):
+        start = np.array(p.image["N"])
+        # residual = measured − the model's projection of the known ground point
+        pred = sol.ground_to_image("N", np.array(p.ground[:2]), p.ground[2])
+        np.testing.assert_allclose([x[2 * i], y[2 * i]], start, atol=1e-9)
+        np.testing.assert_allclose([x[2 * i + 1], y[2 * i + 1]], start + 250 * (start - pred), atol=1e-6)
+    widget.set_exaggeration(None)  # back to automatic
+    assert widget.auto_box.isChecked() and widget.exaggeration != 250
+
+
+def test_standardised_residuals_threshold_and_blunder(widget, fitted):
+    _, _, sol = fitted
+    widget.set_solution(sol)
+    gcps = [r for r in sol.points if r.kind == "GCP" and r.std_residual is not None]
+    x, y = _xy(widget.std_pts)
+    np.testing.assert_allclose(y, [r.std_residual for r in gcps])
+    assert widget.threshold_line.value() == pytest.approx(sol.settings.blunder_threshold)
+    bx, by = _xy(widget.blunder_pt)
+    i = [r.id for r in gcps].index(BLUNDER_ID)
+    assert list(bx) == [x[i]] and by[0] == pytest.approx(max(y)) and by[0] > sol.settings.blunder_threshold
+    assert widget.blunder_label.textItem.toPlainText() == BLUNDER_ID
+    # the same figures from the report dict (what the PDF writer draws)
+    from prismstation.io.report import report_dict
+    d = PlotData.from_report(report_dict(sol))
+    np.testing.assert_allclose(d.std_values, y)
+    np.testing.assert_allclose(d.gcp_h, _xy(widget.h_gcp)[1])
+    assert d.blunder == BLUNDER_ID
+
+
+def test_update_reuses_items_and_is_fast(widget, qtbot):
+    sc = make_scene()
+    sols = [solve(sc, make_points(sc, n_gcp=40, n_icp=160, noise_px=0.3, seed=s)) for s in (1, 2)]
+    widget.show()
+    qtbot.waitExposed(widget)
+    widget.set_solution(sols[0])
+    items = {n: list(pw.getPlotItem().items) for n, pw in widget.plots.items()}
+    times = []
+    for k in range(12):
+        t = time.perf_counter()
+        widget.set_solution(sols[k % 2])
+        widget.repaint()
+        times.append(time.perf_counter() - t)
+    assert {n: list(pw.getPlotItem().items) for n, pw in widget.plots.items()} == items
+    assert len(_xy(widget.h_icp)[0]) == 160
+    # the target is a few ms; the bound leaves room for a loaded CI machine
+    assert np.median(times) < 0.05, times
+
+
+def test_empty_solution_clears(widget, fitted):
+    widget.set_solution(fitted[2])
+    widget.set_solution(None)
+    for item in (widget.h_gcp, widget.fit_line, widget.v_gcp_seg, widget.std_pts, widget.blunder_pt):
+        assert len(_xy(item)[0]) == 0
+
+
+def test_point_clicked_signal(widget, fitted, qtbot):
+    widget.set_solution(fitted[2])
+    spots = widget.std_pts.scatter.points()
+    with qtbot.waitSignal(widget.point_clicked, timeout=1000) as sig:
+        widget.std_pts.scatter.sigClicked.emit(widget.std_pts.scatter, [spots[2]], None)
+    assert sig.args == [spots[2].data()]
