@@ -83,7 +83,7 @@ class _Fields:
 
 
 def make_texture(rng, e0: float, n0: float, shape, spacing: float, heights: Grid,
-                 shade: Grid, slope: Grid, block_rows: int = 512, progress=None) -> Grid:
+                 shade: Grid, slope: Grid, block_rows: int | None = None, progress=None) -> Grid:
     """uint8 ground texture grid over ``shape`` cells of ``spacing`` m from (e0, n0).
 
     ``heights`` orthometric (m), ``shade`` (≈1 flat) and ``slope`` (tan) grids drive land
@@ -98,6 +98,7 @@ def make_texture(rng, e0: float, n0: float, shape, spacing: float, heights: Grid
     mod = (_Noise(rng, 60.0, 1024), _Noise(rng, 6.0), _Noise(rng, 2.5))
     stack = np.dstack([heights.values, shade.values, slope.values]).astype(np.float32)
     rows, cols = shape
+    block_rows = block_rows or int(max(32, min(512, 3_000_000 // cols)))
     out = np.empty(shape, dtype=np.uint8)
     x = ((np.arange(cols) + 0.5) * spacing).astype(np.float32)
     for r0 in range(0, rows, block_rows):
