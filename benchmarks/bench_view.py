@@ -128,12 +128,15 @@ def main(argv=None) -> int:
         opens.append(time.perf_counter() - t)
     t_all = time.perf_counter() - t_all
 
+    cpu: list = []
+
     def frame(active) -> float:
         """GUI-thread time of one event-loop turn: pending events (the range change, tile
         deliveries) and the one paint of each view they scheduled."""
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.thread_time()
         app.processEvents()
         dt = time.perf_counter() - t
+        cpu.append(time.thread_time() - c)  # the GUI thread's own CPU: insensitive to load
         time.sleep(max(0.0, FRAME_BUDGET - dt))  # the rest of a 60 Hz frame: workers read
         return dt
 
@@ -169,6 +172,7 @@ def main(argv=None) -> int:
             seg.append(frame([v]))
         per_scale["fit" if s is None else f"{s:g}"] = seg
         times += seg
+    cpu_pan = list(cpu)
 
     # ---- drive-to: all three views jump to a new place at full resolution
     jumps, drive_frames = [], []
@@ -205,6 +209,9 @@ def main(argv=None) -> int:
     print(f"{'pan/zoom frame, GUI thread, median':46s} {pct(times, 50):9.1f} ms   <= 16 ms")
     print(f"{'pan/zoom frame, GUI thread, p95':46s} {pct(times, 95):9.1f} ms   (report)")
     print(f"{'pan/zoom frame, GUI thread, max':46s} {pct(times, 100):9.1f} ms   (report)")
+    print(f"{'pan/zoom frame, GUI-thread CPU, median / p95':46s} "
+          f"{pct(cpu_pan, 50):5.1f} / {pct(cpu_pan, 95):4.1f} ms")
+    print(f"{'machine load (1-min average, 2 cores here)':46s} {os.getloadavg()[0]:9.1f}")
     print(f"{'frames measured':46s} {len(times):12d}")
     for name, seg in per_scale.items():
         print(f"{'  scale ' + name + ' img px/screen px: median / p95':46s} "

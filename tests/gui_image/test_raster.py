@@ -114,3 +114,14 @@ def test_build_overviews_external_with_progress_and_cancel(plain_tif):
     assert (plain_tif.parent / "plain.tif.ovr").exists()
     assert src.levels == (1, 2, 4, 8)
     assert RasterSource(plain_tif).levels == (1, 2, 4, 8)
+
+
+def test_gdal_block_cache_is_bounded(pattern_tif, monkeypatch):
+    from rasterio.env import get_gdal_config
+
+    from prismstation.io import raster
+
+    monkeypatch.delenv("GDAL_CACHEMAX", raising=False)
+    monkeypatch.setattr(raster, "_gdal_cache_limited", False)
+    RasterSource(pattern_tif)
+    assert int(get_gdal_config("GDAL_CACHEMAX")) <= raster.GDAL_CACHE_MB * 1024 * 1024
