@@ -133,7 +133,8 @@ def test_stale_requests_are_dropped(qtbot, pattern_tif):
     loader.request([(1, 0, 3)])  # the view moved on
     qtbot.waitUntil(lambda: loader.pending() == 0 and (1, 0, 3) in got, timeout=5000)
     assert len(reads) <= 2  # at most the one already running, then the wanted one
-    loader.shutdown()
+    loader.shutdown(wait=True)
+    assert not any(t.is_alive() for t in loader._threads)
 
 
 def test_contrast_presets_and_histogram_levels(qtbot, view, pattern_tif):

@@ -120,11 +120,16 @@ class TileLoader(QObject):
             except RuntimeError:
                 return
 
-    def shutdown(self) -> None:
-        """Drop queued reads, let running ones finish, and end the worker threads."""
+    def shutdown(self, wait: bool = False) -> None:
+        """Drop queued reads and end the workers after their running read (emitting nothing).
+
+        With ``wait`` the call blocks until they have ended; without, it returns at once (a
+        running read of a large file must not freeze the GUI).
+        """
         with self._cond:
             self._stop = True
             self._queue = []
             self._cond.notify_all()
-        for t in self._threads:
-            t.join(timeout=10)
+        if wait:
+            for t in self._threads:
+                t.join(timeout=30)
