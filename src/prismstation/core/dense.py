@@ -104,18 +104,26 @@ def _match_rows(ref, other, prior, sign, rng, h, min_var):
         o = cv2.remap(other, xx - sign * (prior + k), yy, cv2.INTER_LINEAR,
                       borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
         bad = np.isnan(o)
-        o[bad] = 0.0
+        any_bad = bool(bad.any())
+        if any_bad:
+            o[bad] = 0.0
         m_o = box(o)
         v_o = box(o * o) - m_o * m_o
-        with np.errstate(invalid="ignore", divide="ignore"):
-            s = (box(ref * o) - m_r * m_o) / np.sqrt(np.maximum(v_r * v_o, 1e-30))
-        s[(v_o <= min_var) | (box(bad.astype(np.float32)) > 0)] = np.nan
-        right[best_k == k - 1] = s[best_k == k - 1]
+        den = v_r * v_o
+        np.maximum(den, 1e-30, out=den)
+        np.sqrt(den, out=den)
+        s = box(ref * o)
+        s -= m_r * m_o
+        s /= den
+        s[v_o <= min_var] = np.nan
+        if any_bad:
+            s[box(bad.astype(np.float32)) > 0] = np.nan
+        np.copyto(right, s, where=best_k == k - 1)
         better = s > best                                # NaN compares False
-        best[better] = s[better]
-        best_k[better] = k
-        left[better] = prev[better]
-        right[better] = np.nan
+        np.copyto(best, s, where=better)
+        np.copyto(best_k, k, where=better)
+        np.copyto(left, prev, where=better)
+        np.copyto(right, np.nan, where=better)
         prev = s
     with np.errstate(invalid="ignore", divide="ignore"):
         den = left - 2 * best + right
