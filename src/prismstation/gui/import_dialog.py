@@ -38,7 +38,8 @@ GROUND_FIELDS = (("id", True), ("E", True), ("N", True), ("H", True), ("kind", F
                  ("height", False), ("sigma_xy_m", False), ("sigma_h_m", False))
 MEASUREMENT_FIELDS = (("id", True), ("view", True), ("x", True), ("y", True), ("sigma_px", False))
 ALIASES = {
-    "id": ("id", "name", "point", "point_id", "pid", "gcp", "label", "nr", "no"),
+    "id": ("id", "name", "point", "pt", "point_id", "pid", "gcp", "gcp_name", "station", "label",
+           "nr", "no"),
     "E": ("e", "east", "easting", "x", "mapx", "lon", "long", "longitude"),
     "N": ("n", "north", "northing", "y", "mapy", "lat", "latitude"),
     "H": ("h", "z", "elevation", "elev", "alt", "altitude", "height_m", "ortho_h"),
