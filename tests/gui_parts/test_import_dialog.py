@@ -5,7 +5,7 @@ import pytest
 from pyproj import Transformer
 
 from prismstation.gui.import_dialog import ImportDialog, guess_delimiter, guess_mapping, GROUND_FIELDS
-from prismstation.io.points import read_ground_points, read_measurements
+from prismstation.io.points import read_ground_points
 from prismstation.io.pointfiles import PointFile, write_point_file
 from prismstation.model.points import GroundPoint, Measurement
 
