@@ -105,7 +105,6 @@ def test_points_and_measurements(triplet):
 def test_truth_image_coords_follow_from_truth_ground(triplet):
     """truth.json's exact image coordinates are reproduced from its own ground coordinates,
     attitude and grid parameters, and heights lie on truth_dem.tif."""
-    from prismstation.sim.scenario import Scenario  # noqa: F401 (layout check only)
     out, paths = triplet
     truth = json.loads((out / "truth.json").read_text())
     c = truth["constants"]

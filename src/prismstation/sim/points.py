@@ -24,7 +24,7 @@ class SimPoint:
     xy: dict
 
 
-def _candidate(rng, scenario: Scenario, dem: Grid, x, y, margin):
+def _candidate(scenario: Scenario, dem: Grid, x, y, margin):
     """Ground point under N pixel (x, y) at h = 0 with its terrain height, if it is inside
     every view (by ``margin`` px) and not on the sea-level plain; else None."""
     en = geo.image_to_map(scenario.views["N"], np.array([x, y], dtype=float))
@@ -61,7 +61,7 @@ def choose_points(rng, scenario: Scenario, dem: Grid, n_gcp: int, n_icp: int,
             jitter = (hi - lo) / k * (0.3 if attempt < 100 else 0.45 if attempt < 300 else 1.0)
             x = float(np.clip(cx + rng.uniform(-jitter, jitter), lo, hi))
             y = float(np.clip(cy + rng.uniform(-jitter, jitter), lo, hi))
-            got = _candidate(rng, scenario, dem, x, y, margin)
+            got = _candidate(scenario, dem, x, y, margin)
             if got:
                 break
         else:
@@ -80,7 +80,7 @@ def choose_points(rng, scenario: Scenario, dem: Grid, n_gcp: int, n_icp: int,
             x, y = rng.uniform(lo, hi, 2)
             if taken and min(np.hypot(x - tx, y - ty) for tx, ty in taken) < d_min:
                 continue
-            got = _candidate(rng, scenario, dem, x, y, margin)
+            got = _candidate(scenario, dem, x, y, margin)
             if not got:
                 continue
             (e, n, h), xy = got

@@ -118,7 +118,7 @@ def make_texture(rng, e0: float, n0: float, shape, spacing: float, heights: Grid
         rock = 0.52 + 0.10 * rock1(xx, yy) + 0.07 * rock2(xx, yy)
         wr = np.clip((hgt - 1050.0) / 150.0 + 0.3 * rock2(xx, yy), 0, 1)
         land = (1 - wr) * land + wr * rock
-        for net, width in zip(roads, (3.5, 2.5)):
+        for net, width in zip(roads, (5.0, 3.5)):
             dist = np.abs(net(xx, yy)) / (net.gradient_norm(xx, yy) + 1e-6)
             land = np.where(dist < width, 0.78 + 0.03 * mod[2](xx, yy), land)
         land *= 1 + 0.07 * mod[0](xx, yy) + 0.04 * mod[1](xx, yy) + 0.03 * mod[2](xx, yy)
