@@ -197,3 +197,21 @@ def test_cli_writes_and_rejects_bad_arguments(tmp_path, capsys):
         assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     (tmp_path / "file").write_text("x")
     assert main(["simulate", str(tmp_path / "file"), "--quiet"]) == 2
+
+
+def test_large_products_get_internal_overviews(tmp_path):
+    """The writer used for > 4096 px images: windows written block by block, then internal
+    (not .ovr) deflate overviews down to ~minimum px."""
+    from prismstation.sim import writer
+    path = tmp_path / "big.tif"
+    gt = (500000.0, 2.0, 0.5, 4560000.0, 0.5, -2.0)
+    with writer.product_writer(path, 1024, gt, "EPSG:32629") as write:
+        for r0 in range(0, 1024, 256):
+            write(np.full((256, 1024), r0 // 256 * 50, np.uint8), r0)
+    assert writer.add_overviews(path, 1024, minimum=128) == [2, 4, 8]
+    assert not (tmp_path / "big.tif.ovr").exists()
+    with rasterio.open(path) as ds:
+        assert ds.overviews(1) == [2, 4, 8]
+        assert ds.transform.to_gdal() == pytest.approx(gt)
+        small = ds.read(1, out_shape=(128, 128))
+        assert small[0, 0] == 0 and small[-1, 0] == 150
