@@ -38,18 +38,19 @@ def patch_windows(shape, patch_px: int, margin_px: int = 0) -> list[tuple[int, i
     return out
 
 
-def relative_dem_points(scene: Scene, py: np.ndarray, window, c1: float, step: int = 1):
+def relative_dem_points(scene: Scene, py: np.ndarray, window, c1: float, step: int = 1, scale: float = 1.0):
     """Ground points ``(E, N, h)`` of a parallax map: ``h = c1·py`` (no offset yet) and the
     ancillary N model (no bias) places each cell on the map (MODEL.md §3 step 2).
 
-    ``py`` ``(rows, cols)`` on the N pixel grid of ``window = (col0, row0, cols, rows)``
-    (cell ``[j, i]`` centred at ``(col0 + i + 0.5, row0 + j + 0.5)``); every ``step``-th cell.
+    ``py`` ``(rows, cols)`` (N pixels) on the grid of ``window = (col0, row0, cols, rows)`` in
+    N space decimated by ``scale`` (cell ``[j, i]`` centred at N pixel
+    ``scale·(col0 + i + 0.5, row0 + j + 0.5)``); every ``step``-th cell.
     Returns three 1-D arrays (valid cells only).
     """
     col0, row0 = window[0], window[1]
     sub = py[::step, ::step]
     j, i = np.nonzero(np.isfinite(sub))
-    xy = np.column_stack([col0 + i * step + 0.5, row0 + j * step + 0.5])
+    xy = scale * np.column_stack([col0 + i * step + 0.5, row0 + j * step + 0.5])
     h = c1 * sub[j, i].astype(float)
     en = prism.ancillary_to_ground(scene, scene.views["N"], xy, h, iterations=3)
     return en[:, 0], en[:, 1], h
@@ -136,15 +137,19 @@ def reject_outlier_patches(patches: list[PatchShift], k: float = 3.0, floor_m: f
 
 
 def control_from_shifts(scene: Scene, patches: list[PatchShift], mean_height: float,
-                        grid: int = 7, bias_model: str = "affine") -> Control:
+                        view_offsets: dict | None = None, grid: int = 7,
+                        bias_model: str = "affine") -> Control:
     """The sensor model implied by the patches' shifts (MODEL.md §3 step 4).
 
     Virtual control points on a ``grid × grid`` lattice over the N image, at the relative
     height ``mean_height − dh``: the ancillary model places them at ``P``; the truth is
-    ``P + (dE, dN)`` at height ``+ dh``. Fitting each view's bias to them and taking the
-    parallax line's offset ``c0`` as the mean ``dh`` gives a model that carries every
-    measurement to the reference DEM's frame. ``c1`` stays theoretical.
+    ``P + (dE, dN)`` at height ``+ dh``. ``view_offsets`` (N-space pixel vectors) say where
+    F and B see a point relative to the ancillary prediction from N (relative orientation);
+    the relative DEM was made with them removed. Fitting each view's bias to the virtual
+    points and the parallax line's offset ``c0 = mean dh − c1·(offF − offB)·t`` gives a model
+    that carries every measurement to the reference DEM's frame. ``c1`` stays theoretical.
     """
+    offs = {k: np.asarray(v, float) for k, v in (view_offsets or {}).items()}
     field = affine_field(patches)
     views = scene.views
     rows, cols = views["N"].shape or (14000, 14000)
@@ -157,11 +162,15 @@ def control_from_shifts(scene: Scene, patches: list[PatchShift], mean_height: fl
     bias = {}
     for name, view in views.items():
         measured = xy if name == "N" else prism.ground_to_ancillary(scene, view, en_anc, h_rel)
+        if name in offs:
+            measured = measured + prism.to_nadir_space(scene, view).inverse().apply_linear(offs[name])
         truth0 = prism.ground_to_ancillary(scene, view, en_true, h_true)
         bias[name] = prism.fit_bias(truth0, measured, bias_model, what=f"view {name} (DEM control)")
     c1 = prism.theoretical_c1(scene)
     dh = s[:, 2]
-    parallax = ParallaxLine("offset", "offset", float(dh.mean()), c1, c1, None, None, None,
+    t = prism.along_track_unit(scene, en_anc).mean(0)
+    py_off = float((offs.get("F", np.zeros(2)) - offs.get("B", np.zeros(2))) @ t)
+    parallax = ParallaxLine("offset", "offset", float(dh.mean() - c1 * py_off), c1, c1, None, None, None,
                             f"from reference-DEM control: c0 = mean dh over the image "
                             f"(dh ranges {dh.min():+.1f} to {dh.max():+.1f} m); c1 theoretical")
     return Control(bias, parallax, "reference DEM", float(mean_height))

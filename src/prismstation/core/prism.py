@@ -66,6 +66,11 @@ def along_track_unit(scene: Scene, en) -> np.ndarray:
     return s / np.linalg.norm(s, axis=-1, keepdims=True)
 
 
+def scene_track_dir(scene: Scene, en) -> np.ndarray:
+    """Unit flight direction ``(..., 2)`` in map coordinates at map points ``en``."""
+    return scene.track.foot(en)[1]
+
+
 def theoretical_c1(scene: Scene) -> float:
     """``p / (tanθF + tanθB)``: metres of height per pixel of F−B parallax (eq. 4)."""
     v = scene.views

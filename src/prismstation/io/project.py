@@ -173,5 +173,13 @@ def solve_project(project: Project, *, height_of=None) -> Solution:
     geoid = project_geoid(project) if any(p.height_kind == "orthometric" for p in ground) else None
     hs = to_ellipsoidal(ground, geoid, project.scene.crs) if ground else []
     h = {p.id: float(v) for p, v in zip(ground, hs)}
+    control = None
+    if project.settings.orientation == "dem":
+        record = project.extra.get("dem_control")
+        if record is None:
+            raise InputError("the project is set to orientation from a reference DEM but holds no "
+                             "DEM control: run orient-dem first")
+        from prismstation.io.orient_dem import control_from_record
+        control = control_from_record(project.scene, record)
     return solve(project.scene, project.point_obs(h), project.settings,
-                 height_of=height_of, revision=project.revision)
+                 height_of=height_of, revision=project.revision, control=control)
