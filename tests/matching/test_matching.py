@@ -93,3 +93,14 @@ def test_flat_and_unrelated_images_fail_with_a_reason(texture):
 def test_point_too_close_to_the_edge_is_outside(texture):
     r = match_point(texture, 3.0, 3.0, texture, 3.0, 3.0)
     assert r.status == "outside"
+
+
+def test_texture_varying_in_one_direction_only_is_ambiguous():
+    # stripes constant along y: y is undetermined whatever the search direction
+    rng = np.random.default_rng(0)
+    stripes = 1000 + 300 * np.sin(np.arange(200) / 3.0) + 200 * np.sin(np.arange(200) / 7.3)
+    a = (stripes[None, :] + rng.normal(0, 5, (200, 200))).astype(np.uint16)
+    b = (stripes[None, :] + rng.normal(0, 5, (200, 200))).astype(np.uint16)
+    for d in [(0, 1), None]:
+        r = match_point(a, 100.5, 100.5, b, 100.5, 101.5, direction=d, search_range=5)
+        assert r.status == "flat", (d, r)

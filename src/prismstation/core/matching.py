@@ -97,7 +97,7 @@ def _parabola(m1: float, m0: float, p1: float) -> float:
 def match_point(reference: np.ndarray, x: float, y: float, search: np.ndarray,
                 x_pred: float, y_pred: float, *, direction=None, search_range: float = 10.0,
                 across_range: float = 1.5, half_window: int = 15, min_score: float = 0.5,
-                max_sigma: float = 0.3, lsm: bool = True, interpolation: str = "bicubic",
+                max_sigma: float = 0.3, min_margin: float = 0.02, lsm: bool = True, interpolation: str = "bicubic",
                 max_iter: int = 30, max_lsm_move: float = 2.0) -> MatchResult:
     """Find the point ``(x, y)`` of ``reference`` in ``search``.
 
@@ -119,6 +119,9 @@ def match_point(reference: np.ndarray, x: float, y: float, search: np.ndarray,
         NCC below this gives ``status="low_score"``.
     max_sigma : float
         LSM σ (either axis, px) above this gives ``status="flat"`` (too little texture).
+    min_margin : float
+        A second NCC maximum (2 px or more from the best) within this of the best score gives
+        ``status="flat"``: the match is ambiguous (texture flat or repeating along the search).
     lsm : bool
         Refine by least-squares matching (else return the NCC subpixel position).
     interpolation : {"bicubic", "bilinear"}
@@ -193,6 +196,13 @@ def match_point(reference: np.ndarray, x: float, y: float, search: np.ndarray,
 
     if score < min_score:
         return fail(LOW_SCORE, f"correlation {score:.2f} below {min_score:.2f}")
+    # a second local maximum nearly as high, 2 px or more away: flat or repetitive texture
+    peaks = (masked == ndimage.maximum_filter(masked, size=3, mode="constant", cval=-np.inf))
+    peaks &= np.hypot(uu - u, vv - v) >= 2.0
+    second = float(masked[peaks].max()) if peaks.any() else -np.inf
+    if second >= score - min_margin:
+        return fail(FLAT, f"ambiguous correlation: a second peak scores {second:.3f} "
+                          f"against {score:.3f} (flat or repetitive texture)")
     if along[v, u] > search_range - 0.5 or u in (0, ncc.shape[1] - 1) or v in (0, ncc.shape[0] - 1):
         return fail(BORDER, "correlation peak at the end of the search range")
     if not lsm:
