@@ -74,3 +74,14 @@ def test_missing_file_is_one_clear_error(tmp_path, capsys):
     assert main(["coregister", str(tmp_path / "nope.tif"), str(tmp_path / "b.tif")]) == 2
     err = capsys.readouterr().err
     assert "nope.tif" in err and "Traceback" not in err
+
+
+def test_fine_dem_is_averaged_onto_a_coarse_grid(tmp_path):
+    # 10 m checkerboard of 0 / 100 m: averaged onto 90 m cells it is 50 m almost everywhere,
+    # point-sampled (bilinear) it would be 0 or 100
+    rows, cols = np.mgrid[0:270, 0:270]
+    h = np.where((rows + cols) % 2 == 0, 0.0, 100.0)
+    p = tmp_path / "fine.tif"
+    write_dem(p, h, "EPSG:32631", from_origin(600000, 5000000, 10, 10))
+    g = read_dem(p, "EPSG:32631", from_origin(600000, 5000000, 90, 90), (3, 3))
+    assert np.allclose(g.heights, 50.0, atol=1.0)

@@ -21,12 +21,19 @@ def register(subparsers) -> None:
     p.add_argument("reference", metavar="REFERENCE_DEM", help="reference DEM (GeoTIFF, SRTM .hgt, ...)")
     p.add_argument("dem", metavar="DEM", help="DEM to align (any CRS; resampled onto the reference grid)")
     p.add_argument("--json", metavar="OUT", help="write the result as JSON")
-    p.add_argument("--resampling", default="bilinear",
-                   help="how DEM is resampled onto the reference grid (rasterio name; default bilinear)")
+    p.add_argument("--resampling", default="auto",
+                   help="how DEM is resampled onto the reference grid: a rasterio name, or auto "
+                        "(average when DEM is more than twice finer, else bilinear; the default)")
+    p.add_argument("--method", choices=["lsm", "nuth-kaab"], default="lsm",
+                   help="least-squares surface matching (default) or Nuth & Kääb (2011)")
     p.set_defaults(func=run)
 
 
-def result_dict(res, reference: str, dem: str) -> dict:
+METHODS = {"lsm": "least-squares surface matching (3-D translation)",
+           "nuth-kaab": "Nuth & Kääb (2011) slope/aspect fit"}
+
+
+def result_dict(res, reference: str, dem: str, method: str = "lsm") -> dict:
     """The JSON document of FORMATS.md (``shift_px``, ``shift_crs``, ``dz`` and their σ)."""
     f = float
     return {
@@ -39,12 +46,12 @@ def result_dict(res, reference: str, dem: str) -> dict:
         "iterations": int(res.iterations), "count": int(res.count), "converged": bool(res.converged),
         "nmad_before": f(res.nmad_before), "nmad_after": f(res.nmad_after),
         "mean_after": f(res.mean_after), "std_after": f(res.std_after),
-        "method": "least-squares surface matching (3-D translation)",
+        "method": METHODS[method],
     }
 
 
 def run(args) -> int:
-    from prismstation.core.coreg import coregister
+    from prismstation.core.coreg import coregister, nuth_kaab
     from prismstation.io.dem import read_dem
 
     ref = read_dem(args.reference)
@@ -53,8 +60,9 @@ def run(args) -> int:
     if both.sum() < 100:
         raise InputError(f"the DEMs overlap on {int(both.sum())} valid cells only; "
                          "need 100 or more", file=args.dem)
-    res = coregister(ref.heights, dem.heights, tuple(ref.transform)[:6])
-    doc = result_dict(res, args.reference, args.dem)
+    estimate = nuth_kaab if args.method == "nuth-kaab" else coregister
+    res = estimate(ref.heights, dem.heights, tuple(ref.transform)[:6])
+    doc = result_dict(res, args.reference, args.dem, args.method)
     if not res.converged:
         doc["warning"] = "the adjustment did not converge"
     print(f"shift: dcol {res.dcol:+.3f} ± {res.sigma_dcol:.3f} px, drow {res.drow:+.3f} ± "

@@ -16,7 +16,7 @@ from rasterio.crs import CRS
 from rasterio.enums import Resampling
 from rasterio.errors import RasterioError
 from rasterio.transform import Affine
-from rasterio.warp import reproject
+from rasterio.warp import calculate_default_transform, reproject
 
 from prismstation.errors import InputError, RasterReadError
 
@@ -95,8 +95,20 @@ def _read_source(path: Path):
         raise RasterReadError(f"{path}: cannot read the DEM ({exc})") from None
 
 
+def _auto_resampling(src, src_crs, src_transform, crs, transform) -> str:
+    """``"average"`` when the source cells are finer than half the target cells, else bilinear."""
+    rows, cols = src.shape
+    left, top = src_transform * (0, 0)
+    right, bottom = src_transform * (cols, rows)
+    t, _, _ = calculate_default_transform(src_crs, crs, cols, rows, min(left, right),
+                                          min(top, bottom), max(left, right), max(top, bottom))
+    src_cell = np.sqrt(abs(t.a * t.e - t.b * t.d))
+    dst_cell = np.sqrt(abs(transform.a * transform.e - transform.b * transform.d))
+    return "average" if src_cell < 0.5 * dst_cell else "bilinear"
+
+
 def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
-             resampling: str = "bilinear") -> DemGrid:
+             resampling: str = "auto") -> DemGrid:
     """Read a DEM, optionally resampled onto a target grid and made ellipsoidal.
 
     Parameters
@@ -108,7 +120,9 @@ def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
     geoid : float or object with ``undulation(E, N, crs)``, optional
         If given, the stored (orthometric) heights are converted to ellipsoidal.
     resampling : str
-        A ``rasterio.enums.Resampling`` name (``"bilinear"``, ``"average"``, ``"cubic"``...).
+        A ``rasterio.enums.Resampling`` name (``"bilinear"``, ``"average"``, ``"cubic"``...), or
+        ``"auto"``: average when the source cells are finer than half the target cells (a
+        2.5 m DSM onto a 90 m grid), bilinear otherwise.
 
     Returns
     -------
@@ -126,6 +140,8 @@ def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
         out_crs, out_t = CRS.from_user_input(crs), Affine(*tuple(transform)[:6])
         heights = np.full(tuple(shape), np.nan)
         try:
+            if resampling == "auto":
+                resampling = _auto_resampling(src, src_crs, src_transform, out_crs, out_t)
             reproject(src, heights, src_transform=src_transform, src_crs=src_crs,
                       src_nodata=np.nan, dst_transform=out_t, dst_crs=out_crs, dst_nodata=np.nan,
                       resampling=Resampling[resampling])
