@@ -199,3 +199,23 @@ def test_rectify_command_too_few_points_and_missing_image(tmp_path, capsys):
     rc = main(["rectify", str(tmp_path / "nope.tif"), str(pts), "--measurements", str(meas),
                "-o", str(tmp_path / "x.tif")])
     assert rc == 2 and "nope.tif" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("kind", ["projective", "poly3"])
+def test_lattice_inverse_map_matches_exact(kind):
+    from prismstation.io.rectify_io import _inverse_map
+
+    rng = np.random.default_rng(5)
+    src = rng.uniform(0, 4000, (20, 2))
+    dst = src @ np.array([[2.5, 0.3], [0.2, -2.5]]).T + [5e5, 4.6e6] + 3e-5 * src ** 2
+    t = fit_transform(kind, src, dst)
+
+    def exact(rr, cc):
+        xy = t.inverse(np.column_stack([5e5 + 2000 + 7.0 * np.ravel(cc), 4.6e6 - 3000 - 7.0 * np.ravel(rr)]))
+        return xy[:, 0].reshape(np.shape(rr)), xy[:, 1].reshape(np.shape(rr))
+
+    x, y = _inverse_map(exact, 300, 200)
+    R, C = np.mgrid[0:300, 0:200]
+    xe, ye = exact(R, C)
+    assert np.nanmax(np.hypot(x - xe, y - ye)) < 0.05
+    assert np.array_equal(np.isnan(x), np.isnan(xe))

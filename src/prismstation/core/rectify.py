@@ -160,18 +160,27 @@ class FittedTransform:
         m = len(exps)
         A = np.array([[p[1], p[2]], [p[m + 1], p[m + 2]]])   # linear part (terms x, y)
         u = (v - np.array([p[0], p[m]])) @ np.linalg.inv(A).T
+        active = np.all(np.isfinite(u), axis=1)
         for _ in range(iterations):
-            f = self._fwd_norm(u) - v
-            dx, dy = _monomial_jac(u, exps)
-            J = np.empty((len(u), 2, 2))
-            J[:, 0, 0], J[:, 0, 1] = dx @ p[:m], dy @ p[:m]
-            J[:, 1, 0], J[:, 1, 1] = dx @ p[m:], dy @ p[m:]
-            with np.errstate(all="ignore"):
-                step = np.linalg.solve(J, f[..., None])[..., 0]
-            u = u - step
-            if np.all(np.abs(step[np.isfinite(step)]) < tol):
+            idx = np.nonzero(active)[0]
+            if idx.size == 0:
                 break
-        with np.errstate(invalid="ignore"):
+            ua = u[idx]
+            f = self._fwd_norm(ua) - v[idx]
+            dx, dy = _monomial_jac(ua, exps)
+            a, b = dx @ p[:m], dy @ p[:m]
+            c, d = dx @ p[m:], dy @ p[m:]
+            with np.errstate(all="ignore"):
+                det = a * d - b * c
+                sx = (d * f[:, 0] - b * f[:, 1]) / det
+                sy = (a * f[:, 1] - c * f[:, 0]) / det
+            u[idx, 0] -= sx
+            u[idx, 1] -= sy
+            with np.errstate(invalid="ignore"):
+                done = (np.abs(sx) < tol) & (np.abs(sy) < tol)
+                lost = ~np.isfinite(sx) | ~np.isfinite(sy) | (np.abs(ua).max(axis=1) > 1e6)
+            active[idx[done | lost]] = False
+        with np.errstate(invalid="ignore", over="ignore"):
             bad = ~np.all(np.abs(self._fwd_norm(u) - v) < 1e-6, axis=1)
         u[bad] = np.nan
         return self._src.back(u)

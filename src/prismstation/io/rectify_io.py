@@ -182,6 +182,44 @@ def _sample(src, x: np.ndarray, y: np.ndarray, nodata: float, resampling: str) -
     return out
 
 
+def _inverse_map(exact, h: int, w: int, step: int = 16, tol_px: float = 0.02):
+    """Image coordinates of every cell of an ``h`` × ``w`` output block.
+
+    ``exact(rows, cols)`` maps block cell indices to image ``(x, y)``. It is evaluated on a
+    lattice every ``step`` cells and interpolated bilinearly in between (exact for affine
+    maps); the interpolation is checked at the lattice cell centres and the whole block is
+    computed exactly when it is off by more than ``tol_px`` pixels or meets a NaN.
+    """
+    rn = np.unique(np.r_[np.arange(0, h, step), h - 1])
+    cn = np.unique(np.r_[np.arange(0, w, step), w - 1])
+    if len(rn) < 3 or len(cn) < 3:
+        R, C = np.mgrid[0:h, 0:w]
+        return exact(R, C)
+    RN, CN = np.meshgrid(rn, cn, indexing="ij")
+    xn, yn = exact(RN, CN)
+
+    def interp(grid, rows, cols):
+        i = np.clip(np.searchsorted(rn, rows, side="right") - 1, 0, len(rn) - 2)
+        j = np.clip(np.searchsorted(cn, cols, side="right") - 1, 0, len(cn) - 2)
+        ty = ((rows - rn[i]) / (rn[i + 1] - rn[i]))[:, None]
+        tx = ((cols - cn[j]) / (cn[j + 1] - cn[j]))[None, :]
+        I, J = i[:, None], j[None, :]
+        return ((1 - ty) * ((1 - tx) * grid[I, J] + tx * grid[I, J + 1])
+                + ty * ((1 - tx) * grid[I + 1, J] + tx * grid[I + 1, J + 1]))
+
+    if np.all(np.isfinite(xn)) and np.all(np.isfinite(yn)):
+        rm = (rn[:-1] + rn[1:]) / 2.0
+        cm = (cn[:-1] + cn[1:]) / 2.0
+        RM, CM = np.meshgrid(rm, cm, indexing="ij")
+        xm, ym = exact(RM, CM)
+        err = np.hypot(interp(xn, rm, cm) - xm, interp(yn, rm, cm) - ym)
+        if np.all(err < tol_px):
+            rows, cols = np.arange(h, dtype=float), np.arange(w, dtype=float)
+            return interp(xn, rows, cols), interp(yn, rows, cols)
+    R, C = np.mgrid[0:h, 0:w]
+    return exact(R, C)
+
+
 def rectify_raster(image, transform, out_path, *, points_crs, out_crs=None,
                    resolution: float | None = None, block: int = 512,
                    progress: Callable[[float], bool] | None = None,
@@ -212,6 +250,7 @@ def rectify_raster(image, transform, out_path, *, points_crs, out_crs=None,
         raise InputError(f"unknown CRS ({exc})") from None
     to_out = Transformer.from_crs(pcrs, ocrs, always_xy=True)
     to_pts = Transformer.from_crs(ocrs, pcrs, always_xy=True)
+    same_crs = ocrs == pcrs
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
@@ -255,11 +294,16 @@ def rectify_raster(image, transform, out_path, *, points_crs, out_crs=None,
         with rasterio.open(out_path, "w", **profile) as dst:
             for k, (r0, c0) in enumerate(windows):
                 h, w = min(bs, height - r0), min(bs, width - c0)
-                cols, rows = np.meshgrid(np.arange(c0, c0 + w) + 0.5, np.arange(r0, r0 + h) + 0.5)
-                oe, on = left + cols * r, top - rows * r
-                pe, pn = to_pts.transform(oe.ravel(), on.ravel())
-                xy = transform.inverse(np.column_stack([pe, pn]))
-                vals = _sample(src, xy[:, 0].reshape(h, w), xy[:, 1].reshape(h, w), nodata, resampling)
+                def exact(rr, cc):
+                    """Image (x, y) of output cells at block rows rr, columns cc (same shape)."""
+                    oe, on = left + (c0 + cc + 0.5) * r, top - (r0 + rr + 0.5) * r
+                    if not same_crs:
+                        oe, on = to_pts.transform(oe, on)
+                    xy = transform.inverse(np.column_stack([np.ravel(oe), np.ravel(on)]))
+                    return xy[:, 0].reshape(np.shape(rr)), xy[:, 1].reshape(np.shape(rr))
+
+                x, y = _inverse_map(exact, h, w)
+                vals = _sample(src, x, y, nodata, resampling)
                 if np.issubdtype(np.dtype(dtype), np.integer):
                     info = np.iinfo(dtype)
                     vals = np.clip(np.rint(vals), info.min, info.max)
