@@ -35,9 +35,11 @@ def main(argv=None) -> int:
     try:
         paths = simulate(out, size=args.size, seed=args.seed, progress=progress)
         total = time.perf_counter() - t0
-        peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        usage = resource.getrusage(resource.RUSAGE_SELF)
+        peak_mb = usage.ru_maxrss / 1024
+        cpu = usage.ru_utime + usage.ru_stime
         print(f"simulate size={args.size} seed={args.seed}: {total:.1f} s wall, "
-              f"peak RSS {peak_mb:.0f} MB")
+              f"{cpu:.1f} s CPU, peak RSS {peak_mb:.0f} MB")
         names = ["terrain", "texture", "N rendered", "F rendered", "B rendered", "tables"]
         prev = 0.0
         for (level, t), name in zip(marks, names):
