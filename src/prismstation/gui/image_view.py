@@ -115,7 +115,7 @@ class ImageView(QWidget):
         if source is None:
             self.source_changed.emit()
             return
-        self.loader = TileLoader(source, self._threads, self)
+        self.loader = TileLoader(source, self._threads, owner=self)
         self.loader.tile_loaded.connect(self._on_tile_loaded)
         w, h = source.width, source.height
         self.vb.setLimits(xMin=-w, xMax=2 * w, yMin=-h, yMax=2 * h, minXRange=4, minYRange=4)
@@ -147,7 +147,6 @@ class ImageView(QWidget):
         if self.loader is not None:
             self.loader.tile_loaded.disconnect(self._on_tile_loaded)
             self.loader.shutdown()
-            self.loader.deleteLater()
             self.loader = None
         for item in self._tiles.values():
             self.vb.removeItem(item)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import threading
+import weakref
 
 from PySide6.QtCore import QObject, Signal
 
@@ -47,78 +48,102 @@ def tiles_for_rect(source: RasterSource, level: int, rect_xywh) -> list[tuple[in
     return keys
 
 
-class TileLoader(QObject):
+class _Relay(QObject):
+    """Carries results from the workers to the GUI thread. It has no Qt parent and the workers
+    hold a reference to it, so it outlives them whatever happens to the view (a view deleted by
+    Qt is disconnected from it, and its queued deliveries are dropped)."""
+
+    tile_loaded = Signal(object, object, object)
+    tile_failed = Signal(object, str)
+
+
+class _Queue:
+    """The state shared with the worker threads (never a Qt object that Qt may delete)."""
+
+    def __init__(self, source: RasterSource, relay: _Relay):
+        self.source, self.relay = source, relay
+        self.cond = threading.Condition()
+        self.keys: list = []  # keys to read, most wanted first
+        self.running: set = set()
+        self.stopped = False
+
+    def stop(self, *args) -> None:
+        with self.cond:
+            self.stopped = True
+            self.keys = []
+            self.cond.notify_all()
+
+    def work(self) -> None:  # worker thread
+        try:
+            while True:
+                with self.cond:
+                    while not self.keys and not self.stopped:
+                        self.cond.wait()
+                    if self.stopped:
+                        return
+                    key = self.keys.pop(0)
+                    self.running.add(key)
+                try:
+                    arr = (self.source.coarse()[0] if key == COARSE_KEY
+                           else self.source.read_tile(*key))
+                    error = None
+                except RasterReadError as exc:
+                    arr, error = None, str(exc)
+                with self.cond:
+                    self.running.discard(key)
+                    if self.stopped:
+                        return
+                if error is None:
+                    self.relay.tile_loaded.emit(self.source, key, arr)
+                else:
+                    self.relay.tile_failed.emit(key, error)
+        finally:
+            self.source.release_thread()
+
+
+class TileLoader:
     """Reads tiles of one :class:`RasterSource` in worker threads.
 
     The workers take keys from one queue that each :meth:`request` replaces: reads the view no
     longer wants are dropped before they start (a read already running completes and only fills
     the cache). Each worker thread has its own rasterio handle (``RasterSource`` sees to it).
+    The workers end on :meth:`shutdown`, when ``owner`` (a QObject) is destroyed, or when the
+    loader is garbage-collected.
 
-    Signals
-    -------
+    Signals (attributes)
+    --------------------
     tile_loaded(source, key, array)
-        A tile was read (emitted from a worker, delivered queued in the loader's thread).
+        A tile was read (emitted from a worker, delivered queued to the GUI thread).
     tile_failed(key, message)
     """
 
-    tile_loaded = Signal(object, object, object)
-    tile_failed = Signal(object, str)
-
-    def __init__(self, source: RasterSource, threads: int = 2, parent=None):
-        super().__init__(parent)
+    def __init__(self, source: RasterSource, threads: int = 2, owner: QObject | None = None):
         self.source = source
-        self._cond = threading.Condition()
-        self._queue: list = []  # keys to read, most wanted first
-        self._running: set = set()
-        self._stop = False
-        self._threads = [threading.Thread(target=self._work, daemon=True,
+        self._relay = _Relay()
+        self.tile_loaded = self._relay.tile_loaded
+        self.tile_failed = self._relay.tile_failed
+        self._q = _Queue(source, self._relay)
+        self._threads = [threading.Thread(target=self._q.work, daemon=True,
                                           name=f"tiles-{source.path.name}-{i}")
                          for i in range(max(1, threads))]
         for t in self._threads:
             t.start()
+        weakref.finalize(self, self._q.stop)
+        if owner is not None:
+            owner.destroyed.connect(self._q.stop)
 
     def request(self, keys) -> None:
         """Make ``keys`` (most wanted first) the queue; queued keys not among them are dropped."""
-        with self._cond:
-            self._queue = [k for k in keys if k not in self._running]
-            self._cond.notify_all()
+        q = self._q
+        with q.cond:
+            if not q.stopped:
+                q.keys = [k for k in keys if k not in q.running]
+                q.cond.notify_all()
 
     def pending(self) -> int:
         """Number of tile reads queued or running."""
-        with self._cond:
-            return len(self._queue) + len(self._running)
-
-    def _work(self) -> None:  # worker thread
-        try:
-            self._loop()
-        finally:
-            self.source.release_thread()
-
-    def _loop(self) -> None:
-        while True:
-            with self._cond:
-                while not self._queue and not self._stop:
-                    self._cond.wait()
-                if self._stop:
-                    return
-                key = self._queue.pop(0)
-                self._running.add(key)
-            try:
-                arr = self.source.coarse()[0] if key == COARSE_KEY else self.source.read_tile(*key)
-                error = None
-            except RasterReadError as exc:
-                arr, error = None, str(exc)
-            with self._cond:
-                self._running.discard(key)
-                if self._stop:
-                    return
-            try:  # the loader may have been deleted meanwhile
-                if error is None:
-                    self.tile_loaded.emit(self.source, key, arr)
-                else:
-                    self.tile_failed.emit(key, error)
-            except RuntimeError:
-                return
+        with self._q.cond:
+            return len(self._q.keys) + len(self._q.running)
 
     def shutdown(self, wait: bool = False) -> None:
         """Drop queued reads and end the workers after their running read (emitting nothing).
@@ -126,10 +151,7 @@ class TileLoader(QObject):
         With ``wait`` the call blocks until they have ended; without, it returns at once (a
         running read of a large file must not freeze the GUI).
         """
-        with self._cond:
-            self._stop = True
-            self._queue = []
-            self._cond.notify_all()
+        self._q.stop()
         if wait:
             for t in self._threads:
                 t.join(timeout=30)
