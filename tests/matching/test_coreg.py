@@ -111,3 +111,34 @@ def test_nuth_kaab_finds_the_same_known_shifts(tile, dcol, drow, dz):
     assert r.drow == pytest.approx(drow, abs=0.05)
     assert r.dz == pytest.approx(dz, abs=0.5)
     assert r.sigma_dcol > 0 and r.sigma_dz > 0
+
+
+def test_cli_fine_dem_on_its_own_grid_against_the_90m_reference(tile, tmp_path):
+    """A 30 m DEM of a 27 km square, content 50 m east and 30 m south of the reference's,
+    7 m low: it must be laid on the reference by dx = -50 m, dy = +30 m, dz = +7 m."""
+    from rasterio.transform import from_origin
+
+    from prismstation.io.dem import write_dem
+    h, transform, crs, profile = tile
+    r0, c0, n = 400, 300, 300                       # reference crop (90 m cells)
+    ref = h[r0:r0 + n, c0:c0 + n]
+    ref_t = transform * transform.translation(c0, r0)
+    ref_path = tmp_path / "ref.tif"
+    write_dem(ref_path, ref, crs, ref_t)
+    e0, n0 = ref_t * (50, 50)                        # DEM grid: 900 x 900 cells of 30 m
+    dem_t = from_origin(e0, n0, 30.0, 30.0)
+    rows, cols = np.mgrid[0:900, 0:900].astype(float)
+    E, N = dem_t * (cols + 0.5, rows + 0.5)
+    col, row = ~ref_t * (E - 50.0, N + 30.0)         # where the reference has this content
+    filled = np.where(np.isfinite(ref), ref, np.nanmean(ref))   # a few voids in the crop
+    dem = ndimage.map_coordinates(filled, [row - 0.5, col - 0.5], order=3, mode="nearest") - 7.0
+    dem_path = tmp_path / "dem.tif"
+    write_dem(dem_path, dem, crs, dem_t)
+    out = tmp_path / "shift.json"
+    assert main(["coregister", str(ref_path), str(dem_path), "--json", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["shift_crs"]["dx"] == pytest.approx(-50.0, abs=3.0)
+    assert doc["shift_crs"]["dy"] == pytest.approx(30.0, abs=3.0)
+    assert doc["shift_px"]["dcol"] == pytest.approx(-50 / 90, abs=0.035)
+    assert doc["shift_px"]["drow"] == pytest.approx(-30 / 90, abs=0.035)
+    assert doc["dz"] == pytest.approx(7.0, abs=0.5)
