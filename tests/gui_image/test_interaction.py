@@ -121,3 +121,26 @@ def test_large_file_without_overviews_reads_its_overview_off_the_gui_thread(
     v.center_on(100, 100, scale=1.0)
     qtbot.waitUntil(lambda: v.current_level() == 1 and v.tiles_complete(), timeout=5000)
     v.close()
+
+
+def test_deleting_a_view_with_reads_in_flight_is_safe(qtbot, pattern_tif):
+    src = RasterSource(pattern_tif)
+    real = src.read_tile
+
+    def slow(*key):
+        time.sleep(0.15)
+        return real(*key)
+
+    src.read_tile = slow
+    v = ImageView()
+    v.resize(400, 300)
+    v.show()
+    v.set_source(src)
+    v.center_on(1500, 1000, scale=0.5)
+    qtbot.waitUntil(lambda: v.loader is not None and v.loader.pending() > 0, timeout=2000)
+    threads = list(v.loader._threads)
+    v.deleteLater()
+    del v
+    qtbot.wait(50)  # the deletion happens; the reads in flight finish after it
+    qtbot.waitUntil(lambda: not any(t.is_alive() for t in threads), timeout=5000)
+    qtbot.wait(50)  # deliveries to the deleted view are dropped, not crashed on
