@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from prismstation.cli import main
-from prismstation.core.resection import (FrameCamera, base_height, project, resect,
-                                         rotation_matrix)
+from prismstation.core.resection import (FrameCamera, angles_of, base_height, homography_start,
+                                         project, resect, rotation_matrix, vertical_start)
 from prismstation.errors import ModelError
 
 
@@ -42,14 +42,51 @@ def test_resection_recovers_eo_within_sigma():
     assert r.converged
     assert np.all(np.abs(r.params - eo) < 3.5 * r.sigma), (r.params - eo) / r.sigma
     assert r.sigma0_px == pytest.approx(0.5, rel=0.3)
-    # history: the start is vertical, each row adds that iteration's correction
-    assert r.start[3] == 0 and r.start[4] == 0
+    # history: starts at the start, each row adds that iteration's correction
+    assert np.allclose(r.history[0], r.start) and not np.allclose(r.start, r.params)
     assert np.allclose(r.history[0], r.start)
     assert np.allclose(np.diff(r.history, axis=0), r.corrections)
     assert np.allclose(r.history[-1][:3], r.params[:3])
     size = np.abs(r.corrections[:, 3:]).max(axis=1)
     assert size[-1] < 1e-8 < size[0]
     assert "pushbroom" in r.note
+
+
+def test_vertical_and_homography_starts_reach_the_same_solution():
+    rng = np.random.default_rng(4)
+    cam, eo, xyz, xy = _aerial(rng)
+    v = vertical_start(cam, xy, xyz)
+    assert v[3] == 0 and v[4] == 0
+    assert abs(v[5] - eo[5]) < 0.1 and abs(v[2] - eo[2]) < 300      # κ and height roughly right
+    h = homography_start(cam, xy, xyz)
+    assert np.all(np.abs(h[3:] - eo[3:]) < 0.05)
+    a = resect(cam, xy, xyz, start=v)
+    b = resect(cam, xy, xyz, start=h)
+    assert a.converged and b.converged
+    assert np.allclose(a.params, b.params, atol=1e-6)
+
+
+def test_angles_of_inverts_rotation_matrix():
+    for o, p, k in [(0.1, -0.2, 0.3), (-1.0, 0.5, 3.0), (0.0, 0.0, -2.5)]:
+        assert np.allclose(angles_of(rotation_matrix(o, p, k)), (o, p, k))
+
+
+@pytest.mark.parametrize("tilt_deg,kappa_deg", [(18.8, 0.0), (30.0, 90.0), (30.0, -150.0)])
+def test_resection_of_tilted_satellite_views(tilt_deg, kappa_deg):
+    """Off-nadir views (seed 002's right image pointed 18.8°) converge from the homography start."""
+    rng = np.random.default_rng(5)
+    cam = FrameCamera(1.082, 7e-6, 5000.0, 5000.0)
+    eo = np.array([202559.7, 3894686.0, 580710.5, math.radians(tilt_deg), math.radians(-2.0),
+                   math.radians(kappa_deg)])
+    M = rotation_matrix(*eo[3:])
+    px = rng.uniform(0, 10000, (25, 2))
+    d = np.column_stack([cam.to_photo(px), np.full(25, -cam.focal_m)]) @ M   # rays to the ground
+    xyz = eo[:3] + ((400 - eo[2]) / d[:, 2])[:, None] * d
+    xyz[:, 2] = rng.uniform(0, 900, 25)
+    xy = project(cam, eo, xyz) + rng.normal(0, 0.5, (25, 2))
+    r = resect(cam, xy, xyz, max_iterations=40)
+    assert r.converged
+    assert np.all(np.abs(r.params - eo) < 4 * r.sigma), (r.params - eo) / r.sigma
 
 
 def test_resection_sigma_is_calibrated_over_trials():

@@ -139,6 +139,34 @@ def vertical_start(camera: FrameCamera, xy, xyz) -> np.ndarray:
                      float(np.angle(c))])
 
 
+def angles_of(M: np.ndarray) -> tuple[float, float, float]:
+    """``(ω, φ, κ)`` (radians) of a rotation ``M = R_κ·R_φ·R_ω`` (inverse of :func:`rotation_matrix`)."""
+    phi = float(np.arcsin(np.clip(M[2, 0], -1.0, 1.0)))
+    return float(np.arctan2(-M[2, 1], M[2, 2])), phi, float(np.arctan2(-M[1, 0], M[0, 0]))
+
+
+def homography_start(camera: FrameCamera, xy, xyz) -> np.ndarray:
+    """Starting EO from the plane-to-image homography (ground points taken on their mean
+    height): ``H ∝ [m1 m2 t]`` with ``m1``, ``m2`` the first two columns of ``M``. Handles
+    tilted views where a vertical start fails; needs ≥ 4 points, not three on a line."""
+    from prismstation.core.rectify import fit_transform   # core → core
+
+    xyz = np.asarray(xyz, float)
+    q = camera.to_photo(xy) / -camera.focal_m                 # (r1/r3, r2/r3)
+    a = fit_transform("projective", xyz[:, :2], q).params
+    H = np.array([[a[0], a[1], a[2]], [a[3], a[4], a[5]], [a[6], a[7], 1.0]])
+    lam = 2.0 / (np.linalg.norm(H[:, 0]) + np.linalg.norm(H[:, 1]))
+    r3 = lam * (H[2] @ np.column_stack([xyz[:, :2], np.ones(len(xyz))]).T)
+    if np.median(r3) > 0:                                     # points must lie in front: r3 < 0
+        lam = -lam
+    m1, m2, t = lam * H[:, 0], lam * H[:, 1], lam * H[:, 2]
+    U, _, Vt = np.linalg.svd(np.column_stack([m1, m2, np.cross(m1, m2)]))
+    M = U @ Vt
+    zm = xyz[:, 2].mean()
+    centre = np.array([0.0, 0.0, zm]) - M.T @ t
+    return np.array([*centre, *angles_of(M)])
+
+
 def _jacobian(camera, eo, xyz, f0):
     dist = max(1.0, float(np.linalg.norm(eo[:3] - xyz.mean(axis=0))))
     J = np.empty((f0.size, 6))
@@ -150,6 +178,12 @@ def _jacobian(camera, eo, xyz, f0):
     return J
 
 
+def _cost(camera, eo, xy, xyz) -> float:
+    with np.errstate(all="ignore"):
+        c = float(np.sum((project(camera, eo, xyz) - xy) ** 2))
+    return c if np.isfinite(c) else np.inf
+
+
 def resect(camera: FrameCamera, xy, xyz, start=None, *, max_iterations: int = 20,
            tol_m: float = 1e-4, tol_rad: float = 1e-9) -> ResectionResult:
     """Space resection by Gauss–Newton on the collinearity equations.
@@ -159,7 +193,8 @@ def resect(camera: FrameCamera, xy, xyz, start=None, *, max_iterations: int = 20
     camera : interior orientation.
     xy : (n, 2) measured image points in pixels (n ≥ 3; ≥ 4 for standard deviations).
     xyz : (n, 3) ground points in metres.
-    start : (6,) starting EO; default :func:`vertical_start`.
+    start : (6,) starting EO; default :func:`homography_start` (≥ 4 points), falling back
+        to :func:`vertical_start`. A step that raises the residuals is halved (up to 10 times).
     max_iterations, tol_m, tol_rad : stop after this many iterations or when every
         position correction is below ``tol_m`` and every angle correction below ``tol_rad``.
     """
@@ -175,7 +210,17 @@ def resect(camera: FrameCamera, xy, xyz, start=None, *, max_iterations: int = 20
     sv = np.linalg.svd(xyz[:, :2] - xyz[:, :2].mean(axis=0), compute_uv=False)
     if sv[-1] <= 1e-9 * max(sv[0], 1e-300):
         raise ModelError("resection: the ground points are collinear or coincident")
-    eo = vertical_start(camera, xy, xyz) if start is None else np.asarray(start, float).copy()
+    if start is not None:
+        eo = np.asarray(start, float).copy()
+    else:
+        eo = vertical_start(camera, xy, xyz)
+        if n >= 4:
+            try:
+                h = homography_start(camera, xy, xyz)
+                if _cost(camera, h, xy, xyz) < _cost(camera, eo, xy, xyz):
+                    eo = h
+            except ModelError:
+                pass
     start_eo = eo.copy()
     hist, corr = [eo.copy()], []
     converged = False
@@ -190,6 +235,11 @@ def resect(camera: FrameCamera, xy, xyz, start=None, *, max_iterations: int = 20
         if s[-1] <= 1e-12 * s[0]:
             raise ModelError("resection: the points do not determine the orientation")
         dx = D * (Vt.T @ ((U.T @ (obs - f0)) / s))
+        c0 = float(np.sum((obs - f0) ** 2))
+        for _ in range(10):                  # step halving keeps Gauss–Newton from diverging
+            if _cost(camera, eo + dx, xy, xyz) <= c0 * (1 + 1e-12) + 1e-18:
+                break
+            dx = dx / 2
         eo = eo + dx
         corr.append(dx)
         hist.append(eo.copy())
