@@ -125,3 +125,19 @@ def test_gdal_block_cache_is_bounded(pattern_tif, monkeypatch):
     monkeypatch.setattr(raster, "_gdal_cache_limited", False)
     RasterSource(pattern_tif)
     assert int(get_gdal_config("GDAL_CACHEMAX")) <= raster.GDAL_CACHE_MB * 1024 * 1024
+
+
+@pytest.mark.parametrize("dtype, top", [(np.uint8, 256), (np.uint16, 4000), (np.uint16, 65536)])
+def test_integer_statistics_match_numpy(dtype, top):
+    from prismstation.io.raster import _integer_statistics
+
+    rng = np.random.default_rng(int(top))
+    for n in (1, 2, 7, 12345):
+        v = rng.integers(0, top, n).astype(dtype)
+        p = (0, 0.5, 2, 37.3, 50, 98, 99.5, 100)
+        pct, lo, hi, hist, edges = _integer_statistics(v, p, 256)
+        np.testing.assert_allclose(pct, np.percentile(v, p))
+        ref_hist, ref_edges = np.histogram(v, bins=256, range=(lo, hi if hi > lo else lo + 1))
+        np.testing.assert_allclose(edges, ref_edges)
+        np.testing.assert_array_equal(hist, ref_hist)
+        assert (lo, hi) == (v.min(), v.max())

@@ -76,6 +76,30 @@ class RasterStatistics:
     decimation: int
 
 
+def _integer_statistics(vals: np.ndarray, percentiles, bins: int):
+    """Percentiles (numpy's linear interpolation), extremes and histogram of 8/16-bit unsigned
+    values from one ``bincount``: several times faster than sorting for display statistics."""
+    counts = np.bincount(vals.astype(np.intp, copy=False))
+    cdf = np.cumsum(counts)
+    n = int(cdf[-1])
+
+    def kth(k):  # value of the k-th smallest (0-based)
+        return np.searchsorted(cdf, np.asarray(k) + 1, side="left")
+
+    ranks = np.asarray(list(percentiles), float) / 100.0 * (n - 1)
+    k0 = np.floor(ranks).astype(np.int64)
+    k1 = np.minimum(k0 + 1, n - 1)
+    v0, v1 = kth(k0).astype(float), kth(k1).astype(float)
+    pct = v0 + (ranks - k0) * (v1 - v0)
+    nz = np.flatnonzero(counts)
+    lo, hi = float(nz[0]), float(nz[-1])
+    edges = np.linspace(lo, hi if hi > lo else lo + 1, bins + 1)
+    idx = np.minimum(np.searchsorted(edges, np.arange(int(lo), int(hi) + 1), side="right") - 1,
+                     bins - 1)
+    hist = np.bincount(idx, weights=counts[int(lo):int(hi) + 1], minlength=bins).astype(np.int64)
+    return pct, lo, hi, hist, edges
+
+
 class _TileCache:
     """Thread-safe LRU cache of arrays, bounded by their total size in bytes."""
 
@@ -363,9 +387,12 @@ class RasterSource:
             vals = vals[vals != self.nodata]
         if vals.size == 0:
             raise RasterReadError(f"{self.path}: no valid pixel for display statistics")
-        pct = np.percentile(vals, list(percentiles)) if len(percentiles) else []
-        lo, hi = float(vals.min()), float(vals.max())
-        hist, edges = np.histogram(vals, bins=bins, range=(lo, hi if hi > lo else lo + 1))
+        if vals.dtype.kind in "ub" and vals.dtype.itemsize <= 2:
+            pct, lo, hi, hist, edges = _integer_statistics(vals, percentiles, bins)
+        else:
+            pct = np.percentile(vals, list(percentiles)) if len(percentiles) else []
+            lo, hi = float(vals.min()), float(vals.max())
+            hist, edges = np.histogram(vals, bins=bins, range=(lo, hi if hi > lo else lo + 1))
         return RasterStatistics(lo, hi, {float(p): float(v) for p, v in zip(percentiles, pct)},
                                 hist, edges, f)
 
