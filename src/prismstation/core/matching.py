@@ -97,8 +97,9 @@ def _parabola(m1: float, m0: float, p1: float) -> float:
 def match_point(reference: np.ndarray, x: float, y: float, search: np.ndarray,
                 x_pred: float, y_pred: float, *, direction=None, search_range: float = 10.0,
                 across_range: float = 1.5, half_window: int = 15, min_score: float = 0.5,
-                max_sigma: float = 0.3, min_margin: float = 0.02, lsm: bool = True, interpolation: str = "bicubic",
-                max_iter: int = 30, max_lsm_move: float = 2.0) -> MatchResult:
+                max_sigma: float = 0.3, min_margin: float = 0.02, lsm: bool = True,
+                interpolation: str = "bicubic", max_iter: int = 30,
+                max_lsm_move: float = 2.0) -> MatchResult:
     """Find the point ``(x, y)`` of ``reference`` in ``search``.
 
     Parameters
