@@ -160,6 +160,7 @@ def test_deterministic_by_seed(tmp_path):
             assert not np.array_equal(ra.read(1), rc.read(1))
 
 
+@pytest.mark.filterwarnings("ignore::rasterio.errors.NotGeoreferencedWarning")
 def test_north_up_ascending_map_to_image_in_json(tmp_path):
     p = simulate(tmp_path, size=300, seed=2, n_icp=4, n_tie=0, north_up=True, ascending=True,
                  map_to_image_in_json=True, survey_sigma_xy=0, survey_sigma_h=0, noise_px=0)
