@@ -104,3 +104,24 @@ def test_texture_varying_in_one_direction_only_is_ambiguous():
     for d in [(0, 1), None]:
         r = match_point(a, 100.5, 100.5, b, 100.5, 101.5, direction=d, search_range=5)
         assert r.status == "flat", (d, r)
+
+
+def test_transfer_a_grid_and_reject_a_planted_blunder(texture):
+    from prismstation.core.matching import blunder_mask, transfer_points
+    ref = texture[100:600, 100:600]
+    srch = texture[104:604, 99:599]                 # content moved by (+1, -4) px
+    gx, gy = np.meshgrid(np.arange(80.5, 430, 70), np.arange(80.5, 430, 70))
+    pts = np.column_stack([gx.ravel(), gy.ravel()])
+    d = (0.0, 1.0)                                  # parallax along y, offset across = +1 px
+    pred = pts + [0.0, -2.0]
+    pred[7] += [6.0, 0.0]                           # a wrong prediction 6 px across
+    res = transfer_points(ref, srch, pts, pred, d, search_range=5, across_range=8.0)
+    xy = np.array([[r.x, r.y] for r in res])
+    ok = np.array([r.ok for r in res])
+    assert ok.mean() > 0.9
+    assert np.allclose(xy[ok], (pts + [1.0, -4.0])[ok], atol=0.02)
+    # the blunder: pretend point 7 matched a wrong place 5 px across
+    from dataclasses import replace
+    res[7] = replace(res[7], x=res[7].x + 5.0)
+    bad = blunder_mask(res, pred, d)
+    assert bad[7] and bad.sum() == (~ok).sum() + (1 if ok[7] else 0)

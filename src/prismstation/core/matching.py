@@ -285,3 +285,60 @@ def _lsm(tmpl, crop, c_lo, r_lo, tx, ty, ox, oy, score, nx, ny, max_iter, max_mo
         return MatchResult(px, py, sx, sy, score, it, FLAT,
                            f"too little texture: σ = ({sx:.2f}, {sy:.2f}) px", nx, ny)
     return MatchResult(float(px), float(py), sx, sy, score, it, OK, "", nx, ny)
+
+
+def transfer_points(reference: np.ndarray, search: np.ndarray, points, predicted, direction=None,
+                    **options) -> list[MatchResult]:
+    """:func:`match_point` for many points (e.g. a tie-point grid).
+
+    Parameters
+    ----------
+    reference, search : ndarray (rows, cols)
+    points, predicted : array_like (n, 2)
+        ``(x, y)`` in the reference image and predicted ``(x, y)`` in the search image (pixels).
+    direction : (dx, dy) or array_like (n, 2) or None
+        One search direction for all points, or one per point.
+    **options
+        Passed to :func:`match_point`.
+    """
+    pts = np.asarray(points, float).reshape(-1, 2)
+    pred = np.asarray(predicted, float).reshape(-1, 2)
+    dirs = [None] * len(pts) if direction is None else \
+        np.broadcast_to(np.asarray(direction, float), pts.shape)
+    return [match_point(reference, p[0], p[1], search, q[0], q[1], direction=d, **options)
+            for p, q, d in zip(pts, pred, dirs)]
+
+
+def blunder_mask(results, predicted, direction, k: float = 3.0, min_abs: float = 0.5) -> np.ndarray:
+    """Flag matches whose offset across the search direction disagrees with the others.
+
+    Along the parallax direction the offset from the prediction carries the terrain height, so
+    only the across component ``(match − prediction)·d⊥`` is expected to be common to all points
+    (a relative-orientation offset). A match is kept when it is ``ok`` and that component lies
+    within ``max(k·NMAD, min_abs)`` px of the median over the ok matches.
+
+    Parameters
+    ----------
+    results : sequence of MatchResult
+    predicted : array_like (n, 2)
+        Predicted positions used for the search (pixels).
+    direction : (dx, dy) or array_like (n, 2)
+        Search (parallax) direction(s).
+
+    Returns
+    -------
+    ndarray (n,), bool
+        True for a blunder or a failed match.
+    """
+    pred = np.asarray(predicted, float).reshape(-1, 2)
+    d = np.broadcast_to(np.asarray(direction, float), pred.shape)
+    d = d / np.hypot(d[:, 0], d[:, 1])[:, None]
+    xy = np.array([[r.x, r.y] for r in results], float).reshape(-1, 2)
+    ok = np.array([r.ok for r in results], bool)
+    across = (xy[:, 1] - pred[:, 1]) * d[:, 0] - (xy[:, 0] - pred[:, 0]) * d[:, 1]
+    bad = ~ok
+    if ok.sum() >= 3:
+        med = np.median(across[ok])
+        spread = 1.4826 * np.median(np.abs(across[ok] - med))
+        bad |= ~(np.abs(across - med) <= max(k * spread, min_abs))
+    return bad
