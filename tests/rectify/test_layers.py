@@ -1,0 +1,13 @@
+"""The engine modules of issue 5 import neither rasterio, pyproj nor Qt (ARCHITECTURE.md)."""
+import subprocess
+import sys
+
+
+def test_core_modules_stay_below_io():
+    code = ("import sys\n"
+            "import prismstation.core.rectify, prismstation.core.resection\n"
+            "import prismstation.core.dsmstats, prismstation.core.deblock\n"
+            "bad = [m for m in ('rasterio', 'pyproj', 'PySide6', 'pyqtgraph') if m in sys.modules]\n"
+            "print(','.join(bad))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == ""
