@@ -222,6 +222,12 @@ def _line_x(data: PlotData) -> np.ndarray:
 class PlotsWidget(QWidget):
     """The four live plots of a Solution (see the module docstring).
 
+    Parameters
+    ----------
+    parent : QWidget, optional
+    grid : bool
+        Draw grid lines (off by default: they dominate the repaint time).
+
     Signals
     -------
     point_clicked(str) : the id of a point clicked in any plot (for drive-to).
@@ -229,7 +235,7 @@ class PlotsWidget(QWidget):
 
     point_clicked = Signal(str)
 
-    def __init__(self, parent=None):
+    def __init__(self, parent=None, *, grid: bool = False):
         super().__init__(parent)
         self._data = PlotData()
         self._exaggeration = 100.0
@@ -239,10 +245,18 @@ class PlotsWidget(QWidget):
         grid.setSpacing(2)
         for i, name in enumerate(PLOT_NAMES):
             pw = pg.PlotWidget(background="w")
-            pw.getPlotItem().showGrid(x=True, y=True, alpha=0.25)
+            if grid:  # pyqtgraph's grid costs ~10 ms a repaint per axis: reports only
+                pw.getPlotItem().showGrid(x=True, y=True, alpha=0.25)
             pw.setMinimumSize(160, 120)
             self.plots[name] = pw
             grid.addWidget(pw, i // 2, i % 2)
+            # ranges are set from the data in one step (auto-range would paint twice); a
+            # plot the operator zoomed keeps its range until the "A" button is clicked
+            vb = pw.getPlotItem().getViewBox()
+            vb.disableAutoRange()
+            vb.sigRangeChangedManually.connect(lambda *_, n=name: self._follow.__setitem__(n, False))
+            pw.getPlotItem().autoBtn.clicked.connect(lambda *_, n=name: self._refollow(n))
+        self._follow = dict.fromkeys(PLOT_NAMES, True)
         self._build_items()
         self.auto_box = QCheckBox("auto")
         self.auto_box.setChecked(True)
@@ -337,6 +351,9 @@ class PlotsWidget(QWidget):
                 axis.enableAutoSIPrefix(False)
                 axis.setTextPen((40, 40, 40))
                 axis.setPen((110, 110, 110))
+            # fixed axis sizes: tick labels that change width would relayout and repaint again
+            pw.getPlotItem().getAxis("left").setWidth(58)
+            pw.getPlotItem().getAxis("bottom").setHeight(38)
         self._titles: dict = {}
         self._set_titles()
 
@@ -410,8 +427,8 @@ class PlotsWidget(QWidget):
         top = max([d.threshold * 1.15, float(np.max(d.std_values)) * 1.1 if n else 0.0]
                   + [c[1] * 1.1 for c in d.critical])
         self._update_rings()
-        self.plots["std_residuals"].setYRange(0, top, padding=0)
-        self.plots["std_residuals"].setXRange(0.3, n + 0.7, padding=0)
+        self._std_range = ((0.3, n + 0.7), (0.0, top))
+        self._apply_ranges()
         self.summary.setText(f"{len(d.gcp_ids)} GCP, {len(d.icp_ids)} ICP with parallax"
                              + (f"; blunder: {d.blunder}" if d.blunder else ""))
         self._set_titles()
@@ -433,7 +450,7 @@ class PlotsWidget(QWidget):
         Drawn by a hidden copy of this widget laid out at that size, so a docked, visible
         widget is not disturbed."""
         from PySide6.QtWidgets import QApplication
-        tmp = PlotsWidget()
+        tmp = PlotsWidget(grid=True)
         try:
             tmp.setAttribute(Qt.WidgetAttribute.WA_DontShowOnScreen, True)
             if not self.auto_box.isChecked():
@@ -463,6 +480,54 @@ class PlotsWidget(QWidget):
             self.frame.setData([0, c, c, 0, 0], [0, 0, r, r, 0])
         else:
             self.frame.setData([], [])
+
+    def _ranges(self) -> dict:
+        """``{plot: ((x0, x1), (y0, y1))}`` covering the data (plots with data only)."""
+        d, out = self._data, {}
+        x = _line_x(d)
+        if x.size:
+            ys = [d.gcp_h, d.icp_h]
+            ys5 = [np.zeros(1)]
+            for item, acc in ((self.fit_line, ys), (self.theory_line, ys), (self.d_fit_line, ys5),
+                              (self.d_gcp, ys5), (self.d_icp, ys5)):
+                yi = item.getData()[1]
+                if yi is not None:
+                    acc.append(np.asarray(yi, float))
+            for name, acc in (("height", ys), ("height_minus_theory", ys5)):
+                y = np.concatenate(acc)
+                y = y[np.isfinite(y)]
+                if y.size:
+                    pad = 0.05 * max(np.ptp(y), 1.0)
+                    out[name] = ((x[0], x[1]), (y.min() - pad, y.max() + pad))
+        if d.image_shape:
+            r, c = d.image_shape[:2]
+            out["vectors"] = ((-0.03 * c, 1.03 * c), (-0.03 * r, 1.03 * r))
+        else:
+            pts = [a for a in (d.vec_gcp_xy, d.vec_icp_xy) if len(a)]
+            for item in (self.v_gcp_seg, self.v_icp_seg):
+                sx, sy = item.getData()
+                if sx is not None and len(sx):
+                    pts.append(np.column_stack([sx, sy]))
+            if pts:
+                a = np.vstack(pts)
+                lo, hi = a.min(axis=0), a.max(axis=0)
+                pad = 0.05 * max(float(np.max(hi - lo)), 1.0)
+                out["vectors"] = ((lo[0] - pad, hi[0] + pad), (lo[1] - pad, hi[1] + pad))
+        out["std_residuals"] = getattr(self, "_std_range", ((0, 1), (0, 4)))
+        return out
+
+    def _apply_ranges(self, only=None) -> None:
+        for name, (xr, yr) in self._ranges().items():
+            if self._follow[name] and (only is None or name == only):
+                vb = self.plots[name].getPlotItem().getViewBox()
+                vb.setRange(xRange=xr, yRange=yr, padding=0, disableAutoRange=True)
+                vb.prepareForPaint()  # apply the new range now, not during the paint (which
+                # would then schedule a second one)
+
+    def _refollow(self, name: str) -> None:
+        self._follow[name] = True
+        self.plots[name].getPlotItem().getViewBox().disableAutoRange()
+        self._apply_ranges(name)
 
     def _update_rings(self) -> None:
         d, b = self._data, self._data.blunder
