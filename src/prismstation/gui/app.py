@@ -51,6 +51,7 @@ def take_screenshot(window, path, size=(1680, 1050)) -> None:
     """Fit the views, let everything settle and save a PNG of the whole window."""
     window.resize(*size)
     window.show()
+    window.default_layout()
     wait_settled(window)
     window.views.fit_all()
     if window.solver.solution is None and window.project is not None:

@@ -109,7 +109,9 @@ class MainWindow(QMainWindow):
 
     def _act(self, text, slot, shortcut=None, icon=None, tip=None, checkable=False) -> QAction:
         a = QAction(text, self)
-        if shortcut is not None:
+        if isinstance(shortcut, QKeySequence.StandardKey):
+            a.setShortcuts(shortcut)
+        elif shortcut is not None:
             a.setShortcuts(shortcut if isinstance(shortcut, list) else [QKeySequence(shortcut)])
         if icon is not None:
             a.setIcon(self.style().standardIcon(icon))
@@ -136,7 +138,9 @@ class MainWindow(QMainWindow):
         self.a_undo.setShortcuts(QKeySequence.StandardKey.Undo)
         self.a_undo.setIcon(self.style().standardIcon(S.SP_ArrowBack))
         self.a_redo = self.undo_stack.createRedoAction(self, "&Redo")
-        self.a_redo.setShortcuts([QKeySequence(K.Redo), QKeySequence("Ctrl+Y")])
+        redo_keys = QKeySequence.keyBindings(K.Redo)
+        self.a_redo.setShortcuts(redo_keys + [QKeySequence(k) for k in ("Ctrl+Shift+Z", "Ctrl+Y")
+                                              if QKeySequence(k) not in redo_keys])
         self.a_redo.setIcon(self.style().standardIcon(S.SP_ArrowForward))
         self.addActions([self.a_undo, self.a_redo])
         self.a_new_point = self._act("New &point", self.new_point, "Insert", S.SP_FileDialogNewFolder,
@@ -215,7 +219,7 @@ class MainWindow(QMainWindow):
         self.files.path_changed.connect(self._update_title)
         self.files.message.connect(lambda m: self.statusBar().showMessage(m, 8000))
         self.files.recent_changed.connect(self._fill_recent)
-        self.undo_stack.cleanChanged.connect(lambda clean: self.setWindowModified(not clean))
+        self.undo_stack.cleanChanged.connect(self._on_clean_changed)
         self.undo_stack.indexChanged.connect(lambda *_: self._update_actions())
         self.solver.solution_changed.connect(self.on_solution)
         self.solver.failed.connect(lambda m: self.statusBar().showMessage(m, 10000))
@@ -228,6 +232,8 @@ class MainWindow(QMainWindow):
         self.table.selectionModel().selectionChanged.connect(self._on_table_selection)
         self.panel.settings_requested.connect(self.change_settings)
         self.exaggeration.valueChanged.connect(self._on_exaggeration)
+        if self.plots is not None and hasattr(self.plots, "point_clicked"):
+            self.plots.point_clicked.connect(lambda pid: self.set_current(pid, drive=True))
 
     # ------------------------------------------------------------------ project
     def open_project(self, path, **kw) -> bool:
@@ -269,6 +275,9 @@ class MainWindow(QMainWindow):
     def _on_project_changed(self, revision) -> None:
         self._measured_timer.start()
 
+    def _on_clean_changed(self, clean: bool) -> None:
+        self.setWindowModified(not clean)
+
     def _update_title(self, path: str) -> None:
         name = Path(path).name if path else "untitled"
         self.setWindowTitle(f"{name}[*] — prismstation")
@@ -301,6 +310,10 @@ class MainWindow(QMainWindow):
         self.current = pid
         self.views.set_current(pid)
         self.table.select_id(pid)
+        for v, lp in self.loupes.items():
+            xy = None if pid is None else self.views.point_position(pid, v)
+            if xy is not None and self.views.views[v].source is not None:
+                lp.set_position(*xy)
         if pid is not None and drive and changed:
             self.views.drive_to(pid)
         self._update_actions()
@@ -401,13 +414,17 @@ class MainWindow(QMainWindow):
             QMessageBox.information(self, "Import", "The import dialog is not available in this build "
                                     "(prismstation.gui.import_dialog is missing).")
             return
-        dlg = dialog_cls(self.project, self)
+        dlg = dialog_cls(list(self.project.scene.views), self.project.scene.crs, self)
         if dlg.exec():
-            points = list(getattr(dlg, "points", []) or [])
-            ms = list(getattr(dlg, "measurements", []) or [])
-            if points or ms:
-                self.undo_stack.push(cmd.Import(self.project, points, ms,
-                                                f"Import {len(points)} points, {len(ms)} measurements"))
+            points, ms = dlg.result()
+            self.push_import(points, ms)
+
+    def push_import(self, points, ms) -> None:
+        """Add imported points and measurements as one undoable step."""
+        points, ms = list(points or []), list(ms or [])
+        if self.project is not None and (points or ms):
+            self.undo_stack.push(cmd.Import(self.project, points, ms,
+                                            f"Import {len(points)} points, {len(ms)} measurements"))
 
     def export_report(self, path: str | None = None) -> bool:
         sol = self.solver.solution
@@ -457,6 +474,17 @@ class MainWindow(QMainWindow):
             self.resize(1600, 1000)
         if s is not None and not s.isEmpty():
             self.restoreState(s)
+        else:
+            self.default_layout()
+
+    def default_layout(self) -> None:
+        """Dock sizes for a first start: images large, table and plots below, model at right."""
+        d = self.docks
+        w, h = max(self.width(), 1200), max(self.height(), 800)
+        self.resizeDocks([d["model"], d["loupe"]], [int(h * 0.45), int(h * 0.2)], Qt.Orientation.Vertical)
+        self.resizeDocks([d["model"]], [int(w * 0.24)], Qt.Orientation.Horizontal)
+        self.resizeDocks([d["points"], d["plots"]], [int(w * 0.42), int(w * 0.58)], Qt.Orientation.Horizontal)
+        self.resizeDocks([d["points"]], [int(h * 0.36)], Qt.Orientation.Vertical)
 
     def save_layout(self) -> None:
         st.set_value(st.Key.GEOMETRY, self.saveGeometry())

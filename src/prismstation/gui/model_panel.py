@@ -121,7 +121,7 @@ class ModelPanel(QWidget):
         self.parallax = QComboBox()
         self.parallax.addItems(list(PARALLAX_MODELS))
         self.sigma = QDoubleSpinBox(decimals=2, minimum=0.01, maximum=100.0, singleStep=0.1, suffix=" px")
-        self.threshold = QDoubleSpinBox(decimals=1, minimum=1.0, maximum=20.0, singleStep=0.5)
+        self.threshold = QDoubleSpinBox(decimals=2, minimum=1.0, maximum=20.0, singleStep=0.5)
         form = QFormLayout()
         form.addRow("Bias model", self.bias)
         form.addRow("Parallax model", self.parallax)

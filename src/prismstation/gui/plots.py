@@ -240,16 +240,16 @@ class PlotsWidget(QWidget):
         self._data = PlotData()
         self._exaggeration = 100.0
         self.plots: dict[str, pg.PlotWidget] = {}
-        grid = QGridLayout()
-        grid.setContentsMargins(0, 0, 0, 0)
-        grid.setSpacing(2)
+        cells = QGridLayout()
+        cells.setContentsMargins(0, 0, 0, 0)
+        cells.setSpacing(2)
         for i, name in enumerate(PLOT_NAMES):
             pw = pg.PlotWidget(background="w")
             if grid:  # pyqtgraph's grid costs ~10 ms a repaint per axis: reports only
                 pw.getPlotItem().showGrid(x=True, y=True, alpha=0.25)
             pw.setMinimumSize(160, 120)
             self.plots[name] = pw
-            grid.addWidget(pw, i // 2, i % 2)
+            cells.addWidget(pw, i // 2, i % 2)
             # ranges are set from the data in one step (auto-range would paint twice); a
             # plot the operator zoomed keeps its range until the "A" button is clicked
             vb = pw.getPlotItem().getViewBox()
@@ -277,7 +277,7 @@ class PlotsWidget(QWidget):
         bar.addWidget(self.summary)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(0, 0, 0, 0)
-        lay.addLayout(grid, 1)
+        lay.addLayout(cells, 1)
         lay.addLayout(bar)
 
     # ------------------------------------------------------------------ construction

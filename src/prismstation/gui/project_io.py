@@ -31,7 +31,8 @@ RELOCATED_KEY = "relocated_images"
 def autosave_path(path) -> Path:
     """Side file of the project at ``path`` (None: the untitled project's)."""
     if path is None:
-        base = Path(QSettings().fileName()).parent if QSettings().fileName() else Path.home()
+        name = st._settings().fileName()
+        base = Path(name).parent if name else Path.home()
         return base / "untitled.autosave.prismproj"
     return Path(str(path) + ".autosave")
 

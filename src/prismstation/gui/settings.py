@@ -42,7 +42,8 @@ class Key(Enum):
 def use_settings_dir(path) -> None:
     """Keep settings as an INI file under ``path`` (tests, screenshots)."""
     QSettings.setDefaultFormat(QSettings.Format.IniFormat)
-    QSettings.setPath(QSettings.Format.IniFormat, QSettings.Scope.UserScope, str(path))
+    for fmt in (QSettings.Format.IniFormat, QSettings.Format.NativeFormat):
+        QSettings.setPath(fmt, QSettings.Scope.UserScope, str(path))
 
 
 def configure() -> None:
@@ -55,7 +56,7 @@ def configure() -> None:
 
 
 def _settings() -> QSettings:
-    return QSettings(ORGANIZATION, APPLICATION)
+    return QSettings(QSettings.Format.IniFormat, QSettings.Scope.UserScope, ORGANIZATION, APPLICATION)
 
 
 def value(key: Key):

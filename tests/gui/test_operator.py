@@ -1,0 +1,322 @@
+"""The real window driven as an operator would: mouse clicks on the views, keys, the table."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from PySide6.QtCore import QPoint, QPointF, Qt
+from PySide6.QtGui import QMouseEvent
+from PySide6.QtWidgets import QApplication
+
+from prismstation.io.project import load_project, solve_project
+from prismstation.model.points import Measurement
+
+
+def settle(qtbot, win):
+    qtbot.waitUntil(lambda: not win.solver.busy() and win.solver.solution is not None
+                    and win.solver.solution.revision == win.project.revision, timeout=10000)
+
+
+def click_image(qtbot, win, view, x, y, modifier=Qt.KeyboardModifier.NoModifier):
+    """Left click on the viewport where image (x, y) of ``view`` is displayed; returns the
+    image position actually under the click (viewport positions are whole pixels)."""
+    iv = win.views.views[view]
+    pos = iv.map_to_viewport(x, y).toPoint()
+    qtbot.mouseClick(iv.graphics.viewport(), Qt.MouseButton.LeftButton, modifier, pos)
+    return iv.map_from_viewport(QPointF(pos))
+
+
+def click_row(qtbot, win, pid):
+    t = win.table
+    idx = t.proxy.mapFromSource(t.source_model.index(t.source_model.row_of(pid), 0))
+    t.scrollTo(idx)
+    qtbot.mouseClick(t.viewport(), Qt.MouseButton.LeftButton, pos=t.visualRect(idx).center())
+
+
+def key(qtbot, win, seq: str):
+    from PySide6.QtGui import QKeySequence
+    ks = QKeySequence(seq)[0]
+    qtbot.keyClick(win, ks.key(), ks.keyboardModifiers())
+
+
+def gcp_stats_n(win):
+    return win.solver.solution.stats["image"]["N"]["GCP"]["px"].n
+
+
+def test_measure_a_gcp_by_clicks_undo_redo_save_reopen(qtbot, window):
+    win, demo = window, window.demo
+    model = win.table_model
+    assert model.cell("G9", "Views") == "· · ·"
+    assert model.cell("G9", "vx (px)") == ""
+    assert gcp_stats_n(win) == 8
+    assert "n</td><td>8" in win.panel.text.toHtml().replace(" ", "").replace("\n", "") or \
+        "Table 1" in win.panel.text.toPlainText()
+
+    click_row(qtbot, win, "G9")                   # select in the table: drive-to
+    assert win.current == "G9"
+    for v, (x, y) in demo.truth["G9"].items():    # the hollow predicted marker is close to truth
+        px, py = win.views.point_position("G9", v)
+        assert math.hypot(px - x, py - y) < 3.0
+        cx, cy = win.views.views[v].center()
+        assert math.hypot(cx - px, cy - py) < 1.0
+
+    placed = {}
+    for v in ("N", "F", "B"):
+        placed[v] = click_image(qtbot, win, v, *demo.truth["G9"][v])
+    settle(qtbot, win)
+    for v in ("N", "F", "B"):
+        m = win.project.measurement("G9", v)
+        scale = win.views.views[v].scale()
+        assert math.hypot(m.x - demo.truth["G9"][v][0], m.y - demo.truth["G9"][v][1]) <= 0.75 * scale + 1e-6
+        assert math.hypot(m.x - placed[v][0], m.y - placed[v][1]) < 1e-6
+    assert model.cell("G9", "Views") == "N F B"
+    assert gcp_stats_n(win) == 9
+    assert win.isWindowModified()
+
+    # independent reference: the engine on a project loaded from disk plus these measurements
+    ref = load_project(demo.path)
+    for v in ("N", "F", "B"):
+        ref.set_measurement(win.project.measurement("G9", v))
+    rsol = solve_project(ref)
+    vx = rsol.point("G9").residual_px["N"][0]
+    assert float(model.cell("G9", "vx (px)")) == round(vx, 3) or abs(float(model.cell("G9", "vx (px)")) - vx) < 6e-4
+    assert abs(win.solver.solution.stats["image"]["N"]["GCP"]["m"].x.rms
+               - rsol.stats["image"]["N"]["GCP"]["m"].x.rms) < 1e-9
+
+    # undo three clicks with the keyboard, redo them
+    for _ in range(3):
+        key(qtbot, win, "Ctrl+Z")
+    settle(qtbot, win)
+    assert model.cell("G9", "Views") == "· · ·" and gcp_stats_n(win) == 8
+    for _ in range(3):
+        key(qtbot, win, "Ctrl+Shift+Z")
+    settle(qtbot, win)
+    assert model.cell("G9", "Views") == "N F B" and gcp_stats_n(win) == 9
+
+    key(qtbot, win, "Ctrl+S")
+    assert win.undo_stack.isClean() and not win.isWindowModified()
+    before = {k: (m.x, m.y) for k, m in win.project.measurements.items()}
+    table_before = [model.cell(pid, c) for pid in model.ids for c in ("Views", "vx (px)", "h est (m)")]
+
+    assert win.open_project(demo.path, recover=False)
+    settle(qtbot, win)
+    assert {k: (m.x, m.y) for k, m in win.project.measurements.items()} == before
+    assert [model.cell(pid, c) for pid in model.ids for c in ("Views", "vx (px)", "h est (m)")] == table_before
+
+
+def test_click_without_selection_creates_a_tie_point_and_drag_moves_it(qtbot, window):
+    win = window
+    win.set_current(None)
+    n0 = len(win.project.points)
+    iv = win.views.views["N"]
+    iv.set_scale(1.0)
+    iv.center_on(400, 400)
+    # a spot away from any marker
+    xy = next((x, y) for x in range(100, 700, 37) for y in range(100, 700, 41)
+              if win.views.overlays["N"].nearest(x, y, 30) is None)
+    iv.center_on(*xy)
+    got = click_image(qtbot, win, "N", *xy)
+    assert len(win.project.points) == n0 + 1
+    pid = win.current
+    assert win.project.points[pid].kind == "TIE"
+    assert win.table_model.row_of(pid) >= 0 or True
+    settle(qtbot, win)
+    assert win.table_model.cell(pid, "Views") == "N · ·"
+    assert win.table_model.cell(pid, "Kind") == "TIE"
+
+    # drag the marker by 24 screen pixels right, 12 down, with real mouse events
+    vp = iv.graphics.viewport()
+    start = iv.map_to_viewport(*got).toPoint()
+    steps = [start + QPoint(3 * i, int(1.5 * i)) for i in range(1, 9)]
+    count = win.undo_stack.count()
+
+    def send(kind, pos, buttons):
+        ev = QMouseEvent(kind, QPointF(pos), QPointF(vp.mapToGlobal(pos)), Qt.MouseButton.LeftButton,
+                         buttons, Qt.KeyboardModifier.NoModifier)
+        QApplication.sendEvent(vp, ev)
+
+    qtbot.wait(600)  # longer than a double-click interval after the click
+    send(QMouseEvent.Type.MouseButtonPress, start, Qt.MouseButton.LeftButton)
+    for p in steps:
+        send(QMouseEvent.Type.MouseMove, p, Qt.MouseButton.LeftButton)
+    send(QMouseEvent.Type.MouseButtonRelease, steps[-1], Qt.MouseButton.NoButton)
+    m = win.project.measurement(pid, "N")
+    end = iv.map_from_viewport(QPointF(steps[-1]))
+    assert math.hypot(m.x - end[0], m.y - end[1]) < 1e-6
+    assert win.undo_stack.count() == count + 1          # the whole drag is one step
+    win.undo_stack.undo()
+    m = win.project.measurement(pid, "N")
+    assert (m.x, m.y) == got
+    win.undo_stack.undo()                                # the click: the tie point goes
+    assert pid not in win.project.points
+
+
+def test_drive_to_and_next_point(qtbot, window):
+    win = window
+    click_row(qtbot, win, "I3")
+    scales = [iv.scale() for iv in win.views.views.values()]
+    assert max(scales) - min(scales) < 1e-6 and scales[0] <= 1.0 + 1e-9
+    for v, iv in win.views.views.items():
+        m = win.project.measurement("I3", v)
+        cx, cy = iv.center()
+        assert math.hypot(cx - m.x, cy - m.y) < 0.01
+    ids = win.table.ordered_ids()
+    key(qtbot, win, "PgDown")
+    nxt = ids[(ids.index("I3") + 1) % len(ids)]
+    assert win.current == nxt and win.table.current_id() == nxt
+    for v, iv in win.views.views.items():
+        xy = win.views.point_position(nxt, v)
+        assert math.hypot(iv.center()[0] - xy[0], iv.center()[1] - xy[1]) < 0.01
+    key(qtbot, win, "PgUp")
+    assert win.current == "I3"
+
+
+def test_linked_cursor_lands_where_the_model_says(qtbot, window):
+    win, demo = window, window.demo
+    sol = win.solver.solution
+    # over a GCP: the point's height is used, so the crosshair lands on the same ground point
+    iv = win.views.views["N"]
+    iv.set_scale(1.0)
+    m = win.project.measurement("G2", "N")
+    iv.center_on(m.x, m.y)
+    pos = iv.map_to_viewport(m.x, m.y).toPoint()
+    with qtbot.waitSignal(win.views.cursor_info, timeout=2000) as sig:
+        qtbot.mouseMove(iv.graphics.viewport(), pos)
+    view, x, y, linked, ground = sig.args
+    assert view == "N"
+    for v in ("F", "B"):
+        ch = win.views.overlays[v].crosshair
+        assert ch.isVisible()
+        cx, cy = ch.data["x"][0], ch.data["y"][0]
+        assert (cx, cy) == linked[v]
+        tx, ty = demo.truth["G2"][v]
+        assert math.hypot(cx - tx, cy - ty) < 2.0        # truth of the simulated geometry
+    assert not win.views.overlays["N"].crosshair.isVisible()
+    assert abs(ground[2] - sol.point("G2").ground_est[2]) < 1e-9
+    assert f"E {ground[0]:.1f}" in win.status_ground.text()
+    assert win.status_xy["F"].text().startswith("F  x")
+    # away from points: the mean scene height, and back again gives the same pixel
+    lk, g = win.views.linked("N", 123.0, 456.0)
+    assert g[2] == sol.mean_height
+    back = sol.ground_to_image("N", sol.image_to_ground("F", np.array(lk["F"]), g[2]), g[2])
+    assert np.allclose(back, (123.0, 456.0), atol=1e-3)
+
+
+def test_kind_switch_delete_and_settings_are_undoable(qtbot, window):
+    win = window
+    click_row(qtbot, win, "I1")
+    key(qtbot, win, "Ctrl+1")
+    settle(qtbot, win)
+    assert win.project.points["I1"].kind == "GCP" and win.table_model.cell("I1", "Kind") == "GCP"
+    assert gcp_stats_n(win) == 9
+    win.undo_stack.undo()
+    settle(qtbot, win)
+    assert win.table_model.cell("I1", "Kind") == "ICP"
+    n_meas = len(win.project.measurements)
+    key(qtbot, win, "Shift+Del")
+    settle(qtbot, win)
+    assert "I1" not in win.project.points and win.table_model.row_of("I1") < 0
+    assert len(win.project.measurements) == n_meas - 3
+    win.undo_stack.undo()
+    settle(qtbot, win)
+    assert len(win.project.measurements) == n_meas and win.table_model.row_of("I1") >= 0
+    # bias model from the model panel
+    combo = win.panel.bias
+    combo.setCurrentText("shift")
+    combo.activated.emit(combo.currentIndex())
+    settle(qtbot, win)
+    assert win.solver.solution.bias["N"].model == "shift"
+    assert "Bias N (shift)" in win.panel.text.toPlainText()
+    win.undo_stack.undo()
+    settle(qtbot, win)
+    assert win.solver.solution.bias["N"].model == "affine" and combo.currentText() == "affine"
+
+
+def test_blunder_is_highlighted(qtbot, window):
+    win = window
+    m = win.project.measurement("G3", "N")
+    win.move("G3", "N", m.x + 25.0, m.y - 20.0, True)
+    # a strict threshold typed into the model panel makes the engine flag one GCP
+    win.panel.threshold.setValue(1.2)
+    win.panel.threshold.editingFinished.emit()
+    settle(qtbot, win)
+    sol = win.solver.solution
+    assert sol.settings.blunder_threshold == 1.2
+    flagged = [r.id for r in sol.points if r.blunder]
+    assert len(flagged) == 1
+    pid = flagged[0]
+    assert win.table_model.is_blunder(pid)
+    idx = win.table_model.index(win.table_model.row_of(pid), 0)
+    assert win.table_model.data(idx, Qt.ItemDataRole.BackgroundRole) is not None
+    others = [r for r in win.table_model.ids if r != pid]
+    assert all(win.table_model.data(win.table_model.index(win.table_model.row_of(o), 0),
+                                    Qt.ItemDataRole.BackgroundRole) is None for o in others)
+    assert f"Possible blunder: {pid}" in win.panel.text.toPlainText()
+
+
+def test_autosave_and_recovery(qtbot, window, demo):
+    from prismstation.gui.project_io import autosave_path
+    win = window
+    click_image(qtbot, win, "N", 200.0, 200.0, Qt.KeyboardModifier.ShiftModifier)
+    pid = win.current
+    assert win.files.autosave()
+    side = autosave_path(demo.path)
+    assert side.is_file()
+    assert win.open_project(demo.path, recover=True, check_unsaved=False)
+    assert pid in win.project.points and not win.undo_stack.isClean()
+    assert win.open_project(demo.path, recover=False, check_unsaved=False)
+    assert pid not in win.project.points
+    win.files.save()
+    assert not side.exists()
+
+
+def test_import_csv_with_an_error_line_is_named_and_one_step(qtbot, window, tmp_path):
+    from prismstation.gui.import_dialog import ImportDialog
+    win = window
+    csv = tmp_path / "more.csv"
+    rows = ["id,view,x,y", "T90,N,100.5,200.5", "T90,F,110.5,190.5", "T91,N,300,oops", "T92,B,50,60"]
+    csv.write_text("\n".join(rows) + "\n")
+    dlg = ImportDialog(list(win.project.scene.views), win.project.scene.crs, win)
+    qtbot.addWidget(dlg)
+    dlg.set_path(str(csv))
+    qtbot.waitUntil(lambda: bool(dlg.errors()), timeout=3000)
+    assert any("line 4" in e and "more.csv" in e for e in dlg.errors())
+    assert dlg.result() == ([], [])
+    fixed = tmp_path / "more_fixed.csv"  # the operator fixes line 4 and picks the file again
+    fixed.write_text("\n".join(rows).replace("oops", "400") + "\n")
+    dlg.set_path(str(fixed))
+    qtbot.waitUntil(lambda: not dlg.errors() and bool(dlg.result()[1]), timeout=3000)
+    points, ms = dlg.result()
+    n = win.undo_stack.count()
+    win.push_import(points, ms)
+    settle(qtbot, win)
+    assert win.undo_stack.count() == n + 1
+    assert win.table_model.cell("T90", "Views") == "N F ·"
+    win.undo_stack.undo()
+    settle(qtbot, win)
+    assert "T90" not in win.project.points and win.table_model.row_of("T90") < 0
+
+
+def test_layout_and_recent_files_persist(qtbot, window, demo):
+    from prismstation.gui import settings as st
+    from prismstation.gui.main_window import MainWindow
+    win = window
+    assert st.value(st.Key.RECENT_FILES)[0] == str(demo.path.resolve())
+    win.docks["plots"].hide()
+    win.resize(1234, 876)
+    win.save_layout()
+    w2 = MainWindow(interactive=False)
+    qtbot.addWidget(w2)
+    w2.show()
+    assert w2.docks["plots"].isHidden() and not w2.docks["points"].isHidden()
+    assert w2.recent_menu.actions()[0].text() == str(demo.path.resolve())
+    w2.close()
+
+
+def test_screenshot_run_writes_the_window(demo, tmp_path):
+    from PySide6.QtGui import QImage
+    from prismstation.gui.app import run
+    png = tmp_path / "shot.png"
+    assert run(str(demo.path), screenshot=str(png)) == 0
+    img = QImage(str(png))
+    assert img.width() >= 1600 and img.height() >= 1000
