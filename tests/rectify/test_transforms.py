@@ -203,3 +203,14 @@ def test_compare_transforms_honours_icps_and_reports_failures():
     table = format_rmse_table({"left": reports, "right": reports})
     assert "left GCP" in table and "right ICP" in table and "poly3" in table
     assert f"{r.rmse_gcp:.3f}" in table
+
+
+def test_affine_parameters_match_rasterio_from_gcps():
+    from rasterio.transform import from_gcps
+
+    rng = np.random.default_rng(12)
+    src = rng.uniform(0, 5000, (12, 2))
+    dst = src @ np.array([[2.5, 0.1], [0.05, -2.45]]).T + [E0, N0] + rng.normal(0, 2, (12, 2))
+    a = from_gcps(_gcps(src, dst))             # GDAL's least-squares GCPs → geotransform
+    p = fit_transform("affine", src, dst).params
+    assert np.allclose(p, [a.a, a.b, a.c, a.d, a.e, a.f], rtol=1e-8)
