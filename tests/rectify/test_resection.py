@@ -194,3 +194,25 @@ def test_resection_command_bad_input_exits_2_with_one_line(tmp_path, capsys):
     rc = main(["bh", "--left-resection", str(bad), "--right", "1", "2", "3"])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "r.json" in err and len(err.splitlines()) == 1
+
+
+def test_resection_agrees_with_opencv_solvepnp():
+    """Both minimise the reprojection error in pixels: same optimum (cv2's camera frame is the
+    photo frame with y and z flipped; its pixel centres sit at integers)."""
+    import cv2
+
+    rng = np.random.default_rng(6)
+    cam, eo, xyz, xy = _aerial(rng, n=25, noise=0.7)
+    ours = resect(cam, xy, xyz)
+    centre = xyz.mean(axis=0)
+    K = np.array([[cam.focal_m / cam.pixel_m, 0, cam.cx - 0.5],
+                  [0, cam.focal_m / cam.pixel_m, cam.cy - 0.5], [0, 0, 1.0]])
+    ok, rvec, tvec = cv2.solvePnP(xyz - centre, xy - 0.5, K, None, flags=cv2.SOLVEPNP_ITERATIVE)
+    assert ok
+    ok, rvec, tvec = cv2.solvePnP(xyz - centre, xy - 0.5, K, None, rvec, tvec, True,
+                                  flags=cv2.SOLVEPNP_ITERATIVE)
+    R_cv = cv2.Rodrigues(rvec)[0]
+    M = np.diag([1.0, -1.0, -1.0]) @ R_cv
+    C = -R_cv.T @ tvec.ravel() + centre
+    assert np.allclose(ours.params[:3], C, atol=0.01)
+    assert np.allclose(ours.params[3:], angles_of(M), atol=1e-6)
