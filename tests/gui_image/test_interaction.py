@@ -144,3 +144,16 @@ def test_deleting_a_view_with_reads_in_flight_is_safe(qtbot, pattern_tif):
     qtbot.wait(50)  # the deletion happens; the reads in flight finish after it
     qtbot.waitUntil(lambda: not any(t.is_alive() for t in threads), timeout=5000)
     qtbot.wait(50)  # deliveries to the deleted view are dropped, not crashed on
+
+
+def test_a_failing_tile_read_is_reported_and_the_overview_stays(qtbot, view):
+    from prismstation.errors import RasterReadError
+
+    def broken(*key):
+        raise RasterReadError(f"{view.source.path}: tile {key} is corrupt")
+
+    view.source.read_tile = broken
+    with qtbot.waitSignal(view.read_failed, timeout=3000) as sig:
+        view.center_on(1500, 1000, scale=0.5)
+    assert "pattern_u8.tif" in sig.args[0]
+    assert view._coarse_item.isVisible() and not view.tiles_complete()

@@ -141,3 +141,18 @@ def test_integer_statistics_match_numpy(dtype, top):
         np.testing.assert_allclose(edges, ref_edges)
         np.testing.assert_array_equal(hist, ref_hist)
         assert (lo, hi) == (v.min(), v.max())
+
+
+def test_window_outside_the_image_is_a_clear_error(pattern_tif):
+    src = RasterSource(pattern_tif)
+    with pytest.raises(RasterReadError, match="pattern_u8.tif.*outside"):
+        src.read((W + 10, 0, 100, 100))
+
+
+def test_build_overviews_internal(plain_tif):
+    src = RasterSource(plain_tif)
+    assert src.build_overviews(factors=[2, 4], external=False) is True
+    assert not (plain_tif.parent / "plain.tif.ovr").exists()
+    assert src.levels == (1, 2, 4)
+    with rasterio.open(plain_tif, overview_level=0) as ov:
+        assert (ov.width, ov.height) == (W // 2, H // 2)

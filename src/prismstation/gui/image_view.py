@@ -58,6 +58,9 @@ class ImageView(QWidget):
         A new source (or None) was set; geometry is known, levels may follow.
     source_ready()
         The coarse overview of the new source is shown; levels and statistics are known.
+    read_failed(message)
+        A tile (or the coarse overview) could not be read; the message names the file. The
+        view keeps showing what it has.
     """
 
     sync_coarse_pixels = 40_000_000
@@ -70,6 +73,7 @@ class ImageView(QWidget):
     tiles_settled = Signal()
     source_changed = Signal()
     source_ready = Signal()
+    read_failed = Signal(str)
 
     def __init__(self, parent=None, threads: int = 2):
         super().__init__(parent)
@@ -117,6 +121,7 @@ class ImageView(QWidget):
             return
         self.loader = TileLoader(source, self._threads, owner=self)
         self.loader.tile_loaded.connect(self._on_tile_loaded)
+        self.loader.tile_failed.connect(self._on_tile_failed)
         w, h = source.width, source.height
         self.vb.setLimits(xMin=-w, xMax=2 * w, yMin=-h, yMax=2 * h, minXRange=4, minYRange=4)
         self.fit()
@@ -146,6 +151,7 @@ class ImageView(QWidget):
     def _clear(self) -> None:
         if self.loader is not None:
             self.loader.tile_loaded.disconnect(self._on_tile_loaded)
+            self.loader.tile_failed.disconnect(self._on_tile_failed)
             self.loader.shutdown()
             self.loader = None
         for item in self._tiles.values():
@@ -304,6 +310,9 @@ class ImageView(QWidget):
         elif source is self.source:
             self._arrived.append((key, arr))
             self._drain_timer.start()
+
+    def _on_tile_failed(self, key, message: str) -> None:
+        self.read_failed.emit(message)
 
     def _drain_arrived(self) -> None:
         """Show delivered tiles for at most TILE_BUDGET_S, then yield to the event loop."""
