@@ -292,7 +292,8 @@ class PlotsWidget(QWidget):
         p = self.plots
         for name in ("height", "height_minus_theory"):
             pi = p[name].getPlotItem()
-            pi.addLegend(offset=(8, 8), labelTextSize="8pt", labelTextColor=(30, 30, 30))
+            pi.addLegend(offset=(8, 8), labelTextSize="8pt", labelTextColor=(30, 30, 30),
+                         brush=(255, 255, 255, 210))
             pi.setLabel("bottom", "F−B parallax", units="px")
         p["height"].setLabel("left", "h (ellipsoidal)", units="m")
         p["height_minus_theory"].setLabel("left", "h − c1ₜₕ·py", units="m")
@@ -314,7 +315,8 @@ class PlotsWidget(QWidget):
         pv.setAspectLocked(True)
         pv.setLabel("bottom", "x (column)", units="px")
         pv.setLabel("left", "y (row)", units="px")
-        pv.addLegend(offset=(8, 8), labelTextSize="8pt", labelTextColor=(30, 30, 30))
+        pv.addLegend(offset=(8, 8), labelTextSize="8pt", labelTextColor=(30, 30, 30),
+                         brush=(255, 255, 255, 210))
         self.v_gcp_seg = pv.plot([], [], pen=pg.mkPen(GCP_COLOR, width=2), connect="pairs")
         self.v_icp_seg = pv.plot([], [], pen=pg.mkPen(ICP_COLOR, width=2), connect="pairs")
         self.v_gcp = self._scatter(p["vectors"], GCP_COLOR, "o", "GCP", size=6)
@@ -334,10 +336,10 @@ class PlotsWidget(QWidget):
         self.blunder_label = pg.TextItem("", color=BLUNDER_COLOR, anchor=(0.5, 1.2))
         ps.addItem(self.blunder_label)
         self.critical_lines = []
-        for _ in range(2):
+        for pos in (0.22, 0.62):  # labels apart: the two values are often close
             line = pg.InfiniteLine(0.0, angle=0, pen=pg.mkPen((120, 120, 120), width=1,
                                                              style=Qt.PenStyle.DotLine),
-                                   label="", labelOpts={"position": 0.3, "color": (90, 90, 90)})
+                                   label="", labelOpts={"position": pos, "color": (90, 90, 90)})
             line.setVisible(False)
             ps.addItem(line)
             self.critical_lines.append(line)
