@@ -157,3 +157,13 @@ def test_a_failing_tile_read_is_reported_and_the_overview_stays(qtbot, view):
         view.center_on(1500, 1000, scale=0.5)
     assert "pattern_u8.tif" in sig.args[0]
     assert view._coarse_item.isVisible() and not view.tiles_complete()
+
+
+def test_tiles_around_the_view_are_read_ahead(qtbot, view):
+    view.center_on(1400, 1000, scale=1.0)  # 600 x 400 image px visible: x 1100..1700
+    qtbot.waitUntil(lambda: view.current_level() == 1 and view.tiles_complete(), timeout=5000)
+    shown = set(view.displayed_tiles())
+    behind = (1, 1, 1)  # x 512..1024: not visible, but within half a view of it
+    assert (1, 2, 1) in shown and behind not in shown
+    qtbot.waitUntil(lambda: behind in view.source.cache, timeout=5000)
+    assert (1, 5, 3) not in view.source.cache  # far away: not read

@@ -66,6 +66,9 @@ class ImageView(QWidget):
     sync_coarse_pixels = 40_000_000
     """Files without overviews larger than this (pixels) get their coarse read in a worker."""
 
+    prefetch_margin = 0.5
+    """Tiles within this fraction of the view size around it are read ahead into the cache."""
+
     cursor_moved = Signal(float, float)
     clicked = Signal(float, float, object)
     view_changed = Signal()
@@ -285,7 +288,11 @@ class ImageView(QWidget):
         self._coarse_item.setVisible(bool(missing))
         if not missing:
             self._settled()
-        self.loader.request(missing)
+        m = self.prefetch_margin
+        ring = [k for k in tiles_for_rect(src, level, (x - m * w, y - m * h, (1 + 2 * m) * w,
+                                                       (1 + 2 * m) * h))
+                if k not in wanted and k not in src.cache]
+        self.loader.request(missing + ring)  # visible first; the ring only fills the cache
 
     def _intersects(self, key) -> bool:
         x, y, w, h = self.source.tile_rect(*key)
