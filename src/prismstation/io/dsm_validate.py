@@ -83,8 +83,6 @@ def resample_to_grid(path, grid: DemGrid, *, resampling: str = "bilinear",
 def undulation_on_grid(geoid, grid: DemGrid, max_samples: int = 256) -> np.ndarray:
     """Geoid undulation (m) at every cell centre of ``grid``: exact on a coarse lattice of at
     most ``max_samples`` per axis, bilinear in between (geoids vary over kilometres)."""
-    from scipy.interpolate import RegularGridInterpolator
-
     rows, cols = grid.shape
     exact = rows * cols <= max_samples ** 2 or rows < 2 or cols < 2
     r = np.arange(rows) if exact else np.unique(np.linspace(0, rows - 1, max_samples).round())
@@ -96,9 +94,13 @@ def undulation_on_grid(geoid, grid: DemGrid, max_samples: int = 256) -> np.ndarr
     u = np.asarray(geoid.undulation(e, n, grid.crs), float).reshape(cc.shape)
     if exact:
         return u
-    f = RegularGridInterpolator((r, c), u)
-    R, C = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
-    return f(np.stack([R.ravel(), C.ravel()], axis=1)).reshape(grid.shape)
+    if np.all(u == u.flat[0]):                    # a constant geoid
+        return np.full(grid.shape, u.flat[0])
+    # separable bilinear interpolation in cell-index space: along columns, then along rows
+    along = np.stack([np.interp(np.arange(cols), c, row) for row in u])      # (len(r), cols)
+    i = np.clip(np.searchsorted(r, np.arange(rows), side="right") - 1, 0, len(r) - 2)
+    t = ((np.arange(rows) - r[i]) / (r[i + 1] - r[i]))[:, None]
+    return (1 - t) * along[i] + t * along[i + 1]
 
 
 def validate_dsm_files(dsm_path, reference_path, *, dsm_height: str = "ellipsoidal",
