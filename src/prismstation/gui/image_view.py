@@ -172,10 +172,14 @@ class ImageView(QWidget):
         super().closeEvent(ev)
 
     # ------------------------------------------------------------------ geometry
+    def _screen_size(self) -> tuple[float, float]:
+        """Size of the image area in screen pixels (a default before the first layout)."""
+        w, h = self.vb.width(), self.vb.height()
+        return (float(w), float(h)) if w > 0 and h > 0 else (640.0, 480.0)
+
     def scale(self) -> float:
         """Image pixels per screen pixel (>1 zoomed out, <1 zoomed in)."""
-        w = self.vb.width()
-        return float(self.vb.viewRect().width() / w) if w > 0 else 1.0
+        return float(self.vb.viewRect().width() / self._screen_size()[0])
 
     def visible_rect(self) -> tuple[float, float, float, float]:
         """Visible area ``(x, y, w, h)`` in image pixels (may extend beyond the image)."""
@@ -190,7 +194,8 @@ class ImageView(QWidget):
     def center_on(self, x: float, y: float, scale: float | None = None) -> None:
         """Centre the view on image point ``(x, y)``, optionally at ``scale`` (image px/screen px)."""
         s = self.scale() if scale is None else float(scale)
-        hw, hh = self.vb.width() * s / 2, self.vb.height() * s / 2
+        sw, sh = self._screen_size()
+        hw, hh = sw * s / 2, sh * s / 2
         self.vb.setRange(xRange=(x - hw, x + hw), yRange=(y - hh, y + hh), padding=0)
 
     def set_scale(self, pixels_per_screen_pixel: float) -> None:
