@@ -97,14 +97,14 @@ def test_update_reuses_items_and_is_fast(widget, qtbot):
     items = {n: list(pw.getPlotItem().items) for n, pw in widget.plots.items()}
     times = []
     for k in range(12):
-        t = time.perf_counter()
+        t = time.process_time()  # CPU time: a loaded CI machine does not inflate it
         widget.set_solution(sols[k % 2])
         widget.repaint()
-        times.append(time.perf_counter() - t)
+        times.append(time.process_time() - t)
     assert {n: list(pw.getPlotItem().items) for n, pw in widget.plots.items()} == items
     assert len(_xy(widget.h_icp)[0]) == 160
-    # the target is a few ms; the bound leaves room for a loaded CI machine
-    assert np.median(times) < 0.05, times
+    # the target is a few ms (benchmarks/bench_plots.py); the bound only catches gross slowness
+    assert np.median(times) < 0.1, times
 
 
 def test_empty_solution_clears(widget, fitted):
