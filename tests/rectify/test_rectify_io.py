@@ -251,3 +251,34 @@ def test_real_pleiades_crop_against_gdal_rpc_warp(shared_data, tmp_path):
     diff = ours[both].astype(float) - ref[both]
     spread = img.astype(float).std()
     assert abs(diff.mean()) < 0.01 * spread and np.abs(diff).mean() < 0.03 * spread
+
+
+def test_rectify_command_on_a_georeferenced_real_raster_reproduces_it(shared_data, tmp_path, capsys):
+    """GCPs from the SRTM UTM tile's own geotransform: the affine rectification at the same
+    resolution (CRS taken from the image) gives back the tile cell for cell."""
+    path = shared_data / "srtm" / "N44E005_UTM.tif"
+    with rasterio.open(path) as ds:
+        geo, data, shape = ds.transform, ds.read(1), ds.shape
+    rng = np.random.default_rng(7)
+    xy = rng.uniform(0, 1, (8, 2)) * [shape[1], shape[0]]
+    e, n = _apply(geo, xy[:, 0], xy[:, 1])
+    pts = tmp_path / "p.csv"
+    pts.write_text("id,E,N,x,y\n" + "".join(f"P{i},{float(a)!r},{float(b)!r},{float(x)!r},{float(y)!r}\n"
+                                            for i, (a, b, (x, y)) in enumerate(zip(e, n, xy))))
+    rc = main(["rectify", str(path), str(pts), "--transform", "affine", "-o", str(tmp_path / "o.tif"),
+               "--resolution", "90", "--resampling", "nearest"])
+    assert rc == 0 and "affine" in capsys.readouterr().out
+    out, ogeo, crs = _read(tmp_path / "o.tif")
+    assert crs.to_epsg() == 32631
+    # the output grid is snapped to multiples of 90 m: output cell centres fall at a fixed
+    # fraction of an input cell, and nearest resampling picks input cell (i + r0, j + c0)
+    dc, dr = (ogeo.c - geo.c) / 90.0, (geo.f - ogeo.f) / 90.0
+    assert ogeo.c % 90 == pytest.approx(0, abs=1e-6) or ogeo.c % 90 == pytest.approx(90)
+    c0, r0 = int(np.floor(dc + 0.5)), int(np.floor(dr + 0.5))
+    # output cell (i, j) is input cell (i + r0, j + c0)
+    h = min(out.shape[0], shape[0] - r0) - max(0, -r0)
+    w = min(out.shape[1], shape[1] - c0) - max(0, -c0)
+    a = out[max(0, -r0):max(0, -r0) + h, max(0, -c0):max(0, -c0) + w]
+    b = data[max(0, r0):max(0, r0) + h, max(0, c0):max(0, c0) + w]
+    valid = (a != 0) & (b != 0)
+    assert valid.mean() > 0.8 and np.array_equal(a[valid], b[valid])
