@@ -151,3 +151,22 @@ def test_cli_report_pdf_and_html_from_the_dict_alone(tmp_path, capsys):
     assert (tmp_path / "r.pdf").read_bytes()[:5] == b"%PDF-"
     rep = json.loads((tmp_path / "r.json").read_text())
     check_tables(parse((tmp_path / "r.html").read_text(encoding="utf-8")).tables, rep)
+
+
+def test_single_view_and_empty_reports(tmp_path, qtbot):
+    from dataclasses import replace
+    from prismstation.core.scene import Scene
+    from prismstation.core.solve import solve
+    from tests.core.synth import make_points, make_scene
+    sc = make_scene()
+    single = Scene(sc.crs, sc.satellite_altitude_m, sc.track, {"N": sc.views["N"]})
+    pts = [replace(p, image={"N": p.image["N"]}) for p in make_points(sc, n_gcp=6, n_icp=5)]
+    rep = report_dict(solve(single, pts))
+    page = parse(report_html(rep))
+    assert "table2" not in page.tables and "parallax" not in page.tables
+    assert len(page.tables["points"]) == 1 + 11
+    empty = report_dict(solve(sc, []))
+    write_document(empty, tmp_path / "e.html")
+    page = parse((tmp_path / "e.html").read_text(encoding="utf-8"))
+    assert page.tables["table1"][1] == ["n", "0", "0", "0", "0"] and len(page.tables["points"]) == 1
+    assert "no GCP measured" in (tmp_path / "e.html").read_text(encoding="utf-8")
