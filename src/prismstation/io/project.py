@@ -13,6 +13,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from prismstation import __version__
+from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
 from prismstation.core.solve import Settings, Solution, solve
 from prismstation.errors import InputError
 from prismstation.io import geoid as geoid_mod
@@ -92,11 +93,8 @@ def load_project(path, *, scene_override=None) -> Project:
         raise InputError(f"scene file not found: {scene_path} (moved? open it with the scene relocated)",
                          path, line_of(text, "scene"))
     scene = read_scene(scene_path)
-    try:
-        settings = Settings(**data.get("settings", {}))
-    except TypeError as exc:
-        raise InputError(f'"settings": {exc}', path, line_of(text, "settings")) from None
-    project = Project(scene, str(scene_path), settings=settings, geoid=data.get("geoid"))
+    settings = _settings(data.get("settings", {}), path, text)
+    project = Project(scene, str(scene_path), settings=settings, geoid=_geoid(data.get("geoid"), path, text))
     points, measurements = [], []
     for i, d in enumerate(_list(data, "points", path, text)):
         where = f'"points"[{i}]'
@@ -106,6 +104,11 @@ def load_project(path, *, scene_override=None) -> Project:
             if kind not in KINDS or hk not in HEIGHT_KINDS or not isinstance(d["id"], str):
                 raise ValueError("bad kind, height or id")
             vals = [math.nan if d.get(k) is None else float(d[k]) for k in ("E", "N", "H")]
+            for k in ("sigma_xy_m", "sigma_h_m"):
+                if d.get(k) is not None and not _number(d[k], minimum=0.0):
+                    raise ValueError(f"{k} must be a number ≥ 0")
+            if not isinstance(d.get("extra", {}), dict):
+                raise ValueError("extra must be an object")
             p = GroundPoint(d["id"], *vals, height_kind=hk, kind=kind,
                             sigma_xy_m=d.get("sigma_xy_m"), sigma_h_m=d.get("sigma_h_m"),
                             extra=d.get("extra", {}))
@@ -120,6 +123,8 @@ def load_project(path, *, scene_override=None) -> Project:
                             None if d.get("sigma_px") is None else float(d["sigma_px"]))
             if not (math.isfinite(m.x) and math.isfinite(m.y)):
                 raise ValueError("non-finite coordinates")
+            if m.sigma_px is not None and not _number(m.sigma_px, minimum=0.0, strict=True):
+                raise ValueError("sigma_px must be a positive number")
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise InputError(f'"measurements"[{i}]: malformed measurement ({exc})', path,
                              _line_of_id(text, d)) from None
@@ -132,6 +137,52 @@ def load_project(path, *, scene_override=None) -> Project:
     project.extra = {k: v for k, v in data.items() if k not in known}
     project.revision = 0
     return project
+
+
+def _number(v, minimum=None, strict=False) -> bool:
+    """``v`` is a finite number (not a bool), above ``minimum`` when given."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        return False
+    return minimum is None or (v > minimum if strict else v >= minimum)
+
+
+def _settings(raw, path, text) -> Settings:
+    """The model settings of a project, each checked (a wrong type would fail in the fit)."""
+    line = line_of(text, "settings")
+    if not isinstance(raw, dict):
+        raise InputError('"settings": expected an object', path, line)
+    try:
+        s = Settings(**raw)
+    except TypeError as exc:
+        raise InputError(f'"settings": {exc}', path, line) from None
+    checks = {"bias_model": (isinstance(s.bias_model, str) and s.bias_model in BIAS_MODELS,
+                             f"one of {', '.join(BIAS_MODELS)}"),
+              "parallax_model": (isinstance(s.parallax_model, str) and s.parallax_model in PARALLAX_MODELS,
+                                 f"one of {', '.join(PARALLAX_MODELS)}"),
+              "sigma_px": (_number(s.sigma_px, 0.0, strict=True), "a positive number"),
+              "blunder_threshold": (_number(s.blunder_threshold, 0.0, strict=True), "a positive number"),
+              "mean_height": (s.mean_height is None or _number(s.mean_height), "a number or null"),
+              "orientation": (getattr(s, "orientation", "gcp") in ("gcp", "dem"), '"gcp" or "dem"')}
+    for key, (ok, want) in checks.items():
+        if not ok:
+            raise InputError(f'"settings.{key}": expected {want}, found {getattr(s, key)!r}', path,
+                             line_of(text, key) or line)
+    return s
+
+
+def _geoid(g, path, text):
+    """The geoid setting: null, or {"kind": "constant"|"auto", "value": m} or {"kind": "grid", "path": ...}."""
+    if g is None:
+        return None
+    ok = isinstance(g, dict) and g.get("kind") in ("constant", "auto", "grid")
+    if ok and g["kind"] == "grid":
+        ok = isinstance(g.get("path"), str) and bool(g["path"])
+    elif ok:
+        ok = g.get("value") is None or _number(g["value"])
+    if not ok:
+        raise InputError(f'"geoid": expected {{"kind": "constant", "value": metres}}, {{"kind": "auto"}} '
+                         f'or {{"kind": "grid", "path": file}}, found {g!r}', path, line_of(text, "geoid"))
+    return g
 
 
 def _list(data, key, path, text) -> list:
