@@ -201,6 +201,21 @@ def main(argv=None) -> int:
         frame(views)
         settle()
     rss_long = rss_mb()
+
+    # ---- loupe: one cursor move = one small full-resolution read (or cached tiles) + paint
+    from prismstation.gui.loupe import Loupe
+
+    loupe = Loupe(zoom=8, pixels=25)
+    loupe.attach(views[0])
+    loupe.show()
+    loupe_t = []
+    for j in range(100):
+        x, y = rng.uniform(0, WIDTH), rng.uniform(0, HEIGHT)
+        t = time.perf_counter()
+        views[0].cursor_moved.emit(x, y)
+        loupe.repaint()
+        loupe_t.append(time.perf_counter() - t)
+
     cache_long = sum(v.source.cache.nbytes for v in views) / 2**20
 
     print("prismstation ImageView benchmark: 3 x %d x %d uint8 GeoTIFF (tiled 512, deflate, "
@@ -224,6 +239,8 @@ def main(argv=None) -> int:
           f"{pct(cpu_drive, 50):5.1f} / {pct(cpu_drive, 95):4.1f} ms")
     print(f"{'drive-to, 3 views: until full-res tiles shown':46s} "
           f"{np.median(jumps) * 1000:9.0f} ms   (median of {len(jumps)})")
+    print(f"{'loupe update at a random place (uncached)':46s} "
+          f"{pct(loupe_t, 50):5.1f} / {pct(loupe_t, 95):4.1f} ms (median / p95)")
     print(f"{'resident memory (VmRSS), three views open':46s} {rss:9.0f} MB   <= 500 MB")
     print(f"{'  of which before opening (Qt, numpy, ...)':46s} {rss0:9.0f} MB")
     print(f"{'  tile caches (3 sources)':46s} {cache:9.0f} MB")
