@@ -156,3 +156,14 @@ def test_build_overviews_internal(plain_tif):
     assert src.levels == (1, 2, 4)
     with rasterio.open(plain_tif, overview_level=0) as ov:
         assert (ov.width, ov.height) == (W // 2, H // 2)
+
+
+def test_build_overviews_refuses_a_read_only_folder(plain_tif):
+    folder = plain_tif.parent
+    folder.chmod(0o555)
+    try:
+        with pytest.raises(RasterReadError, match="plain.tif.*read-only"):
+            RasterSource(plain_tif).build_overviews()
+        assert not (folder / "plain.tif.ovr").exists()
+    finally:
+        folder.chmod(0o755)

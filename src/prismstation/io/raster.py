@@ -100,6 +100,15 @@ def _integer_statistics(vals: np.ndarray, percentiles, bins: int):
     return pct, lo, hi, hist, edges
 
 
+def _writable(path: Path) -> bool:
+    """Writable by its mode bits too: root passes ``os.access``, but a file or folder marked
+    read-only (shared test data, a mounted archive) must stay untouched."""
+    try:
+        return os.access(path, os.W_OK) and bool(path.stat().st_mode & 0o222)
+    except OSError:
+        return False
+
+
 class _TileCache:
     """Thread-safe LRU cache of arrays, bounded by their total size in bytes."""
 
@@ -416,6 +425,11 @@ class RasterSource:
         -------
         bool
             True when complete, False when cancelled.
+
+        Raises
+        ------
+        RasterReadError
+            The folder (external) or the file (internal) is read-only, or GDAL failed.
         """
         if factors is None:
             factors, f = [], 2
@@ -425,6 +439,10 @@ class RasterSource:
             factors = factors or [2]
         ovr = Path(str(self.path) + ".ovr")
         had_ovr = ovr.exists()
+        target = (self.path.parent if external and not had_ovr else
+                  ovr if external else self.path)
+        if not _writable(target):
+            raise RasterReadError(f"{self.path}: cannot build overviews, {target} is read-only")
         env = rasterio.Env(TIFF_USE_OVR=True) if external else rasterio.Env()
         n = len(factors)
         try:
