@@ -161,3 +161,16 @@ def test_pure_helpers():
     assert guess_delimiter(["a\tb", "1\t2"]) == "\t"
     m = guess_mapping(["Point", "X", "Y", "Z", "height"], GROUND_FIELDS)
     assert m == {"id": "Point", "E": "X", "N": "Y", "H": "Z", "height": "height"}
+
+
+def test_content_guessed_from_the_header(dialog, tmp_path):
+    src = tmp_path / "obs.tsv"
+    src.write_text("pt\tcol\trow\nA1\t10.5\t20.25\n")
+    dialog.set_path(src)
+    assert dialog.what.currentData() == "measurements" and "'\\t'" in dialog.format_label.text()
+    assert dialog.result()[1] == [Measurement("A1", "N", 10.5, 20.25)]
+    src = tmp_path / "gp.csv"
+    src.write_text("id,x,y,z\nA1,540000,4560000,100\n")
+    dialog.set_path(src)
+    assert dialog.what.currentData() == "points"
+    assert dialog.result()[0] == [GroundPoint("A1", 540000.0, 4560000.0, 100.0)]

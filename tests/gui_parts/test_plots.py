@@ -120,3 +120,14 @@ def test_point_clicked_signal(widget, fitted, qtbot):
     with qtbot.waitSignal(widget.point_clicked, timeout=1000) as sig:
         widget.std_pts.scatter.sigClicked.emit(widget.std_pts.scatter, [spots[2]], None)
     assert sig.args == [spots[2].data()]
+
+
+def test_tabs_layout_and_report_images(qtbot, fitted):
+    w = PlotsWidget(tabs=True)
+    qtbot.addWidget(w)
+    w.set_solution(fitted[2])
+    assert w.tabs.count() == 4 and w.tabs.widget(2) is w.plots["vectors"]
+    images = w.render_images((320, 200))
+    assert sorted(images) == sorted(w.plots)
+    assert all(im.width() == 320 and im.height() == 200 for im in images.values())
+    assert len(_xy(w.h_gcp)[0]) == 12  # the widget itself is untouched by the rendering

@@ -223,11 +223,12 @@ class ImportDialog(QDialog):
             lines = self._text.splitlines()
             d = guess_delimiter(lines)
             self.format_label.setText(f"CSV, delimiter {d!r} guessed")
-            header = next((ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")), "")
-            cols = {c.strip().lower() for c in header.replace(d, ",").split(",")} if d != " " \
-                else {c.lower() for c in header.split()}
+            _, cols, _ = split_lines(self._text, d, True)
+            # the content whose required fields the header names best (ties: ground points)
+            n_req = [sum(f in guess_mapping(cols, fields) for f, req in fields if req)
+                     for fields in (GROUND_FIELDS, MEASUREMENT_FIELDS)]
             self.what.blockSignals(True)
-            self.what.setCurrentIndex(1 if {"view", "x", "y"} <= cols else 0)
+            self.what.setCurrentIndex(1 if n_req[1] > n_req[0] else 0)
             self.what.blockSignals(False)
         self._rebuild_columns()
 

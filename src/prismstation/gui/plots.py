@@ -21,9 +21,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt, Signal
-from PySide6.QtGui import QImage
+from PySide6.QtGui import QFont, QImage
 from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QGridLayout, QHBoxLayout, QLabel,
-                               QVBoxLayout, QWidget)
+                               QTabWidget, QVBoxLayout, QWidget)
 
 GCP_COLOR = (31, 100, 200)
 ICP_COLOR = (230, 120, 20)
@@ -37,6 +37,9 @@ PLOT_TITLES = {
     "vectors": "Residual vectors, view {view}",
     "std_residuals": "Standardised residuals of the GCPs",
 }
+
+TAB_NAMES = {"height": "h vs parallax", "height_minus_theory": "h − theory",
+             "vectors": "Residual vectors", "std_residuals": "Std. residuals"}
 
 
 def _arr(values) -> np.ndarray:
@@ -227,6 +230,8 @@ class PlotsWidget(QWidget):
     parent : QWidget, optional
     grid : bool
         Draw grid lines (off by default: they dominate the repaint time).
+    tabs : bool
+        One tab per plot instead of a 2 × 2 grid (only the visible plot repaints).
 
     Signals
     -------
@@ -235,7 +240,7 @@ class PlotsWidget(QWidget):
 
     point_clicked = Signal(str)
 
-    def __init__(self, parent=None, *, grid: bool = False):
+    def __init__(self, parent=None, *, grid: bool = False, tabs: bool = False):
         super().__init__(parent)
         self._data = PlotData()
         self._exaggeration = 100.0
@@ -243,13 +248,17 @@ class PlotsWidget(QWidget):
         cells = QGridLayout()
         cells.setContentsMargins(0, 0, 0, 0)
         cells.setSpacing(2)
+        self.tabs = QTabWidget() if tabs else None
         for i, name in enumerate(PLOT_NAMES):
             pw = pg.PlotWidget(background="w")
             if grid:  # pyqtgraph's grid costs ~10 ms a repaint per axis: reports only
                 pw.getPlotItem().showGrid(x=True, y=True, alpha=0.25)
             pw.setMinimumSize(160, 120)
             self.plots[name] = pw
-            cells.addWidget(pw, i // 2, i % 2)
+            if self.tabs is not None:
+                self.tabs.addTab(pw, TAB_NAMES[name])
+            else:
+                cells.addWidget(pw, i // 2, i % 2)
             # ranges are set from the data in one step (auto-range would paint twice); a
             # plot the operator zoomed keeps its range until the "A" button is clicked
             vb = pw.getPlotItem().getViewBox()
@@ -277,7 +286,10 @@ class PlotsWidget(QWidget):
         bar.addWidget(self.summary)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(0, 0, 0, 0)
-        lay.addLayout(cells, 1)
+        if self.tabs is not None:
+            lay.addWidget(self.tabs, 1)
+        else:
+            lay.addLayout(cells, 1)
         lay.addLayout(bar)
 
     # ------------------------------------------------------------------ construction
@@ -460,8 +472,16 @@ class PlotsWidget(QWidget):
             tmp.set_plot_data(self._data)
             for name in tmp._titles:
                 tmp.plots[name].setTitle(tmp._titles[name], size="12pt", color=(30, 30, 30))
-            bar = tmp.summary.sizeHint().height() + 8
-            tmp.resize(2 * size[0] + 2, 2 * size[1] + 2 + bar)
+            font = QFont()
+            font.setPointSizeF(10.5)
+            for pw in tmp.plots.values():
+                pw.setFixedSize(int(size[0]), int(size[1]))
+                for side, extent in (("left", 74), ("bottom", 46)):
+                    axis = pw.getPlotItem().getAxis(side)
+                    axis.setTickFont(font)
+                    axis.label.setFont(font)
+                    axis.setWidth(extent) if side == "left" else axis.setHeight(extent)
+            tmp.adjustSize()
             tmp.show()
             QApplication.processEvents()
             return {name: pw.grab().toImage().convertToFormat(QImage.Format.Format_RGB32)
