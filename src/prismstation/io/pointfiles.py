@@ -391,8 +391,9 @@ def read_asp_gcp(path) -> PointFile:
         seen.add(pid)
         lat, lon, h, s_lat, s_lon, s_h = (_float(c, w, path, no) for c, w in zip(
             cells[1:7], ("latitude", "longitude", "height", "sigma", "sigma", "sigma")))
-        if not -90 <= lat <= 90:
-            raise InputError(f"latitude {lat} is outside [-90, 90]", path, no)
+        for what, v, lim in (("latitude", lat, (-90, 90)), ("longitude", lon, (-180, 360))):
+            if not lim[0] <= v <= lim[1]:
+                raise InputError(f"{what} {v} is outside [{lim[0]}, {lim[1]}]", path, no)
         points.append(GroundPoint(pid, lon, lat, h, height_kind="ellipsoidal",
                                   sigma_xy_m=max(s_lat, s_lon), sigma_h_m=s_h,
                                   extra={"sigma_lat": s_lat, "sigma_lon": s_lon}))
