@@ -11,6 +11,7 @@ import csv
 import io
 from dataclasses import replace
 
+from prismstation.errors import InputError
 from prismstation.io import pointfiles as pfm
 
 
@@ -51,7 +52,11 @@ def run(args) -> int:
         pfm.parse_crs(args.crs)
         pf = replace(pf, crs=args.crs, header=None)
     if args.to_crs:
-        pf = pfm.convert_point_file(pf, args.to_crs)
+        pfm.parse_crs(args.to_crs)
+        try:
+            pf = pfm.convert_point_file(pf, args.to_crs)
+        except InputError as exc:  # a point of IN that cannot be converted: name IN
+            raise InputError(exc.problem, exc.file or args.input, exc.line) from None
     pfm.write_point_file(pf, args.output, args.fmt_out, view=args.view)
     if args.measurements:
         with open(args.measurements, "w", encoding="utf-8", newline="") as fh:
