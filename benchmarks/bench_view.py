@@ -103,6 +103,9 @@ def main(argv=None) -> int:
         return 0
     paths = ensure_images(args.dir)
 
+    from PySide6.QtCore import QPoint, QPointF, Qt
+    from PySide6.QtGui import QWheelEvent
+    from PySide6.QtTest import QTest
     from PySide6.QtWidgets import QApplication, QSplitter
 
     from prismstation.gui.image_view import ImageView
@@ -130,10 +133,19 @@ def main(argv=None) -> int:
 
     cpu: list = []
 
-    def frame(active) -> float:
-        """GUI-thread time of one event-loop turn: pending events (the range change, tile
-        deliveries) and the one paint of each view they scheduled."""
+    def wheel(vp, pos, delta) -> None:
+        QApplication.sendEvent(vp, QWheelEvent(
+            QPointF(pos), QPointF(vp.mapToGlobal(pos)), QPoint(0, 0), QPoint(0, delta),
+            Qt.MouseButton.NoButton, Qt.KeyboardModifier.NoModifier,
+            Qt.ScrollPhase.NoScrollPhase, False))
+
+    def frame(active, event=None) -> float:
+        """GUI-thread time of one event-loop turn: the input event (a mouse move or wheel step,
+        delivered as Qt delivers it), pending events (tile deliveries) and the one paint of
+        each view they scheduled."""
         t, c = time.perf_counter(), time.thread_time()
+        if event is not None:
+            event()
         app.processEvents()
         dt = time.perf_counter() - t
         cpu.append(time.thread_time() - c)  # the GUI thread's own CPU: insensitive to load
@@ -151,6 +163,7 @@ def main(argv=None) -> int:
     # ---- scripted pans and zooms, one view at a time (the operator's hand is in one view)
     rng = np.random.default_rng(0)
     times, per_scale = [], {}
+    panned = 0.0  # screen pixels the drags moved the images, in all
     scales = [None, 16.0, 8.0, 4.0, 2.0, 1.0, 0.5, 0.25]  # None: fit (whole image)
     for k, s in enumerate(scales):
         v = views[k % 3]
@@ -159,17 +172,32 @@ def main(argv=None) -> int:
         else:
             v.center_on(rng.uniform(2000, WIDTH - 2000), rng.uniform(2000, HEIGHT - 2000), s)
         frame([v])
+        vp = v.graphics.viewport()
+        c = QPoint(vp.width() // 2, vp.height() // 2)
         dx, dy = rng.uniform(-1, 1, 2)
         step = 25.0  # screen pixels per frame: a brisk drag
         seg = []
-        for i in range(args.frames):  # pan
-            sc = v.scale()
-            v.vb.translateBy(x=dx * step * sc, y=dy * step * sc)
-            seg.append(frame([v]))
-        for i in range(args.frames // 2):  # zoom in, then out, about the centre (wheel steps)
-            f = 1.1 if i < args.frames // 4 else 1 / 1.1
-            v.vb.scaleBy((1 / f, 1 / f))
-            seg.append(frame([v]))
+        left, none = Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier
+        start = v.center()
+        QTest.mousePress(vp, left, none, c)
+        j = 0
+        for i in range(args.frames):  # pan: a left-button drag, one mouse move a frame
+            j += 1
+            p = c + QPoint(int(dx * step * j), int(dy * step * j))
+            if abs(p.x() - c.x()) > 250 or abs(p.y() - c.y()) > 250:  # re-grip at the centre
+                def regrip(p=p):
+                    QTest.mouseRelease(vp, left, none, p)
+                    QTest.mousePress(vp, left, none, c)
+                seg.append(frame([v], regrip))
+                j = 0
+                continue
+            seg.append(frame([v], lambda p=p: QTest.mouseMove(vp, p)))
+        QTest.mouseRelease(vp, left, none, p)
+        end = v.center()
+        panned += np.hypot(end[0] - start[0], end[1] - start[1]) / v.scale()
+        for i in range(args.frames // 2):  # zoom in, then out, under the mouse: wheel steps
+            delta = 120 if i < args.frames // 4 else -120
+            seg.append(frame([v], lambda d=delta: wheel(vp, c, d)))
         per_scale["fit" if s is None else f"{s:g}"] = seg
         times += seg
     cpu_pan = list(cpu)
@@ -230,6 +258,7 @@ def main(argv=None) -> int:
           f"{pct(cpu_pan, 50):5.1f} / {pct(cpu_pan, 95):4.1f} ms")
     print(f"{'machine load (1-min average, 2 cores here)':46s} {os.getloadavg()[0]:9.1f}")
     print(f"{'frames measured':46s} {len(times):12d}")
+    print(f"{'distance dragged (real mouse events), screen px':46s} {panned:12.0f}")
     for name, seg in per_scale.items():
         print(f"{'  scale ' + name + ' img px/screen px: median / p95':46s} "
               f"{pct(seg, 50):5.1f} / {pct(seg, 95):4.1f} ms")
