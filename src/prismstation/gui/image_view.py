@@ -265,7 +265,8 @@ class ImageView(QWidget):
         src = self.source
         if src is None or self._coarse_item is None or self.vb.width() <= 0:
             return
-        level = src.level_for(self.scale())
+        # image pixels per physical screen pixel (HiDPI screens have several per logical pixel)
+        level = src.level_for(self.scale() / self.graphics.viewport().devicePixelRatioF())
         _, coarse_f = src.coarse()
         if level >= coarse_f:  # the overview is as fine as the screen: no tiles
             self._level, self._wanted = 0, []
