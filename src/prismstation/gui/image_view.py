@@ -45,7 +45,7 @@ class ImageView(QWidget):
     Signals
     -------
     cursor_moved(x, y)
-        Image coordinates (pixels, continuous) under the mouse.
+        Image coordinates (pixels, continuous) under the mouse; may lie outside the image.
     clicked(x, y, modifiers)
         Left click (not a drag) at image coordinates; ``modifiers`` is a Qt.KeyboardModifier.
     view_changed()
