@@ -35,7 +35,7 @@ def product_writer(path: Path, size: int, geotransform, crs):
 
     ``geotransform`` is GDAL order (rotated terms allowed) or None for no georeferencing.
     """
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), rasterio.Env(GDAL_CACHEMAX=128):  # MB: bounded memory
         warnings.simplefilter("ignore", NotGeoreferencedWarning)
         with rasterio.open(path, "w", **_profile(size, size, "uint8", geotransform, crs)) as dst:
             def write(rows: np.ndarray, r0: int):
