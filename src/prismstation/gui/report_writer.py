@@ -268,15 +268,35 @@ def write_document(report: dict, path, figures: dict | None = None) -> None:
     if figures is None:
         figures = render_figures(report)
     if ext in (".html", ".htm"):
-        from prismstation.io.jsonfile import write_atomic
         srcs = {n: "data:image/png;base64," + base64.b64encode(_png_bytes(im)).decode("ascii")
                 for n, im in figures.items()}
-        write_atomic(path, report_html(report, srcs), keep_backup=False)
-        return
-    _write_pdf(report, path, figures)
+        text = report_html(report, srcs).encode("utf-8")
+        _atomic(path, lambda tmp: Path(tmp).write_bytes(text))
+    else:
+        _atomic(path, lambda tmp: _write_pdf(report, tmp, figures))
 
 
-def _write_pdf(report: dict, path: Path, figures: dict) -> None:
+def _atomic(path: Path, write) -> None:
+    """``write(tmp)`` a temporary file beside ``path``, then rename it onto ``path``
+    (permissions as a plain new file: 0666 less the umask)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        if os.path.getsize(tmp) == 0:
+            raise InputError("nothing was written (Qt wrote an empty file)", path)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _write_pdf(report: dict, path, figures: dict) -> None:
+    """Print the report's QTextDocument on an A4 ``QPdfWriter`` at ``path``."""
     from PySide6.QtCore import QMarginsF, QSizeF, QUrl
     from PySide6.QtGui import QPageLayout, QPageSize, QPdfWriter, QTextDocument
     doc = QTextDocument()
@@ -286,23 +306,13 @@ def _write_pdf(report: dict, path: Path, figures: dict) -> None:
         doc.addResource(QTextDocument.ResourceType.ImageResource, QUrl(url), im)
         srcs[name] = url
     doc.setHtml(report_html(report, srcs))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        writer = QPdfWriter(tmp)
-        writer.setTitle("prismstation residual report")
-        writer.setCreator(str(report.get("program") or "prismstation"))
-        writer.setPageLayout(QPageLayout(QPageSize(QPageSize.PageSizeId.A4),
-                                         QPageLayout.Orientation.Portrait,
-                                         QMarginsF(15, 15, 15, 15), QPageLayout.Unit.Millimeter))
-        writer.setResolution(96)  # lay out in CSS pixels; images keep their own pixels
-        doc.setPageSize(QSizeF(writer.width(), writer.height()))
-        doc.print_(writer)
-        del writer  # flushes and closes the file
-        if os.path.getsize(tmp) == 0:
-            raise InputError("Qt wrote an empty PDF", path)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    writer = QPdfWriter(str(path))
+    writer.setTitle("prismstation residual report")
+    writer.setCreator(str(report.get("program") or "prismstation"))
+    writer.setPageLayout(QPageLayout(QPageSize(QPageSize.PageSizeId.A4),
+                                     QPageLayout.Orientation.Portrait,
+                                     QMarginsF(15, 15, 15, 15), QPageLayout.Unit.Millimeter))
+    writer.setResolution(96)  # lay out in CSS pixels; images keep their own pixels
+    doc.setPageSize(QSizeF(writer.width(), writer.height()))
+    doc.print_(writer)
+    del writer  # flushes and closes the file
