@@ -27,53 +27,41 @@ CASES = {
 }
 
 
-@pytest.fixture(scope="module", params=list(CASES))
-def fitted(request, tmp_path_factory):
-    d = tmp_path_factory.mktemp(request.param)
-    simulate(d, size=1000, seed=7, noise_px=SIGMA, survey_sigma_xy=0.0, survey_sigma_h=0.0,
-             **CASES[request.param])
+def _rms(v):
+    return float(np.sqrt(np.mean(np.square(v))))
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_simulated_triplet_through_new_and_fit(case, tmp_path):
+    d = tmp_path
+    simulate(d, size=1000, seed=7, noise_px=SIGMA, survey_sigma_xy=0.0, survey_sigma_h=0.0, **CASES[case])
     proj = d / "p.prismproj"
     assert main(["new", str(proj), "--scene", str(d / "scene.json"), "--points", str(d / "points.csv"),
                  "--measurements", str(d / "measurements.csv")]) == 0
     assert main(["fit", str(proj), "--json", str(d / "fit.json")]) == 0
     report = json.loads((d / "fit.json").read_text())
     truth = {p["id"]: p for p in json.loads((d / "truth.json").read_text())["points"]}
-    return request.param, report, truth
 
-
-def _rms(v):
-    return float(np.sqrt(np.mean(np.square(v))))
-
-
-def test_icp_image_residuals_at_noise_floor(fitted):
-    name, report, _ = fitted
+    # image residuals of the ICPs in N: 41 ICPs, so the RMS scatters by ~11 %
     st = report["statistics"]["image"]["N"]["ICP"]["px"]
     assert st["x"]["n"] == 41
-    for c in "xy":  # 41 ICPs: the RMS itself scatters by ~11 %; allow model error of a few %
-        assert st[c]["rms"] < 1.35 * FLOOR_PX, (name, c, st[c]["rms"])
+    for c in "xy":
+        assert st[c]["rms"] < 1.35 * FLOOR_PX, (case, c, st[c]["rms"])
 
-
-def test_icp_ground_coordinates_against_truth(fitted):
-    name, report, truth = fitted
+    # ground coordinates of the ICPs against the simulator's truth
     icp = [p for p in report["points"] if p["kind"] == "ICP"]
     dE = [p["E_est"] - truth[p["id"]]["E"] for p in icp]
     dN = [p["N_est"] - truth[p["id"]]["N"] for p in icp]
     dh = [p["h_est"] - truth[p["id"]]["h"] for p in icp]
     floor_m = FLOOR_PX * 2.5
-    assert _rms(dE) < 1.35 * floor_m and _rms(dN) < 1.35 * floor_m, (name, _rms(dE), _rms(dN))
-    assert _rms(dh) < 1.4 * FLOOR_H, (name, _rms(dh))
-    assert abs(np.mean(dh)) < 0.8
+    assert _rms(dE) < 1.35 * floor_m and _rms(dN) < 1.35 * floor_m, (case, _rms(dE), _rms(dN))
+    assert _rms(dh) < 1.4 * FLOOR_H and abs(np.mean(dh)) < 0.8, (case, _rms(dh))
 
-
-def test_tie_points_located(fitted):
-    name, report, truth = fitted
+    # tie points: located by their parallax
     ties = [p for p in report["points"] if p["kind"] == "TIE"]
     assert len(ties) == 20 and all(p["height_source"] == "parallax" for p in ties)
-    dh = [p["h_est"] - truth[p["id"]]["h"] for p in ties]
-    assert _rms(dh) < 1.5 * FLOOR_H
+    assert _rms([p["h_est"] - truth[p["id"]]["h"] for p in ties]) < 1.5 * FLOOR_H
 
-
-def test_relative_orientation_shift_like_the_paper(fitted):
-    _, report, _ = fitted
+    # the relative orientation shift between F and N, like the paper's Table 2 (−4.0, sd 0.6)
     fn = report["statistics"]["F-N"]
-    assert fn["mean"] == pytest.approx(-4.0, abs=0.5) and fn["std"] < 1.0  # paper Table 2: −4.0, 0.6
+    assert fn["mean"] == pytest.approx(-4.0, abs=0.5) and fn["std"] < 1.0
