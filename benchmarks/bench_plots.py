@@ -43,22 +43,14 @@ def solutions(n_gcp, n_icp, seeds=(1, 2)):
     return out
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--screenshot")
-    ap.add_argument("--repeat", type=int, default=40)
-    args = ap.parse_args()
-    app = QApplication.instance() or QApplication([])
-    w = PlotsWidget()
-    w.resize(1200, 820)
-    w.show()
-    app.processEvents()
-    for n_gcp, n_icp in ((12, 41), (40, 160)):
+def time_updates(app, w, repeat, sizes):
+    """Print the median set_solution and set_solution + repaint times of ``w``."""
+    for n_gcp, n_icp in sizes:
         sols = solutions(n_gcp, n_icp)
         w.set_solution(sols[0])
         app.processEvents()
         t_set, t_all, c_set, c_all = [], [], [], []
-        for k in range(args.repeat):
+        for k in range(repeat):
             t0, c0 = time.perf_counter(), time.process_time()
             w.set_solution(sols[k % 2])
             t1, c1 = time.perf_counter(), time.process_time()
@@ -68,8 +60,25 @@ def main() -> None:
             t_set.append(t1 - t0)
             c_set.append(c1 - c0)
         ms = lambda v: f"{1e3 * np.median(v):.1f}"  # noqa: E731
-        print(f"{n_gcp + n_icp:4d} points: set_solution median {ms(t_set)} ms wall / {ms(c_set)} ms CPU; "
-              f"with repaint {ms(t_all)} ms wall / {ms(c_all)} ms CPU (median of {args.repeat})")
+        print(f"  {n_gcp + n_icp:4d} points: set_solution {ms(t_set)} ms wall / {ms(c_set)} ms CPU; "
+              f"with repaint {ms(t_all)} ms wall / {ms(c_all)} ms CPU (medians of {repeat})")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--screenshot")
+    ap.add_argument("--repeat", type=int, default=40)
+    args = ap.parse_args()
+    app = QApplication.instance() or QApplication([])
+    for tabs in (True, False):
+        w = PlotsWidget(tabs=tabs)
+        w.resize(1200, 820)
+        w.show()
+        app.processEvents()
+        print("tabs, one plot visible:" if tabs else "2 x 2 grid, 1200 x 820 px:")
+        time_updates(app, w, args.repeat, ((40, 160),) if tabs else ((12, 41), (40, 160)))
+        if tabs:
+            w.close()
     rep = report_dict(solutions(12, 41)[0], project_path="synthetic.prismproj")
     with tempfile.TemporaryDirectory() as tmp:
         for ext in ("html", "pdf"):

@@ -368,6 +368,9 @@ class PlotsWidget(QWidget):
             # fixed axis sizes: tick labels that change width would relayout and repaint again
             pw.getPlotItem().getAxis("left").setWidth(58)
             pw.getPlotItem().getAxis("bottom").setHeight(38)
+        for pw in p.values():  # our values are small: no re-plot on every range change
+            for item in pw.getPlotItem().listDataItems():
+                item.setDynamicRangeLimit(None)
         self._titles: dict = {}
         self._set_titles()
 
