@@ -19,7 +19,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt, QTimer, Signal
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
-from prismstation.gui.tiles import COARSE_KEY, TileLoader, tiles_for_rect
+from prismstation.gui.tiles import COARSE_KEY, TileLoader, tile_relay, tiles_for_rect
 from prismstation.io.raster import RasterSource
 
 _COARSE_Z = -100
@@ -104,6 +104,8 @@ class ImageView(QWidget):
         self._drain_timer.setInterval(0)
         self._drain_timer.timeout.connect(self._drain_arrived)
         self.vb.sigRangeChanged.connect(self._on_range_changed)
+        tile_relay().tile_loaded.connect(self._on_tile_loaded)
+        tile_relay().tile_failed.connect(self._on_tile_failed)
         self.graphics.scene().sigMouseMoved.connect(self._on_mouse_moved)
         self.graphics.scene().sigMouseClicked.connect(self._on_mouse_clicked)
 
@@ -123,8 +125,6 @@ class ImageView(QWidget):
             self.source_changed.emit()
             return
         self.loader = TileLoader(source, self._threads, owner=self)
-        self.loader.tile_loaded.connect(self._on_tile_loaded)
-        self.loader.tile_failed.connect(self._on_tile_failed)
         w, h = source.width, source.height
         self.vb.setLimits(xMin=-w, xMax=2 * w, yMin=-h, yMax=2 * h, minXRange=4, minYRange=4)
         self.fit()
@@ -153,8 +153,6 @@ class ImageView(QWidget):
 
     def _clear(self) -> None:
         if self.loader is not None:
-            self.loader.tile_loaded.disconnect(self._on_tile_loaded)
-            self.loader.tile_failed.disconnect(self._on_tile_failed)
             self.loader.shutdown()
             self.loader = None
         for item in self._tiles.values():
@@ -324,8 +322,9 @@ class ImageView(QWidget):
             self._arrived.append((key, arr))
             self._drain_timer.start()
 
-    def _on_tile_failed(self, key, message: str) -> None:
-        self.read_failed.emit(message)
+    def _on_tile_failed(self, source, key, message: str) -> None:
+        if source is self.source:
+            self.read_failed.emit(message)
 
     def _drain_arrived(self) -> None:
         """Show delivered tiles for at most TILE_BUDGET_S, then yield to the event loop."""

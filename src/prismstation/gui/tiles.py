@@ -49,12 +49,23 @@ def tiles_for_rect(source: RasterSource, level: int, rect_xywh) -> list[tuple[in
 
 
 class _Relay(QObject):
-    """Carries results from the workers to the GUI thread. It has no Qt parent and the workers
-    hold a reference to it, so it outlives them whatever happens to the view (a view deleted by
-    Qt is disconnected from it, and its queued deliveries are dropped)."""
+    """Carries results from the workers to the GUI thread. There is one for the process and it
+    is never deleted, so a worker never emits on a dead object whatever happens to the views
+    (a view deleted by Qt is disconnected, and deliveries queued for it are dropped)."""
 
-    tile_loaded = Signal(object, object, object)
-    tile_failed = Signal(object, str)
+    tile_loaded = Signal(object, object, object)  # source, key, array
+    tile_failed = Signal(object, object, str)  # source, key, message
+
+
+_RELAY: _Relay | None = None
+
+
+def tile_relay() -> _Relay:
+    """The process-wide relay of tile results (create it from the GUI thread first)."""
+    global _RELAY
+    if _RELAY is None:
+        _RELAY = _Relay()
+    return _RELAY
 
 
 class _Queue:
@@ -96,7 +107,7 @@ class _Queue:
                 if error is None:
                     self.relay.tile_loaded.emit(self.source, key, arr)
                 else:
-                    self.relay.tile_failed.emit(key, error)
+                    self.relay.tile_failed.emit(self.source, key, error)
         finally:
             self.source.release_thread()
 
@@ -110,19 +121,19 @@ class TileLoader:
     The workers end on :meth:`shutdown`, when ``owner`` (a QObject) is destroyed, or when the
     loader is garbage-collected.
 
-    Signals (attributes)
-    --------------------
+    Signals (attributes; the process-wide :func:`tile_relay`'s, so filter on ``source``)
+    ------------------------------------------------------------------------------------
     tile_loaded(source, key, array)
         A tile was read (emitted from a worker, delivered queued to the GUI thread).
-    tile_failed(key, message)
+    tile_failed(source, key, message)
     """
 
     def __init__(self, source: RasterSource, threads: int = 2, owner: QObject | None = None):
         self.source = source
-        self._relay = _Relay()
-        self.tile_loaded = self._relay.tile_loaded
-        self.tile_failed = self._relay.tile_failed
-        self._q = _Queue(source, self._relay)
+        relay = tile_relay()
+        self.tile_loaded = relay.tile_loaded
+        self.tile_failed = relay.tile_failed
+        self._q = _Queue(source, relay)
         self._threads = [threading.Thread(target=self._q.work, daemon=True,
                                           name=f"tiles-{source.path.name}-{i}")
                          for i in range(max(1, threads))]
