@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import threading
 
-from PySide6.QtCore import QObject, QThread, Signal, Slot
+from PySide6.QtCore import QCoreApplication, QObject, QThread, Signal, Slot
 from PySide6.QtWidgets import QMessageBox, QProgressDialog
 
 from prismstation.errors import RasterReadError
@@ -52,6 +52,7 @@ class OverviewBuilder(QObject):
         except RasterReadError as exc:
             self.result = (False, str(exc))
         self.finished.emit(*self.result)
+        self.moveToThread(QCoreApplication.instance().thread())  # deleted from there later
         self.thread.quit()
 
 
