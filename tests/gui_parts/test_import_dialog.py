@@ -174,3 +174,16 @@ def test_content_guessed_from_the_header(dialog, tmp_path):
     dialog.set_path(src)
     assert dialog.what.currentData() == "points"
     assert dialog.result()[0] == [GroundPoint("A1", 540000.0, 4560000.0, 100.0)]
+
+
+def test_reloading_a_fixed_file_keeps_the_mapping(dialog, tmp_path):
+    src = tmp_path / "g.csv"
+    src.write_text("name,a,b,c,d\nA1,540000,4560000,100,7\nA2,540100,4560100,oops,8\n")
+    dialog.set_path(src)
+    for f, c in (("E", "a"), ("N", "b"), ("H", "c")):
+        dialog.set_mapping(f, c)
+    assert dialog.errors() == [f"{src}, line 3: column H: 'oops' is not a number"]
+    src.write_text("name,a,b,c,d\nA1,540000,4560000,100,7\nA2,540100,4560100,110,8\n")
+    dialog.set_path(src)  # the operator fixed the file and chose it again
+    assert dialog.mapping()[0] == {"id": "name", "E": "a", "N": "b", "H": "c"}
+    assert dialog.errors() == [] and [p.H for p in dialog.result()[0]] == [100.0, 110.0]

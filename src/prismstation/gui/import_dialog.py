@@ -107,12 +107,15 @@ class ImportDialog(QDialog):
         self._result: tuple[list, list] = ([], [])
         self._errors: list[InputError] = []
         self._pf = None
+        self._kept = None  # ((path, content, columns), {field: combo text}) of the last mapping
+        self._kept_key = None
         self._timer = QTimer(self, singleShot=True, interval=0)
         self._timer.timeout.connect(self.refresh)
 
         self.path_edit = QLineEdit()
         self.path_edit.setPlaceholderText("a CSV, QGIS .points, ODM gcp_list.txt or ASP .gcp file")
-        self.path_edit.editingFinished.connect(lambda: self.set_path(self.path_edit.text()))
+        self.path_edit.returnPressed.connect(lambda: self.set_path(self.path_edit.text()))
+        self.path_edit.editingFinished.connect(self._path_edited)
         browse = QPushButton("Browse…")
         browse.clicked.connect(self._browse)
         self.what = QComboBox()
@@ -196,12 +199,11 @@ class ImportDialog(QDialog):
 
     # ---------------------------------------------------------------- public
     def set_path(self, path) -> None:
-        """Load ``path`` (as the Browse button does): guess content, delimiter, columns."""
+        """(Re)load ``path`` as the Browse button does: guess content, delimiter and columns;
+        a file read again with the same columns keeps the mapping chosen for it."""
         if not path:
             return
         path = Path(path)
-        if self.path == path and self.path_edit.text() == str(path):
-            return
         self.path = path
         self.path_edit.setText(str(path))
         self._pf = None
@@ -288,6 +290,9 @@ class ImportDialog(QDialog):
             self.columns_box.setTitle("Columns")
             _, columns, _ = split_lines(self._text, self._delimiter(), self.has_header.isChecked())
             guess = guess_mapping(columns, self._fields())
+            key = (str(self.path), self.what.currentData(), tuple(columns))
+            if self._kept is not None and self._kept[0] == key:  # same file and columns again
+                guess = {f: c for f, c in self._kept[1].items()}
             for f, required in self._fields():
                 combo = QComboBox()
                 items = [NONE] + columns
@@ -296,11 +301,14 @@ class ImportDialog(QDialog):
                 combo.addItems(items)
                 if f in guess:
                     combo.setCurrentText(guess[f])
+                elif self._kept is not None and self._kept[0] == key:
+                    combo.setCurrentText(NONE)
                 elif f == "view" and self.views:
                     combo.setCurrentText(f"= {self.views[0]}")
                 combo.currentIndexChanged.connect(self.schedule)
                 self.combos[f] = combo
                 self.columns_form.addRow(f + (" *" if required else ""), combo)
+            self._kept_key = key
         self.refresh()
 
     def _build_point_file_form(self) -> None:
@@ -356,6 +364,7 @@ class ImportDialog(QDialog):
     def _refresh_csv(self, src) -> None:
         what = self.what.currentData()
         cols, consts = self.mapping()
+        self._kept = (self._kept_key, {**cols, **{f: f"= {v}" for f, v in consts.items()}})
         missing = [f for f, req in self._fields() if req and f not in cols and f not in consts]
         delim, header = self._delimiter(), self.has_header.isChecked()
         hline, columns, rows = split_lines(self._text, delim, header)
@@ -423,6 +432,10 @@ class ImportDialog(QDialog):
             row = self.preview_model.line_numbers.index(self._errors[i].line)
             self.preview.selectRow(row)
             self.preview.scrollTo(self.preview_model.index(row, 0))
+
+    def _path_edited(self) -> None:
+        if self.path_edit.text() and self.path_edit.text() != str(self.path):
+            self.set_path(self.path_edit.text())
 
     def _browse(self) -> None:
         path, _ = QFileDialog.getOpenFileName(
