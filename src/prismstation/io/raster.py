@@ -168,9 +168,11 @@ class RasterSource:
     """
 
     def __init__(self, path, cache_mb: float = 64, band: int = 1):
+        self._name = str(path)  # what rasterio opens: a file, or a /vsi... or URL path
         self.path = Path(path)
         self.band = int(band)
-        if not self.path.exists():
+        local = "://" not in self._name and not self._name.startswith("/vsi")
+        if local and not self.path.exists():
             raise RasterReadError(f"{self.path}: no such file")
         _limit_gdal_cache()
         self._local = threading.local()
@@ -200,7 +202,7 @@ class RasterSource:
             if ds is not None:
                 ds.close()
             try:
-                ds = rasterio.open(self.path)
+                ds = rasterio.open(self._name)
             except (RasterioError, OSError) as exc:
                 raise RasterReadError(f"{self.path}: cannot open as a raster ({exc})") from None
             self._local.ds = ds
