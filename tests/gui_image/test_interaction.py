@@ -167,3 +167,33 @@ def test_tiles_around_the_view_are_read_ahead(qtbot, view):
     assert (1, 2, 1) in shown and behind not in shown
     qtbot.waitUntil(lambda: behind in view.source.cache, timeout=5000)
     assert (1, 5, 3) not in view.source.cache  # far away: not read
+
+
+def test_navigation_never_reads_the_whole_image_at_full_resolution(qtbot, pattern_tif):
+    src = RasterSource(pattern_tif)
+    reads = []
+    real = src.read
+
+    def spy(window, out_shape=None, *a, **k):
+        arr = real(window, out_shape, *a, **k)
+        reads.append((window[2], window[3], arr.shape))
+        return arr
+
+    src.read = spy
+    v = ImageView()
+    qtbot.addWidget(v)
+    v.resize(500, 400)
+    v.show()
+    qtbot.waitExposed(v)
+    v.set_source(src)
+    for cx, cy, s in [(1500, 1000, 3.0), (700, 500, 1.0), (2500, 1500, 0.5), (100, 1900, 0.25)]:
+        v.center_on(cx, cy, s)
+        qtbot.waitUntil(v.tiles_complete, timeout=5000)
+    v.fit()
+    qtbot.wait(20)
+    assert reads
+    for w, h, shape in reads:
+        decimation = w / shape[1]
+        full_res_pixels = w * h if decimation < 1.5 else 0
+        assert full_res_pixels <= 512 * 512  # full resolution: one tile at a time
+        assert shape[0] * shape[1] <= 1024 * 1024  # nothing bigger than the coarse overview
