@@ -1,0 +1,191 @@
+"""What the live plots draw, as flat arrays, from a Solution or from a report dict (no Qt).
+
+Conventions: parallax ``py`` in pixels (F−B, along track in N space), heights ellipsoidal metres,
+image positions ``(x column, y row)`` pixels, residuals measured − predicted pixels.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+def _arr(values) -> np.ndarray:
+    return np.asarray(values, dtype=float).reshape(-1)
+
+
+def _xy(values) -> np.ndarray:
+    return np.asarray(values, dtype=float).reshape(-1, 2)
+
+
+@dataclass(frozen=True)
+class PlotData:
+    """Everything the four plots draw, as flat arrays.
+
+    Attributes
+    ----------
+    gcp_py, gcp_h, icp_py, icp_h : (n,) arrays
+        F−B parallax (pixels) and known ellipsoidal height (metres) of GCPs / ICPs that have both.
+    gcp_ids, icp_ids : tuples of str, the ids of those points (same order).
+    c0, c1, c1_theory : float or None
+        Parallax line ``h = c0 + c1·py`` (metres, pixels); ``c1_theory`` of eq. 4.
+    view : str, the view of the residual vectors (the reference view, N for a triplet).
+    vec_gcp_xy, vec_gcp_v, vec_icp_xy, vec_icp_v : (n, 2) arrays
+        Measured image position (x column, y row, pixels) and residual (measured − predicted).
+    std_ids : tuple of str, GCPs with a standardised residual; ``std_values`` (n,) their values.
+    blunder : str or None, the id of the flagged GCP. ``threshold``: the rejection threshold.
+    image_shape : (rows, cols) of the view, or None.
+    critical : tuple of (label, value)
+        The critical values the threshold becomes for each fit's redundancy (Student's t).
+    """
+
+    gcp_py: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    gcp_h: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    icp_py: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    icp_h: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    gcp_ids: tuple = ()
+    icp_ids: tuple = ()
+    c0: float | None = None
+    c1: float | None = None
+    c1_theory: float | None = None
+    view: str = "N"
+    vec_gcp_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    vec_gcp_v: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    vec_icp_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    vec_icp_v: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    vec_gcp_ids: tuple = ()
+    vec_icp_ids: tuple = ()
+    std_ids: tuple = ()
+    std_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    blunder: str | None = None
+    threshold: float = 3.0
+    image_shape: tuple | None = None
+    critical: tuple = ()
+
+    @classmethod
+    def from_records(cls, records, *, parallax=None, view="N", threshold=3.0,
+                     image_shape=None, dofs=()) -> "PlotData":
+        """From per-point tuples ``(id, kind, py, h_known, xy, v, std_residual, blunder)``
+        (``py``, ``h_known``, ``xy``, ``v``, ``std_residual`` may be None)."""
+        h_rows = {"GCP": ([], [], []), "ICP": ([], [], [])}
+        v_rows = {"GCP": ([], [], []), "ICP": ([], [], [])}
+        std_ids, std_vals, blunder = [], [], None
+        for pid, kind, py, h, xy, v, s, bl in records:
+            if kind not in h_rows:
+                continue
+            if py is not None and h is not None:
+                for lst, x in zip(h_rows[kind], (pid, py, h)):
+                    lst.append(x)
+            if xy is not None and v is not None:
+                for lst, x in zip(v_rows[kind], (pid, xy, v)):
+                    lst.append(x)
+            if kind == "GCP" and s is not None:
+                std_ids.append(pid)
+                std_vals.append(s)
+            if bl:
+                blunder = pid
+        c0, c1, c1t = (None, None, None) if parallax is None else parallax
+        return cls(_arr(h_rows["GCP"][1]), _arr(h_rows["GCP"][2]), _arr(h_rows["ICP"][1]),
+                   _arr(h_rows["ICP"][2]), tuple(h_rows["GCP"][0]), tuple(h_rows["ICP"][0]),
+                   c0, c1, c1t, view, _xy(v_rows["GCP"][1]), _xy(v_rows["GCP"][2]),
+                   _xy(v_rows["ICP"][1]), _xy(v_rows["ICP"][2]), tuple(v_rows["GCP"][0]),
+                   tuple(v_rows["ICP"][0]), tuple(std_ids), _arr(std_vals), blunder,
+                   float(threshold), image_shape, _critical(threshold, dofs))
+
+    @classmethod
+    def from_solution(cls, sol) -> "PlotData":
+        """From a :class:`~prismstation.core.solve.Solution` (``None`` gives empty plots)."""
+        if sol is None:
+            return cls()
+        view = sol.reference_view
+        recs = []
+        for p in sol.points:
+            h = None
+            if p.ground_est is not None and p.ground_residual is not None:
+                h = p.ground_est[2] - p.ground_residual[2]
+            recs.append((p.id, p.kind, p.parallax_px, h, p.measured.get(view),
+                         p.residual_px.get(view), p.std_residual, p.blunder))
+        par = sol.parallax
+        line = None if par is None else (par.c0, par.c1, par.c1_theory)
+        v = sol.scene.views[view]
+        lsq_n = getattr(sol.bias.get(view), "lsq", None)
+        dofs = [(f"{view} bias", None if lsq_n is None else lsq_n.dof),
+                ("parallax", None if par is None or par.lsq is None else par.lsq.dof)]
+        return cls.from_records(recs, parallax=line, view=view,
+                                threshold=sol.settings.blunder_threshold,
+                                image_shape=getattr(v, "shape", None), dofs=dofs)
+
+    @classmethod
+    def from_report(cls, report: dict) -> "PlotData":
+        """From the dict of :func:`prismstation.io.report.report_dict` (or its JSON)."""
+        bias = report.get("model", {}).get("bias", {})
+        view = "N" if "N" in bias else next(iter(bias), "N")
+        recs = []
+        for p in report.get("points", []):
+            h = None
+            if p.get("h_est") is not None and p.get("dh") is not None:
+                h = p["h_est"] - p["dh"]
+            recs.append((p["id"], p["kind"], p.get("parallax_px"), h,
+                         (p.get("measured") or {}).get(view),
+                         (p.get("residual_px") or {}).get(view), p.get("std_residual"),
+                         p.get("blunder")))
+        par = report.get("model", {}).get("parallax")
+        line = None if not par else (par.get("c0"), par.get("c1"), par.get("c1_theoretical"))
+        thr = (report.get("settings") or {}).get("blunder_threshold", 3.0)
+        dofs = [(f"{view} bias", (bias.get(view) or {}).get("dof")),
+                ("parallax", (par or {}).get("dof"))]
+        return cls.from_records(recs, parallax=line, view=view, threshold=thr, dofs=dofs)
+
+
+def _critical(threshold, dofs) -> tuple:
+    """``((label, critical value), ...)`` for the fits with a redundancy (see core.solve)."""
+    try:
+        from prismstation.core.solve import critical_value
+    except ImportError:  # an engine without the t-based critical value
+        return ()
+    out = []
+    for label, dof in dofs:
+        if dof:
+            c = critical_value(threshold, int(dof))
+            if np.isfinite(c) and abs(c - threshold) > 1e-3:
+                out.append((f"{label} (dof {int(dof)})", float(c)))
+    return tuple(out)
+
+
+def auto_exaggeration(data: PlotData) -> float:
+    """A 1-2-5 factor that draws the median residual vector ~4 % of the image (or points')
+    extent, the longest at most ~35 %."""
+    v = np.vstack([data.vec_gcp_v, data.vec_icp_v])
+    xy = np.vstack([data.vec_gcp_xy, data.vec_icp_xy])
+    if len(v) == 0:
+        return 100.0
+    length = np.hypot(v[:, 0], v[:, 1])
+    longest, median = float(np.nanmax(length)), float(np.nanmedian(length))
+    extent = float(np.nanmax(np.ptp(xy, axis=0))) if len(xy) > 1 else 1000.0
+    if data.image_shape:
+        extent = max(extent, float(max(data.image_shape)))
+    if not np.isfinite(longest) or longest <= 0:
+        return 100.0
+    raw = min(0.04 * extent / max(median, 1e-9), 0.35 * extent / longest)
+    exp = np.floor(np.log10(raw))
+    mant = raw / 10 ** exp
+    step = 1 if mant < 2 else 2 if mant < 5 else 5
+    return float(step * 10 ** exp)
+
+
+def segments(xy: np.ndarray, v: np.ndarray, k: float) -> tuple[np.ndarray, np.ndarray]:
+    """x, y arrays ``(2n,)`` of ``[start, start + k·v]`` pairs (for ``connect='pairs'``)."""
+    seg = np.empty((2 * len(xy), 2))
+    seg[0::2] = xy
+    seg[1::2] = xy + k * v
+    return seg[:, 0], seg[:, 1]
+
+
+def line_x(data: PlotData) -> np.ndarray:
+    """``[x0, x1]`` parallax span for the lines: the data ±5 %, from 0 when all are positive."""
+    py = np.concatenate([data.gcp_py, data.icp_py])
+    if py.size == 0:
+        return np.zeros(0)
+    lo, hi = float(py.min()), float(py.max())
+    pad = 0.05 * max(hi - lo, 1.0)
+    return np.array([min(lo - pad, 0.0) if lo >= 0 else lo - pad, hi + pad])
