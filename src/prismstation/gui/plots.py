@@ -119,6 +119,8 @@ class PlotsWidget(QWidget):
         item = pw.plot([], [], pen=None, symbol=symbol, symbolSize=size, symbolBrush=brush,
                        symbolPen=pg.mkPen(color, width=1.5), name=name)
         item.sigPointsClicked.connect(self._on_clicked)
+        item.scatter.opts["hoverable"] = True  # tool tip: the point's id and values
+        item.scatter.opts["tip"] = lambda x, y, data: f"{data}: {x:.2f}, {y:.2f}"
         return item
 
     def _build_items(self) -> None:
