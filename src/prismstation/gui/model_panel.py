@@ -6,27 +6,18 @@ Reads a :class:`~prismstation.core.solve.Solution`; a change of the choices is e
 """
 from __future__ import annotations
 
-import html
 import math
 from dataclasses import replace
 
-from PySide6.QtCore import Signal
-from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QHBoxLayout, QTextBrowser,
-                               QVBoxLayout, QWidget)
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QGridLayout, QHBoxLayout,
+                               QLabel, QScrollArea, QVBoxLayout, QWidget)
 
 from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
 
-CSS = """
-body { font-family: sans-serif; font-size: 9pt; }
-h3 { margin: 8px 0 2px 0; font-size: 9.5pt; color: #1d3c6e; }
-table { border-collapse: collapse; }
-th { background: #dde4ee; padding: 1px 6px; font-weight: 600; text-align: right; }
-th.l, td.l { text-align: left; }
-td { padding: 1px 6px; text-align: right; }
-.warn { color: #a04000; }
-.bad { color: #c00000; font-weight: bold; }
-.dim { color: #777; }
-"""
+SECTION_STYLE = "font-weight: 600; color: #1d3c6e; padding-top: 6px;"
+HEAD_STYLE = "background: #dde4ee; padding: 1px 5px; font-weight: 600;"
+CELL_STYLE = "padding: 0px 5px;"
 
 
 def _f(v, nd=2, sign=False) -> str:
@@ -35,72 +26,133 @@ def _f(v, nd=2, sign=False) -> str:
     return f"{v:+.{nd}f}" if sign else f"{v:.{nd}f}"
 
 
-def _table(head: list[str], rows: list[list[str]]) -> str:
-    h = "".join(f"<th class='l'>{c}</th>" if i == 0 else f"<th>{c}</th>" for i, c in enumerate(head))
-    body = "".join("<tr>" + "".join(f"<td class='l'>{c}</td>" if i == 0 else f"<td>{c}</td>"
-                                    for i, c in enumerate(r)) + "</tr>" for r in rows)
-    return f"<table cellspacing='0'><tr>{h}</tr>{body}</table>"
-
-
 def _stat_rows(cols, stats=("n", "min", "max", "mean", "rms")) -> list[list[str]]:
     """``cols``: ComponentStats per column."""
     return [[s] + [str(c.n) if s == "n" else _f(getattr(c, s)) for c in cols] for s in stats]
 
 
-def solution_html(sol) -> str:
-    """The panel's text for a solution (HTML)."""
+def solution_sections(sol) -> tuple[list, list]:
+    """What the panel shows: ``([(title, head, rows), ...], [(text, severity), ...])`` with
+    ``rows`` lists of strings; severity ``"bad"`` (blunder) or ``"warn"`` (engine message)."""
     if sol is None:
-        return "<p class='dim'>No fit yet.</p>"
-    out = [f"<style>{CSS}</style>"]
-    ref = sol.reference_view
-    # ---- coefficients
+        return [], [("No fit yet.", "warn")]
+    sections = []
     for v, fit in sol.bias.items():
         s0 = fit.sigma0
         dof = fit.lsq.dof if fit.lsq is not None else None
         title = f"Bias {v} ({fit.model})" + (f" — σ0 = {_f(s0, 3)} px, dof {dof}" if s0 is not None else "")
-        if not len(fit.names):
-            out.append(f"<h3>{title}</h3><p class='dim'>not fitted</p>")
-            continue
-        rows = [[n, f"{p:+.6g}", f"{s:.2g}"] for n, p, s in zip(fit.names, fit.params, fit.std)]
-        out.append(f"<h3>{title}</h3>" + _table(["", "value", "σ"], rows))
+        rows = [[n, f"{p:+.6g}", f"{sd:.2g}"] for n, p, sd in zip(fit.names, fit.params, fit.std)]
+        sections.append((title, ["", "value", "σ"], rows or [["not fitted", "", ""]]))
     par = sol.parallax
     if par is not None:
         s0 = par.sigma0
-        out.append(f"<h3>Parallax line h = c0 + c1·py ({par.used})"
-                   + (f" — σ0 = {_f(s0)} m" if s0 is not None else "") + "</h3>")
-        out.append(_table(["", "value", "σ", "theory"],
-                          [["c0 (m)", _f(par.c0, 2, True), _f(par.std_c0), "0"],
-                           ["c1 (m/px)", _f(par.c1, 4), _f(par.std_c1, 4), _f(par.c1_theory, 4)]]))
+        sections.append((f"Parallax line h = c0 + c1·py ({par.used})" + (f" — σ0 = {_f(s0)} m" if s0 is not None else ""),
+                         ["", "value", "σ", "theory"],
+                         [["c0 (m)", _f(par.c0, 2, True), _f(par.std_c0), "0"],
+                          ["c1 (m/px)", _f(par.c1, 4), _f(par.std_c1, 4), _f(par.c1_theory, 4)]]))
     st = sol.stats
-    # ---- Table 1: image residuals of the reference view (m)
+    ref = sol.reference_view
     img = st.get("image", {}).get(ref, {})
     if img:
         g, i = img["GCP"]["m"], img["ICP"]["m"]
         rows = _stat_rows([g.x, g.y, i.x, i.y])
         rows.append(["plan. RMS", "", _f(g.planimetric_rms), "", _f(i.planimetric_rms)])
-        out.append(f"<h3>Table 1 — image residuals, view {ref} (m)</h3>"
-                   + _table(["", "GCP Rx", "GCP Ry", "ICP Rx", "ICP Ry"], rows))
-    # ---- Table 2: across-track differences to N (px)
+        sections.append((f"Table 1 — image residuals, view {ref} (m)",
+                         ["", "GCP Rx", "GCP Ry", "ICP Rx", "ICP Ry"], rows))
     if "F-N" in st:
-        out.append("<h3>Table 2 — across-track differences to N (px)</h3>"
-                   + _table(["", "F−N", "B−N"], _stat_rows([st["F-N"], st["B-N"]],
-                                                           ("n", "min", "max", "mean", "std"))))
+        sections.append(("Table 2 — across-track differences to N (px)", ["", "F−N", "B−N"],
+                         _stat_rows([st["F-N"], st["B-N"]], ("n", "min", "max", "mean", "std"))))
     if "height" in st and sol.scene.is_triplet:
-        out.append("<h3>Table 3 — height residuals (m)</h3>"
-                   + _table(["", "GCP Rh", "ICP Rh"], _stat_rows([st["height"]["GCP"], st["height"]["ICP"]])))
+        sections.append(("Table 3 — height residuals (m)", ["", "GCP Rh", "ICP Rh"],
+                         _stat_rows([st["height"]["GCP"], st["height"]["ICP"]])))
     if "ground" in st:
         g, i = st["ground"]["GCP"], st["ground"]["ICP"]
         rows = _stat_rows([g.x, g.y, i.x, i.y], ("n", "mean", "rms"))
         rows.append(["plan. RMS", "", _f(g.planimetric_rms), "", _f(i.planimetric_rms)])
-        out.append("<h3>Ground residuals, estimated − known (m)</h3>"
-                   + _table(["", "GCP dE", "GCP dN", "ICP dE", "ICP dN"], rows))
-    bl = [r for r in sol.points if r.blunder]
-    for r in bl:
-        out.append(f"<p class='bad'>Possible blunder: {html.escape(r.id)} (standardised residual "
-                   f"{_f(r.std_residual)} &gt; {_f(sol.settings.blunder_threshold, 1)})</p>")
-    for m in sol.messages:
-        out.append(f"<p class='warn'>{html.escape(m)}</p>")
-    return "\n".join(out)
+        sections.append(("Ground residuals, estimated − known (m)",
+                         ["", "GCP dE", "GCP dN", "ICP dE", "ICP dN"], rows))
+    notes = [(f"Possible blunder: {r.id} (standardised residual {_f(r.std_residual)}, threshold "
+              f"{_f(sol.settings.blunder_threshold, 2)})", "bad") for r in sol.points if r.blunder]
+    notes += [(m, "warn") for m in sol.messages]
+    return sections, notes
+
+
+class _Sections(QWidget):
+    """Titled grids of plain-text labels; :meth:`show_sections` only sets texts when the
+    layout is unchanged (a click repaints in a millisecond, unlike rich-text documents)."""
+
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        self.grid = QGridLayout(self)
+        self.grid.setContentsMargins(4, 2, 4, 2)
+        self.grid.setHorizontalSpacing(0)
+        self.grid.setVerticalSpacing(0)
+        self._shape = None
+        self._labels: list[QLabel] = []
+        self._notes: list[QLabel] = []
+
+    @staticmethod
+    def _label(style="", align=Qt.AlignmentFlag.AlignRight):
+        lab = QLabel()
+        lab.setTextFormat(Qt.TextFormat.PlainText)
+        lab.setStyleSheet(style)
+        lab.setAlignment(align | Qt.AlignmentFlag.AlignVCenter)
+        return lab
+
+    def show_sections(self, sections, notes) -> None:
+        shape = ([(len(h), len(r)) for _, h, r in sections], len(notes))
+        if shape != self._shape:
+            self._rebuild(sections, notes)
+            self._shape = shape
+        texts = []
+        for title, head, rows in sections:
+            texts.append(title)
+            texts += head
+            for r in rows:
+                texts += r
+        for lab, t in zip(self._labels, texts):
+            if lab.text() != t:
+                lab.setText(t)
+        for lab, (t, sev) in zip(self._notes, notes):
+            lab.setText(t)
+            lab.setStyleSheet("color: #c00000; font-weight: bold;" if sev == "bad" else "color: #a04000;")
+
+    def _rebuild(self, sections, notes) -> None:
+        while self.grid.count():
+            w = self.grid.takeAt(0).widget()
+            if w is not None:
+                w.deleteLater()
+        self._labels, self._notes = [], []
+        row = 0
+        left = Qt.AlignmentFlag.AlignLeft
+        ncols = max([len(h) for _, h, _ in sections] or [1])
+        for _, head, rows in sections:
+            t = self._label(SECTION_STYLE, left)
+            self.grid.addWidget(t, row, 0, 1, ncols)
+            self._labels.append(t)
+            row += 1
+            for c in range(len(head)):
+                lab = self._label(HEAD_STYLE, left if c == 0 else Qt.AlignmentFlag.AlignRight)
+                self.grid.addWidget(lab, row, c)
+                self._labels.append(lab)
+            row += 1
+            for r in rows:
+                for c in range(len(r)):
+                    lab = self._label(CELL_STYLE, left if c == 0 else Qt.AlignmentFlag.AlignRight)
+                    self.grid.addWidget(lab, row, c)
+                    self._labels.append(lab)
+                row += 1
+        for _ in notes:
+            lab = self._label("", left)
+            lab.setWordWrap(True)
+            self.grid.addWidget(lab, row, 0, 1, ncols)
+            self._notes.append(lab)
+            row += 1
+        self.grid.setRowStretch(row, 1)
+        self.grid.setColumnStretch(ncols, 1)
+
+    def plain_text(self) -> str:
+        return "\n".join(lab.text() for lab in self._labels + self._notes)
 
 
 class ModelPanel(QWidget):
@@ -129,8 +181,10 @@ class ModelPanel(QWidget):
         row.addWidget(self.sigma)
         row.addWidget(self.threshold)
         form.addRow("σ a priori / blunder at", row)
-        self.text = QTextBrowser()
-        self.text.setOpenLinks(False)
+        self.sections = _Sections()
+        self.text = QScrollArea()
+        self.text.setWidgetResizable(True)
+        self.text.setWidget(self.sections)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(4, 4, 4, 4)
         lay.addLayout(form)
@@ -158,9 +212,11 @@ class ModelPanel(QWidget):
         self.solution = sol
         if sol is not None:
             self.set_settings(sol.settings)
-        sb = self.text.verticalScrollBar().value()
-        self.text.setHtml(solution_html(sol))
-        self.text.verticalScrollBar().setValue(sb)
+        self.sections.show_sections(*solution_sections(sol))
+
+    def plain_text(self) -> str:
+        """Everything the panel shows, one label per line (tests, clipboard)."""
+        return self.sections.plain_text()
 
     def _emit(self, *_) -> None:
         if self._settings is None:

@@ -30,6 +30,17 @@ def _cross(gap: float = 0.18) -> QPainterPath:
 
 MEASURED_SYMBOL = _cross()
 CROSSHAIR_SYMBOL = _cross(0.08)
+_PENS: dict = {}
+
+
+def _pen(color: QColor, width: float = 2.0, dashed: bool = False):
+    """One shared pen per style: pyqtgraph's symbol atlas then renders each symbol once."""
+    key = (color.rgba(), width, dashed)
+    pen = _PENS.get(key)
+    if pen is None:
+        pen = _PENS[key] = pg.mkPen(color, width=width,
+                                    style=Qt.PenStyle.DashLine if dashed else Qt.PenStyle.SolidLine)
+    return pen
 
 
 class MarkerItem(pg.ScatterPlotItem):
@@ -89,6 +100,8 @@ class ViewOverlay:
         self._label_state: dict[str, tuple] = {}
         self.ids = np.zeros(0, dtype=object)      # ids of measured markers, in order
         self.xy = np.zeros((0, 2))                 # their image positions
+        self._measured_key = None
+        self._predicted_key = None
 
     # ------------------------------------------------------------------ measured (project)
     def update_measured(self, project, solution=None) -> None:
@@ -99,9 +112,12 @@ class ViewOverlay:
         blunders = set()
         if solution is not None:
             blunders = {r.id for r in solution.points if r.blunder}
-        pens = [pg.mkPen(BLUNDER_COLOR if m.id in blunders else
-                         KIND_COLORS.get(project.points[m.id].kind, CURRENT_COLOR), width=2)
-                for m in ms]
+        pens = [_pen(BLUNDER_COLOR if m.id in blunders else
+                     KIND_COLORS.get(project.points[m.id].kind, CURRENT_COLOR)) for m in ms]
+        key = (tuple(self.ids), self.xy.tobytes(), tuple(id(p) for p in pens))
+        if key == self._measured_key:  # unchanged in this view: no work for pyqtgraph
+            return
+        self._measured_key = key
         self.measured.setData(pos=self.xy, data=self.ids, pen=pens) if ms else self.measured.clear()
 
     # ------------------------------------------------------------------ from the solution
@@ -120,17 +136,19 @@ class ViewOverlay:
                     x, y = r.predicted[self.name]
                     if np.isfinite(x) and np.isfinite(y):
                         pred.append((x, y))
-                        pred_pens.append(pg.mkPen(KIND_COLORS.get(kind, CURRENT_COLOR), width=1.5,
-                                                  style=Qt.PenStyle.DashLine))
+                        pred_pens.append(_pen(KIND_COLORS.get(kind, CURRENT_COLOR), 1.5, True))
                         label_pos.setdefault(r.id, (x, y))
                 if self.name in r.residual_px and self.name in r.measured:
                     (x, y), (vx, vy) = r.measured[self.name], r.residual_px[self.name]
                     k = self.exaggeration
                     segs += [(x, y), (x + k * vx, y + k * vy)]
-        if pred:
-            self.predicted.setData(pos=np.array(pred), pen=pred_pens)
-        else:
-            self.predicted.clear()
+        key = (tuple(map(tuple, pred)), tuple(id(p) for p in pred_pens))
+        if key != self._predicted_key:
+            self._predicted_key = key
+            if pred:
+                self.predicted.setData(pos=np.array(pred), pen=pred_pens)
+            else:
+                self.predicted.clear()
         s = np.array(segs, float).reshape(-1, 2)
         self.vectors.setData(s[:, 0], s[:, 1], connect="pairs")
         self._update_labels(project, label_pos)

@@ -20,6 +20,16 @@ BLUNDER_BG = QColor(255, 190, 190)
 TOLERANCE_BG = QColor(255, 235, 180)
 
 
+_BLUNDER_BRUSH = QBrush(BLUNDER_BG)
+_KIND_BRUSHES = {k: QBrush(c.darker(140)) for k, c in KIND_COLORS.items()}
+_RIGHT = int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+_DIGITS = (None, None, None, 3, 3, 3, 2, 2, 2, 2, 2)
+
+
+def _texts(row) -> list:
+    return [row[c] if c <= 2 else _fmt(row[c], _DIGITS[c]) for c in range(len(COLUMNS))]
+
+
 def _fmt(v, nd=2):
     return "" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{nd}f}"
 
@@ -33,6 +43,7 @@ class PointTableModel(QAbstractTableModel):
         self.solution = None
         self.ids: list[str] = []
         self._rows: list[tuple] = []
+        self._text: list[list] = []
 
     def set_project(self, project) -> None:
         self.project, self.solution = project, None
@@ -43,10 +54,22 @@ class PointTableModel(QAbstractTableModel):
         self.refresh()
 
     def refresh(self) -> None:
-        """Rebuild the rows from the project and the solution (one reset)."""
+        """Rebuild the rows from the project and the solution: one ``dataChanged`` when the
+        rows are the same points (selection and scroll stay), else one reset."""
+        rows = self._build() if self.project is not None else []
+        ids = [r[0] for r in rows]
+        if ids == self.ids and rows:
+            changed = [i for i, (a, b) in enumerate(zip(self._rows, rows)) if a != b]
+            for i in changed:
+                self._text[i] = _texts(rows[i])
+            self._rows = rows
+            if changed:
+                self.dataChanged.emit(self.index(min(changed), 0),
+                                      self.index(max(changed), len(COLUMNS) - 1))
+            return
         self.beginResetModel()
-        self._rows = self._build() if self.project is not None else []
-        self.ids = [r[0] for r in self._rows]
+        self._rows, self.ids = rows, ids
+        self._text = [_texts(r) for r in rows]
         self.endResetModel()
 
     def _build(self) -> list[tuple]:
@@ -90,26 +113,21 @@ class PointTableModel(QAbstractTableModel):
         return None
 
     def data(self, index, role=Qt.ItemDataRole.DisplayRole):
+        if role == Qt.ItemDataRole.DisplayRole:  # the hot path: preformatted strings
+            return self._text[index.row()][index.column()]
         if not index.isValid():
             return None
         row = self._rows[index.row()]
         c = index.column()
-        if role == Qt.ItemDataRole.DisplayRole:
-            v = row[c]
-            if c <= 2:
-                return v
-            return _fmt(v, 3 if c in (3, 4, 5) else 2 if c in (6, 7, 8, 9) else 2)
         if role == Qt.ItemDataRole.UserRole:  # sort key
             v = row[c]
             return (-math.inf if v is None else v) if c > 2 else v
         if role == Qt.ItemDataRole.BackgroundRole:
-            if row[11]:
-                return QBrush(BLUNDER_BG)
-            return None
+            return _BLUNDER_BRUSH if row[11] else None
         if role == Qt.ItemDataRole.ForegroundRole and c == 1:
-            return QBrush(KIND_COLORS.get(row[1], QColor(0, 0, 0)).darker(140))
+            return _KIND_BRUSHES.get(row[1])
         if role == Qt.ItemDataRole.TextAlignmentRole and c > 2:
-            return int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+            return _RIGHT
         if role == Qt.ItemDataRole.ToolTipRole and row[11]:
             return f"{row[0]}: standardised residual {_fmt(row[10])} above the blunder threshold"
         return None
@@ -147,8 +165,16 @@ class PointTableView(QTableView):
         self.setAlternatingRowColors(True)
         self.verticalHeader().setVisible(False)
         self.verticalHeader().setDefaultSectionSize(20)
-        self.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
+        # sized once per project (ResizeToContents would measure every cell at every change)
+        self.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.Interactive)
         self.horizontalHeader().setStretchLastSection(True)
+        model.modelReset.connect(self._size_columns)
+
+    def _size_columns(self) -> None:
+        fm = self.fontMetrics()
+        for c, name in enumerate(COLUMNS):
+            sample = {"ID": "W0000", "Kind": "GCP", "Views": "N F B"}.get(name, "-000000.00")
+            self.setColumnWidth(c, max(fm.horizontalAdvance(name), fm.horizontalAdvance(sample)) + 14)
 
     def current_id(self) -> str | None:
         rows = self.selectionModel().selectedRows()

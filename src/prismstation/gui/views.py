@@ -53,7 +53,8 @@ class TripletViews(QWidget):
     Signals
     -------
     place_requested(view, x, y)
-        A click on the image away from any marker: place the current point there.
+        A click on the image away from other points' markers (or with Shift): place the current
+        point there.
     move_requested(pid, view, x, y, finished)
         A marker is being dragged (``finished`` on release).
     point_picked(pid)
@@ -255,7 +256,7 @@ class TripletViews(QWidget):
         iv = self.views[name]
         if not (mods & Qt.KeyboardModifier.ShiftModifier):
             pid = self.overlays[name].nearest(x, y, PICK_TOLERANCE_SCREEN_PX * iv.scale())
-            if pid is not None:
+            if pid is not None and pid != self.current:  # near the current point: re-place it
                 self.point_picked.emit(str(pid))
                 return
         self.place_requested.emit(name, x, y)
