@@ -118,7 +118,8 @@ def test_given_figures_are_embedded(qtbot, report):
         write_document(report, "x.docx", figures={"height": im})
 
 
-@pytest.mark.skipif(not shutil.which("pdftotext"), reason="poppler-utils not installed")
+@pytest.mark.skipif(not all(shutil.which(t) for t in ("pdftotext", "pdftoppm", "pdfimages")),
+                    reason="poppler-utils not installed")
 def test_pdf_holds_the_numbers_and_pages_render(tmp_path, report, qtbot):
     out = tmp_path / "r.pdf"
     write_document(report, out)
@@ -133,6 +134,19 @@ def test_pdf_holds_the_numbers_and_pages_render(tmp_path, report, qtbot):
     subprocess.run(["pdftoppm", "-r", "30", "-png", str(out), str(tmp_path / "page")], check=True)
     pages = sorted(tmp_path.glob("page*.png"))
     assert len(pages) >= 3
+    assert n_images(out) == 4
+    # figures given by the caller (the window's own plots) are used instead
+    from PySide6.QtGui import QImage
+    im = QImage(400, 300, QImage.Format.Format_RGB32)
+    im.fill(0x3366AA)
+    write_document(report, tmp_path / "given.pdf", figures={"vectors": im})
+    assert n_images(tmp_path / "given.pdf") == 1
+
+
+def n_images(pdf):
+    listing = subprocess.run(["pdfimages", "-list", str(pdf)], capture_output=True, text=True,
+                             check=True).stdout.splitlines()
+    return sum(1 for ln in listing[2:] if " image " in ln)
 
 
 def test_cli_report_pdf_and_html_from_the_dict_alone(tmp_path, capsys):
