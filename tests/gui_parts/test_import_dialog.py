@@ -187,3 +187,18 @@ def test_reloading_a_fixed_file_keeps_the_mapping(dialog, tmp_path):
     dialog.set_path(src)  # the operator fixed the file and chose it again
     assert dialog.mapping()[0] == {"id": "name", "E": "a", "N": "b", "H": "c"}
     assert dialog.errors() == [] and [p.H for p in dialog.result()[0]] == [100.0, 110.0]
+
+
+def test_decimal_comma_file(dialog, tmp_path):
+    src = tmp_path / "pt.csv"
+    src.write_text("Ponto;M;P;Cota\nV1;540000,50;4560000,25;100,5\nV2;540100,00;4560100,00;abc\n",
+                   encoding="utf-8")
+    dialog.set_path(src)
+    assert dialog.decimal_comma.isChecked()
+    for f, c in (("id", "Ponto"), ("E", "M"), ("N", "P"), ("H", "Cota")):
+        dialog.set_mapping(f, c)
+    assert dialog.errors() == [f"{src}, line 3: column H: 'abc' is not a number"]
+    src.write_text("Ponto;M;P;Cota\nV1;540000,50;4560000,25;100,5\nV2;540100,00;4560100,00;110\n")
+    dialog.set_path(src)
+    pts = dialog.result()[0]
+    assert [(p.E, p.N, p.H) for p in pts] == [(540000.5, 4560000.25, 100.5), (540100.0, 4560100.0, 110.0)]

@@ -7,6 +7,7 @@ from __future__ import annotations
 import csv
 import io
 import os
+import re
 import tempfile
 from pathlib import Path
 
@@ -19,10 +20,10 @@ GROUND_FIELDS = (("id", True), ("E", True), ("N", True), ("H", True), ("kind", F
 MEASUREMENT_FIELDS = (("id", True), ("view", True), ("x", True), ("y", True), ("sigma_px", False))
 ALIASES = {
     "id": ("id", "name", "point", "pt", "point_id", "pid", "gcp", "gcp_name", "station", "label",
-           "nr", "no"),
+           "nr", "no", "ponto"),
     "E": ("e", "east", "easting", "x", "mapx", "lon", "long", "longitude"),
     "N": ("n", "north", "northing", "y", "mapy", "lat", "latitude"),
-    "H": ("h", "z", "elevation", "elev", "alt", "altitude", "height_m", "ortho_h"),
+    "H": ("h", "z", "elevation", "elev", "alt", "altitude", "height_m", "ortho_h", "cota"),
     "kind": ("kind", "type", "role"),
     "height": ("height", "height_kind", "datum"),
     "view": ("view", "image", "img", "band"),
@@ -99,12 +100,26 @@ def guess_mapping(columns, fields) -> dict:
     return out
 
 
-def normalised_csv(n_lines, header_line, columns, rows, mapping, constants=None) -> str:
+NUMERIC_FIELDS = ("E", "N", "H", "sigma_xy_m", "sigma_h_m", "x", "y", "sigma_px")
+_DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+$")
+
+
+def has_decimal_comma(rows, delimiter: str) -> bool:
+    """True when the delimiter is not a comma and numbers are written ``123,45``."""
+    if delimiter == ",":
+        return False
+    cells = [c for _, r in rows[:50] for c in r]
+    return sum(bool(_DECIMAL_COMMA.match(c)) for c in cells) >= max(1, len(cells) // 10)
+
+
+def normalised_csv(n_lines, header_line, columns, rows, mapping, constants=None,
+                   decimal_comma=False) -> str:
     """Text of a comma-delimited CSV with canonical column names, every row on its own line.
 
     ``mapping`` ``{field: column}``; ``constants`` ``{field: value}`` for fields given one value
     for all rows (e.g. the view of a single-image file). Unmapped columns are kept (renamed when
-    their name is a canonical one). Lines that are not data become ``#``.
+    their name is a canonical one). Lines that are not data become ``#``. With
+    ``decimal_comma`` the numeric fields' ``123,45`` become ``123.45``.
     """
     constants = constants or {}
     canon = {f.lower() for f in mapping} | {f.lower() for f in constants}
@@ -113,6 +128,7 @@ def normalised_csv(n_lines, header_line, columns, rows, mapping, constants=None)
     extra = [c for c in columns if c not in mapping.values()]
     names = out_cols + [f"{c} (file)" if c.lower() in canon else c for c in extra]
     src = [index[mapping[f]] for f in mapping] + [None] * len(constants) + [index[c] for c in extra]
+    numeric = {i for i, f in enumerate(mapping) if decimal_comma and f in NUMERIC_FIELDS}
     const_vals = list(constants.values())
     lines = ["#"] * max(n_lines, 1)
     buf = io.StringIO()
@@ -132,18 +148,18 @@ def normalised_csv(n_lines, header_line, columns, rows, mapping, constants=None)
             continue
         k = 0
         out = []
-        for s in src:
+        for j, s in enumerate(src):
             if s is None:
                 out.append(const_vals[k])
                 k += 1
             else:
-                out.append(cells[s])
+                out.append(cells[s].replace(",", ".") if j in numeric else cells[s])
         lines[no - 1] = fmt(out)
     return "\n".join(lines) + "\n"
 
 
 def read_mapped(path, what, text, mapping, *, delimiter=",", header=True, constants=None,
-                crs=None, to_crs=None, height="ellipsoidal", views=None):
+                crs=None, to_crs=None, height="ellipsoidal", views=None, decimal_comma=False):
     """Read a CSV through a column mapping with the io readers.
 
     Returns ``(records, errors)``: ``records`` a list of GroundPoint (``what == "points"``) or
@@ -157,7 +173,8 @@ def read_mapped(path, what, text, mapping, *, delimiter=",", header=True, consta
         n_lines += 1
         rows = [(no + 1, c) for no, c in rows]
         header_line = 1
-    lines = normalised_csv(n_lines, header_line, columns, rows, mapping, constants).split("\n")
+    lines = normalised_csv(n_lines, header_line, columns, rows, mapping, constants,
+                           decimal_comma).split("\n")
     errors: list[InputError] = []
     fd, tmp = tempfile.mkstemp(suffix=".csv", prefix="prismstation-import-")
     os.close(fd)

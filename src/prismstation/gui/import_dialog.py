@@ -29,7 +29,8 @@ from prismstation.errors import InputError
 from prismstation.io import pointfiles
 from prismstation.gui.import_csv import (DELIMITERS, GROUND_FIELDS, MEASUREMENT_FIELDS, NONE,
                                          PREVIEW_ROWS, guess_delimiter, guess_mapping, guess_view,
-                                         is_point_file, read_mapped, split_lines)
+                                         has_decimal_comma, is_point_file, read_mapped,
+                                         split_lines)
 from prismstation.model.points import HEIGHT_KINDS
 
 __all__ = ["ImportDialog", "PreviewModel", "guess_delimiter", "guess_mapping", "GROUND_FIELDS",
@@ -126,6 +127,8 @@ class ImportDialog(QDialog):
         self.delimiter.addItems(list(DELIMITERS))
         self.has_header = QCheckBox("first row is a header")
         self.has_header.setChecked(True)
+        self.decimal_comma = QCheckBox("decimal comma")
+        self.decimal_comma.setToolTip("numbers written 123,45 (the delimiter is then not a comma)")
         self.crs_edit = QLineEdit(crs or "")
         self.crs_status = QLabel()
         self.height_kind = QComboBox()
@@ -158,6 +161,7 @@ class ImportDialog(QDialog):
         row = QHBoxLayout()
         row.addWidget(self.delimiter)
         row.addWidget(self.has_header)
+        row.addWidget(self.decimal_comma)
         row.addStretch(1)
         top.addRow("Delimiter", row)
         row = QHBoxLayout()
@@ -192,6 +196,7 @@ class ImportDialog(QDialog):
         self.what.currentIndexChanged.connect(self._rebuild_columns)
         self.delimiter.currentIndexChanged.connect(self._rebuild_columns)
         self.has_header.toggled.connect(self._rebuild_columns)
+        self.decimal_comma.toggled.connect(self.schedule)
         self.crs_edit.textChanged.connect(self.schedule)
         self.height_kind.currentIndexChanged.connect(self.schedule)
         self._set_ok(False)
@@ -216,6 +221,7 @@ class ImportDialog(QDialog):
         point_file = is_point_file(path)
         self.delimiter.setEnabled(not point_file)
         self.has_header.setEnabled(not point_file)
+        self.decimal_comma.setEnabled(not point_file)
         self.what.setEnabled(not point_file)
         if point_file:
             fmt = pointfiles.detect_format(path)
@@ -225,7 +231,10 @@ class ImportDialog(QDialog):
             lines = self._text.splitlines()
             d = guess_delimiter(lines)
             self.format_label.setText(f"CSV, delimiter {d!r} guessed")
-            _, cols, _ = split_lines(self._text, d, True)
+            _, cols, rows = split_lines(self._text, d, True)
+            self.decimal_comma.blockSignals(True)
+            self.decimal_comma.setChecked(has_decimal_comma(rows, d))
+            self.decimal_comma.blockSignals(False)
             # the content whose required fields the header names best (ties: ground points)
             n_req = [sum(f in guess_mapping(cols, fields) for f, req in fields if req)
                      for fields in (GROUND_FIELDS, MEASUREMENT_FIELDS)]
@@ -374,7 +383,8 @@ class ImportDialog(QDialog):
             recs, errors = read_mapped(self.path, what, self._text, cols, delimiter=delim,
                                        header=header, constants=consts, crs=src,
                                        to_crs=self.crs if src is not None else None,
-                                       height=self.height_kind.currentText(), views=self.views)
+                                       height=self.height_kind.currentText(), views=self.views,
+                                       decimal_comma=self.decimal_comma.isChecked())
         inverse = {c: f for f, c in cols.items()}
         heads = [f"{inverse[c]} ← {c}" if c in inverse else c for c in columns]
         shown = rows[:PREVIEW_ROWS]
