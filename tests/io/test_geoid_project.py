@@ -110,3 +110,17 @@ def test_malformed_project_names_line(tmp_path):
     with pytest.raises(InputError) as e:
         load_project(path)
     assert e.value.line is not None and "malformed point" in str(e.value)
+
+
+def test_saved_files_get_normal_permissions(tmp_path):
+    import os
+    from prismstation.io.jsonfile import write_atomic
+    umask = os.umask(0o022)
+    try:
+        write_atomic(tmp_path / "a.json", "{}")
+        assert (tmp_path / "a.json").stat().st_mode & 0o777 == 0o644
+        os.chmod(tmp_path / "a.json", 0o640)
+        write_atomic(tmp_path / "a.json", "{}")  # a new version keeps the file's mode
+        assert (tmp_path / "a.json").stat().st_mode & 0o777 == 0o640
+    finally:
+        os.umask(umask)
