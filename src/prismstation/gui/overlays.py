@@ -43,48 +43,15 @@ def _pen(color: QColor, width: float = 2.0, dashed: bool = False):
     return pen
 
 
-class MarkerItem(pg.ScatterPlotItem):
-    """Measured markers that can be dragged with the left button.
-
-    ``on_drag(pid, x, y, finished)`` is called with image coordinates during a drag that
-    started on a marker; a drag elsewhere is left to the view box (pan).
-    """
-
-    def __init__(self, on_drag, **kw):
-        super().__init__(**kw)
-        self.on_drag = on_drag
-        self._dragging = None
-
-    def mouseDragEvent(self, ev):
-        if ev.button() != Qt.MouseButton.LeftButton:
-            ev.ignore()
-            return
-        if ev.isStart():
-            hits = self.pointsAt(ev.buttonDownPos())
-            if len(hits) == 0:
-                ev.ignore()
-                return
-            self._dragging = hits[0].data()
-        if self._dragging is None:
-            ev.ignore()
-            return
-        ev.accept()
-        p = ev.pos()
-        self.on_drag(self._dragging, float(p.x()), float(p.y()), bool(ev.isFinish()))
-        if ev.isFinish():
-            self._dragging = None
-
-
 class ViewOverlay:
     """The overlay items of one view (``name``) in view box ``vb``."""
 
-    def __init__(self, name: str, vb: pg.ViewBox, on_drag=None):
+    def __init__(self, name: str, vb: pg.ViewBox):
         self.name = name
         self.vb = vb
         self.exaggeration = 50.0
         self.show_labels = True
-        self.measured = MarkerItem(on_drag or (lambda *a: None), symbol=MEASURED_SYMBOL, size=19,
-                                   pxMode=True, brush=None, hoverable=False)
+        self.measured = pg.ScatterPlotItem(symbol=MEASURED_SYMBOL, size=19, pxMode=True, brush=None)
         self.predicted = pg.ScatterPlotItem(symbol="o", size=15, pxMode=True, brush=None)
         self.current = pg.ScatterPlotItem(symbol="s", size=27, pxMode=True, brush=None,
                                           pen=pg.mkPen(CURRENT_COLOR, width=1.5))

@@ -123,7 +123,8 @@ class TripletViews(QWidget):
             lay.addWidget(iv, 1)
             self.splitter.addWidget(pane)
             self.views[name], self.headers[name], self.panes[name] = iv, header, pane
-            self.overlays[name] = ViewOverlay(name, iv.vb, self._drag_handler(name))
+            self.overlays[name] = ViewOverlay(name, iv.vb)
+            self._wrap_drag(name, iv)
             iv.clicked.connect(lambda x, y, mods, n=name: self._on_clicked(n, x, y, mods))
             iv.cursor_moved.connect(lambda x, y, n=name: self.on_cursor(n, x, y))
             iv.view_changed.connect(lambda n=name: self._update_header(n))
@@ -261,11 +262,35 @@ class TripletViews(QWidget):
                 return
         self.place_requested.emit(name, x, y)
 
-    def _drag_handler(self, name):
-        def handler(pid, x, y, finished):
-            self.active_view = name
-            self.move_requested.emit(str(pid), name, x, y, finished)
-        return handler
+    def _wrap_drag(self, name: str, iv: ImageView) -> None:
+        """A left drag that starts on a measured marker moves it (keeping the grab offset);
+        any other drag goes on to the view box (pan). Picking uses the marker positions, not
+        the items' bounding boxes, so it is exact at every zoom."""
+        vb = iv.vb
+        pan = vb.mouseDragEvent
+        state = {"pid": None, "offset": (0.0, 0.0)}
+
+        def drag(ev, axis=None):
+            if ev.button() == Qt.MouseButton.LeftButton:
+                if ev.isStart():
+                    p = vb.mapSceneToView(ev.buttonDownScenePos())
+                    pid = self.overlays[name].nearest(p.x(), p.y(), PICK_TOLERANCE_SCREEN_PX * iv.scale())
+                    state["pid"] = None if pid is None else str(pid)
+                    if pid is not None:
+                        m = self.project.measurement(str(pid), name)
+                        state["offset"] = (m.x - p.x(), m.y - p.y())
+                if state["pid"] is not None:
+                    ev.accept()
+                    p = vb.mapSceneToView(ev.scenePos())
+                    self.active_view = name
+                    self.move_requested.emit(state["pid"], name, p.x() + state["offset"][0],
+                                             p.y() + state["offset"][1], bool(ev.isFinish()))
+                    if ev.isFinish():
+                        state["pid"] = None
+                    return
+            pan(ev, axis=axis) if axis is not None else pan(ev)
+
+        vb.mouseDragEvent = drag
 
     def cursor_height(self, name: str, x: float, y: float) -> float | None:
         """Height for the linked cursor: the point under the cursor (its estimate or known
