@@ -281,6 +281,9 @@ def read_image_descriptor(path) -> dict:
          "record_len": get(186, 6, "image record length"), "bits": get(216, 4, "bits per pixel"),
          "lines": get(236, 8, "number of lines"), "pixels": get(248, 8, "pixels per line"),
          "prefix": get(280, 4, "prefix bytes"), "data_bytes": get(284, 8, "image data bytes")}
+    if min(d["record_len"], d["lines"], d["pixels"]) < 1 or min(d["prefix"], d["n_records"]) < 0:
+        raise InputError(f"the descriptor gives {d['lines']} lines of {d['pixels']} pixels in records "
+                         f"of {d['record_len']} bytes after {d['prefix']} prefix bytes", path)
     if d["bits"] not in (8, 16):
         raise InputError(f"{d['bits']} bits per pixel: only 8 and 16 are supported", path)
     if d["prefix"] + d["pixels"] * d["bits"] // 8 > d["record_len"]:
@@ -346,14 +349,20 @@ def ground_angle_deg(sensor_tilt_deg: float, altitude_m: float) -> float:
 
 
 def incidence_deg(sat_ecef, crs: str, e: float, n: float) -> float:
-    """Angle at ground point (E, N, h = 0) between the ellipsoid normal and the satellite."""
+    """Angle at ground point (E, N, h = 0) between the ellipsoid normal and the satellite
+    (NaN where the point or the satellite position is not finite)."""
     lon, lat = Transformer.from_crs(crs, "EPSG:4326", always_xy=True).transform(e, n)
+    if not (math.isfinite(lon) and math.isfinite(lat)):
+        return math.nan
     g = np.array(Transformer.from_crs("EPSG:4979", "EPSG:4978", always_xy=True)
                  .transform(lon, lat, 0.0))
     lo, la = math.radians(lon), math.radians(lat)
     normal = np.array([math.cos(la) * math.cos(lo), math.cos(la) * math.sin(lo), math.sin(la)])
     ray = np.asarray(sat_ecef, dtype=float) - g
-    return math.degrees(math.acos(float(ray @ normal) / float(np.linalg.norm(ray))))
+    norm = float(np.linalg.norm(ray))
+    if not (math.isfinite(norm) and norm > 0):
+        return math.nan
+    return math.degrees(math.acos(max(-1.0, min(1.0, float(ray @ normal) / norm))))
 
 
 def sub_satellite_track(sv: StateVectors, crs: str, t_mid: datetime, half_span_s: float = 30.0,
