@@ -77,7 +77,8 @@ def _centre_check(v) -> float | None:
 def _ceos_views(leds: list[Path], image_dir) -> dict:
     views = {}
     for led in leds:
-        v = ceos.read_ceos_view(led, _ceos_summary(led))
+        summary = _ceos_summary(led)
+        v = ceos.read_ceos_view(led, summary)
         if v.view in views:
             raise InputError(f"two {v.view} views in the product ({views[v.view]['leader'].name} "
                              f"and {led.name})", led)
@@ -88,7 +89,7 @@ def _ceos_views(leds: list[Path], image_dir) -> dict:
         views[v.view] = {
             "view": v.view, "image": tif, "crs": v.crs, "map_to_image": list(v.map_to_image),
             "pixel_size_m": v.pixel_size_m, "width": v.width, "height": v.height,
-            "time": ceos.summary_time(v.summary, "Img_SceneCenterDateTime", led),
+            "time": ceos.summary_time(v.summary, "Img_SceneCenterDateTime", summary or led),
             "scene_id": v.scene_id, "product_id": v.product_id, "summary": v.summary,
             "leader": led, "state_vectors": v.state_vectors, "altitude_m": v.altitude_m,
             "extra": {"source": str(v.image_file), "ceos_f4": list(v.f4),
@@ -141,6 +142,9 @@ def scene_dict_from_views(views: dict, product: Path, kind: str) -> dict:
             if sv is not None and v["time"] is not None:
                 angle = ceos.incidence_deg(sv.at(v["time"]), crs, cx, cy)
                 src = "state vectors at the scene-centre time"
+                if not 0 < angle < 60:  # read_scene's plausible range
+                    raise InputError(f"view {letter}: the state vectors give a viewing angle of "
+                                     f"{angle:.1f} deg at the scene centre", v.get("leader", product))
             else:
                 angle = ceos.ground_angle_deg(ceos.PRISM_TILT_DEG, alt)
                 src = f"PRISM tilt {ceos.PRISM_TILT_DEG} deg at the sensor, spherical Earth"
