@@ -57,11 +57,16 @@ def take_screenshot(window, path, size=(1680, 1050)) -> None:
     if window.solver.solution is None and window.project is not None:
         window.solver.refit_now()
     wait_settled(window)
+    window.solver.refit_now()  # the status bar then shows a warm fit time, not the first one
     sol = window.solver.solution
     if sol is not None and window.current is None:
         gcp = next((r.id for r in sol.points if r.kind == "GCP" and r.measured), None)
         if gcp is not None:
             window.set_current(gcp, drive=False)
+            ref = sol.reference_view
+            xy = window.views.point_position(gcp, ref)
+            if xy is not None and ref in window.views.views:  # the linked cursor on that GCP
+                window.views.on_cursor(ref, *xy)
     wait_settled(window)
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     if not window.grab().save(str(path)):

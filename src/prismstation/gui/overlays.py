@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QPointF, Qt
-from PySide6.QtGui import QColor, QPainterPath, QPen
+from PySide6.QtCore import QPointF, QRectF, Qt
+from PySide6.QtGui import QColor, QFont, QPainterPath, QPen
 
 KIND_COLORS = {"GCP": QColor(255, 70, 70), "ICP": QColor(70, 200, 255), "TIE": QColor(255, 210, 60)}
 BLUNDER_COLOR = QColor(255, 0, 255)
@@ -43,6 +43,49 @@ def _pen(color: QColor, width: float = 2.0, dashed: bool = False):
     return pen
 
 
+class LabelLayer(pg.GraphicsObject):
+    """All point labels of a view in one item, drawn in screen pixels beside their points.
+
+    One item with one ``paint`` instead of a ``TextItem`` per point: those recompute their
+    transforms at every view change, which costs far more than drawing a few hundred strings.
+    """
+
+    OFFSET = QPointF(9.0, -7.0)
+
+    def __init__(self):
+        super().__init__()
+        self.labels: list = []  # (x, y, text, QColor)
+        self.font = QFont()
+        self.font.setPointSizeF(8.5)
+        self.font.setBold(True)
+
+    def set_labels(self, labels) -> None:
+        self.labels = list(labels)
+        self.update()
+
+    def boundingRect(self) -> QRectF:  # everywhere: labels extend in screen pixels
+        return QRectF(-1e9, -1e9, 2e9, 2e9)
+
+    def paint(self, p, *args) -> None:
+        if not self.labels:
+            return
+        t = p.transform()
+        area = QRectF(p.viewport()).adjusted(-80, -20, 20, 20)
+        p.resetTransform()
+        p.setFont(self.font)
+        shadow = QPen(QColor(0, 0, 0, 200))
+        for x, y, text, color in self.labels:
+            d = t.map(QPointF(x, y))
+            if not area.contains(d):
+                continue
+            d += self.OFFSET
+            p.setPen(shadow)
+            p.drawText(d + QPointF(1, 1), text)
+            p.setPen(color)
+            p.drawText(d, text)
+        p.setTransform(t)
+
+
 class ViewOverlay:
     """The overlay items of one view (``name``) in view box ``vb``."""
 
@@ -63,8 +106,10 @@ class ViewOverlay:
             item.setZValue(z)
             vb.addItem(item)
         self.crosshair.setVisible(False)
-        self._labels: dict[str, pg.TextItem] = {}
-        self._label_state: dict[str, tuple] = {}
+        self.labels = LabelLayer()
+        self.labels.setZValue(24)
+        vb.addItem(self.labels, ignoreBounds=True)
+        self._label_state = None
         self.ids = np.zeros(0, dtype=object)      # ids of measured markers, in order
         self.xy = np.zeros((0, 2))                 # their image positions
         self._measured_key = None
@@ -121,26 +166,18 @@ class ViewOverlay:
         self._update_labels(project, label_pos)
 
     def _update_labels(self, project, label_pos: dict) -> None:
-        for pid in [p for p in self._labels if p not in label_pos or not self.show_labels]:
-            self.vb.removeItem(self._labels.pop(pid))
-            self._label_state.pop(pid, None)
-        if not self.show_labels:
+        state = None
+        if self.show_labels:
+            state = [(float(x), float(y), pid, KIND_COLORS.get(project.points[pid].kind, CURRENT_COLOR))
+                     for pid, (x, y) in label_pos.items()]
+        if state == self._label_state:
             return
-        for pid, (x, y) in label_pos.items():
-            kind = project.points[pid].kind
-            state = (x, y, kind)
-            if self._label_state.get(pid) == state:
-                continue
-            item = self._labels.get(pid)
-            if item is None:
-                item = pg.TextItem(pid, anchor=(-0.15, 1.1))
-                item.setZValue(24)
-                self.vb.addItem(item)
-                self._labels[pid] = item
-            if self._label_state.get(pid, (None, None, None))[2] != kind:
-                item.setColor(KIND_COLORS.get(kind, CURRENT_COLOR))
-            item.setPos(QPointF(x, y))
-            self._label_state[pid] = state
+        self._label_state = state
+        self.labels.set_labels(state or [])
+
+    def label_texts(self) -> dict:
+        """``{id: (x, y)}`` of the labels drawn (tests)."""
+        return {t: (x, y) for x, y, t, _ in self.labels.labels}
 
     def set_current(self, xy) -> None:
         """Highlight the current point at image ``(x, y)`` (None: nothing)."""
