@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 from pyproj import CRS, Transformer
-from pyproj.exceptions import CRSError
+from pyproj.exceptions import CRSError, ProjError
 
 from prismstation.errors import InputError
 from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint, Measurement
@@ -49,7 +49,7 @@ def _rows(path, required):
     missing = [c for c in required if c.lower() not in lower]
     if missing:
         raise InputError(f"header lacks column{'s' * (len(missing) > 1)} {', '.join(missing)} "
-                         f"(found: {', '.join(header)})", path, lines[0][0])
+                         f"(found: {', '.join(header)!r})", path, lines[0][0])
     for (lineno, _), row in zip(lines[1:], reader):
         if len(row) != len(header):
             raise InputError(f"{len(row)} fields where the header has {len(header)}", path, lineno)
@@ -94,7 +94,10 @@ def read_ground_points(path, *, crs=None, to_crs=None, height: str | None = None
         except CRSError as exc:
             raise InputError(f"unknown CRS: {exc}") from None
         if src != dst:
-            tr = Transformer.from_crs(src, dst, always_xy=True)
+            try:
+                tr = Transformer.from_crs(src, dst, always_xy=True)
+            except ProjError as exc:
+                raise InputError(f"cannot convert from {crs} to {to_crs}: {exc}") from None
     out: list[GroundPoint] = []
     seen: dict[str, int] = {}
     for lineno, row, _ in _rows(path, ("id", "E", "N", "H")):
