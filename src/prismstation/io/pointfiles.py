@@ -37,7 +37,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from pyproj import CRS, Transformer
-from pyproj.exceptions import CRSError
+from pyproj.exceptions import CRSError, ProjError
 
 from prismstation.errors import InputError
 from prismstation.model.points import HEIGHT_KINDS, GroundPoint, Measurement
@@ -495,7 +495,10 @@ def convert_point_file(pf: PointFile, to_crs: str) -> PointFile:
     if not pf.crs:
         raise InputError("the input names no coordinate system; give it with --crs")
     src, dst = parse_crs(pf.crs), parse_crs(to_crs)
-    tr = Transformer.from_crs(src, dst, always_xy=True)
+    try:
+        tr = Transformer.from_crs(src, dst, always_xy=True)
+    except ProjError as exc:
+        raise InputError(f"cannot convert from {pf.crs[:60]!r} to {to_crs!r}: {exc}") from None
     pts = []
     for p in pf.points:
         e, n = tr.transform(p.E, p.N)
