@@ -125,13 +125,16 @@ def test_click_without_selection_creates_a_tie_point_and_drag_moves_it(qtbot, wi
 
     # drag the marker by 24 screen pixels right, 12 down, with real mouse events
     vp = iv.graphics.viewport()
-    start = iv.map_to_viewport(*got).toPoint()
+    # grab the marker a few pixels off its centre (inside the pick tolerance), so that the
+    # press is not taken for the second half of a double click on the placing click
+    start = iv.map_to_viewport(*got).toPoint() + QPoint(5, 4)
     steps = [start + QPoint(3 * i, int(1.5 * i)) for i in range(1, 9)]
     count = win.undo_stack.count()
 
     qtbot.wait(600)  # longer than a double-click interval after the click
     qtbot.mousePress(vp, Qt.MouseButton.LeftButton, pos=start)
     for p in steps:
+        qtbot.wait(25)  # pyqtgraph drops mouse moves closer than its rate limit
         qtbot.mouseMove(vp, p)
     qtbot.mouseRelease(vp, Qt.MouseButton.LeftButton, pos=steps[-1])
     m = win.project.measurement(pid, "N")
