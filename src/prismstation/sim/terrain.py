@@ -64,8 +64,9 @@ def synthesize_relief(shape, spacing, rng, relief=1400.0, sea_fraction=0.03) -> 
     crests, a regional tilt (stronger on small areas so that slopes stay believable), a flat
     plain at sea level over ``sea_fraction`` of the area and a few metres of fine detail."""
     extent = max(shape) * spacing
-    base = spectral_noise(shape, spacing, rng, 4.5, 250.0, 2.0 * extent)
-    ridged = (1.0 - np.abs(spectral_noise(shape, spacing, rng, 4.0, 300.0, 0.5 * extent))) ** 2
+    base = spectral_noise(shape, spacing, rng, 4.5, 250.0, min(2.0 * extent, 12000.0))
+    ridged = (1.0 - np.abs(spectral_noise(shape, spacing, rng, 4.0, 300.0,
+                                                min(0.5 * extent, 5000.0)))) ** 2
     detail = spectral_noise(shape, spacing, rng, 3.0, 3.0 * spacing, 300.0)
     yy, xx = np.meshgrid(np.linspace(-1, 1, shape[0], dtype=np.float32),
                          np.linspace(-1, 1, shape[1], dtype=np.float32), indexing="ij")

@@ -91,7 +91,7 @@ def make_texture(rng, e0: float, n0: float, shape, spacing: float, heights: Grid
     """
     f1 = _Fields(rng, rng.uniform(0, np.pi), rng.uniform(90, 200), rng.uniform(60, 130))
     f2 = _Fields(rng, rng.uniform(0, np.pi), rng.uniform(120, 260), rng.uniform(50, 110))
-    region, forest_n = _Noise(rng, 1800.0, 512), _Noise(rng, 450.0, 512)
+    region, forest_n = _Noise(rng, 1800.0, 512), _Noise(rng, 700.0, 512)
     crowns, crowns2 = _Noise(rng, 4.0), _Noise(rng, 11.0)
     rock1, rock2 = _Noise(rng, 7.0), _Noise(rng, 35.0)
     roads = (_Noise(rng, 1400.0, 256), _Noise(rng, 900.0, 256))
