@@ -318,3 +318,30 @@ def test_screenshot_run_writes_the_window(demo, tmp_path):
     assert run(str(demo.path), screenshot=str(png)) == 0
     img = QImage(str(png))
     assert img.width() >= 1600 and img.height() >= 1000
+
+
+def test_unsaved_changes_prompt_and_relocated_images(qtbot, window, demo, tmp_path):
+    from PySide6.QtWidgets import QMessageBox
+    B = QMessageBox.StandardButton
+    win = window
+    win.place("N", 300.0, 300.0)
+    assert win.isWindowModified()
+    answers = []
+    win.files.ask = lambda *a, **k: answers.pop(0)
+    answers.append(B.Cancel)                       # close → "Save?" → Cancel: the window stays
+    assert not win.files.maybe_save() and win.project is not None
+    answers.append(B.Discard)                      # open another project, discarding the edit
+    moved = tmp_path / "moved"
+    moved.mkdir()
+    for v in ("N", "F", "B"):                      # the images move away from the scene
+        (demo.path.parent / f"{v}.tif").rename(moved / f"{v}.tif")
+    answers.append(B.Yes)                          # "Images not found: choose the folder?" → yes
+    win.files.choose_dir = lambda title: str(moved)
+    assert win.open_project(demo.path, recover=False)
+    assert win.files.stack.isClean() and not answers
+    assert {v: view.image for v, view in win.project.scene.views.items()} == \
+        {v: str((moved / f"{v}.tif").resolve()) for v in ("N", "F", "B")}
+    assert win.views.wait_loaded() and all(iv.source is not None for iv in win.views.views.values())
+    win.files.save()                               # the relocation is kept in the project
+    assert win.open_project(demo.path, recover=False)
+    assert win.project.scene.views["F"].image == str((moved / "F.tif").resolve())
