@@ -218,11 +218,14 @@ def _state_vectors(rec: bytes, path) -> StateVectors | None:
     step = _num(rec, 182, 22, "vector interval", path, 5)
     try:
         t0 = datetime(y, mo, d, tzinfo=timezone.utc) + timedelta(seconds=sec)
-    except ValueError:
-        raise InputError(f"record 5: {y}-{mo}-{d} is not a date", path) from None
+    except (ValueError, OverflowError):
+        raise InputError(f"record 5: {y}-{mo}-{d} + {sec} s is not a date", path) from None
     vals = np.array([[_num(rec, 386 + 132 * k + 22 * j, 22, "state vector", path, 5)
                       for j in range(6)] for k in range(n)])
-    times = tuple(t0 + timedelta(seconds=step * k) for k in range(n))
+    try:
+        times = tuple(t0 + timedelta(seconds=step * k) for k in range(n))
+    except OverflowError:
+        raise InputError(f"record 5: {n} vectors every {step} s run past the last date", path) from None
     if n < 2 or step <= 0:
         raise InputError("record 5: need two or more state vectors at a positive interval", path)
     return StateVectors(times, vals[:, :3], vals[:, 3:])
@@ -271,7 +274,10 @@ def read_image_descriptor(path) -> dict:
             head = fh.read(12)
             if len(head) < 12:
                 raise InputError("not a CEOS image file (shorter than a record header)", path)
-            rec = head + fh.read(struct.unpack(">I", head[8:12])[0] - 12)
+            length = struct.unpack(">I", head[8:12])[0]
+            if length < 12:
+                raise InputError(f"the descriptor record claims {length} bytes, less than its header", path)
+            rec = head + fh.read(length - 12)
     except OSError as exc:
         raise InputError(f"cannot read: {exc.strerror or exc}", path) from None
     if len(rec) < 296:
