@@ -91,7 +91,7 @@ def _ceos_views(leds: list[Path], image_dir) -> dict:
             "pixel_size_m": v.pixel_size_m, "width": v.width, "height": v.height,
             "time": ceos.summary_time(v.summary, "Img_SceneCenterDateTime", summary or led),
             "scene_id": v.scene_id, "product_id": v.product_id, "summary": v.summary,
-            "leader": led, "state_vectors": v.state_vectors, "altitude_m": v.altitude_m,
+            "leader": led, "summary_file": summary, "state_vectors": v.state_vectors, "altitude_m": v.altitude_m,
             "extra": {"source": str(v.image_file), "ceos_f4": list(v.f4),
                       "line_spacing_m": v.line_spacing_m, "nominal_heading": v.heading,
                       "centre_check_px": _centre_check(v)},
@@ -116,7 +116,9 @@ def scene_dict_from_views(views: dict, product: Path, kind: str) -> dict:
                          product)
     crss = {v["crs"] for v in views.values()}
     if len(crss) != 1:
-        raise InputError(f"the views are in different coordinate systems: {sorted(crss)}", product)
+        each = ", ".join(f"{k} {v['crs']}" + (f" ({v['leader'].name})" if v.get("leader") else "")
+                         for k, v in views.items())
+        raise InputError(f"the views are in different coordinate systems: {each}", product)
     crs = crss.pop()
     ref = views.get("N") or next(iter(views.values()))
     sv = next((v.get("state_vectors") for v in views.values() if v.get("state_vectors")), None)
@@ -143,8 +145,9 @@ def scene_dict_from_views(views: dict, product: Path, kind: str) -> dict:
                 angle = ceos.incidence_deg(sv.at(v["time"]), crs, cx, cy)
                 src = "state vectors at the scene-centre time"
                 if not 0 < angle < 60:  # read_scene's plausible range
-                    raise InputError(f"view {letter}: the state vectors give a viewing angle of "
-                                     f"{angle:.1f} deg at the scene centre", v.get("leader", product))
+                    when = v["time"].isoformat() + (f" ({v['summary_file'].name})" if v.get("summary_file") else "")
+                    raise InputError(f"view {letter}: the state vectors give a viewing angle of {angle:.1f} "
+                                     f"deg at the scene centre at {when}", v.get("leader", product))
             else:
                 angle = ceos.ground_angle_deg(ceos.PRISM_TILT_DEG, alt)
                 src = f"PRISM tilt {ceos.PRISM_TILT_DEG} deg at the sensor, spherical Earth"
