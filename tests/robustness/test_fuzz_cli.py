@@ -92,6 +92,18 @@ def test_fuzz_points_command(work, capsys, fmt, ext, out_ext):
     run()
 
 
+@pytest.mark.parametrize("fmt,ext,spoil,extra", [
+    # found by fuzzing: an ellipsoid pyproj puts on another celestial body (ProjError)
+    ("qgis", ".points", lambda t: t.replace("6378137", "1e300", 1), ["--to-crs", "EPSG:32630"]),
+    # found by fuzzing: a longitude of 1000 passed the ASP reader, then failed in the conversion
+    ("asp", ".gcp", lambda t: t.replace("-8.", "1_000.", 1), ["--to-crs", "EPSG:32630"]),
+])
+def test_found_point_file_cases(work, capsys, fmt, ext, spoil, extra):
+    bad = work / f"found{ext}"
+    bad.write_text(spoil(fz.point_file_text(fmt)))
+    assert run_cli(capsys, ["points", bad, "-o", work / "found_out.csv"] + extra, bad) == 2
+
+
 def test_fuzz_fit_project(work, capsys):
     """A project file that reads may still carry wrong types: fitting it must not crash."""
     pdir = work / "proj"
@@ -101,6 +113,12 @@ def test_fuzz_fit_project(work, capsys):
                   work / "measurements.csv", geoid="55.2", force=True)
     doc = project_to_dict(proj, pdir / "valid.prismproj")
     assert run_cli(capsys, ["fit", pdir / "valid.prismproj"], pdir / "valid.prismproj") == 0
+    # found by fuzzing: wrong types in settings / geoid crashed the fit (KeyError, AttributeError)
+    for key, value in (("settings", dict(doc["settings"], bias_model=None)),
+                       ("settings", dict(doc["settings"], sigma_px="1")), ("geoid", [None])):
+        bad = pdir / "found.prismproj"
+        bad.write_text(json.dumps(dict(doc, **{key: value})))
+        assert run_cli(capsys, ["fit", bad], bad) == 2
 
     @fz.fuzz_settings(120)
     @given(data=fz.mutated_json(doc))

@@ -12,7 +12,7 @@ import tempfile
 from pathlib import Path
 
 import pytest
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from prismstation.cli.new import create
@@ -85,6 +85,7 @@ def test_scene_with_garbage_image(work):
 # --------------------------------------------------------------------------- ground points / measurements
 @fz.fuzz_settings(500)
 @given(data=fz.any_input(fz.points_csv_text()), convert=st.booleans())
+@example(data=b'"\x00\xc2\x85\x00', convert=False)  # found: a newline inside the one-line message
 def test_fuzz_ground_points(work, data, convert):
     path = work / "fuzz_points.csv"
     kw = {"crs": "EPSG:32629", "to_crs": "EPSG:32630"} if convert else {}
