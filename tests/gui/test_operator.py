@@ -5,11 +5,8 @@ import math
 
 import numpy as np
 from PySide6.QtCore import QPoint, QPointF, Qt
-from PySide6.QtGui import QMouseEvent
-from PySide6.QtWidgets import QApplication
 
 from prismstation.io.project import load_project, solve_project
-from prismstation.model.points import Measurement
 
 
 def settle(qtbot, win):
@@ -311,11 +308,11 @@ def test_layout_and_recent_files_persist(qtbot, window, demo):
     w2.close()
 
 
-def test_screenshot_run_writes_the_window(demo, tmp_path):
+def test_gui_command_screenshot_writes_the_window(demo, tmp_path):
     from PySide6.QtGui import QImage
-    from prismstation.gui.app import run
+    from prismstation.cli import main
     png = tmp_path / "shot.png"
-    assert run(str(demo.path), screenshot=str(png)) == 0
+    assert main(["gui", str(demo.path), "--screenshot", str(png)]) == 0
     img = QImage(str(png))
     assert img.width() >= 1600 and img.height() >= 1000
 
@@ -345,3 +342,19 @@ def test_unsaved_changes_prompt_and_relocated_images(qtbot, window, demo, tmp_pa
     win.files.save()                               # the relocation is kept in the project
     assert win.open_project(demo.path, recover=False)
     assert win.project.scene.views["F"].image == str((moved / "F.tif").resolve())
+
+
+def test_export_report_csv_json_html(window, tmp_path):
+    import csv
+    import json
+    win = window
+    assert win.export_report(str(tmp_path / "r.csv"))
+    rows = list(csv.DictReader(open(tmp_path / "r.csv")))
+    sol = win.solver.solution
+    assert {r["id"] for r in rows} == {p.id for p in sol.points}
+    assert sum(1 for r in rows if r["view"]) == len(win.project.measurements)
+    assert win.export_report(str(tmp_path / "r.json"))
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert len(rep["points"]) == len(sol.points)
+    assert win.export_report(str(tmp_path / "r.html"))
+    assert "G1" in (tmp_path / "r.html").read_text(encoding="utf-8")

@@ -6,32 +6,25 @@ refits and publishes a Solution; views, table, model panel and plots read it.
 """
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtGui import QAction, QKeySequence, QUndoStack
-from PySide6.QtWidgets import (QDockWidget, QDoubleSpinBox, QFileDialog, QLabel, QMainWindow,
+from PySide6.QtWidgets import (QDockWidget, QDoubleSpinBox, QLabel, QMainWindow,
                                QMessageBox, QStyle, QTabWidget, QHBoxLayout, QWidget)
 
 from prismstation.errors import PrismError
 from prismstation.gui import commands as cmd
+from prismstation.gui import io_actions
 from prismstation.gui import settings as st
 from prismstation.gui.contrast import ContrastPanel
+from prismstation.gui.io_actions import optional
 from prismstation.gui.loupe import Loupe
 from prismstation.gui.model_panel import ModelPanel
 from prismstation.gui.point_table import PointTableModel, PointTableView
 from prismstation.gui.project_io import ProjectFiles
 from prismstation.gui.solver import Solver
 from prismstation.gui.views import TripletViews
-
-
-def optional(module: str, name: str):
-    """``module.name`` when that module exists (written by another engineer), else None."""
-    try:
-        return getattr(importlib.import_module(module), name)
-    except (ImportError, AttributeError):
-        return None
 
 
 class MainWindow(QMainWindow):
@@ -409,52 +402,14 @@ class MainWindow(QMainWindow):
 
     # ------------------------------------------------------------------ import / export
     def import_points(self) -> None:
-        dialog_cls = optional("prismstation.gui.import_dialog", "ImportDialog")
-        if dialog_cls is None:
-            QMessageBox.information(self, "Import", "The import dialog is not available in this build "
-                                    "(prismstation.gui.import_dialog is missing).")
-            return
-        dlg = dialog_cls(list(self.project.scene.views), self.project.scene.crs, self)
-        if dlg.exec():
-            points, ms = dlg.result()
-            self.push_import(points, ms)
+        io_actions.import_points(self)
 
     def push_import(self, points, ms) -> None:
         """Add imported points and measurements as one undoable step."""
-        points, ms = list(points or []), list(ms or [])
-        if self.project is not None and (points or ms):
-            self.undo_stack.push(cmd.Import(self.project, points, ms,
-                                            f"Import {len(points)} points, {len(ms)} measurements"))
+        io_actions.push_import(self, points, ms)
 
     def export_report(self, path: str | None = None) -> bool:
-        sol = self.solver.solution
-        if sol is None:
-            return False
-        if path is None:
-            path, _ = QFileDialog.getSaveFileName(
-                self, "Export report", st.value(st.Key.LAST_EXPORT_DIR),
-                "HTML (*.html);;PDF (*.pdf);;CSV (*.csv);;JSON (*.json)")
-            if not path:
-                return False
-        from prismstation.io.report import report_dict, write_report
-        rep = report_dict(sol, project_path=self.files.path)
-        try:
-            if Path(path).suffix.lower() in (".html", ".htm", ".pdf"):
-                writer = optional("prismstation.gui.report_writer", "write_document")
-                if writer is None:
-                    QMessageBox.information(self, "Export report", "HTML and PDF reports are not "
-                                            "available in this build (prismstation.gui.report_writer "
-                                            "is missing); choose CSV or JSON.")
-                    return False
-                writer(rep, path)
-            else:
-                write_report(rep, path)
-        except (PrismError, OSError) as exc:
-            QMessageBox.warning(self, "Export report", str(exc))
-            return False
-        st.set_value(st.Key.LAST_EXPORT_DIR, str(Path(path).parent))
-        self.statusBar().showMessage(f"Report written to {path}", 8000)
-        return True
+        return io_actions.export_report(self, path)
 
     # ------------------------------------------------------------------ misc
     def _offer_overviews(self, source) -> None:

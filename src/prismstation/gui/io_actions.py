@@ -1,0 +1,81 @@
+"""File ▸ Import… and File ▸ Export report… of the main window.
+
+The import dialog (:mod:`prismstation.gui.import_dialog`) and the HTML/PDF writer
+(:mod:`prismstation.gui.report_writer`) are imported lazily; where a build lacks them the
+window says so instead of failing. An import is one undoable step; CSV and JSON reports go
+through :func:`prismstation.io.report.write_report`.
+"""
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+
+from PySide6.QtWidgets import QFileDialog, QMessageBox
+
+from prismstation.errors import PrismError
+from prismstation.gui import commands as cmd
+from prismstation.gui import settings as st
+
+REPORT_FILTER = "HTML (*.html);;PDF (*.pdf);;CSV (*.csv);;JSON (*.json)"
+
+
+def optional(module: str, name: str):
+    """``module.name`` when that module exists, else None."""
+    try:
+        return getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError):
+        return None
+
+
+def import_points(window) -> None:
+    """Run the import dialog on the window's project and push what it read."""
+    if window.project is None:
+        return
+    dialog_cls = optional("prismstation.gui.import_dialog", "ImportDialog")
+    if dialog_cls is None:
+        QMessageBox.information(window, "Import", "The import dialog is not available in this build "
+                                "(prismstation.gui.import_dialog is missing).")
+        return
+    dlg = dialog_cls(list(window.project.scene.views), window.project.scene.crs, window)
+    if dlg.exec():
+        points, ms = dlg.result()
+        push_import(window, points, ms)
+
+
+def push_import(window, points, ms) -> None:
+    """Add imported points and measurements to the window's project as one undoable step."""
+    points, ms = list(points or []), list(ms or [])
+    if window.project is not None and (points or ms):
+        window.undo_stack.push(cmd.Import(window.project, points, ms,
+                                          f"Import {len(points)} points, {len(ms)} measurements"))
+
+
+def export_report(window, path: str | None = None) -> bool:
+    """Write the current Solution's report: HTML or PDF (report writer), CSV or JSON."""
+    sol = window.solver.solution
+    if sol is None:
+        return False
+    if path is None:
+        path, _ = QFileDialog.getSaveFileName(window, "Export report", st.value(st.Key.LAST_EXPORT_DIR),
+                                              REPORT_FILTER)
+        if not path:
+            return False
+    from prismstation.io.report import report_dict, write_report
+    rep = report_dict(sol, project_path=window.files.path)
+    try:
+        if Path(path).suffix.lower() in (".html", ".htm", ".pdf"):
+            writer = optional("prismstation.gui.report_writer", "write_document")
+            if writer is None:
+                QMessageBox.information(window, "Export report", "HTML and PDF reports are not "
+                                        "available in this build (prismstation.gui.report_writer "
+                                        "is missing); choose CSV or JSON.")
+                return False
+            writer(rep, path)
+        else:
+            write_report(rep, path)
+    except (PrismError, OSError) as exc:
+        QMessageBox.warning(window, "Export report", str(exc))
+        return False
+    st.set_value(st.Key.LAST_EXPORT_DIR, str(Path(path).parent))
+    window.statusBar().showMessage(f"Report written to {path}", 8000)
+    return True
