@@ -157,7 +157,8 @@ FORMATS = [("qgis", ".points"), ("odm", ".txt"), ("asp", ".gcp"), ("csv", ".csv"
 def test_fuzz_point_files(work, fmt, ext):
     base = fz.point_file_text(fmt)
 
-    @fz.fuzz_settings(300)
+    # ODM: a spoiled CRS line (often a data row moved up) costs pyproj ~0.3 s to refuse
+    @fz.fuzz_settings(100 if fmt == "odm" else 300)
     @given(data=fz.any_input(base), detect=st.booleans())
     def run(data, detect):
         path = work / f"fuzz_{fmt}{ext if detect else '.dat'}"
