@@ -2,13 +2,14 @@
 # One-folder desktop build: dist/prismstation/prismstation (window and command line in one).
 #   bash packaging/build.sh            # installs PyInstaller into .venv if missing, then builds
 # Needs the environment of packaging/setup.sh (.venv with prismstation installed).
+# Exit status 3: PyInstaller could not be installed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 py=.venv/bin/python
 [ -x "$py" ] || { echo "no .venv: run bash packaging/setup.sh first" >&2; exit 1; }
 if ! "$py" -c "import PyInstaller" 2>/dev/null; then
   echo "installing PyInstaller into .venv"
-  "$py" -m pip install -q "pyinstaller>=6.5"
+  "$py" -m pip install -q "pyinstaller>=6.5" || { echo "cannot install PyInstaller" >&2; exit 3; }
 fi
 start=$(date +%s)
 "$py" -m PyInstaller --noconfirm --clean --log-level WARN \
