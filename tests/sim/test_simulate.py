@@ -9,6 +9,7 @@ import rasterio
 from prismstation.cli import main
 from prismstation.sim import geometry as geo
 from prismstation.sim import simulate
+from prismstation.sim.run import scene_relief
 
 SIZE = 640
 
@@ -124,7 +125,7 @@ def test_truth_image_coords_follow_from_truth_ground(triplet):
         h = map_coordinates(dem.astype(float), [rows - 0.5, cols - 0.5], order=1)
         assert np.max(np.abs(h - enh[:, 2])) < 1e-3  # points lie on the bilinear truth DEM
         ortho = dem - 55.0
-        relief = 1400 * SIZE / 2000
+        relief = scene_relief(SIZE)
         assert ortho.min() < 5.0 and 0.97 * relief < ortho.max() < 1.03 * relief
 
 

@@ -34,7 +34,7 @@ def patch_windows(shape, patch_px: int, margin_px: int = 0) -> list[tuple[int, i
 
     for r0, r1 in cuts(rows):
         for c0, c1 in cuts(cols):
-            out.append((c0, r0, c1 - c0, r1 - r0))
+            out.append((int(c0), int(r0), int(c1 - c0), int(r1 - r0)))
     return out
 
 

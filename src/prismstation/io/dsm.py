@@ -31,6 +31,14 @@ class Dsm:
     valid_fraction: float
 
 
+def _fill(py: np.ndarray) -> np.ndarray:
+    """Smoothed parallax with holes filled from the nearest valid cell (a prior for the next level)."""
+    from scipy import ndimage
+    bad = ~np.isfinite(py)
+    idx = ndimage.distance_transform_edt(bad, return_distances=False, return_indices=True)
+    return cv2.medianBlur(py[tuple(idx)].astype(np.float32), 5)
+
+
 def relative_offsets(sol: Solution, record: dict | None = None) -> dict:
     """Where F and B see a point relative to N's view of it, as N-space pixel vectors."""
     if record and record.get("offsets_px"):
@@ -88,9 +96,10 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, decimation:
         for k, (bc, br, bw, bh) in enumerate(blocks):
             if not report(k / len(blocks), f"block {k + 1} of {len(blocks)}"):
                 raise Cancelled("cancelled")
-            py = None
+            py, f_prev = None, None
             prior0 = (sol.mean_height - c0) / c1 - py_back
-            for f, rng, prior in ((8, 90, None), (decimation, 6, "refine")):
+            levels = [(8, 90)] + [(f, 8) for f in (4, 2, 1) if decimation <= f < 8]
+            for f, rng in levels:
                 wd = (bc // f, br // f, max(bw // f, 1), max(bh // f, 1))
                 reach = (abs(prior0) + (rng + 30) * f + 200)
                 box = np.array([[bc - reach, br - reach], [bc + bw + reach, br - reach],
@@ -99,15 +108,15 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, decimation:
                 ba, bm = _to_n(sc, images, "B", box, offs["B"], f)
                 if fa is None or ba is None:
                     break
-                if prior is None:
+                if py is None:
                     pr = np.float32(prior0 / f)
+                elif not np.isfinite(py).any():
+                    break
                 else:
-                    filled = np.where(np.isfinite(py), py, np.nanmedian(py) if np.isfinite(py).any() else prior0 / 8)
-                    filled = cv2.medianBlur(filled.astype(np.float32), 5)
-                    pr = cv2.resize(filled * 8 / f, (wd[2], wd[3]), interpolation=cv2.INTER_LINEAR)
+                    pr = cv2.resize(_fill(py) * f_prev / f, (wd[2], wd[3]), interpolation=cv2.INTER_LINEAR)
                 pm = parallax_map(fa, ba, fm, bm, wd, d, prior=pr, search_range=rng, half_window=4,
                                   n_weight=tanF / (tanF + tanB))
-                py = pm.parallax
+                py, f_prev = pm.parallax, f
             if py is None:
                 continue
             j, i = np.nonzero(np.isfinite(py))

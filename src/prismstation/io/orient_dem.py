@@ -30,6 +30,7 @@ from prismstation.core.solve import Control
 from prismstation.errors import InputError, PrismError
 from prismstation.io.dem import read_dem
 from prismstation.io.project import project_geoid
+from prismstation.io.report import _clean
 from prismstation.model.project import Project
 
 
@@ -51,8 +52,7 @@ class DemOrientation:
     def to_dict(self) -> dict:
         return {"reference": self.reference, "mean_height": self.mean_height,
                 "offsets_px": self.offsets_px, "across_px": self.across_px, "ties": self.ties,
-                "patches": [{k: (float(v) if isinstance(v, (float, np.floating)) else v)
-                             for k, v in asdict(p).items()} for p in self.patches]}
+                "patches": [_clean(asdict(p)) for p in self.patches]}
 
 
 def control_from_record(scene, record: dict) -> Control:

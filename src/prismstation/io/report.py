@@ -16,7 +16,7 @@ from prismstation.io.jsonfile import write_atomic
 REPORT_FORMAT = "prismstation-report/1"
 
 
-def _clean(v):
+def _clean(v):  # noqa: D401  (shared with io.orient_dem)
     """JSON-safe: numpy → Python, NaN/inf → None, tuples → lists."""
     if isinstance(v, dict):
         return {str(k): _clean(x) for k, x in v.items()}
