@@ -91,6 +91,9 @@ def test_built_program_opens_the_demo(tmp_path):
         _build()
     assert EXE.exists() and os.access(EXE, os.X_OK)
     assert (DIST / "prismstation.desktop").exists()
+    share = DIST / "share"
+    assert (share / "applications" / "prismstation.desktop").exists()
+    assert _png_size(share / "icons" / "hicolor" / "48x48" / "apps" / "prismstation.png") == (48, 48)
     env = dict(os.environ, QT_QPA_PLATFORM="offscreen", PYTHONPATH="")
     env.pop("PRISMSTATION_DEMO_DIR", None)
     demo = tmp_path / "demo"
