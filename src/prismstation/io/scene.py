@@ -95,10 +95,14 @@ def _view(name: str, v, base_dir: Path, fail) -> View:
     image = v.get("image")
     if not isinstance(image, str) or not image:
         fail(f'"{key}.image": expected the path of the image file', "image")
-    img_path = (base_dir / image).resolve()
+    try:
+        img_path = (base_dir / image).resolve()
+        exists = img_path.exists()
+    except (OSError, ValueError) as exc:  # a NUL byte, a name too long...
+        fail(f'"{key}.image": {image[:60]!r} is not a usable file path ({exc.__class__.__name__})', "image")
     m2i = v.get("map_to_image")
     shape, gt_affine = None, None
-    if img_path.exists():
+    if exists:
         try:
             with rasterio.open(img_path) as ds:
                 shape = (ds.height, ds.width)
@@ -121,7 +125,7 @@ def _view(name: str, v, base_dir: Path, fail) -> View:
     else:
         affine = None
     if affine is None:
-        why = "the image has no geotransform" if img_path.exists() else f"the image {image} is not found"
+        why = "the image has no geotransform" if exists else f"the image {image} is not found"
         fail(f'"{key}": no "map_to_image" and {why}, so the view cannot be placed on the map', name)
     if abs(np.linalg.det(affine.linear)) < 1e-18:
         fail(f'"{key}.map_to_image": the affine is singular', "map_to_image")
