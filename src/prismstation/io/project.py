@@ -88,8 +88,13 @@ def load_project(path, *, scene_override=None) -> Project:
     scene_rel = scene_override or data.get("scene")
     if not isinstance(scene_rel, str):
         raise InputError('"scene": expected the path of the scene.json', path, line_of(text, "scene"))
-    scene_path = (path.parent / scene_rel).resolve() if scene_override is None else Path(scene_override).resolve()
-    if not scene_path.is_file():
+    try:
+        scene_path = (path.parent / scene_rel).resolve() if scene_override is None else Path(scene_override).resolve()
+        found = scene_path.is_file()
+    except (OSError, ValueError) as exc:  # a NUL byte, a name too long...
+        raise InputError(f'"scene": {scene_rel[:60]!r} is not a usable file path ({exc.__class__.__name__})',
+                         path, line_of(text, "scene")) from None
+    if not found:
         raise InputError(f"scene file not found: {scene_path} (moved? open it with the scene relocated)",
                          path, line_of(text, "scene"))
     scene = read_scene(scene_path)
@@ -212,7 +217,11 @@ def project_geoid(project: Project):
         p = Path(s.get("path", ""))
         if not p.is_absolute() and base is not None:
             p = base / p
-        if not p.is_file():
+        try:
+            found = p.is_file()
+        except OSError:  # a name too long...
+            found = False
+        if not found:
             raise InputError(f"geoid grid not found: {p}")
         return _grid(str(p))
     return geoid_mod.geoid_from_setting(s, base)
