@@ -103,7 +103,8 @@ NASTY = ["", " ", "nan", "NaN", "inf", "-inf", "Infinity", "1e309", "-1e309", "-
          "#", "# comment", "GCP", "ICP", "TIE", "gcp", "ellipsoidal", "orthometric", "N", "F", "B",
          "X", "EPSG:4326", "EPSG:32629", "EPSG:99999", "+proj=longlat", "WGS84 UTM 61N",
          "WGS84 UTM 0S", "WGS84 UTM 33S", "9" * 400, "\x00", "é", "∞", "\u2028", "\x85", "\r",
-         "mapX", "id", "E", "H", "view", "sigma_px", "-1", "1e300", "-5", "1.5e-7"]
+         "mapX", "id", "E", "H", "view", "sigma_px", "-1", "1e300", "-5", "1.5e-7", "x" * 300,
+         "a\x00b.tif", "/", ".."]
 
 token = st.one_of(st.sampled_from(NASTY), st.text(max_size=8),
                   st.floats(allow_nan=True, allow_infinity=True).map(repr),
