@@ -196,3 +196,20 @@ def test_missing_files_are_named(work):
             read(gone)
     with pytest.raises(InputError, match="prism_fuzz_"):
         read_ground_points(work)  # a folder, not a file
+
+
+@pytest.mark.parametrize("bad_path", ["\x00", "a\x00b.tif", "x" * 300, "/", ""])
+def test_unusable_paths_in_documents(project_doc, bad_path):
+    """Found by fuzzing: pathlib's ValueError / OSError escaped from image and scene paths."""
+    pdir, doc = project_doc
+    scene = fz.scene_doc()
+    scene["views"]["F"]["image"] = bad_path
+    scene["views"]["F"].pop("map_to_image")
+    f = pdir / "bad_scene.json"
+    f.write_text(json.dumps(scene))
+    with pytest.raises(InputError, match=r"bad_scene\.json"):
+        read_scene(f)
+    p = pdir / "bad_path.prismproj"
+    p.write_text(json.dumps(dict(doc, scene=bad_path)))
+    with pytest.raises(InputError, match=r"bad_path\.prismproj"):
+        load_project(p)
