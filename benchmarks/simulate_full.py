@@ -3,6 +3,10 @@
 Prints the wall time of each phase, the peak resident memory and the sizes of the files.
 Usage: ``python benchmarks/simulate_full.py [--size 14000] [--out DIR] [--seed 0]``
 (without ``--out`` a temporary folder is used and removed).
+
+Measured 2026-11-22 on the 2-core build machine while other jobs ran (load 6-8): 1339 s wall,
+766 s CPU (terrain 19 s, texture 233 s, then 307 / 384 / 397 s for N / F / B), peak RSS
+1.59 GB, three 291 MB GeoTIFFs with overviews 2-32, a 43 MB truth DEM (10 m).
 """
 from __future__ import annotations
 
