@@ -1,7 +1,8 @@
 """``prismstation demo [--no-gui | --screenshot PNG]``: the bundled demo project.
 
 The demo is a simulated PRISM 1B2-R triplet (``prismstation simulate``) with 9 GCPs, 41 ICPs
-and 20 tie points, made once into the user's data folder and then reused.
+and 20 tie points, and an SRTM-like reference DEM (``triplet/srtm.tif``), made once into the
+user's data folder and then reused.
 """
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ def ensure_demo(directory=None, *, rebuild: bool = False, progress=None) -> Path
     """Make the demo project if absent; returns the project path."""
     from prismstation.cli.new import create
     from prismstation.sim import simulate
+    from prismstation.sim.reference import make_reference_dem
 
     d = Path(directory or default_dir())
     project = d / "demo.prismproj"
@@ -31,6 +33,8 @@ def ensure_demo(directory=None, *, rebuild: bool = False, progress=None) -> Path
         return project
     data = d / "triplet"
     simulate(data, size=DEMO_SIZE, seed=DEMO_SEED, progress=progress)
+    # an SRTM-like reference (90 m, orthometric, noise, voids) for the GCP-free workflow
+    make_reference_dem(data / "truth_dem.tif", data / "srtm.tif", seed=DEMO_SEED)
     create(project, data / "scene.json", data / "points.csv", data / "measurements.csv", force=True)
     return project
 
