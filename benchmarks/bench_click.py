@@ -78,13 +78,17 @@ def main(argv=None) -> int:
     win.solver.solution_changed.connect(win.on_solution)
     win.solver.solution_changed.connect(on_solution)
 
-    total, fit = [], []
+    total, fit, marker = [], [], []
     for i in range(args.rounds):
         dx = (i % 4) - 1.5
         pos = iv.map_to_viewport(x0 + dx, y0 + 0.5 * dx).toPoint()
         done["t"] = None
         t0 = time.perf_counter()
         QTest.mouseClick(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, pos)
+        if done["t"] is None:  # the marker moves before the fit returns (zero-delay timer)
+            win.views.refresh_measured()
+            vp.repaint()
+            marker.append((time.perf_counter() - t0) * 1000)
         while done["t"] is None:
             QCoreApplication.processEvents()
         total.append((done["t"] - t0) * 1000)
@@ -101,6 +105,8 @@ def main(argv=None) -> int:
     line("whole round (target ≤ 30 ms)", total)
     line("  fit in the worker (core.solve)", fit)
     line("  window update + repaint", gui_ms)
+    if marker:
+        line("click → marker redrawn (before the fit)", marker)
     print(f"  open to settled images and first fit      {t_open * 1000:7.0f} ms")
     win.undo_stack.setClean()
     win.close()

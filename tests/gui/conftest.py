@@ -2,6 +2,7 @@
 location (the user's own settings are never touched)."""
 from __future__ import annotations
 
+import gc
 import shutil
 
 import pytest
@@ -57,3 +58,7 @@ def window(qtbot, demo):
     yield win
     win.undo_stack.setClean()
     win.close()
+    win.deleteLater()
+    qtbot.wait(10)
+    gc.collect()  # delete windows here: a window freed by a GC run inside a later event loop
+    # can leave a timer event for its QWindow (offscreen plugin), which crashes Qt

@@ -223,6 +223,8 @@ class MainWindow(QMainWindow):
         self.views.message.connect(lambda m: self.statusBar().showMessage(m, 10000))
         self.views.images_loaded.connect(self._on_images_loaded)
         self.table.selectionModel().selectionChanged.connect(self._on_table_selection)
+        self.table.setContextMenuPolicy(Qt.ContextMenuPolicy.ActionsContextMenu)
+        self.table.addActions([self.a_goto, *self.a_kind.values(), self.a_del_point])
         self.panel.settings_requested.connect(self.change_settings)
         self.exaggeration.valueChanged.connect(self._on_exaggeration)
         if self.plots is not None and hasattr(self.plots, "point_clicked"):

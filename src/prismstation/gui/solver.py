@@ -10,8 +10,11 @@ start one more fit when it ends.
 from __future__ import annotations
 
 import copy
+import itertools
 import time
+import weakref
 
+import shiboken6
 from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
 
 from prismstation.errors import PrismError
@@ -29,14 +32,36 @@ def snapshot(project):
 
 
 class _Relay(QObject):
-    done = Signal(object, object, float)  # solution or None, error message or None, seconds
+    done = Signal(object, object, float, object)  # solution or None, error or None, seconds, token
+
+
+_RELAY: _Relay | None = None
+_RECEIVERS: "weakref.WeakValueDictionary[int, Solver]" = weakref.WeakValueDictionary()
+_TOKENS = itertools.count(1)
+
+
+def _fit_relay() -> _Relay:
+    """One process-wide relay, never deleted (a fit ending after its window is gone must not
+    emit on a dead object); results go to their solver by token, if it still exists."""
+    global _RELAY
+    if _RELAY is None:
+        _RELAY = _Relay()
+        _RELAY.done.connect(_dispatch)
+    return _RELAY
+
+
+def _dispatch(sol, err, seconds, token) -> None:
+    solver = _RECEIVERS.get(token[0])
+    if solver is not None and shiboken6.isValid(solver):
+        solver._on_done(sol, err, seconds, token)
 
 
 class _FitJob(QRunnable):
-    def __init__(self, snap, relay: _Relay):
+    def __init__(self, snap, relay: _Relay, generation: int):
         super().__init__()
         self.snap = snap
         self.relay = relay
+        self.generation = generation
         self.setAutoDelete(True)
 
     def run(self) -> None:  # worker thread
@@ -47,7 +72,7 @@ class _FitJob(QRunnable):
             sol, err = None, str(exc)
         except Exception as exc:  # never let a fit kill the window; say what happened
             sol, err = None, f"the fit failed: {type(exc).__name__}: {exc}"
-        self.relay.done.emit(sol, err, time.perf_counter() - t0)
+        self.relay.done.emit(sol, err, time.perf_counter() - t0, self.generation)
 
 
 class Solver(QObject):
@@ -75,12 +100,14 @@ class Solver(QObject):
         self.solution = None
         self.last_fit_ms = float("nan")
         self.threaded = threaded
+        self._generation = 0  # bumped per project: fits of a previous project are dropped
         self._running = False
         self._dirty = False
         self._pool = QThreadPool(self)
         self._pool.setMaxThreadCount(1)
-        self._relay = _Relay()
-        self._relay.done.connect(self._on_done)
+        self._relay = _fit_relay()
+        self._token = next(_TOKENS)
+        _RECEIVERS[self._token] = self
         self._timer = QTimer(self)
         self._timer.setSingleShot(True)
         self._timer.setInterval(0)
@@ -91,6 +118,7 @@ class Solver(QObject):
             self.project.changed.disconnect(self._on_changed)
         self.project = project
         self.solution = None
+        self._generation += 1
         if project is not None:
             project.changed.connect(self._on_changed)
             self._on_changed()
@@ -130,11 +158,12 @@ class Solver(QObject):
             self._publish(sol, err, time.perf_counter() - t0)
             return
         self._running = True
-        self._pool.start(_FitJob(snap, self._relay))
+        self._pool.start(_FitJob(snap, self._relay, (self._token, self._generation)))
 
-    def _on_done(self, sol, err, seconds) -> None:
+    def _on_done(self, sol, err, seconds, token) -> None:
         self._running = False
-        self._publish(sol, err, seconds)
+        if token[1] == self._generation:
+            self._publish(sol, err, seconds)
         if self._dirty:
             self._timer.start()
 

@@ -11,7 +11,11 @@ pixel (MODEL.md §1).
 """
 from __future__ import annotations
 
+import itertools
+import weakref
+
 import numpy as np
+import shiboken6
 from PySide6.QtCore import QObject, QRunnable, Qt, QThreadPool, Signal
 from PySide6.QtWidgets import QLabel, QSplitter, QVBoxLayout, QWidget
 
@@ -20,21 +24,46 @@ from prismstation.gui.image_view import ImageView
 from prismstation.gui.overlays import ViewOverlay
 from prismstation.io.raster import RasterSource
 
+_TOKENS = itertools.count(1)
 VIEW_TITLES = {"N": "N — nadir", "F": "F — forward", "B": "B — backward"}
 PICK_TOLERANCE_SCREEN_PX = 8.0
 DRIVE_TO_MAX_SCALE = 1.0  # image px per screen px at most after a drive-to (zooms in to detail)
 
 
 class _LoadRelay(QObject):
-    loaded = Signal(str, object, object, str)  # view, source, (lo, hi), error
+    loaded = Signal(str, object, object, str)  # view, (token, source), (lo, hi), error
+
+
+_RELAY: _LoadRelay | None = None
+_RECEIVERS: "weakref.WeakValueDictionary[int, TripletViews]" = weakref.WeakValueDictionary()
+
+
+def _load_relay() -> _LoadRelay:
+    """One process-wide relay, never deleted: a worker finishing after its window is gone
+    emits on a live object; results go to their views by token, if those still exist."""
+    global _RELAY
+    if _RELAY is None:
+        _RELAY = _LoadRelay()
+        _RELAY.loaded.connect(_dispatch)
+    return _RELAY
+
+
+def _dispatch(name, token_src, levels, error) -> None:
+    token, src = token_src
+    views = _RECEIVERS.get(token[0])
+    if views is None or not shiboken6.isValid(views):
+        if src is not None:
+            src.close()
+        return
+    views._on_loaded(name, token_src, levels, error)
 
 
 class _LoadJob(QRunnable):
     """Open a raster and read its coarse overview and statistics (worker thread)."""
 
-    def __init__(self, view: str, path: str, generation: int, relay: _LoadRelay):
+    def __init__(self, view: str, path: str, token, relay: _LoadRelay):
         super().__init__()
-        self.view, self.path, self.generation, self.relay = view, path, generation, relay
+        self.view, self.path, self.generation, self.relay = view, path, token, relay
 
     def run(self) -> None:
         try:
@@ -89,8 +118,9 @@ class TripletViews(QWidget):
         self.active_view: str | None = None
         self._pending: set[str] = set()
         self._generation = 0
-        self._relay = _LoadRelay()
-        self._relay.loaded.connect(self._on_loaded)
+        self._relay = _load_relay()
+        self._token = next(_TOKENS)
+        _RECEIVERS[self._token] = self
         self._pool = QThreadPool(self)
         self._pool.setMaxThreadCount(3)
         self.offer_overviews = None  # callable(source) set by the window when interactive
@@ -133,7 +163,7 @@ class TripletViews(QWidget):
         for name, view in project.scene.views.items():
             if view.image:
                 self._pending.add(name)
-                self._pool.start(_LoadJob(name, view.image, self._generation, self._relay))
+                self._pool.start(_LoadJob(name, view.image, (self._token, self._generation), self._relay))
             else:
                 self.headers[name].setText(f"{VIEW_TITLES.get(name, name)} — no image")
         self.refresh_measured()
@@ -141,8 +171,8 @@ class TripletViews(QWidget):
             self.images_loaded.emit()
 
     def _on_loaded(self, name, gen_src, levels, error) -> None:
-        gen, src = gen_src
-        if gen != self._generation or name not in self.views:
+        token, src = gen_src
+        if token[1] != self._generation or name not in self.views:
             if src is not None:
                 src.close()
             return
@@ -266,31 +296,35 @@ class TripletViews(QWidget):
         """A left drag that starts on a measured marker moves it (keeping the grab offset);
         any other drag goes on to the view box (pan). Picking uses the marker positions, not
         the items' bounding boxes, so it is exact at every zoom."""
-        vb = iv.vb
-        pan = vb.mouseDragEvent
+        vb_ref, views_ref = weakref.ref(iv.vb), weakref.ref(self)  # no reference cycles
+        pan = type(iv.vb).mouseDragEvent
         state = {"pid": None, "offset": (0.0, 0.0)}
 
         def drag(ev, axis=None):
+            vb, views = vb_ref(), views_ref()
+            if vb is None or views is None or name not in views.views:
+                return
+            scale = views.views[name].scale()
             if ev.button() == Qt.MouseButton.LeftButton:
                 if ev.isStart():
                     p = vb.mapSceneToView(ev.buttonDownScenePos())
-                    pid = self.overlays[name].nearest(p.x(), p.y(), PICK_TOLERANCE_SCREEN_PX * iv.scale())
+                    pid = views.overlays[name].nearest(p.x(), p.y(), PICK_TOLERANCE_SCREEN_PX * scale)
                     state["pid"] = None if pid is None else str(pid)
                     if pid is not None:
-                        m = self.project.measurement(str(pid), name)
+                        m = views.project.measurement(str(pid), name)
                         state["offset"] = (m.x - p.x(), m.y - p.y())
                 if state["pid"] is not None:
                     ev.accept()
                     p = vb.mapSceneToView(ev.scenePos())
-                    self.active_view = name
-                    self.move_requested.emit(state["pid"], name, p.x() + state["offset"][0],
-                                             p.y() + state["offset"][1], bool(ev.isFinish()))
+                    views.active_view = name
+                    views.move_requested.emit(state["pid"], name, p.x() + state["offset"][0],
+                                              p.y() + state["offset"][1], bool(ev.isFinish()))
                     if ev.isFinish():
                         state["pid"] = None
                     return
-            pan(ev, axis=axis) if axis is not None else pan(ev)
+            pan(vb, ev, axis=axis)
 
-        vb.mouseDragEvent = drag
+        iv.vb.mouseDragEvent = drag
 
     def cursor_height(self, name: str, x: float, y: float) -> float | None:
         """Height for the linked cursor: the point under the cursor (its estimate or known
