@@ -46,6 +46,8 @@ def window(qtbot, demo):
     from prismstation.gui.main_window import MainWindow
 
     make_app()
+    gc.collect()  # windows left by earlier tests go now, at a safe point
+    qtbot.wait(1)
     win = MainWindow(interactive=False)
     win.files.interactive = False
     qtbot.addWidget(win)
