@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from PySide6.QtCore import QPoint, QPointF, Qt
 
 from prismstation.io.project import load_project, solve_project
@@ -358,3 +359,19 @@ def test_export_report_csv_json_html(window, tmp_path):
     assert len(rep["points"]) == len(sol.points)
     assert win.export_report(str(tmp_path / "r.html"))
     assert "G1" in (tmp_path / "r.html").read_text(encoding="utf-8")
+
+
+def test_residual_vectors_keep_their_screen_length(qtbot, window):
+    win = window
+    sol = win.solver.solution
+    win.exaggeration.setValue(30)
+    r = sol.point("G2")
+    x, y = r.measured["F"]
+    vx, vy = r.residual_px["F"]
+    iv, ov = win.views.views["F"], win.views.overlays["F"]
+    for scale in (4.0, 0.5):
+        iv.center_on(x, y, scale)
+        ends = ov.vector_ends()
+        i = int(np.argmin(np.hypot(ends[:, 0] - x, ends[:, 1] - y)))
+        a, b = iv.map_to_viewport(*ends[i, :2]), iv.map_to_viewport(*ends[i, 2:])
+        assert math.hypot(b.x() - a.x(), b.y() - a.y()) == pytest.approx(30 * math.hypot(vx, vy), rel=1e-3)

@@ -201,9 +201,10 @@ class MainWindow(QMainWindow):
         tb.addSeparator()
         tb.addActions([self.a_zoom_in, self.a_zoom_out, self.a_fit])
         tb.addSeparator()
-        tb.addWidget(QLabel(" Residual ×"))
+        tb.addWidget(QLabel(" Residual vectors ×"))
         self.exaggeration = QDoubleSpinBox(decimals=0, minimum=1, maximum=5000, singleStep=10)
-        self.exaggeration.setToolTip("Exaggeration of the residual vectors drawn on the images")
+        self.exaggeration.setToolTip("Residual vectors on the images: screen pixels per pixel of "
+                                     "residual (the same at every zoom)")
         self.exaggeration.setValue(st.value(st.Key.RESIDUAL_SCALE))
         tb.addWidget(self.exaggeration)
 

@@ -92,7 +92,9 @@ class ViewOverlay:
     def __init__(self, name: str, vb: pg.ViewBox):
         self.name = name
         self.vb = vb
-        self.exaggeration = 50.0
+        self.exaggeration = 40.0  # screen pixels per pixel of residual, at every zoom
+        self.scale = 1.0          # image pixels per screen pixel of the view
+        self._residuals = np.zeros((0, 4))  # x, y, vx, vy (image pixels)
         self.show_labels = True
         self.measured = pg.ScatterPlotItem(symbol=MEASURED_SYMBOL, size=19, pxMode=True, brush=None)
         self.predicted = pg.ScatterPlotItem(symbol="o", size=15, pxMode=True, brush=None)
@@ -152,8 +154,7 @@ class ViewOverlay:
                         label_pos.setdefault(r.id, (x, y))
                 if self.name in r.residual_px and self.name in r.measured:
                     (x, y), (vx, vy) = r.measured[self.name], r.residual_px[self.name]
-                    k = self.exaggeration
-                    segs += [(x, y), (x + k * vx, y + k * vy)]
+                    segs.append((x, y, vx, vy))
         key = (tuple(map(tuple, pred)), tuple(id(p) for p in pred_pens))
         if key != self._predicted_key:
             self._predicted_key = key
@@ -161,9 +162,30 @@ class ViewOverlay:
                 self.predicted.setData(pos=np.array(pred), pen=pred_pens)
             else:
                 self.predicted.clear()
-        s = np.array(segs, float).reshape(-1, 2)
-        self.vectors.setData(s[:, 0], s[:, 1], connect="pairs")
+        self._residuals = np.array(segs, float).reshape(-1, 4)
+        self._draw_vectors()
         self._update_labels(project, label_pos)
+
+    def set_scale(self, scale: float) -> None:
+        """The view's zoom changed (image px per screen px): vectors keep their screen length."""
+        if scale > 0 and abs(scale - self.scale) > 1e-9 * scale:
+            self.scale = float(scale)
+            self._draw_vectors()
+
+    def _draw_vectors(self) -> None:
+        r = self._residuals
+        k = self.exaggeration * self.scale  # image pixels drawn per pixel of residual
+        seg = np.empty((2 * len(r), 2))
+        seg[0::2] = r[:, :2]
+        seg[1::2] = r[:, :2] + k * r[:, 2:]
+        self.vectors.setData(seg[:, 0], seg[:, 1], connect="pairs")
+
+    def vector_ends(self) -> np.ndarray:
+        """``(n, 4)``: start and end of each residual vector drawn, image pixels (tests)."""
+        x, y = self.vectors.getData()
+        if x is None or len(x) == 0:
+            return np.zeros((0, 4))
+        return np.column_stack([x[0::2], y[0::2], x[1::2], y[1::2]])
 
     def _update_labels(self, project, label_pos: dict) -> None:
         state = None

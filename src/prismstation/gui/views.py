@@ -157,7 +157,7 @@ class TripletViews(QWidget):
             self._wrap_drag(name, iv)
             iv.clicked.connect(lambda x, y, mods, n=name: self._on_clicked(n, x, y, mods))
             iv.cursor_moved.connect(lambda x, y, n=name: self.on_cursor(n, x, y))
-            iv.view_changed.connect(lambda n=name: self._update_header(n))
+            iv.view_changed.connect(lambda n=name: self._on_view_changed(n))
         self.splitter.setSizes([1000] * len(self.views))
         self._pending = set()
         for name, view in project.scene.views.items():
@@ -202,6 +202,12 @@ class TripletViews(QWidget):
         QCoreApplication.processEvents()
         return not self._pending
 
+    def _on_view_changed(self, name: str) -> None:
+        iv, ov = self.views.get(name), self.overlays.get(name)
+        if iv is not None and ov is not None:
+            ov.set_scale(iv.scale())
+        self._update_header(name)
+
     def _update_header(self, name: str) -> None:
         iv = self.views.get(name)
         if iv is None or iv.source is None:
@@ -231,7 +237,7 @@ class TripletViews(QWidget):
     def set_exaggeration(self, k: float) -> None:
         for ov in self.overlays.values():
             ov.exaggeration = float(k)
-        self.set_solution(self.solution)
+            ov._draw_vectors()
 
     def set_show_labels(self, on: bool) -> None:
         for ov in self.overlays.values():
@@ -327,15 +333,15 @@ class TripletViews(QWidget):
         iv.vb.mouseDragEvent = drag
 
     def cursor_height(self, name: str, x: float, y: float) -> float | None:
-        """Height for the linked cursor: the point under the cursor (its estimate or known
-        height), else the solution's mean scene height."""
+        """Height for the linked cursor: that of the point under the cursor, else that of the
+        current point (the one being measured), else the solution's mean scene height."""
         sol = self.solution
         if sol is None:
             return None
         iv = self.views[name]
         pid = self.overlays[name].nearest(x, y, PICK_TOLERANCE_SCREEN_PX * iv.scale())
-        if pid is not None:
-            r = sol.point(str(pid))
+        for p in (pid, self.current):
+            r = sol.point(str(p)) if p is not None else None
             if r is not None and r.ground_est is not None and np.isfinite(r.ground_est[2]):
                 return float(r.ground_est[2])
         return float(sol.mean_height)
