@@ -64,7 +64,6 @@ def main(argv=None) -> int:
     gui_ms = []
 
     def on_solution(sol):  # connected after the window's own slot: everything is updated
-        t = time.perf_counter()
         for w in (win.table.viewport(), win.panel.text.viewport(), win.plots or win.panel,
                   *[v.graphics.viewport() for v in win.views.views.values()]):
             w.repaint()

@@ -104,6 +104,13 @@ class _Sections(QWidget):
         if shape != self._shape:
             self._rebuild(sections, notes)
             self._shape = shape
+        self.setUpdatesEnabled(False)  # one repaint for the whole batch of labels
+        try:
+            self._set_texts(sections, notes)
+        finally:
+            self.setUpdatesEnabled(True)
+
+    def _set_texts(self, sections, notes) -> None:
         texts = []
         for title, head, rows in sections:
             texts.append(title)
