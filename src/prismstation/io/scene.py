@@ -52,7 +52,7 @@ def scene_from_dict(data: dict, base_dir, source: str = "scene", text: str = "")
     try:
         tr = np.asarray(track, dtype=float)
         ok = tr.ndim == 2 and tr.shape[1] == 2 and len(tr) >= 2 and np.all(np.isfinite(tr))
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         ok = False
     if not ok:
         fail('"ground_track": expected a list of two or more [E, N] points in flight order', "ground_track")
@@ -73,8 +73,15 @@ def scene_from_dict(data: dict, base_dir, source: str = "scene", text: str = "")
     return Scene(crs_obj.to_string(), hs, GroundTrack(tr), views, geoid, extra)
 
 
+def _finite(value) -> bool:
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # a JSON integer beyond float range
+        return False
+
+
 def _number(value, key, fail, positive=False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not _finite(value):
         fail(f'"{key}": expected a number, found {value!r}', key.split(".")[-1])
     if positive and value <= 0:
         fail(f'"{key}": must be positive, found {value}', key.split(".")[-1])
@@ -115,7 +122,7 @@ def _view(name: str, v, base_dir: Path, fail) -> View:
         try:
             c = np.asarray(m2i, dtype=float)
             ok = c.shape == (6,) and np.all(np.isfinite(c))
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             ok = False
         if not ok:
             fail(f'"{key}.map_to_image": expected six numbers [A1, A2, A3, A4, A5, A6]', "map_to_image")
