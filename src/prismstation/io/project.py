@@ -119,7 +119,7 @@ def load_project(path, *, scene_override=None) -> Project:
                             extra=d.get("extra", {}))
             if kind != "TIE" and not has_ground(p):
                 raise ValueError("a GCP or ICP needs E, N and H")
-        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
             raise InputError(f"{where}: malformed point ({exc})", path, _line_of_id(text, d)) from None
         points.append(p)
     for i, d in enumerate(_list(data, "measurements", path, text)):
@@ -130,7 +130,7 @@ def load_project(path, *, scene_override=None) -> Project:
                 raise ValueError("non-finite coordinates")
             if m.sigma_px is not None and not _number(m.sigma_px, minimum=0.0, strict=True):
                 raise ValueError("sigma_px must be a positive number")
-        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
             raise InputError(f'"measurements"[{i}]: malformed measurement ({exc})', path,
                              _line_of_id(text, d)) from None
         measurements.append(m)
@@ -146,6 +146,8 @@ def load_project(path, *, scene_override=None) -> Project:
 
 def _number(v, minimum=None, strict=False) -> bool:
     """``v`` is a finite number (not a bool), above ``minimum`` when given."""
+    if isinstance(v, int) and abs(v) > 2**1023:  # a JSON integer beyond float range
+        return False
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
         return False
     return minimum is None or (v > minimum if strict else v >= minimum)
