@@ -274,6 +274,10 @@ def check_error(exc: PrismError, path: Path, data: bytes, *, lined: bool) -> Non
     if not isinstance(exc, InputError):
         return
     n_lines = len(data.splitlines()) + 1
+    try:  # the readers count lines as str.splitlines does (\x1c, \x85, \u2028... end lines too)
+        n_lines = max(n_lines, len(data.decode("utf-8-sig").splitlines()) + 1)
+    except UnicodeDecodeError:
+        pass
     if exc.line is not None:
         assert 1 <= exc.line <= max(n_lines, 1), f"line {exc.line} outside the file ({n_lines}): {msg!r}"
     elif lined:

@@ -213,3 +213,25 @@ def test_unusable_paths_in_documents(project_doc, bad_path):
     p.write_text(json.dumps(dict(doc, scene=bad_path)))
     with pytest.raises(InputError, match=r"bad_path\.prismproj"):
         load_project(p)
+
+
+def test_integers_beyond_float_range(project_doc):
+    """Found by fuzzing: a JSON integer of 400 digits raised OverflowError."""
+    pdir, doc = project_doc
+    big = 10 ** 400
+    for change in (lambda d: d.update(satellite_altitude_m=big),
+                   lambda d: d["ground_track"][0].__setitem__(0, big),
+                   lambda d: d["views"]["N"].update(pixel_size_m=big)):
+        scene = fz.scene_doc()
+        change(scene)
+        f = pdir / "big_scene.json"
+        f.write_text(json.dumps(scene))
+        with pytest.raises(InputError, match=r"big_scene\.json, line \d+"):
+            read_scene(f)
+    for change in ({"settings": dict(doc["settings"], sigma_px=big)},
+                   {"points": [dict(doc["points"][0], E=big)]},
+                   {"measurements": [dict(doc["measurements"][0], x=big)]}):
+        p = pdir / "big.prismproj"
+        p.write_text(json.dumps(dict(doc, **change)))
+        with pytest.raises(InputError, match=r"big\.prismproj"):
+            load_project(p)
