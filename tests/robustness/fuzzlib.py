@@ -180,6 +180,7 @@ def _bytes(draw, text: str) -> bytes:
 
 json_value = st.recursive(
     st.one_of(st.none(), st.booleans(), st.integers(-10**20, 10**20),
+              st.sampled_from([10**400, -10**400, 2**63, 2**64, 0, -1]),
               st.floats(allow_nan=True, allow_infinity=True), st.sampled_from(NASTY), st.text(max_size=10)),
     lambda inner: st.one_of(st.lists(inner, max_size=4),
                             st.dictionaries(st.sampled_from(["N", "F", "B", "id", "x", "image", "kind",
