@@ -2,11 +2,12 @@
 
 Tests and screenshots point QSettings at a temporary directory with :func:`use_settings_dir`
 (or the ``PRISMSTATION_SETTINGS_DIR`` environment variable) so that the user's own settings are
-never read or written.
+never read or written; under pytest, a temporary directory is chosen when none was.
 """
 from __future__ import annotations
 
 import os
+import tempfile
 from enum import Enum
 
 from PySide6.QtCore import QByteArray, QCoreApplication, QSettings
@@ -39,8 +40,13 @@ class Key(Enum):
         return self.value[1]
 
 
+_applied_dir: str | None = None
+
+
 def use_settings_dir(path) -> None:
     """Keep settings as an INI file under ``path`` (tests, screenshots)."""
+    global _applied_dir
+    _applied_dir = str(path)
     QSettings.setDefaultFormat(QSettings.Format.IniFormat)
     for fmt in (QSettings.Format.IniFormat, QSettings.Format.NativeFormat):
         QSettings.setPath(fmt, QSettings.Scope.UserScope, str(path))
@@ -55,7 +61,15 @@ def configure() -> None:
         use_settings_dir(d)
 
 
+
 def _settings() -> QSettings:
+    """The settings store; honours ``PRISMSTATION_SETTINGS_DIR`` whenever it changes, and under
+    pytest without it uses a temporary directory (never the user's own settings)."""
+    d = os.environ.get("PRISMSTATION_SETTINGS_DIR")
+    if not d and "PYTEST_CURRENT_TEST" in os.environ:
+        d = os.environ["PRISMSTATION_SETTINGS_DIR"] = tempfile.mkdtemp(prefix="prismstation-test-settings-")
+    if d and d != _applied_dir:
+        use_settings_dir(d)
     return QSettings(QSettings.Format.IniFormat, QSettings.Scope.UserScope, ORGANIZATION, APPLICATION)
 
 
