@@ -375,3 +375,26 @@ def test_residual_vectors_keep_their_screen_length(qtbot, window):
         i = int(np.argmin(np.hypot(ends[:, 0] - x, ends[:, 1] - y)))
         a, b = iv.map_to_viewport(*ends[i, :2]), iv.map_to_viewport(*ends[i, 2:])
         assert math.hypot(b.x() - a.x(), b.y() - a.y()) == pytest.approx(30 * math.hypot(vx, vy), rel=1e-3)
+
+
+def test_reference_dem_heights_for_the_linked_cursor(qtbot, window, tmp_path):
+    import rasterio
+    from prismstation.gui.reference_dem import scene_grid
+    win = window
+    transform, shape = scene_grid(win.project.scene, spacing=100.0)
+    dem = tmp_path / "dem.tif"
+    rows, cols = shape
+    # a plane: h = 900 m + 0.01 · (column): its height under the cursor is known exactly
+    h = (900.0 + 0.01 * np.arange(cols)[None, :] * np.ones((rows, 1))).astype("float32")
+    with rasterio.open(dem, "w", driver="GTiff", width=cols, height=rows, count=1, dtype="float32",
+                       crs=win.project.scene.crs, transform=transform) as ds:
+        ds.write(h, 1)
+    win.load_reference_dem(dem, wait=True)
+    settle(qtbot, win)
+    assert win.views.height_of is not None and win.solver.height_of is win.views.height_of
+    sol = win.solver.solution
+    linked, ground = win.views.linked("N", 123.0, 456.0)
+    col, _ = ~transform * (ground[0], ground[1])
+    assert ground[2] == pytest.approx(900.0 + 0.01 * (col - 0.5), abs=0.05)
+    en = sol.image_to_ground("N", np.array([123.0, 456.0]), ground[2])
+    assert np.allclose(linked["F"], sol.ground_to_image("F", en, ground[2]), atol=1e-6)

@@ -22,6 +22,7 @@ from prismstation.gui.io_actions import optional
 from prismstation.gui.loupe import Loupe
 from prismstation.gui.model_panel import ModelPanel
 from prismstation.gui.point_table import PointTableModel, PointTableView
+from prismstation.gui.reference_dem import DemLoader
 from prismstation.gui.project_io import ProjectFiles
 from prismstation.gui.solver import Solver
 from prismstation.gui.views import TripletViews
@@ -41,6 +42,7 @@ class MainWindow(QMainWindow):
         self.undo_stack = QUndoStack(self)
         self.files = ProjectFiles(self.undo_stack, self)
         self.solver = Solver(self, threaded=threaded_fit)
+        self.dem_loader = DemLoader(self)
         self.views = TripletViews(self)
         self.setCentralWidget(self.views)
         self.table_model = PointTableModel(self)
@@ -153,6 +155,8 @@ class MainWindow(QMainWindow):
                                 QKeySequence("Ctrl+Right")], S.SP_MediaSeekForward)
         self.a_prev = self._act("&Previous point", lambda: self.step_point(-1), [QKeySequence("PgUp"),
                                 QKeySequence("Ctrl+Left")], S.SP_MediaSeekBackward)
+        self.a_dem = self._act("Reference &DEM…", self.choose_reference_dem,
+                               tip="Heights for the linked cursor and for points without parallax")
         self.a_labels = self._act("Point &labels", self.views.set_show_labels, "Ctrl+L", checkable=True)
         self.a_labels.setChecked(st.value(st.Key.SHOW_LABELS))
         self.a_about = self._act("&About", self.about)
@@ -177,7 +181,7 @@ class MainWindow(QMainWindow):
         m = mb.addMenu("&View")
         m.addActions([self.a_zoom_in, self.a_zoom_out, self.a_fit])
         m.addSeparator()
-        m.addActions([self.a_goto, self.a_next, self.a_prev, self.a_labels])
+        m.addActions([self.a_goto, self.a_next, self.a_prev, self.a_labels, self.a_dem])
         m.addSeparator()
         for d in self.docks.values():
             m.addAction(d.toggleViewAction())
@@ -228,6 +232,8 @@ class MainWindow(QMainWindow):
         self.table.addActions([self.a_goto, *self.a_kind.values(), self.a_del_point])
         self.panel.settings_requested.connect(self.change_settings)
         self.exaggeration.valueChanged.connect(self._on_exaggeration)
+        self.dem_loader.loaded.connect(self._on_dem)
+        self.dem_loader.failed.connect(lambda m: self.statusBar().showMessage(f"Reference DEM: {m}", 10000))
         if self.plots is not None and hasattr(self.plots, "point_clicked"):
             self.plots.point_clicked.connect(lambda pid: self.set_current(pid, drive=True))
 
@@ -240,6 +246,8 @@ class MainWindow(QMainWindow):
             self.project.changed.disconnect(self._on_project_changed)
         self.project, self.current = project, None
         project.changed.connect(self._on_project_changed)
+        self.views.height_of = None
+        self.solver.height_of = None
         self.views.set_project(project)
         self.views.set_exaggeration(self.exaggeration.value())
         self.views.set_show_labels(self.a_labels.isChecked())
@@ -377,6 +385,30 @@ class MainWindow(QMainWindow):
     def change_settings(self, settings) -> None:
         if self.project is not None and settings != self.project.settings:
             self.undo_stack.push(cmd.ChangeSettings(self.project, settings))
+
+    def choose_reference_dem(self) -> None:
+        from PySide6.QtWidgets import QFileDialog
+        path, _ = QFileDialog.getOpenFileName(self, "Reference DEM", st.value(st.Key.LAST_IMPORT_DIR),
+                                              "DEM (*.tif *.tiff *.hgt);;All files (*)")
+        if path:
+            self.load_reference_dem(path)
+
+    def load_reference_dem(self, path, wait: bool = False) -> None:
+        """Read a DEM in a worker; then it gives the linked cursor and unparallaxed points
+        their heights. ``wait``: block until it is loaded (scripts, tests)."""
+        if self.project is None:
+            return
+        self.statusBar().showMessage(f"Reading the reference DEM {path}…")
+        self.dem_loader.start(str(path), self.project)
+        if wait:
+            self.dem_loader.wait()
+            from PySide6.QtCore import QCoreApplication
+            QCoreApplication.processEvents()
+
+    def _on_dem(self, heights) -> None:
+        self.views.height_of = heights
+        self.solver.set_height_of(heights)
+        self.statusBar().showMessage(f"Reference DEM: {heights.path}", 8000)
 
     def _on_exaggeration(self, k) -> None:
         self.views.set_exaggeration(k)

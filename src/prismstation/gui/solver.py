@@ -57,9 +57,10 @@ def _dispatch(sol, err, seconds, token) -> None:
 
 
 class _FitJob(QRunnable):
-    def __init__(self, snap, relay: _Relay, generation: int):
+    def __init__(self, snap, relay: _Relay, generation, height_of=None):
         super().__init__()
         self.snap = snap
+        self.height_of = height_of
         self.relay = relay
         self.generation = generation
         self.setAutoDelete(True)
@@ -67,7 +68,7 @@ class _FitJob(QRunnable):
     def run(self) -> None:  # worker thread
         t0 = time.perf_counter()
         try:
-            sol, err = solve_project(self.snap), None
+            sol, err = solve_project(self.snap, height_of=self.height_of), None
         except PrismError as exc:
             sol, err = None, str(exc)
         except Exception as exc:  # never let a fit kill the window; say what happened
@@ -100,6 +101,7 @@ class Solver(QObject):
         self.solution = None
         self.last_fit_ms = float("nan")
         self.threaded = threaded
+        self.height_of = None  # reference DEM: (n, 2) map metres -> (n,) ellipsoidal metres
         self._generation = 0  # bumped per project: fits of a previous project are dropped
         self._running = False
         self._dirty = False
@@ -127,6 +129,12 @@ class Solver(QObject):
         self._dirty = True
         self._timer.start()
 
+    def set_height_of(self, fn) -> None:
+        """Use a reference DEM for points without parallax (None: the mean height); refits."""
+        self.height_of = fn
+        if self.project is not None:
+            self._on_changed()
+
     def busy(self) -> bool:
         """True while a change waits for its fit or a fit runs."""
         return self._dirty or self._running
@@ -138,7 +146,7 @@ class Solver(QObject):
         self._dirty = False
         t0 = time.perf_counter()
         try:
-            sol, err = solve_project(snapshot(self.project)), None
+            sol, err = solve_project(snapshot(self.project), height_of=self.height_of), None
         except PrismError as exc:
             sol, err = None, str(exc)
         self._publish(sol, err, time.perf_counter() - t0)
@@ -152,13 +160,13 @@ class Solver(QObject):
         if not self.threaded:
             t0 = time.perf_counter()
             try:
-                sol, err = solve_project(snap), None
+                sol, err = solve_project(snap, height_of=self.height_of), None
             except PrismError as exc:
                 sol, err = None, str(exc)
             self._publish(sol, err, time.perf_counter() - t0)
             return
         self._running = True
-        self._pool.start(_FitJob(snap, self._relay, (self._token, self._generation)))
+        self._pool.start(_FitJob(snap, self._relay, (self._token, self._generation), self.height_of))
 
     def _on_done(self, sol, err, seconds, token) -> None:
         self._running = False

@@ -124,6 +124,7 @@ class TripletViews(QWidget):
         self._pool = QThreadPool(self)
         self._pool.setMaxThreadCount(3)
         self.offer_overviews = None  # callable(source) set by the window when interactive
+        self.height_of = None  # reference DEM heights: (n, 2) map metres -> (n,) metres
 
     # ------------------------------------------------------------------ project and images
     def set_project(self, project) -> None:
@@ -334,7 +335,7 @@ class TripletViews(QWidget):
 
     def cursor_height(self, name: str, x: float, y: float) -> float | None:
         """Height for the linked cursor: that of the point under the cursor, else that of the
-        current point (the one being measured), else the solution's mean scene height."""
+        current point (the one being measured), else None (the reference DEM or the mean)."""
         sol = self.solution
         if sol is None:
             return None
@@ -344,17 +345,27 @@ class TripletViews(QWidget):
             r = sol.point(str(p)) if p is not None else None
             if r is not None and r.ground_est is not None and np.isfinite(r.ground_est[2]):
                 return float(r.ground_est[2])
-        return float(sol.mean_height)
+        return None
 
     def linked(self, name: str, x: float, y: float, h: float | None = None):
         """``(positions, ground)``: where image ``(x, y)`` of ``name`` falls in the other views
-        at height ``h`` (default :meth:`cursor_height`), and its ground ``(E, N, h)``."""
+        at height ``h`` (default: :meth:`cursor_height`, else the reference DEM under the cursor,
+        else the mean scene height), and its ground ``(E, N, h)``."""
         sol = self.solution
         if sol is None:
             return {}, None
         h = self.cursor_height(name, x, y) if h is None else h
+        xy = np.array([x, y], float)
         try:
-            en = sol.image_to_ground(name, np.array([x, y], float), h)
+            if h is None:
+                h = float(sol.mean_height)
+                if self.height_of is not None:  # ground at the DEM's height (fixed point)
+                    for _ in range(4):
+                        hd = float(self.height_of(sol.image_to_ground(name, xy, h)[None])[0])
+                        if not np.isfinite(hd):
+                            break
+                        h = hd
+            en = sol.image_to_ground(name, xy, h)
             out = {v: tuple(map(float, sol.ground_to_image(v, en, h))) for v in self.views if v != name}
         except (PrismError, ValueError, np.linalg.LinAlgError):
             return {}, None
