@@ -249,6 +249,9 @@ class MainWindow(QMainWindow):
         self.views.height_of = None
         self.solver.height_of = None
         self.views.set_project(project)
+        split = st.value(st.Key.SPLITTER)
+        if split is not None and not split.isEmpty():
+            self.views.splitter.restoreState(split)
         self.views.set_exaggeration(self.exaggeration.value())
         self.views.set_show_labels(self.a_labels.isChecked())
         self.table_model.set_project(project)
@@ -479,6 +482,8 @@ class MainWindow(QMainWindow):
     def save_layout(self) -> None:
         st.set_value(st.Key.GEOMETRY, self.saveGeometry())
         st.set_value(st.Key.STATE, self.saveState())
+        if self.views.views:
+            st.set_value(st.Key.SPLITTER, self.views.splitter.saveState())
         st.set_value(st.Key.SHOW_LABELS, self.a_labels.isChecked())
 
     def closeEvent(self, ev) -> None:
