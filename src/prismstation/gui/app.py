@@ -77,8 +77,18 @@ def run(project_path=None, screenshot=None) -> int:
     """Open the window (on ``project_path``) and run the event loop; with ``screenshot`` (a PNG
     path) write a picture of the loaded, fitted window instead and return 0."""
     screenshot_path = screenshot
+    if project_path is not None and not Path(project_path).exists():
+        raise InputError("project not found", project_path)
+    import os
+    headless = not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+                    or os.environ.get("QT_QPA_PLATFORM"))
+    if headless and screenshot_path is not None:
+        os.environ["QT_QPA_PLATFORM"] = "offscreen"  # a picture needs no screen
+    elif headless and sys.platform.startswith("linux"):
+        print("prismstation: no display (DISPLAY is not set); run it in a desktop session, or "
+              "write a picture with --screenshot PNG", file=sys.stderr)
+        return 2
     if screenshot_path is not None:
-        import os
         if "PRISMSTATION_SETTINGS_DIR" not in os.environ:  # never the user's layout in a picture
             os.environ["PRISMSTATION_SETTINGS_DIR"] = tempfile.mkdtemp(prefix="prismstation-settings-")
     app = make_app()
@@ -88,8 +98,6 @@ def run(project_path=None, screenshot=None) -> int:
     win = MainWindow(interactive=interactive)
     win.files.interactive = interactive
     if project_path is not None:
-        if not Path(project_path).exists():
-            raise InputError("project not found", project_path)
         win.show()
         if not win.open_project(str(project_path), recover=None if interactive else False):
             if not interactive:
