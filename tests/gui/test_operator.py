@@ -398,3 +398,20 @@ def test_reference_dem_heights_for_the_linked_cursor(qtbot, window, tmp_path):
     assert ground[2] == pytest.approx(900.0 + 0.01 * (col - 0.5), abs=0.05)
     en = sol.image_to_ground("N", np.array([123.0, 456.0]), ground[2])
     assert np.allclose(linked["F"], sol.ground_to_image("F", en, ground[2]), atol=1e-6)
+
+
+def test_untitled_project_autosave_is_recovered(qtbot, window, demo):
+    from prismstation.gui.main_window import MainWindow
+    from prismstation.gui.project_io import autosave_path
+    win = window
+    assert win.files.new_project(str(demo.scene_path), )
+    win.place("N", 111.0, 222.0)
+    pid = win.current
+    assert win.files.autosave() and autosave_path(None).is_file()
+    w2 = MainWindow(interactive=False)
+    qtbot.addWidget(w2)
+    assert w2.files.recover_untitled(recover=True)
+    assert w2.project.measurement(pid, "N").x == 111.0 and not w2.undo_stack.isClean()
+    w2.files.save_as(str(demo.path.parent / "saved.prismproj"))
+    assert not autosave_path(None).exists()
+    w2.close()

@@ -102,6 +102,8 @@ def run(project_path=None, screenshot=None) -> int:
         if not win.open_project(str(project_path), recover=None if interactive else False):
             if not interactive:
                 return 2
+    elif interactive:
+        win.files.recover_untitled()
     if screenshot_path is not None:
         take_screenshot(win, screenshot_path)
         win.files.stack.setClean()

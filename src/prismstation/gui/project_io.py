@@ -202,6 +202,29 @@ class ProjectFiles(QObject):
             self.relocate_images(project, missing)
         return project
 
+    def recover_untitled(self, recover: bool | None = None) -> bool:
+        """Offer the autosave of a never-saved project left by a crash; True when recovered."""
+        side = autosave_path(None)
+        if not side.is_file():
+            return False
+        if recover is None:
+            b = QMessageBox.StandardButton
+            recover = self.ask("Recover", "An unsaved, untitled project was autosaved before the "
+                               "program stopped. Recover it?") == b.Yes
+        if not recover:
+            return False
+        try:
+            project = self._load(side)
+        except PrismError as exc:
+            self.warn("Recover", str(exc))
+            return False
+        if project is None:
+            return False
+        self._install(project, None)
+        self.stack.resetClean()
+        self.message.emit("Recovered the untitled project; save it to keep it")
+        return True
+
     def relocate_images(self, project, missing: list[str]) -> bool:
         """Ask for a folder holding the missing images (same file names); record where they are."""
         names = ", ".join(f"{v} ({Path(project.scene.views[v].image or '?').name})" for v in missing)
