@@ -16,6 +16,7 @@ from PySide6.QtWidgets import (QDockWidget, QDoubleSpinBox, QLabel, QMainWindow,
 from prismstation.errors import PrismError
 from prismstation.gui import commands as cmd
 from prismstation.gui import io_actions
+from prismstation.gui.tools import install_tools
 from prismstation.gui import settings as st
 from prismstation.gui.contrast import ContrastPanel
 from prismstation.gui.io_actions import optional
@@ -70,6 +71,7 @@ class MainWindow(QMainWindow):
         self._menus()
         self._toolbar()
         self._connect()
+        install_tools(self)
         if interactive:
             self.views.offer_overviews = self._offer_overviews
         self._measured_timer = QTimer(self)
@@ -185,6 +187,7 @@ class MainWindow(QMainWindow):
         m.addSeparator()
         for d in self.docks.values():
             m.addAction(d.toggleViewAction())
+        self.tools_menu = mb.addMenu("&Tools")  # filled by prismstation.gui.tools modules
         mb.addMenu("&Help").addAction(self.a_about)
         self._fill_recent(st.value(st.Key.RECENT_FILES))
 
