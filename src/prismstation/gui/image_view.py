@@ -94,6 +94,7 @@ class ImageView(QWidget):
         self._wanted: list = []
         self._level = 0
         self._levels = (0.0, 255.0)
+        self.display_filter = None  # optional callable(array) -> array for overview and tiles
         self._update_timer = QTimer(self)
         self._update_timer.setSingleShot(True)
         self._update_timer.setInterval(0)
@@ -144,7 +145,7 @@ class ImageView(QWidget):
             st = source.statistics((0.5, 99.5))
             levels = (st.percentiles[0.5], st.percentiles[99.5])
         self._levels = (float(levels[0]), float(levels[1]))
-        self._coarse_item = _image_item(arr, (0, 0, source.width, source.height),
+        self._coarse_item = _image_item(self._filtered(arr), (0, 0, source.width, source.height),
                                         self._levels, _COARSE_Z)
         self.vb.addItem(self._coarse_item)
         self._update_timer.start()
@@ -217,6 +218,20 @@ class ImageView(QWidget):
     def map_to_viewport(self, x: float, y: float) -> QPointF:
         """Position in ``self.graphics.viewport()`` of image coordinates ``(x, y)``."""
         return self.vb.mapViewToScene(QPointF(x, y)) - self.graphics.mapToScene(0, 0)
+
+    # ------------------------------------------------------------------ display filter
+    def _filtered(self, arr):
+        return arr if self.display_filter is None else self.display_filter(arr)
+
+    def set_display_filter(self, fn) -> None:
+        """Show the overview and tiles through ``fn(array) -> array`` (None: as read)."""
+        self.display_filter = fn
+        self._drop_tiles(lambda k: True)
+        if self.source is not None and self._coarse_item is not None:
+            self._coarse_item.setImage(self._filtered(self.source.coarse()[0]), autoLevels=False,
+                                       levels=self._levels)
+            self._coarse_item.setVisible(True)
+            self._update_tiles()
 
     # ------------------------------------------------------------------ levels
     def levels(self) -> tuple[float, float]:
@@ -309,7 +324,8 @@ class ImageView(QWidget):
 
     def _show_tile(self, key, arr) -> pg.ImageItem:
         level = key[0]
-        item = _image_item(arr, self.source.tile_rect(*key), self._levels, -np.log2(level))
+        item = _image_item(self._filtered(arr), self.source.tile_rect(*key), self._levels,
+                           -np.log2(level))
         self.vb.addItem(item)
         self._tiles[key] = item
         return item

@@ -1,0 +1,253 @@
+"""Single-image rectification in the window (MODEL.md §4, seed 002).
+
+A "Transforms" dock shows, for the project's GCPs/ICPs in every view, the side-by-side RMSE of
+the affine, projective and polynomial (1–3) image→map transforms (seed 002's Table 4.1: one
+row per transform, GCP and ICP RMSE per image) and the per-point residuals of the chosen
+transform; it refreshes after every edit. Tools ▸ Rectify… writes a GeoTIFF through the chosen
+transform with :func:`prismstation.io.rectify_io.rectify_raster` in a worker thread.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpinBox, QFileDialog,
+                               QFormLayout, QHBoxLayout, QLabel, QLineEdit, QMessageBox,
+                               QProgressDialog, QPushButton, QTableWidget, QTableWidgetItem,
+                               QVBoxLayout, QWidget)
+
+from prismstation.core.rectify import KINDS, compare_transforms, min_points, n_params
+from prismstation.gui.tools._rect_common import Worker, fmt, view_points, watch_project
+
+
+def _item(text, align=Qt.AlignmentFlag.AlignRight) -> QTableWidgetItem:
+    it = QTableWidgetItem(text)
+    it.setTextAlignment(align | Qt.AlignmentFlag.AlignVCenter)
+    it.setFlags(it.flags() & ~Qt.ItemFlag.ItemIsEditable)
+    return it
+
+
+class TransformsPanel(QWidget):
+    """RMSE table (transform × image) and residuals of the chosen transform for one view."""
+
+    def __init__(self, window):
+        super().__init__(window)
+        self.window = window
+        self.reports: dict = {}     # view -> tuple[TransformReport, ...]
+        self.ids: dict = {}         # view -> (ids, is_check)
+        lay = QVBoxLayout(self)
+        lay.setContentsMargins(4, 4, 4, 4)
+        self.rmse = QTableWidget(0, 0)
+        self.rmse.verticalHeader().setVisible(False)
+        self.rmse.verticalHeader().setDefaultSectionSize(22)
+        self.rmse.setMinimumHeight(175)
+        lay.addWidget(QLabel("<b>Planimetric RMSE (m) — GCPs fit, ICPs check</b>"))
+        lay.addWidget(self.rmse, 2)
+        self.message = QLabel("")
+        self.message.setWordWrap(True)
+        self.message.setStyleSheet("color: #b45309;")
+        lay.addWidget(self.message)
+        row = QHBoxLayout()
+        row.addWidget(QLabel("Residuals of"))
+        self.kind = QComboBox()
+        self.kind.addItems(KINDS)
+        row.addWidget(self.kind)
+        row.addWidget(QLabel("in view"))
+        self.view = QComboBox()
+        row.addWidget(self.view)
+        row.addStretch(1)
+        lay.addLayout(row)
+        self.resid = QTableWidget(0, 5)
+        self.resid.setHorizontalHeaderLabels(["ID", "Kind", "vE (m)", "vN (m)", "|v| (m)"])
+        self.resid.verticalHeader().setVisible(False)
+        self.resid.verticalHeader().setDefaultSectionSize(22)
+        lay.addWidget(self.resid, 3)
+        self.kind.currentTextChanged.connect(lambda *_: self._fill_residuals())
+        self.view.currentTextChanged.connect(lambda *_: self._fill_residuals())
+        self._key = None
+        watch_project(window, self.refresh)
+
+    def refresh(self) -> None:
+        """Refit every transform on every view's points (milliseconds) and redraw."""
+        project = self.window.project
+        key = None if project is None else (id(project), project.revision)
+        if key == self._key:
+            return
+        self._key = key
+        self.reports, self.ids = {}, {}
+        if project is not None:
+            for v in project.scene.views:
+                ids, xy, g, chk = view_points(project, v)
+                self.reports[v] = compare_transforms(xy, g[:, :2], chk)
+                self.ids[v] = (ids, chk)
+        self._fill_rmse()
+        cur = self.view.currentText()
+        self.view.blockSignals(True)
+        self.view.clear()
+        self.view.addItems(list(self.reports))
+        if cur in self.reports:
+            self.view.setCurrentText(cur)
+        self.view.blockSignals(False)
+        self._fill_residuals()
+
+    def _fill_rmse(self) -> None:
+        views = list(self.reports)
+        t = self.rmse
+        t.clear()
+        t.setRowCount(len(KINDS))
+        t.setColumnCount(2 + 2 * len(views))
+        t.setHorizontalHeaderLabels(["Transform", "u"] + [f"{v} {k}" for v in views
+                                                           for k in ("GCP", "ICP")])
+        notes = []
+        for i, kind in enumerate(KINDS):
+            t.setItem(i, 0, _item(kind, Qt.AlignmentFlag.AlignLeft))
+            t.setItem(i, 1, _item(str(n_params(kind))))
+            for j, v in enumerate(views):
+                r = self.reports[v][i]
+                t.setItem(i, 2 + 2 * j, _item(fmt(r.rmse_gcp)))
+                t.setItem(i, 3 + 2 * j, _item(fmt(r.rmse_icp)))
+                if not r.ok:
+                    for c in (2 + 2 * j, 3 + 2 * j):
+                        t.item(i, c).setToolTip(r.error)
+                    notes.append(f"{v} · {kind}: {r.error}")
+        t.resizeColumnsToContents()
+        if notes:
+            need = ", ".join(f"{k} {min_points(k)}" for k in KINDS)
+            self.message.setText("Not fitted — " + "; ".join(notes)
+                                 + f".  (Minimum GCPs: {need}.)")
+        else:
+            self.message.setText("")
+
+    def report(self, view: str, kind: str):
+        """The :class:`TransformReport` of ``kind`` for ``view`` (None if unknown)."""
+        reps = self.reports.get(view)
+        return None if reps is None else next((r for r in reps if r.kind == kind), None)
+
+    def _fill_residuals(self) -> None:
+        v, kind = self.view.currentText(), self.kind.currentText()
+        r = self.report(v, kind)
+        self.resid.setRowCount(0)
+        if r is None:
+            return
+        ids, chk = self.ids[v]
+        self.resid.setRowCount(len(ids))
+        for i, (pid, icp, (vx, vy)) in enumerate(zip(ids, chk, r.residuals)):
+            for c, text in enumerate((pid, "ICP" if icp else "GCP", fmt(vx), fmt(vy),
+                                      fmt(float(np.hypot(vx, vy))))):
+                self.resid.setItem(i, c, _item(text, Qt.AlignmentFlag.AlignLeft if c < 2
+                                               else Qt.AlignmentFlag.AlignRight))
+        self.resid.resizeColumnsToContents()
+
+
+class RectifyDialog(QDialog):
+    """Transform, view, output CRS, resolution and output file of a rectification."""
+
+    def __init__(self, window, panel: TransformsPanel):
+        super().__init__(window)
+        self.setWindowTitle("Rectify")
+        project = window.project
+        f = QFormLayout(self)
+        self.view = QComboBox()
+        self.view.addItems(list(project.scene.views))
+        if panel.view.currentText():
+            self.view.setCurrentText(panel.view.currentText())
+        self.kind = QComboBox()
+        self.kind.addItems(KINDS)
+        self.kind.setCurrentText(panel.kind.currentText())
+        self.crs = QLineEdit(project.scene.crs)
+        self.resolution = QDoubleSpinBox()
+        self.resolution.setRange(0.0, 1e6)
+        self.resolution.setDecimals(3)
+        self.resolution.setSpecialValueText("auto (the image's own)")
+        self.out = QLineEdit()
+        browse = QPushButton("…")
+        browse.clicked.connect(self._browse)
+        row = QHBoxLayout()
+        row.addWidget(self.out, 1)
+        row.addWidget(browse)
+        for label, w in (("View", self.view), ("Transform", self.kind), ("Output CRS", self.crs),
+                         ("Resolution", self.resolution)):
+            f.addRow(label, w)
+        f.addRow("Output GeoTIFF", row)
+        bb = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok
+                              | QDialogButtonBox.StandardButton.Cancel)
+        bb.accepted.connect(self.accept)
+        bb.rejected.connect(self.reject)
+        f.addRow(bb)
+
+    def _browse(self) -> None:
+        p, _ = QFileDialog.getSaveFileName(self, "Rectified GeoTIFF", self.out.text(), "GeoTIFF (*.tif)")
+        if p:
+            self.out.setText(p)
+
+
+class RectifyTool:
+    def __init__(self, window):
+        self.window = window
+        self.panel = TransformsPanel(window)
+        self.dock = window._dock("transforms", "Transforms", self.panel,
+                                 Qt.DockWidgetArea.RightDockWidgetArea)
+        self.worker: Worker | None = None
+        self.last_result = None
+        self.last_error = ""
+        window.tools_menu.addAction("Rectify…", self.open_dialog)
+        window.tools_menu.addAction(self.dock.toggleViewAction())
+
+    def open_dialog(self) -> None:
+        w = self.window
+        if w.project is None:
+            return
+        d = RectifyDialog(w, self.panel)
+        if d.exec() != QDialog.DialogCode.Accepted or not d.out.text():
+            return
+        self.start(d.view.currentText(), d.kind.currentText(), d.out.text(), d.crs.text() or None,
+                   d.resolution.value() or None)
+
+    def start(self, view: str, kind: str, out_path, out_crs=None, resolution=None,
+              progress_dialog: bool = True) -> Worker | None:
+        """Rectify ``view`` through ``kind`` into ``out_path`` in a worker; returns it (or None
+        with a message when the transform cannot be fitted)."""
+        from prismstation.io.rectify_io import rectify_raster
+
+        w = self.window
+        self.panel.refresh()
+        r = self.panel.report(view, kind)
+        image = w.project.scene.views[view].image
+        if r is None or not r.ok or not image:
+            msg = r.error if r is not None and not r.ok else f"view {view} has no image"
+            self._message(f"Cannot rectify: {msg}")
+            return None
+        crs = w.project.scene.crs
+        self.last_result, self.last_error = None, ""
+        job = Worker(lambda progress: rectify_raster(image, r.transform, Path(out_path), points_crs=crs,
+                                                     out_crs=out_crs, resolution=resolution,
+                                                     progress=progress), w)
+        self.worker = job
+        if progress_dialog:
+            dlg = QProgressDialog(f"Rectifying {view} through {kind}…", "Cancel", 0, 100, w)
+            dlg.setWindowModality(Qt.WindowModality.WindowModal)
+            dlg.setMinimumDuration(300)
+            job.progressed.connect(dlg.setValue)
+            dlg.canceled.connect(job.cancel)
+            job.done.connect(lambda *_: dlg.reset())
+        job.done.connect(self._done)
+        job.start()
+        return job
+
+    def _done(self, result, error: str) -> None:
+        self.last_result, self.last_error = result, error
+        if error:
+            self._message(f"Rectification: {error}")
+        else:
+            self._message(f"Wrote {result.path}: {result.width} × {result.height} cells of "
+                          f"{result.resolution:g} ({result.crs})")
+
+    def _message(self, text: str) -> None:
+        self.window.statusBar().showMessage(text, 15000)
+        if getattr(self.window, "interactive", False) and "Cannot" in text:
+            QMessageBox.warning(self.window, "Rectify", text)
+
+
+def install(window) -> None:
+    window.rectify_tool = RectifyTool(window)

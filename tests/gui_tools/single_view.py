@@ -1,0 +1,55 @@
+"""A single-view project for the tool tests: a GeoTIFF with a known rotated geotransform and
+GCPs/ICPs whose map coordinates follow a mildly non-affine (quadratic) image→map mapping."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import rasterio
+from rasterio.transform import Affine
+
+from prismstation.io.project import save_project
+from prismstation.io.scene import read_scene
+from prismstation.model.points import GroundPoint, Measurement
+from prismstation.model.project import Project
+
+CRS = "EPSG:32629"
+E0, N0, P = 500000.0, 4600000.0, 10.0
+
+
+def true_map(xy):
+    """Image (x, y) pixels → map (E, N) metres: affine plus a small quadratic term."""
+    x, y = np.asarray(xy, float).T
+    e = E0 + P * x + 0.02 * y + 2e-4 * x * y
+    n = N0 - P * y + 0.01 * x - 1e-4 * x * x
+    return np.column_stack([e, n])
+
+
+def make_single_view(outdir, n_gcp=14, n_icp=6, size=400, noise_px=0.2, seed=1):
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[0:size, 0:size]
+    img = (120 + 60 * np.sin(xx / 17.0) * np.cos(yy / 23.0) + rng.normal(0, 8, (size, size)))
+    img = np.clip(img, 0, 255).astype(np.uint8)
+    with rasterio.open(out / "A.tif", "w", driver="GTiff", width=size, height=size, count=1,
+                       dtype="uint8", crs=CRS, transform=Affine(P, 0, E0, 0, -P, N0)) as ds:
+        ds.write(img, 1)
+    doc = {"format": "prismstation-scene/1", "crs": CRS, "satellite_altitude_m": 691650.0,
+           "ground_track": [[E0 + 2000, N0 + 1000], [E0 + 2000, N0 - 6000]],
+           "views": {"A": {"image": "A.tif", "pixel_size_m": P, "along_track_angle_deg": 0.0}}}
+    (out / "scene.json").write_text(json.dumps(doc))
+    scene = read_scene(out / "scene.json")
+    project = Project(scene, str(out / "scene.json"))
+    ids = [f"G{i + 1}" for i in range(n_gcp)] + [f"I{i + 1}" for i in range(n_icp)]
+    xy = rng.uniform(20, size - 20, (len(ids), 2))
+    en = true_map(xy)
+    points = [GroundPoint(pid, float(e), float(n), 300.0, kind="ICP" if pid[0] == "I" else "GCP")
+              for pid, (e, n) in zip(ids, en)]
+    obs = xy + rng.normal(0, noise_px, xy.shape)
+    ms = [Measurement(pid, "A", float(x), float(y)) for pid, (x, y) in zip(ids, obs)]
+    project.load(points, ms)
+    path = out / "single.prismproj"
+    save_project(project, path)
+    return path

@@ -1,0 +1,115 @@
+"""The rectification, resection, DSM validation and deblock tools in the real window
+(offscreen): numbers compared with the engine called directly on the same inputs."""
+from __future__ import annotations
+
+import gc
+import json
+
+import numpy as np
+import pytest
+import rasterio
+from rasterio.transform import Affine
+
+from prismstation.core.rectify import KINDS, compare_transforms
+from prismstation.gui.tools._rect_common import view_points
+from tests.gui_tools.single_view import make_single_view
+
+pytest.importorskip("pytestqt")
+
+
+@pytest.fixture(autouse=True)
+def temp_settings(tmp_path, monkeypatch):
+    from prismstation.gui import settings
+    d = tmp_path / "settings"
+    d.mkdir()
+    monkeypatch.setenv("PRISMSTATION_SETTINGS_DIR", str(d))
+    settings.use_settings_dir(d)
+    return d
+
+
+@pytest.fixture()
+def sv_window(qtbot, tmp_path):
+    """The real main window on a single-view project, image loaded and fitted."""
+    from prismstation.gui.app import make_app, wait_settled
+    from prismstation.gui.main_window import MainWindow
+
+    make_app()
+    gc.collect()
+    qtbot.wait(1)
+    win = MainWindow(interactive=False)
+    win.files.interactive = False
+    qtbot.addWidget(win)
+    win.resize(1500, 950)
+    win.show()
+    qtbot.waitExposed(win)
+    assert win.open_project(make_single_view(tmp_path / "single"), recover=False)
+    assert wait_settled(win)
+    yield win
+    win.undo_stack.setClean()
+    win.close()
+    win.deleteLater()
+    qtbot.wait(10)
+    gc.collect()
+
+
+def _cell(table, r, c):
+    return table.item(r, c).text()
+
+
+def test_single_view_opens_and_transform_table_matches_engine(sv_window, qtbot):
+    window = sv_window
+    assert list(window.views.views) == ["A"]
+    assert window.views.views["A"].source is not None
+    panel = window.rectify_tool.panel
+    panel.refresh()
+    ids, xy, g, chk = view_points(window.project, "A")
+    assert chk.sum() == 6 and (~chk).sum() == 14
+    ref = compare_transforms(xy, g[:, :2], chk)
+    t = panel.rmse
+    assert t.rowCount() == len(KINDS)
+    for i, r in enumerate(ref):
+        assert _cell(t, i, 0) == r.kind
+        assert float(_cell(t, i, 2)) == pytest.approx(r.rmse_gcp, abs=1e-3)
+        assert float(_cell(t, i, 3)) == pytest.approx(r.rmse_icp, abs=1e-3)
+    # the quadratic truth: poly2 fits its ICPs better than affine
+    assert ref[3].rmse_icp < ref[0].rmse_icp
+    # residuals of the chosen transform, ICPs included
+    panel.kind.setCurrentText("poly2")
+    assert panel.resid.rowCount() == len(ids)
+    k = ids.index("I1")
+    assert float(_cell(panel.resid, k, 2)) == pytest.approx(ref[3].residuals[k, 0], abs=1e-3)
+    # an edit refreshes: turning GCPs into ICPs leaves too few for poly3, with a message
+    from prismstation.gui import commands as cmd
+    for pid in ("G1", "G2", "G3", "G4", "G5"):
+        window.undo_stack.push(cmd.SetKind(window.project, pid, "ICP"))
+    qtbot.waitUntil(lambda: "poly3" in panel.message.text(), timeout=3000)
+    assert "at least 10" in panel.message.text()
+    for pid in ("G1", "G2", "G3", "G4", "G5"):
+        window.undo_stack.undo()
+    qtbot.waitUntil(lambda: panel.message.text() == "", timeout=3000)
+    dock = window.docks["transforms"]
+    dock.setFloating(True)
+    dock.resize(640, 620)
+    qtbot.wait(50)
+    dock.grab().save(str(_DOCS / "rectification.png"))
+
+
+def test_rectify_export_in_worker(sv_window, qtbot, tmp_path):
+    window = sv_window
+    out = tmp_path / "rect.tif"
+    job = window.rectify_tool.start("A", "affine", out, resolution=20.0, progress_dialog=True)
+    assert job is not None
+    with qtbot.waitSignal(job.done, timeout=20000):
+        pass
+    assert window.rectify_tool.last_error == ""
+    with rasterio.open(out) as ds:
+        assert ds.crs.to_epsg() == 32629
+        assert ds.res == pytest.approx((20.0, 20.0))
+        # the image covers ~4 km × 4 km at 10 m: about 200 cells of 20 m
+        assert 190 <= ds.width <= 215 and 190 <= ds.height <= 215
+        assert ds.read(1).max() > 0
+
+
+from pathlib import Path  # noqa: E402
+
+_DOCS = Path(__file__).resolve().parents[2] / "docs"
