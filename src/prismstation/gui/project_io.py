@@ -1,10 +1,12 @@
 """Project files in the window: new, open, save, save as, recent files, the unsaved-changes
-prompt (driven by ``QUndoStack.isClean``), autosave for crash recovery, relocating missing files.
+prompt (driven by ``QUndoStack.isClean``), crash recovery, relocating missing files.
 
-Autosave writes the project every N seconds while it has unsaved changes to a side file
-``<project>.autosave`` (``untitled.autosave.prismproj`` in the settings directory for a project
-never saved); opening a project whose side file is newer offers to recover it. A clean save or
-close removes the side file.
+Crash recovery is the edit journal (:class:`prismstation.io.recovery.Journal`): every edit of
+the project writes it atomically to ``<project>.recovery`` as it happens (for a project never
+saved, ``untitled.prismproj.recovery`` in the settings directory), so a crash or ``kill -9``
+loses nothing that was on screen. Saving, discarding or undoing back to the saved state clears
+the journal; opening a project with a journal (or starting with an untitled one) offers to
+recover it.
 
 Dialogs go through small methods (:meth:`ProjectFiles.ask`, :meth:`ProjectFiles.choose_open`, ...)
 so that tests can answer them.
@@ -15,12 +17,13 @@ import dataclasses
 import os
 from pathlib import Path
 
-from PySide6.QtCore import QObject, QTimer, Signal
+from PySide6.QtCore import QObject, Signal
 from PySide6.QtWidgets import QFileDialog, QMessageBox
 
 from prismstation.errors import InputError, PrismError
 from prismstation.gui import settings as st
 from prismstation.io.project import SUFFIX, load_project, save_project
+from prismstation.io.recovery import Journal, recovery_path
 from prismstation.io.scene import read_scene
 from prismstation.model.project import Project
 
@@ -28,13 +31,36 @@ FILTER = f"prismstation projects (*{SUFFIX});;All files (*)"
 RELOCATED_KEY = "relocated_images"
 
 
+PRODUCT_KEY = "product"  # project.extra: the JAXA product folder a project was made from
+
+
+def untitled_path() -> Path:
+    """Where the journal of a never-saved project lives (its name plus ``.recovery``)."""
+    name = st._settings().fileName()
+    base = Path(name).parent if name else Path.home()
+    return base / "untitled.prismproj"
+
+
 def autosave_path(path) -> Path:
-    """Side file of the project at ``path`` (None: the untitled project's)."""
-    if path is None:
-        name = st._settings().fileName()
-        base = Path(name).parent if name else Path.home()
-        return base / "untitled.autosave.prismproj"
-    return Path(str(path) + ".autosave")
+    """The journal (recovery file) of the project at ``path`` (None: the untitled project's)."""
+    return recovery_path(untitled_path() if path is None else path)
+
+
+class _WindowJournal(Journal):
+    """A journal whose write failure is a status message, never an exception in an edit."""
+
+    def __init__(self, project, path, report):
+        self.report = report
+        super().__init__(project, path)
+
+    def _on_changed(self, revision: int) -> None:
+        try:
+            super()._on_changed(revision)
+        except (OSError, PrismError, TypeError, ValueError) as exc:
+            self.report(f"Recovery journal not written: {exc}")
+
+    def write(self) -> None:
+        self._on_changed(self.project.revision)
 
 
 def missing_images(project) -> list[str]:
@@ -78,11 +104,9 @@ class ProjectFiles(QObject):
         self.widget = parent_widget
         self.project: Project | None = None
         self.path: Path | None = None
-        self._autosaved_revision = -1
+        self.journal: Journal | None = None
         self.interactive = True  # False: every question is answered "No" (screenshots, scripts)
-        self.timer = QTimer(self)
-        self.timer.timeout.connect(self.autosave)
-        self.set_autosave_interval(st.value(st.Key.AUTOSAVE_SECONDS))
+        undo_stack.cleanChanged.connect(self._on_clean_changed)
 
     # ------------------------------------------------------------------ dialogs (overridable)
     def ask(self, title: str, text: str, buttons=None, default=None):
@@ -116,15 +140,12 @@ class ProjectFiles(QObject):
         return QFileDialog.getExistingDirectory(self.widget, title, st.value(st.Key.LAST_PROJECT_DIR))
 
     # ------------------------------------------------------------------ life cycle
-    def set_autosave_interval(self, seconds: int) -> None:
-        self.timer.stop()
-        if seconds and seconds > 0:
-            self.timer.start(int(seconds * 1000))
-
     def _install(self, project: Project, path) -> None:
+        if self.journal is not None:
+            self.journal.close()
         self.project = project
         self.path = None if path is None else Path(path).resolve()
-        self._autosaved_revision = -1
+        self.journal = _WindowJournal(project, self.path or untitled_path(), self.message.emit)
         self.stack.clear()
         self.stack.setClean()
         self.project_opened.emit(project)
@@ -157,11 +178,11 @@ class ProjectFiles(QObject):
         path = Path(path)
         side = autosave_path(path)
         source = path
-        if side.is_file() and (not path.exists() or side.stat().st_mtime > path.stat().st_mtime):
+        if side.is_file() and (not path.exists() or side.stat().st_mtime >= path.stat().st_mtime):
             if recover is None:
                 b = QMessageBox.StandardButton
-                recover = self.ask("Recover", f"{path.name} has autosaved changes newer than the file "
-                                   "(the program did not close cleanly). Recover them?") == b.Yes
+                recover = self.ask("Recover", f"{path.name} has edits that were not saved (the program "
+                                   "did not close cleanly). Recover them?") == b.Yes
             if recover:
                 source = side
         try:
@@ -173,8 +194,8 @@ class ProjectFiles(QObject):
             return False
         self._install(project, path)
         if source is side:
-            self.stack.resetClean()  # recovered changes are not saved yet
-            self.message.emit(f"Recovered autosaved changes of {path.name}; save to keep them")
+            self._recovered()
+            self.message.emit(f"Recovered the unsaved edits of {path.name}; save to keep them")
         else:
             self.message.emit(f"Opened {path}")
         st.add_recent(str(path))
@@ -203,13 +224,13 @@ class ProjectFiles(QObject):
         return project
 
     def recover_untitled(self, recover: bool | None = None) -> bool:
-        """Offer the autosave of a never-saved project left by a crash; True when recovered."""
+        """Offer the journal of a never-saved project left by a crash; True when recovered."""
         side = autosave_path(None)
         if not side.is_file():
             return False
         if recover is None:
             b = QMessageBox.StandardButton
-            recover = self.ask("Recover", "An unsaved, untitled project was autosaved before the "
+            recover = self.ask("Recover", "An unsaved, untitled project was being edited when the "
                                "program stopped. Recover it?") == b.Yes
         if not recover:
             return False
@@ -221,9 +242,16 @@ class ProjectFiles(QObject):
         if project is None:
             return False
         self._install(project, None)
-        self.stack.resetClean()
+        self._recovered()
         self.message.emit("Recovered the untitled project; save it to keep it")
         return True
+
+    def _recovered(self) -> None:
+        """The project just installed came from a journal: unsaved, and journaled again at once
+        (so a second crash before the next edit still finds it)."""
+        self.project.extra.pop("recovery", None)
+        self.stack.resetClean()
+        self.journal.write()
 
     def relocate_images(self, project, missing: list[str]) -> bool:
         """Ask for a folder holding the missing images (same file names); record where they are."""
@@ -268,8 +296,10 @@ class ProjectFiles(QObject):
         path = path or self.choose_save()
         if not path:
             return False
-        old_side = autosave_path(self.path)
+        old_path, old_side = self.path, autosave_path(self.path)
         self.path = Path(path).resolve()
+        self._scene_beside(self.path)
+        self.journal.path = self.path
         if self.save():
             if old_side.exists():
                 old_side.unlink()
@@ -278,7 +308,49 @@ class ProjectFiles(QObject):
             self.recent_changed.emit(st.value(st.Key.RECENT_FILES))
             self.path_changed.emit(str(self.path))
             return True
+        self.path = old_path
+        self.journal.path = old_path or untitled_path()
         return False
+
+    def _scene_beside(self, path: Path) -> None:
+        """A project made from a product keeps its scene.json in the settings directory until
+        it is saved: then the scene is written beside the project (unless one is there)."""
+        product = self.project.extra.get(PRODUCT_KEY)
+        scene = Path(self.project.scene_path or "")
+        if not product or untitled_path().parent not in scene.parents:
+            return
+        target = path.parent / "scene.json"
+        if target.exists():
+            return
+        from prismstation.io.products import write_scene_for_product
+        try:
+            self.project.scene_path = str(write_scene_for_product(product, path.parent).resolve())
+        except (PrismError, OSError) as exc:
+            self.message.emit(f"The scene stays in {scene.parent}: {exc}")
+
+    def new_project_from_product(self, product: str | None = None) -> bool:
+        """A new, untitled project on a JAXA product folder (CEOS or GeoTIFF 1B2, a triplet or
+        one view): its scene.json is written from the product (:mod:`prismstation.io.products`)."""
+        if not self.maybe_save():
+            return False
+        product = product or self.choose_dir("JAXA PRISM product folder")
+        if not product:
+            return False
+        from prismstation.io.products import write_scene_for_product
+        product = Path(product).resolve()
+        staging = untitled_path().parent / "products" / product.name
+        try:
+            scene_path = write_scene_for_product(product, staging)
+            scene = read_scene(scene_path)
+        except (PrismError, OSError) as exc:
+            self.warn("New project from product", str(exc))
+            return False
+        project = Project(scene, str(scene_path.resolve()))
+        project.extra[PRODUCT_KEY] = str(product)
+        self._install(project, None)
+        self.message.emit(f"New project on the product {product.name} ({', '.join(scene.views)}); "
+                          "Save as… to keep it")
+        return True
 
     def maybe_save(self) -> bool:
         """The unsaved-changes prompt; True when it is fine to go on (saved or discarded)."""
@@ -297,23 +369,25 @@ class ProjectFiles(QObject):
 
     def close(self) -> None:
         """The window closes (after :meth:`maybe_save`)."""
-        self.timer.stop()
         if self.stack.isClean():
             self._remove_autosave()
+        if self.journal is not None:
+            self.journal.close()
+            self.journal = None
 
-    # ------------------------------------------------------------------ autosave
+    # ------------------------------------------------------------------ journal
     def autosave(self) -> bool:
-        """Write the side file if there are unsaved changes since the last autosave."""
-        p = self.project
-        if p is None or self.stack.isClean() or p.revision == self._autosaved_revision:
+        """Write the journal now if there are unsaved changes (edits journal themselves; this is
+        for callers that want it on disk at a given moment). True when the journal holds them."""
+        if self.project is None or self.journal is None or self.stack.isClean():
             return False
-        try:
-            save_project(p, autosave_path(self.path))
-        except (PrismError, OSError) as exc:
-            self.message.emit(f"Autosave failed: {exc}")
-            return False
-        self._autosaved_revision = p.revision
-        return True
+        self.journal.write()
+        return autosave_path(self.path).is_file()
+
+    def _on_clean_changed(self, clean: bool) -> None:
+        # undone back to the saved state: nothing to recover (only a journal this session wrote)
+        if clean and self.journal is not None and self.journal.writes:
+            self._remove_autosave()
 
     def _remove_autosave(self) -> None:
         side = autosave_path(self.path)
