@@ -1,0 +1,122 @@
+"""Long tool operations off the GUI thread: progress, cancel, result or a one-line error.
+
+``Job(fn)`` runs ``fn(progress)`` in a :class:`QThread`. ``progress(fraction, message="")``
+(fraction 0–1) emits :attr:`Job.progress` and returns False once :meth:`Job.cancel` was called,
+which is how the engine's long loops learn to stop. The outcome is exactly one of
+:attr:`Job.result` (the return value), :attr:`Job.failed` (a message for the operator, never a
+traceback) or :attr:`Job.cancelled`, emitted on the GUI thread.
+"""
+from __future__ import annotations
+
+import threading
+
+from PySide6.QtCore import QCoreApplication, QThread, Qt, Signal
+from PySide6.QtWidgets import QProgressDialog
+
+from prismstation.errors import PrismError
+
+_LIVE: set = set()  # running jobs are kept alive here until they end
+
+
+class Job(QThread):
+    """Run ``fn(progress)`` in a thread (see module doc)."""
+
+    progress = Signal(float, str)
+    result = Signal(object)
+    failed = Signal(str)
+    cancelled = Signal()
+
+    def __init__(self, fn, title: str = "", parent=None):
+        super().__init__(parent)
+        self.fn, self.title = fn, title
+        self._cancel = threading.Event()
+        self._outcome = None
+        self.finished.connect(self._deliver, Qt.ConnectionType.QueuedConnection)
+
+    def cancel(self) -> None:
+        self._cancel.set()
+
+    def is_cancelled(self) -> bool:
+        return self._cancel.is_set()
+
+    def report(self, fraction: float, message: str = "") -> bool:
+        self.progress.emit(float(fraction), str(message))
+        return not self._cancel.is_set()
+
+    def run(self) -> None:  # worker thread
+        try:
+            out = self.fn(self.report)
+            self._outcome = ("cancelled", None) if self._cancel.is_set() else ("result", out)
+        except PrismError as exc:
+            self._outcome = ("cancelled", None) if self._cancel.is_set() else ("failed", str(exc))
+        except Exception as exc:  # an engine bug must not take the window down: say what it was
+            self._outcome = ("failed", f"{self.title or 'the operation'} failed: {type(exc).__name__}: {exc}")
+
+    def start(self, *a) -> None:
+        _LIVE.add(self)
+        app = QCoreApplication.instance()
+        if app is not None:
+            app.aboutToQuit.connect(self._stop)
+        super().start(*a)
+
+    def _stop(self) -> None:
+        self.cancel()
+        self.wait(10000)
+
+    def _deliver(self) -> None:
+        kind, value = self._outcome or ("failed", "the operation ended without a result")
+        _LIVE.discard(self)
+        if kind == "result":
+            self.result.emit(value)
+        elif kind == "failed":
+            self.failed.emit(value)
+        else:
+            self.cancelled.emit()
+
+
+def run_with_progress(window, title: str, fn, on_result, *, dialog: bool = True) -> Job:
+    """Start ``fn(progress)`` in a :class:`Job` with a cancellable progress dialog over
+    ``window``; ``on_result(value)`` runs on the GUI thread; errors go to a message box (or the
+    status bar when the window is not interactive) and the status bar."""
+    job = Job(fn, title)
+    dlg = None
+    if dialog:
+        dlg = QProgressDialog(title, "Cancel", 0, 1000, window)
+        dlg.setWindowTitle(title)
+        dlg.setWindowModality(Qt.WindowModality.WindowModal)
+        dlg.setMinimumDuration(0)
+        dlg.setAutoClose(False)
+        dlg.setAutoReset(False)
+        dlg.canceled.connect(job.cancel)
+        job.progress.connect(lambda f, m: (dlg.setValue(int(round(1000 * min(max(f, 0.0), 1.0)))),
+                                           dlg.setLabelText(f"{title}\n{m}" if m else title)))
+        dlg.show()
+    job.progress.connect(lambda f, m: window.statusBar().showMessage(f"{title}: {f:.0%} {m}"))
+
+    def close():
+        if dlg is not None:
+            dlg.canceled.disconnect(job.cancel)
+            dlg.close()
+            dlg.deleteLater()
+
+    def done(value):
+        close()
+        window.statusBar().showMessage(f"{title}: done", 8000)
+        on_result(value)
+
+    def failed(msg):
+        close()
+        window.statusBar().showMessage(f"{title}: {msg}", 15000)
+        if getattr(window, "interactive", False):
+            from PySide6.QtWidgets import QMessageBox
+            QMessageBox.warning(window, title, msg)
+
+    def cancelled():
+        close()
+        window.statusBar().showMessage(f"{title}: cancelled", 8000)
+
+    job.result.connect(done)
+    job.failed.connect(failed)
+    job.cancelled.connect(cancelled)
+    job.start()
+    return job

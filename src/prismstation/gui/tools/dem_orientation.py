@@ -1,0 +1,255 @@
+"""Tools ▸ Orient from reference DEM… : orientation with no GCP (issue 4 item 4, seed 003).
+
+The reference (SRTM ``.hgt`` or GeoTIFF, orthometric) is matched patch by patch in a worker
+(:func:`prismstation.io.orient_dem.orient_from_dem`) with a cancellable progress dialog. The
+result becomes the project's orientation in one undoable step (``project.extra["dem_control"]``
+plus ``Settings.orientation = "dem"``); the solver then reports it like a GCP orientation (model
+panel, ICP statistics, plots). A *Reference DEM patches* dock lists the patch shifts, and the
+shifts are drawn as exaggerated vectors on the N view. *Back to GCP orientation* is undoable too.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pyqtgraph as pg
+import shiboken6
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QColor, QUndoCommand
+from PySide6.QtWidgets import (QDialog, QDialogButtonBox, QDoubleSpinBox, QFileDialog, QFormLayout,
+                               QHBoxLayout, QLabel, QLineEdit, QPushButton, QTableWidget,
+                               QTableWidgetItem, QVBoxLayout, QWidget)
+
+from prismstation.gui import settings as st
+from prismstation.gui.tools._worker import run_with_progress
+
+VECTOR_FRACTION = 0.08  # the longest shift vector is drawn this fraction of the N image width
+
+
+def _num(v) -> float:
+    """A record's number (None where the engine had NaN) as a float."""
+    return float("nan") if v is None else float(v)
+
+
+class SetDemOrientation(QUndoCommand):
+    """Make ``record`` (``DemOrientation.to_dict()``, or None to keep the stored one) the
+    project's control and switch the orientation to ``orientation`` ("dem" or "gcp")."""
+
+    def __init__(self, project, record, orientation: str, text: str):
+        super().__init__(text)
+        self.project = project
+        self.old_record = project.extra.get("dem_control")
+        self.new_record = self.old_record if record is None else record
+        self.old_settings = project.settings
+        self.new_settings = replace(project.settings, orientation=orientation)
+
+    def _apply(self, record, settings) -> None:
+        if record is None:
+            self.project.extra.pop("dem_control", None)
+        else:
+            self.project.extra["dem_control"] = record
+        self.project.set_settings(settings)  # emits changed: refit
+
+    def redo(self) -> None:
+        self._apply(self.new_record, self.new_settings)
+
+    def undo(self) -> None:
+        self._apply(self.old_record, self.old_settings)
+
+
+class OrientDialog(QDialog):
+    """Reference DEM file and patch size."""
+
+    def __init__(self, parent=None, path: str = "", patch_km: float = 4.0):
+        super().__init__(parent)
+        self.setWindowTitle("Orient from reference DEM")
+        self.path = QLineEdit(path)
+        browse = QPushButton("Browse…")
+        browse.clicked.connect(self._browse)
+        row = QHBoxLayout()
+        row.addWidget(self.path, 1)
+        row.addWidget(browse)
+        self.patch = QDoubleSpinBox(decimals=1, minimum=0.5, maximum=20.0, singleStep=0.5, suffix=" km")
+        self.patch.setValue(patch_km)
+        form = QFormLayout(self)
+        form.addRow(QLabel("Orientation with no GCP: the image DSM is matched to the reference\n"
+                           "(SRTM .hgt or GeoTIFF, orthometric heights) patch by patch."))
+        form.addRow("Reference DEM", row)
+        form.addRow("Patch size", self.patch)
+        bb = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel)
+        bb.accepted.connect(self.accept)
+        bb.rejected.connect(self.reject)
+        form.addRow(bb)
+
+    def _browse(self) -> None:
+        p, _ = QFileDialog.getOpenFileName(self, "Reference DEM", self.path.text() or st.value(st.Key.LAST_IMPORT_DIR),
+                                           "DEM (*.tif *.tiff *.hgt);;All files (*)")
+        if p:
+            self.path.setText(p)
+
+
+class PatchTable(QWidget):
+    """The patches of the stored DEM orientation: position, shift, σ, used or why rejected."""
+
+    HEADERS = ("x px", "y px", "dE m", "dN m", "dh m", "σE m", "σN m", "σh m", "state")
+
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        lay = QVBoxLayout(self)
+        lay.setContentsMargins(2, 2, 2, 2)
+        self.summary = QLabel("No orientation from a reference DEM yet (Tools ▸ Orient from reference DEM…).")
+        self.summary.setWordWrap(True)
+        self.table = QTableWidget(0, len(self.HEADERS))
+        self.table.setHorizontalHeaderLabels(self.HEADERS)
+        self.table.verticalHeader().setVisible(False)
+        self.table.setEditTriggers(QTableWidget.EditTrigger.NoEditTriggers)
+        self.table.setSortingEnabled(True)
+        lay.addWidget(self.summary)
+        lay.addWidget(self.table, 1)
+
+    def show_record(self, record, active: bool, scale: float | None = None) -> None:
+        self.table.setSortingEnabled(False)
+        patches = (record or {}).get("patches", [])
+        self.table.setRowCount(len(patches))
+        for i, p in enumerate(patches):
+            vals = [p["x"], p["y"], p["dE"], p["dN"], p["dh"], p["sigma_E"], p["sigma_N"], p["sigma_h"]]
+            for j, v in enumerate(vals):
+                it = QTableWidgetItem()
+                v = _num(v)
+                it.setData(Qt.ItemDataRole.DisplayRole, round(v, 0 if j < 2 else 2) if np.isfinite(v) else "—")
+                it.setTextAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+                self.table.setItem(i, j, it)
+            state = "used" if p.get("used") else f"rejected: {p.get('reason') or '—'}"
+            it = QTableWidgetItem(state)
+            if not p.get("used"):
+                it.setForeground(QColor("#c0392b"))
+            self.table.setItem(i, len(vals), it)
+        self.table.setSortingEnabled(True)
+        self.table.resizeColumnsToContents()
+        if record is None:
+            self.summary.setText("No orientation from a reference DEM yet (Tools ▸ Orient from reference DEM…).")
+            return
+        used = sum(1 for p in patches if p.get("used"))
+        state = "in use" if active else "not in use (GCP orientation)"
+        across = {k: _num(v) for k, v in (record.get("across_px") or {}).items()}
+        vec = f"; vectors on N × {scale:.0f}" if scale else ""
+        self.summary.setText(f"Reference {record.get('reference', '?')} — {state}. {used} of {len(patches)} "
+                             f"patches used, {record.get('ties', 0)} tie points; across track F−N "
+                             f"{across.get('F', float('nan')):+.2f} px, B−N {across.get('B', float('nan')):+.2f} px{vec}.")
+
+
+class DemOrientationTool:
+    """The menu actions, the patch dock and the N-view vectors (one per window)."""
+
+    def __init__(self, window):
+        self.w = window
+        self.job = None
+        self.result = None
+        self.patch_km = 4.0
+        self._items = []
+        self.scale = None
+        self.panel = PatchTable()
+        window._dock("dem_patches", "Reference DEM patches", self.panel, Qt.DockWidgetArea.BottomDockWidgetArea)
+        if "points" in window.docks:
+            window.tabifyDockWidget(window.docks["points"], window.docks["dem_patches"])
+            window.docks["points"].raise_()
+        self.a_orient = window._act("Orient from reference &DEM…", self.choose,
+                                    tip="Orientation with no GCP: match the image DSM to SRTM patch by patch")
+        self.a_gcp = window._act("Back to &GCP orientation", self.back_to_gcp,
+                                 tip="Orient from the GCPs again (undoable)")
+        window.tools_menu.addActions([self.a_orient, self.a_gcp])
+        window.undo_stack.indexChanged.connect(lambda *_: self.refresh())
+        window.files.project_opened.connect(lambda *_: self.refresh())
+        window.solver.solution_changed.connect(lambda *_: self._draw_vectors())
+        self.refresh()
+
+    # ------------------------------------------------------------------ running
+    def choose(self) -> None:
+        if self.w.project is None:
+            return
+        dlg = OrientDialog(self.w, st.value(st.Key.LAST_IMPORT_DIR) or "", self.patch_km)
+        if dlg.exec() == QDialog.DialogCode.Accepted and dlg.path.text():
+            self.patch_km = dlg.patch.value()
+            self.start(dlg.path.text(), self.patch_km * 1000.0)
+
+    def start(self, reference_path, patch_m: float = 4000.0, posting_m: float = 30.0):
+        """Orient the window's project from ``reference_path`` in a worker; returns the Job."""
+        from prismstation.gui.solver import snapshot
+        from prismstation.io.orient_dem import orient_from_dem
+        project = self.w.project
+        if project is None or (self.job is not None and self.job.isRunning()):
+            return None
+        snap = snapshot(project)
+        path = str(reference_path)
+
+        def work(progress):
+            return orient_from_dem(snap, path, patch_m=patch_m, posting_m=posting_m,
+                                   progress=lambda f, m="": progress(f, m))
+
+        self.job = run_with_progress(self.w, "Orientation from the reference DEM", work,
+                                     lambda res: self._apply(project, res))
+        return self.job
+
+    def _apply(self, project, result) -> None:
+        if project is not self.w.project:
+            return  # the project was closed meanwhile
+        self.result = result
+        used = sum(1 for p in result.patches if p.used)
+        self.w.undo_stack.push(SetDemOrientation(project, result.to_dict(), "dem",
+                                                 f"Orient from DEM ({used} patches)"))
+        self.w.docks["dem_patches"].raise_()
+
+    def back_to_gcp(self) -> None:
+        p = self.w.project
+        if p is not None and p.settings.orientation != "gcp":
+            self.w.undo_stack.push(SetDemOrientation(p, None, "gcp", "Back to GCP orientation"))
+
+    # ------------------------------------------------------------------ display
+    def refresh(self) -> None:
+        p = self.w.project
+        record = None if p is None else p.extra.get("dem_control")
+        active = p is not None and p.settings.orientation == "dem"
+        self.a_orient.setEnabled(p is not None and p.scene.is_triplet)
+        self.a_gcp.setEnabled(active)
+        self._draw_vectors()
+        self.panel.show_record(record, active, self.scale)
+
+    def _clear_vectors(self) -> None:
+        for vb, item in self._items:
+            if shiboken6.isValid(vb) and shiboken6.isValid(item):
+                vb.removeItem(item)
+        self._items = []
+
+    def _draw_vectors(self) -> None:
+        self._clear_vectors()
+        self.scale = None
+        p = self.w.project
+        iv = self.w.views.views.get("N")
+        if p is None or iv is None or p.settings.orientation != "dem" or not p.extra.get("dem_control"):
+            return
+        patches = p.extra["dem_control"]["patches"]
+        if not patches:
+            return
+        lin = p.scene.views["N"].map_to_image.apply_linear
+        xy = np.array([[_num(q["x"]), _num(q["y"])] for q in patches], float)
+        en = np.array([[_num(q["dE"]), _num(q["dN"])] for q in patches], float)
+        d = np.array([lin(e) if np.isfinite(e).all() else (0.0, 0.0) for e in en], float)
+        longest = float(np.max(np.hypot(*d.T))) if len(d) else 0.0
+        width = p.scene.views["N"].shape[1]
+        self.scale = VECTOR_FRACTION * width / longest if longest > 0 else 1.0
+        used = np.array([bool(q.get("used")) for q in patches])
+        for mask, colour in ((used, "#39ff14"), (~used, "#ff00ff")):
+            if not mask.any():
+                continue
+            seg = np.empty((2 * mask.sum(), 2))
+            seg[0::2], seg[1::2] = xy[mask], xy[mask] + self.scale * d[mask]
+            lines = pg.PlotDataItem(seg[:, 0], seg[:, 1], connect="pairs", pen=pg.mkPen(colour, width=3))
+            dots = pg.ScatterPlotItem(xy[mask, 0], xy[mask, 1], size=9, pen=pg.mkPen("k"), brush=pg.mkBrush(colour))
+            for item in (lines, dots):
+                item.setZValue(500)
+                iv.vb.addItem(item)
+                self._items.append((iv.vb, item))
+
+
+def install(window) -> None:
+    window.dem_orientation = DemOrientationTool(window)

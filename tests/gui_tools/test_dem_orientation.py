@@ -1,0 +1,91 @@
+"""Tools ▸ Orient from reference DEM in the real window: worker, patch table, report, undo."""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def _settle(qtbot, win):
+    qtbot.waitUntil(lambda: not win.solver.busy(), timeout=20000)
+    qtbot.wait(20)
+
+
+def test_orient_from_srtm_in_the_window(qtbot, window, sim, truth):
+    tool = window.dem_orientation
+    assert window.project.settings.orientation == "gcp"
+    gcp_sol = window.solver.solution
+    depth = window.undo_stack.count()
+    seen = []
+    t0 = time.perf_counter()
+    job = tool.start(sim / "srtm.tif", patch_m=1000.0)
+    job.progress.connect(lambda f, m: seen.append(f))
+    qtbot.waitUntil(lambda: window.project.settings.orientation == "dem", timeout=60000)
+    print(f"orientation from the DEM in the window: {time.perf_counter() - t0:.1f} s")
+    _settle(qtbot, window)
+    assert seen and max(seen) > 0.5                       # progress was reported
+    assert window.undo_stack.count() == depth + 1         # one undoable step
+
+    # the patch table holds the engine's patches, as the record stored in the project
+    record = window.project.extra["dem_control"]
+    rows = tool.panel.table.rowCount()
+    used = [p for p in record["patches"] if p["used"]]
+    assert rows == len(record["patches"]) >= 4 and len(used) >= 4
+    states = [tool.panel.table.item(i, 8).text() for i in range(rows)]
+    assert states.count("used") == len(used)
+    assert tool._items, "no shift vectors on the N view"
+
+    # the solver reports it like a GCP orientation: ICP statistics against the simulator's truth
+    sol = window.solver.solution
+    assert sol.settings.orientation == "dem" and sol is not gcp_sol
+    assert any("reference DEM" in m for m in sol.messages)
+    panel_text = " ".join(w.text() for w in window.panel.findChildren(type(tool.panel.summary)))
+    dh = []
+    for pid, t in truth.items():
+        r = sol.point(pid)
+        if r is not None and r.ground_est is not None and np.isfinite(r.ground_est[2]):
+            dh.append(r.ground_est[2] - t["h"])
+    assert len(dh) >= 20 and np.sqrt(np.mean(np.square(dh))) < 5.0, np.sqrt(np.mean(np.square(dh)))
+
+    out = Path(__file__).resolve().parents[2] / "docs" / "orient_srtm.png"
+    window.docks["dem_patches"].raise_()
+    qtbot.wait(200)
+    window.grab().save(str(out))
+
+    # undo returns to the GCP orientation; redo back to the DEM; the menu's way back is undoable
+    window.undo_stack.undo()
+    _settle(qtbot, window)
+    assert window.project.settings.orientation == "gcp" and "dem_control" not in window.project.extra
+    assert window.solver.solution.settings.orientation == "gcp"
+    assert not tool._items
+    window.undo_stack.redo()
+    _settle(qtbot, window)
+    assert window.project.settings.orientation == "dem"
+    assert tool.a_gcp.isEnabled()
+    tool.a_gcp.trigger()
+    _settle(qtbot, window)
+    assert window.project.settings.orientation == "gcp"
+    window.undo_stack.undo()
+    assert window.project.settings.orientation == "dem"
+
+
+def test_bad_reference_is_a_message_not_a_traceback(qtbot, window, sim):
+    bad = sim / "not_a_dem.tif"
+    bad.write_text("this is not a raster")
+    job = window.dem_orientation.start(bad, patch_m=1000.0)
+    msgs = []
+    job.failed.connect(msgs.append)
+    qtbot.waitUntil(lambda: bool(msgs), timeout=20000)
+    assert "Traceback" not in msgs[0] and window.project.settings.orientation == "gcp"
+
+
+def test_cancel_stops_the_worker(qtbot, window, sim):
+    job = window.dem_orientation.start(sim / "srtm.tif", patch_m=1000.0)
+    ended = []
+    job.cancelled.connect(lambda: ended.append("cancelled"))
+    job.result.connect(lambda r: ended.append("result"))
+    job.cancel()
+    qtbot.waitUntil(lambda: bool(ended), timeout=30000)
+    assert ended == ["cancelled"] and window.project.settings.orientation == "gcp"
