@@ -26,12 +26,15 @@ def true_map(xy):
     return np.column_stack([e, n])
 
 
-def make_single_view(outdir, n_gcp=14, n_icp=6, size=400, noise_px=0.2, seed=1):
+def make_single_view(outdir, n_gcp=14, n_icp=6, size=400, noise_px=0.2, seed=1,
+                      blocky=False):
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
     yy, xx = np.mgrid[0:size, 0:size]
     img = (120 + 60 * np.sin(xx / 17.0) * np.cos(yy / 23.0) + rng.normal(0, 8, (size, size)))
+    if blocky:  # JPEG-like: 8 × 8 blocks of constant grey plus the texture, so edges step
+        img = img + 20 * rng.standard_normal((size // 8 + 1, size // 8 + 1)).repeat(8, 0).repeat(8, 1)[:size, :size]
     img = np.clip(img, 0, 255).astype(np.uint8)
     with rasterio.open(out / "A.tif", "w", driver="GTiff", width=size, height=size, count=1,
                        dtype="uint8", crs=CRS, transform=Affine(P, 0, E0, 0, -P, N0)) as ds:
@@ -43,7 +46,7 @@ def make_single_view(outdir, n_gcp=14, n_icp=6, size=400, noise_px=0.2, seed=1):
     scene = read_scene(out / "scene.json")
     project = Project(scene, str(out / "scene.json"))
     ids = [f"G{i + 1}" for i in range(n_gcp)] + [f"I{i + 1}" for i in range(n_icp)]
-    xy = rng.uniform(20, size - 20, (len(ids), 2))
+    xy = rng.uniform(20, 380, (len(ids), 2))
     en = true_map(xy)
     points = [GroundPoint(pid, float(e), float(n), 300.0, kind="ICP" if pid[0] == "I" else "GCP")
               for pid, (e, n) in zip(ids, en)]

@@ -27,9 +27,7 @@ def temp_settings(tmp_path, monkeypatch):
     return d
 
 
-@pytest.fixture()
-def sv_window(qtbot, tmp_path):
-    """The real main window on a single-view project, image loaded and fitted."""
+def _open_window(qtbot, path):
     from prismstation.gui.app import make_app, wait_settled
     from prismstation.gui.main_window import MainWindow
 
@@ -42,14 +40,25 @@ def sv_window(qtbot, tmp_path):
     win.resize(1500, 950)
     win.show()
     qtbot.waitExposed(win)
-    assert win.open_project(make_single_view(tmp_path / "single"), recover=False)
+    assert win.open_project(path, recover=False)
     assert wait_settled(win)
-    yield win
+    return win
+
+
+def _close_window(qtbot, win):
     win.undo_stack.setClean()
     win.close()
     win.deleteLater()
     qtbot.wait(10)
     gc.collect()
+
+
+@pytest.fixture()
+def sv_window(qtbot, tmp_path):
+    """The real main window on a single-view project, image loaded and fitted."""
+    win = _open_window(qtbot, make_single_view(tmp_path / "single"))
+    yield win
+    _close_window(qtbot, win)
 
 
 def _cell(table, r, c):
@@ -113,3 +122,31 @@ def test_rectify_export_in_worker(sv_window, qtbot, tmp_path):
 from pathlib import Path  # noqa: E402
 
 _DOCS = Path(__file__).resolve().parents[2] / "docs"
+
+
+@pytest.fixture()
+def big_window(qtbot, tmp_path):
+    """The window on a 2400 px single view with 8 × 8 block artefacts (tiles are displayed)."""
+    win = _open_window(qtbot, make_single_view(tmp_path / "big", size=2400, blocky=True))
+    yield win
+    _close_window(qtbot, win)
+
+
+def test_deblock_toggle_changes_displayed_tiles(big_window, qtbot):
+    from prismstation.core.deblock import deblock
+    window = big_window
+    iv = window.views.views["A"]
+    iv.center_on(1200, 1200, 0.5)  # zoom in: full-resolution tiles
+    qtbot.waitUntil(lambda: iv.tiles_complete() and bool(iv.displayed_tiles()), timeout=10000)
+    key = next(k for k in iv.displayed_tiles() if k[0] == 1)
+    raw = iv.source.cached_tile(*key)
+    before = np.array(iv._tiles[key].image)
+    np.testing.assert_array_equal(before, raw)
+    window.deblock_tool.actions["A"].setChecked(True)
+    qtbot.waitUntil(lambda: key in iv._tiles, timeout=5000)
+    after = np.array(iv._tiles[key].image)
+    np.testing.assert_array_equal(after, deblock(raw))
+    assert np.any(after != raw)
+    window.deblock_tool.actions["A"].setChecked(False)
+    qtbot.waitUntil(lambda: key in iv._tiles, timeout=5000)
+    np.testing.assert_array_equal(np.array(iv._tiles[key].image), raw)
