@@ -137,8 +137,7 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
               else float(np.mean(heights)) if heights else 0.0)
     if control is not None:
         messages.append(f"oriented by {control.source}: no GCP used in the fit; every ground point checks it")
-        results = [_point_result(scene, p, control.bias, control.parallax, mean_h, height_of, settings)
-                   for p in points]
+        results = _point_results(scene, points, control.bias, control.parallax, mean_h, height_of, settings)
         return Solution(scene, settings, dict(control.bias), control.parallax, tuple(results),
                         _statistics(scene, results), tuple(messages), mean_h, revision)
 
@@ -181,7 +180,7 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
             messages.append(str(exc))
 
     # 3. per point
-    results = [_point_result(scene, p, bias, parallax, mean_h, height_of, settings) for p in points]
+    results = _point_results(scene, points, bias, parallax, mean_h, height_of, settings)
     results = _attach_adjustment_stats(results, gcps, bias, parallax, scene, settings)
     stats = _statistics(scene, results)
     return Solution(scene, settings, bias, parallax, tuple(results), stats, tuple(messages),
@@ -198,64 +197,98 @@ def _parallax(scene: Scene, pts) -> np.ndarray:
     return np.einsum("ij,ij->i", f - b, prism.along_track_unit(scene, en))
 
 
-def _point_result(scene, p: PointObs, bias, parallax, mean_h, height_of, settings) -> PointResult:
+def _point_results(scene, points, bias, parallax, mean_h, height_of, settings) -> list[PointResult]:
+    """Every point's predictions, residuals and ground estimate, vectorised over points."""
     views = scene.views
-    measured = {v: tuple(map(float, xy)) for v, xy in p.image.items() if v in views}
-    note = ""
-    py = None
-    across = {}
-    if scene.is_triplet and "F" in measured and "B" in measured:
-        py = float(_parallax(scene, [p])[0])
-    if scene.is_triplet and "N" in measured:
-        xn = np.array(measured["N"])
-        en_n = views["N"].map_to_image.inverse()(xn)
-        ct = prism.along_track_unit(scene, en_n)
-        cross = np.array([ct[1], -ct[0]])  # across-track unit in N image (x for 1B2-R)
-        for v in ("F", "B"):
-            if v in measured:
-                d = prism.to_nadir_space(scene, views[v])(np.array(measured[v])) - xn
-                across[v] = float(d @ cross)
+    n = len(points)
+    nan2 = np.full((n, 2), np.nan)
+    X = {v: nan2.copy() for v in views}
+    for i, p in enumerate(points):
+        for v, xy in p.image.items():
+            if v in X:
+                X[v][i] = xy
+    has = {v: np.all(np.isfinite(X[v]), axis=1) for v in views}
+    any_m = np.any(np.column_stack([has[v] for v in views]), axis=1) if n else np.zeros(0, bool)
+    triplet = scene.is_triplet
+    py = np.full(n, np.nan)
+    across = {"F": np.full(n, np.nan), "B": np.full(n, np.nan)}
+    if triplet and n:
+        T = {v: prism.to_nadir_space(scene, views[v]) for v in ("F", "B")}
+        n_inv = views["N"].map_to_image.inverse()
+        fb = has["F"] & has["B"]
+        if fb.any():
+            f, b = T["F"](X["F"][fb]), T["B"](X["B"][fb])
+            d = prism.along_track_unit(scene, n_inv((f + b) / 2))
+            py[fb] = np.einsum("ij,ij->i", f - b, d)
+        if has["N"].any():
+            ct = prism.along_track_unit(scene, n_inv(X["N"][has["N"]]))
+            cross = np.column_stack([ct[:, 1], -ct[:, 0]])
+            for v in ("F", "B"):
+                sel = has[v][has["N"]]
+                idx = np.flatnonzero(has["N"])[sel]
+                across[v][idx] = np.einsum("ij,ij->i", T[v](X[v][idx]) - X["N"][idx], cross[sel])
 
-    # ground estimate: height from parallax, else reference DEM, else mean height
-    est, source = None, None
-    plan_views = ["N"] if "N" in measured else [v for v in measured if v != "N"]
-    if not measured:
-        note = "not measured in any view"
-    else:
-        if py is not None and parallax is not None:
-            h, source = float(parallax.height(py)), "parallax"
-        else:
-            h, source = mean_h, "mean"
-        for _ in range(3 if (source != "parallax" and height_of is not None) else 1):
-            ens = [prism.ancillary_to_ground(scene, views[v], bias[v].invert(np.array(measured[v])), h)
-                   for v in plan_views]
-            en = np.mean(ens, axis=0)
-            if source != "parallax" and height_of is not None:
-                hr = float(np.asarray(height_of(en[None]))[0])
-                if np.isfinite(hr):
-                    h, source = hr, "reference"
-        est = (float(en[0]), float(en[1]), float(h))
-        if scene.is_triplet and source != "parallax":
-            note = "height not from parallax: measure the point in F and B"
+    # heights: parallax, else the reference DEM (iterated with planimetry), else the mean
+    use_py = np.isfinite(py) & (parallax is not None)
+    h = np.where(use_py, parallax.height(py) if parallax is not None else np.nan, mean_h)
+    source = np.where(use_py, "parallax", "mean").astype(object)
 
-    if p.ground is not None:
-        en_k, h_k = np.array(p.ground[:2]), p.ground[2]
-    elif est is not None:
-        en_k, h_k = np.array(est[:2]), est[2]
-    else:
-        en_k = None
-    predicted = {} if en_k is None else {
-        v: tuple(map(float, bias[v].apply(prism.ground_to_ancillary(scene, views[v], en_k, h_k))))
-        for v in views}
-    residual = {}
-    if p.ground is not None:
-        residual = {v: (measured[v][0] - predicted[v][0], measured[v][1] - predicted[v][1])
-                    for v in measured}
-    g_res = None
-    if p.ground is not None and est is not None:
-        g_res = (est[0] - p.ground[0], est[1] - p.ground[1], est[2] - p.ground[2])
-    return PointResult(p.id, p.kind, measured, predicted, residual, py, across, est, source,
-                       g_res, None, None, False, note)
+    def planimetry(h):
+        en = np.full((n, 2), np.nan)
+        if "N" in views and has["N"].any():
+            m = has["N"]
+            en[m] = prism.ancillary_to_ground(scene, views["N"], bias["N"].invert(X["N"][m]), h[m])
+        rest = any_m & ~has.get("N", np.zeros(n, bool))
+        if rest.any():
+            acc, cnt = np.zeros((n, 2)), np.zeros(n)
+            for v in views:
+                m = rest & has[v]
+                if m.any():
+                    acc[m] += prism.ancillary_to_ground(scene, views[v], bias[v].invert(X[v][m]), h[m])
+                    cnt[m] += 1
+            en[rest] = acc[rest] / cnt[rest, None]
+        return en
+
+    en = planimetry(h)
+    if height_of is not None:
+        need = any_m & ~use_py
+        for _ in range(3):
+            if not need.any():
+                break
+            hr = np.asarray(height_of(en[need]), float)
+            ok = np.isfinite(hr)
+            idx = np.flatnonzero(need)[ok]
+            h[idx], source[idx] = hr[ok], "reference"
+            en = planimetry(h)
+
+    known = np.array([p.ground is not None for p in points], bool)
+    G = np.array([p.ground if p.ground is not None else (np.nan,) * 3 for p in points], float).reshape(n, 3)
+    en_k = np.where(known[:, None], G[:, :2], en)
+    h_k = np.where(known, G[:, 2], h)
+    have_k = np.all(np.isfinite(en_k), axis=1) & np.isfinite(h_k)
+    pred = {}
+    for v, view in views.items():
+        pv = np.full((n, 2), np.nan)
+        if have_k.any():
+            pv[have_k] = bias[v].apply(prism.ground_to_ancillary(scene, view, en_k[have_k], h_k[have_k]))
+        pred[v] = pv
+
+    out = []
+    for i, p in enumerate(points):
+        measured = {v: (float(X[v][i, 0]), float(X[v][i, 1])) for v in views if has[v][i]}
+        predicted = {v: (float(pred[v][i, 0]), float(pred[v][i, 1])) for v in views if have_k[i]}
+        residual = ({v: (measured[v][0] - predicted[v][0], measured[v][1] - predicted[v][1]) for v in measured}
+                    if known[i] else {})
+        est = (float(en[i, 0]), float(en[i, 1]), float(h[i])) if any_m[i] else None
+        g_res = (est[0] - G[i, 0], est[1] - G[i, 1], est[2] - G[i, 2]) if known[i] and est else None
+        note = ("not measured in any view" if not any_m[i] else
+                "height not from parallax: measure the point in F and B"
+                if triplet and source[i] != "parallax" else "")
+        acr = {v: float(across[v][i]) for v in ("F", "B") if np.isfinite(across[v][i])}
+        out.append(PointResult(p.id, p.kind, measured, predicted, residual,
+                               float(py[i]) if np.isfinite(py[i]) else None, acr, est,
+                               source[i] if est else None, g_res, None, None, False, note))
+    return out
 
 
 def critical_value(threshold: float, dof: int) -> float:
