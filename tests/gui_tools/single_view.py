@@ -56,3 +56,32 @@ def make_single_view(outdir, n_gcp=14, n_icp=6, size=400, noise_px=0.2, seed=1,
     path = out / "single.prismproj"
     save_project(project, path)
     return path
+
+
+FRAME_EO = np.array([E0 + 2000.0, N0 - 2000.0, 3000.0, 0.02, -0.03, 0.5])
+"""Truth of :func:`make_frame_view`: X0, Y0, Z0 (m), ω, φ, κ (rad)."""
+
+
+def make_frame_view(outdir, n=16, noise_px=0.1, seed=4):
+    """A single view measured through a frame camera (f 100 mm, 50 µm pixels, principal point
+    at the centre of a 400 px image; 1.5 m/px at 3 km): returns (project path, camera)."""
+    from prismstation.core.resection import FrameCamera, project as frame_project
+
+    out = Path(outdir)
+    path = make_single_view(out, n_gcp=1, n_icp=0)
+    rng = np.random.default_rng(seed)
+    cam = FrameCamera(0.1, 50e-6, 200.0, 200.0)
+    pts, ms = [], []
+    while len(pts) < n:
+        g = np.array([FRAME_EO[0] + rng.uniform(-330, 330), FRAME_EO[1] + rng.uniform(-330, 330),
+                      rng.uniform(100, 700)])
+        xy = frame_project(cam, FRAME_EO, g[None])[0]
+        if np.all((xy > 10) & (xy < 390)):
+            pid = f"F{len(pts) + 1}"
+            pts.append(GroundPoint(pid, float(g[0]), float(g[1]), float(g[2])))
+            xy = xy + rng.normal(0, noise_px, 2)
+            ms.append(Measurement(pid, "A", float(xy[0]), float(xy[1])))
+    project = Project(read_scene(out / "scene.json"), str(out / "scene.json"))
+    project.load(pts, ms)
+    save_project(project, path)
+    return path, cam

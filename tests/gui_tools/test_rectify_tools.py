@@ -150,3 +150,40 @@ def test_deblock_toggle_changes_displayed_tiles(big_window, qtbot):
     window.deblock_tool.actions["A"].setChecked(False)
     qtbot.waitUntil(lambda: key in iv._tiles, timeout=5000)
     np.testing.assert_array_equal(np.array(iv._tiles[key].image), raw)
+
+
+@pytest.fixture()
+def frame_window(qtbot, tmp_path):
+    from tests.gui_tools.single_view import make_frame_view
+    path, cam = make_frame_view(tmp_path / "frame")
+    win = _open_window(qtbot, path)
+    win.frame_camera = cam
+    yield win
+    _close_window(qtbot, win)
+
+
+def test_resection_dialog_converges_on_a_frame_camera(frame_window, qtbot):
+    from tests.gui_tools.single_view import FRAME_EO
+    window = frame_window
+    cam = window.frame_camera
+    d = window.resection_tool.open()
+    assert d.cx.value() == pytest.approx(200.0) and d.cy.value() == pytest.approx(200.0)
+    d.focal.setValue(cam.focal_m * 1000)
+    d.pitch.setValue(cam.pixel_m * 1e6)
+    res = d.run()
+    assert res is not None and res.converged
+    err = res.params - FRAME_EO
+    err[3:] = (err[3:] + np.pi) % (2 * np.pi) - np.pi
+    assert np.all(np.abs(err) < 4 * res.sigma + 1e-9), (err, res.sigma)
+    assert res.sigma0_px == pytest.approx(0.1, rel=0.5)
+    # the history is plotted: three curves per plot, one point per iteration
+    curves = d.plot_angles.getPlotItem().listDataItems()
+    assert len(curves) == 3 and len(curves[0].xData) == len(res.corrections)
+    assert "approximation for a pushbroom" in " ".join(
+        w.text() for w in d.findChildren(type(d.bh_label)))
+    # B/H from typed positions (MODEL.md §6 arithmetic, by hand)
+    for v, s in zip((0, 0, 691650, 100000, 0, 691650), [s for row in d.pos for s in row]):
+        s.setValue(v)
+    bh = d.compute_bh()
+    assert bh.b_over_h == pytest.approx(100000 / 691650)
+    assert "B/H = 0.1446" in d.bh_label.text()

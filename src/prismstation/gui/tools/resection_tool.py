@@ -1,0 +1,226 @@
+"""Tools ▸ Space resection…: a frame-camera resection of one view on its GCPs, with the
+Gauss–Newton history plotted (seed 002's Figs 4.1–4.2), and the B/H ratio of two resections
+or of two typed sensor positions (MODEL.md §6).
+
+Ground coordinates are the points' ``E, N, H`` (metres, project CRS); image coordinates pixels
+(column, row, origin top-left corner). A pushbroom image only approximates a frame camera: the
+dialog says so next to every result.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import (QComboBox, QDialog, QDoubleSpinBox, QFormLayout, QGridLayout,
+                               QGroupBox, QHBoxLayout, QLabel, QPushButton, QRadioButton,
+                               QTextBrowser, QVBoxLayout)
+
+from prismstation.core.resection import PUSHBROOM_NOTE, FrameCamera, base_height, resect
+from prismstation.errors import PrismError
+from prismstation.gui.tools._rect_common import view_points
+
+ANGLE_COLOURS = ("#d62728", "#2ca02c", "#1f77b4")
+
+
+def _spin(lo, hi, value, decimals, suffix="") -> QDoubleSpinBox:
+    s = QDoubleSpinBox()
+    s.setRange(lo, hi)
+    s.setDecimals(decimals)
+    s.setValue(value)
+    if suffix:
+        s.setSuffix(suffix)
+    return s
+
+
+class ResectionDialog(QDialog):
+    """Interior orientation in, exterior orientation (± σ) and iteration history out."""
+
+    def __init__(self, window):
+        super().__init__(window)
+        self.window = window
+        self.setWindowTitle("Space resection")
+        self.results: dict = {}   # view -> ResectionResult
+        lay = QHBoxLayout(self)
+        left = QVBoxLayout()
+        lay.addLayout(left, 0)
+        io = QGroupBox("Interior orientation")
+        f = QFormLayout(io)
+        self.view = QComboBox()
+        self.focal = _spin(0.1, 1e5, 1500.0, 3, " mm")
+        self.pitch = _spin(0.01, 1e4, 7.0, 3, " µm")
+        self.cx = _spin(-1e6, 1e6, 0.0, 2, " px")
+        self.cy = _spin(-1e6, 1e6, 0.0, 2, " px")
+        f.addRow("View", self.view)
+        f.addRow("Focal length", self.focal)
+        f.addRow("Pixel pitch", self.pitch)
+        f.addRow("Principal point x", self.cx)
+        f.addRow("Principal point y", self.cy)
+        centre = QPushButton("Principal point at the image centre")
+        centre.clicked.connect(self.centre_pp)
+        f.addRow(centre)
+        run = QPushButton("Resect on the view's GCPs")
+        run.clicked.connect(self.run)
+        f.addRow(run)
+        left.addWidget(io)
+        self.text = QTextBrowser()
+        self.text.setMinimumWidth(380)
+        left.addWidget(self.text, 1)
+        note = QLabel("⚠ " + PUSHBROOM_NOTE)
+        note.setWordWrap(True)
+        note.setStyleSheet("color: #b45309;")
+        left.addWidget(note)
+        left.addWidget(self._bh_box())
+        right = QVBoxLayout()
+        lay.addLayout(right, 1)
+        self.plot_angles = pg.PlotWidget(title="Corrections of ω, φ, κ per iteration (Fig. 4.1)")
+        self.plot_angles.setLabel("left", "correction (°)")
+        self.plot_angles.setLabel("bottom", "iteration")
+        self.plot_pos = pg.PlotWidget(title="Corrections of X0, Y0, Z0 per iteration (Fig. 4.2)")
+        self.plot_pos.setLabel("left", "correction (m)")
+        self.plot_pos.setLabel("bottom", "iteration")
+        for p in (self.plot_angles, self.plot_pos):
+            p.setBackground("w")
+            p.addLegend(offset=(-10, 10))
+            p.showGrid(x=True, y=True, alpha=0.3)
+            right.addWidget(p)
+        self.resize(1100, 720)
+        self.refresh_views()
+
+    def _bh_box(self) -> QGroupBox:
+        box = QGroupBox("B/H")
+        g = QGridLayout(box)
+        self.bh_two = QRadioButton("from the resections of")
+        self.bh_two.setChecked(True)
+        self.bh_typed = QRadioButton("from typed positions (X, Y, Z m)")
+        self.left_view, self.right_view = QComboBox(), QComboBox()
+        g.addWidget(self.bh_two, 0, 0)
+        g.addWidget(self.left_view, 0, 1)
+        g.addWidget(self.right_view, 0, 2)
+        g.addWidget(self.bh_typed, 1, 0, 1, 3)
+        self.pos = [[_spin(-1e8, 1e8, 0.0, 2) for _ in range(3)] for _ in range(2)]
+        for r, row in enumerate(self.pos):
+            g.addWidget(QLabel(("left", "right")[r]), 2 + r, 0)
+            for c, s in enumerate(row):
+                s.valueChanged.connect(lambda *_: self.bh_typed.setChecked(True))
+                g.addWidget(s, 2 + r, 1 + c) if c < 2 else g.addWidget(s, 2 + r, 3)
+        b = QPushButton("Compute B/H")
+        b.clicked.connect(self.compute_bh)
+        g.addWidget(b, 4, 0)
+        self.bh_label = QLabel("")
+        self.bh_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        g.addWidget(self.bh_label, 4, 1, 1, 3)
+        return box
+
+    def refresh_views(self) -> None:
+        p = self.window.project
+        names = [] if p is None else list(p.scene.views)
+        for c in (self.view, self.left_view, self.right_view):
+            cur = c.currentText()
+            c.clear()
+            c.addItems(names)
+            if cur in names:
+                c.setCurrentText(cur)
+        if len(names) > 1 and self.right_view.currentIndex() == 0:
+            self.right_view.setCurrentIndex(1)
+        if names and self.cx.value() == 0 and self.cy.value() == 0:
+            self.centre_pp()
+
+    def centre_pp(self) -> None:
+        iv = self.window.views.views.get(self.view.currentText())
+        if iv is not None and iv.source is not None:
+            self.cx.setValue(iv.source.width / 2.0)
+            self.cy.setValue(iv.source.height / 2.0)
+
+    def camera(self) -> FrameCamera:
+        return FrameCamera(self.focal.value() / 1000.0, self.pitch.value() * 1e-6,
+                           self.cx.value(), self.cy.value())
+
+    def resect_view(self, view: str):
+        """Resect ``view`` on its GCPs with the dialog's camera (raises PrismError)."""
+        ids, xy, g, chk = view_points(self.window.project, view)
+        res = resect(self.camera(), xy[~chk], g[~chk])
+        self.results[view] = res
+        return res
+
+    def run(self):
+        """Resect the chosen view, show the result and plot the history; returns the result."""
+        view = self.view.currentText()
+        if self.window.project is None or not view:
+            return None
+        try:
+            res = self.resect_view(view)
+        except PrismError as exc:
+            self.text.setHtml(f"<p style='color:#b91c1c'>Resection of {view} failed: {exc}</p>")
+            return None
+        self.show_result(view, res)
+        return res
+
+    def show_result(self, view: str, res) -> None:
+        names = ("X0", "Y0", "Z0", "ω", "φ", "κ")
+        rows = []
+        for i, n in enumerate(names):
+            v, s = res.params[i], res.sigma[i]
+            if i < 3:
+                rows.append(f"<tr><td>{n}</td><td align=right>{v:.3f} m</td><td align=right>± {s:.3f} m</td></tr>")
+            else:
+                rows.append(f"<tr><td>{n}</td><td align=right>{np.degrees(v):.6f}°</td>"
+                            f"<td align=right>± {np.degrees(s) * 3600:.2f}″</td></tr>")
+        rmse = float(np.sqrt(np.mean((res.residuals_px ** 2).sum(axis=1))))
+        state = "converged" if res.converged else "<b style='color:#b91c1c'>not converged</b>"
+        self.text.setHtml(
+            f"<b>View {view}</b>: {len(res.residuals_px)} GCPs, {len(res.corrections)} iterations, "
+            f"{state}<br>σ0 = {res.sigma0_px:.3f} px · RMSE = {rmse:.3f} px"
+            f"<table cellspacing=4>{''.join(rows)}</table>")
+        k = np.arange(1, len(res.corrections) + 1)
+        self.plot_angles.clear()
+        self.plot_pos.clear()
+        for i, n in enumerate(("ω", "φ", "κ")):
+            self.plot_angles.plot(k, np.degrees(res.corrections[:, 3 + i]), name=f"d{n}",
+                                  pen=pg.mkPen(ANGLE_COLOURS[i], width=2), symbol="o",
+                                  symbolBrush=ANGLE_COLOURS[i], symbolSize=6)
+        for i, n in enumerate(("X0", "Y0", "Z0")):
+            self.plot_pos.plot(k, res.corrections[:, i], name=f"d{n}",
+                               pen=pg.mkPen(ANGLE_COLOURS[i], width=2), symbol="s",
+                               symbolBrush=ANGLE_COLOURS[i], symbolSize=6)
+
+    def compute_bh(self):
+        """B/H from two resections (run as needed) or the typed positions; returns BaseHeight."""
+        try:
+            if self.bh_typed.isChecked():
+                a, b = (np.array([s.value() for s in row]) for row in self.pos)
+                src = "typed positions"
+            else:
+                lv, rv = self.left_view.currentText(), self.right_view.currentText()
+                if not lv or lv == rv:
+                    raise PrismError("choose two different views")
+                a, b = (self.resect_view(v).position for v in (lv, rv))
+                src = f"resections of {lv} and {rv}"
+            bh = base_height(a, b)
+        except PrismError as exc:
+            self.bh_label.setText(f"<span style='color:#b91c1c'>{exc}</span>")
+            return None
+        self.bh_label.setText(f"B = {bh.base_m:.1f} m, H = {bh.height_m:.1f} m, "
+                              f"<b>B/H = {bh.b_over_h:.4f}</b> ({src})")
+        return bh
+
+
+class ResectionTool:
+    def __init__(self, window):
+        self.window = window
+        self.dialog: ResectionDialog | None = None
+        window.tools_menu.addAction("Space resection…", self.open)
+
+    def open(self) -> ResectionDialog | None:
+        if self.window.project is None:
+            return None
+        if self.dialog is None:
+            self.dialog = ResectionDialog(self.window)
+        else:
+            self.dialog.refresh_views()
+        self.dialog.show()
+        self.dialog.raise_()
+        return self.dialog
+
+
+def install(window) -> None:
+    window.resection_tool = ResectionTool(window)
