@@ -11,7 +11,7 @@ from dataclasses import replace
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QGridLayout, QHBoxLayout,
-                               QLabel, QScrollArea, QVBoxLayout, QWidget)
+                               QLabel, QPushButton, QScrollArea, QVBoxLayout, QWidget)
 
 from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
 
@@ -169,9 +169,12 @@ class ModelPanel(QWidget):
     -------
     settings_requested(Settings)
         The operator changed a choice (not emitted for :meth:`set_settings`).
+    geoid_requested()
+        The operator asked to change the geoid (the geoid tool answers).
     """
 
     settings_requested = Signal(object)
+    geoid_requested = Signal()
 
     def __init__(self, parent=None):
         super().__init__(parent)
@@ -188,6 +191,15 @@ class ModelPanel(QWidget):
         row.addWidget(self.sigma)
         row.addWidget(self.threshold)
         form.addRow("σ a priori / blunder at", row)
+        self.geoid = QLabel("—")
+        self.geoid.setWordWrap(True)
+        self.geoid.setToolTip("The geoid that makes orthometric heights ellipsoidal (h = H + N)")
+        self.geoid_button = QPushButton("Change…")
+        self.geoid_button.clicked.connect(self.geoid_requested)
+        grow = QHBoxLayout()
+        grow.addWidget(self.geoid, 1)
+        grow.addWidget(self.geoid_button)
+        form.addRow("Geoid", grow)
         self.sections = _Sections()
         self.text = QScrollArea()
         self.text.setWidgetResizable(True)
@@ -221,9 +233,14 @@ class ModelPanel(QWidget):
             self.set_settings(sol.settings)
         self.sections.show_sections(*solution_sections(sol))
 
+    def set_geoid(self, text: str, error: bool = False) -> None:
+        """Show the active geoid (``error``: it cannot be used, in red)."""
+        self.geoid.setText(text)
+        self.geoid.setStyleSheet("color: #c00000;" if error else "")
+
     def plain_text(self) -> str:
         """Everything the panel shows, one label per line (tests, clipboard)."""
-        return self.sections.plain_text()
+        return f"Geoid: {self.geoid.text()}\n" + self.sections.plain_text()
 
     def _emit(self, *_) -> None:
         if self._settings is None:
