@@ -1,0 +1,263 @@
+"""Point transfer and automatic tie points (issue 4 items 1–2).
+
+*Automatic transfer* (Tools, checkable, on by default): when a point is placed in one view and is
+measured in no other, it is searched in the other views in a worker
+(:func:`prismstation.io.transfer.transfer`: along the parallax direction around the model's
+prediction, NCC then least-squares matching). The candidates appear as green circles in those
+views and in the *Point transfer* dock with their NCC score and formal σ (pixels); the status
+bar says the same. Enter (or *Accept*) places them, one undoable step; a click in a view places
+the point there instead (that candidate is dropped); Esc (or *Reject*) drops them all.
+
+*Automatic tie points…*: a grid over the N image transferred to F and B, blunders rejected
+(:func:`prismstation.io.transfer.auto_tie_points`), added as new tie points in one undoable step.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pyqtgraph as pg
+import shiboken6
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QKeySequence
+from PySide6.QtWidgets import (QDialog, QDialogButtonBox, QFormLayout, QHBoxLayout, QLabel,
+                               QPushButton, QSpinBox, QTableWidget, QTableWidgetItem, QVBoxLayout,
+                               QWidget)
+
+from prismstation.gui import commands as cmd
+from prismstation.gui.tools._worker import Job, run_with_progress
+from prismstation.model.points import GroundPoint, Measurement
+
+CANDIDATE_COLOUR = "#39ff14"
+
+
+def new_tie_ids(project, n: int, prefix: str = "T") -> list[str]:
+    """``n`` point ids not used in ``project`` (``T<k>``, counting on from the point count)."""
+    out, i = [], len(project.points) + 1
+    while len(out) < n:
+        if f"{prefix}{i}" not in project.points:
+            out.append(f"{prefix}{i}")
+        i += 1
+    return out
+
+
+class TransferPanel(QWidget):
+    """The candidates of the pending transfer: view, x, y, score, σx, σy, status."""
+
+    HEADERS = ("view", "x px", "y px", "score", "σx px", "σy px", "status")
+
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        lay = QVBoxLayout(self)
+        lay.setContentsMargins(2, 2, 2, 2)
+        self.label = QLabel("Place a point in one view: it is searched in the others.")
+        self.label.setWordWrap(True)
+        self.table = QTableWidget(0, len(self.HEADERS))
+        self.table.setHorizontalHeaderLabels(self.HEADERS)
+        self.table.verticalHeader().setVisible(False)
+        self.table.setEditTriggers(QTableWidget.EditTrigger.NoEditTriggers)
+        self.accept_button = QPushButton("Accept (Enter)")
+        self.reject_button = QPushButton("Reject (Esc)")
+        row = QHBoxLayout()
+        row.addWidget(self.accept_button)
+        row.addWidget(self.reject_button)
+        row.addStretch(1)
+        lay.addWidget(self.label)
+        lay.addWidget(self.table, 1)
+        lay.addLayout(row)
+
+    def show_candidates(self, pid, cands: dict) -> None:
+        self.table.setRowCount(len(cands))
+        for i, (v, t) in enumerate(sorted(cands.items())):
+            m = t.match
+            vals = [v, f"{t.x:.2f}", f"{t.y:.2f}", f"{m.score:.3f}", f"{m.sigma_x:.3f}", f"{m.sigma_y:.3f}", m.status]
+            for j, s in enumerate(vals):
+                self.table.setItem(i, j, QTableWidgetItem(s))
+        self.table.resizeColumnsToContents()
+        ok = [v for v, t in cands.items() if t.ok]
+        self.label.setText(f"{pid}: found in {', '.join(sorted(ok)) or 'no other view'}"
+                           if pid else "Place a point in one view: it is searched in the others.")
+        self.accept_button.setEnabled(bool(ok))
+        self.reject_button.setEnabled(bool(cands))
+
+
+class TransferTool:
+    """Automatic transfer of a placed point and automatic tie points (one per window)."""
+
+    def __init__(self, window):
+        self.w = window
+        self.job = None
+        self.pid = None
+        self.source = None
+        self.candidates: dict = {}
+        self._items = []
+        self.panel = TransferPanel()
+        window._dock("transfer", "Point transfer", self.panel, Qt.DockWidgetArea.RightDockWidgetArea)
+        self.a_auto = window._act("Automatic &transfer", None, checkable=True,
+                                  tip="Search a point placed in one view in the other views")
+        self.a_auto.setChecked(True)
+        self.a_accept = window._act("Accept transferred point", self.accept, [QKeySequence(Qt.Key.Key_Return), QKeySequence(Qt.Key.Key_Enter)],
+                                    tip="Place the transferred point in the other views")
+        self.a_reject = window._act("Reject transferred point", self.reject, "Esc")
+        self.a_ties = window._act("Automatic tie &points…", self.choose_ties,
+                                  tip="A grid of tie points over the N image, found in F and B")
+        window.tools_menu.addActions([self.a_auto, self.a_accept, self.a_reject])
+        window.tools_menu.addSeparator()
+        window.tools_menu.addAction(self.a_ties)
+        self.panel.accept_button.clicked.connect(self.accept)
+        self.panel.reject_button.clicked.connect(self.reject)
+        window.views.place_requested.connect(self._on_placed)  # after the window's own place()
+        window.files.project_opened.connect(lambda *_: self.reject())
+        window.undo_stack.indexChanged.connect(lambda *_: self._prune())
+        self._update()
+
+    # ------------------------------------------------------------------ transfer of one point
+    def _on_placed(self, view: str, x: float, y: float) -> None:
+        p, pid = self.w.project, self.w.current
+        if not self.a_auto.isChecked() or p is None or pid is None or pid not in p.points:
+            return
+        measured = [v for v in p.scene.views if p.measurement(pid, v) is not None]
+        if measured == [view] and len(p.scene.views) > 1:
+            self.start(pid, view, x, y)
+
+    def start(self, pid: str, source: str, x: float, y: float):
+        """Search ``pid`` at image ``(x, y)`` of ``source`` in the other views (worker); returns the Job."""
+        sol = self.w.solver.solution
+        if sol is None or self.w.project is None:
+            self.w.statusBar().showMessage("Point transfer needs a fitted model", 8000)
+            return None
+        self.reject()
+        scene = self.w.project.scene
+        h = None
+        height_of = self.w.views.height_of
+        if height_of is not None:
+            try:
+                hd = float(height_of(sol.image_to_ground(source, np.array([x, y]), sol.mean_height)[None])[0])
+                h = hd if math.isfinite(hd) else None
+            except Exception:  # no DEM height here: the mean height and its range
+                h = None
+
+        def work(progress):
+            from prismstation.io.transfer import ImageWindows, transfer
+            with ImageWindows(scene) as im:
+                return transfer(sol, im, source, (x, y), h=h, h_range=150.0 if h is not None else 600.0)
+
+        self.pid, self.source = pid, source
+        job = self.job = Job(work, "Point transfer")
+        job.result.connect(lambda res, job=job: self._on_result(job, pid, res))
+        job.failed.connect(lambda msg: self.w.statusBar().showMessage(f"Point transfer: {msg}", 10000))
+        self.w.statusBar().showMessage(f"{pid}: searching in the other views…")
+        job.start()
+        return job
+
+    def _on_result(self, job, pid, res) -> None:
+        if job is not self.job or pid != self.pid or self.w.project is None or pid not in self.w.project.points:
+            return
+        self.candidates = {v: t for v, t in res.items() if self.w.project.measurement(pid, v) is None}
+        parts = [f"{v} {'✓' if t.ok else '✗ ' + t.match.status} NCC {t.match.score:.2f} "
+                 f"σ {t.match.sigma_x:.2f}/{t.match.sigma_y:.2f} px" for v, t in sorted(self.candidates.items())]
+        self.w.statusBar().showMessage(f"{pid} transferred: " + "; ".join(parts) + " — Enter accepts", 20000)
+        self._update()
+
+    def accept(self) -> bool:
+        """Place the good candidates (one undoable step); True if anything was placed."""
+        p = self.w.project
+        ok = {v: t for v, t in self.candidates.items() if t.ok}
+        if p is None or not ok or self.pid not in p.points:
+            return False
+        ms = [Measurement(self.pid, v, float(t.x), float(t.y)) for v, t in sorted(ok.items())]
+        pid = self.pid
+        self.candidates = {}
+        self.w.undo_stack.push(cmd.Import(p, [], ms, text=f"Transfer {pid} to {', '.join(sorted(ok))}"))
+        self._update()
+        return True
+
+    def reject(self) -> None:
+        self.candidates = {}
+        self.pid = None
+        self._update()
+
+    def _prune(self) -> None:
+        """A click (correction) or an undo made some candidates moot: drop them."""
+        p = self.w.project
+        if not self.candidates:
+            return
+        if p is None or self.pid not in p.points or p.measurement(self.pid, self.source) is None:
+            self.reject()
+            return
+        self.candidates = {v: t for v, t in self.candidates.items() if p.measurement(self.pid, v) is None}
+        self._update()
+
+    def _update(self) -> None:
+        for vb, item in self._items:
+            if shiboken6.isValid(vb) and shiboken6.isValid(item):
+                vb.removeItem(item)
+        self._items = []
+        pending = bool(self.candidates)
+        self.a_accept.setEnabled(any(t.ok for t in self.candidates.values()))
+        self.a_reject.setEnabled(pending)
+        self.a_ties.setEnabled(self.w.project is not None and self.w.project.scene.is_triplet)
+        self.panel.show_candidates(self.pid if pending else None, self.candidates)
+        for v, t in self.candidates.items():
+            iv = self.w.views.views.get(v)
+            if iv is None:
+                continue
+            colour = CANDIDATE_COLOUR if t.ok else "#ff4040"
+            dot = pg.ScatterPlotItem([t.x], [t.y], symbol="o", size=22, pen=pg.mkPen(colour, width=2),
+                                     brush=pg.mkBrush(None))
+            text = pg.TextItem(f"{t.match.score:.2f}", color=colour, anchor=(-0.3, 1.2))
+            text.setPos(t.x, t.y)
+            for item in (dot, text):
+                item.setZValue(600)
+                iv.vb.addItem(item)
+                self._items.append((iv.vb, item))
+
+    # ------------------------------------------------------------------ automatic tie points
+    def choose_ties(self) -> None:
+        if self.w.project is None:
+            return
+        dlg = QDialog(self.w)
+        dlg.setWindowTitle("Automatic tie points")
+        grid = QSpinBox(minimum=2, maximum=40, value=8)
+        form = QFormLayout(dlg)
+        form.addRow(QLabel("A grid over the N image, found in F and B; blunders rejected."))
+        form.addRow("Grid (points per side)", grid)
+        bb = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel)
+        bb.accepted.connect(dlg.accept)
+        bb.rejected.connect(dlg.reject)
+        form.addRow(bb)
+        if dlg.exec() == QDialog.DialogCode.Accepted:
+            self.start_ties(grid.value())
+
+    def start_ties(self, grid: int = 8):
+        """Run the automatic tie points in a worker with a progress dialog; returns the Job."""
+        sol, project = self.w.solver.solution, self.w.project
+        if sol is None or project is None:
+            self.w.statusBar().showMessage("Automatic tie points need a fitted model", 8000)
+            return None
+
+        def work(progress):
+            from prismstation.io.transfer import ImageWindows, auto_tie_points
+            with ImageWindows(project.scene) as im:
+                return auto_tie_points(sol, im, grid=grid,
+                                       progress=lambda f: progress(f, f"point {int(f * grid * grid) + 1} of {grid * grid}"))
+
+        self.job = run_with_progress(self.w, "Automatic tie points", work,
+                                     lambda ties: self._add_ties(project, ties))
+        return self.job
+
+    def _add_ties(self, project, ties) -> None:
+        if project is not self.w.project:
+            return
+        if not ties:
+            self.w.statusBar().showMessage("Automatic tie points: none found", 10000)
+            return
+        ids = new_tie_ids(project, len(ties))
+        points = [GroundPoint(pid, math.nan, math.nan, math.nan, kind="TIE") for pid in ids]
+        ms = [Measurement(pid, v, float(t[v][0]), float(t[v][1])) for pid, t in zip(ids, ties) for v in ("N", "F", "B")]
+        self.w.undo_stack.push(cmd.Import(project, points, ms, text=f"{len(ties)} automatic tie points"))
+        self.w.statusBar().showMessage(f"Automatic tie points: {len(ties)} added ({ids[0]}–{ids[-1]})", 10000)
+
+
+def install(window) -> None:
+    window.transfer_tool = TransferTool(window)
