@@ -187,3 +187,70 @@ def test_resection_dialog_converges_on_a_frame_camera(frame_window, qtbot):
     bh = d.compute_bh()
     assert bh.b_over_h == pytest.approx(100000 / 691650)
     assert "B/H = 0.1446" in d.bh_label.text()
+
+
+def _write(path, arr, transform, dtype="float32", nodata=None):
+    with rasterio.open(path, "w", driver="GTiff", width=arr.shape[1], height=arr.shape[0], count=1,
+                       dtype=dtype, crs="EPSG:32629", transform=transform, nodata=nodata) as ds:
+        ds.write(arr.astype(dtype), 1)
+
+
+def test_residual_sd_dock_matches_solution(sv_window):
+    window = sv_window
+    sol = window.solver.solution
+    t = window.dsm_validation_tool.sd_panel.table
+    assert t.rowCount() == 1 and t.item(0, 0).text() == "A"
+    for kind, col in (("GCP", 1), ("ICP", 4)):
+        r = np.array([p.residual_px["A"] for p in sol.points if p.kind == kind])
+        assert int(t.item(0, col).text()) == len(r)
+        sd = r.std(axis=0, ddof=1)  # by hand
+        assert float(t.item(0, col + 1).text()) == pytest.approx(sd[0], abs=1e-3)
+        assert float(t.item(0, col + 2).text()) == pytest.approx(sd[1], abs=1e-3)
+
+
+def test_dsm_validation_shows_known_bias(sv_window, qtbot, tmp_path):
+    window = sv_window
+    rng = np.random.default_rng(3)
+    n = 160
+    yy, xx = np.mgrid[0:n, 0:n]
+    z = 400 + 120 * np.sin(xx / 19.0) * np.cos(yy / 27.0) + 0.8 * xx
+    from scipy import ndimage
+    noise = 4.0 * ndimage.gaussian_filter(rng.normal(0, 1.0, (n, n)), 3) + rng.normal(0, 0.3, (n, n))
+    classes = np.where(xx < n // 2, 1, 2).astype("uint8")
+    dsm = z + 2.5 + noise + np.where(classes == 2, 1.0, 0.0)   # class 2 one metre higher
+    geo = Affine(30.0, 0, 500000.0, 0, -30.0, 4600000.0)
+    _write(tmp_path / "dsm.tif", dsm, geo)
+    _write(tmp_path / "ref.tif", z, geo)
+    _write(tmp_path / "mask.tif", classes, geo, "uint8", nodata=0)
+    tool = window.dsm_validation_tool
+    job = tool.start(str(tmp_path / "dsm.tif"), str(tmp_path / "ref.tif"),
+                     mask=str(tmp_path / "mask.tif"))
+    with qtbot.waitSignal(job.done, timeout=20000):
+        pass
+    assert tool.last_error == ""
+    d = (dsm.astype("float32").astype(float) - z.astype("float32").astype(float))  # by hand
+    t = tool.panel.table
+    head = [t.horizontalHeaderItem(c).text() for c in range(t.columnCount())]
+    assert [t.item(r, 0).text() for r in range(t.rowCount())] == ["all", "class 1", "class 2"]
+    assert int(t.item(0, head.index("count")).text()) == n * n
+    assert float(t.item(0, head.index("bias")).text()) == pytest.approx(d.mean(), abs=1e-3)
+    assert float(t.item(0, head.index("bias")).text()) == pytest.approx(3.0, abs=0.05)
+    assert float(t.item(0, head.index("sd")).text()) == pytest.approx(d.std(ddof=1), abs=1e-3)
+    assert float(t.item(1, head.index("bias")).text()) == pytest.approx(d[classes == 1].mean(), abs=1e-3)
+    assert float(t.item(2, head.index("bias")).text()) == pytest.approx(d[classes == 2].mean(), abs=1e-3)
+    # the map and the histogram are drawn
+    assert tool.panel.map_item.image.shape == (n, n, 3)
+    assert len(tool.panel.hist.getPlotItem().items) >= 2
+    # exports
+    tool.panel.export(tmp_path / "v.json")
+    tool.panel.export(tmp_path / "v.csv")
+    js = json.loads((tmp_path / "v.json").read_text())
+    assert js["validation"]["bias"] == pytest.approx(d.mean(), abs=1e-6)
+    assert js["validation"]["per_class"]["2"]["count"] == int((classes == 2).sum())
+    lines = (tmp_path / "v.csv").read_text().splitlines()
+    assert lines[0].startswith("cells,count,bias") and len(lines) == 4
+    assert float(lines[1].split(",")[2]) == pytest.approx(d.mean(), abs=1e-6)
+    tool.dock.setFloating(True)
+    tool.dock.resize(1100, 560)
+    qtbot.wait(50)
+    tool.dock.grab().save(str(_DOCS / "dsm_validation.png"))

@@ -1,0 +1,351 @@
+"""Accuracy assessment in the window (seed 004).
+
+- A "Residual SD" dock: per view, the standard deviation of the image residuals (pixels) of
+  the GCPs and of the ICPs of the current Solution (seed 004's Table 1), refreshed after every fit.
+- Tools ▸ Validate DSM…: a DSM against a reference DSM (any resolution / CRS, heights of one
+  kind through a geoid, optional class mask) with
+  :func:`prismstation.io.dsm_validate.validate_dsm_files` in a worker; a "DSM validation" dock
+  shows the statistics (overall and per class), the difference map over shaded relief, its
+  histogram, and exports the numbers as JSON or CSV.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import os
+import tempfile
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpinBox, QFileDialog,
+                               QFormLayout, QHBoxLayout, QLabel, QLineEdit, QProgressDialog,
+                               QPushButton, QSplitter, QTableWidget, QTableWidgetItem,
+                               QVBoxLayout, QWidget)
+
+from prismstation.core.dsmstats import hillshade, histogram, residual_sd_by_view
+from prismstation.gui.tools._rect_common import Worker, fmt
+
+STAT_COLUMNS = ("count", "bias", "sd", "rmse", "min", "max", "median", "nmad")
+
+
+def _item(text, left=False) -> QTableWidgetItem:
+    it = QTableWidgetItem(text)
+    it.setTextAlignment((Qt.AlignmentFlag.AlignLeft if left else Qt.AlignmentFlag.AlignRight)
+                        | Qt.AlignmentFlag.AlignVCenter)
+    it.setFlags(it.flags() & ~Qt.ItemFlag.ItemIsEditable)
+    return it
+
+
+def _table(cols) -> QTableWidget:
+    t = QTableWidget(0, len(cols))
+    t.setHorizontalHeaderLabels(list(cols))
+    t.verticalHeader().setVisible(False)
+    t.verticalHeader().setDefaultSectionSize(22)
+    return t
+
+
+# ---------------------------------------------------------------------- residual SD per view
+def residual_sd_rows(solution):
+    """``{kind: tuple[ViewResidualSD]}`` for GCP and ICP image residuals of ``solution``."""
+    out = {}
+    for kind in ("GCP", "ICP"):
+        views, res = [], []
+        for p in solution.points:
+            if p.kind != kind:
+                continue
+            for v, r in p.residual_px.items():
+                views.append(v)
+                res.append(r)
+        out[kind] = residual_sd_by_view(views, np.array(res, float).reshape(-1, 2)) if views else ()
+    return out
+
+
+class ResidualSDPanel(QWidget):
+    HEAD = ("View", "GCP n", "GCP SD x", "GCP SD y", "ICP n", "ICP SD x", "ICP SD y")
+
+    def __init__(self, window):
+        super().__init__(window)
+        lay = QVBoxLayout(self)
+        lay.setContentsMargins(4, 4, 4, 4)
+        lay.addWidget(QLabel("<b>SD of image residuals (px) — seed 004 Table 1</b>"))
+        self.table = _table(self.HEAD)
+        lay.addWidget(self.table)
+        window.solver.solution_changed.connect(self.set_solution)
+
+    def set_solution(self, sol) -> None:
+        self.table.setRowCount(0)
+        if sol is None:
+            return
+        rows = residual_sd_rows(sol)
+        views = list(dict.fromkeys([r.view for k in rows for r in rows[k]]))
+        self.table.setRowCount(len(views))
+        for i, v in enumerate(views):
+            cells = [v]
+            for kind in ("GCP", "ICP"):
+                r = next((r for r in rows[kind] if r.view == v), None)
+                cells += ["0", "—", "—"] if r is None else [str(r.n_points), fmt(r.sd_x), fmt(r.sd_y)]
+            for c, text in enumerate(cells):
+                self.table.setItem(i, c, _item(text, c == 0))
+        self.table.resizeColumnsToContents()
+
+
+# ---------------------------------------------------------------------- DSM validation
+def run_validation(dsm, reference, *, dsm_height="ellipsoidal", reference_height="ellipsoidal",
+                   geoid=None, mask=None):
+    """Worker body: ``(validation, info, difference (rows, cols) m, shaded relief [0, 1])``."""
+    from prismstation.io.dsm_validate import read_dem, validate_dsm_files
+
+    fd, tmp = tempfile.mkstemp(suffix=".tif", prefix="dsmdiff_")
+    os.close(fd)
+    try:
+        val, info = validate_dsm_files(dsm, reference, dsm_height=dsm_height,
+                                       reference_height=reference_height, geoid=geoid,
+                                       mask_path=mask, diff_out=tmp)
+        diff = read_dem(tmp, "difference").heights
+    finally:
+        try:
+            os.remove(tmp)
+        except OSError:
+            pass
+    info.pop("difference_raster", None)
+    grid = read_dem(dsm, "DSM")
+    cell = float(np.sqrt(abs(grid.transform.a * grid.transform.e)))
+    relief = hillshade(grid.heights, cell) if min(grid.shape) >= 2 else np.ones(grid.shape)
+    return val, info, diff, relief
+
+
+def shaded_difference(diff, relief, limit=None) -> np.ndarray:
+    """RGB (rows, cols, 3) uint8: ``diff`` on a blue–white–red scale of ±``limit`` metres
+    (default its 98th |d| percentile), darkened by the shaded ``relief``; no data grey."""
+    ok = np.isfinite(diff)
+    if limit is None:
+        limit = float(np.percentile(np.abs(diff[ok]), 98)) if ok.any() else 1.0
+    limit = max(limit, 1e-6)
+    cmap = pg.ColorMap([0.0, 0.5, 1.0], [(33, 102, 172), (247, 247, 247), (178, 24, 43)])
+    t = np.clip((np.where(ok, diff, 0.0) / limit + 1) / 2, 0, 1)
+    rgb = cmap.map(t.ravel(), mode="float")[:, :3].reshape(diff.shape + (3,))
+    shade = np.where(np.isfinite(relief), relief, 1.0)
+    rgb = rgb * (0.35 + 0.65 * shade)[..., None]
+    rgb[~ok] = 0.5
+    return np.clip(rgb * 255, 0, 255).astype(np.uint8)
+
+
+class DsmDialog(QDialog):
+    def __init__(self, window, last: dict):
+        super().__init__(window)
+        self.setWindowTitle("Validate DSM")
+        f = QFormLayout(self)
+        self.paths = {}
+        for key, label in (("dsm", "DSM"), ("reference", "Reference DSM"), ("mask", "Class mask (optional)"),
+                           ("geoid_grid", "Geoid grid (optional)")):
+            e = QLineEdit(last.get(key, ""))
+            b = QPushButton("…")
+            b.clicked.connect(lambda *_, e=e, t=label: self._browse(e, t))
+            row = QHBoxLayout()
+            row.addWidget(e, 1)
+            row.addWidget(b)
+            f.addRow(label, row)
+            self.paths[key] = e
+        self.kinds = {}
+        for key, label in (("dsm_height", "DSM heights"), ("reference_height", "Reference heights")):
+            c = QComboBox()
+            c.addItems(["ellipsoidal", "orthometric"])
+            c.setCurrentText(last.get(key, "ellipsoidal"))
+            f.addRow(label, c)
+            self.kinds[key] = c
+        self.geoid_constant = QDoubleSpinBox()
+        self.geoid_constant.setRange(-200, 200)
+        self.geoid_constant.setDecimals(3)
+        self.geoid_constant.setSuffix(" m")
+        self.geoid_constant.setValue(last.get("geoid_constant", 0.0))
+        f.addRow("Geoid undulation (no grid)", self.geoid_constant)
+        bb = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel)
+        bb.accepted.connect(self.accept)
+        bb.rejected.connect(self.reject)
+        f.addRow(bb)
+
+    def _browse(self, edit, title) -> None:
+        p, _ = QFileDialog.getOpenFileName(self, title, edit.text(), "Rasters (*.tif *.tiff *.img *.vrt);;All (*)")
+        if p:
+            edit.setText(p)
+
+    def values(self) -> dict:
+        out = {k: e.text().strip() for k, e in self.paths.items()}
+        out.update({k: c.currentText() for k, c in self.kinds.items()})
+        out["geoid_constant"] = self.geoid_constant.value()
+        return out
+
+
+class DsmResultPanel(QWidget):
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        self.validation = self.info = self.diff = None
+        lay = QVBoxLayout(self)
+        lay.setContentsMargins(4, 4, 4, 4)
+        self.title = QLabel("No DSM validated yet (Tools ▸ Validate DSM…)")
+        self.title.setWordWrap(True)
+        lay.addWidget(self.title)
+        self.table = _table(("Cells",) + STAT_COLUMNS)
+        self.table.setMinimumHeight(90)
+        self.table.setMaximumHeight(130)
+        lay.addWidget(self.table)
+        split = QSplitter(Qt.Orientation.Horizontal)
+        self.map = pg.PlotWidget(title="DSM − reference over shaded relief")
+        self.map.setAspectLocked(True)
+        self.map.invertY(True)
+        self.map_item = pg.ImageItem(axisOrder="row-major")
+        self.map.addItem(self.map_item)
+        self.hist = pg.PlotWidget(title="Histogram of DSM − reference")
+        self.hist.setLabel("bottom", "difference (m)")
+        self.hist.setLabel("left", "cells")
+        for p in (self.map, self.hist):
+            p.setBackground("w")
+            split.addWidget(p)
+        lay.addWidget(split, 1)
+        row = QHBoxLayout()
+        self.legend = QLabel("")
+        row.addWidget(self.legend, 1)
+        self.b_json = QPushButton("Export JSON…")
+        self.b_csv = QPushButton("Export CSV…")
+        self.b_json.clicked.connect(lambda: self._export("json"))
+        self.b_csv.clicked.connect(lambda: self._export("csv"))
+        for b in (self.b_json, self.b_csv):
+            b.setEnabled(False)
+            row.addWidget(b)
+        lay.addLayout(row)
+
+    def rows(self):
+        """``[(label, DiffStats)]``: overall first, then one per class."""
+        v = self.validation
+        return [("all", v.overall)] + [(f"class {k}", s) for k, s in sorted(v.per_class.items())]
+
+    def show_result(self, val, info, diff, relief) -> None:
+        self.validation, self.info, self.diff = val, info, diff
+        self.title.setText(f"<b>{os.path.basename(info['dsm'])}</b> − <b>{os.path.basename(info['reference'])}</b>"
+                           f" on the DSM grid ({info['grid']['width']} × {info['grid']['height']}, "
+                           f"{info['grid']['crs']}), heights {info['heights']['compared_as']}")
+        pct = sorted(val.overall.percentiles)
+        head = ["Cells"] + list(STAT_COLUMNS) + [f"P{p:g}" for p in pct]
+        self.table.clear()
+        self.table.setColumnCount(len(head))
+        self.table.setHorizontalHeaderLabels(head)
+        rows = self.rows()
+        self.table.setRowCount(len(rows))
+        for i, (label, s) in enumerate(rows):
+            cells = [label, str(s.count)] + [fmt(getattr(s, k)) for k in STAT_COLUMNS[1:]] \
+                + [fmt(s.percentiles.get(p, float("nan"))) for p in pct]
+            for c, text in enumerate(cells):
+                self.table.setItem(i, c, _item(text, c == 0))
+        self.table.resizeColumnsToContents()
+        ok = np.isfinite(diff)
+        limit = float(np.percentile(np.abs(diff[ok]), 98)) if ok.any() else 1.0
+        self.map_item.setImage(shaded_difference(diff, relief, limit))
+        self.map.autoRange()
+        self.legend.setText(f"<span style='color:#2166ac'>■</span> −{limit:.2f} m … "
+                            f"<span style='color:#b2182b'>■</span> +{limit:.2f} m")
+        counts, edges = histogram(diff, bins=60)
+        self.hist.clear()
+        self.hist.addItem(pg.BarGraphItem(x0=edges[:-1], x1=edges[1:], height=counts,
+                                          brush=(70, 110, 170), pen=(40, 60, 100)))
+        self.hist.addItem(pg.InfiniteLine(val.overall.bias, pen=pg.mkPen("#b2182b", width=2),
+                                          label=f"bias {val.overall.bias:.2f} m",
+                                          labelOpts={"position": 0.9, "color": "#b2182b"}))
+        for b in (self.b_json, self.b_csv):
+            b.setEnabled(True)
+
+    def _export(self, kind: str) -> None:
+        p, _ = QFileDialog.getSaveFileName(self, "Export DSM validation", f"dsm_validation.{kind}",
+                                           f"{kind.upper()} (*.{kind})")
+        if p:
+            self.export(p, kind)
+
+    def export(self, path, kind: str | None = None) -> None:
+        """Write the statistics as JSON (with the inputs) or CSV (one row per cell set)."""
+        from prismstation.io.rectify_io import write_json
+
+        kind = kind or ("csv" if str(path).lower().endswith(".csv") else "json")
+        if kind == "json":
+            write_json(path, {"validation": self.validation.as_dict(), "inputs": self.info})
+            return
+        pct = sorted(self.validation.overall.percentiles)
+        apct = sorted(self.validation.overall.abs_percentiles)
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["cells"] + list(STAT_COLUMNS) + [f"p{p:g}" for p in pct]
+                       + [f"abs_p{p:g}" for p in apct])
+            for label, s in self.rows():
+                w.writerow([label] + [getattr(s, k) for k in STAT_COLUMNS]
+                           + [s.percentiles[p] for p in pct] + [s.abs_percentiles[p] for p in apct])
+
+
+class DsmValidationTool:
+    def __init__(self, window):
+        self.window = window
+        self.sd_panel = ResidualSDPanel(window)
+        self.sd_dock = window._dock("residual_sd", "Residual SD", self.sd_panel,
+                                    Qt.DockWidgetArea.RightDockWidgetArea)
+        self.panel = DsmResultPanel(window)
+        self.dock = window._dock("dsm_validation", "DSM validation", self.panel,
+                                 Qt.DockWidgetArea.BottomDockWidgetArea)
+        self.dock.hide()
+        self.job: Worker | None = None
+        self.last: dict = {}
+        self.last_error = ""
+        window.tools_menu.addAction("Validate DSM…", self.open_dialog)
+        window.tools_menu.addAction(self.sd_dock.toggleViewAction())
+        window.tools_menu.addAction(self.dock.toggleViewAction())
+
+    def open_dialog(self) -> None:
+        d = DsmDialog(self.window, self.last)
+        if d.exec() == QDialog.DialogCode.Accepted:
+            self.start(**d.values())
+
+    def start(self, dsm, reference, dsm_height="ellipsoidal", reference_height="ellipsoidal",
+              mask="", geoid_grid="", geoid_constant=0.0, progress_dialog=True) -> Worker | None:
+        """Validate in a worker; the result appears in the "DSM validation" dock."""
+        from prismstation.io.geoid import ConstantGeoid, GridGeoid
+
+        self.last = dict(dsm=dsm, reference=reference, dsm_height=dsm_height,
+                         reference_height=reference_height, mask=mask, geoid_grid=geoid_grid,
+                         geoid_constant=geoid_constant)
+        if not dsm or not reference:
+            self.window.statusBar().showMessage("Validate DSM: choose a DSM and a reference", 10000)
+            return None
+        geoid = None
+        if dsm_height != reference_height:
+            geoid = GridGeoid(geoid_grid) if geoid_grid else ConstantGeoid(float(geoid_constant))
+        self.last_error = ""
+        job = Worker(lambda progress: run_validation(dsm, reference, dsm_height=dsm_height,
+                                                     reference_height=reference_height,
+                                                     geoid=geoid, mask=mask or None), self.window)
+        self.job = job
+        if progress_dialog:
+            dlg = QProgressDialog("Validating the DSM…", "Cancel", 0, 0, self.window)
+            dlg.setMinimumDuration(400)
+            dlg.canceled.connect(job.cancel)
+            job.done.connect(lambda *_: dlg.reset())
+        job.done.connect(self._done)
+        job.start()
+        return job
+
+    def _done(self, result, error: str) -> None:
+        if self.job is not None and self.job.cancelled:
+            return
+        self.last_error = error
+        if error:
+            self.window.statusBar().showMessage(f"Validate DSM: {error}", 15000)
+            self.panel.title.setText(f"<span style='color:#b91c1c'>Validation failed: {error}</span>")
+            self.dock.show()
+            return
+        self.panel.show_result(*result)
+        self.dock.show()
+        self.dock.raise_()
+        o = result[0].overall
+        self.window.statusBar().showMessage(
+            f"DSM − reference: bias {o.bias:.2f} m, SD {o.sd:.2f} m, RMSE {o.rmse:.2f} m, "
+            f"NMAD {o.nmad:.2f} m over {o.count} cells", 15000)
+
+
+def install(window) -> None:
+    window.dsm_validation_tool = DsmValidationTool(window)
