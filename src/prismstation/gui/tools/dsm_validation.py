@@ -125,8 +125,12 @@ def shaded_difference(diff, relief, limit=None) -> np.ndarray:
     cmap = pg.ColorMap([0.0, 0.5, 1.0], [(33, 102, 172), (247, 247, 247), (178, 24, 43)])
     t = np.clip((np.where(ok, diff, 0.0) / limit + 1) / 2, 0, 1)
     rgb = cmap.map(t.ravel(), mode="float")[:, :3].reshape(diff.shape + (3,))
-    shade = np.where(np.isfinite(relief), relief, 1.0)
-    rgb = rgb * (0.35 + 0.65 * shade)[..., None]
+    fin = np.isfinite(relief)
+    shade = np.ones(diff.shape)
+    if fin.any():   # stretch the relief to its 2–98 % range so gentle terrain still shows
+        lo, hi = np.percentile(relief[fin], [2, 98])
+        shade = np.where(fin, np.clip((relief - lo) / max(hi - lo, 1e-6), 0, 1), 1.0)
+    rgb = rgb * (0.3 + 0.7 * shade)[..., None]
     rgb[~ok] = 0.5
     return np.clip(rgb * 255, 0, 255).astype(np.uint8)
 
