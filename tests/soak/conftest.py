@@ -1,0 +1,63 @@
+"""Fixtures for the window's soak and kill tests: a small rendered triplet project (made once,
+copied per test) and a temporary settings location (the user's own are never touched)."""
+from __future__ import annotations
+
+import gc
+import shutil
+
+import pytest
+
+from tests.gui.project_factory import make_project
+
+
+@pytest.fixture(scope="session")
+def small_master(tmp_path_factory):
+    """9 GCPs, 6 ICPs, 400 px images."""
+    return make_project(tmp_path_factory.mktemp("soak"), n_gcp=9, n_icp=6, size=400, p=25.0, seed=11)
+
+
+@pytest.fixture()
+def small(small_master, tmp_path):
+    d = tmp_path / "proj"
+    shutil.copytree(small_master.path.parent, d)
+    return type(small_master)(d / small_master.path.name, d / "scene.json", small_master.truth,
+                              small_master.ground)
+
+
+@pytest.fixture(autouse=True)
+def temp_settings(tmp_path, monkeypatch):
+    from prismstation.gui import settings
+    d = tmp_path / "settings"
+    d.mkdir()
+    monkeypatch.setenv("PRISMSTATION_SETTINGS_DIR", str(d))
+    settings.use_settings_dir(d)
+    return d
+
+
+@pytest.fixture()
+def make_window(qtbot):
+    """Build real main windows (offscreen); all closed and freed at the end."""
+    from prismstation.gui.app import make_app
+    from prismstation.gui.main_window import MainWindow
+    made = []
+
+    def make():
+        make_app()
+        gc.collect()
+        qtbot.wait(1)
+        win = MainWindow(interactive=False)
+        win.files.interactive = False
+        qtbot.addWidget(win)
+        win.resize(1200, 800)
+        win.show()
+        qtbot.waitExposed(win)
+        made.append(win)
+        return win
+
+    yield make
+    for win in made:
+        win.undo_stack.setClean()
+        win.close()
+        win.deleteLater()
+    qtbot.wait(10)
+    gc.collect()
