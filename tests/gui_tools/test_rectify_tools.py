@@ -119,6 +119,25 @@ def test_rectify_export_in_worker(sv_window, qtbot, tmp_path):
         assert ds.read(1).max() > 0
 
 
+def test_rectify_cancel_removes_the_partial_file(sv_window, qtbot, tmp_path):
+    out = tmp_path / "cancelled.tif"
+    job = sv_window.rectify_tool.start("A", "poly2", out, resolution=2.0)  # 16 blocks
+    job.cancel()
+    with qtbot.waitSignal(job.done, timeout=20000):
+        pass
+    assert "cancelled" in sv_window.rectify_tool.last_error
+    assert not out.exists()
+
+
+def test_too_few_points_is_a_message_not_a_file(sv_window, tmp_path):
+    from prismstation.gui import commands as cmd
+    for pid in ("G1", "G2", "G3", "G4", "G5"):  # 9 GCPs left: poly3 needs 10
+        sv_window.undo_stack.push(cmd.SetKind(sv_window.project, pid, "ICP"))
+    assert sv_window.rectify_tool.start("A", "poly3", tmp_path / "x.tif") is None
+    assert "at least 10" in sv_window.statusBar().currentMessage()
+    assert not (tmp_path / "x.tif").exists()
+
+
 from pathlib import Path  # noqa: E402
 
 _DOCS = Path(__file__).resolve().parents[2] / "docs"

@@ -213,7 +213,8 @@ class RectifyTool:
         w = self.window
         self.panel.refresh()
         r = self.panel.report(view, kind)
-        image = w.project.scene.views[view].image
+        v = w.project.scene.views.get(view)
+        image = None if v is None else v.image
         if r is None or not r.ok or not image:
             msg = r.error if r is not None and not r.ok else f"view {view} has no image"
             self._message(f"Cannot rectify: {msg}")
