@@ -8,6 +8,7 @@ transform with :func:`prismstation.io.rectify_io.rectify_raster` in a worker thr
 """
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -79,7 +80,9 @@ class TransformsPanel(QWidget):
         if project is not None:
             for v in project.scene.views:
                 ids, xy, g, chk = view_points(project, v)
-                self.reports[v] = compare_transforms(xy, g[:, :2], chk)
+                with warnings.catch_warnings():  # no points yet: NaN means, reports say why
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    self.reports[v] = compare_transforms(xy, g[:, :2], chk)
                 self.ids[v] = (ids, chk)
         self._fill_rmse()
         cur = self.view.currentText()
