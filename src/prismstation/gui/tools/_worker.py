@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import threading
 
+import shiboken6
+
 from PySide6.QtCore import QCoreApplication, QThread, Qt, Signal
 from PySide6.QtWidgets import QProgressDialog
 
@@ -100,11 +102,15 @@ def run_with_progress(window, title: str, fn, on_result, *, dialog: bool = True)
             dlg.deleteLater()
 
     def done(value):
+        if not shiboken6.isValid(window):
+            return  # the window was closed while the job ran
         close()
         window.statusBar().showMessage(f"{title}: done", 8000)
         on_result(value)
 
     def failed(msg):
+        if not shiboken6.isValid(window):
+            return
         close()
         window.statusBar().showMessage(f"{title}: {msg}", 15000)
         if getattr(window, "interactive", False):
@@ -112,6 +118,8 @@ def run_with_progress(window, title: str, fn, on_result, *, dialog: bool = True)
             QMessageBox.warning(window, title, msg)
 
     def cancelled():
+        if not shiboken6.isValid(window):
+            return
         close()
         window.statusBar().showMessage(f"{title}: cancelled", 8000)
 
