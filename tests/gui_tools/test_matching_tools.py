@@ -121,3 +121,18 @@ def test_export_dsm_of_the_visible_area(qtbot, window, sim, tmp_path):
     # F and B do not see the whole height of N (the overlap): about half the window is matched
     assert d.size > 0.4 * cells and abs(np.median(d)) < 3.0, (d.size, cells)
     assert "Wrote" in window.statusBar().currentMessage()
+
+
+def test_tools_menu_and_closing_during_a_search(qtbot, window, truth):
+    texts = [a.text() for a in window.tools_menu.actions()]
+    for t in ("Automatic &transfer", "Automatic tie &points…", "Orient from reference &DEM…",
+              "Back to &GCP orientation", "Export &DSM…"):
+        assert t in texts
+    t = next(t for t in truth.values() if t["kind"] == "ICP")
+    window.set_current(None)
+    window.views.place_requested.emit("N", *t["image"]["N"])
+    job = window.transfer_tool.job
+    window.files.maybe_save = lambda *a, **k: True
+    window.close()               # the search ends after the window: nothing happens, no error
+    job.wait(10000)
+    qtbot.wait(50)

@@ -145,12 +145,15 @@ class TransferTool:
         self.pid, self.source = pid, source
         job = self.job = Job(work, "Point transfer")
         job.result.connect(lambda res, job=job: self._on_result(job, pid, res))
-        job.failed.connect(lambda msg: self.w.statusBar().showMessage(f"Point transfer: {msg}", 10000))
+        job.failed.connect(lambda msg: shiboken6.isValid(self.w)
+                           and self.w.statusBar().showMessage(f"Point transfer: {msg}", 10000))
         self.w.statusBar().showMessage(f"{pid}: searching in the other views…")
         job.start()
         return job
 
     def _on_result(self, job, pid, res) -> None:
+        if not shiboken6.isValid(self.w) or not shiboken6.isValid(self.panel):
+            return  # the window was closed while the search ran
         if job is not self.job or pid != self.pid or self.w.project is None or pid not in self.w.project.points:
             return
         self.candidates = {v: t for v, t in res.items() if self.w.project.measurement(pid, v) is None}
