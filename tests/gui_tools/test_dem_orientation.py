@@ -94,3 +94,20 @@ def test_cancel_stops_the_worker(qtbot, window, sim):
     job.cancel()
     qtbot.waitUntil(lambda: bool(ended), timeout=30000)
     assert ended == ["cancelled"] and window.project.settings.orientation == "gcp"
+
+
+def test_menu_route_through_the_dialog(qtbot, window, sim, monkeypatch):
+    from PySide6.QtWidgets import QDialog
+
+    from prismstation.gui.tools import dem_orientation as mod
+
+    def fake_exec(dlg):
+        dlg.path.setText(str(sim / "srtm.tif"))
+        dlg.patch.setValue(1.0)
+        return QDialog.DialogCode.Accepted
+
+    monkeypatch.setattr(mod.OrientDialog, "exec", fake_exec)
+    window.dem_orientation.a_orient.trigger()
+    qtbot.waitUntil(lambda: window.project.settings.orientation == "dem", timeout=60000)
+    assert window.dem_orientation.patch_km == 1.0
+    assert window.dem_orientation.panel.table.rowCount() == len(window.project.extra["dem_control"]["patches"])

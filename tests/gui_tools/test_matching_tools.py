@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 import rasterio
+from PySide6.QtCore import Qt
 
 
 def _settle(qtbot, win):
@@ -28,7 +29,9 @@ def test_placed_point_is_transferred_and_accepted(qtbot, window, truth):
     assert tool.panel.table.rowCount() == 2 and "NCC" in window.statusBar().currentMessage()
     assert len(tool._items) == 4  # a circle and a score in F and in B
     depth = window.undo_stack.count()
-    tool.a_accept.trigger()       # Enter
+    window.activateWindow()
+    qtbot.keyClick(window.views.views["N"].graphics, Qt.Key.Key_Return)   # Enter accepts
+    assert not tool.candidates, "Enter did not accept the transfer"
     assert window.undo_stack.count() == depth + 1
     for v in ("F", "B"):
         m = p.measurement(pid, v)
