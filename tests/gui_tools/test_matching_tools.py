@@ -28,6 +28,7 @@ def test_placed_point_is_transferred_and_accepted(qtbot, window, truth):
         assert t.ok and 0.6 <= t.match.score <= 1.0 and 0 < t.match.sigma_x < 0.5
     assert tool.panel.table.rowCount() == 2 and "NCC" in window.statusBar().currentMessage()
     assert len(tool._items) == 4  # a circle and a score in F and in B
+    tool_scores = {v: (t.match.score, t.match.sigma_x) for v, t in tool.candidates.items()}
     depth = window.undo_stack.count()
     window.activateWindow()
     qtbot.keyClick(window.views.views["N"].graphics, Qt.Key.Key_Return)   # Enter accepts
@@ -36,6 +37,7 @@ def test_placed_point_is_transferred_and_accepted(qtbot, window, truth):
     for v in ("F", "B"):
         m = p.measurement(pid, v)
         err = np.hypot(m.x - xy_true[v][0], m.y - xy_true[v][1])
+        print(f"transfer to {v}: error {err:.3f} px, NCC {tool_scores[v][0]:.3f}, σ {tool_scores[v][1]:.3f} px")
         assert err < 0.5, (v, err)
     assert not tool.candidates and not tool._items
     window.undo_stack.undo()     # one step removes both transferred measurements
