@@ -13,6 +13,18 @@ from pathlib import Path
 from prismstation.errors import InputError
 
 
+def icon_path():
+    """The application icon: ``resources/icons`` beside the source tree, or inside a
+    PyInstaller bundle; None when neither is there (a wheel install without resources)."""
+    from pathlib import Path
+    roots = [Path(getattr(sys, "_MEIPASS", "")) / "resources", Path(__file__).resolve().parents[3] / "resources"]
+    for r in roots:
+        p = r / "icons" / "prismstation-256.png"
+        if p.is_file():
+            return p
+    return None
+
+
 def make_app():
     """The QApplication (created once), with names, settings location and pyqtgraph options."""
     import pyqtgraph as pg
@@ -21,6 +33,10 @@ def make_app():
     from prismstation.gui import settings
 
     app = QApplication.instance() or QApplication(sys.argv[:1])
+    icon = icon_path()
+    if icon is not None:
+        from PySide6.QtGui import QIcon
+        app.setWindowIcon(QIcon(str(icon)))
     settings.configure()
     pg.setConfigOptions(imageAxisOrder="row-major", antialias=True)
     app.setStyle("Fusion")
