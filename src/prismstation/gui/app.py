@@ -17,7 +17,9 @@ def icon_path():
     """The application icon: ``resources/icons`` beside the source tree, or inside a
     PyInstaller bundle; None when neither is there (a wheel install without resources)."""
     from pathlib import Path
-    roots = [Path(getattr(sys, "_MEIPASS", "")) / "resources", Path(__file__).resolve().parents[3] / "resources"]
+    roots = [Path(__file__).resolve().parents[3] / "resources"]
+    if getattr(sys, "_MEIPASS", None):
+        roots.insert(0, Path(sys._MEIPASS) / "resources")
     for r in roots:
         p = r / "icons" / "prismstation-256.png"
         if p.is_file():
