@@ -133,7 +133,9 @@ class PatchTable(QWidget):
         state = "in use" if active else "not in use (GCP orientation)"
         across = {k: _num(v) for k, v in (record.get("across_px") or {}).items()}
         vec = f"; vectors on N × {scale:.0f}" if scale else ""
-        self.summary.setText(f"Reference {record.get('reference', '?')} — {state}. {used} of {len(patches)} "
+        ref = str(record.get("reference", "?"))
+        self.summary.setToolTip(ref)
+        self.summary.setText(f"Reference {ref.replace(chr(92), '/').rsplit('/', 1)[-1]} — {state}. {used} of {len(patches)} "
                              f"patches used, {record.get('ties', 0)} tie points; across track F−N "
                              f"{across.get('F', float('nan')):+.2f} px, B−N {across.get('B', float('nan')):+.2f} px{vec}.")
 
