@@ -62,25 +62,39 @@ FRAME_EO = np.array([E0 + 2000.0, N0 - 2000.0, 3000.0, 0.02, -0.03, 0.5])
 """Truth of :func:`make_frame_view`: X0, Y0, Z0 (m), ω, φ, κ (rad)."""
 
 
-def make_frame_view(outdir, n=16, noise_px=0.1, seed=4):
+FRAME_EO_B = np.array([E0 + 2000.0, N0 - 2600.0, 3050.0, 0.2, 0.01, 0.45])
+"""Second view of :func:`make_frame_view` with ``two_views``: 600 m base, tilted back."""
+
+
+def make_frame_view(outdir, n=16, noise_px=0.1, seed=4, two_views=False):
     """A single view measured through a frame camera (f 100 mm, 50 µm pixels, principal point
-    at the centre of a 400 px image; 1.5 m/px at 3 km): returns (project path, camera)."""
+    at the centre of a 400 px image; 1.5 m/px at 3 km): returns (project path, camera).
+    With ``two_views`` a second view ``A2`` (same picture) sees the points from FRAME_EO_B."""
     from prismstation.core.resection import FrameCamera, project as frame_project
 
     out = Path(outdir)
     path = make_single_view(out, n_gcp=1, n_icp=0)
     rng = np.random.default_rng(seed)
     cam = FrameCamera(0.1, 50e-6, 200.0, 200.0)
+    if two_views:
+        doc = json.loads((out / "scene.json").read_text())
+        doc["views"]["A2"] = dict(doc["views"]["A"])
+        (out / "scene.json").write_text(json.dumps(doc))
+    eos = {"A": FRAME_EO, "A2": FRAME_EO_B} if two_views else {"A": FRAME_EO}
     pts, ms = [], []
-    while len(pts) < n:
+    for _ in range(20000):
+        if len(pts) == n:
+            break
         g = np.array([FRAME_EO[0] + rng.uniform(-330, 330), FRAME_EO[1] + rng.uniform(-330, 330),
                       rng.uniform(100, 700)])
-        xy = frame_project(cam, FRAME_EO, g[None])[0]
-        if np.all((xy > 10) & (xy < 390)):
+        xy = {v: frame_project(cam, eo, g[None])[0] for v, eo in eos.items()}
+        if all(np.all((q > 10) & (q < 390)) for q in xy.values()):
             pid = f"F{len(pts) + 1}"
             pts.append(GroundPoint(pid, float(g[0]), float(g[1]), float(g[2])))
-            xy = xy + rng.normal(0, noise_px, 2)
-            ms.append(Measurement(pid, "A", float(xy[0]), float(xy[1])))
+            for v, q in xy.items():
+                q = q + rng.normal(0, noise_px, 2)
+                ms.append(Measurement(pid, v, float(q[0]), float(q[1])))
+    assert len(pts) == n, "the views do not overlap enough"
     project = Project(read_scene(out / "scene.json"), str(out / "scene.json"))
     project.load(pts, ms)
     save_project(project, path)

@@ -138,6 +138,34 @@ def test_too_few_points_is_a_message_not_a_file(sv_window, tmp_path):
     assert not (tmp_path / "x.tif").exists()
 
 
+@pytest.fixture()
+def two_frame_window(qtbot, tmp_path):
+    from tests.gui_tools.single_view import make_frame_view
+    path, cam = make_frame_view(tmp_path / "frame2", two_views=True)
+    win = _open_window(qtbot, path)
+    win.frame_camera = cam
+    yield win
+    _close_window(qtbot, win)
+
+
+def test_bh_from_two_resections(two_frame_window):
+    from prismstation.core.resection import base_height
+    from tests.gui_tools.single_view import FRAME_EO, FRAME_EO_B
+    window = two_frame_window
+    assert list(window.views.views) == ["A", "A2"]
+    d = window.resection_tool.open()
+    d.focal.setValue(100.0)
+    d.pitch.setValue(50.0)
+    d.left_view.setCurrentText("A")
+    d.right_view.setCurrentText("A2")
+    bh = d.compute_bh()
+    truth = base_height(FRAME_EO[:3], FRAME_EO_B[:3])  # ≈ 600 m / 3025 m
+    assert d.results["A"].converged and d.results["A2"].converged
+    assert bh.base_m == pytest.approx(truth.base_m, abs=3.0)
+    assert bh.b_over_h == pytest.approx(truth.b_over_h, rel=2e-3)
+    assert "resections of A and A2" in d.bh_label.text()
+
+
 from pathlib import Path  # noqa: E402
 
 _DOCS = Path(__file__).resolve().parents[2] / "docs"
