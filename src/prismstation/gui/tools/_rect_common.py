@@ -3,7 +3,7 @@ a worker thread with progress and cancel, and a refresh coalescer."""
 from __future__ import annotations
 
 import numpy as np
-from PySide6.QtCore import QObject, QThread, QTimer, Signal
+from PySide6.QtCore import QEvent, QObject, QThread, QTimer, Signal
 
 from prismstation.errors import PrismError
 
@@ -55,6 +55,26 @@ class Worker(QThread):
         except (PrismError, OSError, ValueError) as exc:
             self.result, self.error = None, str(exc)
         self.done.emit(self.result, self.error)
+
+
+class _CloseGuard(QObject):
+    def __init__(self, window, jobs):
+        super().__init__(window)
+        self.jobs = jobs
+
+    def eventFilter(self, obj, ev) -> bool:
+        if ev.type() == QEvent.Type.Close:
+            for job in self.jobs():
+                if job is not None and job.isRunning():
+                    job.cancel()
+                    job.wait(60000)
+        return False
+
+
+def finish_on_close(window, jobs) -> None:
+    """When ``window`` closes, cancel and wait for the running workers ``jobs()`` returns
+    (a QThread must not be destroyed while it runs)."""
+    window.installEventFilter(_CloseGuard(window, jobs))
 
 
 class Coalescer(QObject):

@@ -24,7 +24,7 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpin
                                QVBoxLayout, QWidget)
 
 from prismstation.core.dsmstats import hillshade, histogram, residual_sd_by_view
-from prismstation.gui.tools._rect_common import Worker, fmt
+from prismstation.gui.tools._rect_common import Worker, finish_on_close, fmt
 
 STAT_COLUMNS = ("count", "bias", "sd", "rmse", "min", "max", "median", "nmad")
 
@@ -296,6 +296,7 @@ class DsmValidationTool:
         self.job: Worker | None = None
         self.last: dict = {}
         self.last_error = ""
+        finish_on_close(window, lambda: [self.job])
         window.tools_menu.addAction("Validate DSM…", self.open_dialog)
         window.tools_menu.addAction(self.sd_dock.toggleViewAction())
         window.tools_menu.addAction(self.dock.toggleViewAction())

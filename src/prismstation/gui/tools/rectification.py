@@ -19,7 +19,8 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpin
                                QVBoxLayout, QWidget)
 
 from prismstation.core.rectify import KINDS, compare_transforms, min_points, n_params
-from prismstation.gui.tools._rect_common import Worker, fmt, view_points, watch_project
+from prismstation.gui.tools._rect_common import (Worker, finish_on_close, fmt, view_points,
+                                                 watch_project)
 
 
 def _item(text, align=Qt.AlignmentFlag.AlignRight) -> QTableWidgetItem:
@@ -194,6 +195,7 @@ class RectifyTool:
         self.worker: Worker | None = None
         self.last_result = None
         self.last_error = ""
+        finish_on_close(window, lambda: [self.worker])
         window.tools_menu.addAction("Rectify…", self.open_dialog)
         window.tools_menu.addAction(self.dock.toggleViewAction())
 
