@@ -269,6 +269,8 @@ class MainWindow(QMainWindow):
             w = lay.takeAt(0).widget()
             if w is not None:
                 w.deleteLater()
+        for i in range(self.contrast_tabs.count()):  # clear() keeps the pages alive: a leak
+            self.contrast_tabs.widget(i).deleteLater()
         self.contrast_tabs.clear()
         self.loupes = {}
         for name, iv in self.views.views.items():
