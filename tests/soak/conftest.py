@@ -48,7 +48,7 @@ def make_window(qtbot):
         win = MainWindow(interactive=False)
         win.files.interactive = False
         qtbot.addWidget(win)
-        win.resize(1200, 800)
+        win.resize(2400, 1600)  # above its minimum size hint (smaller: offscreen resize loop)
         win.show()
         qtbot.waitExposed(win)
         made.append(win)
