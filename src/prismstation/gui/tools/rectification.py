@@ -207,8 +207,17 @@ class RectifyTool:
             window.tabifyDockWidget(other, self.dock)
             self.dock.raise_()
         finish_on_close(window, lambda: [self.worker])
+        window.views.images_loaded.connect(self._show_for_single_view)
         window.tools_menu.addAction("Rectify…", self.open_dialog)
         window.tools_menu.addAction(self.dock.toggleViewAction())
+
+    def _show_for_single_view(self, *args) -> None:
+        """A single-image project (seed 002) is about transforms: show their table."""
+        p = self.window.project
+        if p is not None and len(p.scene.views) == 1:
+            self.dock.show()
+            self.dock.raise_()
+            self.panel.refresh()
 
     def open_dialog(self) -> None:
         w = self.window
