@@ -68,6 +68,12 @@ class Job(QThread):
     def _deliver(self) -> None:
         kind, value = self._outcome or ("failed", "the operation ended without a result")
         _LIVE.discard(self)
+        app = QCoreApplication.instance()
+        if app is not None:
+            try:
+                app.aboutToQuit.disconnect(self._stop)
+            except (RuntimeError, TypeError):
+                pass
         if kind == "result":
             self.result.emit(value)
         elif kind == "failed":
