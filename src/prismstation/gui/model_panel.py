@@ -41,7 +41,7 @@ def solution_sections(sol) -> tuple[list, list]:
         s0 = fit.sigma0
         dof = fit.lsq.dof if fit.lsq is not None else None
         title = f"Bias {v} ({fit.model})" + (f" — σ0 = {_f(s0, 3)} px, dof {dof}" if s0 is not None else "")
-        rows = [[n, f"{p:+.6g}", f"{sd:.2g}"] for n, p, sd in zip(fit.names, fit.params, fit.std)]
+        rows = [[n, f"{p:+.6g}", f"{sd:.2g}" if sd == sd else "—"] for n, p, sd in zip(fit.names, fit.params, fit.std)]
         sections.append((title, ["", "value", "σ"], rows or [["not fitted", "", ""]]))
     par = sol.parallax
     if par is not None:

@@ -18,7 +18,8 @@ def format_report(r: dict) -> str:
     b = r["model"]["bias"].get("N") or next(iter(r["model"]["bias"].values()))
     lines.append(f"Bias compensation ({b['model']}), σ0 = {_f(b.get('sigma0'), 3)}  dof = {b.get('dof')}")
     for name, p in b["parameters"].items():
-        lines.append(f"  {name:>3} = {p['value']:+.6g}  ± {p['std']:.2g}")
+        sd = "" if p["std"] is None else f"  ± {p['std']:.2g}"
+        lines.append(f"  {name:>3} = {p['value']:+.6g}{sd}")
     par = r["model"].get("parallax")
     if par:
         lines.append(f"Parallax line ({par['used']}): h = {par['c0']:+.2f} + {par['c1']:.4f}·py"
