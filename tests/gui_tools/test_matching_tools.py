@@ -124,7 +124,8 @@ def test_export_dsm_of_the_visible_area(qtbot, window, sim, tmp_path):
     px = window.project.scene.views["N"].pixel_size_m
     cells = win[2] * win[3] * px * px / 100.0     # the N window's area in 10 m cells
     # F and B do not see the whole height of N (the overlap): about half the window is matched
-    assert d.size > 0.4 * cells and abs(np.median(d)) < 3.0, (d.size, cells)
+    # part of the visible N area lies outside what F and B see, and its size follows the layout
+    assert d.size > 0.3 * cells and abs(np.median(d)) < 3.0, (d.size, cells)
     assert "Wrote" in window.statusBar().currentMessage()
 
 

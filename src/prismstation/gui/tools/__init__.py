@@ -13,14 +13,13 @@ import pkgutil
 
 
 def install_tools(window) -> None:
-    """Install every tool; their docks go into one tab group, hidden until the operator opens
-    one from the Tools or View menu (stacked, they made the window taller than a laptop)."""
+    """Install every tool; their docks start hidden until the operator opens one from the
+    Tools or View menu (all shown at once, they made the window taller than a laptop; a tab
+    group of hidden docks leaves a stray tab bar on screen, so they are not tabified here)."""
     before = set(window.docks)
     for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
         if not info.name.startswith("_"):
             importlib.import_module(f"{__name__}.{info.name}").install(window)
-    new = [window.docks[k] for k in window.docks if k not in before]
-    for d in new[1:]:
-        window.tabifyDockWidget(new[0], d)
-    for d in new:
-        d.hide()
+    for k in window.docks:
+        if k not in before:
+            window.docks[k].hide()

@@ -202,10 +202,6 @@ class RectifyTool:
         self.worker: Worker | None = None
         self.last_result = None
         self.last_error = ""
-        other = window.docks.get("residual_sd")   # the accuracy dock, if installed: one tab group
-        if other is not None:
-            window.tabifyDockWidget(other, self.dock)
-            self.dock.raise_()
         finish_on_close(window, lambda: [self.worker])
         window.views.images_loaded.connect(self._show_for_single_view)
         window.tools_menu.addAction("Rectify…", self.open_dialog)
