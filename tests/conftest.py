@@ -16,3 +16,13 @@ def shared_data() -> Path:
     if not SHARED_DATA.is_dir():
         pytest.skip("../shared/data/real is not beside this checkout")
     return SHARED_DATA
+
+
+@pytest.fixture(autouse=True)
+def temp_settings(tmp_path, monkeypatch):
+    """Every test gets its own settings directory: the window's settings module honours
+    ``PRISMSTATION_SETTINGS_DIR`` whenever it changes, so the user's own are never touched."""
+    d = tmp_path / "settings"
+    d.mkdir()
+    monkeypatch.setenv("PRISMSTATION_SETTINGS_DIR", str(d))
+    return d

@@ -29,16 +29,6 @@ def demo(demo_master, tmp_path):
     return demo_master_copy
 
 
-@pytest.fixture(autouse=True)
-def temp_settings(tmp_path, monkeypatch):
-    from prismstation.gui import settings
-    d = tmp_path / "settings"
-    d.mkdir()
-    monkeypatch.setenv("PRISMSTATION_SETTINGS_DIR", str(d))
-    settings.use_settings_dir(d)
-    return d
-
-
 @pytest.fixture()
 def window(qtbot, demo):
     """The real main window on a copy of the demo project, images loaded and fitted."""

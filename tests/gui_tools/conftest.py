@@ -33,16 +33,6 @@ def truth(sim):
     return {p["id"]: p for p in json.loads((sim / "truth.json").read_text())["points"]}
 
 
-@pytest.fixture(autouse=True)
-def temp_settings(tmp_path, monkeypatch):
-    from prismstation.gui import settings
-    d = tmp_path / "settings"
-    d.mkdir()
-    monkeypatch.setenv("PRISMSTATION_SETTINGS_DIR", str(d))
-    settings.use_settings_dir(d)
-    return d
-
-
 @pytest.fixture()
 def window(qtbot, sim):
     """The real main window on the simulated project, images loaded and fitted."""

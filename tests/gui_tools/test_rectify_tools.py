@@ -17,16 +17,6 @@ from tests.gui_tools.single_view import make_single_view
 pytest.importorskip("pytestqt")
 
 
-@pytest.fixture(autouse=True)
-def temp_settings(tmp_path, monkeypatch):
-    from prismstation.gui import settings
-    d = tmp_path / "settings"
-    d.mkdir()
-    monkeypatch.setenv("PRISMSTATION_SETTINGS_DIR", str(d))
-    settings.use_settings_dir(d)
-    return d
-
-
 def _open_window(qtbot, path):
     from prismstation.gui.app import make_app, wait_settled
     from prismstation.gui.main_window import MainWindow

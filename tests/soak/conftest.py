@@ -24,16 +24,6 @@ def small(small_master, tmp_path):
                               small_master.ground)
 
 
-@pytest.fixture(autouse=True)
-def temp_settings(tmp_path, monkeypatch):
-    from prismstation.gui import settings
-    d = tmp_path / "settings"
-    d.mkdir()
-    monkeypatch.setenv("PRISMSTATION_SETTINGS_DIR", str(d))
-    settings.use_settings_dir(d)
-    return d
-
-
 @pytest.fixture()
 def make_window(qtbot):
     """Build real main windows (offscreen); all closed and freed at the end."""
