@@ -2,10 +2,11 @@
 location (the user's own settings are never touched)."""
 from __future__ import annotations
 
-import gc
 import shutil
 
 import pytest
+
+from tests.qt_windows import close_windows, open_window
 
 from tests.gui.project_factory import make_project
 
@@ -32,25 +33,7 @@ def demo(demo_master, tmp_path):
 @pytest.fixture()
 def window(qtbot, demo):
     """The real main window on a copy of the demo project, images loaded and fitted."""
-    from prismstation.gui.app import make_app, wait_settled
-    from prismstation.gui.main_window import MainWindow
-
-    make_app()
-    gc.collect()  # windows left by earlier tests go now, at a safe point
-    qtbot.wait(1)
-    win = MainWindow(interactive=False)
-    win.files.interactive = False
-    qtbot.addWidget(win)
-    win.resize(1500, 950)
-    win.show()
-    qtbot.waitExposed(win)
-    assert win.open_project(demo.path, recover=False)
-    assert wait_settled(win)
+    win = open_window(qtbot, demo.path)
     win.demo = demo
     yield win
-    win.undo_stack.setClean()
-    win.close()
-    win.deleteLater()
-    qtbot.wait(10)
-    gc.collect()  # delete windows here: a window freed by a GC run inside a later event loop
-    # can leave a timer event for its QWindow (offscreen plugin), which crashes Qt
+    close_windows(qtbot, win)

@@ -2,11 +2,12 @@
 reference, made once; the real window offscreen on a private copy; temporary settings."""
 from __future__ import annotations
 
-import gc
 import json
 import shutil
 
 import pytest
+
+from tests.qt_windows import close_windows, open_window
 
 
 @pytest.fixture(scope="session")
@@ -36,23 +37,11 @@ def truth(sim):
 @pytest.fixture()
 def window(qtbot, sim):
     """The real main window on the simulated project, images loaded and fitted."""
-    from prismstation.gui.app import make_app, wait_settled
-    from prismstation.gui.main_window import MainWindow
-
-    make_app()
-    gc.collect()
-    qtbot.wait(1)
-    win = MainWindow(interactive=False)
-    win.files.interactive = False
-    qtbot.addWidget(win)
-    win.resize(1500, 950)
-    win.show()
-    qtbot.waitExposed(win)
-    assert win.open_project(sim / "p.prismproj", recover=False)
-    assert wait_settled(win)
+    win = open_window(qtbot, sim / "p.prismproj")
     yield win
     for tool in ("dem_orientation", "transfer_tool", "dsm_tool"):
         job = getattr(getattr(win, tool, None), "job", None)
         if job is not None:
             job.cancel()
             job.wait(20000)
+    close_windows(qtbot, win)

@@ -2,11 +2,12 @@
 (offscreen): numbers compared with the engine called directly on the same inputs."""
 from __future__ import annotations
 
-import gc
 import json
 
 import numpy as np
 import pytest
+
+from tests.qt_windows import close_windows, open_window
 import rasterio
 from rasterio.transform import Affine
 
@@ -17,30 +18,11 @@ from tests.gui_tools.single_view import make_single_view
 pytest.importorskip("pytestqt")
 
 
-def _open_window(qtbot, path):
-    from prismstation.gui.app import make_app, wait_settled
-    from prismstation.gui.main_window import MainWindow
-
-    make_app()
-    gc.collect()
-    qtbot.wait(1)
-    win = MainWindow(interactive=False)
-    win.files.interactive = False
-    qtbot.addWidget(win)
-    win.resize(1500, 950)
-    win.show()
-    qtbot.waitExposed(win)
-    assert win.open_project(path, recover=False)
-    assert wait_settled(win)
-    return win
+_open_window = open_window
 
 
 def _close_window(qtbot, win):
-    win.undo_stack.setClean()
-    win.close()
-    win.deleteLater()
-    qtbot.wait(10)
-    gc.collect()
+    close_windows(qtbot, win)
 
 
 @pytest.fixture()

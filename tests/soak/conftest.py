@@ -2,10 +2,11 @@
 copied per test) and a temporary settings location (the user's own are never touched)."""
 from __future__ import annotations
 
-import gc
 import shutil
 
 import pytest
+
+from tests.qt_windows import close_windows, new_window
 
 from tests.gui.project_factory import make_project
 
@@ -27,27 +28,11 @@ def small(small_master, tmp_path):
 @pytest.fixture()
 def make_window(qtbot):
     """Build real main windows (offscreen); all closed and freed at the end."""
-    from prismstation.gui.app import make_app
-    from prismstation.gui.main_window import MainWindow
     made = []
 
     def make():
-        make_app()
-        gc.collect()
-        qtbot.wait(1)
-        win = MainWindow(interactive=False)
-        win.files.interactive = False
-        qtbot.addWidget(win)
-        win.resize(2400, 1600)  # above its minimum size hint (smaller: offscreen resize loop)
-        win.show()
-        qtbot.waitExposed(win)
-        made.append(win)
-        return win
+        made.append(new_window(qtbot, (2400, 1600)))  # above the minimum size (offscreen resize loop)
+        return made[-1]
 
     yield make
-    for win in made:
-        win.undo_stack.setClean()
-        win.close()
-        win.deleteLater()
-    qtbot.wait(10)
-    gc.collect()
+    close_windows(qtbot, *made)
