@@ -26,7 +26,7 @@ def click_image(qtbot, win, view, x, y, modifier=Qt.KeyboardModifier.NoModifier)
 
 def click_row(qtbot, win, pid):
     t = win.table
-    idx = t.proxy.mapFromSource(t.source_model.index(t.source_model.row_of(pid), 0))
+    idx = t.source_model.index(t.source_model.row_of(pid), 0)
     t.scrollTo(idx)
     qtbot.mouseClick(t.viewport(), Qt.MouseButton.LeftButton, pos=t.visualRect(idx).center())
 

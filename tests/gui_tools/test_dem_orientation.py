@@ -41,8 +41,7 @@ def test_orient_from_srtm_in_the_window(qtbot, window, sim, truth):
     sol = window.solver.solution
     assert sol.settings.orientation == "dem" and sol is not gcp_sol
     assert any("reference DEM" in m for m in sol.messages)
-    from PySide6.QtWidgets import QLabel
-    shown = " ".join(w.text() for w in window.panel.findChildren(QLabel))
+    shown = window.panel.plain_text()
     assert "reference DEM" in shown and "Ground residuals" in shown   # the model panel says so
     dh, dp = [], []
     for pid, t in truth.items():

@@ -9,15 +9,17 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-from PySide6.QtCore import Qt, Signal
-from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QGridLayout, QHBoxLayout,
-                               QLabel, QPushButton, QScrollArea, QVBoxLayout, QWidget)
+from PySide6.QtCore import QRect, QSize, Qt, Signal
+from PySide6.QtGui import QColor, QFont, QFontMetrics, QPainter, QPalette
+from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QHBoxLayout, QLabel,
+                               QPushButton, QScrollArea, QSizePolicy, QVBoxLayout, QWidget)
 
 from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
 
-SECTION_STYLE = "font-weight: 600; color: #1d3c6e; padding-top: 6px;"
-HEAD_STYLE = "background: #dde4ee; padding: 1px 5px; font-weight: 600;"
-CELL_STYLE = "padding: 0px 5px;"
+SECTION_COLOR = QColor("#1d3c6e")
+HEAD_BG = QColor("#dde4ee")
+BAD_COLOR = QColor("#c00000")
+WARN_COLOR = QColor("#a04000")
 
 
 def _f(v, nd=2, sign=False) -> str:
@@ -78,88 +80,108 @@ def solution_sections(sol) -> tuple[list, list]:
 
 
 class _Sections(QWidget):
-    """Titled grids of plain-text labels; :meth:`show_sections` only sets texts when the
-    layout is unchanged (a click repaints in a millisecond, unlike rich-text documents)."""
+    """The fit's tables painted in one pass (titles, header rows, cells, notes): no child
+    widgets, style sheets or layout, so a refit costs one cheap repaint. Column widths only
+    grow while the layout keeps its shape (numbers changing width do not make it jitter)."""
+
+    PAD = 5          # horizontal padding of a cell, px
+    TITLE_GAP = 6    # space above a section title, px
 
     def __init__(self, parent=None):
         super().__init__(parent)
-        self.grid = QGridLayout(self)
-        self.grid.setContentsMargins(4, 2, 4, 2)
-        self.grid.setHorizontalSpacing(0)
-        self.grid.setVerticalSpacing(0)
+        self._sections: list = []
+        self._notes: list = []
+        self._widths: list[int] = []
         self._shape = None
-        self._labels: list[QLabel] = []
-        self._notes: list[QLabel] = []
-
-    @staticmethod
-    def _label(style="", align=Qt.AlignmentFlag.AlignRight):
-        lab = QLabel()
-        lab.setTextFormat(Qt.TextFormat.PlainText)
-        lab.setStyleSheet(style)
-        lab.setAlignment(align | Qt.AlignmentFlag.AlignVCenter)
-        return lab
+        self._hint = QSize(0, 0)
+        self._bold = QFont(self.font())
+        self._bold.setWeight(QFont.Weight.DemiBold)
+        self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Fixed)
 
     def show_sections(self, sections, notes) -> None:
-        shape = ([(len(h), len(r)) for _, h, r in sections], len(notes))
-        if shape != self._shape:
-            self._rebuild(sections, notes)
-            self._shape = shape
-        self.setUpdatesEnabled(False)  # one repaint for the whole batch of labels
-        try:
-            self._set_texts(sections, notes)
-        finally:
-            self.setUpdatesEnabled(True)
-
-    def _set_texts(self, sections, notes) -> None:
-        texts = []
-        for title, head, rows in sections:
-            texts.append(title)
-            texts += head
-            for r in rows:
-                texts += r
-        for lab, t in zip(self._labels, texts):
-            if lab.text() != t:
-                lab.setText(t)
-        for lab, (t, sev) in zip(self._notes, notes):
-            lab.setText(t)
-            lab.setStyleSheet("color: #c00000; font-weight: bold;" if sev == "bad" else "color: #a04000;")
-
-    def _rebuild(self, sections, notes) -> None:
-        while self.grid.count():
-            w = self.grid.takeAt(0).widget()
-            if w is not None:
-                w.deleteLater()
-        self._labels, self._notes = [], []
-        row = 0
-        left = Qt.AlignmentFlag.AlignLeft
-        ncols = max([len(h) for _, h, _ in sections] or [1])
+        if sections == self._sections and notes == self._notes:
+            return
+        shape = [len(h) for _, h, _ in sections]
+        fm, fb = self.fontMetrics(), QFontMetrics(self._bold)
+        ncols = max(shape or [1])
+        widths = [0] * ncols if shape != self._shape else list(self._widths)
         for _, head, rows in sections:
-            t = self._label(SECTION_STYLE, left)
-            self.grid.addWidget(t, row, 0, 1, ncols)
-            self._labels.append(t)
-            row += 1
-            for c in range(len(head)):
-                lab = self._label(HEAD_STYLE, left if c == 0 else Qt.AlignmentFlag.AlignRight)
-                self.grid.addWidget(lab, row, c)
-                self._labels.append(lab)
-            row += 1
+            for c, t in enumerate(head):
+                widths[c] = max(widths[c], fb.horizontalAdvance(t) + 2 * self.PAD)
             for r in rows:
-                for c in range(len(r)):
-                    lab = self._label(CELL_STYLE, left if c == 0 else Qt.AlignmentFlag.AlignRight)
-                    self.grid.addWidget(lab, row, c)
-                    self._labels.append(lab)
-                row += 1
-        for _ in notes:
-            lab = self._label("", left)
-            lab.setWordWrap(True)
-            self.grid.addWidget(lab, row, 0, 1, ncols)
-            self._notes.append(lab)
-            row += 1
-        self.grid.setRowStretch(row, 1)
-        self.grid.setColumnStretch(ncols, 1)
+                for c, t in enumerate(r):
+                    widths[c] = max(widths[c], fm.horizontalAdvance(t) + 2 * self.PAD)
+        self._sections, self._notes, self._widths, self._shape = sections, notes, widths, shape
+        self._update_hint()
+        self.update()
+
+    def _row_height(self) -> int:
+        return self.fontMetrics().height() + 2
+
+    def _note_rect(self, text, bold) -> QRect:
+        fm = QFontMetrics(self._bold) if bold else self.fontMetrics()
+        width = max(self.width(), sum(self._widths)) - 2 * self.PAD
+        return fm.boundingRect(QRect(0, 0, max(width, 50), 10000), int(Qt.TextFlag.TextWordWrap), text)
+
+    def _update_hint(self) -> None:
+        rh = self._row_height()
+        h = 4 + sum(self.TITLE_GAP + rh * (2 + len(rows)) for _, _, rows in self._sections)
+        h += sum(self._note_rect(t, sev == "bad").height() + 2 for t, sev in self._notes)
+        hint = QSize(sum(self._widths) + 8, h)
+        if hint != self._hint:
+            self._hint = hint
+            self.updateGeometry()
+
+    def sizeHint(self) -> QSize:
+        return self._hint
+
+    def minimumSizeHint(self) -> QSize:
+        return self._hint
+
+    def resizeEvent(self, event) -> None:
+        if self._notes:  # wrapped notes change height with the width
+            self._update_hint()
+        super().resizeEvent(event)
+
+    def paintEvent(self, event) -> None:
+        p = QPainter(self)
+        rh, pad, x0 = self._row_height(), self.PAD, 4
+        total = sum(self._widths)
+        left = int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter)
+        right = int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+        y = 2
+        for title, head, rows in self._sections:
+            y += self.TITLE_GAP
+            p.setFont(self._bold)
+            p.setPen(SECTION_COLOR)
+            p.drawText(QRect(x0, y, max(total, self.width()), rh), left, title)
+            y += rh
+            p.fillRect(QRect(x0, y, total, rh), HEAD_BG)
+            p.setPen(self.palette().color(QPalette.ColorRole.WindowText))
+            for r, font in ((head, self._bold), *((row, self.font()) for row in rows)):
+                p.setFont(font)
+                x = x0
+                for c, t in enumerate(r):
+                    w = self._widths[c]
+                    p.drawText(QRect(x + pad, y, w - 2 * pad, rh), left if c == 0 else right, t)
+                    x += w
+                y += rh
+        for text, sev in self._notes:
+            bold = sev == "bad"
+            p.setFont(self._bold if bold else self.font())
+            p.setPen(BAD_COLOR if bold else WARN_COLOR)
+            rect = self._note_rect(text, bold).translated(x0 + pad, y)
+            p.drawText(rect, int(Qt.TextFlag.TextWordWrap), text)
+            y += rect.height() + 2
+        p.end()
 
     def plain_text(self) -> str:
-        return "\n".join(lab.text() for lab in self._labels + self._notes)
+        lines = []
+        for title, head, rows in self._sections:
+            lines += [title, *head]
+            for r in rows:
+                lines += r
+        return "\n".join(lines + [t for t, _ in self._notes])
 
 
 class ModelPanel(QWidget):

@@ -3,12 +3,15 @@
 A ``QAbstractTableModel`` reading the project (ids, kinds, measurements) and the current
 :class:`~prismstation.core.solve.Solution` (residuals, estimates, standardised residuals).
 GCPs flagged as blunders get a red background; residuals are in pixels of the reference view.
+The model sorts itself (no proxy model: a refit repaints the table every click, and the proxy
+and one Python call per cell and role doubled that cost; ``multiData`` answers all roles of a
+cell in one call).
 """
 from __future__ import annotations
 
 import math
 
-from PySide6.QtCore import QAbstractTableModel, QModelIndex, QSortFilterProxyModel, Qt
+from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt
 from PySide6.QtGui import QBrush, QColor
 from PySide6.QtWidgets import QAbstractItemView, QHeaderView, QTableView
 
@@ -23,6 +26,10 @@ TOLERANCE_BG = QColor(255, 235, 180)
 _BLUNDER_BRUSH = QBrush(BLUNDER_BG)
 _KIND_BRUSHES = {k: QBrush(c.darker(140)) for k, c in KIND_COLORS.items()}
 _RIGHT = int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+_DISPLAY, _BACKGROUND, _FOREGROUND, _ALIGN, _TOOLTIP, _SORT = (
+    int(r) for r in (Qt.ItemDataRole.DisplayRole, Qt.ItemDataRole.BackgroundRole,
+                     Qt.ItemDataRole.ForegroundRole, Qt.ItemDataRole.TextAlignmentRole,
+                     Qt.ItemDataRole.ToolTipRole, Qt.ItemDataRole.UserRole))
 _DIGITS = (None, None, None, 3, 3, 3, 2, 2, 2, 2, 2)
 
 
@@ -34,16 +41,24 @@ def _fmt(v, nd=2):
     return "" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{nd}f}"
 
 
+def _sort_key(row, column):
+    v = row[column]
+    return (-math.inf if v is None else v) if column > 2 else v
+
+
 class PointTableModel(QAbstractTableModel):
-    """Rows: the project's points in creation order. :meth:`refresh` after every change."""
+    """Rows: the project's points, in creation order or sorted by a column (:meth:`sort`).
+    :meth:`refresh` after every change. ``ids`` are in the order shown."""
 
     def __init__(self, parent=None):
         super().__init__(parent)
         self.project = None
         self.solution = None
         self.ids: list[str] = []
+        self._row_of: dict[str, int] = {}
         self._rows: list[tuple] = []
         self._text: list[list] = []
+        self._sort = (-1, Qt.SortOrder.AscendingOrder)
 
     def set_project(self, project) -> None:
         self.project, self.solution = project, None
@@ -55,8 +70,9 @@ class PointTableModel(QAbstractTableModel):
 
     def refresh(self) -> None:
         """Rebuild the rows from the project and the solution: one ``dataChanged`` when the
-        rows are the same points (selection and scroll stay), else one reset."""
-        rows = self._build() if self.project is not None else []
+        rows are the same points in the same order, a layout change when only the order
+        changed (selection and scroll stay in both), else one reset."""
+        rows = self._sorted(self._build()) if self.project is not None else []
         ids = [r[0] for r in rows]
         if ids == self.ids and rows:
             changed = [i for i, (a, b) in enumerate(zip(self._rows, rows)) if a != b]
@@ -67,10 +83,42 @@ class PointTableModel(QAbstractTableModel):
                 self.dataChanged.emit(self.index(min(changed), 0),
                                       self.index(max(changed), len(COLUMNS) - 1))
             return
+        if rows and len(ids) == len(self.ids) and set(ids) == set(self.ids):
+            self._relayout(rows)  # re-sorted by new values
+            return
         self.beginResetModel()
-        self._rows, self.ids = rows, ids
-        self._text = [_texts(r) for r in rows]
+        self._set_rows(rows)
         self.endResetModel()
+
+    def _set_rows(self, rows) -> None:
+        self._rows, self.ids = rows, [r[0] for r in rows]
+        self._row_of = {pid: i for i, pid in enumerate(self.ids)}
+        self._text = [_texts(r) for r in rows]
+
+    def _sorted(self, rows: list[tuple]) -> list[tuple]:
+        column, order = self._sort
+        if column < 0:
+            return rows
+        rev = order == Qt.SortOrder.DescendingOrder
+        return sorted(rows, key=lambda r: _sort_key(r, column), reverse=rev)
+
+    def sort(self, column: int, order=Qt.SortOrder.AscendingOrder) -> None:
+        """Sort the rows by ``column`` (−1: creation order); numbers sort numerically, empty
+        cells first."""
+        self._sort = (column, order)
+        if self.project is not None:
+            self._relayout(self._sorted(self._build()))
+
+    def _relayout(self, rows) -> None:
+        """The same points in a new order: selection and scroll follow their rows."""
+        self.layoutAboutToBeChanged.emit()
+        old = dict(self._row_of)
+        self._set_rows(rows)
+        n = len(COLUMNS)
+        self.changePersistentIndexList(
+            [self.index(old[pid], c) for pid in self.ids for c in range(n)],
+            [self.index(i, c) for i in range(len(self.ids)) for c in range(n)])
+        self.layoutChanged.emit()
 
     def _build(self) -> list[tuple]:
         p, sol = self.project, self.solution
@@ -113,30 +161,43 @@ class PointTableModel(QAbstractTableModel):
         return None
 
     def data(self, index, role=Qt.ItemDataRole.DisplayRole):
-        if role == Qt.ItemDataRole.DisplayRole:  # the hot path: preformatted strings
-            return self._text[index.row()][index.column()]
         if not index.isValid():
             return None
-        row = self._rows[index.row()]
-        c = index.column()
-        if role == Qt.ItemDataRole.UserRole:  # sort key
-            v = row[c]
-            return (-math.inf if v is None else v) if c > 2 else v
-        if role == Qt.ItemDataRole.BackgroundRole:
+        r, c = index.row(), index.column()
+        if role == _DISPLAY:
+            return self._text[r][c]
+        row = self._rows[r]
+        if role == _SORT:
+            return _sort_key(row, c)
+        if role == _BACKGROUND:
             return _BLUNDER_BRUSH if row[11] else None
-        if role == Qt.ItemDataRole.ForegroundRole and c == 1:
+        if role == _FOREGROUND and c == 1:
             return _KIND_BRUSHES.get(row[1])
-        if role == Qt.ItemDataRole.TextAlignmentRole and c > 2:
+        if role == _ALIGN and c > 2:
             return _RIGHT
-        if role == Qt.ItemDataRole.ToolTipRole and row[11]:
+        if role == _TOOLTIP and row[11]:
             return f"{row[0]}: standardised residual {_fmt(row[10])} above the blunder threshold"
         return None
 
+    def multiData(self, index, span) -> None:
+        """All the roles the item delegate asks for, in one call (the paint hot path)."""
+        r, c = index.row(), index.column()
+        row = self._rows[r]
+        for rd in span:
+            role = rd.role()
+            if role == _DISPLAY:
+                rd.setData(self._text[r][c])
+            elif role == _ALIGN and c > 2:
+                rd.setData(_RIGHT)
+            elif role == _BACKGROUND and row[11]:
+                rd.setData(_BLUNDER_BRUSH)
+            elif role == _FOREGROUND and c == 1 and row[1] in _KIND_BRUSHES:
+                rd.setData(_KIND_BRUSHES[row[1]])
+            else:
+                rd.clearData()
+
     def row_of(self, pid: str) -> int:
-        try:
-            return self.ids.index(pid)
-        except ValueError:
-            return -1
+        return self._row_of.get(pid, -1)
 
     def cell(self, pid: str, column: str) -> str:
         """Displayed text of ``column`` (a COLUMNS name) in the row of ``pid`` (tests, scripts)."""
@@ -154,12 +215,9 @@ class PointTableView(QTableView):
     def __init__(self, model: PointTableModel, parent=None):
         super().__init__(parent)
         self.source_model = model
-        self.proxy = QSortFilterProxyModel(self)
-        self.proxy.setSourceModel(model)
-        self.proxy.setSortRole(Qt.ItemDataRole.UserRole)
-        self.setModel(self.proxy)
+        self.setModel(model)
+        self.horizontalHeader().setSortIndicator(-1, Qt.SortOrder.AscendingOrder)
         self.setSortingEnabled(True)
-        self.sortByColumn(-1, Qt.SortOrder.AscendingOrder)
         self.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
         self.setSelectionMode(QAbstractItemView.SelectionMode.SingleSelection)
         self.setAlternatingRowColors(True)
@@ -180,8 +238,8 @@ class PointTableView(QTableView):
         rows = self.selectionModel().selectedRows()
         if not rows:
             return None
-        src = self.proxy.mapToSource(rows[0])
-        return self.source_model.ids[src.row()] if 0 <= src.row() < len(self.source_model.ids) else None
+        r = rows[0].row()
+        return self.source_model.ids[r] if 0 <= r < len(self.source_model.ids) else None
 
     def select_id(self, pid: str | None) -> None:
         """Select the row of ``pid`` (clears the selection for None) without emitting twice."""
@@ -190,7 +248,7 @@ class PointTableView(QTableView):
         if r < 0:
             sm.clearSelection()
             return
-        idx = self.proxy.mapFromSource(self.source_model.index(r, 0))
+        idx = self.source_model.index(r, 0)
         if self.current_id() != pid or not sm.isSelected(idx):
             sm.select(idx, sm.SelectionFlag.ClearAndSelect | sm.SelectionFlag.Rows)
             sm.setCurrentIndex(idx, sm.SelectionFlag.NoUpdate)
@@ -198,5 +256,4 @@ class PointTableView(QTableView):
 
     def ordered_ids(self) -> list[str]:
         """Ids in the order shown (after sorting)."""
-        return [self.source_model.ids[self.proxy.mapToSource(self.proxy.index(i, 0)).row()]
-                for i in range(self.proxy.rowCount())]
+        return list(self.source_model.ids)
