@@ -217,7 +217,10 @@ def _write(path, arr, transform, dtype="float32", nodata=None):
 def test_residual_sd_dock_matches_solution(sv_window):
     window = sv_window
     sol = window.solver.solution
-    t = window.dsm_validation_tool.sd_panel.table
+    tool = window.dsm_validation_tool
+    t = tool.sd_panel.table
+    assert not tool.sd_dock.isVisible() and t.rowCount() == 0   # hidden: not filled per click
+    tool.sd_dock.show()
     assert t.rowCount() == 1 and t.item(0, 0).text() == "A"
     for kind, col in (("GCP", 1), ("ICP", 4)):
         r = np.array([p.residual_px["A"] for p in sol.points if p.kind == kind])

@@ -93,16 +93,17 @@ class MainWindow(QMainWindow):
     def _status_widgets(self) -> None:
         sb = self.statusBar()
         self.status_xy = {}
-        for v in ("N", "F", "B"):
-            lab = QLabel(f"{v}  —")
-            lab.setMinimumWidth(150)
+        fm = self.fontMetrics()
+
+        def label(text, widest):  # fixed width: a new value must not relayout the window
+            lab = QLabel(text)
+            lab.setFixedWidth(fm.horizontalAdvance(widest) + 12)
             sb.addPermanentWidget(lab)
-            self.status_xy[v] = lab
-        self.status_ground = QLabel("E —  N —  h —")
-        self.status_ground.setMinimumWidth(280)
-        sb.addPermanentWidget(self.status_ground)
-        self.status_fit = QLabel("")
-        sb.addPermanentWidget(self.status_fit)
+            return lab
+        for v in ("N", "F", "B"):
+            self.status_xy[v] = label(f"{v}  —", f"{v}  x 00000.0  y 00000.0")
+        self.status_ground = label("E —  N —  h —", "E 0000000.0  N 00000000.0  h -0000.0 m")
+        self.status_fit = label("", "fit 0000 ms · σ0 000.000")
 
     def _act(self, text, slot, shortcut=None, icon=None, tip=None, checkable=False) -> QAction:
         a = QAction(text, self)
@@ -198,6 +199,8 @@ class MainWindow(QMainWindow):
         tb.addActions([self.a_open, self.a_save])
         tb.addSeparator()
         tb.addActions([self.a_undo, self.a_redo])
+        for a in (self.a_undo, self.a_redo):  # icons only: "Undo Move G5 in N" would relayout
+            tb.widgetForAction(a).setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonIconOnly)
         tb.addSeparator()
         tb.addActions([self.a_new_point, self.a_del_point])
         for a in self.a_kind.values():

@@ -21,7 +21,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QFont, QImage
 from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QGridLayout, QHBoxLayout, QLabel,
-                               QTabWidget, QVBoxLayout, QWidget)
+                               QSizePolicy, QTabWidget, QVBoxLayout, QWidget)
 
 from prismstation.gui.plot_data import PlotData, auto_exaggeration, line_x, segments
 
@@ -102,9 +102,10 @@ class PlotsWidget(QWidget):
         bar.addWidget(QLabel("Residual vector exaggeration"))
         bar.addWidget(self.spin)
         bar.addWidget(self.auto_box)
-        bar.addStretch(1)
-        self.summary = QLabel()
-        bar.addWidget(self.summary)
+        self.summary = QLabel()  # its width follows the space, never the text (no relayout)
+        self.summary.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        self.summary.setAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+        bar.addWidget(self.summary, 1)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(0, 0, 0, 0)
         if self.tabs is not None:

@@ -2,10 +2,12 @@
 
 Data flow (ARCHITECTURE.md): a command edits the :class:`Project`; ``Project.changed`` arms a
 zero-delay timer, so that many edits in one event-loop turn (an import, an undo macro) cause one
-refit. The refit runs on a snapshot of the project in a worker thread; when it finishes, the
-:class:`Solution` is published by :attr:`Solver.solution_changed` on the GUI thread. A result
-older than the newest one published is dropped (by revision number); edits made while a fit runs
-start one more fit when it ends.
+refit. A fit that took less than :attr:`Solver.inline_ms` last time (a few hundred points: a few
+milliseconds) runs right there on the GUI thread, so that the marker, the table, the statistics
+and the plots change in one repaint; a slower one (thousands of points, a reference DEM) runs on
+a snapshot of the project in a worker thread, and its :class:`Solution` is published by
+:attr:`Solver.solution_changed` on the GUI thread. A result older than the newest one published
+is dropped (by revision number); edits made while a fit runs start one more fit when it ends.
 """
 from __future__ import annotations
 
@@ -89,8 +91,14 @@ class Solver(QObject):
     Attributes
     ----------
     last_fit_ms : float
-        Duration of the last fit in the worker, milliseconds.
+        Duration of the last fit, milliseconds.
+    inline_ms : float
+        A fit whose predecessor took less than this runs on the GUI thread (0: always in the
+        worker). Handing a 5 ms fit to a thread costs more than the fit: the hand-off waits for
+        the event loop, and the two threads contend for the interpreter.
     """
+
+    inline_ms = 25.0
 
     solution_changed = Signal(object)
     failed = Signal(str)
@@ -157,7 +165,7 @@ class Solver(QObject):
             return
         self._dirty = False
         snap = snapshot(self.project)
-        if not self.threaded:
+        if not self.threaded or self.last_fit_ms < self.inline_ms:  # (NaN at first: worker)
             t0 = time.perf_counter()
             try:
                 sol, err = solve_project(snap, height_of=self.height_of), None

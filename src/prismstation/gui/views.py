@@ -17,7 +17,7 @@ import weakref
 import numpy as np
 import shiboken6
 from PySide6.QtCore import QObject, QRunnable, Qt, QThreadPool, Signal
-from PySide6.QtWidgets import QLabel, QSplitter, QVBoxLayout, QWidget
+from PySide6.QtWidgets import QLabel, QSizePolicy, QSplitter, QVBoxLayout, QWidget
 
 from prismstation.errors import PrismError
 from prismstation.gui.image_view import ImageView
@@ -148,6 +148,8 @@ class TripletViews(QWidget):
             header.setObjectName("viewHeader")
             header.setStyleSheet("QLabel#viewHeader { background: #2b2f36; color: #e8e8e8;"
                                  " padding: 3px 6px; font-weight: bold; }")
+            # its text (zoom) must not size the pane: the views would change width on a zoom
+            header.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Fixed)
             iv = ImageView(pane)
             iv.graphics.viewport().setCursor(Qt.CursorShape.CrossCursor)
             lay.addWidget(header)

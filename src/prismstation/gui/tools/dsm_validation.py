@@ -71,9 +71,22 @@ class ResidualSDPanel(QWidget):
         lay.addWidget(QLabel("<b>SD of image residuals (px) — seed 004 Table 1</b>"))
         self.table = _table(self.HEAD)
         lay.addWidget(self.table)
+        self.solution = None
         window.solver.solution_changed.connect(self.set_solution)
 
     def set_solution(self, sol) -> None:
+        """Show ``sol``'s figures — only while visible (a hidden dock catches up when shown:
+        this runs after every click)."""
+        self.solution = sol
+        if self.isVisible():
+            self._fill()
+
+    def showEvent(self, ev) -> None:
+        super().showEvent(ev)
+        self._fill()
+
+    def _fill(self) -> None:
+        sol = self.solution
         self.table.setRowCount(0)
         if sol is None:
             return
