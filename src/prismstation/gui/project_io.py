@@ -2,11 +2,14 @@
 prompt (driven by ``QUndoStack.isClean``), crash recovery, relocating missing files.
 
 Crash recovery is the edit journal (:class:`prismstation.io.recovery.Journal`): every edit of
-the project writes it atomically to ``<project>.recovery`` as it happens (for a project never
-saved, ``untitled.prismproj.recovery`` in the settings directory), so a crash or ``kill -9``
-loses nothing that was on screen. Saving, discarding or undoing back to the saved state clears
-the journal; opening a project with a journal (or starting with an untitled one) offers to
-recover it.
+the project is journaled atomically to ``<project>.recovery`` as it happens (for a project never
+saved, ``untitled.prismproj.recovery`` in the settings directory). The edit only serialises the
+project; the disk write (fsync) runs on the journal's writer thread, so a crash or ``kill -9``
+loses at most the edits of the write in flight (a few milliseconds), never an earlier one.
+Saving, discarding or undoing back to the saved state clears the journal (cancelling what is
+pending first); closing, saving as and opening a project flush it. Opening a project with a
+journal (or starting with an untitled one) offers to recover it. Write errors of the thread
+reach the status bar through a queued signal (:attr:`ProjectFiles.message` in the GUI thread).
 
 Dialogs go through small methods (:meth:`ProjectFiles.ask`, :meth:`ProjectFiles.choose_open`, ...)
 so that tests can answer them.
@@ -17,7 +20,7 @@ import dataclasses
 import os
 from pathlib import Path
 
-from PySide6.QtCore import QObject, Signal
+from PySide6.QtCore import QObject, Signal, Slot
 from PySide6.QtWidgets import QFileDialog, QMessageBox
 
 from prismstation.errors import InputError, PrismError
@@ -47,17 +50,25 @@ def autosave_path(path) -> Path:
 
 
 class _WindowJournal(Journal):
-    """A journal whose write failure is a status message, never an exception in an edit."""
+    """A journal whose write failure is a status message, never an exception in an edit.
 
-    def __init__(self, project, path, report):
+    It writes on its own thread; ``report(str)`` is called from that thread for write errors
+    (and from the edit's thread when the project cannot be serialised), so it must be safe to
+    call from any thread (:class:`ProjectFiles` passes a signal delivered queued to the GUI).
+    """
+
+    def __init__(self, project, path, report, background: bool = True):
         self.report = report
-        super().__init__(project, path)
+        super().__init__(project, path, background=background, on_error=self._failed)
+
+    def _failed(self, exc: Exception) -> None:
+        self.report(f"Recovery journal not written: {exc}")
 
     def _on_changed(self, revision: int) -> None:
         try:
             super()._on_changed(revision)
         except (OSError, PrismError, TypeError, ValueError) as exc:
-            self.report(f"Recovery journal not written: {exc}")
+            self._failed(exc)
 
     def write(self) -> None:
         self._on_changed(self.project.revision)
@@ -97,6 +108,7 @@ class ProjectFiles(QObject):
     path_changed = Signal(str)
     message = Signal(str)
     recent_changed = Signal(list)
+    _journal_message = Signal(str)  # emitted from the journal's thread, delivered in ours
 
     def __init__(self, undo_stack, parent_widget=None):
         super().__init__(parent_widget)
@@ -107,6 +119,8 @@ class ProjectFiles(QObject):
         self.journal: Journal | None = None
         self.interactive = True  # False: every question is answered "No" (screenshots, scripts)
         undo_stack.cleanChanged.connect(self._on_clean_changed)
+        # a bound slot of this QObject: emitted from another thread, the call is queued here
+        self._journal_message.connect(self._on_journal_message)
 
     # ------------------------------------------------------------------ dialogs (overridable)
     def ask(self, title: str, text: str, buttons=None, default=None):
@@ -145,7 +159,7 @@ class ProjectFiles(QObject):
             self.journal.close()
         self.project = project
         self.path = None if path is None else Path(path).resolve()
-        self.journal = _WindowJournal(project, self.path or untitled_path(), self.message.emit)
+        self.journal = _WindowJournal(project, self.path or untitled_path(), self._journal_message.emit)
         self.stack.clear()
         self.stack.setClean()
         self.project_opened.emit(project)
@@ -176,6 +190,7 @@ class ProjectFiles(QObject):
         if not path:
             return False
         path = Path(path)
+        self.flush_journal()  # reopening this project: its journal must be complete on disk
         side = autosave_path(path)
         source = path
         if side.is_file() and (not path.exists() or side.stat().st_mtime >= path.stat().st_mtime):
@@ -296,6 +311,7 @@ class ProjectFiles(QObject):
         path = path or self.choose_save()
         if not path:
             return False
+        self.flush_journal()  # nothing pending may land on the old name after it is removed
         old_path, old_side = self.path, autosave_path(self.path)
         self.path = Path(path).resolve()
         self._scene_beside(self.path)
@@ -382,14 +398,25 @@ class ProjectFiles(QObject):
         if self.project is None or self.journal is None or self.stack.isClean():
             return False
         self.journal.write()
+        self.journal.flush()
         return autosave_path(self.path).is_file()
+
+    def flush_journal(self, timeout: float | None = None) -> bool:
+        """Wait until every edit journaled so far is on disk (False: ``timeout`` s ran out)."""
+        return True if self.journal is None else self.journal.flush(timeout)
+
+    @Slot(str)
+    def _on_journal_message(self, text: str) -> None:
+        self.message.emit(text)
 
     def _on_clean_changed(self, clean: bool) -> None:
         # undone back to the saved state: nothing to recover (only a journal this session wrote)
-        if clean and self.journal is not None and self.journal.writes:
+        if clean and self.journal is not None and self.journal.submitted:
             self._remove_autosave()
 
     def _remove_autosave(self) -> None:
+        if self.journal is not None and self.journal.path == (self.path or untitled_path()):
+            self.journal.discard()  # drops a pending write, waits for the one in flight
         side = autosave_path(self.path)
         for f in (side, Path(str(side) + ".bak")):
             if f.exists():
