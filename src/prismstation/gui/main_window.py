@@ -26,6 +26,7 @@ from prismstation.gui.point_table import PointTableModel, PointTableView
 from prismstation.gui.reference_dem import DemLoader
 from prismstation.gui.project_io import ProjectFiles
 from prismstation.gui.solver import Solver
+from prismstation.gui.text_label import TextLabel
 from prismstation.gui.views import TripletViews
 
 
@@ -93,11 +94,8 @@ class MainWindow(QMainWindow):
     def _status_widgets(self) -> None:
         sb = self.statusBar()
         self.status_xy = {}
-        fm = self.fontMetrics()
-
-        def label(text, widest):  # fixed width: a new value must not relayout the window
-            lab = QLabel(text)
-            lab.setFixedWidth(fm.horizontalAdvance(widest) + 12)
+        def label(text, widest):  # a new value must not relayout the window
+            lab = TextLabel(text, widest)
             sb.addPermanentWidget(lab)
             return lab
         for v in ("N", "F", "B"):

@@ -21,9 +21,10 @@ import pyqtgraph as pg
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QFont, QImage
 from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QGridLayout, QHBoxLayout, QLabel,
-                               QSizePolicy, QTabWidget, QVBoxLayout, QWidget)
+                               QTabWidget, QVBoxLayout, QWidget)
 
 from prismstation.gui.plot_data import PlotData, auto_exaggeration, line_x, segments
+from prismstation.gui.text_label import TextLabel
 
 __all__ = ["PlotsWidget", "PlotData", "PLOT_NAMES", "auto_exaggeration"]
 
@@ -65,6 +66,7 @@ class PlotsWidget(QWidget):
         super().__init__(parent)
         self._data = PlotData()
         self._exaggeration = 100.0
+        self._shown: dict = {}  # id(item) -> what it shows (see _set)
         self.plots: dict[str, pg.PlotWidget] = {}
         cells = QGridLayout()
         cells.setContentsMargins(0, 0, 0, 0)
@@ -102,9 +104,7 @@ class PlotsWidget(QWidget):
         bar.addWidget(QLabel("Residual vector exaggeration"))
         bar.addWidget(self.spin)
         bar.addWidget(self.auto_box)
-        self.summary = QLabel()  # its width follows the space, never the text (no relayout)
-        self.summary.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
-        self.summary.setAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+        self.summary = TextLabel(stretch=True, align=Qt.AlignmentFlag.AlignRight)  # no relayout
         bar.addWidget(self.summary, 1)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(0, 0, 0, 0)
@@ -225,30 +225,30 @@ class PlotsWidget(QWidget):
             self.spin.blockSignals(True)
             self.spin.setValue(self._exaggeration)
             self.spin.blockSignals(False)
-        self.h_gcp.setData(d.gcp_py, d.gcp_h, data=list(d.gcp_ids))
-        self.h_icp.setData(d.icp_py, d.icp_h, data=list(d.icp_ids))
+        self._set(self.h_gcp, d.gcp_py, d.gcp_h, data=list(d.gcp_ids))
+        self._set(self.h_icp, d.icp_py, d.icp_h, data=list(d.icp_ids))
         x = line_x(d)
         if d.c0 is not None and d.c1 is not None and x.size:
-            self.fit_line.setData(x, d.c0 + d.c1 * x)
-            self.d_fit_line.setData(x, d.c0 + (d.c1 - d.c1_theory) * x)
+            self._set(self.fit_line, x, d.c0 + d.c1 * x)
+            self._set(self.d_fit_line, x, d.c0 + (d.c1 - d.c1_theory) * x)
         else:
-            self.fit_line.setData([], [])
-            self.d_fit_line.setData([], [])
+            self._set(self.fit_line, [], [])
+            self._set(self.d_fit_line, [], [])
         if d.c1_theory is not None and x.size:
-            self.theory_line.setData(x, d.c1_theory * x)
-            self.d_gcp.setData(d.gcp_py, d.gcp_h - d.c1_theory * d.gcp_py, data=list(d.gcp_ids))
-            self.d_icp.setData(d.icp_py, d.icp_h - d.c1_theory * d.icp_py, data=list(d.icp_ids))
+            self._set(self.theory_line, x, d.c1_theory * x)
+            self._set(self.d_gcp, d.gcp_py, d.gcp_h - d.c1_theory * d.gcp_py, data=list(d.gcp_ids))
+            self._set(self.d_icp, d.icp_py, d.icp_h - d.c1_theory * d.icp_py, data=list(d.icp_ids))
         else:
             for item in (self.theory_line, self.d_gcp, self.d_icp):
-                item.setData([], [])
+                self._set(item, [], [])
         self._update_vectors()
         n = len(d.std_ids)
         xs = np.arange(1, n + 1, dtype=float)
         stem_x = np.repeat(xs, 2)
         stem_y = np.zeros(2 * n)
         stem_y[1::2] = d.std_values
-        self.stems.setData(stem_x, stem_y)
-        self.std_pts.setData(xs, d.std_values, data=list(d.std_ids))
+        self._set(self.stems, stem_x, stem_y)
+        self._set(self.std_pts, xs, d.std_values, data=list(d.std_ids))
         self.threshold_line.setValue(d.threshold)
         for line, crit in zip(self.critical_lines, list(d.critical) + [None] * 2):
             line.setVisible(crit is not None and n > 0)
@@ -257,11 +257,11 @@ class PlotsWidget(QWidget):
                 line.label.setFormat(f"critical {crit[0]}: {{value:.2f}}")
         if d.blunder in d.std_ids:
             i = d.std_ids.index(d.blunder)
-            self.blunder_pt.setData([xs[i]], [d.std_values[i]], data=[d.blunder])
+            self._set(self.blunder_pt, [xs[i]], [d.std_values[i]], data=[d.blunder])
             self.blunder_label.setText(d.blunder)
             self.blunder_label.setPos(xs[i], d.std_values[i])
         else:
-            self.blunder_pt.setData([], [])
+            self._set(self.blunder_pt, [], [])
             self.blunder_label.setText("")
         ax = self.plots["std_residuals"].getPlotItem().getAxis("bottom")
         ax.setTicks([list(zip(xs, d.std_ids))] if 0 < n <= 25 else None)
@@ -273,6 +273,19 @@ class PlotsWidget(QWidget):
         self.summary.setText(f"{len(d.gcp_ids)} GCP, {len(d.icp_ids)} ICP with parallax"
                              + (f"; blunder: {d.blunder}" if d.blunder else ""))
         self._set_titles()
+
+    def _set(self, item, x, y, data=None) -> None:
+        """``item.setData(x, y[, data=...])`` unless it already shows exactly that: pyqtgraph
+        rebuilds an item on every ``setData`` (~0.3 ms), and a click changes few of them."""
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        key = (x.tobytes(), y.tobytes(), None if data is None else tuple(data))
+        if self._shown.get(id(item)) == key:
+            return
+        self._shown[id(item)] = key
+        if data is None:
+            item.setData(x, y)
+        else:
+            item.setData(x, y, data=data)
 
     def set_exaggeration(self, k: float | None) -> None:
         """Residual vectors drawn ``k`` times their length; ``None`` returns to automatic."""
@@ -320,15 +333,15 @@ class PlotsWidget(QWidget):
     # ------------------------------------------------------------------ internals
     def _update_vectors(self) -> None:
         d, k = self._data, self._exaggeration
-        self.v_gcp_seg.setData(*segments(d.vec_gcp_xy, d.vec_gcp_v, k))
-        self.v_icp_seg.setData(*segments(d.vec_icp_xy, d.vec_icp_v, k))
-        self.v_gcp.setData(d.vec_gcp_xy[:, 0], d.vec_gcp_xy[:, 1], data=list(d.vec_gcp_ids))
-        self.v_icp.setData(d.vec_icp_xy[:, 0], d.vec_icp_xy[:, 1], data=list(d.vec_icp_ids))
+        self._set(self.v_gcp_seg, *segments(d.vec_gcp_xy, d.vec_gcp_v, k))
+        self._set(self.v_icp_seg, *segments(d.vec_icp_xy, d.vec_icp_v, k))
+        self._set(self.v_gcp, d.vec_gcp_xy[:, 0], d.vec_gcp_xy[:, 1], data=list(d.vec_gcp_ids))
+        self._set(self.v_icp, d.vec_icp_xy[:, 0], d.vec_icp_xy[:, 1], data=list(d.vec_icp_ids))
         if d.image_shape:
             r, c = d.image_shape[:2]
-            self.frame.setData([0, c, c, 0, 0], [0, 0, r, r, 0])
+            self._set(self.frame, [0, c, c, 0, 0], [0, 0, r, r, 0])
         else:
-            self.frame.setData([], [])
+            self._set(self.frame, [], [])
 
     def _ranges(self) -> dict:
         """``{plot: ((x0, x1), (y0, y1))}`` covering the data (plots with data only)."""
@@ -388,9 +401,9 @@ class PlotsWidget(QWidget):
             ring = self.blunder_rings[name]
             if b is not None and b in ids and not (name == "height_minus_theory" and d.c1_theory is None):
                 i = ids.index(b)
-                ring.setData([x[i]], [y[i]], data=[b])
+                self._set(ring, [x[i]], [y[i]], data=[b])
             else:
-                ring.setData([], [])
+                self._set(ring, [], [])
 
     def _on_spin(self, value: float) -> None:
         self.auto_box.blockSignals(True)

@@ -17,11 +17,12 @@ import weakref
 import numpy as np
 import shiboken6
 from PySide6.QtCore import QObject, QRunnable, Qt, QThreadPool, Signal
-from PySide6.QtWidgets import QLabel, QSizePolicy, QSplitter, QVBoxLayout, QWidget
+from PySide6.QtWidgets import QSplitter, QVBoxLayout, QWidget
 
 from prismstation.errors import PrismError
 from prismstation.gui.image_view import ImageView
 from prismstation.gui.overlays import ViewOverlay
+from prismstation.gui.text_label import TextLabel
 from prismstation.io.raster import RasterSource
 
 _TOKENS = itertools.count(1)
@@ -110,7 +111,7 @@ class TripletViews(QWidget):
         layout.addWidget(self.splitter)
         self.views: dict[str, ImageView] = {}
         self.overlays: dict[str, ViewOverlay] = {}
-        self.headers: dict[str, QLabel] = {}
+        self.headers: dict[str, TextLabel] = {}
         self.panes: dict[str, QWidget] = {}
         self.project = None
         self.solution = None
@@ -144,12 +145,10 @@ class TripletViews(QWidget):
             lay = QVBoxLayout(pane)
             lay.setContentsMargins(1, 1, 1, 1)
             lay.setSpacing(0)
-            header = QLabel(VIEW_TITLES.get(name, name))
+            # its text (zoom) never sizes the pane: the views would change width on a zoom
+            header = TextLabel(VIEW_TITLES.get(name, name), "N — nadir", background="#2b2f36",
+                               color="#e8e8e8", bold=True, stretch=True)
             header.setObjectName("viewHeader")
-            header.setStyleSheet("QLabel#viewHeader { background: #2b2f36; color: #e8e8e8;"
-                                 " padding: 3px 6px; font-weight: bold; }")
-            # its text (zoom) must not size the pane: the views would change width on a zoom
-            header.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Fixed)
             iv = ImageView(pane)
             iv.graphics.viewport().setCursor(Qt.CursorShape.CrossCursor)
             lay.addWidget(header)

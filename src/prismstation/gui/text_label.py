@@ -1,0 +1,79 @@
+"""A one-line label for text that changes all the time (status figures, view headers).
+
+``QLabel.setText`` always asks its layout to recompute, and the request climbs to the main
+window, which then relayouts and repaints everything: several milliseconds on every click or
+cursor move. :class:`TextLabel` has a size hint fixed at construction (from its widest
+expected text) and ``setText`` only repaints the label itself; too long a text is elided.
+"""
+from __future__ import annotations
+
+from PySide6.QtCore import QSize, Qt
+from PySide6.QtGui import QColor, QFont, QPainter
+from PySide6.QtWidgets import QSizePolicy, QWidget
+
+
+class TextLabel(QWidget):
+    """One line of text, elided on the right, never resizing its layout.
+
+    Parameters
+    ----------
+    text : str
+        The initial text.
+    widest : str, optional
+        A sample of the widest text expected: the width hint (default: ``text``).
+    background, color : QColor, optional
+        Fill and text colour (default: the palette's).
+    bold : bool
+    stretch : bool
+        Take whatever width the layout offers (the hint is then only a minimum to ask for).
+    align : Qt.AlignmentFlag
+        Horizontal alignment of the text.
+    """
+
+    PAD_X, PAD_Y = 6, 3
+
+    def __init__(self, text: str = "", widest: str | None = None, *, background=None, color=None,
+                 bold: bool = False, stretch: bool = False, align=Qt.AlignmentFlag.AlignLeft,
+                 parent=None):
+        super().__init__(parent)
+        self._text = text
+        if bold:
+            f = QFont(self.font())
+            f.setBold(True)
+            self.setFont(f)
+        self._background = QColor(background) if background is not None else None
+        self._color = QColor(color) if color is not None else None
+        self._align = align | Qt.AlignmentFlag.AlignVCenter
+        fm = self.fontMetrics()
+        self._hint = QSize(fm.horizontalAdvance(widest if widest is not None else text) + 2 * self.PAD_X,
+                           fm.height() + 2 * self.PAD_Y)
+        horizontal = QSizePolicy.Policy.Ignored if stretch else QSizePolicy.Policy.Fixed
+        self.setSizePolicy(horizontal, QSizePolicy.Policy.Fixed)
+        self.setFixedHeight(self._hint.height())
+        if not stretch:
+            self.setFixedWidth(self._hint.width())
+
+    def text(self) -> str:
+        return self._text
+
+    def setText(self, text: str) -> None:
+        if text != self._text:
+            self._text = text
+            self.update()
+
+    def sizeHint(self) -> QSize:
+        return self._hint
+
+    def minimumSizeHint(self) -> QSize:
+        return QSize(0, self._hint.height())
+
+    def paintEvent(self, event) -> None:
+        p = QPainter(self)
+        if self._background is not None:
+            p.fillRect(self.rect(), self._background)
+        if self._color is not None:
+            p.setPen(self._color)
+        r = self.rect().adjusted(self.PAD_X, 0, -self.PAD_X, 0)
+        p.drawText(r, int(self._align),
+                   self.fontMetrics().elidedText(self._text, Qt.TextElideMode.ElideRight, r.width()))
+        p.end()
