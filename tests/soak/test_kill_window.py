@@ -3,9 +3,12 @@ then the next window offers to recover and every edit that was on screen is ther
 
 The editor is a separate Python process running the real :class:`MainWindow` offscreen; a timer
 performs operator edits through the window's own undo commands (place a new point, move,
-delete, switch kind) and logs each edit before (``I``) and after (``C``) it is made. After the
-kill, the recovered project must equal the replay of the completed edits, or of those plus the
-one that was under way.
+delete, switch kind) and logs each edit before (``I``) and after (``C`` with the project
+revision) it is made, and before each edit the revision the journal's writer thread has on disk
+(``W``). The journal is written in the background, so the last edits may still be in flight
+when the process dies: the recovered project must equal the replay of the edits up to the
+revision found in the journal (a consistent state, never a mix), and that revision must be at
+least the last one logged as on disk (an edit once written is never lost).
 """
 from __future__ import annotations
 
@@ -39,6 +42,8 @@ alive = [p for p in win.project.points]
 
 def step():
     p = win.project
+    if win.files.journal.written_revision is not None:  # on disk (the writer thread's report)
+        fh.write(f"W {win.files.journal.written_revision}\n")
     r = rng.random()
     if r < 0.4 or not alive:
         pid, view = p.new_point_id("T"), rng.choice("NFB")
@@ -68,7 +73,7 @@ def step():
         fh.write(f"I K {pid} {kind}\n")
         win.set_current(pid)
         win.set_kind(kind)
-    fh.write("C\n")  # written only after the window's command returned
+    fh.write(f"C {p.revision}\n")  # written only after the window's command returned
 
 timer = QTimer()
 timer.timeout.connect(step)
@@ -115,20 +120,29 @@ def observed(project, expected):
 
 
 def read_log(log):
-    done, pending = [], None
+    """``(done, revisions, pending, on_disk)``: the completed ops and the project revision after
+    each, the op under way (or None), the newest revision logged as written by the journal."""
+    done, revs, pending, on_disk = [], [], None, None
     for line in log.read_text().splitlines():
         parts = line.split()
+        if not parts:
+            continue
         if parts[0] == "I":
             pending = parts[1:]
-        elif parts[0] == "C" and pending is not None:
+        elif parts[0] == "C" and pending is not None and len(parts) == 2:
             done.append(pending)
+            revs.append(int(parts[1]))
             pending = None
-    return done, pending
+        elif parts[0] == "W" and len(parts) == 2:
+            on_disk = int(parts[1])
+    return done, revs, pending, on_disk
 
 
 @pytest.mark.parametrize("mode,seed", [("saved", 3), ("untitled", 4)])
 def test_kill_minus_9_in_the_middle_of_editing_loses_nothing(small, make_window, temp_settings,
                                                               tmp_path, mode, seed):
+    import json
+
     from prismstation.gui.project_io import autosave_path
     from prismstation.io.project import load_project
     log = tmp_path / "edits.log"
@@ -153,9 +167,16 @@ def test_kill_minus_9_in_the_middle_of_editing_loses_nothing(small, make_window,
             proc.kill()
             proc.wait(10)
     assert proc.returncode == -signal.SIGKILL
-    done, pending = read_log(log)
+    done, revs, pending, on_disk = read_log(log)
     assert len(done) >= 40
-    assert autosave_path(None if mode == "untitled" else small.path).is_file()
+    side = autosave_path(None if mode == "untitled" else small.path)
+    assert side.is_file()
+    journaled = json.loads(side.read_text())["recovery"]["revision"]
+    assert on_disk is not None and journaled >= on_disk, "an edit already on disk was lost"
+    k = sum(r <= journaled for r in revs)  # the completed edits the journal holds
+    assert k >= sum(r <= on_disk for r in revs)
+    print(f"\n{mode}: {len(done)} edits, journal at revision {journaled} = edit {k} "
+          f"({len(done) - k} completed edit(s) in flight at the kill, last logged on disk {on_disk})")
     assert hashlib.sha256(small.path.read_bytes()).hexdigest() == before  # the file untouched
 
     win = make_window()
@@ -171,18 +192,13 @@ def test_kill_minus_9_in_the_middle_of_editing_loses_nothing(small, make_window,
         assert win.open_project(small.path)
     assert [t for t, _ in asked] == ["Recover"]
     assert not win.undo_stack.isClean()  # recovered edits still have to be saved
-    a = replay(done)
-    b = replay(done + ([pending] if pending else []))
+    ops = done + ([pending] if pending else [])
+    b = replay(ops)
     got = observed(win.project, b)
     initial = None if mode == "untitled" else load_project(small.path)
-    assert got in (observed_expect(a, b, initial), observed_expect(b, b, initial)), \
-        "an edit on screen was lost"
-    # every completed edit is there (the explicit form of the check above)
-    for pid, exp in a.items():
-        if exp is None:
-            assert pid not in win.project.points or (pending and pending[1] == pid)
-        else:
-            assert pid in win.project.points
+    # exactly the state after edit k (or k + 1 when the journaled revision fell inside an edit)
+    want = [observed_expect(replay(ops[:n]), b, initial) for n in (k, k + 1) if n <= len(ops)]
+    assert got in want, "the journal is not the state after the edits it says it holds"
 
 
 def observed_expect(state, keys, initial):

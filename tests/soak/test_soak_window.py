@@ -148,6 +148,7 @@ def test_thousands_of_random_actions_no_exception_bounded_memory(small, make_win
     # the journal holds the last state after all that: recovery reads it back equal
     if not win.undo_stack.isClean():
         from prismstation.io.recovery import recover
+        assert win.files.flush_journal(timeout=30)  # the journal writes on its own thread
         assert content(recover(small.path)) == content(win.project)
 
 
