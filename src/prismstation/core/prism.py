@@ -5,6 +5,7 @@ Map points ``en`` are ``(..., 2)`` metres, heights ``h`` ellipsoidal metres (bro
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,7 +51,7 @@ def ancillary_to_ground(scene: Scene, view: View, xy0, h, iterations: int = 10,
     ``tol_m`` metres (5–6 iterations: forward and inverse then agree to 1e-6 px) or after
     ``iterations``.
     """
-    apparent = view.map_to_image.inverse()(xy0)
+    apparent = image_to_map(view)(xy0)
     en = apparent
     for _ in range(iterations):
         new = apparent - relief_shift(scene, view, en, h)
@@ -63,7 +64,24 @@ def ancillary_to_ground(scene: Scene, view: View, xy0, h, iterations: int = 10,
 
 def to_nadir_space(scene: Scene, view: View) -> Affine2D:
     """Affine carrying ``view`` image coordinates into N image space through the map (§3.1)."""
-    return scene.views["N"].map_to_image @ view.map_to_image.inverse()
+    return _composed(scene.views["N"].map_to_image, image_to_map(view))
+
+
+def image_to_map(view: View) -> Affine2D:
+    """``view.map_to_image.inverse()``: image pixels → map metres at the ellipsoid (cached)."""
+    return _inverse(view.map_to_image)
+
+
+# A fit inverts and composes the same few affines many times; Affine2D is immutable and
+# hashed by identity, so the results can be kept (the cache holds the affines alive).
+@functools.lru_cache(maxsize=64)
+def _inverse(affine: Affine2D) -> Affine2D:
+    return affine.inverse()
+
+
+@functools.lru_cache(maxsize=64)
+def _composed(a: Affine2D, b: Affine2D) -> Affine2D:
+    return a @ b
 
 
 def along_track_unit(scene: Scene, en) -> np.ndarray:

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -26,6 +27,18 @@ class GroundTrack:
         p.setflags(write=False)
         object.__setattr__(self, "points", p)
 
+    @cached_property
+    def _segments(self) -> tuple[np.ndarray, ...]:
+        """What :meth:`foot` needs of the track alone: segment starts ``a`` and vectors ``d``,
+        squared lengths, unit directions, and the bounds of the position along a segment
+        (the first and last segments extended)."""
+        a = self.points[:-1]
+        d = self.points[1:] - a
+        L2 = np.einsum("ij,ij->i", d, d)
+        lo = np.zeros(len(d)); hi = np.ones(len(d))
+        lo[0], hi[-1] = -np.inf, np.inf
+        return a, d, L2, d / np.sqrt(L2)[:, None], lo, hi
+
     def foot(self, en) -> tuple[np.ndarray, np.ndarray]:
         """Nearest track point and unit flight direction for map points ``en`` ``(..., 2)``.
 
@@ -33,17 +46,15 @@ class GroundTrack:
         """
         en = np.asarray(en, dtype=float)
         q = en.reshape(-1, 2)
-        a, b = self.points[:-1], self.points[1:]
-        d = b - a
-        L2 = np.einsum("ij,ij->i", d, d)
+        a, d, L2, unit, lo, hi = self._segments
         s = np.einsum("nij,ij->ni", q[:, None, :] - a[None], d) / L2  # (n, K-1)
-        lo = np.zeros(len(d)); hi = np.ones(len(d))
-        lo[0], hi[-1] = -np.inf, np.inf
-        s = np.clip(s, lo, hi)
-        feet = a[None] + s[..., None] * d[None]
-        k = np.argmin(np.einsum("nik,nik->ni", q[:, None] - feet, q[:, None] - feet), axis=1)
-        f = feet[np.arange(len(q)), k]
-        t = d[k] / np.sqrt(L2[k])[:, None]
+        if len(d) == 1:  # one segment, extended both ways: the foot is on its line
+            f, t = a[0] + s * d[0], np.repeat(unit, len(q), axis=0)
+        else:
+            s = np.clip(s, lo, hi)
+            feet = a[None] + s[..., None] * d[None]
+            k = np.argmin(np.einsum("nik,nik->ni", q[:, None] - feet, q[:, None] - feet), axis=1)
+            f, t = feet[np.arange(len(q)), k], unit[k]
         return f.reshape(en.shape), t.reshape(en.shape)
 
     def mean_direction(self) -> np.ndarray:

@@ -6,6 +6,9 @@ point seen in too few views): such parts are left out of the :class:`Solution` a
 """
 from __future__ import annotations
 
+import functools
+import itertools
+import math
 from dataclasses import dataclass, field, replace
 from typing import Callable, Mapping
 
@@ -180,8 +183,8 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
             messages.append(str(exc))
 
     # 3. per point
-    results = _point_results(scene, points, bias, parallax, mean_h, height_of, settings)
-    results = _attach_adjustment_stats(results, gcps, bias, parallax, scene, settings)
+    adjustment = _adjustment_stats(gcps, bias, parallax, scene, settings)
+    results = _point_results(scene, points, bias, parallax, mean_h, height_of, settings, adjustment)
     stats = _statistics(scene, results)
     return Solution(scene, settings, bias, parallax, tuple(results), stats, tuple(messages),
                     mean_h, revision)
@@ -193,12 +196,14 @@ def _parallax(scene: Scene, pts) -> np.ndarray:
         return np.zeros(0)
     f = prism.to_nadir_space(scene, scene.views["F"])(np.array([p.image["F"] for p in pts], float))
     b = prism.to_nadir_space(scene, scene.views["B"])(np.array([p.image["B"] for p in pts], float))
-    en = scene.views["N"].map_to_image.inverse()((f + b) / 2)
+    en = prism.image_to_map(scene.views["N"])((f + b) / 2)
     return np.einsum("ij,ij->i", f - b, prism.along_track_unit(scene, en))
 
 
-def _point_results(scene, points, bias, parallax, mean_h, height_of, settings) -> list[PointResult]:
-    """Every point's predictions, residuals and ground estimate, vectorised over points."""
+def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
+                   adjustment=None) -> list[PointResult]:
+    """Every point's predictions, residuals and ground estimate, vectorised over points.
+    ``adjustment`` maps a GCP's id to its ``(std_residual, redundancy, blunder)``."""
     views = scene.views
     n = len(points)
     nan2 = np.full((n, 2), np.nan)
@@ -214,7 +219,7 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings) -
     across = {"F": np.full(n, np.nan), "B": np.full(n, np.nan)}
     if triplet and n:
         T = {v: prism.to_nadir_space(scene, views[v]) for v in ("F", "B")}
-        n_inv = views["N"].map_to_image.inverse()
+        n_inv = prism.image_to_map(views["N"])
         fb = has["F"] & has["B"]
         if fb.any():
             f, b = T["F"](X["F"][fb]), T["B"](X["B"][fb])
@@ -273,24 +278,48 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings) -
             pv[have_k] = bias[v].apply(prism.ground_to_ancillary(scene, view, en_k[have_k], h_k[have_k]))
         pred[v] = pv
 
+    # one PointResult per point, read from plain lists: indexing numpy arrays element by
+    # element would cost more than all the vectorised work above
+    names = list(views)
+    measured = _by_point(n, X, has)
+    predicted = _by_point(n, pred, dict.fromkeys(names, have_k))
+    residual = _by_point(n, {v: X[v] - pred[v] for v in names}, {v: has[v] & known for v in names})
+    across_px = _by_point(n, across, {v: np.isfinite(a) for v, a in across.items()})
+    est_l = np.column_stack([en, h]).tolist()
+    g_res_l = (np.column_stack([en, h]) - G).tolist()
+    py_l, source_l = py.tolist(), source.tolist()
+    known_l, any_m_l = known.tolist(), any_m.tolist()
+    adjustment = adjustment or {}
     out = []
     for i, p in enumerate(points):
-        measured = {v: (float(X[v][i, 0]), float(X[v][i, 1])) for v in views if has[v][i]}
-        predicted = {v: (float(pred[v][i, 0]), float(pred[v][i, 1])) for v in views if have_k[i]}
-        residual = ({v: (measured[v][0] - predicted[v][0], measured[v][1] - predicted[v][1]) for v in measured}
-                    if known[i] else {})
-        est = (float(en[i, 0]), float(en[i, 1]), float(h[i])) if any_m[i] else None
-        g_res = (est[0] - G[i, 0], est[1] - G[i, 1], est[2] - G[i, 2]) if known[i] and est else None
-        note = ("not measured in any view" if not any_m[i] else
+        est = tuple(est_l[i]) if any_m_l[i] else None
+        g_res = tuple(g_res_l[i]) if known_l[i] and est else None
+        note = ("not measured in any view" if not any_m_l[i] else
                 "height not from parallax: measure the point in F and B"
-                if triplet and source[i] != "parallax" else "")
-        acr = {v: float(across[v][i]) for v in ("F", "B") if np.isfinite(across[v][i])}
-        out.append(PointResult(p.id, p.kind, measured, predicted, residual,
-                               float(py[i]) if np.isfinite(py[i]) else None, acr, est,
-                               source[i] if est else None, g_res, None, None, False, note))
+                if triplet and source_l[i] != "parallax" else "")
+        std_res, red, blunder = (adjustment.get(p.id, (None, None, False)) if p.kind == "GCP"
+                                 else (None, None, False))
+        out.append(PointResult(p.id, p.kind, measured[i], predicted[i], residual[i],
+                               py_l[i] if math.isfinite(py_l[i]) else None, across_px[i], est,
+                               source_l[i] if est else None, g_res, std_res, red, blunder, note))
     return out
 
 
+def _by_point(n: int, values: dict, masks: dict) -> list[dict]:
+    """``n`` per-point dicts from per-key arrays: item ``i`` is ``{key: values[key][i]}`` over the
+    keys (in the order of ``values``) whose ``masks[key][i]`` is set; an array row
+    (``(n, 2)`` arrays) becomes a tuple, a scalar (``(n,)``) a float."""
+    out = [{} for _ in range(n)]
+    for key, arr in values.items():
+        col = arr.tolist()
+        if arr.ndim > 1:
+            col = list(map(tuple, col))
+        for i in np.flatnonzero(masks[key]).tolist():
+            out[i][key] = col[i]
+    return out
+
+
+@functools.lru_cache(maxsize=256)
 def critical_value(threshold: float, dof: int) -> float:
     """Critical |externally studentised residual| for ``dof`` redundancy: Student's t with
     ``dof − 1`` degrees of freedom at the two-sided α of ``threshold`` under the normal law
@@ -300,15 +329,16 @@ def critical_value(threshold: float, dof: int) -> float:
     return float(stats.t.isf(alpha / 2, max(dof - 1, 1)))
 
 
-def _attach_adjustment_stats(results, gcps, bias, parallax, scene, settings):
-    """Standardised residuals and redundancy of each GCP from the N bias and parallax fits."""
+def _adjustment_stats(gcps, bias, parallax, scene, settings) -> dict:
+    """Standardised residual and redundancy of each GCP from the N bias and parallax fits:
+    ``{id: (largest |standardised residual| or None, smallest redundancy, blunder)}``."""
     ref = "N" if "N" in scene.views else next(iter(scene.views))
     w: dict[str, list] = {}  # id -> [max |w|, min redundancy, max |w| / critical]
 
     def add(pid, s, r, crit):
-        cur = w.setdefault(pid, [np.nan, r, 0.0])
-        if np.isfinite(s):
-            cur[0] = s if not np.isfinite(cur[0]) else max(cur[0], s)
+        cur = w.setdefault(pid, [math.nan, r, 0.0])
+        if math.isfinite(s):
+            cur[0] = s if not math.isfinite(cur[0]) else max(cur[0], s)
             cur[2] = max(cur[2], s / crit)
         cur[1] = min(cur[1], r)
 
@@ -316,49 +346,46 @@ def _attach_adjustment_stats(results, gcps, bias, parallax, scene, settings):
     if fit.lsq is not None:
         crit = critical_value(settings.blunder_threshold, fit.lsq.dof)
         ids = [p.id for p in gcps if ref in p.image]
-        for i, pid in enumerate(ids):
-            s = np.abs(fit.lsq.std_residuals[2 * i:2 * i + 2])
-            add(pid, np.nanmax(s) if np.any(np.isfinite(s)) else np.nan,
-                float(fit.lsq.redundancy[2 * i:2 * i + 2].min()), crit)
+        std_res, red = np.abs(fit.lsq.std_residuals).tolist(), fit.lsq.redundancy.tolist()
+        for i, pid in enumerate(ids):  # x and y of one GCP: the larger one ignoring NaN
+            s = [v for v in std_res[2 * i:2 * i + 2] if not math.isnan(v)]
+            add(pid, max(s) if any(map(math.isfinite, s)) else math.nan, min(red[2 * i:2 * i + 2]), crit)
     if parallax is not None and parallax.lsq is not None:
         crit = critical_value(settings.blunder_threshold, parallax.lsq.dof)
         ids = [p.id for p in gcps if "F" in p.image and "B" in p.image]
+        std_res, red = np.abs(parallax.lsq.std_residuals).tolist(), parallax.lsq.redundancy.tolist()
         for i, pid in enumerate(ids):
-            add(pid, abs(parallax.lsq.std_residuals[i]), float(parallax.lsq.redundancy[i]), crit)
+            add(pid, std_res[i], red[i], crit)
     # data snooping: one blunder at a time — the largest exceedance of the critical value
     # (a blunder distorts the fit and drags its neighbours' residuals up too)
     worst = max(w, key=lambda k: w[k][2]) if w else None
     if worst is not None and w[worst][2] <= 1.0:
         worst = None
-    out = []
-    for r in results:
-        if r.id in w and r.kind == "GCP":
-            s, red, _ = w[r.id]
-            r = replace(r, std_residual=float(s) if np.isfinite(s) else None, redundancy=red,
-                        blunder=r.id == worst)
-        out.append(r)
-    return out
+    return {pid: (s if math.isfinite(s) else None, red, pid == worst) for pid, (s, red, _) in w.items()}
 
 
 def _statistics(scene: Scene, results) -> dict:
     """Tables 1–3 of the paper and their extensions, for GCPs and ICPs."""
-    stats: dict = {}
+    stats: dict = {"image": {}, "ground": {}, "height": {}}
     ref = "N" if "N" in scene.views else next(iter(scene.views))
+    by_kind = {kind: [r for r in results if r.kind == kind] for kind in ("GCP", "ICP")}
     for v, view in scene.views.items():
-        for kind in ("GCP", "ICP"):
-            res = [r.residual_px[v] for r in results if r.kind == kind and v in r.residual_px]
-            px = VectorStats.of(res)
-            stats.setdefault("image", {}).setdefault(v, {})[kind] = {
-                "px": px, "m": px.scaled(view.pixel_size_m)}
-    for kind in ("GCP", "ICP"):
-        g = np.array([r.ground_residual for r in results
-                      if r.kind == kind and r.ground_residual is not None]).reshape(-1, 3)
-        stats.setdefault("ground", {})[kind] = VectorStats.of(g[:, :2])
-        hs = np.array([r.ground_residual[2] for r in results if r.kind == kind
-                       and r.ground_residual is not None and r.height_source == "parallax"])
-        stats.setdefault("height", {})[kind] = ComponentStats.of(hs)
+        stats["image"][v] = {}
+        for kind, rs in by_kind.items():
+            px = VectorStats.of(_rows([r.residual_px[v] for r in rs if v in r.residual_px], 2))
+            stats["image"][v][kind] = {"px": px, "m": px.scaled(view.pixel_size_m)}
+    for kind, rs in by_kind.items():
+        known = [r for r in rs if r.ground_residual is not None]
+        stats["ground"][kind] = VectorStats.of(_rows([r.ground_residual for r in known], 3)[:, :2])
+        stats["height"][kind] = ComponentStats.of([r.ground_residual[2] for r in known
+                                                   if r.height_source == "parallax"])
     if scene.is_triplet:
         for v in ("F", "B"):
             stats[f"{v}-N"] = ComponentStats.of([r.across_px[v] for r in results if v in r.across_px])
     stats["reference_view"] = ref
     return stats
+
+
+def _rows(rows: list, width: int) -> np.ndarray:
+    """``(len(rows), width)`` float array of a list of tuples (np.array is slow on tuples)."""
+    return np.fromiter(itertools.chain.from_iterable(rows), float, len(rows) * width).reshape(-1, width)

@@ -153,4 +153,7 @@ class Project:
 
 
 def has_ground(p: GroundPoint) -> bool:
-    return all(isinstance(v, (int, float)) and math.isfinite(v) for v in (p.E, p.N, p.H))
+    """E, N and H are all finite numbers (written out: called for every point of every fit)."""
+    E, N, H = p.E, p.N, p.H
+    return (isinstance(E, (int, float)) and isinstance(N, (int, float)) and isinstance(H, (int, float))
+            and math.isfinite(E) and math.isfinite(N) and math.isfinite(H))

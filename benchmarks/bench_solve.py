@@ -1,0 +1,62 @@
+"""Time of one fit of a project: ``prismstation.io.project.solve_project`` (the refit after
+each click of the operator in the workstation window).
+
+Triplet projects made by ``tests/gui/project_factory.make_project`` (no images) with 10 % GCPs
+and 90 % ICPs, all measured in N, F and B. Printed per project size: median, p10 and p90 of
+the wall time of one ``solve_project`` in milliseconds.
+
+Run: ``.venv/bin/python benchmarks/bench_solve.py [--rounds 200] [--points 50 200 1000]``.
+Target: median ≤ 5 ms at 200 points on the 2-core development machine.
+
+Figures on that machine, median / p10 / p90 ms (other engineers' tests running, load ≈ 3):
+
+======  ==================  ==================
+points  before (993c60a)    after
+======  ==================  ==================
+50      3.99 / 3.82 / 7.97  2.42 / 2.25 / 3.62
+200     7.56 / 7.19 / 13.2  4.34 / 4.22 / 7.79
+1000    30.4 / 26.4 / 63.3  16.1 / 14.9 / 47.6
+======  ==================  ==================
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rounds", type=int, default=200)
+    ap.add_argument("--points", type=int, nargs="+", default=[50, 200, 1000])
+    args = ap.parse_args(argv)
+
+    from prismstation.io.project import load_project, solve_project
+    from tests.gui.project_factory import make_project
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench-solve-"))
+    print(f"{'points':>6}  {'GCP':>4}  {'median':>8}  {'p10':>8}  {'p90':>8}  (ms per solve_project)")
+    for n in args.points:
+        n_gcp = max(n // 10, 3)
+        demo = make_project(tmp / f"p{n}", n_gcp=n_gcp, n_icp=n - n_gcp, size=1500, p=20.0,
+                            seed=9, images=False)
+        project = load_project(demo.path)
+        for _ in range(10):  # warm up (imports, caches)
+            solve_project(project)
+        times = []
+        for _ in range(args.rounds):
+            t0 = time.perf_counter()
+            solve_project(project)
+            times.append((time.perf_counter() - t0) * 1e3)
+        q = statistics.quantiles(times, n=10)
+        print(f"{n:>6}  {n_gcp:>4}  {statistics.median(times):8.2f}  {q[0]:8.2f}  {q[-1]:8.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
