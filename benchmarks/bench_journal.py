@@ -27,10 +27,33 @@ from prismstation.model.points import Measurement  # noqa: E402
 from tests.gui.project_factory import make_project  # noqa: E402
 
 
-def run(path: Path, background: bool, edits: int, gap_s: float) -> tuple[np.ndarray, int, float]:
+class SerialiseOnly:
+    """What the edit's call costs without any disk write (the floor of the background mode)."""
+
+    writes = 0
+
+    def __init__(self, project, path, background=None):
+        self.project, self.path = project, path
+        project.changed.connect(self.on_changed)
+
+    def on_changed(self, revision):
+        json.dumps(project_to_dict(self.project, self.path), ensure_ascii=False)
+
+    def flush(self):
+        pass
+
+    def close(self):
+        self.project.changed.disconnect(self.on_changed)
+
+    def discard(self):
+        pass
+
+
+def run(path: Path, background, edits: int, gap_s: float) -> tuple[np.ndarray, int, float]:
+    """``background``: False, True, or None (serialise only, nothing written)."""
     project = load_project(path)
     keys = sorted(project.measurements)
-    journal = Journal(project, path, background=background)
+    journal = (SerialiseOnly if background is None else Journal)(project, path, background=background)
     times = []
     for k in range(edits):
         m = project.measurements[keys[k % len(keys)]]
@@ -65,9 +88,9 @@ def main(argv=None) -> int:
               f"journal {len(text) / 1024:.0f} KiB; serialise (project_to_dict + json.dumps) "
               f"{ser:.2f} ms; disk: {demo.path.parent}")
         for gap in sorted({args.gap, 0.0}, reverse=True):
-            for background in (False, True):
+            for background in (False, True, None):
                 t, writes, flush_ms = run(demo.path, background, args.edits, gap / 1e3)
-                name = "background " if background else "synchronous"
+                name = {False: "synchronous", True: "background ", None: "no write   "}[background]
                 print(f"{name} gap {gap:4.0f} ms: changed handling on the calling thread "
                       f"median {np.median(t):.2f} ms, p95 {np.percentile(t, 95):.2f} ms, "
                       f"max {t.max():.2f} ms; {writes} writes for {args.edits} edits; "
