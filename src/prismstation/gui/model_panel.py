@@ -94,6 +94,7 @@ class _Sections(QWidget):
         self._widths: list[int] = []
         self._shape = None
         self._hint = QSize(0, 0)
+        self._hint_shape = None
         self._bold = QFont(self.font())
         self._bold.setWeight(QFont.Weight.DemiBold)
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Fixed)
@@ -127,6 +128,11 @@ class _Sections(QWidget):
         rh = self._row_height()
         h = 4 + sum(self.TITLE_GAP + rh * (2 + len(rows)) for _, _, rows in self._sections)
         h += sum(self._note_rect(t, sev == "bad").height() + 2 for t, sev in self._notes)
+        # the height only grows while the layout keeps its shape: a note that comes and goes
+        # with every click (a blunder) must not relayout the scroll area each time
+        if self._shape == self._hint_shape:
+            h = max(h, self._hint.height())
+        self._hint_shape = self._shape
         hint = QSize(sum(self._widths) + 8, h)
         if hint != self._hint:
             self._hint = hint
@@ -144,27 +150,33 @@ class _Sections(QWidget):
         super().resizeEvent(event)
 
     def paintEvent(self, event) -> None:
+        """Only the rows inside the exposed rectangle (the scroll area shows a part)."""
         p = QPainter(self)
         rh, pad, x0 = self._row_height(), self.PAD, 4
+        top, bottom = event.rect().top() - rh, event.rect().bottom()
         total = sum(self._widths)
         left = int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter)
         right = int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+        text_color = self.palette().color(QPalette.ColorRole.WindowText)
         y = 2
         for title, head, rows in self._sections:
             y += self.TITLE_GAP
-            p.setFont(self._bold)
-            p.setPen(SECTION_COLOR)
-            p.drawText(QRect(x0, y, max(total, self.width()), rh), left, title)
+            if top <= y <= bottom:
+                p.setFont(self._bold)
+                p.setPen(SECTION_COLOR)
+                p.drawText(QRect(x0, y, max(total, self.width()), rh), left, title)
             y += rh
-            p.fillRect(QRect(x0, y, total, rh), HEAD_BG)
-            p.setPen(self.palette().color(QPalette.ColorRole.WindowText))
+            if top <= y <= bottom:
+                p.fillRect(QRect(x0, y, total, rh), HEAD_BG)
+            p.setPen(text_color)
             for r, font in ((head, self._bold), *((row, self.font()) for row in rows)):
-                p.setFont(font)
-                x = x0
-                for c, t in enumerate(r):
-                    w = self._widths[c]
-                    p.drawText(QRect(x + pad, y, w - 2 * pad, rh), left if c == 0 else right, t)
-                    x += w
+                if top <= y <= bottom:
+                    p.setFont(font)
+                    x = x0
+                    for c, t in enumerate(r):
+                        w = self._widths[c]
+                        p.drawText(QRect(x + pad, y, w - 2 * pad, rh), left if c == 0 else right, t)
+                        x += w
                 y += rh
         for text, sev in self._notes:
             bold = sev == "bad"

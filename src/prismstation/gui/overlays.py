@@ -115,17 +115,22 @@ class ViewOverlay:
         self.ids = np.zeros(0, dtype=object)      # ids of measured markers, in order
         self.xy = np.zeros((0, 2))                 # their image positions
         self._measured_key = None
+        self._measured_state = None
+        self._vectors_key = None
+        self._current_xy = None
         self._predicted_key = None
 
     # ------------------------------------------------------------------ measured (project)
     def update_measured(self, project, solution=None) -> None:
         """Markers at the project's measurements in this view (immediately, without the fit)."""
+        blunders = frozenset(r.id for r in solution.points if r.blunder) if solution is not None else frozenset()
+        state = (id(project), project.revision, blunders)
+        if state == self._measured_state:  # nothing new since the last call
+            return
+        self._measured_state = state
         ms = [m for (pid, v), m in project.measurements.items() if v == self.name]
         self.ids = np.array([m.id for m in ms], dtype=object)
         self.xy = np.array([(m.x, m.y) for m in ms], float).reshape(-1, 2)
-        blunders = set()
-        if solution is not None:
-            blunders = {r.id for r in solution.points if r.blunder}
         pens = [_pen(BLUNDER_COLOR if m.id in blunders else
                      KIND_COLORS.get(project.points[m.id].kind, CURRENT_COLOR)) for m in ms]
         key = (tuple(self.ids), self.xy.tobytes(), tuple(id(p) for p in pens))
@@ -178,7 +183,10 @@ class ViewOverlay:
         seg = np.empty((2 * len(r), 2))
         seg[0::2] = r[:, :2]
         seg[1::2] = r[:, :2] + k * r[:, 2:]
-        self.vectors.setData(seg[:, 0], seg[:, 1], connect="pairs")
+        key = seg.tobytes()
+        if key != self._vectors_key:  # unchanged (this view's fit did not move): no repaint
+            self._vectors_key = key
+            self.vectors.setData(seg[:, 0], seg[:, 1], connect="pairs")
 
     def vector_ends(self) -> np.ndarray:
         """``(n, 4)``: start and end of each residual vector drawn, image pixels (tests)."""
@@ -203,10 +211,14 @@ class ViewOverlay:
 
     def set_current(self, xy) -> None:
         """Highlight the current point at image ``(x, y)`` (None: nothing)."""
+        xy = None if xy is None else tuple(map(float, xy))
+        if xy == self._current_xy:
+            return
+        self._current_xy = xy
         if xy is None:
             self.current.clear()
         else:
-            self.current.setData(pos=[tuple(xy)])
+            self.current.setData(pos=[xy])
 
     def set_crosshair(self, xy) -> None:
         """The linked-cursor crosshair at image ``(x, y)`` (None hides it)."""

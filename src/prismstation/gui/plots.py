@@ -67,6 +67,7 @@ class PlotsWidget(QWidget):
         self._data = PlotData()
         self._exaggeration = 100.0
         self._shown: dict = {}  # id(item) -> what it shows (see _set)
+        self._framed: dict = {}  # plot -> the range last set from the data (see _apply_ranges)
         self.plots: dict[str, pg.PlotWidget] = {}
         cells = QGridLayout()
         cells.setContentsMargins(0, 0, 0, 0)
@@ -249,22 +250,22 @@ class PlotsWidget(QWidget):
         stem_y[1::2] = d.std_values
         self._set(self.stems, stem_x, stem_y)
         self._set(self.std_pts, xs, d.std_values, data=list(d.std_ids))
-        self.threshold_line.setValue(d.threshold)
-        for line, crit in zip(self.critical_lines, list(d.critical) + [None] * 2):
-            line.setVisible(crit is not None and n > 0)
+        self._once("threshold", d.threshold, self.threshold_line.setValue)
+        for k, (line, crit) in enumerate(zip(self.critical_lines, list(d.critical) + [None] * 2)):
+            self._once(f"critical {k} shown", crit is not None and n > 0, line.setVisible)
             if crit is not None:
-                line.setValue(crit[1])
-                line.label.setFormat(f"critical {crit[0]}: {{value:.2f}}")
+                self._once(f"critical {k}", crit[1], line.setValue)
+                self._once(f"critical {k} text", f"critical {crit[0]}: {{value:.2f}}", line.label.setFormat)
         if d.blunder in d.std_ids:
             i = d.std_ids.index(d.blunder)
             self._set(self.blunder_pt, [xs[i]], [d.std_values[i]], data=[d.blunder])
-            self.blunder_label.setText(d.blunder)
-            self.blunder_label.setPos(xs[i], d.std_values[i])
+            self._once("blunder", (d.blunder, xs[i], d.std_values[i]), lambda v: (
+                self.blunder_label.setText(v[0]), self.blunder_label.setPos(v[1], v[2])))
         else:
             self._set(self.blunder_pt, [], [])
-            self.blunder_label.setText("")
+            self._once("blunder", None, lambda v: self.blunder_label.setText(""))
         ax = self.plots["std_residuals"].getPlotItem().getAxis("bottom")
-        ax.setTicks([list(zip(xs, d.std_ids))] if 0 < n <= 25 else None)
+        self._once("std ticks", [list(zip(xs, d.std_ids))] if 0 < n <= 25 else None, ax.setTicks)
         top = max([d.threshold * 1.15, float(np.max(d.std_values)) * 1.1 if n else 0.0]
                   + [c[1] * 1.1 for c in d.critical])
         self._update_rings()
@@ -272,6 +273,8 @@ class PlotsWidget(QWidget):
         self._apply_ranges()
         self.summary.setText(f"{len(d.gcp_ids)} GCP, {len(d.icp_ids)} ICP with parallax"
                              + (f"; blunder: {d.blunder}" if d.blunder else ""))
+        for pw in self.plots.values():  # what pyqtgraph defers to the paint happens now, so
+            pw.scene().prepareForPaint()  # that one repaint shows it (not a second one)
         self._set_titles()
 
     def _set(self, item, x, y, data=None) -> None:
@@ -286,6 +289,13 @@ class PlotsWidget(QWidget):
             item.setData(x, y)
         else:
             item.setData(x, y, data=data)
+
+    def _once(self, key: str, value, apply) -> None:
+        """``apply(value)`` unless ``value`` is what ``key`` was last set to (no repaint)."""
+        if key in self._shown and self._shown[key] == value:
+            return
+        self._shown[key] = value
+        apply(value)
 
     def set_exaggeration(self, k: float | None) -> None:
         """Residual vectors drawn ``k`` times their length; ``None`` returns to automatic."""
@@ -379,8 +389,17 @@ class PlotsWidget(QWidget):
         return out
 
     def _apply_ranges(self, only=None) -> None:
+        """Frame each followed plot's data. A range that still frames the data well (holds it,
+        at most 30 % to spare per axis) is kept: the axes do not twitch at every click, and an
+        unchanged plot is not redrawn."""
         for name, (xr, yr) in self._ranges().items():
             if self._follow[name] and (only is None or name == only):
+                old = self._framed.get(name)
+                if only is None and old is not None and all(
+                        o[0] <= n[0] and n[1] <= o[1] and n[1] - n[0] >= 0.7 * (o[1] - o[0])
+                        for o, n in zip(old, (xr, yr))):
+                    continue
+                self._framed[name] = (tuple(xr), tuple(yr))
                 vb = self.plots[name].getPlotItem().getViewBox()
                 vb.setRange(xRange=xr, yRange=yr, padding=0, disableAutoRange=True)
                 vb.prepareForPaint()  # apply the new range now, not during the paint (which
@@ -388,6 +407,7 @@ class PlotsWidget(QWidget):
 
     def _refollow(self, name: str) -> None:
         self._follow[name] = True
+        self._framed.pop(name, None)
         self.plots[name].getPlotItem().getViewBox().disableAutoRange()
         self._apply_ranges(name)
 

@@ -215,8 +215,9 @@ class TripletViews(QWidget):
         if iv is None or iv.source is None:
             return
         zoom = 1.0 / iv.scale() if iv.scale() > 0 else 0.0
-        self.headers[name].setText(f"{VIEW_TITLES.get(name, name)}   ·   {iv.source.path.name}   ·   "
-                                   f"{iv.source.width} × {iv.source.height} px   ·   zoom {zoom:.3g}×")
+        # the zoom first: a narrow pane elides the file name, not the figure that changes
+        self.headers[name].setText(f"{VIEW_TITLES.get(name, name)}  ·  zoom {zoom:.3g}×  ·  "
+                                   f"{iv.source.width} × {iv.source.height} px  ·  {iv.source.path.name}")
 
     # ------------------------------------------------------------------ overlays
     def refresh_measured(self) -> None:
