@@ -325,9 +325,13 @@ def critical_value(threshold: float, dof: int) -> float:
     """Critical |externally studentised residual| for ``dof`` redundancy: Student's t with
     ``dof − 1`` degrees of freedom at the two-sided α of ``threshold`` under the normal law
     (3.29 ↔ α = 0.001, Baarda). With few GCPs the t tails are heavy, hence a larger value."""
-    from scipy import stats
-    alpha = 2 * stats.norm.sf(threshold)
-    return float(stats.t.isf(alpha / 2, max(dof - 1, 1)))
+    # scipy.special holds what scipy.stats' norm.sf and t.isf evaluate (same numbers); the
+    # first fit of a session then does not wait about a second for scipy.stats to import
+    from scipy import special
+    alpha = 2 * special.ndtr(-threshold)
+    if alpha == 0:  # beyond the normal law's range in floating point: t.isf(0) is +inf
+        return math.inf
+    return float(-special.stdtrit(max(dof - 1, 1), alpha / 2))
 
 
 def _adjustment_stats(gcps, bias, parallax, scene, settings) -> dict:

@@ -7,6 +7,7 @@ Plain Python. Every edit goes through a method, bumps :attr:`Project.revision` a
 from __future__ import annotations
 
 import math
+from collections import defaultdict
 from dataclasses import replace
 
 from prismstation.core.scene import Scene
@@ -137,12 +138,12 @@ class Project:
     def point_obs(self, ellipsoidal_heights: dict[str, float]) -> list[PointObs]:
         """Points as the solver takes them; ``ellipsoidal_heights`` maps id → h for every
         point with ground coordinates (the io layer converts orthometric heights)."""
-        images: dict[str, dict] = {}
-        sigmas: dict[str, dict] = {}
+        images: dict[str, dict] = defaultdict(dict)
+        sigmas: dict[str, dict] = defaultdict(dict)
         for (pid, view), m in self.measurements.items():
-            images.setdefault(pid, {})[view] = (m.x, m.y)
+            images[pid][view] = (m.x, m.y)
             if m.sigma_px is not None:
-                sigmas.setdefault(pid, {})[view] = m.sigma_px
+                sigmas[pid][view] = m.sigma_px
         out = []
         for pid, p in self.points.items():
             ground = None
