@@ -243,10 +243,14 @@ def test_blunder_is_highlighted(qtbot, window):
     pid = flagged[0]
     assert win.table_model.is_blunder(pid)
     idx = win.table_model.index(win.table_model.row_of(pid), 0)
-    assert win.table_model.data(idx, Qt.ItemDataRole.BackgroundRole) is not None
+    from prismstation.gui.point_table import BLUNDER_BG
+
+    def bg(i):
+        b = win.table_model.data(i, Qt.ItemDataRole.BackgroundRole)
+        return None if b is None else b.color()
+    assert bg(idx) == BLUNDER_BG
     others = [r for r in win.table_model.ids if r != pid]
-    assert all(win.table_model.data(win.table_model.index(win.table_model.row_of(o), 0),
-                                    Qt.ItemDataRole.BackgroundRole) is None for o in others)
+    assert all(bg(win.table_model.index(win.table_model.row_of(o), 0)) != BLUNDER_BG for o in others)
     assert f"Possible blunder: {pid}" in win.panel.plain_text()
 
 
