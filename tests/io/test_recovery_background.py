@@ -153,7 +153,8 @@ def test_write_errors_reach_the_callback_from_the_writer_thread(proj, monkeypatc
     edit(project, 1)
     assert j.flush(timeout=5)
     assert len(errors) == 1 and "No space left" in str(errors[0][0])
-    assert errors[0][1] is j._thread and j.last_error is errors[0][0]
+    assert errors[0][1] is not threading.main_thread() and errors[0][1].name.startswith("journal")
+    assert j.last_error is errors[0][0]
     assert recovery_for(path) is None and j.writes == 0
     disk.fail = None  # the disk recovers: the thread is still there and writes the next edit
     edit(project, 2)
@@ -184,4 +185,22 @@ def test_sync_errors_raise_or_go_to_the_callback(proj, monkeypatch):
     j = Journal(project, path, on_error=errors.append)
     edit(project, 2)
     assert len(errors) == 1
+    j.close()
+
+
+def test_the_writer_thread_ends_when_idle_and_comes_back(proj, monkeypatch):
+    project, path = proj
+    monkeypatch.setattr(rec, "IDLE_S", 0.05)
+    disk = SlowDisk()
+    monkeypatch.setattr(rec, "write_atomic", disk)
+    j = Journal(project, path, background=True)
+    assert j._thread is None  # nothing to write yet: no thread
+    edit(project, 1)
+    first = j._thread
+    assert first is not None and j.flush(timeout=5)
+    first.join(timeout=5)
+    assert not first.is_alive() and j._thread is None
+    edit(project, 2)  # a new writer on demand
+    assert j.flush(timeout=5) and journal_revision(path) == project.revision
+    assert len({t.ident for t in disk.threads}) >= 1 and threading.main_thread() not in disk.threads
     j.close()

@@ -32,6 +32,7 @@ from prismstation.io.project import load_project, project_to_dict, save_project
 from prismstation.model.project import Project
 
 SUFFIX = ".recovery"
+IDLE_S = 5.0  # the writer thread ends after this long without work (started again on demand)
 
 _log = logging.getLogger(__name__)
 
@@ -50,6 +51,8 @@ class Journal:
         The project to follow and the path of its project file.
     background : bool
         Write on one writer thread (the edit's call only serialises); see the module docstring.
+        The thread is started on demand and ends after :data:`IDLE_S` s without work, so a
+        journal dropped without :meth:`close` leaves no thread behind.
     on_error : callable(Exception), optional
         Called with every write error. In background mode it is called **on the writer
         thread**; without it such errors are logged (and kept in :attr:`last_error`). In
@@ -81,11 +84,7 @@ class Journal:
         self._pending: tuple[Path, str, int] | None = None  # (project path, text, revision)
         self._busy = False  # the writer thread is writing (outside the lock)
         self._stop = False
-        self._thread: threading.Thread | None = None
-        if background:
-            self._thread = threading.Thread(target=self._run, name=f"journal {self.path.name}",
-                                            daemon=True)
-            self._thread.start()
+        self._thread: threading.Thread | None = None  # the writer, while it runs
         project.changed.connect(self._on_changed)
 
     # ------------------------------------------------------------------ journaling
@@ -93,7 +92,7 @@ class Journal:
         doc = project_to_dict(self.project, self.path)
         doc["recovery"] = {"of": self.path.name, "revision": revision, "time": time.time()}
         item = (self.path, json.dumps(doc, ensure_ascii=False), revision)
-        if self._thread is None:
+        if not self.background or self._stop:  # (after close: written here, not dropped)
             self.submitted += 1
             try:
                 self._write(item)
@@ -104,10 +103,12 @@ class Journal:
                 self.on_error(exc)
             return
         with self._cond:
-            if self._stop:
-                raise RuntimeError("the journal is closed")
             self._pending = item  # replaces an older document not yet started: coalescing
             self.submitted += 1
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._run, daemon=True,
+                                                name=f"journal {self.path.name}")
+                self._thread.start()
             self._cond.notify_all()
 
     def _write(self, item: tuple[Path, str, int]) -> None:
@@ -119,9 +120,9 @@ class Journal:
     def _run(self) -> None:
         while True:
             with self._cond:
-                while self._pending is None and not self._stop:
-                    self._cond.wait()
-                if self._pending is None:  # stopped, nothing left
+                self._cond.wait_for(lambda: self._pending is not None or self._stop, IDLE_S)
+                if self._pending is None:  # stopped or idle, nothing left
+                    self._thread = None
                     return
                 item, self._pending = self._pending, None
                 self._busy = True
@@ -171,14 +172,12 @@ class Journal:
     def close(self, timeout: float | None = None) -> None:
         """Stop journaling: what was handed over is written first, then the thread ends."""
         self.project.changed.disconnect(self._on_changed)
-        if self._thread is None:
-            return
         with self._cond:
             self._stop = True
+            thread = self._thread
             self._cond.notify_all()
-        self._thread.join(timeout)
-        if not self._thread.is_alive():
-            self._thread = None
+        if thread is not None:
+            thread.join(timeout)
 
 
 def recovery_for(project_path) -> Path | None:
