@@ -240,6 +240,7 @@ class ProjectFiles(QObject):
 
     def recover_untitled(self, recover: bool | None = None) -> bool:
         """Offer the journal of a never-saved project left by a crash; True when recovered."""
+        self.flush_journal()
         side = autosave_path(None)
         if not side.is_file():
             return False
@@ -415,6 +416,8 @@ class ProjectFiles(QObject):
             self._remove_autosave()
 
     def _remove_autosave(self) -> None:
+        # through the journal: a pending write is dropped and the one in flight (a few ms) is
+        # waited for, so that no late write brings the file back
         if self.journal is not None and self.journal.path == (self.path or untitled_path()):
             self.journal.discard()  # drops a pending write, waits for the one in flight
         side = autosave_path(self.path)
