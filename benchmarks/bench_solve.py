@@ -8,15 +8,20 @@ the wall time of one ``solve_project`` in milliseconds.
 Run: ``.venv/bin/python benchmarks/bench_solve.py [--rounds 200] [--points 50 200 1000]``.
 Target: median ≤ 5 ms at 200 points on the 2-core development machine.
 
-Figures on that machine, median / p10 / p90 ms (other engineers' tests running, load ≈ 3):
+Figures on that machine, median / p10 / p90 ms, original and optimised code run alternately
+while other engineers' tests kept the load average at 2.3–2.8 (spread of the medians between
+runs: about ±0.3 ms at 200 points; the 1000-point p90 is dominated by the load):
 
-======  ==================  ==================
-points  before (993c60a)    after
-======  ==================  ==================
-50      3.99 / 3.82 / 7.97  2.42 / 2.25 / 3.62
-200     7.56 / 7.19 / 13.2  4.34 / 4.22 / 7.79
-1000    30.4 / 26.4 / 63.3  16.1 / 14.9 / 47.6
-======  ==================  ==================
+======  ===================  ===================
+points  before (993c60a)     after (this commit)
+======  ===================  ===================
+50      3.80 / 3.67 / 4.33   2.18 / 2.10 / 2.39
+200     7.18 / 7.04 / 11.3   4.13 / 3.99 / 4.66
+1000    27.9 / 25.8 / 57.5   14.1 / 13.4 / 29.7
+======  ===================  ===================
+
+Results are the same to the last bit (floats; the ground residuals are now Python floats
+instead of numpy float64).
 """
 from __future__ import annotations
 
