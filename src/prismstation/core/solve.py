@@ -9,7 +9,7 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Callable, Mapping
 
 import numpy as np
@@ -299,7 +299,6 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
                                py_l[i] if math.isfinite(py_l[i]) else None, across_px[i], est,
                                source_l[i] if est else None, g_res, std_res, red, blunder, note))
     return out
-
 
 
 def _finite_rows(xy: np.ndarray) -> np.ndarray:
