@@ -279,7 +279,7 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
     names = list(views)
     measured = _by_point(n, X, has)
     predicted = _by_point(n, pred, dict.fromkeys(names, have_k))
-    residual = _by_point(n, {v: X[v] - pred[v] for v in names}, {v: has[v] & known for v in names})
+    residual = _by_point(n, {v: X[v] - pred[v] for v in names}, {v: has[v] & known & have_k for v in names})
     across_px = _by_point(n, across, {v: np.isfinite(a) for v, a in across.items()})
     est_l = np.column_stack([en, h]).tolist()
     g_res_l = (np.column_stack([en, h]) - G).tolist()
