@@ -252,6 +252,10 @@ def test_blunder_is_highlighted(qtbot, window):
     others = [r for r in win.table_model.ids if r != pid]
     assert all(bg(win.table_model.index(win.table_model.row_of(o), 0)) != BLUNDER_BG for o in others)
     assert f"Possible blunder: {pid}" in win.panel.plain_text()
+    for v, ov in win.views.overlays.items():  # drawn over its marker in every view it is in
+        m = win.project.measurement(pid, v)
+        if m is not None:
+            assert list(zip(*ov.blunders.getData())) == [(m.x, m.y)], v
 
 
 def test_autosave_and_recovery(qtbot, window, demo):

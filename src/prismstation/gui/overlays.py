@@ -48,41 +48,54 @@ class LabelLayer(pg.GraphicsObject):
 
     One item with one ``paint`` instead of a ``TextItem`` per point: those recompute their
     transforms at every view change, which costs far more than drawing a few hundred strings.
+    Positions are mapped to the screen at once (numpy) and only the labels in the exposed
+    rectangle are drawn, so repainting one marker does not redraw every label.
     """
 
     OFFSET = QPointF(9.0, -7.0)
+    REACH = QRectF(-20.0, -20.0, 100.0, 40.0)  # where a label can reach from its point, screen px
 
     def __init__(self):
         super().__init__()
         self.labels: list = []  # (x, y, text, QColor)
+        self._xy = np.zeros((0, 2))
         self.font = QFont()
         self.font.setPointSizeF(8.5)
         self.font.setBold(True)
+        self.setFlag(self.GraphicsItemFlag.ItemUsesExtendedStyleOption)  # option.exposedRect
 
     def set_labels(self, labels) -> None:
         self.labels = list(labels)
+        self._xy = np.array([(x, y) for x, y, _, _ in self.labels], float).reshape(-1, 2)
         self.update()
 
     def boundingRect(self) -> QRectF:  # everywhere: labels extend in screen pixels
         return QRectF(-1e9, -1e9, 2e9, 2e9)
 
-    def paint(self, p, *args) -> None:
+    def paint(self, p, option, *args) -> None:
         if not self.labels:
             return
         t = p.transform()
-        area = QRectF(p.viewport()).adjusted(-80, -20, 20, 20)
+        area = t.mapRect(option.exposedRect).intersected(QRectF(p.viewport()))
+        area = area.adjusted(-self.REACH.right(), -self.REACH.bottom(), -self.REACH.left(), -self.REACH.top())
+        x, y = self._xy[:, 0], self._xy[:, 1]
+        dx = t.m11() * x + t.m21() * y + t.dx()
+        dy = t.m12() * x + t.m22() * y + t.dy()
+        inside = np.flatnonzero((dx >= area.left()) & (dx <= area.right()) &
+                                (dy >= area.top()) & (dy <= area.bottom()))
+        if not inside.size:
+            return
         p.resetTransform()
         p.setFont(self.font)
         shadow = QPen(QColor(0, 0, 0, 200))
-        for x, y, text, color in self.labels:
-            d = t.map(QPointF(x, y))
-            if not area.contains(d):
-                continue
-            d += self.OFFSET
+        ox, oy = self.OFFSET.x(), self.OFFSET.y()
+        for i in inside:
+            _, _, text, color = self.labels[i]
+            px, py = dx[i] + ox, dy[i] + oy
             p.setPen(shadow)
-            p.drawText(d + QPointF(1, 1), text)
+            p.drawText(QPointF(px + 1, py + 1), text)
             p.setPen(color)
-            p.drawText(d, text)
+            p.drawText(QPointF(px, py), text)
         p.setTransform(t)
 
 
@@ -97,6 +110,10 @@ class ViewOverlay:
         self._residuals = np.zeros((0, 4))  # x, y, vx, vy (image pixels)
         self.show_labels = True
         self.measured = pg.ScatterPlotItem(symbol=MEASURED_SYMBOL, size=19, pxMode=True, brush=None)
+        # blunders drawn over their markers by an item of their own: a point that becomes (or
+        # stops being) a blunder repaints its marker, not the whole view
+        self.blunders = pg.ScatterPlotItem(symbol=MEASURED_SYMBOL, size=19, pxMode=True, brush=None,
+                                           pen=_pen(BLUNDER_COLOR))
         self.predicted = pg.ScatterPlotItem(symbol="o", size=15, pxMode=True, brush=None)
         self.current = pg.ScatterPlotItem(symbol="s", size=27, pxMode=True, brush=None,
                                           pen=pg.mkPen(CURRENT_COLOR, width=1.5))
@@ -104,7 +121,7 @@ class ViewOverlay:
         self.crosshair = pg.ScatterPlotItem(symbol=CROSSHAIR_SYMBOL, size=46, pxMode=True, brush=None,
                                             pen=pg.mkPen(CURSOR_COLOR, width=1.5))
         for z, item in ((20, self.vectors), (21, self.predicted), (22, self.measured),
-                        (23, self.current), (30, self.crosshair)):
+                        (22.5, self.blunders), (23, self.current), (30, self.crosshair)):
             item.setZValue(z)
             vb.addItem(item)
         self.crosshair.setVisible(False)
@@ -118,26 +135,31 @@ class ViewOverlay:
         self._measured_state = None
         self._vectors_key = None
         self._current_xy = None
+        self._blunder_xy = ()
         self._predicted_key = None
 
     # ------------------------------------------------------------------ measured (project)
     def update_measured(self, project, solution=None) -> None:
         """Markers at the project's measurements in this view (immediately, without the fit)."""
-        blunders = frozenset(r.id for r in solution.points if r.blunder) if solution is not None else frozenset()
-        state = (id(project), project.revision, blunders)
-        if state == self._measured_state:  # nothing new since the last call
-            return
-        self._measured_state = state
-        ms = [m for (pid, v), m in project.measurements.items() if v == self.name]
-        self.ids = np.array([m.id for m in ms], dtype=object)
-        self.xy = np.array([(m.x, m.y) for m in ms], float).reshape(-1, 2)
-        pens = [_pen(BLUNDER_COLOR if m.id in blunders else
-                     KIND_COLORS.get(project.points[m.id].kind, CURRENT_COLOR)) for m in ms]
-        key = (tuple(self.ids), self.xy.tobytes(), tuple(id(p) for p in pens))
-        if key == self._measured_key:  # unchanged in this view: no work for pyqtgraph
-            return
-        self._measured_key = key
-        self.measured.setData(pos=self.xy, data=self.ids, pen=pens) if ms else self.measured.clear()
+        state = (id(project), project.revision)
+        if state != self._measured_state:  # the project changed since the last call
+            self._measured_state = state
+            ms = [m for (pid, v), m in project.measurements.items() if v == self.name]
+            kinds = [project.points[m.id].kind for m in ms]
+            key = (tuple(ms), tuple(kinds))  # measurements are frozen: equal means unchanged
+            if key != self._measured_key:  # (another view's edit: no work here)
+                self._measured_key = key
+                self.ids = np.array([m.id for m in ms], dtype=object)
+                self.xy = np.array([(m.x, m.y) for m in ms], float).reshape(-1, 2)
+                pens = [_pen(KIND_COLORS.get(k, CURRENT_COLOR)) for k in kinds]
+                self.measured.setData(pos=self.xy, data=self.ids, pen=pens) if ms else self.measured.clear()
+        flagged = {r.id for r in solution.points if r.blunder} if solution is not None else set()
+        xy = ()
+        if flagged and len(self.ids):
+            xy = tuple(map(tuple, self.xy[np.isin(self.ids, list(flagged))].tolist()))
+        if xy != self._blunder_xy:
+            self._blunder_xy = xy
+            self.blunders.setData(pos=list(xy)) if xy else self.blunders.clear()
 
     # ------------------------------------------------------------------ from the solution
     def update_solution(self, project, solution) -> None:
