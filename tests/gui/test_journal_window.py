@@ -53,6 +53,26 @@ def test_an_edit_does_not_wait_for_the_disk(files, monkeypatch):
     assert files.autosave() and side_revision(files) == files.project.revision  # write + flush
 
 
+def test_edits_are_journaled_when_the_window_is_idle(files, qtbot, monkeypatch):
+    """Not in the edit's call (a click's repaint must not wait for the serialisation), but
+    within the idle delay and without any flush; edits in that time make one document."""
+    disk = SlowDisk(delay=0.0)
+    monkeypatch.setattr(rec, "write_atomic", disk)
+    place(files, 1)
+    place(files, 2, "F")
+    assert files.journal.armed and files.journal.submitted == 0  # nothing serialised yet
+    t0 = time.perf_counter()
+    qtbot.waitUntil(lambda: autosave_path(files.path).exists(), timeout=3000)
+    assert time.perf_counter() - t0 < 1.0
+    assert files.journal.submitted == 1 and side_revision(files) == files.project.revision
+    # an edit undone before the timer fired leaves no journal of the clean state behind
+    files.save()
+    place(files, 3)
+    files.stack.undo()
+    qtbot.wait(3 * files.journal.IDLE_MS)
+    assert files.stack.isClean() and not autosave_path(files.path).exists()
+
+
 def test_write_errors_reach_the_status_from_the_gui_thread(files, qtbot, monkeypatch):
     monkeypatch.setattr(rec, "write_atomic", SlowDisk(fail=OSError(28, "No space left on device")))
     got = []
@@ -66,11 +86,11 @@ def test_write_errors_reach_the_status_from_the_gui_thread(files, qtbot, monkeyp
     assert ident == threading.main_thread().ident
 
 
-def test_save_with_a_write_in_flight_leaves_no_journal(files, monkeypatch):
+def test_save_with_a_write_in_flight_leaves_no_journal(files, qtbot, monkeypatch):
     disk = SlowDisk(delay=0.2)
     monkeypatch.setattr(rec, "write_atomic", disk)
     place(files, 1)
-    assert disk.started.wait(5)
+    qtbot.waitUntil(disk.started.is_set, timeout=5000)  # the idle timer handed it over
     place(files, 2, "F")  # pending behind the write in flight
     assert files.save()
     files.flush_journal(timeout=10)
@@ -78,11 +98,11 @@ def test_save_with_a_write_in_flight_leaves_no_journal(files, monkeypatch):
     assert not autosave_path(files.path).exists()
 
 
-def test_undo_to_the_saved_state_with_a_write_in_flight_leaves_no_journal(files, monkeypatch):
+def test_undo_to_the_saved_state_with_a_write_in_flight_leaves_no_journal(files, qtbot, monkeypatch):
     disk = SlowDisk(delay=0.2)
     monkeypatch.setattr(rec, "write_atomic", disk)
     place(files, 1)
-    assert disk.started.wait(5)
+    qtbot.waitUntil(disk.started.is_set, timeout=5000)  # the idle timer handed it over
     files.stack.undo()
     assert files.stack.isClean()
     files.flush_journal(timeout=10)
@@ -90,12 +110,12 @@ def test_undo_to_the_saved_state_with_a_write_in_flight_leaves_no_journal(files,
     assert not autosave_path(files.path).exists()
 
 
-def test_save_as_with_a_write_in_flight_leaves_no_journal(files, monkeypatch):
+def test_save_as_with_a_write_in_flight_leaves_no_journal(files, qtbot, monkeypatch):
     disk = SlowDisk(delay=0.2)
     monkeypatch.setattr(rec, "write_atomic", disk)
     old = files.path
     place(files, 1)
-    assert disk.started.wait(5)
+    qtbot.waitUntil(disk.started.is_set, timeout=5000)  # the idle timer handed it over
     place(files, 2, "F")
     assert files.save_as(str(old.parent / "other.prismproj"))
     files.flush_journal(timeout=10)
