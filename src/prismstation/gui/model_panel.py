@@ -250,7 +250,10 @@ class ModelPanel(QWidget):
         self.threshold.editingFinished.connect(self._emit)
 
     def set_settings(self, settings) -> None:
-        """Show ``settings`` without emitting."""
+        """Show ``settings`` without emitting (nothing is touched when they are unchanged: a
+        spin box set to its own value still repaints)."""
+        if settings == self._settings:
+            return
         self._settings = settings
         for w in (self.bias, self.parallax, self.sigma, self.threshold):
             w.blockSignals(True)

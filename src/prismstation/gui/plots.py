@@ -223,9 +223,10 @@ class PlotsWidget(QWidget):
         d = data
         if self.auto_box.isChecked():
             self._exaggeration = auto_exaggeration(d)
-            self.spin.blockSignals(True)
-            self.spin.setValue(self._exaggeration)
-            self.spin.blockSignals(False)
+            if self.spin.value() != round(self._exaggeration, self.spin.decimals()):
+                self.spin.blockSignals(True)
+                self.spin.setValue(self._exaggeration)
+                self.spin.blockSignals(False)
         self._set(self.h_gcp, d.gcp_py, d.gcp_h, data=list(d.gcp_ids))
         self._set(self.h_icp, d.icp_py, d.icp_h, data=list(d.icp_ids))
         x = line_x(d)

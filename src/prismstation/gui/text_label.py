@@ -47,6 +47,8 @@ class TextLabel(QWidget):
         fm = self.fontMetrics()
         self._hint = QSize(fm.horizontalAdvance(widest if widest is not None else text) + 2 * self.PAD_X,
                            fm.height() + 2 * self.PAD_Y)
+        # paints its whole rectangle: a new text repaints this label only, not its parents
+        self.setAttribute(Qt.WidgetAttribute.WA_OpaquePaintEvent)
         horizontal = QSizePolicy.Policy.Ignored if stretch else QSizePolicy.Policy.Fixed
         self.setSizePolicy(horizontal, QSizePolicy.Policy.Fixed)
         self.setFixedHeight(self._hint.height())
@@ -69,8 +71,8 @@ class TextLabel(QWidget):
 
     def paintEvent(self, event) -> None:
         p = QPainter(self)
-        if self._background is not None:
-            p.fillRect(self.rect(), self._background)
+        p.fillRect(self.rect(), self._background if self._background is not None
+                   else self.palette().color(self.backgroundRole()))
         if self._color is not None:
             p.setPen(self._color)
         r = self.rect().adjusted(self.PAD_X, 0, -self.PAD_X, 0)
