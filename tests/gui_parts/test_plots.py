@@ -131,3 +131,26 @@ def test_tabs_layout_and_report_images(qtbot, fitted):
     assert sorted(images) == sorted(w.plots)
     assert all(im.width() == 320 and im.height() == 200 for im in images.values())
     assert len(_xy(w.h_gcp)[0]) == 12  # the widget itself is untouched by the rendering
+
+
+def test_live_lines_plain_report_lines_antialiased(qtbot, fitted, monkeypatch):
+    """The live plots draw lines without antialiasing (they repaint every click); the report
+    figures are drawn by a widget whose lines are antialiased, and the setting is restored."""
+    import pyqtgraph as pg
+    from prismstation.gui import plots
+    from prismstation.gui.app import make_app
+    make_app()
+    made = []
+    init = plots.PlotsWidget.__init__
+
+    def spy(self, *a, **k):
+        init(self, *a, **k)
+        made.append(self)
+    monkeypatch.setattr(plots.PlotsWidget, "__init__", spy)
+    w = plots.PlotsWidget()
+    qtbot.addWidget(w)
+    w.set_solution(fitted[2])
+    assert not w.fit_line.curve.opts["antialias"]
+    assert sorted(w.render_images((300, 200))) == sorted(plots.PLOT_NAMES)
+    assert made[-1] is not w and made[-1].fit_line.curve.opts["antialias"]
+    assert pg.getConfigOption("antialias") is False

@@ -315,7 +315,12 @@ class PlotsWidget(QWidget):
         Drawn by a hidden copy of this widget laid out at that size, so a docked, visible
         widget is not disturbed."""
         from PySide6.QtWidgets import QApplication
-        tmp = PlotsWidget(grid=True)
+        smooth = pg.getConfigOption("antialias")
+        pg.setConfigOptions(antialias=True)  # items read it when created
+        try:
+            tmp = PlotsWidget(grid=True)
+        finally:
+            pg.setConfigOptions(antialias=smooth)
         try:
             tmp.setAttribute(Qt.WidgetAttribute.WA_DontShowOnScreen, True)
             if not self.auto_box.isChecked():
