@@ -95,6 +95,7 @@ class _Sections(QWidget):
         self._shape = None
         self._hint = QSize(0, 0)
         self._hint_shape = None
+        self._advances: dict = {}
         self._bold = QFont(self.font())
         self._bold.setWeight(QFont.Weight.DemiBold)
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Fixed)
@@ -103,18 +104,27 @@ class _Sections(QWidget):
         if sections == self._sections and notes == self._notes:
             return
         shape = [len(h) for _, h, _ in sections]
-        fm, fb = self.fontMetrics(), QFontMetrics(self._bold)
         ncols = max(shape or [1])
         widths = [0] * ncols if shape != self._shape else list(self._widths)
         for _, head, rows in sections:
             for c, t in enumerate(head):
-                widths[c] = max(widths[c], fb.horizontalAdvance(t) + 2 * self.PAD)
+                widths[c] = max(widths[c], self._advance(t, True) + 2 * self.PAD)
             for r in rows:
                 for c, t in enumerate(r):
-                    widths[c] = max(widths[c], fm.horizontalAdvance(t) + 2 * self.PAD)
+                    widths[c] = max(widths[c], self._advance(t, False) + 2 * self.PAD)
         self._sections, self._notes, self._widths, self._shape = sections, notes, widths, shape
         self._update_hint()
         self.update()
+
+    def _advance(self, text: str, bold: bool) -> int:
+        """Width of ``text`` in pixels (remembered: most texts come back at every refit)."""
+        w = self._advances.get((text, bold))
+        if w is None:
+            if len(self._advances) > 5000:
+                self._advances.clear()
+            fm = QFontMetrics(self._bold) if bold else self.fontMetrics()
+            w = self._advances[text, bold] = fm.horizontalAdvance(text)
+        return w
 
     def _row_height(self) -> int:
         return self.fontMetrics().height() + 2

@@ -8,6 +8,8 @@ created once per point and only moved, so a click repaints in a few milliseconds
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt
@@ -164,25 +166,26 @@ class ViewOverlay:
     # ------------------------------------------------------------------ from the solution
     def update_solution(self, project, solution) -> None:
         """Predicted positions (hollow, unmeasured views), residual vectors, labels."""
-        pred, pred_pens, segs, label_pos = [], [], [], {}
-        for pid, xy in zip(self.ids, self.xy):
-            label_pos[pid] = (xy[0], xy[1])
+        v, points = self.name, project.points
+        pred, pred_pens, segs = [], [], []
+        label_pos = dict(zip(self.ids.tolist(), map(tuple, self.xy.tolist())))
         if solution is not None:
             for r in solution.points:
-                if r.id not in project.points:
+                if r.id not in points:
                     continue
-                kind = project.points[r.id].kind
-                if self.name not in r.measured and self.name in r.predicted and \
-                        (project.measurement(r.id, self.name) is None):
-                    x, y = r.predicted[self.name]
-                    if np.isfinite(x) and np.isfinite(y):
-                        pred.append((x, y))
-                        pred_pens.append(_pen(KIND_COLORS.get(kind, CURRENT_COLOR), 1.5, True))
-                        label_pos.setdefault(r.id, (x, y))
-                if self.name in r.residual_px and self.name in r.measured:
-                    (x, y), (vx, vy) = r.measured[self.name], r.residual_px[self.name]
-                    segs.append((x, y, vx, vy))
-        key = (tuple(map(tuple, pred)), tuple(id(p) for p in pred_pens))
+                meas = r.measured.get(v)
+                if meas is None:
+                    xy = r.predicted.get(v)
+                    if xy is not None and math.isfinite(xy[0]) and math.isfinite(xy[1]) and \
+                            project.measurement(r.id, v) is None:
+                        pred.append(xy)
+                        pred_pens.append(_pen(KIND_COLORS.get(points[r.id].kind, CURRENT_COLOR), 1.5, True))
+                        label_pos.setdefault(r.id, xy)
+                else:
+                    res = r.residual_px.get(v)
+                    if res is not None:
+                        segs.append((*meas, *res))
+        key = (tuple(pred), tuple(id(p) for p in pred_pens))
         if key != self._predicted_key:
             self._predicted_key = key
             if pred:
@@ -220,7 +223,8 @@ class ViewOverlay:
     def _update_labels(self, project, label_pos: dict) -> None:
         state = None
         if self.show_labels:
-            state = [(float(x), float(y), pid, KIND_COLORS.get(project.points[pid].kind, CURRENT_COLOR))
+            points = project.points
+            state = [(x, y, pid, KIND_COLORS.get(points[pid].kind, CURRENT_COLOR))
                      for pid, (x, y) in label_pos.items()]
         if state == self._label_state:
             return

@@ -37,12 +37,15 @@ _DISPLAY, _BACKGROUND, _FOREGROUND, _ALIGN, _TOOLTIP, _SORT = (
 _DIGITS = (None, None, None, 3, 3, 3, 2, 2, 2, 2, 2)
 
 
+_SPECS = tuple(None if d is None else f".{d}f" for d in _DIGITS)
+
+
 def _texts(row) -> list:
-    return [row[c] if c <= 2 else _fmt(row[c], _DIGITS[c]) for c in range(len(COLUMNS))]
+    return [row[c] if spec is None else _fmt(row[c], spec) for c, spec in enumerate(_SPECS)]
 
 
-def _fmt(v, nd=2):
-    return "" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{nd}f}"
+def _fmt(v, spec=".2f"):
+    return "" if v is None or v != v or v in (math.inf, -math.inf) else format(v, spec)
 
 
 def _sort_key(row, column):
