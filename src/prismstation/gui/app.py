@@ -44,6 +44,10 @@ def make_app():
     # fast (markers are pre-rendered pixmaps either way); report figures turn it back on
     pg.setConfigOptions(imageAxisOrder="row-major", antialias=False)
     app.setStyle("Fusion")
+    # a refit allocates thousands of short-lived objects: with the default threshold (700) the
+    # collector ran ~4 times per click and a full collection (~50 ms) now and then mid-click
+    import gc
+    gc.set_threshold(20000, 10, 10)
     return app
 
 

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt
-from PySide6.QtGui import QColor, QFont, QPainterPath, QPen
+from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainterPath, QPen, QStaticText, QTransform
 
 KIND_COLORS = {"GCP": QColor(255, 70, 70), "ICP": QColor(70, 200, 255), "TIE": QColor(255, 210, 60)}
 BLUNDER_COLOR = QColor(255, 0, 255)
@@ -64,6 +64,8 @@ class LabelLayer(pg.GraphicsObject):
         self.font = QFont()
         self.font.setPointSizeF(8.5)
         self.font.setBold(True)
+        self._ascent = QFontMetricsF(self.font).ascent()
+        self._static: dict = {}  # text -> QStaticText
         self.setFlag(self.GraphicsItemFlag.ItemUsesExtendedStyleOption)  # option.exposedRect
 
     def set_labels(self, labels) -> None:
@@ -90,14 +92,18 @@ class LabelLayer(pg.GraphicsObject):
         p.resetTransform()
         p.setFont(self.font)
         shadow = QPen(QColor(0, 0, 0, 200))
-        ox, oy = self.OFFSET.x(), self.OFFSET.y()
+        ox, oy = self.OFFSET.x(), self.OFFSET.y() - self._ascent  # static text: top-left origin
         for i in inside:
             _, _, text, color = self.labels[i]
+            st = self._static.get(text)
+            if st is None:  # laid out once, drawn many times
+                st = self._static[text] = QStaticText(text)
+                st.prepare(QTransform(), self.font)
             px, py = dx[i] + ox, dy[i] + oy
             p.setPen(shadow)
-            p.drawText(QPointF(px + 1, py + 1), text)
+            p.drawStaticText(QPointF(px + 1, py + 1), st)
             p.setPen(color)
-            p.drawText(QPointF(px, py), text)
+            p.drawStaticText(QPointF(px, py), st)
         p.setTransform(t)
 
 
