@@ -45,6 +45,26 @@ def _pen(color: QColor, width: float = 2.0, dashed: bool = False):
     return pen
 
 
+class Markers(pg.ScatterPlotItem):
+    """pyqtgraph's scatter item with its bounding rectangle remembered.
+
+    Qt asks for it dozens of times per click (the items under the mouse), and pyqtgraph
+    recomputes the screen-pixel padding each time (~45 µs). pyqtgraph replaces ``self.bounds``
+    whenever the data or the view transform change, so the rectangle stays valid as long as
+    that list (held here, so that its identity cannot be reused) and the spot size are the same.
+    """
+
+    _br_key = None
+
+    def boundingRect(self) -> QRectF:
+        key = self._br_key
+        if key is None or key[0] is not self.bounds or key[1] != self._maxSpotPxWidth:
+            rect = super().boundingRect()
+            self._br_key = (self.bounds, self._maxSpotPxWidth, rect)
+            return QRectF(rect)
+        return QRectF(key[2])
+
+
 class LabelLayer(pg.GraphicsObject):
     """All point labels of a view in one item, drawn in screen pixels beside their points.
 
@@ -117,16 +137,16 @@ class ViewOverlay:
         self.scale = 1.0          # image pixels per screen pixel of the view
         self._residuals = np.zeros((0, 4))  # x, y, vx, vy (image pixels)
         self.show_labels = True
-        self.measured = pg.ScatterPlotItem(symbol=MEASURED_SYMBOL, size=19, pxMode=True, brush=None)
+        self.measured = Markers(symbol=MEASURED_SYMBOL, size=19, pxMode=True, brush=None)
         # blunders drawn over their markers by an item of their own: a point that becomes (or
         # stops being) a blunder repaints its marker, not the whole view
-        self.blunders = pg.ScatterPlotItem(symbol=MEASURED_SYMBOL, size=19, pxMode=True, brush=None,
+        self.blunders = Markers(symbol=MEASURED_SYMBOL, size=19, pxMode=True, brush=None,
                                            pen=_pen(BLUNDER_COLOR))
-        self.predicted = pg.ScatterPlotItem(symbol="o", size=15, pxMode=True, brush=None)
-        self.current = pg.ScatterPlotItem(symbol="s", size=27, pxMode=True, brush=None,
+        self.predicted = Markers(symbol="o", size=15, pxMode=True, brush=None)
+        self.current = Markers(symbol="s", size=27, pxMode=True, brush=None,
                                           pen=pg.mkPen(CURRENT_COLOR, width=1.5))
         self.vectors = pg.PlotCurveItem(connect="pairs", pen=pg.mkPen(255, 120, 0, width=2))
-        self.crosshair = pg.ScatterPlotItem(symbol=CROSSHAIR_SYMBOL, size=46, pxMode=True, brush=None,
+        self.crosshair = Markers(symbol=CROSSHAIR_SYMBOL, size=46, pxMode=True, brush=None,
                                             pen=pg.mkPen(CURSOR_COLOR, width=1.5))
         for z, item in ((20, self.vectors), (21, self.predicted), (22, self.measured),
                         (22.5, self.blunders), (23, self.current), (30, self.crosshair)):

@@ -214,7 +214,10 @@ class DemOrientationTool:
         self.a_orient.setEnabled(p is not None and p.scene.is_triplet)
         self.a_gcp.setEnabled(active)
         self._draw_vectors()
-        self.panel.show_record(record, active, self.scale)
+        shown = (record, active, self.scale)
+        if getattr(self, "_shown", None) is None or any(a is not b and a != b for a, b in zip(shown, self._shown)):
+            self._shown = shown  # (an edit of a point leaves the record alone: no table rebuild)
+            self.panel.show_record(record, active, self.scale)
 
     def _clear_vectors(self) -> None:
         for vb, item in self._items:
