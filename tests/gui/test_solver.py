@@ -54,3 +54,38 @@ def test_window_without_a_project(qtbot):
     win.new_point()
     assert win.export_report("/nonexistent/x.csv") is False
     win.close()
+
+
+def test_quick_fits_run_inline_slow_ones_in_the_worker(qtbot, demo):
+    """A fit whose predecessor took less than ``inline_ms`` runs on the GUI thread in the same
+    event-loop turn (no hand-off); otherwise, and for the first fit, in the worker."""
+    import threading
+
+    from prismstation.gui import solver as solver_mod
+    project = load_project(demo.path)
+    threads = []
+    real = solver_mod.solve_project
+
+    def spy(*a, **k):
+        threads.append(threading.current_thread())
+        return real(*a, **k)
+    solver_mod.solve_project = spy
+    try:
+        solver = Solver()
+        solver.set_project(project)
+        qtbot.waitUntil(lambda: solver.solution is not None and not solver.busy(), timeout=10000)
+        assert threads[-1] is not threading.main_thread()        # the first: no estimate yet
+        assert solver.last_fit_ms < solver.inline_ms
+        m = project.measurement("G1", "N")
+        project.set_measurement(Measurement("G1", "N", m.x + 0.5, m.y))
+        solver._start()                                          # what the zero-delay timer does
+        assert threads[-1] is threading.main_thread()
+        assert solver.solution.revision == project.revision and not solver.busy()
+        solver.inline_ms = 0.0                                   # as if the last fit were slow
+        project.set_measurement(Measurement("G1", "N", m.x + 1.0, m.y))
+        qtbot.waitUntil(lambda: solver.solution.revision == project.revision and not solver.busy(),
+                        timeout=10000)
+        assert threads[-1] is not threading.main_thread()
+        solver.shutdown()
+    finally:
+        solver_mod.solve_project = real
