@@ -137,7 +137,8 @@ class Project:
     # ------------------------------------------------------------------ for the solver
     def point_obs(self, ellipsoidal_heights: dict[str, float]) -> list[PointObs]:
         """Points as the solver takes them; ``ellipsoidal_heights`` maps id → h for every
-        point with ground coordinates (the io layer converts orthometric heights)."""
+        point with ground coordinates, and only those (the io layer converts orthometric
+        heights): a GCP or ICP in it is a point with ground."""
         images: dict[str, dict] = defaultdict(dict)
         sigmas: dict[str, dict] = defaultdict(dict)
         for (pid, view), m in self.measurements.items():
@@ -147,8 +148,9 @@ class Project:
         out = []
         for pid, p in self.points.items():
             ground = None
-            if p.kind != "TIE" and has_ground(p):
-                ground = (p.E, p.N, ellipsoidal_heights[pid])
+            h = ellipsoidal_heights.get(pid)
+            if h is not None and p.kind != "TIE":
+                ground = (p.E, p.N, h)
             out.append(PointObs(pid, p.kind, ground, images.get(pid, {}), sigmas.get(pid, {})))
         return out
 
