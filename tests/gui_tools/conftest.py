@@ -39,9 +39,18 @@ def window(qtbot, sim):
     """The real main window on the simulated project, images loaded and fitted."""
     win = open_window(qtbot, sim / "p.prismproj")
     yield win
-    for tool in ("dem_orientation", "transfer_tool", "dsm_tool"):
-        job = getattr(getattr(win, tool, None), "job", None)
-        if job is not None:
-            job.cancel()
-            job.wait(20000)
-    close_windows(qtbot, win)
+    close_windows(qtbot, win)  # cancels and awaits a running tool job
+
+
+@pytest.fixture()
+def job_outcome(qtbot):
+    """``job_outcome(job)`` waits for a tool :class:`Job` to end and returns ``(kind, value)``:
+    ``("result", value)``, ``("failed", message)`` or ``("cancelled", None)``."""
+    def wait(job, timeout=20000):
+        got = []
+        job.result.connect(lambda v: got.append(("result", v)))
+        job.failed.connect(lambda m: got.append(("failed", m)))
+        job.cancelled.connect(lambda: got.append(("cancelled", None)))
+        qtbot.waitUntil(lambda: bool(got), timeout=timeout)
+        return got[0]
+    return wait

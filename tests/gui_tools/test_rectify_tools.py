@@ -75,14 +75,14 @@ def test_single_view_opens_and_transform_table_matches_engine(sv_window, qtbot):
     dock.grab().save(str(_DOCS / "rectification.png"))
 
 
-def test_rectify_export_in_worker(sv_window, qtbot, tmp_path):
+def test_rectify_export_in_worker(sv_window, job_outcome, tmp_path):
     window = sv_window
     out = tmp_path / "rect.tif"
     job = window.rectify_tool.start("A", "affine", out, resolution=20.0, progress_dialog=True)
     assert job is not None
-    with qtbot.waitSignal(job.done, timeout=20000):
-        pass
-    assert window.rectify_tool.last_error == ""
+    kind, res = job_outcome(job)
+    assert kind == "result", res
+    assert window.statusBar().currentMessage().startswith(f"Wrote {res.path}")
     with rasterio.open(out) as ds:
         assert ds.crs.to_epsg() == 32629
         assert ds.res == pytest.approx((20.0, 20.0))
@@ -91,13 +91,12 @@ def test_rectify_export_in_worker(sv_window, qtbot, tmp_path):
         assert ds.read(1).max() > 0
 
 
-def test_rectify_cancel_removes_the_partial_file(sv_window, qtbot, tmp_path):
+def test_rectify_cancel_removes_the_partial_file(sv_window, job_outcome, tmp_path):
     out = tmp_path / "cancelled.tif"
     job = sv_window.rectify_tool.start("A", "poly2", out, resolution=2.0)  # 16 blocks
     job.cancel()
-    with qtbot.waitSignal(job.done, timeout=20000):
-        pass
-    assert "cancelled" in sv_window.rectify_tool.last_error
+    assert job_outcome(job) == ("cancelled", None)
+    assert "cancelled" in sv_window.statusBar().currentMessage()
     assert not out.exists()
 
 
@@ -230,7 +229,7 @@ def test_residual_sd_dock_matches_solution(sv_window):
         assert float(t.item(0, col + 2).text()) == pytest.approx(sd[1], abs=1e-3)
 
 
-def test_dsm_validation_shows_known_bias(sv_window, qtbot, tmp_path):
+def test_dsm_validation_shows_known_bias(sv_window, qtbot, job_outcome, tmp_path):
     window = sv_window
     rng = np.random.default_rng(3)
     n = 160
@@ -247,9 +246,8 @@ def test_dsm_validation_shows_known_bias(sv_window, qtbot, tmp_path):
     tool = window.dsm_validation_tool
     job = tool.start(str(tmp_path / "dsm.tif"), str(tmp_path / "ref.tif"),
                      mask=str(tmp_path / "mask.tif"))
-    with qtbot.waitSignal(job.done, timeout=20000):
-        pass
-    assert tool.last_error == ""
+    kind, msg = job_outcome(job)
+    assert kind == "result", msg
     d = (dsm.astype("float32").astype(float) - z.astype("float32").astype(float))  # by hand
     t = tool.panel.table
     head = [t.horizontalHeaderItem(c).text() for c in range(t.columnCount())]

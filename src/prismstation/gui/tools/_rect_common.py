@@ -1,11 +1,9 @@
 """Shared pieces of the rectification / resection / DSM tools: the project's points of one view,
-a worker thread with progress and cancel, and a refresh coalescer."""
+a refresh coalescer and number formatting. (Their worker thread is :mod:`._worker`.)"""
 from __future__ import annotations
 
 import numpy as np
-from PySide6.QtCore import QEvent, QObject, QThread, QTimer, Signal
-
-from prismstation.errors import PrismError
+from PySide6.QtCore import QObject, QTimer
 
 
 def view_points(project, view: str):
@@ -28,53 +26,6 @@ def view_points(project, view: str):
         chk.append(p.kind == "ICP")
     return (tuple(ids), np.array(xy, float).reshape(-1, 2), np.array(g, float).reshape(-1, 3),
             np.array(chk, bool))
-
-
-class Worker(QThread):
-    """Run ``fn(progress)`` in a thread; ``progress(fraction) -> bool`` returns False once
-    :meth:`cancel` was called. Emits ``progressed(int percent)`` and ``done(result, error)``
-    (``error`` a one-line message, ``""`` on success)."""
-
-    progressed = Signal(int)
-    done = Signal(object, str)
-
-    def __init__(self, fn, parent=None):
-        super().__init__(parent)
-        self.fn, self.cancelled, self.result, self.error = fn, False, None, None
-
-    def cancel(self) -> None:
-        self.cancelled = True
-
-    def _progress(self, f: float) -> bool:
-        self.progressed.emit(int(round(100 * f)))
-        return not self.cancelled
-
-    def run(self) -> None:
-        try:
-            self.result, self.error = self.fn(self._progress), ""
-        except (PrismError, OSError, ValueError) as exc:
-            self.result, self.error = None, str(exc)
-        self.done.emit(self.result, self.error)
-
-
-class _CloseGuard(QObject):
-    def __init__(self, window, jobs):
-        super().__init__(window)
-        self.jobs = jobs
-
-    def eventFilter(self, obj, ev) -> bool:
-        if ev.type() == QEvent.Type.Close:
-            for job in self.jobs():
-                if job is not None and job.isRunning():
-                    job.cancel()
-                    job.wait(60000)
-        return False
-
-
-def finish_on_close(window, jobs) -> None:
-    """When ``window`` closes, cancel and wait for the running workers ``jobs()`` returns
-    (a QThread must not be destroyed while it runs)."""
-    window.installEventFilter(_CloseGuard(window, jobs))
 
 
 class Coalescer(QObject):

@@ -1,10 +1,13 @@
 """Long tool operations off the GUI thread: progress, cancel, result or a one-line error.
 
-``Job(fn)`` runs ``fn(progress)`` in a :class:`QThread`. ``progress(fraction, message="")``
-(fraction 0–1) emits :attr:`Job.progress` and returns False once :meth:`Job.cancel` was called,
-which is how the engine's long loops learn to stop. The outcome is exactly one of
-:attr:`Job.result` (the return value), :attr:`Job.failed` (a message for the operator, never a
-traceback) or :attr:`Job.cancelled`, emitted on the GUI thread.
+``Job(fn, title, window)`` runs ``fn(progress)`` in a :class:`QThread`.
+``progress(fraction, message="")`` (fraction 0–1) emits :attr:`Job.progress` and returns False
+once :meth:`Job.cancel` was called, which is how the engine's long loops learn to stop. The
+outcome is exactly one of :attr:`Job.result` (the return value), :attr:`Job.failed` (a message
+for the operator, never a traceback) or :attr:`Job.cancelled`, emitted on the GUI thread.
+
+A running job has no Qt parent and keeps itself alive, so it is never destroyed while it runs;
+it is cancelled and awaited when ``window`` closes or the application quits.
 """
 from __future__ import annotations
 
@@ -12,12 +15,13 @@ import threading
 
 import shiboken6
 
-from PySide6.QtCore import QCoreApplication, QThread, Qt, Signal
-from PySide6.QtWidgets import QProgressDialog
+from PySide6.QtCore import QCoreApplication, QEvent, QThread, Qt, Signal
+from PySide6.QtWidgets import QMessageBox, QProgressDialog
 
 from prismstation.errors import PrismError
 
 _LIVE: set = set()  # running jobs are kept alive here until they end
+STOP_WAIT_MS = 60000  # how long a closing window or quitting application waits for a job
 
 
 class Job(QThread):
@@ -28,9 +32,9 @@ class Job(QThread):
     failed = Signal(str)
     cancelled = Signal()
 
-    def __init__(self, fn, title: str = "", parent=None):
-        super().__init__(parent)
-        self.fn, self.title = fn, title
+    def __init__(self, fn, title: str = "", window=None):
+        super().__init__()
+        self.fn, self.title, self._window = fn, title, window
         self._cancel = threading.Event()
         self._outcome = None
         self.finished.connect(self._deliver, Qt.ConnectionType.QueuedConnection)
@@ -59,15 +63,24 @@ class Job(QThread):
         app = QCoreApplication.instance()
         if app is not None:
             app.aboutToQuit.connect(self._stop)
+        if self._window is not None:
+            self._window.installEventFilter(self)
         super().start(*a)
+
+    def eventFilter(self, obj, ev) -> bool:  # the window is closing: stop first
+        if ev.type() == QEvent.Type.Close and self.isRunning():
+            self._stop()
+        return False
 
     def _stop(self) -> None:
         self.cancel()
-        self.wait(10000)
+        self.wait(STOP_WAIT_MS)
 
     def _deliver(self) -> None:
         kind, value = self._outcome or ("failed", "the operation ended without a result")
         _LIVE.discard(self)
+        if self._window is not None and shiboken6.isValid(self._window):
+            self._window.removeEventFilter(self)
         app = QCoreApplication.instance()
         if app is not None:
             try:
@@ -82,21 +95,23 @@ class Job(QThread):
             self.cancelled.emit()
 
 
-def run_with_progress(window, title: str, fn, on_result, *, dialog: bool = True) -> Job:
+def run_with_progress(window, title: str, fn, on_result, *, on_failed=None, dialog: bool = True) -> Job:
     """Start ``fn(progress)`` in a :class:`Job` with a cancellable progress dialog over
-    ``window``; ``on_result(value)`` runs on the GUI thread; errors go to a message box (or the
-    status bar when the window is not interactive) and the status bar."""
-    job = Job(fn, title)
+    ``window`` (busy until the first progress report); ``on_result(value)`` and
+    ``on_failed(message)`` run on the GUI thread while the window exists. Errors also go to a
+    message box (when the window is interactive) and the status bar."""
+    job = Job(fn, title, window)
     dlg = None
     if dialog:
-        dlg = QProgressDialog(title, "Cancel", 0, 1000, window)
+        dlg = QProgressDialog(title, "Cancel", 0, 0, window)
         dlg.setWindowTitle(title)
         dlg.setWindowModality(Qt.WindowModality.WindowModal)
         dlg.setMinimumDuration(0)
         dlg.setAutoClose(False)
         dlg.setAutoReset(False)
         dlg.canceled.connect(job.cancel)
-        job.progress.connect(lambda f, m: (dlg.setValue(int(round(1000 * min(max(f, 0.0), 1.0)))),
+        job.progress.connect(lambda f, m: (dlg.setMaximum(1000),
+                                           dlg.setValue(int(round(1000 * min(max(f, 0.0), 1.0)))),
                                            dlg.setLabelText(f"{title}\n{m}" if m else title)))
         dlg.show()
     job.progress.connect(lambda f, m: window.statusBar().showMessage(f"{title}: {f:.0%} {m}"))
@@ -119,8 +134,9 @@ def run_with_progress(window, title: str, fn, on_result, *, dialog: bool = True)
             return
         close()
         window.statusBar().showMessage(f"{title}: {msg}", 15000)
+        if on_failed is not None:
+            on_failed(msg)
         if getattr(window, "interactive", False):
-            from PySide6.QtWidgets import QMessageBox
             QMessageBox.warning(window, title, msg)
 
     def cancelled():

@@ -11,7 +11,6 @@
 from __future__ import annotations
 
 import csv
-import json
 import os
 import tempfile
 
@@ -19,12 +18,12 @@ import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpinBox, QFileDialog,
-                               QFormLayout, QHBoxLayout, QLabel, QLineEdit, QProgressDialog,
-                               QPushButton, QSplitter, QTableWidget, QTableWidgetItem,
-                               QVBoxLayout, QWidget)
+                               QFormLayout, QHBoxLayout, QLabel, QLineEdit, QPushButton,
+                               QSplitter, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
 
 from prismstation.core.dsmstats import hillshade, histogram, residual_sd_by_view
-from prismstation.gui.tools._rect_common import Worker, finish_on_close, fmt
+from prismstation.gui.tools._rect_common import fmt
+from prismstation.gui.tools._worker import Job, run_with_progress
 
 STAT_COLUMNS = ("count", "bias", "sd", "rmse", "min", "max", "median", "nmad")
 
@@ -306,10 +305,8 @@ class DsmValidationTool:
         self.dock = window._dock("dsm_validation", "DSM validation", self.panel,
                                  Qt.DockWidgetArea.BottomDockWidgetArea)
         self.dock.hide()
-        self.job: Worker | None = None
+        self.job: Job | None = None
         self.last: dict = {}
-        self.last_error = ""
-        finish_on_close(window, lambda: [self.job])
         window.tools_menu.addAction("Validate DSM…", self.open_dialog)
         window.tools_menu.addAction(self.sd_dock.toggleViewAction())
         window.tools_menu.addAction(self.dock.toggleViewAction())
@@ -320,8 +317,8 @@ class DsmValidationTool:
             self.start(**d.values())
 
     def start(self, dsm, reference, dsm_height="ellipsoidal", reference_height="ellipsoidal",
-              mask="", geoid_grid="", geoid_constant=0.0, progress_dialog=True) -> Worker | None:
-        """Validate in a worker; the result appears in the "DSM validation" dock."""
+              mask="", geoid_grid="", geoid_constant=0.0, progress_dialog=True) -> Job | None:
+        """Validate in a worker (returns the Job); the result appears in the "DSM validation" dock."""
         from prismstation.io.geoid import ConstantGeoid, GridGeoid
 
         self.last = dict(dsm=dsm, reference=reference, dsm_height=dsm_height,
@@ -333,29 +330,19 @@ class DsmValidationTool:
         geoid = None
         if dsm_height != reference_height:
             geoid = GridGeoid(geoid_grid) if geoid_grid else ConstantGeoid(float(geoid_constant))
-        self.last_error = ""
-        job = Worker(lambda progress: run_validation(dsm, reference, dsm_height=dsm_height,
-                                                     reference_height=reference_height,
-                                                     geoid=geoid, mask=mask or None), self.window)
-        self.job = job
-        if progress_dialog:
-            dlg = QProgressDialog("Validating the DSM…", "Cancel", 0, 0, self.window)
-            dlg.setMinimumDuration(400)
-            dlg.canceled.connect(job.cancel)
-            job.done.connect(lambda *_: dlg.reset())
-        job.done.connect(self._done)
-        job.start()
-        return job
+        self.job = run_with_progress(
+            self.window, "Validate DSM",
+            lambda progress: run_validation(dsm, reference, dsm_height=dsm_height,
+                                            reference_height=reference_height, geoid=geoid,
+                                            mask=mask or None),
+            self._done, on_failed=self._failed, dialog=progress_dialog)
+        return self.job
 
-    def _done(self, result, error: str) -> None:
-        if self.job is not None and self.job.cancelled:
-            return
-        self.last_error = error
-        if error:
-            self.window.statusBar().showMessage(f"Validate DSM: {error}", 15000)
-            self.panel.title.setText(f"<span style='color:#b91c1c'>Validation failed: {error}</span>")
-            self.dock.show()
-            return
+    def _failed(self, error: str) -> None:
+        self.panel.title.setText(f"<span style='color:#b91c1c'>Validation failed: {error}</span>")
+        self.dock.show()
+
+    def _done(self, result) -> None:
         self.panel.show_result(*result)
         self.dock.show()
         self.dock.raise_()

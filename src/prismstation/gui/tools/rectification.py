@@ -15,12 +15,11 @@ import numpy as np
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpinBox, QFileDialog,
                                QFormLayout, QHBoxLayout, QLabel, QLineEdit, QMessageBox,
-                               QProgressDialog, QPushButton, QTableWidget, QTableWidgetItem,
-                               QVBoxLayout, QWidget)
+                               QPushButton, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
 
 from prismstation.core.rectify import KINDS, compare_transforms, min_points, n_params
-from prismstation.gui.tools._rect_common import (Worker, finish_on_close, fmt, view_points,
-                                                 watch_project)
+from prismstation.gui.tools._rect_common import fmt, view_points, watch_project
+from prismstation.gui.tools._worker import Job, run_with_progress
 
 
 def _item(text, align=Qt.AlignmentFlag.AlignRight) -> QTableWidgetItem:
@@ -199,10 +198,7 @@ class RectifyTool:
         self.panel = TransformsPanel(window)
         self.dock = window._dock("transforms", "Transforms", self.panel,
                                  Qt.DockWidgetArea.RightDockWidgetArea)
-        self.worker: Worker | None = None
-        self.last_result = None
-        self.last_error = ""
-        finish_on_close(window, lambda: [self.worker])
+        self.job: Job | None = None
         window.views.images_loaded.connect(self._show_for_single_view)
         window.tools_menu.addAction("Rectify…", self.open_dialog)
         window.tools_menu.addAction(self.dock.toggleViewAction())
@@ -226,9 +222,10 @@ class RectifyTool:
                    d.resolution.value() or None)
 
     def start(self, view: str, kind: str, out_path, out_crs=None, resolution=None,
-              progress_dialog: bool = True) -> Worker | None:
-        """Rectify ``view`` through ``kind`` into ``out_path`` in a worker; returns it (or None
-        with a message when the transform cannot be fitted)."""
+              progress_dialog: bool = True) -> Job | None:
+        """Rectify ``view`` through ``kind`` into ``out_path`` in a worker; returns the Job
+        (result: the rectified raster's record), or None with a message when the transform
+        cannot be fitted."""
         from prismstation.io.rectify_io import rectify_raster
 
         w = self.window
@@ -241,29 +238,18 @@ class RectifyTool:
             self._message(f"Cannot rectify: {msg}")
             return None
         crs = w.project.scene.crs
-        self.last_result, self.last_error = None, ""
-        job = Worker(lambda progress: rectify_raster(image, r.transform, Path(out_path), points_crs=crs,
-                                                     out_crs=out_crs, resolution=resolution,
-                                                     progress=progress), w)
-        self.worker = job
-        if progress_dialog:
-            dlg = QProgressDialog(f"Rectifying {view} through {kind}…", "Cancel", 0, 100, w)
-            dlg.setWindowModality(Qt.WindowModality.WindowModal)
-            dlg.setMinimumDuration(300)
-            job.progressed.connect(dlg.setValue)
-            dlg.canceled.connect(job.cancel)
-            job.done.connect(lambda *_: dlg.reset())
-        job.done.connect(self._done)
-        job.start()
-        return job
 
-    def _done(self, result, error: str) -> None:
-        self.last_result, self.last_error = result, error
-        if error:
-            self._message(f"Rectification: {error}")
-        else:
-            self._message(f"Wrote {result.path}: {result.width} × {result.height} cells of "
-                          f"{result.resolution:g} ({result.crs})")
+        def work(progress):
+            return rectify_raster(image, r.transform, Path(out_path), points_crs=crs,
+                                  out_crs=out_crs, resolution=resolution, progress=progress)
+
+        self.job = run_with_progress(w, f"Rectifying {view} through {kind}", work, self._done,
+                                     dialog=progress_dialog)
+        return self.job
+
+    def _done(self, result) -> None:
+        self._message(f"Wrote {result.path}: {result.width} × {result.height} cells of "
+                      f"{result.resolution:g} ({result.crs})")
 
     def _message(self, text: str) -> None:
         self.window.statusBar().showMessage(text, 15000)

@@ -143,7 +143,7 @@ class TransferTool:
                 return transfer(sol, im, source, (x, y), h=h, h_range=150.0 if h is not None else 600.0)
 
         self.pid, self.source = pid, source
-        job = self.job = Job(work, "Point transfer")
+        job = self.job = Job(work, "Point transfer", self.w)
         job.result.connect(lambda res, job=job: self._on_result(job, pid, res))
         job.failed.connect(lambda msg: shiboken6.isValid(self.w)
                            and self.w.statusBar().showMessage(f"Point transfer: {msg}", 10000))
