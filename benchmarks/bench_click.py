@@ -134,6 +134,7 @@ def main(argv=None) -> int:
     line("  fit (core.solve)", fit)
     line("  fit published → last paint", gui_ms)
     print(f"  open to settled images and first fit      {t_open * 1000:7.0f} ms")
+    print("target met" if np.median(total) <= 30.0 else "TARGET MISSED: median above 30 ms")
     if stages is not None:
         print("stages (median ms per round, summed over the calls of a round):")
         for name, v in stages.rounds.items():
