@@ -55,3 +55,38 @@ def _section_center(header, col):
     from PySide6.QtCore import QPoint
     x = header.sectionViewportPosition(col) + header.sectionSize(col) // 2
     return QPoint(x, header.height() // 2)
+
+
+def test_the_table_paints_selection_blunder_and_text(qtbot, window):
+    """The table paints its cells itself: the selected row in the highlight colour, a blunder
+    row in the blunder colour, alternate rows shaded, and text in the cells (dark pixels)."""
+    from PySide6.QtGui import QPalette
+
+    from prismstation.gui.point_table import BLUNDER_BG
+    win = window
+    m = win.table_model
+    win.set_current("G1", drive=False)
+    r_sel = m.row_of("G1")
+    blunder = "G2"
+    r_bl = m.row_of(blunder)
+    row = list(m._rows[r_bl])
+    row[11] = True
+    m._rows[r_bl] = tuple(row)  # as if the fit had flagged it
+    t = win.table
+    t.viewport().update()
+    img = t.viewport().grab().toImage()
+    vh = t.verticalHeader()
+    x = t.horizontalHeader().sectionViewportPosition(3) + 3  # left edge of a number cell
+
+    def colour_at(r):
+        return img.pixelColor(x, vh.sectionViewportPosition(r) + 2)
+    assert colour_at(r_sel) == t.palette().color(QPalette.ColorRole.Highlight)
+    assert colour_at(r_bl) == BLUNDER_BG
+    plain = next(r for r in range(len(m.ids)) if r not in (r_sel, r_bl) and r % 2 == 0)
+    odd = next(r for r in range(len(m.ids)) if r not in (r_sel, r_bl) and r % 2 == 1)
+    assert colour_at(plain) != colour_at(odd)            # alternate rows shaded
+    y = vh.sectionViewportPosition(plain)
+    x0, w = t.horizontalHeader().sectionViewportPosition(3), t.horizontalHeader().sectionSize(3)
+    dark = sum(img.pixelColor(xx, yy).lightness() < 100
+               for xx in range(x0, x0 + w) for yy in range(y, y + vh.sectionSize(plain)))
+    assert dark > 10, "no text drawn in the cell"
