@@ -7,7 +7,6 @@ through :func:`prismstation.io.report.write_report`.
 """
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 
 from PySide6.QtWidgets import QFileDialog, QMessageBox
@@ -19,24 +18,12 @@ from prismstation.gui import settings as st
 REPORT_FILTER = "HTML (*.html);;PDF (*.pdf);;CSV (*.csv);;JSON (*.json)"
 
 
-def optional(module: str, name: str):
-    """``module.name`` when that module exists, else None."""
-    try:
-        return getattr(importlib.import_module(module), name)
-    except (ImportError, AttributeError):
-        return None
-
-
 def import_points(window) -> None:
     """Run the import dialog on the window's project and push what it read."""
     if window.project is None:
         return
-    dialog_cls = optional("prismstation.gui.import_dialog", "ImportDialog")
-    if dialog_cls is None:
-        QMessageBox.information(window, "Import", "The import dialog is not available in this build "
-                                "(prismstation.gui.import_dialog is missing).")
-        return
-    dlg = dialog_cls(list(window.project.scene.views), window.project.scene.crs, window)
+    from prismstation.gui.import_dialog import ImportDialog
+    dlg = ImportDialog(list(window.project.scene.views), window.project.scene.crs, window)
     if dlg.exec():
         points, ms = dlg.result()
         push_import(window, points, ms)
@@ -64,13 +51,8 @@ def export_report(window, path: str | None = None) -> bool:
     rep = report_dict(sol, project_path=window.files.path)
     try:
         if Path(path).suffix.lower() in (".html", ".htm", ".pdf"):
-            writer = optional("prismstation.gui.report_writer", "write_document")
-            if writer is None:
-                QMessageBox.information(window, "Export report", "HTML and PDF reports are not "
-                                        "available in this build (prismstation.gui.report_writer "
-                                        "is missing); choose CSV or JSON.")
-                return False
-            writer(rep, path)
+            from prismstation.gui.report_writer import write_document
+            write_document(rep, path)
         else:
             write_report(rep, path)
     except (PrismError, OSError) as exc:

@@ -19,9 +19,9 @@ from prismstation.gui import io_actions
 from prismstation.gui.tools import install_tools
 from prismstation.gui import settings as st
 from prismstation.gui.contrast import ContrastPanel
-from prismstation.gui.io_actions import optional
 from prismstation.gui.loupe import Loupe
 from prismstation.gui.model_panel import ModelPanel
+from prismstation.gui.plots import PlotsWidget
 from prismstation.gui.point_table import PointTableModel, PointTableView
 from prismstation.gui.reference_dem import DemLoader
 from prismstation.gui.project_io import ProjectFiles
@@ -54,14 +54,11 @@ class MainWindow(QMainWindow):
         self.loupe_box = QWidget()
         QHBoxLayout(self.loupe_box).setContentsMargins(2, 2, 2, 2)
         self.contrast_tabs = QTabWidget()
-        plots_cls = optional("prismstation.gui.plots", "PlotsWidget")
-        self.plots = plots_cls() if plots_cls is not None else None
+        self.plots = PlotsWidget()
         self.docks = {}
         self._dock("points", "Points", self.table, Qt.DockWidgetArea.BottomDockWidgetArea)
         self._dock("model", "Model", self.panel, Qt.DockWidgetArea.RightDockWidgetArea)
-        self._dock("plots", "Plots", self.plots if self.plots is not None else
-                   QLabel("Plots are not available in this build (prismstation.gui.plots is missing)."),
-                   Qt.DockWidgetArea.BottomDockWidgetArea)
+        self._dock("plots", "Plots", self.plots, Qt.DockWidgetArea.BottomDockWidgetArea)
         self._dock("loupe", "Loupe", self.loupe_box, Qt.DockWidgetArea.RightDockWidgetArea)
         self._dock("contrast", "Contrast", self.contrast_tabs, Qt.DockWidgetArea.RightDockWidgetArea)
         self.tabifyDockWidget(self.docks["loupe"], self.docks["contrast"])
@@ -238,8 +235,7 @@ class MainWindow(QMainWindow):
         self.exaggeration.valueChanged.connect(self._on_exaggeration)
         self.dem_loader.loaded.connect(self._on_dem)
         self.dem_loader.failed.connect(lambda m: self.statusBar().showMessage(f"Reference DEM: {m}", 10000))
-        if self.plots is not None and hasattr(self.plots, "point_clicked"):
-            self.plots.point_clicked.connect(lambda pid: self.set_current(pid, drive=True))
+        self.plots.point_clicked.connect(lambda pid: self.set_current(pid, drive=True))
 
     # ------------------------------------------------------------------ project
     def open_project(self, path, **kw) -> bool:
@@ -308,8 +304,7 @@ class MainWindow(QMainWindow):
         self.table_model.set_solution(sol)
         self.table.select_id(self.current)
         self.panel.set_solution(sol)
-        if self.plots is not None:
-            self.plots.set_solution(sol)
+        self.plots.set_solution(sol)
         self.status_fit.setText(f"fit {self.solver.last_fit_ms:.0f} ms · σ0 "
                                 + (f"{sol.bias[sol.reference_view].sigma0:.3f}"
                                    if sol.bias[sol.reference_view].sigma0 is not None else "—"))
