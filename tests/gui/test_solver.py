@@ -89,3 +89,26 @@ def test_quick_fits_run_inline_slow_ones_in_the_worker(qtbot, demo):
         solver.shutdown()
     finally:
         solver_mod.solve_project = real
+
+
+def test_an_unexpected_error_in_an_inline_fit_is_reported_not_raised(qtbot, demo):
+    from prismstation.gui import solver as solver_mod
+    project = load_project(demo.path)
+    solver = Solver()
+    failed = []
+    solver.failed.connect(failed.append)
+    solver.set_project(project)
+    qtbot.waitUntil(lambda: solver.solution is not None and not solver.busy(), timeout=10000)
+    real = solver_mod.solve_project
+
+    def broken(*a, **k):
+        raise ZeroDivisionError("boom")
+    solver_mod.solve_project = broken
+    try:
+        m = project.measurement("G1", "N")
+        project.set_measurement(Measurement("G1", "N", m.x + 0.5, m.y))
+        solver._start()  # inline: the last fit was quick
+    finally:
+        solver_mod.solve_project = real
+    assert failed and "ZeroDivisionError: boom" in failed[-1]
+    solver.shutdown()

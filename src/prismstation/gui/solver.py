@@ -33,6 +33,19 @@ def snapshot(project):
     return snap
 
 
+def _fit(snap, height_of):
+    """``(solution or None, error text or None, seconds)``: a fit never raises — an error the
+    operator can fix is its message, anything else is named (the window must survive it)."""
+    t0 = time.perf_counter()
+    try:
+        sol, err = solve_project(snap, height_of=height_of), None
+    except PrismError as exc:
+        sol, err = None, str(exc)
+    except Exception as exc:
+        sol, err = None, f"the fit failed: {type(exc).__name__}: {exc}"
+    return sol, err, time.perf_counter() - t0
+
+
 class _Relay(QObject):
     done = Signal(object, object, float, object)  # solution or None, error or None, seconds, token
 
@@ -68,14 +81,7 @@ class _FitJob(QRunnable):
         self.setAutoDelete(True)
 
     def run(self) -> None:  # worker thread
-        t0 = time.perf_counter()
-        try:
-            sol, err = solve_project(self.snap, height_of=self.height_of), None
-        except PrismError as exc:
-            sol, err = None, str(exc)
-        except Exception as exc:  # never let a fit kill the window; say what happened
-            sol, err = None, f"the fit failed: {type(exc).__name__}: {exc}"
-        self.relay.done.emit(sol, err, time.perf_counter() - t0, self.generation)
+        self.relay.done.emit(*_fit(self.snap, self.height_of), self.generation)
 
 
 class Solver(QObject):
@@ -152,12 +158,7 @@ class Solver(QObject):
         self._timer.stop()
         self._pool.waitForDone()
         self._dirty = False
-        t0 = time.perf_counter()
-        try:
-            sol, err = solve_project(snapshot(self.project), height_of=self.height_of), None
-        except PrismError as exc:
-            sol, err = None, str(exc)
-        self._publish(sol, err, time.perf_counter() - t0)
+        self._publish(*_fit(snapshot(self.project), self.height_of))
         return self.solution
 
     def _start(self) -> None:
@@ -166,12 +167,7 @@ class Solver(QObject):
         self._dirty = False
         snap = snapshot(self.project)
         if not self.threaded or self.last_fit_ms < self.inline_ms:  # (NaN at first: worker)
-            t0 = time.perf_counter()
-            try:
-                sol, err = solve_project(snap, height_of=self.height_of), None
-            except PrismError as exc:
-                sol, err = None, str(exc)
-            self._publish(sol, err, time.perf_counter() - t0)
+            self._publish(*_fit(snap, self.height_of))
             return
         self._running = True
         self._pool.start(_FitJob(snap, self._relay, (self._token, self._generation), self.height_of))
