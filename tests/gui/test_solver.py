@@ -81,6 +81,15 @@ def test_quick_fits_run_inline_slow_ones_in_the_worker(qtbot, demo):
         solver._start()                                          # what the zero-delay timer does
         assert threads[-1] is threading.main_thread()
         assert solver.solution.revision == project.revision and not solver.busy()
+        # an import that makes the project much larger: expected too slow, to the worker
+        n = len(project.points)
+        project.load([], [Measurement(f"T{i}", "N", 10.0 + i % 500, 10.0 + i // 500)
+                          for i in range(40 * n)])
+        k = len(threads)
+        solver._start()
+        qtbot.waitUntil(lambda: solver.solution.revision == project.revision and not solver.busy(),
+                        timeout=20000)
+        assert len(threads) == k + 1 and threads[-1] is not threading.main_thread()
         solver.inline_ms = 0.0                                   # as if the last fit were slow
         project.set_measurement(Measurement("G1", "N", m.x + 1.0, m.y))
         qtbot.waitUntil(lambda: solver.solution.revision == project.revision and not solver.busy(),

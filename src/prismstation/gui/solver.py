@@ -1,11 +1,12 @@
-"""Refit after every change of the project, off the GUI thread, and publish the Solution.
+"""Refit after every change of the project, and publish the Solution.
 
 Data flow (ARCHITECTURE.md): a command edits the :class:`Project`; ``Project.changed`` arms a
 zero-delay timer, so that many edits in one event-loop turn (an import, an undo macro) cause one
-refit. A fit that took less than :attr:`Solver.inline_ms` last time (a few hundred points: a few
-milliseconds) runs right there on the GUI thread, so that the marker, the table, the statistics
-and the plots change in one repaint; a slower one (thousands of points, a reference DEM) runs on
-a snapshot of the project in a worker thread, and its :class:`Solution` is published by
+refit. A fit expected to take less than :attr:`Solver.inline_ms` (the last fit's time per point
+times the points now: a few hundred points take a few milliseconds) runs right there on the GUI
+thread, so that the marker, the table, the statistics and the plots change in one repaint; a
+slower one (thousands of points, a reference DEM, the first fit) runs on a snapshot of the
+project in a worker thread, and its :class:`Solution` is published by
 :attr:`Solver.solution_changed` on the GUI thread. A result older than the newest one published
 is dropped (by revision number); edits made while a fit runs start one more fit when it ends.
 """
@@ -99,9 +100,9 @@ class Solver(QObject):
     last_fit_ms : float
         Duration of the last fit, milliseconds.
     inline_ms : float
-        A fit whose predecessor took less than this runs on the GUI thread (0: always in the
-        worker). Handing a 5 ms fit to a thread costs more than the fit: the hand-off waits for
-        the event loop, and the two threads contend for the interpreter.
+        A fit expected to take less than this runs on the GUI thread (0: always in the worker).
+        Handing a 5 ms fit to a thread costs more than the fit: the hand-off waits for the event
+        loop, and the two threads contend for the interpreter.
     """
 
     inline_ms = 25.0
@@ -114,6 +115,8 @@ class Solver(QObject):
         self.project = None
         self.solution = None
         self.last_fit_ms = float("nan")
+        self._fit_points = 1   # points in the fit started last
+        self._ms_per_point = float("nan")
         self.threaded = threaded
         self.height_of = None  # reference DEM: (n, 2) map metres -> (n,) ellipsoidal metres
         self._generation = 0  # bumped per project: fits of a previous project are dropped
@@ -158,6 +161,7 @@ class Solver(QObject):
         self._timer.stop()
         self._pool.waitForDone()
         self._dirty = False
+        self._fit_points = max(len(self.project.points), 1)
         self._publish(*_fit(snapshot(self.project), self.height_of))
         return self.solution
 
@@ -166,7 +170,9 @@ class Solver(QObject):
             return
         self._dirty = False
         snap = snapshot(self.project)
-        if not self.threaded or self.last_fit_ms < self.inline_ms:  # (NaN at first: worker)
+        self._fit_points = max(len(snap.points), 1)
+        expected = self._ms_per_point * self._fit_points  # (NaN at first: the worker)
+        if not self.threaded or expected < self.inline_ms:
             self._publish(*_fit(snap, self.height_of))
             return
         self._running = True
@@ -181,6 +187,7 @@ class Solver(QObject):
 
     def _publish(self, sol, err, seconds) -> None:
         self.last_fit_ms = seconds * 1000.0
+        self._ms_per_point = self.last_fit_ms / self._fit_points
         if err is not None:
             self.failed.emit(err)
             return
