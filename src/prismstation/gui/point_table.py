@@ -133,19 +133,24 @@ class PointTableModel(QAbstractTableModel):
         measured: dict[str, set] = {}
         for pid, v in p.measurements:
             measured.setdefault(pid, set()).add(v)
+        shown: dict[frozenset, str] = {}  # views measured -> "N · B" (a handful of kinds)
         results = {r.id: r for r in sol.points} if sol is not None else {}
         rows = []
+        hypot = math.hypot
         for pid, pt in p.points.items():
             r = results.get(pid)
-            have = measured.get(pid, set())
-            vs = " ".join(v if v in have else "·" for v in views)
+            have = frozenset(measured.get(pid, ()))
+            vs = shown.get(have)
+            if vs is None:
+                vs = shown[have] = " ".join(v if v in have else "·" for v in views)
             vx = vy = vmax = e = n = h = dh = sr = None
             blunder = False
             if r is not None:
-                if ref in r.residual_px:
-                    vx, vy = r.residual_px[ref]
-                if r.residual_px:
-                    vmax = max(math.hypot(*v) for v in r.residual_px.values())
+                res = r.residual_px
+                if ref in res:
+                    vx, vy = res[ref]
+                if res:
+                    vmax = max([hypot(a, b) for a, b in res.values()])
                 if r.ground_est is not None:
                     e, n, h = r.ground_est
                 if r.ground_residual is not None:

@@ -131,6 +131,11 @@ class Solver(QObject):
         self._timer.setSingleShot(True)
         self._timer.setInterval(0)
         self._timer.timeout.connect(self._start)
+        self._retired: list = []
+        self._reaper = QTimer(self)
+        self._reaper.setSingleShot(True)
+        self._reaper.setInterval(50)
+        self._reaper.timeout.connect(self._retired.clear)
 
     def set_project(self, project) -> None:
         if self.project is not None:
@@ -194,6 +199,10 @@ class Solver(QObject):
         if self.solution is not None and sol.revision < self.solution.revision \
                 and self.project is not None and sol.revision != self.project.revision:
             return  # stale
+        # the previous solution (thousands of small objects) is freed when the window is idle,
+        # not by whichever widget happens to drop the last reference during the repaint
+        self._retired.append(self.solution)
+        self._reaper.start()
         self.solution = sol
         self.solution_changed.emit(sol)
 
