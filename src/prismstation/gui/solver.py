@@ -13,12 +13,11 @@ is dropped (by revision number); edits made while a fit runs start one more fit 
 from __future__ import annotations
 
 import copy
-import itertools
 import time
-import weakref
 
-import shiboken6
 from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
+
+from prismstation.gui import relay
 
 from prismstation.errors import PrismError
 from prismstation.io.project import solve_project
@@ -47,42 +46,16 @@ def _fit(snap, height_of):
     return sol, err, time.perf_counter() - t0
 
 
-class _Relay(QObject):
-    done = Signal(object, object, float, object)  # solution or None, error or None, seconds, token
-
-
-_RELAY: _Relay | None = None
-_RECEIVERS: "weakref.WeakValueDictionary[int, Solver]" = weakref.WeakValueDictionary()
-_TOKENS = itertools.count(1)
-
-
-def _fit_relay() -> _Relay:
-    """One process-wide relay, never deleted (a fit ending after its window is gone must not
-    emit on a dead object); results go to their solver by token, if it still exists."""
-    global _RELAY
-    if _RELAY is None:
-        _RELAY = _Relay()
-        _RELAY.done.connect(_dispatch)
-    return _RELAY
-
-
-def _dispatch(sol, err, seconds, token) -> None:
-    solver = _RECEIVERS.get(token[0])
-    if solver is not None and shiboken6.isValid(solver):
-        solver._on_done(sol, err, seconds, token)
-
-
 class _FitJob(QRunnable):
-    def __init__(self, snap, relay: _Relay, generation, height_of=None):
+    def __init__(self, snap, token, height_of=None):
         super().__init__()
         self.snap = snap
         self.height_of = height_of
-        self.relay = relay
-        self.generation = generation
+        self.token = token  # (relay id of the solver, project generation)
         self.setAutoDelete(True)
 
     def run(self) -> None:  # worker thread
-        self.relay.done.emit(*_fit(self.snap, self.height_of), self.generation)
+        relay.post(self.token[0], "_on_done", *_fit(self.snap, self.height_of), self.token)
 
 
 class Solver(QObject):
@@ -124,9 +97,7 @@ class Solver(QObject):
         self._dirty = False
         self._pool = QThreadPool(self)
         self._pool.setMaxThreadCount(1)
-        self._relay = _fit_relay()
-        self._token = next(_TOKENS)
-        _RECEIVERS[self._token] = self
+        self._token = relay.register(self)
         self._timer = QTimer(self)
         self._timer.setSingleShot(True)
         self._timer.setInterval(0)
@@ -181,7 +152,7 @@ class Solver(QObject):
             self._publish(*_fit(snap, self.height_of))
             return
         self._running = True
-        self._pool.start(_FitJob(snap, self._relay, (self._token, self._generation), self.height_of))
+        self._pool.start(_FitJob(snap, (self._token, self._generation), self.height_of))
 
     def _on_done(self, sol, err, seconds, token) -> None:
         self._running = False

@@ -11,60 +11,30 @@ pixel (MODEL.md §1).
 """
 from __future__ import annotations
 
-import itertools
 import weakref
 
 import numpy as np
-import shiboken6
-from PySide6.QtCore import QObject, QRunnable, Qt, QThreadPool, Signal
+from PySide6.QtCore import QRunnable, Qt, QThreadPool, Signal
 from PySide6.QtWidgets import QSplitter, QVBoxLayout, QWidget
 
 from prismstation.errors import PrismError
+from prismstation.gui import relay
 from prismstation.gui.image_view import ImageView
 from prismstation.gui.overlays import ViewOverlay
 from prismstation.gui.text_label import TextLabel
 from prismstation.io.raster import RasterSource
 
-_TOKENS = itertools.count(1)
 VIEW_TITLES = {"N": "N — nadir", "F": "F — forward", "B": "B — backward"}
 PICK_TOLERANCE_SCREEN_PX = 8.0
 DRIVE_TO_MAX_SCALE = 1.0  # image px per screen px at most after a drive-to (zooms in to detail)
 
 
-class _LoadRelay(QObject):
-    loaded = Signal(str, object, object, str)  # view, (token, source), (lo, hi), error
-
-
-_RELAY: _LoadRelay | None = None
-_RECEIVERS: "weakref.WeakValueDictionary[int, TripletViews]" = weakref.WeakValueDictionary()
-
-
-def _load_relay() -> _LoadRelay:
-    """One process-wide relay, never deleted: a worker finishing after its window is gone
-    emits on a live object; results go to their views by token, if those still exist."""
-    global _RELAY
-    if _RELAY is None:
-        _RELAY = _LoadRelay()
-        _RELAY.loaded.connect(_dispatch)
-    return _RELAY
-
-
-def _dispatch(name, token_src, levels, error) -> None:
-    token, src = token_src
-    views = _RECEIVERS.get(token[0])
-    if views is None or not shiboken6.isValid(views):
-        if src is not None:
-            src.close()
-        return
-    views._on_loaded(name, token_src, levels, error)
-
-
 class _LoadJob(QRunnable):
     """Open a raster and read its coarse overview and statistics (worker thread)."""
 
-    def __init__(self, view: str, path: str, token, relay: _LoadRelay):
+    def __init__(self, view: str, path: str, token):
         super().__init__()
-        self.view, self.path, self.generation, self.relay = view, path, token, relay
+        self.view, self.path, self.token = view, path, token  # (relay id, generation)
 
     def run(self) -> None:
         try:
@@ -72,9 +42,10 @@ class _LoadJob(QRunnable):
             src.coarse()
             st = src.statistics((0.5, 99.5))
             levels = (st.percentiles[0.5], st.percentiles[99.5])
-            self.relay.loaded.emit(self.view, (self.generation, src), levels, "")
+            relay.post(self.token[0], "_on_loaded", self.view, (self.token, src), levels, "",
+                       orphan=src.close)  # the window is gone: let the file go
         except (PrismError, OSError, ValueError) as exc:
-            self.relay.loaded.emit(self.view, (self.generation, None), None, str(exc))
+            relay.post(self.token[0], "_on_loaded", self.view, (self.token, None), None, str(exc))
 
 
 class TripletViews(QWidget):
@@ -119,9 +90,7 @@ class TripletViews(QWidget):
         self.active_view: str | None = None
         self._pending: set[str] = set()
         self._generation = 0
-        self._relay = _load_relay()
-        self._token = next(_TOKENS)
-        _RECEIVERS[self._token] = self
+        self._token = relay.register(self)
         self._pool = QThreadPool(self)
         self._pool.setMaxThreadCount(3)
         self.offer_overviews = None  # callable(source) set by the window when interactive
@@ -165,7 +134,7 @@ class TripletViews(QWidget):
         for name, view in project.scene.views.items():
             if view.image:
                 self._pending.add(name)
-                self._pool.start(_LoadJob(name, view.image, (self._token, self._generation), self._relay))
+                self._pool.start(_LoadJob(name, view.image, (self._token, self._generation)))
             else:
                 self.headers[name].setText(f"{VIEW_TITLES.get(name, name)} — no image")
         self.refresh_measured()
