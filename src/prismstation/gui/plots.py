@@ -274,8 +274,6 @@ class PlotsWidget(QWidget):
         self._apply_ranges()
         self.summary.setText(f"{len(d.gcp_ids)} GCP, {len(d.icp_ids)} ICP with parallax"
                              + (f"; blunder: {d.blunder}" if d.blunder else ""))
-        for pw in self.plots.values():  # what pyqtgraph defers to the paint happens now, so
-            pw.scene().prepareForPaint()  # that one repaint shows it (not a second one)
         self._set_titles()
 
     def _set(self, item, x, y, data=None) -> None:
