@@ -233,11 +233,7 @@ class ProjectFiles(QObject):
                                    "did not close cleanly). Recover them?") == b.Yes
             if recover:
                 source = side
-        try:
-            project = self._load(source)
-        except PrismError as exc:
-            self.warn("Open project", str(exc))
-            return False
+        project = self._load(source, "Open project")
         if project is None:
             return False
         self._install(project, path)
@@ -251,20 +247,25 @@ class ProjectFiles(QObject):
         self.recent_changed.emit(st.value(st.Key.RECENT_FILES))
         return True
 
-    def _load(self, path: Path) -> Project | None:
-        """Load, offering to relocate a missing scene or missing images."""
+    def _load(self, path: Path, title: str) -> Project | None:
+        """Load, offering to relocate a missing scene or missing images; None when the operator
+        gives up or the file is bad (said in a message box titled ``title``)."""
         try:
-            project = load_project(path)
-        except InputError as exc:
-            if "scene file not found" not in str(exc):
-                raise
-            b = QMessageBox.StandardButton
-            if self.ask("Scene not found", f"{exc}\n\nLocate the scene.json?") != b.Yes:
-                return None
-            scene = self.choose_open("Locate the scene", "Scene (*.json);;All files (*)")
-            if not scene:
-                return None
-            project = load_project(path, scene_override=scene)
+            try:
+                project = load_project(path)
+            except InputError as exc:
+                if "scene file not found" not in str(exc):
+                    raise
+                b = QMessageBox.StandardButton
+                if self.ask("Scene not found", f"{exc}\n\nLocate the scene.json?") != b.Yes:
+                    return None
+                scene = self.choose_open("Locate the scene", "Scene (*.json);;All files (*)")
+                if not scene:
+                    return None
+                project = load_project(path, scene_override=scene)
+        except PrismError as exc:
+            self.warn(title, str(exc))
+            return None
         apply_relocations(project)
         missing = missing_images(project)
         if missing:
@@ -283,11 +284,7 @@ class ProjectFiles(QObject):
                                "program stopped. Recover it?") == b.Yes
         if not recover:
             return False
-        try:
-            project = self._load(side)
-        except PrismError as exc:
-            self.warn("Recover", str(exc))
-            return False
+        project = self._load(side, "Recover")
         if project is None:
             return False
         self._install(project, None)
