@@ -32,3 +32,13 @@ class ModelError(PrismError, ValueError):
 
 class RasterReadError(PrismError, OSError):
     """A raster could not be opened or read."""
+
+
+class Cancelled(PrismError):
+    """The operation was cancelled by its caller (through its progress callback); nothing was
+    written."""
+
+
+class DegenerateGeometry(ModelError):
+    """The points cannot determine the parameters: too few, nearly collinear, or otherwise
+    ill-conditioned (the message says which and the condition number)."""
