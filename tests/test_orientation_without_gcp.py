@@ -8,8 +8,10 @@ import rasterio
 from rasterio.warp import Resampling, reproject
 
 from prismstation.cli import main
-from prismstation.io.project import load_project, solve_project
-from prismstation.io.transfer import ImageWindows, auto_tie_points, transfer
+from prismstation.io.project import load_project
+from prismstation.io.windows import ImageWindows
+from prismstation.ops.fit import solve_project
+from prismstation.ops.transfer import auto_tie_points, transfer
 from prismstation.sim import simulate
 from prismstation.sim.reference import make_reference_dem
 

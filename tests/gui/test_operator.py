@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from PySide6.QtCore import QPoint, QPointF, Qt
 
-from prismstation.io.project import load_project, solve_project
+from prismstation.io.project import load_project
+from prismstation.ops.fit import solve_project
 
 
 def settle(qtbot, win):
@@ -387,7 +388,7 @@ def test_residual_vectors_keep_their_screen_length(qtbot, window):
 
 def test_reference_dem_heights_for_the_linked_cursor(qtbot, window, tmp_path):
     import rasterio
-    from prismstation.gui.reference_dem import scene_grid
+    from prismstation.ops.reference_heights import scene_grid
     win = window
     transform, shape = scene_grid(win.project.scene, spacing=100.0)
     dem = tmp_path / "dem.tif"

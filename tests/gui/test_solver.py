@@ -2,7 +2,8 @@
 from __future__ import annotations
 
 from prismstation.gui.solver import Solver
-from prismstation.io.project import load_project, solve_project
+from prismstation.io.project import load_project
+from prismstation.ops.fit import solve_project
 from prismstation.model.points import Measurement
 
 

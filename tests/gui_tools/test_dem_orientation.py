@@ -29,7 +29,7 @@ def test_orient_from_srtm_in_the_window(qtbot, window, sim, truth):
     assert window.undo_stack.count() == depth + 1         # one undoable step
 
     # the patch table holds the engine's patches, as the record stored in the project
-    record = window.project.extra["dem_control"]
+    record = window.project.dem_control
     rows = tool.panel.table.rowCount()
     used = [p for p in record["patches"] if p["used"]]
     assert rows == len(record["patches"]) >= 4 and len(used) >= 4
@@ -63,7 +63,7 @@ def test_orient_from_srtm_in_the_window(qtbot, window, sim, truth):
     # undo returns to the GCP orientation; redo back to the DEM; the menu's way back is undoable
     window.undo_stack.undo()
     _settle(qtbot, window)
-    assert window.project.settings.orientation == "gcp" and "dem_control" not in window.project.extra
+    assert window.project.settings.orientation == "gcp" and window.project.dem_control is None
     assert window.solver.solution.settings.orientation == "gcp"
     assert not tool._items
     window.undo_stack.redo()
@@ -111,4 +111,4 @@ def test_menu_route_through_the_dialog(qtbot, window, sim, monkeypatch):
     window.dem_orientation.a_orient.trigger()
     qtbot.waitUntil(lambda: window.project.settings.orientation == "dem", timeout=60000)
     assert window.dem_orientation.patch_km == 1.0
-    assert window.dem_orientation.panel.table.rowCount() == len(window.project.extra["dem_control"]["patches"])
+    assert window.dem_orientation.panel.table.rowCount() == len(window.project.dem_control["patches"])

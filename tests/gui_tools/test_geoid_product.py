@@ -74,7 +74,7 @@ def test_constant_geoid_is_one_undo_step_and_heights_refit(ortho_window):
 def test_found_grid_listed_chosen_and_fitted_like_the_solver(ortho_window, monkeypatch):
     from prismstation.gui.tools import geoid_tool as gt
     from prismstation.io import geoid as geoid_mod
-    from prismstation.io.project import solve_project
+    from prismstation.ops.fit import solve_project
     grid = geoid_mod.find_grid()
     if grid is None:
         pytest.skip("no geoid grid installed")

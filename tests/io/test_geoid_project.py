@@ -8,7 +8,8 @@ import pytest
 from prismstation.errors import InputError
 from prismstation.io.geoid import ConstantGeoid, GridGeoid
 from prismstation.io.points import read_ground_points, read_measurements
-from prismstation.io.project import load_project, save_project, solve_project
+from prismstation.io.project import load_project, save_project
+from prismstation.ops.fit import solve_project
 from prismstation.model.points import Measurement
 from tests.core.synth import make_points, make_scene
 from tests.io.test_cli_pipeline import write_triplet

@@ -5,7 +5,8 @@ import rasterio
 from rasterio.transform import from_origin
 
 from prismstation.cli import main
-from prismstation.io.dem import grid_coordinates, read_dem, to_ellipsoidal, write_dem
+from prismstation.io.dem import grid_coordinates, read_dem, write_dem
+from prismstation.io.geoid import to_ellipsoidal
 
 
 def test_hgt_resampled_to_utm_agrees_with_the_independent_utm_product(shared_data):

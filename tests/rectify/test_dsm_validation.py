@@ -9,8 +9,9 @@ import rasterio
 from prismstation.cli import main
 from prismstation.core.dsmstats import residual_sd_by_view, sample_stats, validate_dsm
 from prismstation.errors import InputError
-from prismstation.io.dsm_validate import (DemGrid, read_dem, resample_to_grid, undulation_on_grid,
-                                          validate_dsm_files)
+from prismstation.io.dem import DemGrid, read_dem, resample_to_grid
+from prismstation.io.geoid import undulation_on_grid
+from prismstation.ops.validate import validate_dsm_files
 
 
 def test_statistics_by_hand():
@@ -145,7 +146,7 @@ def test_height_kinds_and_geoid(shared_data):
         validate_dsm_files(dsm_path, dsm_path, dsm_height="orthometric")
     geoid = GridGeoid(shared_data / "geoid" / "egm96_15.gtx")
     full = read_dem(dsm_path)
-    grid = DemGrid(full.path, full.heights[:400, :300], full.transform, full.crs)
+    grid = DemGrid(full.heights[:400, :300], full.crs, full.transform, path=full.path)
     coarse = undulation_on_grid(geoid, grid, max_samples=16)
     exact = undulation_on_grid(geoid, grid, max_samples=1000)      # every cell
     assert np.nanmax(np.abs(coarse - exact)) < 0.02

@@ -9,7 +9,9 @@ import rasterio
 from prismstation.cli import main
 from prismstation.core.rectify import compare_transforms, fit_transform
 from prismstation.errors import InputError
-from prismstation.io.rectify_io import RectifyCancelled, read_point_pairs, rectify_raster
+from prismstation.errors import Cancelled
+from prismstation.io.rectify_io import read_point_pairs
+from prismstation.ops.rectify import rectify_raster
 
 CRS = "EPSG:32631"
 
@@ -117,11 +119,11 @@ def test_progress_reports_and_cancels(tmp_path):
     t = fit_transform("affine", src, dst)
     seen = []
     rectify_raster(tmp_path / "img.tif", t, tmp_path / "a.tif", points_crs=CRS, resolution=5,
-                   block=64, progress=lambda f: seen.append(f) or True)
+                   block=64, progress=lambda f, m="": seen.append(f) or True)
     assert len(seen) > 4 and seen[-1] == 1.0 and seen == sorted(seen)
-    with pytest.raises(RectifyCancelled):
+    with pytest.raises(Cancelled):
         rectify_raster(tmp_path / "img.tif", t, tmp_path / "b.tif", points_crs=CRS, resolution=5,
-                       block=64, progress=lambda f: f < 0.3)
+                       block=64, progress=lambda f, m="": f < 0.3)
     assert not (tmp_path / "b.tif").exists()
 
 
@@ -203,7 +205,7 @@ def test_rectify_command_too_few_points_and_missing_image(tmp_path, capsys):
 
 @pytest.mark.parametrize("kind", ["projective", "poly3"])
 def test_lattice_inverse_map_matches_exact(kind):
-    from prismstation.io.rectify_io import _inverse_map
+    from prismstation.ops.rectify import _inverse_map
 
     rng = np.random.default_rng(5)
     src = rng.uniform(0, 4000, (20, 2))

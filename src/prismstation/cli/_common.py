@@ -1,6 +1,7 @@
 """Helpers shared by the sub-commands."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
@@ -21,6 +22,22 @@ def apply_model_options(project, args) -> None:
         kw["parallax_model"] = args.parallax
     if kw:
         project.set_settings(replace(project.settings, **kw))
+
+
+def progress_printer(what: str = ""):
+    """A progress callable (:mod:`prismstation.ops.progress`) printing ``what``, the percentage
+    and the message on one line of stderr when it is a terminal; it never asks to stop."""
+    show = sys.stderr.isatty()
+
+    def progress(fraction, message=""):
+        if show:
+            print(f"\r{what}{fraction:5.0%} {message:<30}", end="", file=sys.stderr, flush=True)
+    return progress
+
+
+def end_progress() -> None:
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
 
 
 def existing(path: str, what: str = "file") -> Path:

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from prismstation.core.resection import base_height
 from prismstation.errors import InputError
-from prismstation.io.rectify_io import write_json
+from prismstation.io.jsonfile import write_json
 
 
 def register(sub) -> None:

@@ -51,12 +51,11 @@ def register(sub) -> None:
 def run(args) -> int:
     project = ensure_demo(args.dir, rebuild=args.rebuild)
     if args.no_gui:
-        from prismstation.io.project import load_project, project_geoid, solve_project
-        from prismstation.io.report import report_dict
+        from prismstation.io.project import load_project
         from prismstation.io.text_report import format_report
+        from prismstation.ops.fit import fit_report
         proj = load_project(project)
-        sol = solve_project(proj)
-        print(format_report(report_dict(sol, project_path=project, geoid=project_geoid(proj).describe())))
+        print(format_report(fit_report(proj, project)[1]))
         return 0
     from prismstation.gui.app import run as run_gui
     return run_gui(str(project), screenshot=args.screenshot)

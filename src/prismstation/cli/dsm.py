@@ -7,7 +7,8 @@ from prismstation.cli._common import existing
 from prismstation.errors import ModelError
 from prismstation.io.dem import write_dem
 from prismstation.io.dsm import make_dsm
-from prismstation.io.project import load_project, project_geoid, solve_project
+from prismstation.io.project import load_project, project_geoid
+from prismstation.ops.fit import solve_project
 
 
 def register(sub) -> None:
@@ -41,7 +42,7 @@ def run(args) -> int:
         print(f"\r{fr:5.0%} {msg:<24}", end="", file=sys.stderr, flush=True)
         return True
 
-    dsm = make_dsm(sol, window, posting_m=args.posting, record=project.extra.get("dem_control"),
+    dsm = make_dsm(sol, window, posting_m=args.posting, record=project.dem_control,
                    orthometric_geoid=project_geoid(project) if args.orthometric else None, progress=progress)
     print(file=sys.stderr)
     write_dem(args.output, dsm.heights, dsm.crs, dsm.transform)

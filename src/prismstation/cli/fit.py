@@ -2,10 +2,10 @@
 from __future__ import annotations
 
 from prismstation.cli._common import add_model_options, apply_model_options, existing
-from prismstation.errors import ModelError
-from prismstation.io.project import load_project, project_geoid, solve_project
-from prismstation.io.report import report_dict, write_report
+from prismstation.io.project import load_project
+from prismstation.io.report import write_report
 from prismstation.io.text_report import format_report
+from prismstation.ops.fit import fit_report
 
 
 def register(sub) -> None:
@@ -19,11 +19,7 @@ def register(sub) -> None:
 def fitted_report(args):
     project = load_project(existing(args.project, "project"))
     apply_model_options(project, args)
-    sol = solve_project(project)
-    if not sol.ok:
-        raise ModelError("; ".join(sol.messages) or "the model could not be fitted")
-    geoid = project_geoid(project).describe() if project.geoid else None
-    return sol, report_dict(sol, project_path=args.project, geoid=geoid)
+    return fit_report(project, args.project)
 
 
 def run(args) -> int:

@@ -1,14 +1,12 @@
 """``prismstation orient-dem PROJECT REFERENCE_DEM``: orientation with no GCP (seed 003)."""
 from __future__ import annotations
 
-import sys
-from dataclasses import replace
-
-from prismstation.cli._common import existing
-from prismstation.io.orient_dem import orient_from_dem
-from prismstation.io.project import load_project, project_geoid, save_project, solve_project
-from prismstation.io.report import report_dict, write_report
+from prismstation.cli._common import end_progress, existing, progress_printer
+from prismstation.io.project import load_project, save_project
+from prismstation.io.report import write_report
 from prismstation.io.text_report import format_report
+from prismstation.ops.fit import fit_report
+from prismstation.ops.orient_dem import apply_orientation, orient_from_dem
 
 
 def register(sub) -> None:
@@ -25,21 +23,14 @@ def register(sub) -> None:
 def run(args) -> int:
     project = load_project(existing(args.project, "project"))
     existing(args.reference, "reference DEM")
-
-    def progress(fraction, message=""):
-        print(f"\r{fraction:5.0%} {message:<30}", end="", file=sys.stderr, flush=True)
-        return True
-
     result = orient_from_dem(project, args.reference, patch_m=args.patch_km * 1000,
-                             posting_m=args.posting, progress=progress)
-    print(file=sys.stderr)
-    project.extra["dem_control"] = result.to_dict()
-    project.set_settings(replace(project.settings, orientation="dem"))
+                             posting_m=args.posting, progress=progress_printer())
+    end_progress()
+    apply_orientation(project, result)
     if args.save:
         save_project(project, args.project)
-    sol = solve_project(project)
-    report = report_dict(sol, project_path=args.project, geoid=project_geoid(project).describe())
-    report["dem_control"] = result.to_dict()
+    _, report = fit_report(project, args.project)
+    report["dem_control"] = project.dem_control
     if args.json:
         write_report(report, args.json)
     used = [p for p in result.patches if p.used]

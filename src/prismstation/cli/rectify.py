@@ -6,12 +6,14 @@ image rectified through the chosen transform as a GeoTIFF.
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 from prismstation.core.rectify import KINDS, compare_transforms, format_rmse_table
 from prismstation.errors import InputError, ModelError
-from prismstation.io.rectify_io import read_point_pairs, rectify_raster, write_json
+from prismstation.cli._common import end_progress, progress_printer
+from prismstation.io.jsonfile import write_json
+from prismstation.io.rectify_io import read_point_pairs
+from prismstation.ops.rectify import rectify_raster
 
 
 def register(sub) -> None:
@@ -83,19 +85,11 @@ def run(args) -> int:
                            for i, c, v in zip(pairs.ids, pairs.is_check, r.residuals)],
             } for r in reports]})
     if args.output:
-        show = sys.stderr.isatty()
-
-        def progress(f):
-            if show:
-                print(f"\rwriting {args.output}: {100 * f:3.0f}%", end="", file=sys.stderr)
-            return True
-
         res = rectify_raster(args.image, chosen.transform, args.output,
                              points_crs=_points_crs(args), out_crs=args.crs,
-                             resolution=args.resolution, progress=progress,
+                             resolution=args.resolution, progress=progress_printer(f"writing {args.output}: "),
                              resampling=args.resampling)
-        if show:
-            print(file=sys.stderr)
+        end_progress()
         print(f"\nwrote {res.path}: {res.width} x {res.height} cells of {res.resolution:g} "
               f"({res.crs}) through {chosen.kind}")
     return 0

@@ -12,7 +12,8 @@ import numpy as np
 
 from prismstation.core.resection import PARAM_NAMES, FrameCamera, resect
 from prismstation.errors import InputError
-from prismstation.io.rectify_io import read_point_pairs, write_json
+from prismstation.io.jsonfile import write_json
+from prismstation.io.rectify_io import read_point_pairs
 
 
 def register(sub) -> None:

@@ -5,9 +5,11 @@ bias, sd, rmse, min, max, count, nmad, median, percentiles, and per class of ``-
 """
 from __future__ import annotations
 
+from prismstation.cli._common import end_progress, progress_printer
 from prismstation.errors import InputError
-from prismstation.io.dsm_validate import HEIGHT_KINDS, validate_dsm_files
-from prismstation.io.rectify_io import write_json
+from prismstation.io.jsonfile import write_json
+from prismstation.model.points import HEIGHT_KINDS
+from prismstation.ops.validate import validate_dsm_files
 
 
 def register(sub) -> None:
@@ -44,7 +46,9 @@ def run(args) -> int:
     val, info = validate_dsm_files(args.dsm, args.reference, dsm_height=args.dsm_height,
                                    reference_height=args.reference_height, geoid=_geoid(args),
                                    mask_path=args.mask, mask_nodata=args.mask_nodata,
-                                   resampling=args.resampling, diff_out=args.diff_out)
+                                   resampling=args.resampling, diff_out=args.diff_out,
+                                   progress=progress_printer())
+    end_progress()
     out = val.as_dict()
     out.update(info)
     write_json(args.json, out)

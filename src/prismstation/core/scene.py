@@ -13,6 +13,13 @@ from prismstation.core.affine import Affine2D
 LOOK_SIGN = {"F": 1.0, "B": -1.0}
 
 
+def reference_view(names, default: str = "N") -> str:
+    """The reference view among ``names`` (view names, or a dict keyed by them): N when
+    present, else the first; ``default`` when there is none."""
+    names = list(names)
+    return "N" if "N" in names else (names[0] if names else default)
+
+
 @dataclass(frozen=True, eq=False)
 class GroundTrack:
     """Sub-satellite points ``(K, 2)`` in map metres, in flight order (K ≥ 2).
@@ -94,6 +101,11 @@ class Scene:
     views: dict[str, View]
     geoid_undulation_m: float | None = None
     extra: dict = field(default_factory=dict)
+
+    @property
+    def reference_view(self) -> str:
+        """N when the scene has it, else its first view (:func:`reference_view`)."""
+        return reference_view(self.views)
 
     @property
     def is_triplet(self) -> bool:

@@ -108,7 +108,7 @@ class Solution:
 
     @property
     def reference_view(self) -> str:
-        return "N" if "N" in self.scene.views else next(iter(self.scene.views))
+        return self.scene.reference_view
 
 
 @dataclass(frozen=True, eq=False)
@@ -336,7 +336,7 @@ def critical_value(threshold: float, dof: int) -> float:
 def _adjustment_stats(gcps, bias, parallax, scene, settings) -> dict:
     """Standardised residual and redundancy of each GCP from the N bias and parallax fits:
     ``{id: (largest |standardised residual| or None, smallest redundancy, blunder)}``."""
-    ref = "N" if "N" in scene.views else next(iter(scene.views))
+    ref = scene.reference_view
     w: dict[str, list] = {}  # id -> [max |w|, min redundancy, max |w| / critical]
 
     def add(pid, s, r, crit):
@@ -371,7 +371,7 @@ def _adjustment_stats(gcps, bias, parallax, scene, settings) -> dict:
 def _statistics(scene: Scene, results) -> dict:
     """Tables 1–3 of the paper and their extensions, for GCPs and ICPs."""
     stats: dict = {"image": {}, "ground": {}, "height": {}}
-    ref = "N" if "N" in scene.views else next(iter(scene.views))
+    ref = scene.reference_view
     by_kind = {kind: [r for r in results if r.kind == kind] for kind in ("GCP", "ICP")}
     for v, view in scene.views.items():
         stats["image"][v] = {}

@@ -9,6 +9,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from prismstation.core.scene import reference_view
+
 
 def _arr(values) -> np.ndarray:
     return np.asarray(values, dtype=float).reshape(-1)
@@ -119,7 +121,7 @@ class PlotData:
     def from_report(cls, report: dict) -> "PlotData":
         """From the dict of :func:`prismstation.io.report.report_dict` (or its JSON)."""
         bias = report.get("model", {}).get("bias", {})
-        view = "N" if "N" in bias else next(iter(bias), "N")
+        view = reference_view(bias)
         recs = []
         for p in report.get("points", []):
             h = None

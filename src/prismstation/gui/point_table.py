@@ -16,6 +16,7 @@ from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt
 from PySide6.QtGui import QBrush, QColor, QPainter, QPalette
 from PySide6.QtWidgets import QAbstractItemView, QHeaderView, QTableView
 
+from prismstation.core.scene import reference_view
 from prismstation.gui.overlays import KIND_COLORS
 
 COLUMNS = ("ID", "Kind", "Views", "vx (px)", "vy (px)", "|v| max (px)", "E est (m)", "N est (m)",
@@ -129,7 +130,7 @@ class PointTableModel(QAbstractTableModel):
     def _build(self) -> list[tuple]:
         p, sol = self.project, self.solution
         views = list(p.scene.views)
-        ref = "N" if "N" in views else views[0]
+        ref = reference_view(views)
         measured: dict[str, set] = {}
         for pid, v in p.measurements:
             measured.setdefault(pid, set()).add(v)

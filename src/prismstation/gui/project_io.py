@@ -32,10 +32,6 @@ from prismstation.io.scene import read_scene
 from prismstation.model.project import Project
 
 FILTER = f"prismstation projects (*{SUFFIX});;All files (*)"
-RELOCATED_KEY = "relocated_images"
-
-
-PRODUCT_KEY = "product"  # project.extra: the JAXA product folder a project was made from
 
 
 def untitled_path() -> Path:
@@ -75,7 +71,7 @@ class _WindowJournal(Journal):
     def _failed(self, exc: Exception) -> None:
         self.report(f"Recovery journal not written: {exc}")
 
-    def _on_changed(self, revision: int) -> None:
+    def _on_changed(self, change) -> None:
         if not self._timer.isActive():  # the first edit since the last document sets the pace
             self._timer.start()
 
@@ -88,7 +84,7 @@ class _WindowJournal(Journal):
         """Journal the project now."""
         self._timer.stop()
         try:
-            super()._on_changed(self.project.revision)
+            self.journal(self.project.revision)
         except (OSError, PrismError, TypeError, ValueError) as exc:
             self._failed(exc)
 
@@ -113,8 +109,8 @@ def missing_images(project) -> list[str]:
 
 
 def apply_relocations(project) -> None:
-    """Point the scene's views at the image files recorded in ``project.extra``."""
-    reloc = project.extra.get(RELOCATED_KEY) or {}
+    """Point the scene's views at the image files recorded in ``project.relocations``."""
+    reloc = project.relocations
     if not reloc:
         return
     views = dict(project.scene.views)
@@ -295,7 +291,6 @@ class ProjectFiles(QObject):
     def _recovered(self) -> None:
         """The project just installed came from a journal: unsaved, and journaled again at once
         (so a second crash before the next edit still finds it)."""
-        self.project.extra.pop("recovery", None)
         self.stack.resetClean()
         self.journal.write()
 
@@ -309,12 +304,12 @@ class ProjectFiles(QObject):
         folder = self.choose_dir("Folder with the images")
         if not folder:
             return False
-        reloc = dict(project.extra.get(RELOCATED_KEY) or {})
+        reloc = dict(project.relocations)
         for v in missing:
             cand = Path(folder) / Path(project.scene.views[v].image or "").name
             if cand.is_file():
                 reloc[v] = str(cand.resolve())
-        project.extra[RELOCATED_KEY] = reloc
+        project.set_relocations(reloc)
         apply_relocations(project)
         still = missing_images(project)
         if still:
@@ -362,7 +357,7 @@ class ProjectFiles(QObject):
     def _scene_beside(self, path: Path) -> None:
         """A project made from a product keeps its scene.json in the settings directory until
         it is saved: then the scene is written beside the project (unless one is there)."""
-        product = self.project.extra.get(PRODUCT_KEY)
+        product = self.project.product
         scene = Path(self.project.scene_path or "")
         if not product or untitled_path().parent not in scene.parents:
             return
@@ -392,8 +387,7 @@ class ProjectFiles(QObject):
         except (PrismError, OSError) as exc:
             self.warn("New project from product", str(exc))
             return False
-        project = Project(scene, str(scene_path.resolve()))
-        project.extra[PRODUCT_KEY] = str(product)
+        project = Project(scene, str(scene_path.resolve()), product=str(product))
         self._install(project, None)
         self.message.emit(f"New project on the product {product.name} ({', '.join(scene.views)}); "
                           "Save as… to keep it")

@@ -16,6 +16,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from prismstation.core.scene import reference_view
 from prismstation.errors import InputError
 
 FIGURE_CAPTIONS = {
@@ -101,7 +102,7 @@ def report_html(report: dict, images: dict | None = None) -> str:
     st = r.get("statistics", {})
     model = r.get("model", {})
     bias = model.get("bias", {})
-    ref = "N" if "N" in bias else next(iter(bias), "N")
+    ref = reference_view(bias)
     settings = r.get("settings") or {}
     parts = ["<html><head><meta charset=\"utf-8\"><title>prismstation residual report</title>",
              "<style>body{font-family:sans-serif;font-size:9pt} table{border-collapse:collapse;"

@@ -20,7 +20,7 @@ from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
 from prismstation.gui import relay
 
 from prismstation.errors import PrismError
-from prismstation.io.project import solve_project
+from prismstation.ops.fit import solve_project
 
 
 def snapshot(project):

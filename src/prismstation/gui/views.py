@@ -17,6 +17,7 @@ import numpy as np
 from PySide6.QtCore import QRunnable, Qt, QThreadPool, Signal
 from PySide6.QtWidgets import QSplitter, QVBoxLayout, QWidget
 
+from prismstation.core.scene import reference_view
 from prismstation.errors import PrismError
 from prismstation.gui import relay
 from prismstation.gui.image_view import ImageView
@@ -242,7 +243,7 @@ class TripletViews(QWidget):
         if not self.views:
             return
         if scale is None:
-            ref = self.views.get("N") or next(iter(self.views.values()))
+            ref = self.views[reference_view(self.views)]
             scale = min(ref.scale(), DRIVE_TO_MAX_SCALE)
         for name, iv in self.views.items():
             xy = self.point_position(pid, name)

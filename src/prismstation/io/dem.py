@@ -1,5 +1,5 @@
-"""Reference DEMs: read (SRTM ``.hgt`` or GeoTIFF, geographic or projected) onto a target grid,
-convert orthometric → ellipsoidal heights, and write a DEM GeoTIFF.
+"""DEMs and DSMs: the one reader (SRTM ``.hgt``, GeoTIFF or any single-band raster with a CRS,
+on its own grid or resampled onto a target grid, optionally made ellipsoidal) and a writer.
 
 Grids are ``(crs, transform, shape)``: ``transform`` a rasterio ``Affine`` from pixel
 ``(col, row)`` (MODEL.md §1, origin at the top-left corner of the top-left pixel) to CRS
@@ -7,6 +7,7 @@ coordinates; arrays are ``(rows, cols)`` float64 with NaN for voids.
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,16 +15,17 @@ import numpy as np
 import rasterio
 from rasterio.crs import CRS
 from rasterio.enums import Resampling
-from rasterio.errors import RasterioError
+from rasterio.errors import NotGeoreferencedWarning, RasterioError, RasterioIOError
 from rasterio.transform import Affine
 from rasterio.warp import calculate_default_transform, reproject
 
 from prismstation.errors import InputError, RasterReadError
+from prismstation.io.geoid import to_ellipsoidal
 
 SRTM_VOID = -32768
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class DemGrid:
     """Heights on a grid.
 
@@ -35,13 +37,17 @@ class DemGrid:
     transform : affine.Affine
         Pixel (col, row) → CRS (x, y).
     height_kind : str
-        ``"orthometric"`` or ``"ellipsoidal"``.
+        ``"orthometric"`` or ``"ellipsoidal"`` (a file's own heights are taken as
+        orthometric unless a geoid made them ellipsoidal).
+    path : str or None
+        The file read.
     """
 
     heights: np.ndarray
     crs: CRS
     transform: Affine
-    height_kind: str
+    height_kind: str = "orthometric"
+    path: str | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -57,42 +63,31 @@ def grid_coordinates(transform, shape) -> tuple[np.ndarray, np.ndarray]:
     return x, y
 
 
-def to_ellipsoidal(H, geoid, E=None, N=None, crs=None) -> np.ndarray:
-    """Ellipsoidal heights ``h = H + Ngeoid`` (MODEL.md §1).
-
-    Parameters
-    ----------
-    H : array_like
-        Orthometric heights (metres), NaN allowed.
-    geoid : float or object with ``undulation(E, N, crs) -> array``
-        A constant undulation (metres) or a geoid model (e.g. ``io.geoid.GridGeoid``).
-    E, N : array_like, optional
-        Map coordinates of ``H`` (same shape) in ``crs``; needed for a geoid model.
-    crs : optional
-        CRS of ``E, N``.
-    """
-    H = np.asarray(H, float)
-    if isinstance(geoid, (int, float, np.floating, np.integer)):
-        return H + float(geoid)
-    if not hasattr(geoid, "undulation"):
-        raise TypeError("geoid must be a number or have an undulation(E, N, crs) method")
-    if E is None or N is None:
-        raise ValueError("a geoid model needs the map coordinates E, N of the heights")
-    return H + np.asarray(geoid.undulation(np.asarray(E, float), np.asarray(N, float), crs), float)
-
-
-def _read_source(path: Path):
+def open_raster(path, what: str = "raster"):
+    """Open a raster for reading; a missing or unreadable file → InputError naming ``what``."""
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"{what} not found", file=p)
     try:
-        with rasterio.open(path) as ds:
-            if ds.crs is None:
-                raise InputError("the DEM has no coordinate reference system", file=path)
-            data = ds.read(1, masked=True)
-            arr = data.astype(np.float64).filled(np.nan)
-            if ds.dtypes[0] == "int16":
-                arr[arr <= SRTM_VOID] = np.nan        # SRTM voids even without a nodata tag
-            return arr, ds.crs, ds.transform
-    except RasterioError as exc:
-        raise RasterReadError(f"{path}: cannot read the DEM ({exc})") from None
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NotGeoreferencedWarning)
+            return rasterio.open(p)
+    except RasterioIOError as exc:
+        raise InputError(f"cannot open {what} as a raster ({exc})", file=p) from None
+
+
+def _read_source(path: Path, what: str):
+    with open_raster(path, what) as ds:
+        if ds.crs is None:
+            raise InputError(f"{what} has no coordinate reference system", file=path)
+        try:
+            arr = ds.read(1, masked=True).astype(np.float64).filled(np.nan)
+        except RasterioError as exc:
+            raise RasterReadError(f"{path}: cannot read {what} ({exc})") from None
+        if ds.dtypes[0] == "int16":
+            arr[arr <= SRTM_VOID] = np.nan        # SRTM voids even without a nodata tag
+        arr[~np.isfinite(arr)] = np.nan
+        return arr, ds.crs, ds.transform
 
 
 def _auto_resampling(src, src_crs, src_transform, crs, transform) -> str:
@@ -108,7 +103,7 @@ def _auto_resampling(src, src_crs, src_transform, crs, transform) -> str:
 
 
 def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
-             resampling: str = "auto") -> DemGrid:
+             resampling: str = "auto", what: str = "DEM") -> DemGrid:
     """Read a DEM, optionally resampled onto a target grid and made ellipsoidal.
 
     Parameters
@@ -123,15 +118,15 @@ def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
         A ``rasterio.enums.Resampling`` name (``"bilinear"``, ``"average"``, ``"cubic"``...), or
         ``"auto"``: average when the source cells are finer than half the target cells (a
         2.5 m DSM onto a 90 m grid), bilinear otherwise.
+    what : str
+        What the file is, for messages (``"DSM"``, ``"reference"``...).
 
     Returns
     -------
     DemGrid
     """
     path = Path(path)
-    if not path.exists():
-        raise InputError("no such file", file=path)
-    src, src_crs, src_transform = _read_source(path)
+    src, src_crs, src_transform = _read_source(path, what)
     if crs is None and transform is None and shape is None:
         heights, out_crs, out_t = src, src_crs, src_transform
     elif crs is None or transform is None or shape is None:
@@ -146,7 +141,7 @@ def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
                       src_nodata=np.nan, dst_transform=out_t, dst_crs=out_crs, dst_nodata=np.nan,
                       resampling=Resampling[resampling])
         except (RasterioError, KeyError) as exc:
-            raise RasterReadError(f"{path}: cannot resample the DEM ({exc})") from None
+            raise RasterReadError(f"{path}: cannot resample {what} ({exc})") from None
     kind = "orthometric"
     if geoid is not None:
         if isinstance(geoid, (int, float)):
@@ -155,7 +150,24 @@ def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
             E, N = grid_coordinates(out_t, heights.shape)
             heights = to_ellipsoidal(heights, geoid, E, N, out_crs)
         kind = "ellipsoidal"
-    return DemGrid(heights, out_crs, out_t, kind)
+    return DemGrid(heights, out_crs, out_t, kind, str(path))
+
+
+def resample_to_grid(path, grid: DemGrid, *, resampling: str = "bilinear",
+                     what: str = "reference", dtype=np.float64, fill=np.nan) -> np.ndarray:
+    """Band 1 of raster ``path`` resampled onto ``grid`` (its transform, CRS and shape), the
+    file's nodata becoming ``fill``."""
+    with open_raster(path, what) as ds:
+        if ds.crs is None:
+            raise InputError(f"{what} has no coordinate reference system", file=path)
+        out = np.full(grid.shape, fill, dtype=dtype)
+        try:
+            reproject(source=ds.read(1), destination=out, src_transform=ds.transform,
+                      src_crs=ds.crs, src_nodata=ds.nodata, dst_transform=grid.transform,
+                      dst_crs=grid.crs, dst_nodata=fill, resampling=Resampling[resampling])
+        except Exception as exc:
+            raise RasterReadError(f"{path}: cannot resample {what} onto the DSM grid ({exc})") from None
+    return out
 
 
 def write_dem(path, heights, crs, transform) -> None:

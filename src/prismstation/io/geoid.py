@@ -116,3 +116,50 @@ def geoid_from_setting(setting: dict | None, base_dir=None, default: float = 0.0
         g = find_grid()
         return GridGeoid(g) if g else ConstantGeoid(float(setting.get("value", default)))
     raise InputError(f"unknown geoid setting {setting!r}")
+
+
+def to_ellipsoidal(H, geoid, E=None, N=None, crs=None) -> np.ndarray:
+    """Ellipsoidal heights ``h = H + Ngeoid`` (MODEL.md §1).
+
+    Parameters
+    ----------
+    H : array_like
+        Orthometric heights (metres), NaN allowed.
+    geoid : float or object with ``undulation(E, N, crs) -> array``
+        A constant undulation (metres) or a geoid model (e.g. ``io.geoid.GridGeoid``).
+    E, N : array_like, optional
+        Map coordinates of ``H`` (same shape) in ``crs``; needed for a geoid model.
+    crs : optional
+        CRS of ``E, N``.
+    """
+    H = np.asarray(H, float)
+    if isinstance(geoid, (int, float, np.floating, np.integer)):
+        return H + float(geoid)
+    if not hasattr(geoid, "undulation"):
+        raise TypeError("geoid must be a number or have an undulation(E, N, crs) method")
+    if E is None or N is None:
+        raise ValueError("a geoid model needs the map coordinates E, N of the heights")
+    return H + np.asarray(geoid.undulation(np.asarray(E, float), np.asarray(N, float), crs), float)
+
+
+def undulation_on_grid(geoid, grid, max_samples: int = 256) -> np.ndarray:
+    """Geoid undulation (m) at every cell centre of ``grid`` (an :class:`io.dem.DemGrid`): exact on a coarse lattice of at
+    most ``max_samples`` per axis, bilinear in between (geoids vary over kilometres)."""
+    rows, cols = grid.shape
+    exact = rows * cols <= max_samples ** 2 or rows < 2 or cols < 2
+    r = np.arange(rows) if exact else np.unique(np.linspace(0, rows - 1, max_samples).round())
+    c = np.arange(cols) if exact else np.unique(np.linspace(0, cols - 1, max_samples).round())
+    cc, rr = np.meshgrid(c + 0.5, r + 0.5)
+    t = grid.transform
+    e = t.c + cc * t.a + rr * t.b
+    n = t.f + cc * t.d + rr * t.e
+    u = np.asarray(geoid.undulation(e, n, grid.crs), float).reshape(cc.shape)
+    if exact:
+        return u
+    if np.all(u == u.flat[0]):                    # a constant geoid
+        return np.full(grid.shape, u.flat[0])
+    # separable bilinear interpolation in cell-index space: along columns, then along rows
+    along = np.stack([np.interp(np.arange(cols), c, row) for row in u])      # (len(r), cols)
+    i = np.clip(np.searchsorted(r, np.arange(rows), side="right") - 1, 0, len(r) - 2)
+    t = ((np.arange(rows) - r[i]) / (r[i + 1] - r[i]))[:, None]
+    return (1 - t) * along[i] + t * along[i + 1]

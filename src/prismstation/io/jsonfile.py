@@ -1,13 +1,54 @@
-"""JSON files with errors that name the file and the line, and atomic writes."""
+"""JSON files with errors that name the file and the line, and atomic writes.
+
+The one JSON writer: :func:`plain` makes a value JSON-safe (numpy → Python, tuples → lists,
+NaN and ±inf → ``null``), :func:`dumps` serialises it (never NaN: ``allow_nan=False`` after
+:func:`plain`), :func:`write_json` writes it atomically.
+"""
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 from prismstation.errors import InputError
+
+
+def plain(v):
+    """``v`` JSON-safe: numpy scalars and arrays → Python, tuples → lists, non-finite floats →
+    ``None``, dict keys → str, objects with ``to_dict()`` → that dict."""
+    if isinstance(v, dict):
+        return {str(k): plain(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [plain(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return plain(v.tolist())
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (np.floating, float)):
+        return float(v) if math.isfinite(v) else None
+    if isinstance(v, np.integer):
+        return int(v)
+    if hasattr(v, "to_dict"):
+        return plain(v.to_dict())
+    return v
+
+
+def dumps(obj, indent: int | None = None) -> str:
+    """JSON text of ``obj`` (through :func:`plain`: no NaN, no numpy), UTF-8 characters kept."""
+    return json.dumps(plain(obj), indent=indent, ensure_ascii=False, allow_nan=False)
+
+
+def write_json(path, obj, indent: int = 2, keep_backup: bool = False) -> None:
+    """Write ``obj`` as JSON atomically (:func:`dumps`); an unwritable path → InputError."""
+    try:
+        write_atomic(path, dumps(obj, indent) + "\n", keep_backup=keep_backup)
+    except OSError as exc:
+        raise InputError(f"cannot write: {exc.strerror or exc}", file=path) from None
 
 
 def read_json(path) -> tuple[dict, str]:

@@ -13,7 +13,6 @@ import io
 import math
 from pathlib import Path
 
-import numpy as np
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError, ProjError
 
@@ -175,17 +174,3 @@ def measurements_csv(measurements) -> str:
     for m in measurements:
         w.writerow([m.id, m.view, _fmt(m.x), _fmt(m.y), _fmt(m.sigma_px)])
     return buf.getvalue()
-
-
-def to_ellipsoidal(points, geoid, crs) -> np.ndarray:
-    """Ellipsoidal heights ``(n,)`` of ground points: ``h = H + N`` for orthometric ones."""
-    H = np.array([p.H for p in points], float)
-    ortho = np.array([p.height_kind == "orthometric" for p in points])
-    if ortho.any():
-        E = np.array([p.E for p in points], float)[ortho]
-        N = np.array([p.N for p in points], float)[ortho]
-        und = geoid.undulation(E, N, crs)
-        if not np.all(np.isfinite(und)):
-            raise InputError("the geoid grid does not cover every point with orthometric height")
-        H[ortho] = H[ortho] + und
-    return H

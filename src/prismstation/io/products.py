@@ -20,15 +20,16 @@ What comes from where:
 """
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
 import numpy as np
 
+from prismstation.core.scene import reference_view
 from prismstation.errors import InputError
 from prismstation.io import ceos
 from prismstation.io.jaxa_geotiff import find_summary, read_geotiff_view
+from prismstation.io.jsonfile import dumps
 
 SCENE_FORMAT = "prismstation-scene/1"
 
@@ -120,7 +121,7 @@ def scene_dict_from_views(views: dict, product: Path, kind: str) -> dict:
                          for k, v in views.items())
         raise InputError(f"the views are in different coordinate systems: {each}", product)
     crs = crss.pop()
-    ref = views.get("N") or next(iter(views.values()))
+    ref = views[reference_view(views)]
     sv = next((v.get("state_vectors") for v in views.values() if v.get("state_vectors")), None)
     track, alt, alt_src = None, None, None
     if sv is not None and ref["time"] is not None:
@@ -224,6 +225,6 @@ def write_scene_for_product(product, out_dir) -> Path:
             pass
     target = out_dir / "scene.json"
     tmp = out_dir / "scene.json.part"
-    tmp.write_text(json.dumps(scene, indent=2) + "\n", encoding="utf-8")
+    tmp.write_text(dumps(scene, indent=2) + "\n", encoding="utf-8")
     tmp.replace(target)
     return target

@@ -1,11 +1,12 @@
-"""``*.prismproj`` files (FORMATS.md): versioned JSON, saved atomically with a backup.
+"""``*.prismproj`` files (FORMATS.md): versioned JSON, saved atomically with a backup, and the
+geoid object of a project's geoid setting (:func:`project_geoid`).
 
-Also :func:`solve_project`, which turns the project's heights ellipsoidal through its geoid
-setting and fits the model.
+Top-level keys beside the points: ``dem_control`` (:attr:`Project.dem_control`),
+``relocated_images`` (:attr:`Project.relocations`), ``product`` (:attr:`Project.product`); keys
+this version does not know are kept in :attr:`Project.other` and written back.
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import asdict
@@ -14,11 +15,10 @@ from pathlib import Path
 
 from prismstation import __version__
 from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
-from prismstation.core.solve import Settings, Solution, solve
+from prismstation.core.solve import Settings
 from prismstation.errors import InputError
 from prismstation.io import geoid as geoid_mod
-from prismstation.io.jsonfile import line_of, read_json, write_atomic
-from prismstation.io.points import to_ellipsoidal
+from prismstation.io.jsonfile import dumps, line_of, read_json, write_atomic
 from prismstation.io.scene import read_scene
 from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint, Measurement
 from prismstation.model.project import Project, has_ground
@@ -26,6 +26,9 @@ from prismstation.model.project import Project, has_ground
 FORMAT_NAME = "prismstation-project"
 VERSION = 1
 SUFFIX = ".prismproj"
+DEM_CONTROL, RELOCATED, PRODUCT = "dem_control", "relocated_images", "product"
+_KNOWN = {"format", "saved_by", "scene", "settings", "geoid", "points", "measurements",
+          DEM_CONTROL, RELOCATED, PRODUCT, "recovery"}  # "recovery": the journal's own note
 
 
 def _num(v):
@@ -57,14 +60,16 @@ def project_to_dict(project: Project, path) -> dict:
             {"id": m.id, "view": m.view, "x": m.x, "y": m.y,
              **({"sigma_px": m.sigma_px} if m.sigma_px is not None else {})}
             for m in project.measurements.values()],
-        **project.extra,
+        **({DEM_CONTROL: project.dem_control} if project.dem_control is not None else {}),
+        **({RELOCATED: dict(project.relocations)} if project.relocations else {}),
+        **({PRODUCT: project.product} if project.product is not None else {}),
+        **{k: v for k, v in project.other.items() if k not in _KNOWN},
     }
 
 
 def save_project(project: Project, path) -> None:
     """Save atomically (temporary file, fsync, rename), keeping the previous version as ``.bak``."""
-    text = json.dumps(project_to_dict(project, path), indent=1, ensure_ascii=False) + "\n"
-    write_atomic(path, text)
+    write_atomic(path, dumps(project_to_dict(project, path), indent=1) + "\n")
 
 
 def load_project(path, *, scene_override=None) -> Project:
@@ -99,7 +104,7 @@ def load_project(path, *, scene_override=None) -> Project:
                          path, line_of(text, "scene"))
     scene = read_scene(scene_path)
     settings = _settings(data.get("settings", {}), path, text)
-    project = Project(scene, str(scene_path), settings=settings, geoid=_geoid(data.get("geoid"), path, text))
+    geoid = _geoid(data.get("geoid"), path, text)
     points, measurements = [], []
     for i, d in enumerate(_list(data, "points", path, text)):
         where = f'"points"[{i}]'
@@ -134,14 +139,19 @@ def load_project(path, *, scene_override=None) -> Project:
             raise InputError(f'"measurements"[{i}]: malformed measurement ({exc})', path,
                              _line_of_id(text, d)) from None
         measurements.append(m)
+    control, reloc, product = data.get(DEM_CONTROL), data.get(RELOCATED), data.get(PRODUCT)
+    if control is not None and not (isinstance(control, dict) and isinstance(control.get("patches"), list)):
+        raise InputError(f'"{DEM_CONTROL}": expected an object with "patches"', path, line_of(text, DEM_CONTROL))
+    if reloc is not None and not (isinstance(reloc, dict) and all(isinstance(v, str) for v in reloc.values())):
+        raise InputError(f'"{RELOCATED}": expected an object view → path', path, line_of(text, RELOCATED))
+    if product is not None and not isinstance(product, str):
+        raise InputError(f'"{PRODUCT}": expected a folder path', path, line_of(text, PRODUCT))
     try:
-        project.load(points, measurements)
+        return Project(scene, str(scene_path), settings=settings, geoid=geoid, points=points,
+                       measurements=measurements, dem_control=control, relocations=reloc, product=product,
+                       other={k: v for k, v in data.items() if k not in _KNOWN})
     except InputError as exc:
         raise InputError(exc.problem, path) from None
-    known = {"format", "saved_by", "scene", "settings", "geoid", "points", "measurements"}
-    project.extra = {k: v for k, v in data.items() if k not in known}
-    project.revision = 0
-    return project
 
 
 def _number(v, minimum=None, strict=False) -> bool:
@@ -201,7 +211,7 @@ def _list(data, key, path, text) -> list:
 
 def _line_of_id(text, d):
     if isinstance(d, dict) and isinstance(d.get("id"), str):
-        i = text.find(json.dumps(d["id"]))
+        i = text.find(dumps(d["id"]))
         return text.count("\n", 0, i) + 1 if i >= 0 else None
     return None
 
@@ -227,21 +237,3 @@ def project_geoid(project: Project):
             raise InputError(f"geoid grid not found: {p}")
         return _grid(str(p))
     return geoid_mod.geoid_from_setting(s, base)
-
-
-def solve_project(project: Project, *, height_of=None) -> Solution:
-    """Fit the model to the project (heights made ellipsoidal through its geoid)."""
-    ground = [p for p in project.points.values() if has_ground(p)]
-    geoid = project_geoid(project) if any(p.height_kind == "orthometric" for p in ground) else None
-    hs = to_ellipsoidal(ground, geoid, project.scene.crs) if ground else []
-    h = {p.id: float(v) for p, v in zip(ground, hs)}
-    control = None
-    if project.settings.orientation == "dem":
-        record = project.extra.get("dem_control")
-        if record is None:
-            raise InputError("the project is set to orientation from a reference DEM but holds no "
-                             "DEM control: run orient-dem first")
-        from prismstation.io.orient_dem import control_from_record
-        control = control_from_record(project.scene, record)
-    return solve(project.scene, project.point_obs(h), project.settings,
-                 height_of=height_of, revision=project.revision, control=control)

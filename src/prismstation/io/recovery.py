@@ -19,7 +19,6 @@ brings back the journal of a saved project.
 """
 from __future__ import annotations
 
-import json
 import logging
 import os
 import threading
@@ -27,9 +26,9 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from prismstation.io.jsonfile import write_atomic
+from prismstation.io.jsonfile import dumps, write_atomic
 from prismstation.io.project import load_project, project_to_dict, save_project
-from prismstation.model.project import Project
+from prismstation.model.project import Change, Project
 
 SUFFIX = ".recovery"
 IDLE_S = 5.0  # the writer thread ends after this long without work (started again on demand)
@@ -88,10 +87,14 @@ class Journal:
         project.changed.connect(self._on_changed)
 
     # ------------------------------------------------------------------ journaling
-    def _on_changed(self, revision: int) -> None:
+    def _on_changed(self, change: Change) -> None:
+        self.journal(change.revision)
+
+    def journal(self, revision: int) -> None:
+        """Serialise the project (at ``revision``) and write it, or hand it to the writer thread."""
         doc = project_to_dict(self.project, self.path)
         doc["recovery"] = {"of": self.path.name, "revision": revision, "time": time.time()}
-        item = (self.path, json.dumps(doc, ensure_ascii=False), revision)
+        item = (self.path, dumps(doc), revision)
         if not self.background or self._stop:  # (after close: written here, not dropped)
             self.submitted += 1
             try:
@@ -192,6 +195,5 @@ def recover(project_path) -> Project:
     The returned project counts as modified (revision > 0) so that the user saves it.
     """
     project = load_project(recovery_path(project_path))
-    project.extra.pop("recovery", None)
-    project.revision = 1
+    project.mark_modified()
     return project

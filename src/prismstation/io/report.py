@@ -3,34 +3,14 @@ from __future__ import annotations
 
 import csv
 import io
-import json
-import math
 from pathlib import Path
 
-import numpy as np
 
 from prismstation import __version__
 from prismstation.core.solve import Solution
-from prismstation.io.jsonfile import write_atomic
+from prismstation.io.jsonfile import plain, write_atomic, write_json
 
 REPORT_FORMAT = "prismstation-report/1"
-
-
-def _clean(v):  # noqa: D401  (shared with io.orient_dem)
-    """JSON-safe: numpy → Python, NaN/inf → None, tuples → lists."""
-    if isinstance(v, dict):
-        return {str(k): _clean(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_clean(x) for x in v]
-    if isinstance(v, np.ndarray):
-        return _clean(v.tolist())
-    if isinstance(v, (np.floating, float)):
-        return float(v) if math.isfinite(v) else None
-    if isinstance(v, np.integer):
-        return int(v)
-    if hasattr(v, "to_dict"):
-        return _clean(v.to_dict())
-    return v
 
 
 def _bias_dict(fit) -> dict:
@@ -69,11 +49,7 @@ def report_dict(sol: Solution, *, project_path=None, geoid: str | None = None) -
            "crs": sol.scene.crs, "geoid": geoid, "settings": sol.settings.__dict__,
            "mean_height_m": sol.mean_height, "model": model, "statistics": stats,
            "points": points, "messages": list(sol.messages)}
-    return _clean(out)
-
-
-def write_json(report: dict, path) -> None:
-    write_atomic(path, json.dumps(report, indent=1, ensure_ascii=False) + "\n", keep_backup=False)
+    return plain(out)
 
 
 CSV_COLUMNS = ["id", "kind", "view", "x", "y", "x_pred", "y_pred", "vx_px", "vy_px",
@@ -106,7 +82,7 @@ def write_report(report: dict, path) -> None:
     path = Path(path)
     ext = path.suffix.lower()
     if ext == ".json":
-        write_json(report, path)
+        write_json(path, report, indent=1)
     elif ext == ".csv":
         write_atomic(path, report_csv(report), keep_backup=False)
     else:

@@ -1,6 +1,8 @@
 """Plain-text residual report laid out like the paper's Tables 1–3 (for the terminal)."""
 from __future__ import annotations
 
+from prismstation.core.scene import reference_view
+
 
 def _f(v, nd=2):
     return "—" if v is None else f"{v:+.{nd}f}" if isinstance(v, float) else str(v)
@@ -26,7 +28,7 @@ def format_report(r: dict) -> str:
                      f"   (theoretical c1 = {par['c1_theoretical']:.4f}; σ0 = {_f(par['sigma0_m'])} m)")
     lines.append("")
     st = r["statistics"]
-    ref = "N" if "N" in st["image"] else next(iter(st["image"]))
+    ref = reference_view(st["image"])
     rows = []
     for stat in ("n", "min", "max", "mean", "rms"):
         row = [stat]

@@ -1,14 +1,18 @@
-"""The project: one source of truth for points, measurements and settings.
+"""The project: one source of truth for points, measurements, settings and what the file records
+beside them (DEM control, relocated images, the product it was made from).
 
 Plain Python. Every edit goes through a method, bumps :attr:`Project.revision` and emits
-:attr:`Project.changed` (with the revision). Solving is separate (:meth:`point_obs` feeds
+:attr:`Project.changed` with a :class:`Change` naming what changed; edits inside
+``with project.batch():`` emit one merged :class:`Change` at the end. Only :class:`Project`
+changes its revision. Solving is separate (:meth:`point_obs` feeds
 :func:`prismstation.core.solve.solve`).
 """
 from __future__ import annotations
 
 import math
 from collections import defaultdict
-from dataclasses import replace
+from contextlib import contextmanager
+from dataclasses import dataclass, replace
 
 from prismstation.core.scene import Scene
 from prismstation.core.solve import PointObs, Settings
@@ -17,15 +21,46 @@ from prismstation.model.points import KINDS, GroundPoint, Measurement
 from prismstation.model.signal import Signal
 
 
+@dataclass(frozen=True)
+class Change:
+    """What one edit (or one batch of edits) changed, emitted with the new revision.
+
+    ``points``: ids of the points whose ground data, kind or measurements changed (added and
+    removed ones included); ``views``: views whose measurements changed; ``settings``,
+    ``geoid``, ``control`` (the DEM control record), ``files`` (relocated images, product):
+    whether those changed.
+    """
+
+    revision: int
+    points: frozenset = frozenset()
+    views: frozenset = frozenset()
+    settings: bool = False
+    geoid: bool = False
+    control: bool = False
+    files: bool = False
+
+    def merged(self, other: "Change") -> "Change":
+        """Both changes as one, at ``other``'s revision."""
+        return Change(other.revision, self.points | other.points, self.views | other.views,
+                      self.settings or other.settings, self.geoid or other.geoid,
+                      self.control or other.control, self.files or other.files)
+
+
 class Project:
     """Points (ordered by id of creation), measurements keyed ``(id, view)``, settings.
 
     ``geoid`` is the setting dict (``{"kind": "constant", "value": 55}``, ``{"kind": "grid",
     "path": ...}``); turning it into undulations is the io layer's job.
+    ``dem_control``: the record of an orientation from a reference DEM (``None``: none), as
+    :mod:`prismstation.ops.orient_dem` writes it. ``relocations``: view → image path used
+    instead of the scene's. ``product``: the JAXA product folder the project was made from.
+    ``other``: top-level keys of the project file this version does not know, written back
+    unchanged.
     """
 
     def __init__(self, scene: Scene, scene_path: str | None = None, *, settings: Settings = Settings(),
-                 geoid: dict | None = None):
+                 geoid: dict | None = None, points=(), measurements=(), dem_control: dict | None = None,
+                 relocations: dict | None = None, product: str | None = None, other: dict | None = None):
         self.scene = scene
         self.scene_path = scene_path
         self.settings = settings
@@ -33,14 +68,43 @@ class Project:
                                "value": scene.geoid_undulation_m if scene.geoid_undulation_m is not None else 0.0}
         self.points: dict[str, GroundPoint] = {}
         self.measurements: dict[tuple[str, str], Measurement] = {}
-        self.extra: dict = {}
+        self.dem_control = dem_control
+        self.relocations: dict[str, str] = dict(relocations or {})
+        self.product = product
+        self.other: dict = dict(other or {})
+        self._put_all(points, measurements)
         self.revision = 0
         self.changed = Signal()
+        self._depth = 0
+        self._pending: Change | None = None
 
     # ------------------------------------------------------------------ notifications
-    def _touch(self) -> None:
+    def _touch(self, points=(), views=(), **flags) -> None:
+        change = Change(self.revision + 1, frozenset(points), frozenset(views), **flags)
+        if self._depth:
+            self._pending = change if self._pending is None else self._pending.merged(change)
+            return
         self.revision += 1
-        self.changed.emit(self.revision)
+        self.changed.emit(change)
+
+    @contextmanager
+    def batch(self):
+        """Edits inside ``with project.batch():`` bump the revision once and emit one merged
+        :class:`Change` when the outermost batch ends (also when it ends by an exception,
+        for the edits made until then). Nothing is emitted if nothing changed."""
+        self._depth += 1
+        try:
+            yield self
+        finally:
+            self._depth -= 1
+            if not self._depth and self._pending is not None:
+                change, self._pending = self._pending, None
+                self.revision += 1
+                self.changed.emit(replace(change, revision=self.revision))
+
+    def mark_modified(self) -> None:
+        """Count as modified (a recovered project): a new revision, nothing named as changed."""
+        self._touch()
 
     # ------------------------------------------------------------------ points
     def add_point(self, point: GroundPoint) -> None:
@@ -49,7 +113,7 @@ class Project:
         if point.kind not in KINDS:
             raise InputError(f"point kind {point.kind!r} is not one of {', '.join(KINDS)}")
         self.points[point.id] = point
-        self._touch()
+        self._touch([point.id])
 
     def new_point_id(self, prefix: str = "P") -> str:
         i = len(self.points) + 1
@@ -66,7 +130,7 @@ class Project:
         """Remove a point and its measurements; returns both (for undo)."""
         point = self.points.pop(pid)
         ms = [self.measurements.pop(k) for k in [k for k in self.measurements if k[0] == pid]]
-        self._touch()
+        self._touch([pid], [m.view for m in ms])
         return point, ms
 
     def set_kind(self, pid: str, kind: str) -> str:
@@ -78,13 +142,13 @@ class Project:
         if kind != "TIE" and not has_ground(p):
             raise InputError(f"point {pid} has no ground coordinates: it can only be a tie point")
         self.points[pid] = replace(p, kind=kind)
-        self._touch()
+        self._touch([pid])
         return p.kind
 
     def replace_point(self, point: GroundPoint) -> GroundPoint:
         old = self.points[point.id]
         self.points[point.id] = point
-        self._touch()
+        self._touch([point.id])
         return old
 
     # ------------------------------------------------------------------ measurements
@@ -98,12 +162,12 @@ class Project:
             self.points[m.id] = GroundPoint(m.id, math.nan, math.nan, math.nan, kind="TIE")
         old = self.measurements.get((m.id, m.view))
         self.measurements[m.id, m.view] = m
-        self._touch()
+        self._touch([m.id], [m.view])
         return old
 
     def remove_measurement(self, pid: str, view: str) -> Measurement | None:
         old = self.measurements.pop((pid, view), None)
-        self._touch()
+        self._touch([pid], [view])
         return old
 
     def measurement(self, pid: str, view: str) -> Measurement | None:
@@ -112,6 +176,11 @@ class Project:
     # ------------------------------------------------------------------ bulk and settings
     def load(self, points, measurements) -> None:
         """Add many points and measurements with one notification (imports)."""
+        points, measurements = list(points), list(measurements)
+        self._put_all(points, measurements)
+        self._touch([p.id for p in points] + [m.id for m in measurements], [m.view for m in measurements])
+
+    def _put_all(self, points, measurements) -> None:
         for p in points:
             if p.id in self.points and has_ground(self.points[p.id]) and has_ground(p):
                 raise InputError(f"point {p.id!r} already exists")
@@ -122,16 +191,32 @@ class Project:
             if m.id not in self.points:
                 self.points[m.id] = GroundPoint(m.id, math.nan, math.nan, math.nan, kind="TIE")
             self.measurements[m.id, m.view] = m
-        self._touch()
 
     def set_settings(self, settings: Settings) -> Settings:
         old, self.settings = self.settings, settings
-        self._touch()
+        self._touch(settings=True)
         return old
 
     def set_geoid(self, geoid: dict) -> dict:
         old, self.geoid = self.geoid, dict(geoid)
-        self._touch()
+        self._touch(geoid=True)
+        return old
+
+    def set_dem_control(self, record: dict | None) -> dict | None:
+        """Set (or clear, with ``None``) the DEM control record; returns the previous one."""
+        old, self.dem_control = self.dem_control, record
+        self._touch(control=True)
+        return old
+
+    def set_relocations(self, relocations: dict) -> dict:
+        """View → image path used instead of the scene's; returns the previous mapping."""
+        old, self.relocations = self.relocations, dict(relocations)
+        self._touch(files=True)
+        return old
+
+    def set_product(self, product: str | None) -> str | None:
+        old, self.product = self.product, product
+        self._touch(files=True)
         return old
 
     # ------------------------------------------------------------------ for the solver

@@ -8,11 +8,14 @@ partial output behind.
 """
 from __future__ import annotations
 
+import os
+from contextlib import contextmanager
+from pathlib import Path
 from typing import Callable
 
 from prismstation.errors import Cancelled
 
-__all__ = ["Cancelled", "ProgressFn", "checkpoint", "scaled"]
+__all__ = ["Cancelled", "ProgressFn", "checkpoint", "partial_output", "scaled"]
 
 ProgressFn = Callable[..., "bool | None"]
 
@@ -28,3 +31,18 @@ def scaled(progress: ProgressFn | None, start: float, stop: float) -> ProgressFn
     if progress is None:
         return None
     return lambda f, message="": progress(start + (stop - start) * float(f), message)
+
+
+@contextmanager
+def partial_output(path):
+    """Write to a temporary path beside ``path``: renamed to ``path`` when the block ends
+    without error, removed otherwise (a cancelled or failed operation leaves no output file
+    and does not touch an existing one)."""
+    out = Path(path)
+    part = out.with_name(f".{out.name}.part")
+    try:
+        yield str(part)
+    except BaseException:
+        part.unlink(missing_ok=True)
+        raise
+    os.replace(part, out)

@@ -1,8 +1,8 @@
 """Tools ▸ Orient from reference DEM… : orientation with no GCP (issue 4 item 4, seed 003).
 
 The reference (SRTM ``.hgt`` or GeoTIFF, orthometric) is matched patch by patch in a worker
-(:func:`prismstation.io.orient_dem.orient_from_dem`) with a cancellable progress dialog. The
-result becomes the project's orientation in one undoable step (``project.extra["dem_control"]``
+(:func:`prismstation.ops.orient_dem.orient_from_dem`) with a cancellable progress dialog. The
+result becomes the project's orientation in one undoable step (``project.dem_control``
 plus ``Settings.orientation = "dem"``); the solver then reports it like a GCP orientation (model
 panel, ICP statistics, plots). A *Reference DEM patches* dock lists the patch shifts, and the
 shifts are drawn as exaggerated vectors on the N view. *Back to GCP orientation* is undoable too.
@@ -38,17 +38,15 @@ class SetDemOrientation(QUndoCommand):
     def __init__(self, project, record, orientation: str, text: str):
         super().__init__(text)
         self.project = project
-        self.old_record = project.extra.get("dem_control")
+        self.old_record = project.dem_control
         self.new_record = self.old_record if record is None else record
         self.old_settings = project.settings
         self.new_settings = replace(project.settings, orientation=orientation)
 
     def _apply(self, record, settings) -> None:
-        if record is None:
-            self.project.extra.pop("dem_control", None)
-        else:
-            self.project.extra["dem_control"] = record
-        self.project.set_settings(settings)  # emits changed: refit
+        with self.project.batch():  # one change event: one refit
+            self.project.set_dem_control(record)
+            self.project.set_settings(settings)
 
     def redo(self) -> None:
         self._apply(self.new_record, self.new_settings)
@@ -177,7 +175,7 @@ class DemOrientationTool:
     def start(self, reference_path, patch_m: float = 4000.0, posting_m: float = 30.0):
         """Orient the window's project from ``reference_path`` in a worker; returns the Job."""
         from prismstation.gui.solver import snapshot
-        from prismstation.io.orient_dem import orient_from_dem
+        from prismstation.ops.orient_dem import orient_from_dem
         project = self.w.project
         if project is None or (self.job is not None and self.job.isRunning()):
             return None
@@ -209,7 +207,7 @@ class DemOrientationTool:
     # ------------------------------------------------------------------ display
     def refresh(self) -> None:
         p = self.w.project
-        record = None if p is None else p.extra.get("dem_control")
+        record = None if p is None else p.dem_control
         active = p is not None and p.settings.orientation == "dem"
         self.a_orient.setEnabled(p is not None and p.scene.is_triplet)
         self.a_gcp.setEnabled(active)
@@ -230,9 +228,9 @@ class DemOrientationTool:
         self.scale = None
         p = self.w.project
         iv = self.w.views.views.get("N")
-        if p is None or iv is None or p.settings.orientation != "dem" or not p.extra.get("dem_control"):
+        if p is None or iv is None or p.settings.orientation != "dem" or not p.dem_control:
             return
-        patches = p.extra["dem_control"]["patches"]
+        patches = p.dem_control["patches"]
         if not patches:
             return
         lin = p.scene.views["N"].map_to_image.apply_linear

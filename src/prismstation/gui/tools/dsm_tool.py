@@ -122,7 +122,7 @@ class DsmTool:
         if sol is None or p is None:
             self.w.statusBar().showMessage("A DSM needs a fitted model", 8000)
             return None
-        record = p.extra.get("dem_control") if p.settings.orientation == "dem" else None
+        record = p.dem_control if p.settings.orientation == "dem" else None
         geoid = project_geoid(p) if req.orthometric else None
 
         def work(progress):

@@ -4,7 +4,7 @@
   the GCPs and of the ICPs of the current Solution (seed 004's Table 1), refreshed after every fit.
 - Tools ▸ Validate DSM…: a DSM against a reference DSM (any resolution / CRS, heights of one
   kind through a geoid, optional class mask) with
-  :func:`prismstation.io.dsm_validate.validate_dsm_files` in a worker; a "DSM validation" dock
+  :func:`prismstation.ops.validate.validate_dsm_files` in a worker; a "DSM validation" dock
   shows the statistics (overall and per class), the difference map over shaded relief, its
   histogram, and exports the numbers as JSON or CSV.
 """
@@ -106,7 +106,8 @@ class ResidualSDPanel(QWidget):
 def run_validation(dsm, reference, *, dsm_height="ellipsoidal", reference_height="ellipsoidal",
                    geoid=None, mask=None):
     """Worker body: ``(validation, info, difference (rows, cols) m, shaded relief [0, 1])``."""
-    from prismstation.io.dsm_validate import read_dem, validate_dsm_files
+    from prismstation.io.dem import read_dem
+    from prismstation.ops.validate import validate_dsm_files
 
     fd, tmp = tempfile.mkstemp(suffix=".tif", prefix="dsmdiff_")
     os.close(fd)
@@ -114,14 +115,14 @@ def run_validation(dsm, reference, *, dsm_height="ellipsoidal", reference_height
         val, info = validate_dsm_files(dsm, reference, dsm_height=dsm_height,
                                        reference_height=reference_height, geoid=geoid,
                                        mask_path=mask, diff_out=tmp)
-        diff = read_dem(tmp, "difference").heights
+        diff = read_dem(tmp, what="difference").heights
     finally:
         try:
             os.remove(tmp)
         except OSError:
             pass
     info.pop("difference_raster", None)
-    grid = read_dem(dsm, "DSM")
+    grid = read_dem(dsm, what="DSM")
     cell = float(np.sqrt(abs(grid.transform.a * grid.transform.e)))
     relief = hillshade(grid.heights, cell) if min(grid.shape) >= 2 else np.ones(grid.shape)
     return val, info, diff, relief
@@ -278,7 +279,7 @@ class DsmResultPanel(QWidget):
 
     def export(self, path, kind: str | None = None) -> None:
         """Write the statistics as JSON (with the inputs) or CSV (one row per cell set)."""
-        from prismstation.io.rectify_io import write_json
+        from prismstation.io.jsonfile import write_json
 
         kind = kind or ("csv" if str(path).lower().endswith(".csv") else "json")
         if kind == "json":

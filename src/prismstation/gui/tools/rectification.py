@@ -4,7 +4,7 @@ A "Transforms" dock shows, for the project's GCPs/ICPs in every view, the side-b
 the affine, projective and polynomial (1–3) image→map transforms (seed 002's Table 4.1: one
 row per transform, GCP and ICP RMSE per image) and the per-point residuals of the chosen
 transform; it refreshes after every edit. Tools ▸ Rectify… writes a GeoTIFF through the chosen
-transform with :func:`prismstation.io.rectify_io.rectify_raster` in a worker thread.
+transform with :func:`prismstation.ops.rectify.rectify_raster` in a worker thread.
 """
 from __future__ import annotations
 
@@ -226,7 +226,7 @@ class RectifyTool:
         """Rectify ``view`` through ``kind`` into ``out_path`` in a worker; returns the Job
         (result: the rectified raster's record), or None with a message when the transform
         cannot be fitted."""
-        from prismstation.io.rectify_io import rectify_raster
+        from prismstation.ops.rectify import rectify_raster
 
         w = self.window
         self.panel.refresh()

@@ -2,14 +2,14 @@
 
 *Automatic transfer* (Tools, checkable, on by default): when a point is placed in one view and is
 measured in no other, it is searched in the other views in a worker
-(:func:`prismstation.io.transfer.transfer`: along the parallax direction around the model's
+(:func:`prismstation.ops.transfer.transfer`: along the parallax direction around the model's
 prediction, NCC then least-squares matching). The candidates appear as green circles in those
 views and in the *Point transfer* dock with their NCC score and formal σ (pixels); the status
 bar says the same. Enter (or *Accept*) places them, one undoable step; a click in a view places
 the point there instead (that candidate is dropped); Esc (or *Reject*) drops them all.
 
 *Automatic tie points…*: a grid over the N image transferred to F and B, blunders rejected
-(:func:`prismstation.io.transfer.auto_tie_points`), added as new tie points in one undoable step.
+(:func:`prismstation.ops.transfer.auto_tie_points`), added as new tie points in one undoable step.
 """
 from __future__ import annotations
 
@@ -138,7 +138,8 @@ class TransferTool:
                 h = None
 
         def work(progress):
-            from prismstation.io.transfer import ImageWindows, transfer
+            from prismstation.io.windows import ImageWindows
+            from prismstation.ops.transfer import transfer
             with ImageWindows(scene) as im:
                 return transfer(sol, im, source, (x, y), h=h, h_range=150.0 if h is not None else 600.0)
 
@@ -240,10 +241,11 @@ class TransferTool:
             return None
 
         def work(progress):
-            from prismstation.io.transfer import ImageWindows, auto_tie_points
+            from prismstation.io.windows import ImageWindows
+            from prismstation.ops.transfer import auto_tie_points
             with ImageWindows(project.scene) as im:
                 return auto_tie_points(sol, im, grid=grid,
-                                       progress=lambda f: progress(f, f"point {int(f * grid * grid) + 1} of {grid * grid}"))
+                                       progress=progress)
 
         self.job = run_with_progress(self.w, "Automatic tie points", work,
                                      lambda ties: self._add_ties(project, ties))

@@ -9,12 +9,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import rasterio
-from rasterio.windows import Window
 
 from prismstation.core import prism
 from prismstation.core.matching import MatchResult, match_point
 from prismstation.core.solve import Solution
+from prismstation.io.windows import ImageWindows
+from prismstation.ops.progress import ProgressFn, checkpoint
 
 
 @dataclass(frozen=True)
@@ -32,32 +32,6 @@ class Transfer:
         return self.match.ok
 
 
-class ImageWindows:
-    """Window reads (float32) from the scene's images; one handle per view, this thread only."""
-
-    def __init__(self, scene):
-        self._ds = {v: rasterio.open(view.image) for v, view in scene.views.items() if view.image}
-
-    def read(self, view: str, cx: float, cy: float, half: int):
-        """Window of ``2·half`` px centred on ``(cx, cy)`` → ``(array, col0, row0)`` (clipped)."""
-        ds = self._ds[view]
-        c0, r0 = max(int(cx) - half, 0), max(int(cy) - half, 0)
-        c1, r1 = min(int(cx) + half, ds.width), min(int(cy) + half, ds.height)
-        if c1 - c0 < 8 or r1 - r0 < 8:
-            return None, c0, r0
-        return ds.read(1, window=Window(c0, r0, c1 - c0, r1 - r0)).astype(np.float32), c0, r0
-
-    def close(self):
-        for ds in self._ds.values():
-            ds.close()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-
 def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_range: float = 600.0,
              half_window: int = 12, min_score: float = 0.6) -> dict[str, Transfer]:
     """Find the point at ``xy`` of ``source`` in every other view.
@@ -70,7 +44,7 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     xy = np.asarray(xy, float)
     en = sol.image_to_ground(source, xy, h)
     t = prism.scene_track_dir(sc, en)
-    ref, rc0, rr0 = images.read(source, xy[0], xy[1], half_window + 8)
+    ref, rc0, rr0 = images.around(source, xy[0], xy[1], half_window + 8)
     out = {}
     for v, view in sc.views.items():
         if v == source or ref is None:
@@ -80,7 +54,7 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
         # pixels per metre of height along the search direction, relative to the source view
         k = abs(view.look_sign * view.tan_theta - sc.views[source].look_sign * sc.views[source].tan_theta)
         rng = 4.0 + k * h_range * np.hypot(*d)
-        win, c0, r0 = images.read(v, pred[0], pred[1], int(rng) + half_window + 12)
+        win, c0, r0 = images.around(v, pred[0], pred[1], int(rng) + half_window + 12)
         if win is None:
             continue
         m = match_point(ref, xy[0] - rc0, xy[1] - rr0, win, pred[0] - c0, pred[1] - r0, direction=d,
@@ -90,11 +64,12 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
 
 
 def auto_tie_points(sol: Solution, images: ImageWindows, *, grid: int = 8, margin: float = 0.05,
-                    h_range: float = 600.0, progress=None) -> list[dict]:
+                    h_range: float = 600.0, progress: ProgressFn | None = None) -> list[dict]:
     """Tie points on a ``grid × grid`` lattice of the N image, transferred to F and B.
 
     Returns ``[{"N": (x, y), "F": (x, y), "B": (x, y), "score": s}]`` for the points found in
-    all three views and consistent with the others: a point whose across-track F−N or B−N
+    all three views and consistent with the others (``progress`` per
+    :mod:`prismstation.ops.progress`; a cancel raises :class:`~prismstation.errors.Cancelled`): a point whose across-track F−N or B−N
     difference departs from the median by more than 3 NMAD (at least 1 px) is a blunder.
     """
     sc = sol.scene
@@ -102,8 +77,7 @@ def auto_tie_points(sol: Solution, images: ImageWindows, *, grid: int = 8, margi
     g = margin + (1 - 2 * margin) * (np.arange(grid) + 0.5) / grid
     found = []
     for k, (x, y) in enumerate((cx * cols, cy * rows) for cy in g for cx in g):
-        if progress is not None and progress(k / grid**2) is False:
-            break
+        checkpoint(progress, k / grid**2, f"point {k + 1} of {grid**2}")
         tr = transfer(sol, images, "N", (x, y), h_range=h_range)
         if all(v in tr and tr[v].ok for v in ("F", "B")):
             found.append({"N": (x, y), "F": (tr["F"].x, tr["F"].y), "B": (tr["B"].x, tr["B"].y),

@@ -1,0 +1,68 @@
+"""Window reads of a scene's images: one rasterio handle per view, opened for one thread.
+
+Image pixels ``(x, y)`` = (column, row), origin at the top-left corner of the top-left pixel
+(MODEL.md §1). A window is returned with the image pixel ``(col0, row0)`` of its own top-left
+corner; :func:`shift` and :func:`scaling` build the affine maps between window, decimated and
+image pixels.
+"""
+from __future__ import annotations
+
+import numpy as np
+import rasterio
+from rasterio.windows import Window
+
+from prismstation.core.affine import Affine2D
+from prismstation.errors import RasterReadError
+
+
+class ImageWindows:
+    """Float32 windows of band 1 of every view with an image (``with ImageWindows(scene) as w:``).
+
+    The handles belong to the thread that opened them: open one per worker.
+    """
+
+    def __init__(self, scene):
+        self._ds = {}
+        try:
+            for v, view in scene.views.items():
+                if view.image:
+                    self._ds[v] = rasterio.open(view.image)
+        except rasterio.errors.RasterioIOError as exc:
+            self.close()
+            raise RasterReadError(f"cannot open the image of view {v} ({exc})") from None
+
+    def read(self, view: str, c0: float, r0: float, w: float, h: float, min_px: int = 1):
+        """Pixels ``[c0, c0 + w) × [r0, r0 + h)`` clipped to the image → ``(array, col0, row0)``;
+        ``(None, col0, row0)`` when fewer than ``min_px`` columns or rows remain."""
+        ds = self._ds[view]
+        a0, b0 = max(int(np.floor(c0)), 0), max(int(np.floor(r0)), 0)
+        a1, b1 = min(int(np.ceil(c0 + w)), ds.width), min(int(np.ceil(r0 + h)), ds.height)
+        if a1 - a0 < min_px or b1 - b0 < min_px:
+            return None, a0, b0
+        return ds.read(1, window=Window(a0, b0, a1 - a0, b1 - b0)).astype(np.float32), a0, b0
+
+    def around(self, view: str, cx: float, cy: float, half: int):
+        """Window of ``2·half`` px around ``(int(cx), int(cy))``, clipped; ``None`` when fewer
+        than 8 columns or rows remain."""
+        return self.read(view, int(cx) - half, int(cy) - half, 2 * half, 2 * half, min_px=8)
+
+    def close(self) -> None:
+        for ds in self._ds.values():
+            ds.close()
+        self._ds = {}
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def shift(c0: float, r0: float) -> Affine2D:
+    """Window pixels → image pixels of a window whose top-left corner is image pixel ``(c0, r0)``."""
+    return Affine2D([[1, 0, c0], [0, 1, r0]])
+
+
+def scaling(f: float) -> Affine2D:
+    """Pixels of an image decimated by ``f`` → pixels of the full image (``x·f``)."""
+    return Affine2D([[f, 0, 0], [0, f, 0]])

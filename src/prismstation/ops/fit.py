@@ -1,0 +1,57 @@
+"""Fitting a project: its heights made ellipsoidal through its geoid setting, its DEM control
+(when the project is oriented from a reference DEM) rebuilt, then the model fitted
+(:func:`prismstation.core.solve.solve`)."""
+from __future__ import annotations
+
+import numpy as np
+
+from prismstation.core.solve import Solution, solve
+from prismstation.errors import InputError, ModelError
+from prismstation.io.geoid import to_ellipsoidal
+from prismstation.io.project import project_geoid
+from prismstation.io.report import report_dict
+from prismstation.model.project import Project, has_ground
+from prismstation.ops.orient_dem import control_from_record
+
+
+def ellipsoidal_heights(project: Project) -> dict[str, float]:
+    """Point id → ellipsoidal height (m) of every point with ground coordinates; orthometric
+    heights through the project's geoid, which must cover them."""
+    ground = [p for p in project.points.values() if has_ground(p)]
+    h = np.array([p.H for p in ground], float)
+    ortho = np.array([p.height_kind == "orthometric" for p in ground], bool)
+    if ortho.any():
+        E = np.array([p.E for p in ground], float)[ortho]
+        N = np.array([p.N for p in ground], float)[ortho]
+        h[ortho] = to_ellipsoidal(h[ortho], project_geoid(project), E, N, project.scene.crs)
+        if not np.all(np.isfinite(h)):
+            raise InputError("the geoid grid does not cover every point with orthometric height")
+    return {p.id: float(v) for p, v in zip(ground, h)}
+
+
+def solve_project(project: Project, *, height_of=None) -> Solution:
+    """Fit the model to the project (heights made ellipsoidal through its geoid).
+
+    ``height_of``: optional ``(n, 2)`` map metres → ``(n,)`` ellipsoidal metres, the height of
+    points without parallax (a reference DEM); default the mean height.
+    """
+    h = ellipsoidal_heights(project)
+    control = None
+    if project.settings.orientation == "dem":
+        if project.dem_control is None:
+            raise InputError("the project is set to orientation from a reference DEM but holds no "
+                             "DEM control: run orient-dem first")
+        control = control_from_record(project.scene, project.dem_control)
+    return solve(project.scene, project.point_obs(h), project.settings,
+                 height_of=height_of, revision=project.revision, control=control)
+
+
+def fit_report(project: Project, project_path=None, *, height_of=None) -> tuple[Solution, dict]:
+    """Fit ``project`` and build its residual report (:func:`prismstation.io.report.report_dict`);
+    a model that could not be fitted → :class:`ModelError` with the solver's messages. A project
+    oriented from a DEM is reported even when its GCP fit is not ok (it may have no GCP)."""
+    sol = solve_project(project, height_of=height_of)
+    if not sol.ok and project.settings.orientation != "dem":
+        raise ModelError("; ".join(sol.messages) or "the model could not be fitted")
+    geoid = project_geoid(project).describe() if project.geoid else None
+    return sol, report_dict(sol, project_path=project_path, geoid=geoid)

@@ -1,0 +1,65 @@
+"""Reference heights: a reference DEM (SRTM ``.hgt`` or GeoTIFF, any CRS) read through
+:func:`prismstation.io.dem.read_dem` onto a 30 m north-up grid in the scene CRS covering every
+view, made ellipsoidal through the project's geoid; :class:`DemHeights` samples it bilinearly
+(heights for the linked cursor and for points without parallax).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from rasterio.transform import from_origin
+from scipy import ndimage
+
+from prismstation.errors import InputError
+from prismstation.io.dem import read_dem
+from prismstation.io.project import project_geoid
+from prismstation.ops.progress import ProgressFn, checkpoint
+
+SPACING_M = 30.0
+MARGIN_M = 3000.0
+
+
+class DemHeights:
+    """Ellipsoidal heights of a :class:`~prismstation.io.dem.DemGrid` at map points.
+
+    Call with ``en`` ``(n, 2)`` map metres of the grid's CRS; returns ``(n,)`` metres, NaN
+    outside the grid or in voids (bilinear between pixel centres).
+    """
+
+    def __init__(self, grid, path=None):
+        self.grid = grid
+        self.path = path
+        self._inv = ~grid.transform
+
+    def __call__(self, en) -> np.ndarray:
+        en = np.asarray(en, dtype=float).reshape(-1, 2)
+        col, row = self._inv * (en[:, 0], en[:, 1])
+        return ndimage.map_coordinates(self.grid.heights, [np.asarray(row) - 0.5, np.asarray(col) - 0.5],
+                                       order=1, mode="constant", cval=np.nan, prefilter=False)
+
+
+def scene_grid(scene, spacing: float = SPACING_M, margin: float = MARGIN_M):
+    """``(transform, shape)`` of a north-up grid in the scene CRS covering every view's image."""
+    corners = []
+    for v in scene.views.values():
+        rows, cols = v.shape if v.shape else (20000, 20000)
+        px = np.array([[0, 0], [cols, 0], [0, rows], [cols, rows]], float)
+        corners.append(v.map_to_image.inverse()(px))
+    c = np.vstack(corners)
+    x0, y0 = c.min(axis=0) - margin
+    x1, y1 = c.max(axis=0) + margin
+    shape = (int(math.ceil((y1 - y0) / spacing)), int(math.ceil((x1 - x0) / spacing)))
+    return from_origin(x0, y1, spacing, spacing), shape
+
+
+def load_for_scene(path, project, progress: ProgressFn | None = None) -> DemHeights:
+    """Read the DEM at ``path`` onto the scene's grid (:func:`scene_grid`), ellipsoidal through
+    the project's geoid."""
+    transform, shape = scene_grid(project.scene)
+    checkpoint(progress, 0.0, "reading the DEM")
+    grid = read_dem(path, project.scene.crs, transform, shape, geoid=project_geoid(project))
+    if not np.isfinite(grid.heights).any():
+        raise InputError("the DEM does not cover the scene", file=path)
+    checkpoint(progress, 1.0, "done")
+    return DemHeights(grid, path)
