@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from prismstation.cli.new import create
-from prismstation.io.project import solve_project
 from prismstation.io.report import report_dict
+from prismstation.ops.fit import solve_project
 from prismstation.sim import simulate
 
 CASES = {"1B2-R descending": {}, "1B2-R ascending": {"ascending": True},

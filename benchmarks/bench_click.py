@@ -55,7 +55,8 @@ def main(argv=None) -> int:
     demo = make_project(tmp, n_gcp=n_gcp, n_icp=args.points - n_gcp, size=args.size, p=20.0, seed=9)
     # the machine's speed now: the same fit outside any window (this VM: ~4 ms; ~7 ms in the
     # spells when its CPUs run 1.5-1.7x slower, and then every figure below scales with it)
-    from prismstation.io.project import load_project, solve_project
+    from prismstation.io.project import load_project
+    from prismstation.ops.fit import solve_project
     ref = load_project(demo.path)
 
     def speed() -> float:

@@ -15,8 +15,8 @@ import rasterio
 
 from prismstation.core.deblock import blockiness, deblock
 from prismstation.core.rectify import KINDS, fit_transform, n_params
-from prismstation.io.dsm_validate import validate_dsm_files
-from prismstation.io.rectify_io import rectify_raster
+from prismstation.ops.validate import validate_dsm_files
+from prismstation.ops.rectify import rectify_raster
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 

@@ -1,4 +1,4 @@
-"""Time of one fit of a project: ``prismstation.io.project.solve_project`` (the refit after
+"""Time of one fit of a project: ``prismstation.ops.fit.solve_project`` (the refit after
 each click of the operator in the workstation window).
 
 Triplet projects made by ``tests/gui/project_factory.make_project`` (no images) with 10 % GCPs
@@ -44,7 +44,8 @@ def main(argv=None) -> int:
     ap.add_argument("--points", type=int, nargs="+", default=[50, 200, 1000])
     args = ap.parse_args(argv)
 
-    from prismstation.io.project import load_project, solve_project
+    from prismstation.io.project import load_project
+    from prismstation.ops.fit import solve_project
     from tests.gui.project_factory import make_project
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-solve-"))

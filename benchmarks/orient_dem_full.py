@@ -19,7 +19,7 @@ import numpy as np
 
 from prismstation.cli.new import create
 from prismstation.core.solve import solve
-from prismstation.io.orient_dem import orient_from_dem
+from prismstation.ops.orient_dem import orient_from_dem
 from prismstation.sim import simulate
 from prismstation.sim.reference import make_reference_dem
 

@@ -125,6 +125,13 @@ def test_progress_reports_and_cancels(tmp_path):
         rectify_raster(tmp_path / "img.tif", t, tmp_path / "b.tif", points_crs=CRS, resolution=5,
                        block=64, progress=lambda f, m="": f < 0.3)
     assert not (tmp_path / "b.tif").exists()
+    before = (tmp_path / "a.tif").read_bytes()
+    with pytest.raises(Cancelled):                  # a cancelled run leaves an existing file alone
+        rectify_raster(tmp_path / "img.tif", t, tmp_path / "a.tif", points_crs=CRS, resolution=5,
+                       block=64, progress=lambda f, m="": f < 0.3)
+    assert (tmp_path / "a.tif").read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir() if p.suffix != "" and p.name != "settings") == \
+        ["a.tif", "img.tif"]
 
 
 def _csvs(tmp_path, src, dst, icp=()):

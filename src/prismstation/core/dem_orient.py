@@ -1,6 +1,6 @@
 """Orientation without GCPs from a reference DEM (seed 003, MODEL.md §3) — the pure parts.
 
-The workflow (``prismstation.io.orient_dem``) matches F and B densely in N space per patch,
+The workflow (``prismstation.ops.orient_dem``) matches F and B densely in N space per patch,
 turns parallax into a *relative DEM* placed on the map by the ancillary model, and finds the
 3-D shift ``(dE, dN, dh)`` laying each patch on the reference DEM. This module turns those
 shifts into the sensor model: the shifts are modelled as an affine function of the patch

@@ -1,0 +1,89 @@
+"""Change events of the project: what each edit names, batches that emit once, and only the
+project bumping its revision."""
+import math
+from dataclasses import replace
+
+import pytest
+
+from prismstation.core.solve import Settings
+from prismstation.errors import InputError
+from prismstation.model.points import GroundPoint, Measurement
+from prismstation.model.project import Change, Project
+from tests.core.synth import make_scene
+
+
+@pytest.fixture
+def project():
+    p = Project(make_scene(size=2000))
+    p.events = []
+    p.changed.connect(p.events.append)
+    return p
+
+
+def test_each_edit_names_the_points_and_views_it_touched(project):
+    project.add_point(GroundPoint("A", 1.0, 2.0, 3.0))
+    project.set_measurement(Measurement("A", "N", 10.0, 20.0))
+    project.set_measurement(Measurement("T1", "F", 5.0, 6.0))    # a new tie point
+    project.set_kind("A", "ICP")
+    project.remove_measurement("A", "N")
+    project.set_settings(replace(project.settings, sigma_px=0.7))
+    project.set_geoid({"kind": "constant", "value": 50.0})
+    project.set_dem_control({"patches": []})
+    project.set_relocations({"N": "/elsewhere/N.tif"})
+    e = project.events
+    assert [c.revision for c in e] == list(range(1, 10)) and project.revision == 9
+    assert e[0] == Change(1, frozenset({"A"}))
+    assert e[1] == Change(2, frozenset({"A"}), frozenset({"N"}))
+    assert e[2].points == {"T1"} and e[2].views == {"F"} and project.points["T1"].kind == "TIE"
+    assert e[3].points == {"A"} and not e[3].views
+    assert e[4] == Change(5, frozenset({"A"}), frozenset({"N"}))
+    assert e[5] == Change(6, settings=True)
+    assert e[6] == Change(7, geoid=True)
+    assert e[7] == Change(8, control=True) and project.dem_control == {"patches": []}
+    assert e[8] == Change(9, files=True) and project.relocations == {"N": "/elsewhere/N.tif"}
+
+
+def test_removing_a_point_names_the_views_it_was_measured_in(project):
+    project.load([GroundPoint("A", 1.0, 2.0, 3.0)],
+                 [Measurement("A", "N", 1.0, 1.0), Measurement("A", "B", 2.0, 2.0)])
+    assert project.events[-1].points == {"A"} and project.events[-1].views == {"N", "B"}
+    project.remove_point("A")
+    assert project.events[-1].points == {"A"} and project.events[-1].views == {"N", "B"}
+
+
+def test_a_batch_emits_one_merged_change_and_bumps_the_revision_once(project):
+    with project.batch():
+        project.add_point(GroundPoint("A", 1.0, 2.0, 3.0))
+        with project.batch():                                   # nested: still one event
+            project.set_measurement(Measurement("B", "F", 1.0, 1.0))
+            project.set_settings(replace(project.settings, sigma_px=2.0))
+        assert project.events == [] and project.revision == 0
+    assert project.events == [Change(1, frozenset({"A", "B"}), frozenset({"F"}), settings=True)]
+    assert project.revision == 1
+    with project.batch():
+        pass                                                    # nothing changed: no event
+    assert len(project.events) == 1 and project.revision == 1
+
+
+def test_a_batch_ended_by_an_error_still_reports_what_was_done(project):
+    project.add_point(GroundPoint("A", 1.0, 2.0, 3.0))
+    with pytest.raises(InputError):
+        with project.batch():
+            project.set_measurement(Measurement("A", "N", 1.0, 1.0))
+            project.add_point(GroundPoint("A", 1.0, 2.0, 3.0))  # exists: refused
+    assert project.events[-1] == Change(2, frozenset({"A"}), frozenset({"N"}))
+    assert project.measurement("A", "N") is not None
+
+
+def test_a_new_project_with_content_is_at_revision_zero_and_refuses_bad_measurements():
+    sc = make_scene(size=2000)
+    p = Project(sc, points=[GroundPoint("A", 1.0, 2.0, 3.0)],
+                measurements=[Measurement("A", "N", 1.0, 2.0)], product="/data/prod")
+    assert p.revision == 0 and p.measurement("A", "N").x == 1.0 and p.product == "/data/prod"
+    with pytest.raises(InputError, match="view 'X'"):
+        Project(sc, measurements=[Measurement("A", "X", 1.0, 2.0)])
+    events = []
+    p.changed.connect(events.append)
+    p.mark_modified()
+    assert p.revision == 1 and events == [Change(1)]
+    assert not math.isnan(p.points["A"].E) and p.settings == Settings()
