@@ -80,6 +80,17 @@ def test_delete_kind_settings_import_round_trip(project):
     assert project.points["I1"].E == 540111.0 and "G1" not in project.points
 
 
+def test_an_import_and_its_undo_each_emit_one_change_naming_every_point(project):
+    stack, events = QUndoStack(), []
+    project.changed.connect(events.append)
+    new_pts = [GroundPoint("G2", 540200.0, 4560200.0, 700.0), GroundPoint("I1", 540111.0, 4560111.0, 610.0, kind="ICP")]
+    new_ms = [Measurement("G2", "N", 1.0, 1.0), Measurement("T9", "B", 2.0, 2.0)]
+    stack.push(cmd.Import(project, new_pts, new_ms))
+    stack.undo()
+    assert [(e.points, e.views) for e in events] == [({"G2", "I1", "T9"}, {"N", "B"})] * 2
+    assert [e.revision for e in events] == [project.revision - 1, project.revision]
+
+
 def test_a_tie_point_cannot_become_a_gcp(project):
     t = project.add_tie()
     with pytest.raises(InputError, match="tie point"):

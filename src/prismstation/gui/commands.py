@@ -150,25 +150,27 @@ class Import(QUndoCommand):
 
     def redo(self) -> None:
         p = self.project
-        for pt in self.points:  # replaced points first: load refuses to overwrite ground points
-            if self.old_points.get(pt.id) is not None:
-                p.replace_point(pt)
-        p.load([pt for pt in self.points if self.old_points.get(pt.id) is None], self.ms)
+        with p.batch():  # one change event for the whole import
+            for pt in self.points:  # replaced points first: load refuses to overwrite ground points
+                if self.old_points.get(pt.id) is not None:
+                    p.replace_point(pt)
+            p.load([pt for pt in self.points if self.old_points.get(pt.id) is None], self.ms)
 
     def undo(self) -> None:
         p = self.project
-        for (pid, view), old in self.old_ms.items():
-            if old is None:
-                if (pid, view) in p.measurements:
-                    p.remove_measurement(pid, view)
-            else:
-                p.set_measurement(old)
-        for pid, old in self.old_points.items():
-            if old is None:
-                if pid in p.points:
-                    p.remove_point(pid)
-            else:
-                p.replace_point(old)
+        with p.batch():
+            for (pid, view), old in self.old_ms.items():
+                if old is None:
+                    if (pid, view) in p.measurements:
+                        p.remove_measurement(pid, view)
+                else:
+                    p.set_measurement(old)
+            for pid, old in self.old_points.items():
+                if old is None:
+                    if pid in p.points:
+                        p.remove_point(pid)
+                else:
+                    p.replace_point(old)
 
 
 def place_command(project, current: str | None, view: str, x: float, y: float) -> PlaceMeasurement:

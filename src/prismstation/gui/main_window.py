@@ -281,7 +281,7 @@ class MainWindow(QMainWindow):
         for i in range(self.contrast_tabs.count()):
             self.contrast_tabs.widget(i).refresh()
 
-    def _on_project_changed(self, revision) -> None:
+    def _on_project_changed(self, change) -> None:
         self._measured_timer.start()
 
     def _on_clean_changed(self, clean: bool) -> None:
