@@ -1,10 +1,12 @@
 """Every operation of ops/ reports progress through the one protocol, and a cancel (the
 progress callable returning False) raises Cancelled and leaves no output file."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from prismstation.cli import main
-from prismstation.errors import Cancelled
+from prismstation.errors import Cancelled, InputError
 from prismstation.io.dem import read_dem, write_dem
 from prismstation.io.project import load_project
 from prismstation.io.windows import ImageWindows
@@ -116,3 +118,12 @@ def test_reference_heights_cover_the_scene_and_cancel(triplet):
     assert np.isfinite(heights(centre)).all()
     with pytest.raises(Cancelled):
         load_for_scene(triplet / "srtm.tif", project, progress=Recorder(stop_at=0.0))
+
+
+def test_a_malformed_dem_control_record_is_an_input_error(triplet):
+    project = load_project(triplet / "p.prismproj")
+    with project.batch():
+        project.set_dem_control({"patches": [{"window": [0, 0, 1, 1]}], "mean_height": 0.0})
+        project.set_settings(replace(project.settings, orientation="dem"))
+    with pytest.raises(InputError, match="dem_control"):
+        solve_project(project)

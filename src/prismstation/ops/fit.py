@@ -41,7 +41,11 @@ def solve_project(project: Project, *, height_of=None) -> Solution:
         if project.dem_control is None:
             raise InputError("the project is set to orientation from a reference DEM but holds no "
                              "DEM control: run orient-dem first")
-        control = control_from_record(project.scene, project.dem_control)
+        try:
+            control = control_from_record(project.scene, project.dem_control)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f'the project\'s "dem_control" record is malformed ({exc!r}): run '
+                             "orient-dem again") from None
     return solve(project.scene, project.point_obs(h), project.settings,
                  height_of=height_of, revision=project.revision, control=control)
 
