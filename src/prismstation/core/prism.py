@@ -206,7 +206,8 @@ _MODEL_NEEDS = {"shift": "one GCP", "similarity": "two distinct GCPs",
 def fit_bias(xy0, xy, model: str, sigma=None, *, what: str = "bias") -> BiasFit:
     """Fit the bias model from ancillary positions ``xy0`` ``(n, 2)`` to measured ``xy`` ``(n, 2)``.
 
-    ``sigma`` (n,) a-priori σ of each measurement in pixels (default 1). Coordinates are
+    ``sigma`` (n,) or scalar: a-priori σ of each measurement in pixels (default 1; σ0 is then
+    in pixels, else unitless). Coordinates are
     centred and scaled before solving; parameters and covariance are returned published.
     Raises :class:`~prismstation.errors.DegenerateGeometry` when there are too few points,
     they coincide or (affine) lie on or nearly on one line — condition number of the
@@ -229,7 +230,7 @@ def fit_bias(xy0, xy, model: str, sigma=None, *, what: str = "bias") -> BiasFit:
                "lie on one line" if not k < SINGULAR else "lie nearly on one line")
         raise degenerate(f"{what}: the GCPs {lie} (condition number {k:.3g} > {MAX_CONDITION:.0f}); "
                          f"the {model} model needs {_MODEL_NEEDS[model]}", k)
-    sig = None if sigma is None else np.repeat(np.asarray(sigma, float), 2)
+    sig = None if sigma is None else np.repeat(np.broadcast_to(np.asarray(sigma, float), len(xy0)), 2)
     res = lsq.solve(A, (xy - xy0).ravel(), sig, what=f"{what} ({model})")
     c, s = norm.centre, norm.scale
 

@@ -48,8 +48,9 @@ class ShiftField:
 
     @property
     def dof(self) -> int:
-        """Redundancy ``n − 3`` per component."""
-        return len(self.fit_residuals) - 3
+        """Redundancy ``k·(n − 3)`` of the whole fit (each component's σ0 has ``n − 3``)."""
+        n, k = self.fit_residuals.shape
+        return k * (n - 3)
 
     def predict(self, x, y) -> np.ndarray:
         """Modelled shifts at positions ``x, y`` (arrays of one shape) → shape (..., k)."""

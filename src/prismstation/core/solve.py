@@ -146,6 +146,7 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
 
     # 1. bias per view, fitted on the GCPs measured in it
     bias: dict[str, BiasFit] = {}
+    ref = "N" if "N" in scene.views else next(iter(scene.views))
     for name, view in scene.views.items():
         sel = [p for p in gcps if name in p.image]
         fit = BiasFit.identity()
@@ -157,13 +158,13 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
             sig = [p.sigma_px.get(name, settings.sigma_px) for p in sel]
             ladder = [m for m in prism.BIAS_MODELS if prism.BIAS_MODELS[m] <= prism.BIAS_MODELS[model]]
             for m in reversed(ladder):  # N follows the setting; F, B may step down for prediction
-                try:
-                    fit = prism.fit_bias(xy0, xy, m, sig, what=f"view {name}")
+                result = BiasFit.fit(xy0, xy, m, sig, what=f"view {name}")
+                if result:
+                    fit = result
                     break
-                except ModelError as exc:
-                    if name == "N" or name == next(iter(scene.views)):
-                        messages.append(str(exc))
-                        break
+                if name == ref:
+                    messages.append(result.reason)
+                    break
         elif name in ("N",) or len(scene.views) == 1:
             messages.append(f"view {name}: no GCP measured; the ancillary model is used without bias correction")
         bias[name] = fit
