@@ -17,7 +17,7 @@ import numpy as np
 from prismstation.core import prism
 from prismstation.core.prism import BiasFit, ParallaxLine
 from prismstation.core.scene import Scene
-from prismstation.core.stats import ComponentStats, VectorStats
+from prismstation.core.stats import ComponentStats, FitStatistics, ImageStats, VectorStats
 from prismstation.errors import ModelError
 
 HeightFn = Callable[[np.ndarray], np.ndarray]  # (n, 2) map metres -> (n,) ellipsoidal metres
@@ -78,7 +78,7 @@ class Solution:
     bias: dict                    # view -> BiasFit (identity where it could not be fitted)
     parallax: ParallaxLine | None
     points: tuple
-    stats: dict
+    stats: FitStatistics
     messages: tuple
     mean_height: float
     revision: int = 0
@@ -369,26 +369,24 @@ def _adjustment_stats(gcps, bias, parallax, scene, settings) -> dict:
     return {pid: (s if math.isfinite(s) else None, red, pid == worst) for pid, (s, red, _) in w.items()}
 
 
-def _statistics(scene: Scene, results) -> dict:
+def _statistics(scene: Scene, results) -> FitStatistics:
     """Tables 1–3 of the paper and their extensions, for GCPs and ICPs."""
-    stats: dict = {"image": {}, "ground": {}, "height": {}}
-    ref = "N" if "N" in scene.views else next(iter(scene.views))
     by_kind = {kind: [r for r in results if r.kind == kind] for kind in ("GCP", "ICP")}
+    image, ground, height = {}, {}, {}
     for v, view in scene.views.items():
-        stats["image"][v] = {}
+        image[v] = {}
         for kind, rs in by_kind.items():
             px = VectorStats.of(_rows([r.residual_px[v] for r in rs if v in r.residual_px], 2))
-            stats["image"][v][kind] = {"px": px, "m": px.scaled(view.pixel_size_m)}
+            image[v][kind] = ImageStats(px, px.scaled(view.pixel_size_m))
     for kind, rs in by_kind.items():
         known = [r for r in rs if r.ground_residual is not None]
-        stats["ground"][kind] = VectorStats.of(_rows([r.ground_residual for r in known], 3)[:, :2])
-        stats["height"][kind] = ComponentStats.of([r.ground_residual[2] for r in known
-                                                   if r.height_source == "parallax"])
-    if scene.is_triplet:
-        for v in ("F", "B"):
-            stats[f"{v}-N"] = ComponentStats.of([r.across_px[v] for r in results if v in r.across_px])
-    stats["reference_view"] = ref
-    return stats
+        ground[kind] = VectorStats.of(_rows([r.ground_residual for r in known], 3)[:, :2])
+        height[kind] = ComponentStats.of([r.ground_residual[2] for r in known
+                                          if r.height_source == "parallax"])
+    across = ({v: ComponentStats.of([r.across_px[v] for r in results if v in r.across_px])
+               for v in ("F", "B")} if scene.is_triplet else {})
+    ref = "N" if "N" in scene.views else next(iter(scene.views))
+    return FitStatistics(image, ground, height, across, ref)
 
 
 def _rows(rows: list, width: int) -> np.ndarray:
