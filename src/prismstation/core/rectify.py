@@ -365,13 +365,12 @@ def compare_transforms(src, dst, is_check=None, kinds=KINDS) -> tuple[TransformR
     gcp = ~icp
     out = []
     for kind in kinds:
-        try:
-            t = fit_transform(kind, src[gcp], dst[gcp])
-        except ModelError as exc:
+        t = FittedTransform.fit(src[gcp], dst[gcp], kind)
+        if not t:
             nan = np.full(src.shape, np.nan)
             out.append(TransformReport(kind, n_params(kind), int(gcp.sum()), int(icp.sum()),
                                        None, nan, float("nan"), float("nan"),
-                                       (float("nan"),) * 2, (float("nan"),) * 2, str(exc)))
+                                       (float("nan"),) * 2, (float("nan"),) * 2, t.reason))
             continue
         v = t.residuals(src, dst)
         rg, rgxy = _rms(v[gcp])
