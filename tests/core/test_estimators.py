@@ -218,6 +218,8 @@ def test_solve_reports_nearly_collinear_gcps_with_the_condition_number():
     assert not sol.ok
     msg = " ".join(sol.messages)
     assert "nearly on one line" in msg and "condition number" in msg
+    fail = sol.failures["N"]
+    assert fail.degenerate and MAX_CONDITION < fail.condition < SINGULAR
     assert solve(sc, pts, Settings("similarity")).ok     # similarity needs no 2-D spread
 
 

@@ -71,7 +71,10 @@ class PointResult:
 
 @dataclass(frozen=True, eq=False)
 class Solution:
-    """An immutable fit: bias per view, parallax line, per-point results and statistics."""
+    """An immutable fit: bias per view, parallax line, per-point results and statistics.
+    ``failures`` holds the typed reason (a falsy
+    :class:`~prismstation.core.estimate.FailedFit`: ``degenerate``, ``condition``) when the
+    reference view's bias could not be fitted; ``messages`` says it in words."""
 
     scene: Scene
     settings: Settings
@@ -82,6 +85,7 @@ class Solution:
     messages: tuple
     mean_height: float
     revision: int = 0
+    failures: dict = field(default_factory=dict)  # view -> FailedFit of its bias (reference view)
 
     # ---- geometry through the current model (linked cursors, predictions)
     def ground_to_image(self, view: str, en, h) -> np.ndarray:
@@ -146,6 +150,7 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
 
     # 1. bias per view, fitted on the GCPs measured in it
     bias: dict[str, BiasFit] = {}
+    failures: dict = {}
     ref = "N" if "N" in scene.views else next(iter(scene.views))
     for name, view in scene.views.items():
         sel = [p for p in gcps if name in p.image]
@@ -164,6 +169,7 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
                     break
                 if name == ref:
                     messages.append(result.reason)
+                    failures[name] = result
                     break
         elif name in ("N",) or len(scene.views) == 1:
             messages.append(f"view {name}: no GCP measured; the ancillary model is used without bias correction")
@@ -188,7 +194,7 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
     results = _point_results(scene, points, bias, parallax, mean_h, height_of, settings, adjustment)
     stats = _statistics(scene, results)
     return Solution(scene, settings, bias, parallax, tuple(results), stats, tuple(messages),
-                    mean_h, revision)
+                    mean_h, revision, failures)
 
 
 def _parallax(scene: Scene, pts) -> np.ndarray:
