@@ -198,7 +198,7 @@ def test_shift_and_similarity_fit_collinear_points_but_not_coincident_ones():
 def test_threshold_sits_between_a_thin_strip_and_a_near_line():
     """A GCP strip a tenth of its length wide still fits (κ ≈ 10); 10 m across 30 km does not."""
     rng = np.random.default_rng(2)
-    wide, thin = _strip(10, 1500.0, rng), _strip(10, 10.0, rng)
+    wide, thin = _strip(10, 1500.0, rng), _strip(10, 5.0, rng)
     assert fit_transform("affine", wide, AFFINE(wide))
     with pytest.raises(DegenerateGeometry, match="nearly on one line"):
         fit_transform("affine", thin, AFFINE(thin))

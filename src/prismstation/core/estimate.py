@@ -3,11 +3,14 @@
 After scikit-image's geometric transforms (``from_estimate`` returning the transform or a
 falsy failure), with the statistics a photogrammetrist reads added:
 
-- ``T.fit(src, dst, sigma=None, **options)`` (class method) → the fitted, immutable
-  transform, or a :class:`FailedFit` (falsy) carrying the typed error and its reason — a GUI
-  calls it on every click and never needs a ``try``; ``fit_…`` functions raise instead;
-- ``t(xy)`` forward, ``t.inverse(xy)`` backward, points ``(n, 2)`` → ``(n, 2)``;
-- ``t.residuals(src, dst)`` observed − computed ``dst − t(src)``, ``(n, 2)``;
+- ``T.fit(src, dst, …)`` (class method; options: the model or kind, the σ of each ``dst``
+  point) → the fitted, immutable transform, or a :class:`FailedFit` (falsy) carrying the
+  typed error and its reason — a GUI calls it on every click and never needs a ``try``; the
+  ``fit_…`` functions raise instead. Implemented by ``Affine2D``, ``BiasFit``,
+  ``FittedTransform`` (rectification) and ``ShiftField``;
+- ``t(xy)`` forward, ``t.inverse(xy)`` backward, points ``(n, 2)`` → ``(n, 2)`` (``(n, k)``
+  shifts for a ``ShiftField``);
+- ``t.residuals(src, dst)`` observed − computed ``dst − t(src)``, shaped like ``dst``;
 - ``t.params`` in the transform's published form, ``t.cov`` their covariance (of
   ``params.ravel()``, a-posteriori ``σ0²·N⁻¹`` when there is redundancy), ``t.sigma0`` the
   a-posteriori σ of unit weight (None or NaN without redundancy), ``t.dof`` the redundancy
@@ -18,12 +21,12 @@ Degenerate geometry
 A fit whose design matrix, written in normalised coordinates (centred, one isotropic scale),
 has a condition number ``κ = s_max / s_min`` above :data:`MAX_CONDITION` raises
 :class:`~prismstation.errors.DegenerateGeometry` naming κ. For a model with an affine part, κ
-of ``[1, u, v]`` is the ratio of the points' spread along their longest axis to their spread
-across it (up to a factor ≈ 1.4): measurement noise across that axis is amplified ~κ times
-into the model within the points' own extent. κ = 1000 means the points lie in a strip a
-thousandth of their length wide — 10 px across a 10⁴ px image, i.e. within a few
-measurement σ (0.5–3 px) of a line: the direction across is given by the noise, not the
-points. A well-spread set has κ ≈ 1–3, a strip 1/10 of its length wide κ ≈ 10–15.
+of ``[1, u, v]`` is about the length of the strip holding the points divided by its width
+(measured: 10 points spread uniformly over a square κ ≈ 1.1–2; in a strip 1/10 of its length
+wide κ ≈ 7–16; 30 m wide across 30 km κ ≈ 650–1800; 2 m across 30 km κ ≈ 10⁴–2.5·10⁴). Noise
+across the strip is amplified ~κ times into the model within the points' own extent. κ = 1000
+means a strip 10 px wide across a 10⁴ px image — within a few measurement σ (0.5–3 px) of a
+line, so the direction across it is set by the noise, not by the points.
 """
 from __future__ import annotations
 
