@@ -5,17 +5,46 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from prismstation.core import lsq
+from prismstation.core.estimate import Normaliser, check_points, check_spread, failure_or, published_cov
+from prismstation.errors import ModelError
+
 
 @dataclass(frozen=True, eq=False)
 class Affine2D:
-    """``x' = a·x + b·y + c``, ``y' = d·x + e·y + f``, held as a 2×3 matrix ``[[a, b, c], [d, e, f]]``."""
+    """``x' = a·x + b·y + c``, ``y' = d·x + e·y + f``, held as a 2×3 matrix ``[[a, b, c], [d, e, f]]``.
+
+    An estimator (:mod:`prismstation.core.estimate`): :meth:`fit` from point pairs; a fitted
+    one has ``cov`` (6, 6) of :attr:`params` ``[a, b, c, d, e, f]``, ``sigma0`` and ``dof``
+    (None, None, 0 for an affine given rather than fitted).
+    """
 
     matrix: np.ndarray
+    cov: np.ndarray | None = None
+    sigma0: float | None = None
+    dof: int = 0
 
     def __post_init__(self):
         m = np.asarray(self.matrix, dtype=float).reshape(2, 3)
         m.setflags(write=False)
         object.__setattr__(self, "matrix", m)
+
+    @classmethod
+    def fit(cls, src, dst, sigma=None):
+        """Least-squares affine from ``src`` ``(n, 2)`` to ``dst`` ``(n, 2)`` (n ≥ 3, spread in two
+        directions); ``sigma`` (n,) a-priori σ of each ``dst`` point (its units; default 1, σ0
+        then in those units). Returns the :class:`Affine2D` or a falsy
+        :class:`~prismstation.core.estimate.FailedFit`."""
+        return failure_or(fit_affine, src, dst, sigma)
+
+    @property
+    def params(self) -> np.ndarray:
+        """``[a, b, c, d, e, f]`` (the matrix row by row)."""
+        return self.matrix.ravel()
+
+    def residuals(self, src, dst) -> np.ndarray:
+        """``(n, 2)`` observed − computed ``dst − self(src)``."""
+        return np.asarray(dst, float) - self(src)
 
     @classmethod
     def from_coeffs(cls, a1, a2, a3, a4, a5, a6) -> "Affine2D":
@@ -53,9 +82,12 @@ class Affine2D:
         """Apply only the linear part (to direction vectors)."""
         return np.asarray(vec, dtype=float) @ self.linear.T
 
-    def inverse(self) -> "Affine2D":
+    def inverse(self, pts=None):
+        """Without ``pts`` the inverse :class:`Affine2D`; with points ``(..., 2)`` their image
+        under it (the estimator protocol's ``inverse(xy)``)."""
         inv = np.linalg.inv(self.linear)
-        return Affine2D(np.column_stack([inv, -inv @ self.offset]))
+        back = Affine2D(np.column_stack([inv, -inv @ self.offset]))
+        return back if pts is None else back(pts)
 
     def __matmul__(self, other: "Affine2D") -> "Affine2D":
         """Composition: ``(self @ other)(p) == self(other(p))``."""
@@ -65,3 +97,30 @@ class Affine2D:
     def scale(self) -> float:
         """Mean linear scale ``sqrt(|det L|)``."""
         return float(np.sqrt(abs(np.linalg.det(self.linear))))
+
+
+def fit_affine(src, dst, sigma=None) -> Affine2D:
+    """:meth:`Affine2D.fit` raising :class:`~prismstation.errors.ModelError` (or
+    :class:`~prismstation.errors.DegenerateGeometry`) instead of returning a failure."""
+    src = np.asarray(src, float).reshape(-1, 2)
+    dst = np.asarray(dst, float).reshape(-1, 2)
+    n = len(src)
+    if len(dst) != n:
+        raise ModelError(f"affine: {n} source points but {len(dst)} destination points")
+    check_points(n, 3, "an affine transform")
+    ns, nd = Normaliser.of(src), Normaliser.of(dst)
+    u = ns.fwd(src)
+    check_spread(u, "affine transform")
+    A = np.zeros((2 * n, 6))
+    A[:n, :2], A[:n, 2] = u, 1
+    A[n:, 3:5], A[n:, 5] = u, 1
+    sig = np.ones(n) if sigma is None else np.broadcast_to(np.asarray(sigma, float), (n,))
+    res = lsq.solve(A, nd.fwd(dst).T.ravel(), np.tile(sig / nd.scale, 2), what="affine transform")
+
+    def publish(q):  # normalised [a', b', c', d', e', f'] → published (an affine map of q)
+        L = nd.scale / ns.scale * q.reshape(2, 3)[:, :2]
+        t = nd.scale * q.reshape(2, 3)[:, 2] - L @ ns.centre + nd.centre
+        return np.column_stack([L, t]).ravel()
+
+    p, cov = published_cov(publish, res.params, res.cov)
+    return Affine2D(p.reshape(2, 3), cov, res.sigma0, res.dof)

@@ -9,13 +9,14 @@ bias affine of every view and the parallax line's offset.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from prismstation.core import prism
 from prismstation.core.prism import BiasFit, ParallaxLine
 from prismstation.core.scene import Scene
+from prismstation.core.shift_field import ShiftField
 from prismstation.core.solve import Control
 
 
@@ -92,27 +93,21 @@ class PatchShift:
 
 
 def affine_field(patches: list[PatchShift]):
-    """Least-squares affine field ``shift(x, y) = p0 + p1·x + p2·y`` per component over the
-    used patches; fewer than 3 (or collinear) → a constant field (weighted mean)."""
+    """The :class:`~prismstation.core.shift_field.ShiftField` of ``(dE, dN, dh)`` over the
+    used patches (weights 1/σ², σ at least 0.1 m), as a callable ``(xx, yy) → (..., 3)``;
+    fewer than 3 patches, or patches (nearly) on one line → a constant field (weighted mean)."""
     use = [p for p in patches if p.used]
-    x = np.array([p.x for p in use]); y = np.array([p.y for p in use])
-    s = np.array([[p.dE, p.dN, p.dh] for p in use]).reshape(-1, 3)
-    sig = np.array([[max(p.sigma_E, 0.1), max(p.sigma_N, 0.1), max(p.sigma_h, 0.1)] for p in use]).reshape(-1, 3)
     if len(use) == 0:
         return lambda xx, yy: np.zeros(np.shape(xx) + (3,))
-    A = np.column_stack([np.ones(len(use)), x - x.mean(), y - y.mean()])
-    if len(use) < 3 or np.linalg.matrix_rank(A) < 3:
-        w = 1 / sig**2
-        mean = (s * w).sum(0) / w.sum(0)
-        return lambda xx, yy: np.broadcast_to(mean, np.shape(xx) + (3,)).copy()
-    params = []
-    for k in range(3):
-        wk = 1 / sig[:, k]
-        params.append(np.linalg.lstsq(A * wk[:, None], s[:, k] * wk, rcond=None)[0])
-    P = np.array(params)  # (3, 3)
-    xm, ym = x.mean(), y.mean()
-    return lambda xx, yy: (P[:, 0] + (np.asarray(xx, float) - xm)[..., None] * P[:, 1]
-                           + (np.asarray(yy, float) - ym)[..., None] * P[:, 2])
+    xy = np.array([[p.x, p.y] for p in use])
+    s = np.array([[p.dE, p.dN, p.dh] for p in use])
+    sig = np.array([[max(p.sigma_E, 0.1), max(p.sigma_N, 0.1), max(p.sigma_h, 0.1)] for p in use])
+    field = ShiftField.fit(xy, s, sig)
+    if field:
+        return field.predict
+    w = 1 / sig**2
+    mean = (s * w).sum(0) / w.sum(0)
+    return lambda xx, yy: np.broadcast_to(mean, np.shape(xx) + (3,)).copy()
 
 
 def reject_outlier_patches(patches: list[PatchShift], k: float = 3.0, floor_m: float = 2.0):
@@ -131,7 +126,6 @@ def reject_outlier_patches(patches: list[PatchShift], k: float = 3.0, floor_m: f
         if ratio[worst] <= k:
             break
         i = use[worst]
-        from dataclasses import replace
         patches[i] = replace(patches[i], used=False, reason="shift departs from the other patches' field")
     return patches
 
@@ -167,8 +161,9 @@ def control_from_shifts(scene: Scene, patches: list[PatchShift], mean_height: fl
         truth0 = prism.ground_to_ancillary(scene, view, en_true, h_true)
         fit = prism.fit_bias(truth0, measured, bias_model, what=f"view {name} (DEM control)")
         # fitted to exact virtual points: its σ0 and σ would be ~0 and say nothing; leave them out
-        bias[name] = BiasFit(fit.model, fit.M, fit.b, fit.params, np.full(len(fit.params), np.nan),
-                             fit.names, None)
+        u = len(fit.params)
+        bias[name] = BiasFit(fit.model, fit.M, fit.b, fit.params, np.full(u, np.nan),
+                             fit.names, None, np.full((u, u), np.nan))
     c1 = prism.theoretical_c1(scene)
     dh = s[:, 2]
     t = prism.along_track_unit(scene, en_anc).mean(0)

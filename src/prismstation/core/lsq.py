@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from prismstation.core.estimate import degenerate
 from prismstation.errors import ModelError
 
 
@@ -38,14 +39,17 @@ class LsqResult:
 def solve(A, l, sigma=None, *, what: str = "parameters", rcond: float = 1e-10) -> LsqResult:
     """Solve ``A·x ≈ l`` (``A`` ``(n, u)``, ``l`` ``(n,)``) weighted by ``1/sigma²``.
 
-    Raises :class:`ModelError` with ``what`` in the message when ``n < u`` or the normal
-    matrix is singular (e.g. collinear points); columns should be normalised by the caller.
+    Raises :class:`~prismstation.errors.DegenerateGeometry` (a :class:`ModelError`) with
+    ``what`` in the message when ``n < u`` or ``Aw`` is singular to ``rcond`` (e.g. collinear
+    points), :class:`ModelError` for non-finite input. Columns should be normalised by the
+    caller, who also judges conditioning short of singular
+    (:func:`prismstation.core.estimate.check_spread`).
     """
     A = np.asarray(A, dtype=float)
     l = np.asarray(l, dtype=float)
     n, u = A.shape
     if n < u:
-        raise ModelError(f"{what}: {u} unknowns need at least {u} observations, have {n}")
+        raise degenerate(f"{what}: {u} unknowns need at least {u} observations, have {n}")
     sig = np.ones(n) if sigma is None else np.broadcast_to(np.asarray(sigma, float), (n,))
     if not np.all(np.isfinite(A)) or not np.all(np.isfinite(l)) or np.any(~(sig > 0)):
         raise ModelError(f"{what}: observations contain non-finite values or σ ≤ 0")
@@ -54,7 +58,9 @@ def solve(A, l, sigma=None, *, what: str = "parameters", rcond: float = 1e-10) -
     # SVD-based solve: detect rank deficiency instead of failing deep in LAPACK
     U, s, Vt = np.linalg.svd(Aw, full_matrices=False)
     if s[-1] <= rcond * s[0]:
-        raise ModelError(f"{what}: the points do not determine the unknowns (collinear or coincident points)")
+        k = s[0] / s[-1] if s[-1] > 0 else float("inf")
+        raise degenerate(f"{what}: the points do not determine the unknowns (collinear or "
+                         f"coincident points; condition number {k:.3g})", k)
     x = Vt.T @ ((U.T @ lw) / s)
     Ninv = (Vt.T / s**2) @ Vt
     vw = lw - Aw @ x                     # weighted residuals

@@ -12,6 +12,8 @@ import numpy as np
 
 from prismstation.core import lsq
 from prismstation.core.affine import Affine2D
+from prismstation.core.estimate import (MAX_CONDITION, SINGULAR, Normaliser, check_points, condition_number,
+                                        degenerate, failure_or, published_cov)
 from prismstation.core.scene import Scene, View
 from prismstation.errors import ModelError
 
@@ -142,8 +144,11 @@ def _bias_matrix(model: str, p) -> tuple[np.ndarray, np.ndarray]:
 class BiasFit:
     """Bias compensation in image space: ``x = x0' + M·x0' + b`` (pixels; eq. 3).
 
-    ``params`` and ``std`` are in the published (un-normalised) form named by ``names``.
-    ``lsq`` holds the adjustment (residuals ordered x0, y0, x1, y1, …) or None.
+    An estimator (:mod:`prismstation.core.estimate`) from ancillary positions ``x0'`` to
+    measured ``x``: ``fit(xy0, xy, model, sigma)``, ``t(xy0)``, ``t.inverse(xy)``,
+    ``t.residuals(xy0, xy)``. ``params`` and ``std`` are in the published (un-normalised)
+    form named by ``names``, ``cov`` their covariance (None when not fitted). ``lsq`` holds the
+    adjustment (residuals ordered x0, y0, x1, y1, …) or None.
     """
 
     model: str
@@ -153,30 +158,61 @@ class BiasFit:
     std: np.ndarray
     names: tuple[str, ...]
     lsq: lsq.LsqResult | None = None
+    cov: np.ndarray | None = None
 
     @classmethod
     def identity(cls) -> "BiasFit":
-        return cls("none", np.zeros((2, 2)), np.zeros(2), np.zeros(0), np.zeros(0), ())
+        return cls("none", np.zeros((2, 2)), np.zeros(2), np.zeros(0), np.zeros(0), (),
+                   None, np.zeros((0, 0)))
+
+    @classmethod
+    def fit(cls, xy0, xy, model: str = "affine", sigma=None, *, what: str = "bias"):
+        """:func:`fit_bias`, returning a falsy :class:`~prismstation.core.estimate.FailedFit`
+        with the reason instead of raising."""
+        return failure_or(fit_bias, xy0, xy, model, sigma, what=what)
 
     def apply(self, xy0) -> np.ndarray:
+        """Ancillary positions ``(..., 2)`` → bias-corrected image positions (pixels)."""
         xy0 = np.asarray(xy0, dtype=float)
         return xy0 + xy0 @ self.M.T + self.b
 
+    __call__ = apply
+
     def invert(self, xy) -> np.ndarray:
+        """Image positions ``(..., 2)`` → ancillary positions (pixels)."""
         xy = np.asarray(xy, dtype=float)
         return (xy - self.b) @ np.linalg.inv(np.eye(2) + self.M).T
+
+    inverse = invert
+
+    def residuals(self, xy0, xy) -> np.ndarray:
+        """``(n, 2)`` observed − computed ``xy − self(xy0)`` (pixels)."""
+        return np.asarray(xy, float) - self.apply(xy0)
 
     @property
     def sigma0(self) -> float | None:
         return None if self.lsq is None else self.lsq.sigma0
 
+    @property
+    def dof(self) -> int:
+        """Redundancy ``2n − u`` of the fit (0 when not fitted)."""
+        return 0 if self.lsq is None else self.lsq.dof
+
+
+_MODEL_NEEDS = {"shift": "one GCP", "similarity": "two distinct GCPs",
+                "affine": "GCPs spread in two directions"}
+
 
 def fit_bias(xy0, xy, model: str, sigma=None, *, what: str = "bias") -> BiasFit:
     """Fit the bias model from ancillary positions ``xy0`` ``(n, 2)`` to measured ``xy`` ``(n, 2)``.
 
-    ``sigma`` (n,) a-priori σ of each measurement in pixels (default 1). Coordinates are
+    ``sigma`` (n,) or scalar: a-priori σ of each measurement in pixels (default 1; σ0 is then
+    in pixels, else unitless). Coordinates are
     centred and scaled before solving; parameters and covariance are returned published.
-    Raises :class:`ModelError` when there are too few points or they are collinear.
+    Raises :class:`~prismstation.errors.DegenerateGeometry` when there are too few points,
+    they coincide or (affine) lie on or nearly on one line — condition number of the
+    normalised design above :data:`~prismstation.core.estimate.MAX_CONDITION` — and
+    :class:`ModelError` for an unknown model.
     """
     if model not in BIAS_MODELS:
         raise ModelError(f"unknown bias model {model!r}; choose one of {', '.join(BIAS_MODELS)}")
@@ -184,20 +220,19 @@ def fit_bias(xy0, xy, model: str, sigma=None, *, what: str = "bias") -> BiasFit:
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     u = BIAS_MODELS[model]
     need = u // 2
-    if len(xy0) < need:
-        raise ModelError(f"{what}: the {model} model needs at least {need} GCP{'s' * (need > 1)} "
-                         f"measured in this view, have {len(xy0)}")
-    c = xy0.mean(axis=0)
-    s = max(float(np.abs(xy0 - c).max()), 1.0)
-    A = _bias_design(model, (xy0 - c) / s)
-    sig = None if sigma is None else np.repeat(np.asarray(sigma, float), 2)
-    try:
-        res = lsq.solve(A, (xy - xy0).ravel(), sig, what=f"{what} ({model})")
-    except ModelError as exc:
-        if "do not determine" in str(exc):
-            raise ModelError(f"{what}: the GCPs lie on one line; the {model} model needs them "
-                             f"spread in two directions") from None
-        raise
+    check_points(len(xy0), need, f"{what}: the {model} model",
+                 f"GCP{'s' * (need > 1)} measured in this view")
+    norm = Normaliser.of(xy0)
+    A = _bias_design(model, norm.fwd(xy0))
+    k = condition_number(A)
+    if k > MAX_CONDITION:
+        lie = ("coincide" if model != "affine" or np.all(xy0 == xy0[0]) else
+               "lie on one line" if not k < SINGULAR else "lie nearly on one line")
+        raise degenerate(f"{what}: the GCPs {lie} (condition number {k:.3g} > {MAX_CONDITION:.0f}); "
+                         f"the {model} model needs {_MODEL_NEEDS[model]}", k)
+    sig = None if sigma is None else np.repeat(np.broadcast_to(np.asarray(sigma, float), len(xy0)), 2)
+    res = lsq.solve(A, (xy - xy0).ravel(), sig, what=f"{what} ({model})")
+    c, s = norm.centre, norm.scale
 
     def published(pn):
         Mn, bn = _bias_matrix(model, pn)
@@ -209,11 +244,9 @@ def fit_bias(xy0, xy, model: str, sigma=None, *, what: str = "bias") -> BiasFit:
             return np.array([M[0, 0], M[1, 0], b[0], b[1]])
         return np.array([M[0, 0], M[0, 1], M[1, 0], M[1, 1], b[0], b[1]])
 
-    J = np.column_stack([published(e) for e in np.eye(u)])
-    p = J @ res.params
-    cov = J @ res.cov @ J.T
+    p, cov = published_cov(published, res.params, res.cov)
     M, b = _bias_matrix(model, p)
-    return BiasFit(model, M, b, p, np.sqrt(np.diag(cov)), _BIAS_NAMES[model], res)
+    return BiasFit(model, M, b, p, np.sqrt(np.diag(cov)), _BIAS_NAMES[model], res, cov)
 
 
 # ---------------------------------------------------------------- parallax line (eq. 4)

@@ -2,14 +2,16 @@
 
 Every transform maps image coordinates ``(x, y)`` (column, row, pixels, origin at the
 top-left corner of the top-left pixel) to map coordinates ``(X, Y)`` (metres, projected CRS).
-All share one small protocol (after scikit-image's ``_geometric.py``):
+All follow the estimator protocol of :mod:`prismstation.core.estimate`:
 
-- ``fit_transform(kind, src, dst)`` → a fitted, immutable transform, or :class:`ModelError`
-  with a clear reason (too few points, collinear or otherwise degenerate geometry);
+- ``FittedTransform.fit(src, dst, kind)`` → a fitted, immutable transform, or a falsy
+  :class:`~prismstation.core.estimate.FailedFit` with the reason; ``fit_transform(kind, src,
+  dst)`` raises :class:`~prismstation.errors.DegenerateGeometry` (too few points, collinear,
+  nearly collinear or otherwise degenerate geometry) or :class:`ModelError` instead;
 - ``t(xy)`` forward, ``t.inverse(XY)`` backward (closed form or Newton iterations);
 - ``t.residuals(src, dst)`` observed − computed ``dst − t(src)`` in map units;
 - ``t.params`` in the published form of the paper, ``t.cov`` their covariance,
-  ``t.sigma0`` (map units), ``t.rmse`` (planimetric, over the fitting points).
+  ``t.sigma0`` (map units), ``t.dof``, ``t.rmse`` (planimetric, over the fitting points).
 
 Kinds: ``affine`` (6 parameters, ≥3 points), ``projective`` (8, ≥4), ``poly1``–``poly3``
 (polynomials of total degree 1–3 with terms ``1, x, y, x², xy, y², x³, x²y, xy², y³`` — GDAL's
@@ -23,6 +25,8 @@ from math import comb
 import numpy as np
 from scipy.optimize import least_squares
 
+from prismstation.core.estimate import (Normaliser, check_points, check_spread, condition_number,
+                                        degenerate, failure_or)
 from prismstation.errors import ModelError
 
 KINDS = ("affine", "projective", "poly1", "poly2", "poly3")
@@ -36,26 +40,6 @@ def _as_points(a, name: str) -> np.ndarray:
     if not np.all(np.isfinite(a)):
         raise ModelError(f"{name} contains non-finite coordinates")
     return a
-
-
-@dataclass(frozen=True)
-class Normaliser:
-    """Isotropic centring and scaling ``u = (p − centre) / scale`` (mean distance √2)."""
-
-    centre: np.ndarray
-    scale: float
-
-    @classmethod
-    def of(cls, pts: np.ndarray) -> "Normaliser":
-        c = pts.mean(axis=0)
-        d = np.sqrt(((pts - c) ** 2).sum(axis=1)).mean()
-        return cls(c, float(d / np.sqrt(2.0)) if d > 0 else 1.0)
-
-    def fwd(self, p):
-        return (np.asarray(p, float) - self.centre) / self.scale
-
-    def back(self, u):
-        return np.asarray(u, float) * self.scale + self.centre
 
 
 def poly_exponents(degree: int) -> list[tuple[int, int]]:
@@ -112,6 +96,12 @@ class FittedTransform:
     _p: np.ndarray = field(repr=False)        # parameters in normalised space
     _src: Normaliser = field(repr=False)
     _dst: Normaliser = field(repr=False)
+
+    @classmethod
+    def fit(cls, src, dst, kind: str = "affine"):
+        """:func:`fit_transform` returning a falsy :class:`~prismstation.core.estimate.FailedFit`
+        with the reason instead of raising."""
+        return failure_or(fit_transform, kind, src, dst)
 
     @property
     def n_params(self) -> int:
@@ -207,12 +197,17 @@ def min_points(kind: str) -> int:
 
 
 def _check_geometry(u: np.ndarray, kind: str, n: int) -> None:
-    need = min_points(kind)
-    if n < need:
-        raise ModelError(f"{kind} transform needs at least {need} control points, have {n}")
-    s = np.linalg.svd(np.column_stack([np.ones(n), u]), compute_uv=False)
-    if s[-1] <= 1e-6 * s[0]:
-        raise ModelError(f"{kind} transform: the control points are collinear or coincident")
+    """Too few points, or points (nearly) on a line: every kind has an affine part."""
+    check_points(n, min_points(kind), f"{kind} transform", "control points")
+    check_spread(u, f"{kind} transform", "control points")
+
+
+def _check_design(A: np.ndarray, kind: str, why: str) -> None:
+    """The full design singular (beyond the affine part): the points do not determine it."""
+    k = condition_number(A)
+    if not k < 1 / _RCOND:
+        raise degenerate(f"{kind} transform: the control points do not determine its "
+                         f"{n_params(kind)} parameters ({why}; condition number {k:.3g})", k)
 
 
 def fit_transform(kind: str, src, dst) -> FittedTransform:
@@ -220,8 +215,12 @@ def fit_transform(kind: str, src, dst) -> FittedTransform:
 
     Raises
     ------
+    DegenerateGeometry
+        Too few points, points on or nearly on a line (condition number of the normalised
+        ``[1, x, y]`` above :data:`~prismstation.core.estimate.MAX_CONDITION`), or a
+        configuration that does not determine the parameters (e.g. poly2 on a conic).
     ModelError
-        Unknown kind, too few points, non-finite input, or a degenerate configuration.
+        Unknown kind, non-finite input, mismatched point counts.
     """
     u_count = n_params(kind)
     src = _as_points(src, "image points")
@@ -237,10 +236,7 @@ def fit_transform(kind: str, src, dst) -> FittedTransform:
     else:
         exps = _exps(kind)
         Phi = _monomials(u, exps)
-        sv = np.linalg.svd(Phi, compute_uv=False)
-        if sv[-1] <= _RCOND * sv[0]:
-            raise ModelError(f"{kind} transform: the control points do not determine its "
-                             f"{u_count} parameters (points on a line or a conic)")
+        _check_design(Phi, kind, "points on a line or a conic")
         coef, *_ = np.linalg.lstsq(Phi, v, rcond=None)
         p = np.concatenate([coef[:, 0], coef[:, 1]])
         J = np.zeros((2 * n, u_count))
@@ -267,10 +263,7 @@ def _fit_projective(u: np.ndarray, v: np.ndarray):
     A = np.zeros((2 * n, 8))
     A[:n, 0], A[:n, 1], A[:n, 2], A[:n, 6], A[:n, 7] = x, y, 1, -x * X, -y * X
     A[n:, 3], A[n:, 4], A[n:, 5], A[n:, 6], A[n:, 7] = x, y, 1, -x * Y, -y * Y
-    sv = np.linalg.svd(A, compute_uv=False)
-    if sv[-1] <= _RCOND * sv[0]:
-        raise ModelError("projective transform: the control points do not determine its "
-                         "8 parameters (three of four points on a line?)")
+    _check_design(A, "projective", "three of four points on a line?")
     p0, *_ = np.linalg.lstsq(A, np.concatenate([X, Y]), rcond=None)
 
     def resid(p):
@@ -372,13 +365,12 @@ def compare_transforms(src, dst, is_check=None, kinds=KINDS) -> tuple[TransformR
     gcp = ~icp
     out = []
     for kind in kinds:
-        try:
-            t = fit_transform(kind, src[gcp], dst[gcp])
-        except ModelError as exc:
+        t = FittedTransform.fit(src[gcp], dst[gcp], kind)
+        if not t:
             nan = np.full(src.shape, np.nan)
             out.append(TransformReport(kind, n_params(kind), int(gcp.sum()), int(icp.sum()),
                                        None, nan, float("nan"), float("nan"),
-                                       (float("nan"),) * 2, (float("nan"),) * 2, str(exc)))
+                                       (float("nan"),) * 2, (float("nan"),) * 2, t.reason))
             continue
         v = t.residuals(src, dst)
         rg, rgxy = _rms(v[gcp])

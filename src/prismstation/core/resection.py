@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from prismstation.core.estimate import Normaliser, check_points, check_spread, condition_number, degenerate
 from prismstation.errors import ModelError
 
 PUSHBROOM_NOTE = ("The frame-camera (central projection) model is only an approximation for a "
@@ -192,7 +193,8 @@ def resect(camera: FrameCamera, xy, xyz, start=None, *, max_iterations: int = 20
     ----------
     camera : interior orientation.
     xy : (n, 2) measured image points in pixels (n ≥ 3; ≥ 4 for standard deviations).
-    xyz : (n, 3) ground points in metres.
+    xyz : (n, 3) ground points in metres, spread in plan (else
+        :class:`~prismstation.errors.DegenerateGeometry`, as for too few points).
     start : (6,) starting EO; default :func:`homography_start` (≥ 4 points), falling back
         to :func:`vertical_start`. A step that raises the residuals is halved (up to 10 times).
     max_iterations, tol_m, tol_rad : stop after this many iterations or when every
@@ -203,13 +205,10 @@ def resect(camera: FrameCamera, xy, xyz, start=None, *, max_iterations: int = 20
     if xy.ndim != 2 or xy.shape[1] != 2 or xyz.ndim != 2 or xyz.shape[1] != 3 or len(xy) != len(xyz):
         raise ModelError("resection needs (n, 2) image points and (n, 3) ground points, same n")
     n = len(xy)
-    if n < 3:
-        raise ModelError(f"resection needs at least 3 points, have {n}")
+    check_points(n, 3, "resection")
     if not (np.all(np.isfinite(xy)) and np.all(np.isfinite(xyz))):
         raise ModelError("resection: non-finite coordinates")
-    sv = np.linalg.svd(xyz[:, :2] - xyz[:, :2].mean(axis=0), compute_uv=False)
-    if sv[-1] <= 1e-9 * max(sv[0], 1e-300):
-        raise ModelError("resection: the ground points are collinear or coincident")
+    check_spread(Normaliser.of(xyz[:, :2]).fwd(xyz[:, :2]), "resection", "ground points")
     if start is not None:
         eo = np.asarray(start, float).copy()
     else:
@@ -233,7 +232,9 @@ def resect(camera: FrameCamera, xy, xyz, start=None, *, max_iterations: int = 20
         D = 1.0 / np.linalg.norm(J, axis=0)        # column scaling: metres vs radians
         U, s, Vt = np.linalg.svd(J * D, full_matrices=False)
         if s[-1] <= 1e-12 * s[0]:
-            raise ModelError("resection: the points do not determine the orientation")
+            k = condition_number(J * D)
+            raise degenerate(f"resection: the points do not determine the orientation "
+                             f"(condition number {k:.3g})", k)
         dx = D * (Vt.T @ ((U.T @ (obs - f0)) / s))
         c0 = float(np.sum((obs - f0) ** 2))
         for _ in range(10):                  # step halving keeps Gauss–Newton from diverging

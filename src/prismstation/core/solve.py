@@ -17,7 +17,7 @@ import numpy as np
 from prismstation.core import prism
 from prismstation.core.prism import BiasFit, ParallaxLine
 from prismstation.core.scene import Scene
-from prismstation.core.stats import ComponentStats, VectorStats
+from prismstation.core.stats import ComponentStats, FitStatistics, ImageStats, VectorStats
 from prismstation.errors import ModelError
 
 HeightFn = Callable[[np.ndarray], np.ndarray]  # (n, 2) map metres -> (n,) ellipsoidal metres
@@ -71,17 +71,21 @@ class PointResult:
 
 @dataclass(frozen=True, eq=False)
 class Solution:
-    """An immutable fit: bias per view, parallax line, per-point results and statistics."""
+    """An immutable fit: bias per view, parallax line, per-point results and statistics.
+    ``failures`` holds the typed reason (a falsy
+    :class:`~prismstation.core.estimate.FailedFit`: ``degenerate``, ``condition``) when the
+    reference view's bias could not be fitted; ``messages`` says it in words."""
 
     scene: Scene
     settings: Settings
     bias: dict                    # view -> BiasFit (identity where it could not be fitted)
     parallax: ParallaxLine | None
     points: tuple
-    stats: dict
+    stats: FitStatistics
     messages: tuple
     mean_height: float
     revision: int = 0
+    failures: dict = field(default_factory=dict)  # view -> FailedFit of its bias (reference view)
 
     # ---- geometry through the current model (linked cursors, predictions)
     def ground_to_image(self, view: str, en, h) -> np.ndarray:
@@ -146,6 +150,8 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
 
     # 1. bias per view, fitted on the GCPs measured in it
     bias: dict[str, BiasFit] = {}
+    failures: dict = {}
+    ref = "N" if "N" in scene.views else next(iter(scene.views))
     for name, view in scene.views.items():
         sel = [p for p in gcps if name in p.image]
         fit = BiasFit.identity()
@@ -157,13 +163,14 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
             sig = [p.sigma_px.get(name, settings.sigma_px) for p in sel]
             ladder = [m for m in prism.BIAS_MODELS if prism.BIAS_MODELS[m] <= prism.BIAS_MODELS[model]]
             for m in reversed(ladder):  # N follows the setting; F, B may step down for prediction
-                try:
-                    fit = prism.fit_bias(xy0, xy, m, sig, what=f"view {name}")
+                result = BiasFit.fit(xy0, xy, m, sig, what=f"view {name}")
+                if result:
+                    fit = result
                     break
-                except ModelError as exc:
-                    if name == "N" or name == next(iter(scene.views)):
-                        messages.append(str(exc))
-                        break
+                if name == ref:
+                    messages.append(result.reason)
+                    failures[name] = result
+                    break
         elif name in ("N",) or len(scene.views) == 1:
             messages.append(f"view {name}: no GCP measured; the ancillary model is used without bias correction")
         bias[name] = fit
@@ -187,7 +194,7 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
     results = _point_results(scene, points, bias, parallax, mean_h, height_of, settings, adjustment)
     stats = _statistics(scene, results)
     return Solution(scene, settings, bias, parallax, tuple(results), stats, tuple(messages),
-                    mean_h, revision)
+                    mean_h, revision, failures)
 
 
 def _parallax(scene: Scene, pts) -> np.ndarray:
@@ -368,26 +375,23 @@ def _adjustment_stats(gcps, bias, parallax, scene, settings) -> dict:
     return {pid: (s if math.isfinite(s) else None, red, pid == worst) for pid, (s, red, _) in w.items()}
 
 
-def _statistics(scene: Scene, results) -> dict:
+def _statistics(scene: Scene, results) -> FitStatistics:
     """Tables 1–3 of the paper and their extensions, for GCPs and ICPs."""
-    stats: dict = {"image": {}, "ground": {}, "height": {}}
-    ref = scene.reference_view
     by_kind = {kind: [r for r in results if r.kind == kind] for kind in ("GCP", "ICP")}
+    image, ground, height = {}, {}, {}
     for v, view in scene.views.items():
-        stats["image"][v] = {}
+        image[v] = {}
         for kind, rs in by_kind.items():
             px = VectorStats.of(_rows([r.residual_px[v] for r in rs if v in r.residual_px], 2))
-            stats["image"][v][kind] = {"px": px, "m": px.scaled(view.pixel_size_m)}
+            image[v][kind] = ImageStats(px, px.scaled(view.pixel_size_m))
     for kind, rs in by_kind.items():
         known = [r for r in rs if r.ground_residual is not None]
-        stats["ground"][kind] = VectorStats.of(_rows([r.ground_residual for r in known], 3)[:, :2])
-        stats["height"][kind] = ComponentStats.of([r.ground_residual[2] for r in known
-                                                   if r.height_source == "parallax"])
-    if scene.is_triplet:
-        for v in ("F", "B"):
-            stats[f"{v}-N"] = ComponentStats.of([r.across_px[v] for r in results if v in r.across_px])
-    stats["reference_view"] = ref
-    return stats
+        ground[kind] = VectorStats.of(_rows([r.ground_residual for r in known], 3)[:, :2])
+        height[kind] = ComponentStats.of([r.ground_residual[2] for r in known
+                                          if r.height_source == "parallax"])
+    across = ({v: ComponentStats.of([r.across_px[v] for r in results if v in r.across_px])
+               for v in ("F", "B")} if scene.is_triplet else {})
+    return FitStatistics(image, ground, height, across, scene.reference_view)
 
 
 def _rows(rows: list, width: int) -> np.ndarray:

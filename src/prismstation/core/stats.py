@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -67,3 +68,51 @@ class VectorStats:
 
     def to_dict(self) -> dict:
         return {"x": self.x.to_dict(), "y": self.y.to_dict(), "planimetric_rms": self.planimetric_rms}
+
+
+@dataclass(frozen=True)
+class ImageStats:
+    """Image residuals of one view and one point kind, in pixels and in metres on the ground."""
+
+    px: VectorStats
+    m: VectorStats
+
+    def __getitem__(self, unit: str) -> VectorStats:  # ``["px"]`` / ``["m"]`` as before
+        return getattr(self, unit)
+
+    def to_dict(self) -> dict:
+        return {"px": self.px.to_dict(), "m": self.m.to_dict()}
+
+
+@dataclass(frozen=True)
+class FitStatistics(Mapping):
+    """Tables 1–3 of the paper and their extensions (MODEL.md §2), per point kind
+    (``"GCP"``, ``"ICP"``).
+
+    ``image[view][kind]`` image residuals, ``ground[kind]`` planimetric ground residuals
+    (estimated − known, metres), ``height[kind]`` height residuals of points with a
+    parallax height (metres), ``across[view]`` across-track differences of F and B to N
+    (pixels; triplets only). Also read as the mapping it replaces: keys ``image``,
+    ``ground``, ``height``, ``F-N``, ``B-N`` (triplets) and ``reference_view``.
+    """
+
+    image: dict
+    ground: dict
+    height: dict
+    across: dict
+    reference_view: str
+
+    def _items(self) -> dict:
+        d = {"image": self.image, "ground": self.ground, "height": self.height}
+        d.update({f"{v}-N": s for v, s in self.across.items()})
+        d["reference_view"] = self.reference_view
+        return d
+
+    def __getitem__(self, key: str):
+        return self._items()[key]
+
+    def __iter__(self):
+        return iter(self._items())
+
+    def __len__(self) -> int:
+        return len(self._items())
