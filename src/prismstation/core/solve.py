@@ -151,7 +151,7 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
     # 1. bias per view, fitted on the GCPs measured in it
     bias: dict[str, BiasFit] = {}
     failures: dict = {}
-    ref = "N" if "N" in scene.views else next(iter(scene.views))
+    ref = scene.reference_view
     for name, view in scene.views.items():
         sel = [p for p in gcps if name in p.image]
         fit = BiasFit.identity()
