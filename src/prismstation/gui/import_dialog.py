@@ -8,10 +8,8 @@ OpenDroneMap ``gcp_list.txt``, Ames Stereo Pipeline ``.gcp``) through
 ``(points: list[GroundPoint], measurements: list[Measurement])`` in the project CRS.
 
 The CSV path never re-implements the readers: :func:`~prismstation.gui.import_csv.read_mapped`
-writes a normalised copy of the file (canonical column names, comma-delimited, every row on its
-original line number) and hands it to :func:`prismstation.io.points.read_ground_points` / ``read_measurements``; a line
-they reject is commented out and the file read again, so that all bad lines are listed, each
-with the readers' own message and the original file and line.
+reads the file through :mod:`prismstation.io.csvtable` and the io point readers with the chosen
+column mapping; they return every bad line, each with its own message, file and line.
 """
 from __future__ import annotations
 
