@@ -108,6 +108,23 @@ def test_cli_points_prints_the_warning(shared_data, tmp_path, capsys):
     args = parser.parse_args(["points", str(f), "-o", str(tmp_path / "out.gcp")])
     assert args.func(args) == 0
     err = capsys.readouterr().err
-    assert err.startswith("warning: ") and "latitude, longitude" in err
+    assert err.startswith("warning: ") and "read geo_x as latitude and geo_y as longitude" in err
     back = pfm.read_point_file(tmp_path / "out.gcp")   # ASP writes lat lon: read back unswapped
     assert back.warnings == () and back.points[0].E == pytest.approx(-126.181)
+
+
+def test_asp_file_with_longitude_first_is_swapped(shared_data, tmp_path):
+    src = (shared_data / ASP).read_text().splitlines()
+    swapped = []
+    for row in src:
+        c = [v.strip() for v in row.split(",")]
+        c[4] = "2" if c[0] == "0" else c[4]   # one distinct σ_lat, to follow through the swap
+        swapped.append(", ".join([c[0], c[2], c[1], c[3], c[5], c[4]] + c[6:]))
+    f = tmp_path / "lonlat.gcp"
+    f.write_text("\n".join(swapped) + "\n")
+    ref, pf = pfm.read_point_file(shared_data / ASP), pfm.read_point_file(f)
+    assert [(p.E, p.N, p.H) for p in pf.points] == [(p.E, p.N, p.H) for p in ref.points]
+    assert pf.measurements == ref.measurements
+    assert pf.points[0].extra == {"sigma_lat": 2.0, "sigma_lon": 1.0}
+    (w,) = pf.warnings
+    assert "column 2 (lat) holds longitudes (e.g. -126.181 on line 1)" in w

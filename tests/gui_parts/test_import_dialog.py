@@ -214,7 +214,7 @@ def test_odm_file_with_latitude_first_shows_a_warning_and_imports(dialog, shared
     dialog.set_path(f)
     assert dialog.errors() == [] and ok_enabled(dialog)
     (w,) = dialog.warnings()
-    assert w.startswith("warning: ") and "latitude, longitude" in w
+    assert w.startswith("warning: ") and "read geo_x as latitude and geo_y as longitude" in w
     assert dialog.error_list.item(0).text() == w and "1 warning" in dialog.status.text()
     points, meas = dialog.result()
     tr = Transformer.from_crs("EPSG:4326", "EPSG:3031", always_xy=True)

@@ -235,7 +235,7 @@ def read_asp_gcp(path) -> PointFile:
     raise_errors(errors)
     if not points:
         raise InputError("no points", path)
-    points, warnings = lonlat_order(points, lines_of, path, crs, ("longitude", "latitude"))
+    points, warnings = lonlat_order(points, lines_of, path, crs, ("column 3 (lon)", "column 2 (lat)"))
     return PointFile(tuple(points), tuple(meas), crs, "asp", header, tuple(warnings))
 
 

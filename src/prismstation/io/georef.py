@@ -89,7 +89,7 @@ def lonlat_order(points, lines, path, crs_text, names=("x", "y")):
     """``(points, warnings)``: geographic ``points`` (E = longitude, N = latitude) with the two
     columns swapped when the values say the file has them the other way round.
 
-    ``lines``: the 1-based file line of each point; ``names``: how the file calls its columns
+    ``lines``: the 1-based file line of each point; ``names``: how the messages call the columns
     read as longitude, latitude. A value |v| > 90 read as a latitude is a longitude: when the
     other column has no such value, the columns are swapped and a warning says so. When both
     columns have |v| > 90, or a longitude is outside [-180, 360], the line is named in an
@@ -103,16 +103,25 @@ def lonlat_order(points, lines, path, crs_text, names=("x", "y")):
         warnings = []
     elif all(abs(p.E) <= 90 for p in points):
         no, v = bad_lat[0]
-        warnings = [f"{path}: the {names[1]} column holds longitudes (e.g. {v} on line {no}) and "
-                    f"the {names[0]} column latitudes: read as latitude, longitude"]
-        points = [replace(p, E=p.N, N=p.E) for p in points]
+        warnings = [f"{path}: {names[1]} holds longitudes (e.g. {v} on line {no}): "
+                    f"read {names[0]} as latitude and {names[1]} as longitude"]
+        points = [replace(p, E=p.N, N=p.E, extra=_swap_sigmas(p.extra)) for p in points]
     else:
         no, v = bad_lat[0]
-        raise InputError(f"latitude ({names[1]}) {v} is outside [-90, 90]", path, no)
+        raise InputError(f"latitude ({names[1]}) {v} is outside [-90, 90], and {names[0]} holds "
+                         f"values beyond ±90 too", path, no)
     for no, p in zip(lines, points):
         if not -180 <= p.E <= 360:
-            raise InputError(f"longitude ({names[0]}) {p.E} is outside [-180, 360]", path, no)
+            raise InputError(f"longitude ({names[0]}) {p.E} is outside [-180, 360]",
+                             path, no)
     return list(points), warnings
+
+
+def _swap_sigmas(extra: dict) -> dict:
+    """``extra`` with the σ of latitude and longitude exchanged (ASP files carry both)."""
+    if "sigma_lat" in extra and "sigma_lon" in extra:
+        return {**extra, "sigma_lat": extra["sigma_lon"], "sigma_lon": extra["sigma_lat"]}
+    return extra
 
 
 def convert_point_file(pf: PointFile, to_crs: str) -> PointFile:
