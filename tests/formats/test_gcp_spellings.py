@@ -46,6 +46,7 @@ def test_projected_spellings_read_as_the_real_file(shared_data, tmp_path, header
 
 
 def test_south_zone_and_bad_zone(tmp_path):
+    assert pfm.parse_crs("WGS84 UTM 32N").to_epsg() == 32632
     assert pfm.parse_crs("WGS84 UTM 32S").to_epsg() == 32732
     f = tmp_path / "gcp_list.txt"
     f.write_text("WGS84 UTM 61N\n1 2 3 4 5 a.jpg\n")
