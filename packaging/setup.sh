@@ -2,15 +2,18 @@
 # One-step set-up on Debian/Ubuntu: system libraries Qt needs (even offscreen), the PROJ
 # geoid grids, a virtual environment in .venv and prismstation installed into it (editable).
 #   bash packaging/setup.sh          # the workstation
-#   bash packaging/setup.sh --test   # plus the test and benchmark tools
+#   bash packaging/setup.sh --test   # plus every tool the tests use (no test skips for want of one)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 extras=""
 [ "${1:-}" = "--test" ] && extras="[test]"
 
+# proj-data holds the EGM96 geoid grid (egm96_15.gtx) the geoid tests look for
 debs="python3-venv libegl1 libgl1 libx11-6 libdbus-1-3 libfontconfig1 libfreetype6 libglib2.0-0
 libxkbcommon0 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 libxcb-image0 libxcb-keysyms1
 libxcb-render-util0 libxcb-shape0 libxcb-xkb1 proj-data fonts-dejavu-core"
+# the tests' own tools: pdftotext, pdftoppm and pdfimages read the PDF report back
+[ -n "$extras" ] && debs="$debs poppler-utils"
 missing=""
 for p in $debs; do dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"; done
 if [ -n "$missing" ] && command -v apt-get >/dev/null; then

@@ -31,6 +31,7 @@ def _rms(v):
     return float(np.sqrt(np.mean(np.square(v))))
 
 
+@pytest.mark.slow  # 10–15 s each (measured, -n 0)
 @pytest.mark.parametrize("case", list(CASES))
 def test_simulated_triplet_through_new_and_fit(case, tmp_path):
     d = tmp_path

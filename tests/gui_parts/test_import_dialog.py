@@ -202,3 +202,33 @@ def test_decimal_comma_file(dialog, tmp_path):
     dialog.set_path(src)
     pts = dialog.result()[0]
     assert [(p.E, p.N, p.H) for p in pts] == [(540000.5, 4560000.25, 100.5), (540100.0, 4560100.0, 110.0)]
+
+
+def test_odm_file_with_latitude_first_shows_a_warning_and_imports(dialog, shared_data, tmp_path):
+    asp = shared_data / "gcp_files" / "asp_StereoPipelineTest" / "ground_control_points.gcp"
+    from prismstation.io.pointfiles import read_point_file
+    ref = read_point_file(asp).points
+    f = tmp_path / "gcp_list.txt"
+    f.write_text("WGS84 longlat\n" + "".join(f"{p.N} {p.E} {p.H} 10 20 N.tif {p.id}\n" for p in ref))
+    dialog = ImportDialog(VIEWS, "EPSG:3031")  # Antarctic polar stereographic
+    dialog.set_path(f)
+    assert dialog.errors() == [] and ok_enabled(dialog)
+    (w,) = dialog.warnings()
+    assert w.startswith("warning: ") and "read geo_x as latitude and geo_y as longitude" in w
+    assert dialog.error_list.item(0).text() == w and "1 warning" in dialog.status.text()
+    points, meas = dialog.result()
+    tr = Transformer.from_crs("EPSG:4326", "EPSG:3031", always_xy=True)
+    e, n = tr.transform(ref[0].E, ref[0].N)
+    assert points[0].E == pytest.approx(e, abs=1e-6) and points[0].N == pytest.approx(n, abs=1e-6)
+    assert {m.view for m in meas} == {"N"}
+
+
+def test_every_bad_line_is_read_without_a_temporary_file(tmp_path, monkeypatch):
+    import tempfile
+    from prismstation.gui.import_csv import read_mapped
+    monkeypatch.setattr(tempfile, "mkstemp", lambda *a, **k: pytest.fail("temporary file"))
+    text = "".join(f"P{i},{i},x,1\n" for i in range(1, 301))
+    recs, errs = read_mapped(tmp_path / "g.csv", "points", "id,E,N,H\n" + text,
+                             {"id": "id", "E": "E", "N": "N", "H": "H"})
+    assert recs == [] and len(errs) == 200 and errs[-1].line == 201
+    assert str(errs[0]) == f"{tmp_path / 'g.csv'}, line 2: column N: 'x' is not a number"

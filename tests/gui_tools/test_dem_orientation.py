@@ -6,6 +6,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 
 def _settle(qtbot, win):
@@ -13,6 +14,7 @@ def _settle(qtbot, win):
     qtbot.wait(20)
 
 
+@pytest.mark.slow  # 18 s with its fixture (measured, -n 0)
 def test_orient_from_srtm_in_the_window(qtbot, window, sim, truth):
     tool = window.dem_orientation
     assert window.project.settings.orientation == "gcp"

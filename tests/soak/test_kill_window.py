@@ -138,6 +138,7 @@ def read_log(log):
     return done, revs, pending, on_disk
 
 
+@pytest.mark.slow  # 10–15 s each (measured, -n 0)
 @pytest.mark.parametrize("mode,seed", [("saved", 3), ("untitled", 4)])
 def test_kill_minus_9_in_the_middle_of_editing_loses_nothing(small, make_window, temp_settings,
                                                               tmp_path, mode, seed):

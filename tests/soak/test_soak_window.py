@@ -106,6 +106,7 @@ def settle(win) -> None:
                          f"{win.solver.busy()}, tiles {[x.tiles_complete() for x in v.views.values()]}")
 
 
+@pytest.mark.slow  # 79 s (measured, -n 0)
 def test_thousands_of_random_actions_no_exception_bounded_memory(small, make_window, monkeypatch):
     from prismstation.gui.app import wait_settled
     errors = []

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import io
+import sys
 from dataclasses import replace
 
 from prismstation.errors import InputError
@@ -48,6 +49,8 @@ def measurements_csv(pf) -> str:
 
 def run(args) -> int:
     pf = pfm.read_point_file(args.input, args.fmt_in, height=args.height)
+    for text in pf.warnings:
+        print(f"warning: {text}", file=sys.stderr)
     if args.crs:
         pfm.parse_crs(args.crs)
         pf = replace(pf, crs=args.crs, header=None)

@@ -1,19 +1,16 @@
-"""Column-mapped CSV reading for the import dialog (no Qt): delimiter and column guesses, and
-:func:`read_mapped`, which hands a normalised copy of the file to the io readers so that their
-own messages name the original file and lines (every bad line, not only the first).
+"""Column-mapped CSV reading for the import dialog (no Qt): column guesses, and
+:func:`read_mapped`, which reads the file through the io table reader and the io point readers
+with the operator's column mapping, returning every bad line (file, line, problem).
 """
 from __future__ import annotations
 
-import csv
-import io
-import os
 import re
-import tempfile
 from pathlib import Path
 
 from prismstation.errors import InputError
 from prismstation.io import pointfiles
-from prismstation.io.points import read_ground_points, read_measurements
+from prismstation.io.csvtable import split_text
+from prismstation.io.points import ground_points_from_table, measurements_from_table
 
 GROUND_FIELDS = (("id", True), ("E", True), ("N", True), ("H", True), ("kind", False),
                  ("height", False), ("sigma_xy_m", False), ("sigma_h_m", False))
@@ -38,47 +35,11 @@ PREVIEW_ROWS = 200
 
 
 # ------------------------------------------------------------------------- pure helpers
-def guess_delimiter(lines) -> str:
-    """The delimiter of CSV ``lines``: the one of ``, ; tab |`` that splits the header and most
-    of the first 20 data lines into the same number of fields, else blanks, else ``,``."""
-    rows = [ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")][:21]
-    if not rows:
-        return ","
-    best, score = None, (0, 0.0)
-    for d in (",", ";", "\t", "|"):
-        n = rows[0].count(d)
-        if n == 0:
-            continue
-        same = sum(ln.count(d) == n for ln in rows) / len(rows)
-        if (same, n) > (score[1], score[0]):
-            best, score = d, (n, same)
-    if best is not None:
-        return best
-    return " " if len(rows[0].split()) > 1 else ","
-
-
 def split_lines(text: str, delimiter: str, header: bool = True):
-    """``(header_line, header_cells, [(line_number, cells)])`` of the data lines of ``text``.
-
-    Blank lines and ``#`` comments are skipped; line numbers are 1-based in ``text``. Without a
-    header the columns are named ``column 1``, ``column 2``, …
-    """
-    rows = []
-    for no, ln in enumerate(text.splitlines(), 1):
-        if not ln.strip() or ln.lstrip().startswith("#"):
-            continue
-        if delimiter == " ":
-            cells = ln.split()
-        else:
-            cells = next(csv.reader([ln], delimiter=delimiter, skipinitialspace=True), [])
-        rows.append((no, [c.strip() for c in cells]))
-    if not rows:
-        return None, [], []
-    if header:
-        hno, names = rows[0]
-        return hno, [n or f"column {i + 1}" for i, n in enumerate(names)], rows[1:]
-    width = max(len(c) for _, c in rows)
-    return None, [f"column {i + 1}" for i in range(width)], rows
+    """``(header_line, header_cells, [(line_number, cells)])`` of the data lines of ``text``
+    (:func:`prismstation.io.csvtable.split_text`)."""
+    t = split_text(text, delimiter, header)
+    return t.header_line, t.columns, t.rows
 
 
 def guess_mapping(columns, fields) -> dict:
@@ -100,7 +61,6 @@ def guess_mapping(columns, fields) -> dict:
     return out
 
 
-NUMERIC_FIELDS = ("E", "N", "H", "sigma_xy_m", "sigma_h_m", "x", "y", "sigma_px")
 _DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+$")
 
 
@@ -112,91 +72,26 @@ def has_decimal_comma(rows, delimiter: str) -> bool:
     return sum(bool(_DECIMAL_COMMA.match(c)) for c in cells) >= max(1, len(cells) // 10)
 
 
-def normalised_csv(n_lines, header_line, columns, rows, mapping, constants=None,
-                   decimal_comma=False) -> str:
-    """Text of a comma-delimited CSV with canonical column names, every row on its own line.
-
-    ``mapping`` ``{field: column}``; ``constants`` ``{field: value}`` for fields given one value
-    for all rows (e.g. the view of a single-image file). Unmapped columns are kept (renamed when
-    their name is a canonical one). Lines that are not data become ``#``. With
-    ``decimal_comma`` the numeric fields' ``123,45`` become ``123.45``.
-    """
-    constants = constants or {}
-    canon = {f.lower() for f in mapping} | {f.lower() for f in constants}
-    index = {c: i for i, c in enumerate(columns)}
-    out_cols = list(mapping) + list(constants)
-    extra = [c for c in columns if c not in mapping.values()]
-    names = out_cols + [f"{c} (file)" if c.lower() in canon else c for c in extra]
-    src = [index[mapping[f]] for f in mapping] + [None] * len(constants) + [index[c] for c in extra]
-    numeric = {i for i, f in enumerate(mapping) if decimal_comma and f in NUMERIC_FIELDS}
-    const_vals = list(constants.values())
-    lines = ["#"] * max(n_lines, 1)
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="")
-
-    def fmt(cells):
-        buf.seek(0)
-        buf.truncate()
-        w.writerow(cells)
-        return buf.getvalue()
-
-    lines[(header_line or 1) - 1] = fmt(names)
-    width = len(columns)
-    for no, cells in rows:
-        if len(cells) != width:  # let the reader name the field-count problem
-            lines[no - 1] = fmt(cells + [""] * len(constants))
-            continue
-        k = 0
-        out = []
-        for j, s in enumerate(src):
-            if s is None:
-                out.append(const_vals[k])
-                k += 1
-            else:
-                out.append(cells[s].replace(",", ".") if j in numeric else cells[s])
-        lines[no - 1] = fmt(out)
-    return "\n".join(lines) + "\n"
-
-
 def read_mapped(path, what, text, mapping, *, delimiter=",", header=True, constants=None,
                 crs=None, to_crs=None, height="ellipsoidal", views=None, decimal_comma=False):
-    """Read a CSV through a column mapping with the io readers.
+    """Read CSV ``text`` (the content of ``path``) through a column mapping with the io readers.
 
     Returns ``(records, errors)``: ``records`` a list of GroundPoint (``what == "points"``) or
-    Measurement, ``errors`` a list of :class:`InputError` naming ``path`` and its lines.
+    Measurement, empty when there is any error; ``errors`` a list of :class:`InputError`, one
+    per bad line of ``path`` (at most :data:`MAX_ERRORS`), or one for the whole file.
     """
-    header_line, columns, rows = split_lines(text, delimiter, header)
-    if not columns:
+    table = split_text(text, delimiter, header, path)
+    if not table.columns:
         return [], [InputError("no data in the file", path)]
-    n_lines = len(text.splitlines()) or 1
-    if header_line is None:  # no header in the file: the normalised copy needs a line for it
-        n_lines += 1
-        rows = [(no + 1, c) for no, c in rows]
-        header_line = 1
-    lines = normalised_csv(n_lines, header_line, columns, rows, mapping, constants,
-                           decimal_comma).split("\n")
-    errors: list[InputError] = []
-    fd, tmp = tempfile.mkstemp(suffix=".csv", prefix="prismstation-import-")
-    os.close(fd)
-    shift = 0 if header else 1
+    kw = dict(mapping=mapping, constants=constants, decimal_comma=decimal_comma)
     try:
-        for _ in range(MAX_ERRORS + 1):
-            Path(tmp).write_text("\n".join(lines), encoding="utf-8")
-            try:
-                if what == "points":
-                    recs = read_ground_points(tmp, crs=crs, to_crs=to_crs, height=height)
-                else:
-                    recs = read_measurements(tmp, views=views)
-                return (recs if not errors else []), errors
-            except InputError as exc:
-                line = None if exc.line is None else exc.line - shift
-                errors.append(InputError(exc.problem, path, line))
-                if exc.line is None or exc.line == header_line or exc.line > len(lines):
-                    return [], errors
-                lines[exc.line - 1] = "#"
-        return [], errors
-    finally:
-        os.unlink(tmp)
+        if what == "points":
+            recs, errors = ground_points_from_table(table, crs=crs, to_crs=to_crs, height=height, **kw)
+        else:
+            recs, errors = measurements_from_table(table, views, **kw)
+    except InputError as exc:
+        return [], [exc if exc.file else InputError(exc.problem, path, exc.line)]
+    return (recs if not errors else []), errors[:MAX_ERRORS]
 
 
 def guess_view(image_name: str, views) -> str | None:

@@ -8,10 +8,8 @@ OpenDroneMap ``gcp_list.txt``, Ames Stereo Pipeline ``.gcp``) through
 ``(points: list[GroundPoint], measurements: list[Measurement])`` in the project CRS.
 
 The CSV path never re-implements the readers: :func:`~prismstation.gui.import_csv.read_mapped`
-writes a normalised copy of the file (canonical column names, comma-delimited, every row on its
-original line number) and hands it to :func:`prismstation.io.points.read_ground_points` / ``read_measurements``; a line
-they reject is commented out and the file read again, so that all bad lines are listed, each
-with the readers' own message and the original file and line.
+reads the file through :mod:`prismstation.io.csvtable` and the io point readers with the chosen
+column mapping; they return every bad line, each with its own message, file and line.
 """
 from __future__ import annotations
 
@@ -107,6 +105,7 @@ class ImportDialog(QDialog):
         self._text = ""
         self._result: tuple[list, list] = ([], [])
         self._errors: list[InputError] = []
+        self._warnings: list[str] = []
         self._pf = None
         self._kept = None  # ((path, content, columns), {field: combo text}) of the last mapping
         self._kept_key = None
@@ -267,6 +266,10 @@ class ImportDialog(QDialog):
         """The problems shown, as ``file, line N: problem`` texts."""
         return [str(e) for e in self._errors]
 
+    def warnings(self) -> list[str]:
+        """The warnings shown below the problems (``warning: …``); they do not block the import."""
+        return list(self._warnings)
+
     def result(self):  # noqa: D401 — overrides QDialog.result() (the dialog code is exec()'s)
         """``(points: list[GroundPoint], measurements: list[Measurement])`` read from the file."""
         return self._result
@@ -420,12 +423,17 @@ class ImportDialog(QDialog):
         self.preview_model.set_content(["id", "kind", "E", "N", "H", "height", "measured in"], rows)
         self._result = ([], []) if errors else (points, meas)
         self._show_errors(errors, f"{len(points)} ground points and {len(meas)} measurements "
-                                  f"({len(pf.measurements) - len(meas)} in images not mapped)")
+                                  f"({len(pf.measurements) - len(meas)} in images not mapped)",
+                          pf.warnings)
 
-    def _show_errors(self, errors, ok_text=None) -> None:
+    def _show_errors(self, errors, ok_text=None, warnings=()) -> None:
+        """List ``errors`` (they block the import) and then ``warnings`` (they do not)."""
         self._errors = list(errors)
+        self._warnings = [f"warning: {w}" for w in warnings]
         self.error_list.clear()
-        self.error_list.addItems([str(e) for e in errors])
+        self.error_list.addItems([str(e) for e in errors] + self._warnings)
+        if self._warnings and not errors:
+            ok_text = f"{ok_text or ''} — {len(self._warnings)} warning{'s' * (len(self._warnings) > 1)}"
         if errors:
             self._result = ([], [])
             self.status.setText(f'<span style="color:#c00">{len(errors)} problem'

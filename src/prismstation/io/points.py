@@ -5,150 +5,144 @@ Ground points: header row, columns by name in any order, ``id,E,N,H`` required, 
 other columns are kept in ``extra``. With ``crs`` the coordinates are converted to the
 project CRS by pyproj (E = longitude, N = latitude for a geographic CRS).
 Measurements: ``id,view,x,y`` and optional ``sigma_px``.
+Both are read by :mod:`prismstation.io.csvtable` (its delimiter, comment and header rules); the
+``*_from_table`` functions return every bad line, the ``read_*`` ones raise on the first.
 """
 from __future__ import annotations
 
 import csv
 import io
 import math
-from pathlib import Path
 
 from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError, ProjError
 
 from prismstation.errors import InputError
+from prismstation.io.csvtable import Row, Table, raise_errors, read_table, records
 from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint, Measurement
 
 POINT_COLUMNS = ("id", "E", "N", "H", "kind", "height", "sigma_xy_m", "sigma_h_m")
 MEASUREMENT_COLUMNS = ("id", "view", "x", "y", "sigma_px")
 
 
-def _rows(path, required):
-    """Yield ``(line_number, row_dict)`` with keys matched case-insensitively to ``required``."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError("file not found", path) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read as UTF-8 text: {exc}", path) from None
-    lines = [(i, ln) for i, ln in enumerate(text.splitlines(), 1) if ln.strip() and not ln.lstrip().startswith("#")]
-    if not lines:
-        raise InputError("empty file: expected a header row", path, 1)
-    try:
-        dialect = csv.Sniffer().sniff(lines[0][1], delimiters=",;\t")
-    except csv.Error:
-        dialect = csv.excel
-    reader = csv.reader(io.StringIO("\n".join(ln for _, ln in lines)), dialect)
-    try:
-        header = [h.strip() for h in next(reader)]
-    except csv.Error as exc:
-        raise InputError(f"bad header: {exc}", path, lines[0][0]) from None
-    lower = {h.lower(): i for i, h in enumerate(header)}
-    missing = [c for c in required if c.lower() not in lower]
-    if missing:
-        raise InputError(f"header lacks column{'s' * (len(missing) > 1)} {', '.join(missing)} "
-                         f"(found: {', '.join(header)!r})", path, lines[0][0])
-    for (lineno, _), row in zip(lines[1:], reader):
-        if len(row) != len(header):
-            raise InputError(f"{len(row)} fields where the header has {len(header)}", path, lineno)
-        yield lineno, {h: v.strip() for h, v in zip(header, row)}, lower
+def ground_points_from_table(table: Table, *, mapping=None, constants=None, crs=None,
+                             to_crs=None, height: str | None = None, decimal_comma=False):
+    """``(points, errors)`` of a ground-points table: a GroundPoint per good row, an
+    InputError per bad line (see :func:`read_ground_points` for the arguments; ``mapping``,
+    ``constants``, ``decimal_comma`` as in :func:`prismstation.io.csvtable.records`).
+    Problems of the whole table (a missing column, an unknown CRS) are raised."""
+    default_kind = height or "ellipsoidal"
+    if default_kind not in HEIGHT_KINDS:
+        raise InputError(f"height kind must be one of {', '.join(HEIGHT_KINDS)}, not {height!r}")
+    tr = _transformer(crs, to_crs)
+    rows, errors = records(table, POINT_COLUMNS, ("id", "E", "N", "H"), mapping=mapping,
+                           constants=constants, decimal_comma=decimal_comma)
+    out: list[GroundPoint] = []
+    seen: dict[str, int] = {}
+    for row in rows:
+        try:
+            out.append(_ground_point(row, seen, default_kind, tr, crs, to_crs))
+        except InputError as exc:
+            errors.append(exc)
+    errors.sort(key=lambda e: e.line or 0)
+    return out, errors
 
 
-def _float(row, lower, name, path, lineno, optional=False):
-    key = next((h for h in row if h.lower() == name.lower()), None)
-    raw = row.get(key, "") if key else ""
-    if raw == "":
-        if optional:
-            return None
-        raise InputError(f"column {name} is empty", path, lineno)
+def _transformer(crs, to_crs):
+    if crs is None or to_crs is None:
+        return None
     try:
-        v = float(raw)
-    except ValueError:
-        raise InputError(f"column {name}: {raw!r} is not a number", path, lineno) from None
-    if not math.isfinite(v):
-        raise InputError(f"column {name}: {raw!r} is not a finite number", path, lineno)
-    return v
+        src, dst = CRS.from_user_input(crs), CRS.from_user_input(to_crs)
+    except CRSError as exc:
+        raise InputError(f"unknown CRS: {exc}") from None
+    if src == dst:
+        return None
+    try:
+        return Transformer.from_crs(src, dst, always_xy=True)
+    except ProjError as exc:
+        raise InputError(f"cannot convert from {crs} to {to_crs}: {exc}") from None
 
 
-def _get(row, name):
-    return next((v for h, v in row.items() if h.lower() == name.lower()), "")
+def _ground_point(row: Row, seen, default_kind, tr, crs, to_crs) -> GroundPoint:
+    pid = row.text("id")
+    if not pid:
+        raise row.error("column id is empty")
+    if pid in seen:
+        raise row.error(f"point {pid!r} appears twice (first on line {seen[pid]})")
+    seen[pid] = row.line
+    e, n, h = (row.number(c) for c in ("E", "N", "H"))
+    kind = (row.text("kind") or "GCP").upper()
+    if kind not in KINDS:
+        raise row.error(f"column kind: {kind!r} is not one of {', '.join(KINDS)}")
+    hk = (row.text("height") or default_kind).lower()
+    if hk not in HEIGHT_KINDS:
+        raise row.error(f"column height: {hk!r} is not one of {', '.join(HEIGHT_KINDS)}")
+    sxy, sh = row.number("sigma_xy_m", optional=True), row.number("sigma_h_m", optional=True)
+    for name, s in (("sigma_xy_m", sxy), ("sigma_h_m", sh)):
+        if s is not None and s < 0:
+            raise row.error(f"column {name} must not be negative")
+    if tr is not None:
+        e2, n2 = tr.transform(e, n)
+        if not (math.isfinite(e2) and math.isfinite(n2)):
+            raise row.error(f"coordinates ({e}, {n}) cannot be converted from {crs} to {to_crs}")
+        e, n = e2, n2
+    extra = {k: v for k, v in row.values.items() if k not in POINT_COLUMNS}
+    return GroundPoint(pid, e, n, h, hk, kind, sxy, sh, extra)
 
 
 def read_ground_points(path, *, crs=None, to_crs=None, height: str | None = None) -> list[GroundPoint]:
-    """Read a ground-points CSV.
+    """Read a ground-points CSV; raises an InputError naming the first bad line (and how many
+    more there are).
 
     ``crs``/``to_crs``: convert from ``crs`` to ``to_crs`` (both anything pyproj accepts);
     ``height``: the height kind of rows whose ``height`` column is absent or empty
     (default ``ellipsoidal``).
     """
-    path = Path(path)
-    default_kind = height or "ellipsoidal"
-    if default_kind not in HEIGHT_KINDS:
-        raise InputError(f"height kind must be one of {', '.join(HEIGHT_KINDS)}, not {height!r}")
-    tr = None
-    if crs is not None and to_crs is not None:
+    points, errors = ground_points_from_table(read_table(path), crs=crs, to_crs=to_crs,
+                                              height=height)
+    raise_errors(errors)
+    return points
+
+
+def measurements_from_table(table: Table, views=None, *, mapping=None, constants=None,
+                            decimal_comma=False):
+    """``(measurements, errors)`` of a measurements table (see :func:`ground_points_from_table`)."""
+    rows, errors = records(table, MEASUREMENT_COLUMNS, ("id", "view", "x", "y"), mapping=mapping,
+                           constants=constants, decimal_comma=decimal_comma)
+    out: list[Measurement] = []
+    seen: dict = {}
+    for row in rows:
         try:
-            src, dst = CRS.from_user_input(crs), CRS.from_user_input(to_crs)
-        except CRSError as exc:
-            raise InputError(f"unknown CRS: {exc}") from None
-        if src != dst:
-            try:
-                tr = Transformer.from_crs(src, dst, always_xy=True)
-            except ProjError as exc:
-                raise InputError(f"cannot convert from {crs} to {to_crs}: {exc}") from None
-    out: list[GroundPoint] = []
-    seen: dict[str, int] = {}
-    for lineno, row, _ in _rows(path, ("id", "E", "N", "H")):
-        pid = _get(row, "id")
-        if not pid:
-            raise InputError("column id is empty", path, lineno)
-        if pid in seen:
-            raise InputError(f"point {pid!r} appears twice (first on line {seen[pid]})", path, lineno)
-        seen[pid] = lineno
-        e, n, h = (_float(row, None, c, path, lineno) for c in ("E", "N", "H"))
-        kind = (_get(row, "kind") or "GCP").upper()
-        if kind not in KINDS:
-            raise InputError(f"column kind: {kind!r} is not one of {', '.join(KINDS)}", path, lineno)
-        hk = (_get(row, "height") or default_kind).lower()
-        if hk not in HEIGHT_KINDS:
-            raise InputError(f"column height: {hk!r} is not one of {', '.join(HEIGHT_KINDS)}", path, lineno)
-        sxy = _float(row, None, "sigma_xy_m", path, lineno, optional=True)
-        sh = _float(row, None, "sigma_h_m", path, lineno, optional=True)
-        for name, s in (("sigma_xy_m", sxy), ("sigma_h_m", sh)):
-            if s is not None and s < 0:
-                raise InputError(f"column {name} must not be negative", path, lineno)
-        if tr is not None:
-            e2, n2 = tr.transform(e, n)
-            if not (math.isfinite(e2) and math.isfinite(n2)):
-                raise InputError(f"coordinates ({e}, {n}) cannot be converted from {crs} to {to_crs}", path, lineno)
-            e, n = e2, n2
-        extra = {k: v for k, v in row.items() if k.lower() not in {c.lower() for c in POINT_COLUMNS}}
-        out.append(GroundPoint(pid, e, n, h, hk, kind, sxy, sh, extra))
-    return out
+            out.append(_measurement(row, seen, views))
+        except InputError as exc:
+            errors.append(exc)
+    errors.sort(key=lambda e: e.line or 0)
+    return out, errors
+
+
+def _measurement(row: Row, seen, views) -> Measurement:
+    pid, view = row.text("id"), row.text("view")
+    if not pid:
+        raise row.error("column id is empty")
+    if views is not None and view not in views:
+        raise row.error(f"view {view!r} is not in the scene (views: {', '.join(views)})")
+    if (pid, view) in seen:
+        raise row.error(f"point {pid!r} is measured twice in view {view} (first on line "
+                        f"{seen[pid, view]})")
+    seen[pid, view] = row.line
+    x, y = row.number("x"), row.number("y")
+    s = row.number("sigma_px", optional=True)
+    if s is not None and s <= 0:
+        raise row.error("column sigma_px must be positive")
+    return Measurement(pid, view, x, y, s)
 
 
 def read_measurements(path, views=None) -> list[Measurement]:
-    """Read a measurements CSV; ``views`` (optional) the view names the scene has."""
-    path = Path(path)
-    out: list[Measurement] = []
-    seen: dict = {}
-    for lineno, row, _ in _rows(path, ("id", "view", "x", "y")):
-        pid, view = _get(row, "id"), _get(row, "view")
-        if not pid:
-            raise InputError("column id is empty", path, lineno)
-        if views is not None and view not in views:
-            raise InputError(f"view {view!r} is not in the scene (views: {', '.join(views)})", path, lineno)
-        if (pid, view) in seen:
-            raise InputError(f"point {pid!r} is measured twice in view {view} (first on line "
-                             f"{seen[pid, view]})", path, lineno)
-        seen[pid, view] = lineno
-        x, y = (_float(row, None, c, path, lineno) for c in ("x", "y"))
-        s = _float(row, None, "sigma_px", path, lineno, optional=True)
-        if s is not None and s <= 0:
-            raise InputError("column sigma_px must be positive", path, lineno)
-        out.append(Measurement(pid, view, x, y, s))
-    return out
+    """Read a measurements CSV; ``views`` (optional) the view names the scene has. Raises an
+    InputError naming the first bad line (and how many more there are)."""
+    meas, errors = measurements_from_table(read_table(path), views)
+    raise_errors(errors)
+    return meas
 
 
 def _fmt(v) -> str:
