@@ -25,8 +25,9 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QDialog, QDialogButtonBox, 
 
 from prismstation.errors import InputError
 from prismstation.io import pointfiles
+from prismstation.io.csvtable import guess_delimiter
 from prismstation.gui.import_csv import (DELIMITERS, GROUND_FIELDS, MEASUREMENT_FIELDS, NONE,
-                                         PREVIEW_ROWS, guess_delimiter, guess_mapping, guess_view,
+                                         PREVIEW_ROWS, guess_mapping, guess_view,
                                          has_decimal_comma, is_point_file, read_mapped,
                                          split_lines)
 from prismstation.model.points import HEIGHT_KINDS
