@@ -492,7 +492,9 @@ class MainWindow(QMainWindow):
             ev.ignore()
             return
         self.save_layout()
-        self.files.close()
+        # every job reading the project or the images ends before they are released
         self.solver.shutdown()
+        self.dem_loader.close()
         self.views.shutdown()
+        self.files.close()
         super().closeEvent(ev)
