@@ -33,7 +33,7 @@ class Job(QObject):
 
     def __init__(self, fn, title: str = "", window=None):
         super().__init__()
-        self.fn, self.title, self._window = fn, title, window
+        self.fn, self.title, self._window = fn, title, _widget(window)
         self._jobs = workers.Jobs("tool")
         self._cancel = self._jobs.cancelled
 
@@ -103,11 +103,25 @@ class Job(QObject):
             self.cancelled.emit()
 
 
+def _widget(window):
+    """The widget of a tool context (or the widget itself)."""
+    from prismstation.gui.tools import ToolContext
+    return window.widget if isinstance(window, ToolContext) else window
+
+
+def stop_jobs_of(window) -> None:
+    """Cancel and join the running jobs started over ``window`` (it is closing)."""
+    for job in list(_LIVE):
+        if job._window is window and job.isRunning():
+            job._stop()
+
+
 def run_with_progress(window, title: str, fn, on_result, *, on_failed=None, dialog: bool = True) -> Job:
     """Start ``fn(progress)`` in a :class:`Job` with a cancellable progress dialog over
-    ``window`` (busy until the first progress report); ``on_result(value)`` and
+    ``window`` (a widget or a tool context; busy until the first progress report); ``on_result(value)`` and
     ``on_failed(message)`` run on the GUI thread while the window exists. Errors also go to a
     message box (when the window is interactive) and the status bar."""
+    window = _widget(window)
     job = Job(fn, title, window)
     dlg = None
     if dialog:
