@@ -1,4 +1,5 @@
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -26,3 +27,25 @@ def temp_settings(tmp_path, monkeypatch):
     d.mkdir()
     monkeypatch.setenv("PRISMSTATION_SETTINGS_DIR", str(d))
     return d
+
+
+@pytest.fixture(scope="session", autouse=True)
+def qt_application():
+    """The process's QApplication, made before any test: a test that makes a QGuiApplication
+    first (icons) would leave the widget tests of the same worker without one."""
+    try:
+        from PySide6.QtWidgets import QApplication
+    except ImportError:
+        yield None
+        return
+    yield QApplication.instance() or QApplication(sys.argv[:1])
+
+
+@pytest.fixture(autouse=True)
+def collect_garbage_between_tests():
+    """The window collects garbage from a GUI-thread timer (gui/workers.py); between tests,
+    when no event loop runs, collect here, on the main thread, when it is due."""
+    yield
+    workers = sys.modules.get("prismstation.gui.workers")
+    if workers is not None:
+        workers.collect_if_due()

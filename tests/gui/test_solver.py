@@ -76,13 +76,15 @@ def test_quick_fits_run_inline_slow_ones_in_the_worker(qtbot, demo):
         solver.set_project(project)
         qtbot.waitUntil(lambda: solver.solution is not None and not solver.busy(), timeout=10000)
         assert threads[-1] is not threading.main_thread()        # the first: no estimate yet
-        assert solver.last_fit_ms < solver.inline_ms
+        # the rule, not this machine's speed of the moment: a fit as large as the last is quick
+        solver.inline_ms = 10 * solver.last_fit_ms
         m = project.measurement("G1", "N")
         project.set_measurement(Measurement("G1", "N", m.x + 0.5, m.y))
         solver._start()                                          # what the zero-delay timer does
         assert threads[-1] is threading.main_thread()
         assert solver.solution.revision == project.revision and not solver.busy()
-        # an import that makes the project much larger: expected too slow, to the worker
+        solver.inline_ms = 10 * solver.last_fit_ms
+        # an import that makes the project 40 times larger: expected too slow, to the worker
         n = len(project.points)
         project.load([], [Measurement(f"T{i}", "N", 10.0 + i % 500, 10.0 + i // 500)
                           for i in range(40 * n)])

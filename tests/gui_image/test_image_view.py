@@ -125,21 +125,16 @@ def test_stale_requests_are_dropped(qtbot, pattern_tif):
         return real(*key)
 
     src.read_tile = slow
-    loader = TileLoader(src, threads=1)
     got = []
-    def slot(s, k, a):
-        if s is src:
-            got.append(k)
-
-    loader.tile_loaded.connect(slot)
+    loader = TileLoader(src, threads=1, on_loaded=lambda s, k, a: got.append(k))
     loader.request([(1, c, 0) for c in range(6)])
     time.sleep(0.01)
     loader.request([(1, 0, 3)])  # the view moved on
     qtbot.waitUntil(lambda: loader.pending() == 0 and (1, 0, 3) in got, timeout=5000)
     assert len(reads) <= 2  # at most the one already running, then the wanted one
-    loader.shutdown(wait=True)
-    loader.tile_loaded.disconnect(slot)
+    assert loader.shutdown(wait=True)
     assert not any(t.is_alive() for t in loader._threads)
+    src.close()
 
 
 def test_contrast_presets_and_histogram_levels(qtbot, view, pattern_tif):

@@ -83,7 +83,8 @@ def test_cancel_in_the_dialog_stops_the_build(qtbot, tmp_path):
             time.sleep(0.01)
         return True
 
-    fake = SimpleNamespace(path=tmp_path / "big.tif", build_overviews=slow_build)
+    fake = SimpleNamespace(path=tmp_path / "big.tif", build_overviews=slow_build,
+                           release_thread=lambda: None)
 
     def press_cancel():
         dlg = QApplication.activeModalWidget()

@@ -16,7 +16,7 @@ def _settle(qtbot, win):
 
 @pytest.mark.slow  # 18 s with its fixture (measured, -n 0)
 def test_orient_from_srtm_in_the_window(qtbot, window, sim, truth):
-    tool = window.dem_orientation
+    tool = window.tools["dem_orientation"]
     assert window.project.settings.orientation == "gcp"
     gcp_sol = window.solver.solution
     depth = window.undo_stack.count()
@@ -82,7 +82,7 @@ def test_orient_from_srtm_in_the_window(qtbot, window, sim, truth):
 def test_bad_reference_is_a_message_not_a_traceback(qtbot, window, sim):
     bad = sim / "not_a_dem.tif"
     bad.write_text("this is not a raster")
-    job = window.dem_orientation.start(bad, patch_m=1000.0)
+    job = window.tools["dem_orientation"].start(bad, patch_m=1000.0)
     msgs = []
     job.failed.connect(msgs.append)
     qtbot.waitUntil(lambda: bool(msgs), timeout=20000)
@@ -90,7 +90,7 @@ def test_bad_reference_is_a_message_not_a_traceback(qtbot, window, sim):
 
 
 def test_cancel_stops_the_worker(qtbot, window, sim):
-    job = window.dem_orientation.start(sim / "srtm.tif", patch_m=1000.0)
+    job = window.tools["dem_orientation"].start(sim / "srtm.tif", patch_m=1000.0)
     ended = []
     job.cancelled.connect(lambda: ended.append("cancelled"))
     job.result.connect(lambda r: ended.append("result"))
@@ -110,7 +110,7 @@ def test_menu_route_through_the_dialog(qtbot, window, sim, monkeypatch):
         return QDialog.DialogCode.Accepted
 
     monkeypatch.setattr(mod.OrientDialog, "exec", fake_exec)
-    window.dem_orientation.a_orient.trigger()
+    window.tools["dem_orientation"].a_orient.trigger()
     qtbot.waitUntil(lambda: window.project.settings.orientation == "dem", timeout=60000)
-    assert window.dem_orientation.patch_km == 1.0
-    assert window.dem_orientation.panel.table.rowCount() == len(window.project.dem_control["patches"])
+    assert window.tools["dem_orientation"].patch_km == 1.0
+    assert window.tools["dem_orientation"].panel.table.rowCount() == len(window.project.dem_control["patches"])

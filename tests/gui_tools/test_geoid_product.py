@@ -58,7 +58,7 @@ def test_constant_geoid_is_one_undo_step_and_heights_refit(ortho_window):
     assert "constant 30 m" in win.panel.plain_text().splitlines()[0]
     c0 = win.solver.solution.parallax.c0
     steps = win.undo_stack.count()
-    assert apply_geoid(win, {"kind": "constant", "value": N0 + 10.0})
+    assert apply_geoid(win.tool_context, {"kind": "constant", "value": N0 + 10.0})
     sol = _settle(win)
     # every ellipsoidal height is 10 m higher: the parallax line moves by exactly 10 m
     assert sol.parallax.c0 == pytest.approx(c0 + 10.0, abs=1e-6)
@@ -86,7 +86,7 @@ def test_found_grid_listed_chosen_and_fitted_like_the_solver(ortho_window, monke
     dlg.grids.setCurrentRow([g.resolve() for g in grids].index(grid.resolve()))
     assert dlg.setting() == {"kind": "grid", "path": str(grid.resolve())}
     monkeypatch.setattr(dlg, "exec", lambda: QDialog.DialogCode.Accepted)
-    assert gt.choose_geoid(win, dialog_cls=lambda *a: dlg)
+    assert gt.choose_geoid(win.tool_context, dialog_cls=lambda *a: dlg)
     sol = _settle(win)
     assert win.panel.geoid.text() == f"grid {grid.name}"
     assert "Geoid: grid" in win.panel.plain_text()
@@ -106,8 +106,8 @@ def test_unreadable_grid_is_a_clear_message_and_changes_nothing(ortho_window, tm
     said = []
     win.files.warn = lambda title, text: said.append(text)
     before, steps = dict(win.project.geoid), win.undo_stack.count()
-    assert not apply_geoid(win, {"kind": "grid", "path": str(bad)})
-    assert not apply_geoid(win, {"kind": "grid", "path": str(tmp_path / "missing.gtx")})
+    assert not apply_geoid(win.tool_context, {"kind": "grid", "path": str(bad)})
+    assert not apply_geoid(win.tool_context, {"kind": "grid", "path": str(tmp_path / "missing.gtx")})
     assert len(said) == 2 and "broken.gtx" in said[0] and "cannot" in said[0]
     assert "missing.gtx" in said[1] and "does not exist" in said[1]
     assert win.project.geoid == before and win.undo_stack.count() == steps
@@ -129,7 +129,7 @@ def test_other_grid_file_through_the_dialog(ortho_window, tmp_path):
     dlg.file.setText(str(g))
     dlg.file.textEdited.emit(str(g))
     assert dlg.r_file.isChecked()
-    assert apply_geoid(win, dlg.setting())
+    assert apply_geoid(win.tool_context, dlg.setting())
     sol = _settle(win)
     assert win.panel.geoid.text() == "grid flat12.tif"
     assert sol.parallax.c0 == pytest.approx(c0 + (12.0 - N0), abs=1e-4)

@@ -12,7 +12,7 @@ def _settle(qtbot, win):
 
 
 def test_placed_point_is_transferred_and_accepted(qtbot, window, truth):
-    tool = window.transfer_tool
+    tool = window.tools["transfer"]
     assert tool.a_auto.isChecked()
     p = window.project
     # a ground point of the simulator, placed at its exact N position as a new tie point
@@ -46,7 +46,7 @@ def test_placed_point_is_transferred_and_accepted(qtbot, window, truth):
 
 
 def test_correcting_by_click_and_switching_off(qtbot, window, truth):
-    tool = window.transfer_tool
+    tool = window.tools["transfer"]
     t = next(t for t in truth.values() if t["kind"] == "ICP")
     window.set_current(None)
     window.views.place_requested.emit("N", *t["image"]["N"])
@@ -65,7 +65,7 @@ def test_correcting_by_click_and_switching_off(qtbot, window, truth):
 
 
 def test_automatic_tie_points_one_undo_step(qtbot, window, sim):
-    tool = window.transfer_tool
+    tool = window.tools["transfer"]
     p = window.project
     before = set(p.points)
     depth = window.undo_stack.count()
@@ -137,7 +137,7 @@ def test_tools_menu_and_closing_during_a_search(qtbot, window, truth):
     t = next(t for t in truth.values() if t["kind"] == "ICP")
     window.set_current(None)
     window.views.place_requested.emit("N", *t["image"]["N"])
-    job = window.transfer_tool.job
+    job = window.tools["transfer"].job
     window.files.maybe_save = lambda *a, **k: True
     window.close()               # the search ends after the window: nothing happens, no error
     job.wait(10000)

@@ -41,7 +41,7 @@ def test_single_view_opens_and_transform_table_matches_engine(sv_window, qtbot):
     window = sv_window
     assert list(window.views.views) == ["A"]
     assert window.views.views["A"].source is not None
-    panel = window.rectify_tool.panel
+    panel = window.tools["rectify"].panel
     panel.refresh()
     ids, xy, g, chk = view_points(window.project, "A")
     assert chk.sum() == 6 and (~chk).sum() == 14
@@ -78,7 +78,7 @@ def test_single_view_opens_and_transform_table_matches_engine(sv_window, qtbot):
 def test_rectify_export_in_worker(sv_window, job_outcome, tmp_path):
     window = sv_window
     out = tmp_path / "rect.tif"
-    job = window.rectify_tool.start("A", "affine", out, resolution=20.0, progress_dialog=True)
+    job = window.tools["rectify"].start("A", "affine", out, resolution=20.0, progress_dialog=True)
     assert job is not None
     kind, res = job_outcome(job)
     assert kind == "result", res
@@ -93,7 +93,7 @@ def test_rectify_export_in_worker(sv_window, job_outcome, tmp_path):
 
 def test_rectify_cancel_removes_the_partial_file(sv_window, job_outcome, tmp_path):
     out = tmp_path / "cancelled.tif"
-    job = sv_window.rectify_tool.start("A", "poly2", out, resolution=2.0)  # 16 blocks
+    job = sv_window.tools["rectify"].start("A", "poly2", out, resolution=2.0)  # 16 blocks
     job.cancel()
     assert job_outcome(job) == ("cancelled", None)
     assert "cancelled" in sv_window.statusBar().currentMessage()
@@ -104,7 +104,7 @@ def test_too_few_points_is_a_message_not_a_file(sv_window, tmp_path):
     from prismstation.gui import commands as cmd
     for pid in ("G1", "G2", "G3", "G4", "G5"):  # 9 GCPs left: poly3 needs 10
         sv_window.undo_stack.push(cmd.SetKind(sv_window.project, pid, "ICP"))
-    assert sv_window.rectify_tool.start("A", "poly3", tmp_path / "x.tif") is None
+    assert sv_window.tools["rectify"].start("A", "poly3", tmp_path / "x.tif") is None
     assert "at least 10" in sv_window.statusBar().currentMessage()
     assert not (tmp_path / "x.tif").exists()
 
@@ -124,7 +124,7 @@ def test_bh_from_two_resections(two_frame_window):
     from tests.gui_tools.single_view import FRAME_EO, FRAME_EO_B
     window = two_frame_window
     assert list(window.views.views) == ["A", "A2"]
-    d = window.resection_tool.open()
+    d = window.tools["resection"].open()
     d.focal.setValue(100.0)
     d.pitch.setValue(50.0)
     d.left_view.setCurrentText("A")
@@ -160,12 +160,12 @@ def test_deblock_toggle_changes_displayed_tiles(big_window, qtbot):
     raw = iv.source.cached_tile(*key)
     before = np.array(iv._tiles[key].image)
     np.testing.assert_array_equal(before, raw)
-    window.deblock_tool.actions["A"].setChecked(True)
+    window.tools["deblock"].actions["A"].setChecked(True)
     qtbot.waitUntil(lambda: key in iv._tiles, timeout=5000)
     after = np.array(iv._tiles[key].image)
     np.testing.assert_array_equal(after, deblock(raw))
     assert np.any(after != raw)
-    window.deblock_tool.actions["A"].setChecked(False)
+    window.tools["deblock"].actions["A"].setChecked(False)
     qtbot.waitUntil(lambda: key in iv._tiles, timeout=5000)
     np.testing.assert_array_equal(np.array(iv._tiles[key].image), raw)
 
@@ -184,7 +184,7 @@ def test_resection_dialog_converges_on_a_frame_camera(frame_window, qtbot):
     from tests.gui_tools.single_view import FRAME_EO
     window = frame_window
     cam = window.frame_camera
-    d = window.resection_tool.open()
+    d = window.tools["resection"].open()
     assert d.cx.value() == pytest.approx(200.0) and d.cy.value() == pytest.approx(200.0)
     d.focal.setValue(cam.focal_m * 1000)
     d.pitch.setValue(cam.pixel_m * 1e6)
@@ -216,7 +216,7 @@ def _write(path, arr, transform, dtype="float32", nodata=None):
 def test_residual_sd_dock_matches_solution(sv_window):
     window = sv_window
     sol = window.solver.solution
-    tool = window.dsm_validation_tool
+    tool = window.tools["dsm_validation"]
     t = tool.sd_panel.table
     assert not tool.sd_dock.isVisible() and t.rowCount() == 0   # hidden: not filled per click
     tool.sd_dock.show()
@@ -243,7 +243,7 @@ def test_dsm_validation_shows_known_bias(sv_window, qtbot, job_outcome, tmp_path
     _write(tmp_path / "dsm.tif", dsm, geo)
     _write(tmp_path / "ref.tif", z, geo)
     _write(tmp_path / "mask.tif", classes, geo, "uint8", nodata=0)
-    tool = window.dsm_validation_tool
+    tool = window.tools["dsm_validation"]
     job = tool.start(str(tmp_path / "dsm.tif"), str(tmp_path / "ref.tif"),
                      mask=str(tmp_path / "mask.tif"))
     kind, msg = job_outcome(job)

@@ -48,6 +48,8 @@ def make_app():
     # collector ran ~4 times per click and a full collection (~50 ms) now and then mid-click
     import gc
     gc.set_threshold(20000, 10, 10)
+    from prismstation.gui import workers
+    workers.collect_on_gui_thread()  # a worker thread must never free a Qt object
     return app
 
 

@@ -3,7 +3,7 @@
 What is drawn: an always-present coarse overview of the whole image (one read of about 1000 px),
 and on top of it the tiles of the overview level matching the current zoom for the visible area.
 Tiles are read by a :class:`~prismstation.gui.tiles.TileLoader` in worker threads and delivered to
-the GUI thread by signals; requests are dropped when the view has moved on; tiles come from the
+the GUI thread (:func:`~prismstation.gui.workers.post`); requests are dropped when the view has moved on; tiles come from the
 source's LRU cache when they are there.
 
 Coordinates (MODEL.md §1): scene coordinates of the view box are image pixels, x = column to the
@@ -19,7 +19,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt, QTimer, Signal
 from PySide6.QtWidgets import QGraphicsItem, QVBoxLayout, QWidget
 
-from prismstation.gui.tiles import COARSE_KEY, TileLoader, tile_relay, tiles_for_rect
+from prismstation.gui.tiles import COARSE_KEY, TileLoader, tiles_for_rect
 from prismstation.io.raster import RasterSource
 
 _COARSE_Z = -100
@@ -36,6 +36,23 @@ def _image_item(arr: np.ndarray, rect_xywh, levels, z: float) -> pg.ImageItem:
     # click) blits it instead of resampling the tile (a view repaint 1.6 → 0.9 ms)
     item.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
     return item
+
+
+class ImageViewBox(pg.ViewBox):
+    """The view box of an :class:`ImageView`: image pixels, y down, fixed aspect, no menu.
+
+    ``drag_handler(ev) -> bool``, when set, sees every mouse drag first; True means it took the
+    drag (a marker being moved), otherwise the box pans.
+    """
+
+    def __init__(self):
+        super().__init__(lockAspect=True, invertY=True, enableMenu=False, defaultPadding=0.0)
+        self.drag_handler = None
+
+    def mouseDragEvent(self, ev, axis=None):
+        if self.drag_handler is not None and self.drag_handler(ev):
+            return
+        super().mouseDragEvent(ev, axis=axis)
 
 
 class ImageView(QWidget):
@@ -87,7 +104,7 @@ class ImageView(QWidget):
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
         layout.addWidget(self.graphics)
-        self.vb = pg.ViewBox(lockAspect=True, invertY=True, enableMenu=False, defaultPadding=0.0)
+        self.vb = ImageViewBox()
         self.graphics.setCentralItem(self.vb)
         self.source: RasterSource | None = None
         self.loader: TileLoader | None = None
@@ -103,13 +120,12 @@ class ImageView(QWidget):
         self._update_timer.setInterval(0)
         self._update_timer.timeout.connect(self._update_tiles)
         self._arrived: list = []  # (key, array) delivered, not yet shown
+        self._unsettled = False  # a tile was shown since the last settle
         self._drain_timer = QTimer(self)
         self._drain_timer.setSingleShot(True)
         self._drain_timer.setInterval(0)
         self._drain_timer.timeout.connect(self._drain_arrived)
         self.vb.sigRangeChanged.connect(self._on_range_changed)
-        tile_relay().tile_loaded.connect(self._on_tile_loaded)
-        tile_relay().tile_failed.connect(self._on_tile_failed)
         self.graphics.scene().sigMouseMoved.connect(self._on_mouse_moved)
         self.graphics.scene().sigMouseClicked.connect(self._on_mouse_clicked)
 
@@ -128,7 +144,8 @@ class ImageView(QWidget):
         if source is None:
             self.source_changed.emit()
             return
-        self.loader = TileLoader(source, self._threads, owner=self)
+        self.loader = TileLoader(source, self._threads, self._on_tile_loaded, self._on_tile_failed)
+        self.destroyed.connect(self.loader.stop)  # deleted without a close: the workers end
         w, h = source.width, source.height
         self.vb.setLimits(xMin=-w, xMax=2 * w, yMin=-h, yMax=2 * h, minXRange=4, minYRange=4)
         self.fit()
@@ -156,9 +173,7 @@ class ImageView(QWidget):
         self.source_ready.emit()
 
     def _clear(self) -> None:
-        if self.loader is not None:
-            self.loader.shutdown()
-            self.loader = None
+        self.shutdown()
         for item in self._tiles.values():
             self.vb.removeItem(item)
         self._tiles.clear()
@@ -168,9 +183,15 @@ class ImageView(QWidget):
         self._wanted = []
         self._arrived = []
 
-    def closeEvent(self, ev):
+    def shutdown(self) -> None:
+        """End the tile reads (joined: the caller may close the source afterwards)."""
         if self.loader is not None:
-            self.loader.shutdown()
+            self.destroyed.disconnect(self.loader.stop)
+            self.loader.shutdown(wait=True)
+            self.loader = None
+
+    def closeEvent(self, ev):
+        self.shutdown()
         super().closeEvent(ev)
 
     # ------------------------------------------------------------------ geometry
@@ -348,20 +369,20 @@ class ImageView(QWidget):
     def _drain_arrived(self) -> None:
         """Show delivered tiles for at most TILE_BUDGET_S, then yield to the event loop."""
         t0 = time.perf_counter()
-        shown = False
         while self._arrived and time.perf_counter() - t0 < TILE_BUDGET_S:
             key, arr = self._arrived.pop(0)
             if key in self._tiles or key not in self._wanted:
                 continue
             self._show_tile(key, arr).render()  # convert now, inside the budget
-            shown = True
+            self._unsettled = True
         if self._arrived:
             self._drain_timer.start()
-        elif shown and self.tiles_complete():
+        elif self._unsettled and self.tiles_complete():  # (the last turn may show none)
             self._settled()
 
     def _settled(self) -> None:
         """All wanted tiles shown: they cover the view, so backdrop tiles and overview go."""
+        self._unsettled = False
         self._drop_tiles(lambda k: k[0] != self._level)
         self._coarse_item.setVisible(False)
         self.tiles_settled.emit()

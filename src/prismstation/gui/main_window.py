@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from PySide6.QtCore import Qt, QTimer
-from PySide6.QtGui import QAction, QKeySequence, QUndoStack
+from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QDockWidget, QDoubleSpinBox, QLabel, QMainWindow,
                                QMessageBox, QStyle, QTabWidget, QHBoxLayout, QWidget)
 
@@ -23,11 +23,9 @@ from prismstation.gui.loupe import Loupe
 from prismstation.gui.model_panel import ModelPanel
 from prismstation.gui.plots import PlotsWidget
 from prismstation.gui.point_table import PointTableModel, PointTableView
-from prismstation.gui.reference_dem import DemLoader
-from prismstation.gui.project_io import ProjectFiles
-from prismstation.gui.solver import Solver
 from prismstation.gui.text_label import TextLabel
 from prismstation.gui.views import TripletViews
+from prismstation.gui.workspace import Workspace
 
 
 class MainWindow(QMainWindow):
@@ -39,12 +37,9 @@ class MainWindow(QMainWindow):
         self.setObjectName("MainWindow")
         self.setWindowTitle("prismstation")
         self.interactive = interactive
-        self.project = None
-        self.current: str | None = None
-        self.undo_stack = QUndoStack(self)
-        self.files = ProjectFiles(self.undo_stack, self)
-        self.solver = Solver(self, threaded=threaded_fit)
-        self.dem_loader = DemLoader(self)
+        self.workspace = ws = Workspace(self, threaded_fit)
+        self.undo_stack, self.files, self.solver, self.dem_loader = (
+            ws.undo_stack, ws.files, ws.solver, ws.dem_loader)
         self.views = TripletViews(self)
         self.setCentralWidget(self.views)
         self.table_model = PointTableModel(self)
@@ -69,7 +64,8 @@ class MainWindow(QMainWindow):
         self._menus()
         self._toolbar()
         self._connect()
-        install_tools(self)
+        self.tool_context = install_tools(self)
+        self.tools = self.tool_context.tools
         if interactive:
             self.views.offer_overviews = self._offer_overviews
         self._measured_timer = QTimer(self)
@@ -241,13 +237,20 @@ class MainWindow(QMainWindow):
     def open_project(self, path, **kw) -> bool:
         return self.files.open_project(str(path), **kw)
 
+    @property
+    def project(self):
+        return self.workspace.project
+
+    @property
+    def current(self) -> str | None:
+        return self.workspace.current
+
     def set_project(self, project) -> None:
         if self.project is not None:
             self.project.changed.disconnect(self._on_project_changed)
-        self.project, self.current = project, None
+        self.workspace.set_project(project)
         project.changed.connect(self._on_project_changed)
         self.views.height_of = None
-        self.solver.height_of = None
         self.views.set_project(project)
         split = st.value(st.Key.SPLITTER)
         if split is not None and not split.isEmpty():
@@ -257,7 +260,6 @@ class MainWindow(QMainWindow):
         self.table_model.set_project(project)
         self.panel.set_settings(project.settings)
         self._bind_image_tools()
-        self.solver.set_project(project)
         self._update_actions()
 
     def _bind_image_tools(self) -> None:
@@ -312,10 +314,8 @@ class MainWindow(QMainWindow):
 
     # ------------------------------------------------------------------ current point
     def set_current(self, pid: str | None, drive: bool = True) -> None:
-        if pid is not None and (self.project is None or pid not in self.project.points):
-            pid = None
-        changed = pid != self.current
-        self.current = pid
+        changed = self.workspace.set_current(pid)
+        pid = self.current
         self.views.set_current(pid)
         self.table.select_id(pid)
         for v, lp in self.loupes.items():
@@ -492,7 +492,9 @@ class MainWindow(QMainWindow):
             ev.ignore()
             return
         self.save_layout()
-        self.files.close()
-        self.solver.shutdown()
+        # every job reading the project or the images ends before they are released
+        self.tool_context.shutdown()
+        self.workspace.shutdown_jobs()
         self.views.shutdown()
+        self.workspace.close()
         super().closeEvent(ev)

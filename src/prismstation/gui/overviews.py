@@ -1,20 +1,19 @@
 """Offer to build overviews for a large raster that has none, with a cancellable progress dialog.
 
-The build runs in a ``QThread`` (``RasterSource.build_overviews``); the dialog's Cancel makes the
+The build runs in a worker thread (``RasterSource.build_overviews``); the dialog's Cancel makes the
 progress callback return False, which stops the build between levels.
 """
 from __future__ import annotations
 
-import threading
-
-from PySide6.QtCore import QCoreApplication, QObject, QThread, Signal, Slot
+from PySide6.QtCore import QObject, Signal, Slot
 from PySide6.QtWidgets import QMessageBox, QProgressDialog
 
 from prismstation.errors import RasterReadError
+from prismstation.gui import workers
 
 
 class OverviewBuilder(QObject):
-    """Runs ``source.build_overviews`` in a worker thread.
+    """Runs ``source.build_overviews`` in a worker thread (:mod:`.workers`).
 
     Signals
     -------
@@ -30,30 +29,37 @@ class OverviewBuilder(QObject):
         super().__init__()
         self.source = source
         self.external = external
-        self.cancelled = threading.Event()
+        self.jobs = workers.Jobs("overviews")
+        self.cancelled = self.jobs.cancelled
         self.result: tuple[bool, str] | None = None
-        self.thread = QThread()
-        self.moveToThread(self.thread)
-        self.thread.started.connect(self._run)
 
     def start(self) -> None:
-        self.thread.start()
+        self.jobs.start(self._run)
 
     def cancel(self) -> None:
         self.cancelled.set()
 
+    def wait(self) -> None:
+        self.jobs.wait()
+
     def _run(self) -> None:  # worker thread
         def progress(fraction: float) -> bool:
-            self.progressed.emit(int(round(100 * fraction)))
+            workers.post(self._progressed, int(round(100 * fraction)))
             return not self.cancelled.is_set()
 
         try:
             self.result = (bool(self.source.build_overviews(progress, external=self.external)), "")
         except RasterReadError as exc:
             self.result = (False, str(exc))
-        self.finished.emit(*self.result)
-        self.moveToThread(QCoreApplication.instance().thread())  # deleted from there later
-        self.thread.quit()
+        finally:
+            self.source.release_thread()
+        workers.post(self._finished, *self.result)
+
+    def _progressed(self, percent: int) -> None:
+        self.progressed.emit(percent)
+
+    def _finished(self, completed: bool, message: str) -> None:
+        self.finished.emit(completed, message)
 
 
 class _Waiter(QObject):
@@ -98,7 +104,7 @@ def build_overviews_with_progress(parent, source, external: bool = True) -> bool
     dialog.exec()  # the queued `finished` can only arrive inside this event loop
     if waiter.ok is None:  # the dialog went away before the end (Cancel, Esc, close)
         builder.cancel()
-    builder.thread.wait()
+    builder.wait()
     ok, message = builder.result or (False, "")
     if message:
         QMessageBox.warning(parent, "Overviews", message)

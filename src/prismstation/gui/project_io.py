@@ -26,6 +26,7 @@ from PySide6.QtWidgets import QFileDialog, QMessageBox
 
 from prismstation.errors import InputError, PrismError
 from prismstation.gui import settings as st
+from prismstation.gui import workers
 from prismstation.io.project import SUFFIX, load_project, save_project
 from prismstation.io.recovery import Journal, recovery_path
 from prismstation.io.scene import read_scene
@@ -55,7 +56,7 @@ class _WindowJournal(Journal):
     loses at most the edits of the last :attr:`IDLE_MS` and of the write in flight.
     ``report(str)`` is called from the writer thread for write errors (and from the GUI
     thread when the project cannot be serialised), so it must be safe to call from any thread
-    (:class:`ProjectFiles` passes a signal delivered queued to the GUI).
+    (:class:`ProjectFiles` posts it to the GUI thread).
     """
 
     IDLE_MS = 40
@@ -137,7 +138,6 @@ class ProjectFiles(QObject):
     path_changed = Signal(str)
     message = Signal(str)
     recent_changed = Signal(list)
-    _journal_message = Signal(str)  # emitted from the journal's thread, delivered in ours
 
     def __init__(self, undo_stack, parent_widget=None):
         super().__init__(parent_widget)
@@ -148,8 +148,7 @@ class ProjectFiles(QObject):
         self.journal: Journal | None = None
         self.interactive = True  # False: every question is answered "No" (screenshots, scripts)
         undo_stack.cleanChanged.connect(self._on_clean_changed)
-        # a bound slot of this QObject: emitted from another thread, the call is queued here
-        self._journal_message.connect(self._on_journal_message)
+        workers.relay()  # the journal's writer thread reports through it
 
     # ------------------------------------------------------------------ dialogs (overridable)
     def ask(self, title: str, text: str, buttons=None, default=None):
@@ -188,7 +187,7 @@ class ProjectFiles(QObject):
             self.journal.close()
         self.project = project
         self.path = None if path is None else Path(path).resolve()
-        self.journal = _WindowJournal(project, self.path or untitled_path(), self._journal_message.emit)
+        self.journal = _WindowJournal(project, self.path or untitled_path(), self._journal_report)
         self.stack.clear()
         self.stack.setClean()
         self.project_opened.emit(project)
@@ -431,6 +430,9 @@ class ProjectFiles(QObject):
         return True if self.journal is None else self.journal.flush(timeout)
 
     @Slot(str)
+    def _journal_report(self, text: str) -> None:  # any thread
+        workers.post(self._on_journal_message, text)
+
     def _on_journal_message(self, text: str) -> None:
         self.message.emit(text)
 

@@ -3,59 +3,50 @@ loaded in a worker (:class:`DemLoader`) by :func:`prismstation.ops.reference_hei
 """
 from __future__ import annotations
 
-from PySide6.QtCore import QObject, QRunnable, QThreadPool, Signal
+from PySide6.QtCore import QObject, Signal
 
 from prismstation.errors import PrismError
+from prismstation.gui import workers
 from prismstation.ops.reference_heights import load_for_scene
 
 
-class _Relay(QObject):
-    done = Signal(object, str)
-
-
-_RELAY: _Relay | None = None
-
-
-class _Job(QRunnable):
-    def __init__(self, path, project, relay):
-        super().__init__()
-        self.path, self.project, self.relay = path, project, relay
-
-    def run(self) -> None:  # worker thread
-        try:
-            self.relay.done.emit(load_for_scene(self.path, self.project), "")
-        except (PrismError, OSError, ValueError) as exc:
-            self.relay.done.emit(None, str(exc))
+def _load(on_done, path, project, request: int) -> None:  # worker thread
+    try:
+        workers.post(on_done, load_for_scene(path, project), "", request)
+    except (PrismError, OSError, ValueError) as exc:
+        workers.post(on_done, None, str(exc), request)
 
 
 class DemLoader(QObject):
-    """Loads a reference DEM in a worker; ``loaded(DemHeights)`` or ``failed(message)``."""
+    """Loads a reference DEM in a worker; ``loaded(DemHeights)`` or ``failed(message)`` for the
+    latest :meth:`start` (earlier ones are dropped). :meth:`close` joins the worker."""
 
     loaded = Signal(object)
     failed = Signal(str)
 
     def __init__(self, parent=None):
         super().__init__(parent)
-        global _RELAY
-        if _RELAY is None:  # process-wide and never deleted: no emit on a dead object
-            _RELAY = _Relay()
-        self._pool = QThreadPool(self)
-        self._pool.setMaxThreadCount(1)
-        _RELAY.done.connect(self._done)
-        self._waiting = False
+        self._jobs = workers.Jobs("reference-dem")
+        self._request = 0
 
     def start(self, path, project) -> None:
-        self._waiting = True
-        self._pool.start(_Job(path, project, _RELAY))
+        self._request += 1
+        self._jobs.start(_load, self._done, path, project, self._request)
 
-    def _done(self, heights, error) -> None:
-        if not self._waiting:
+    def _done(self, heights, error, request) -> None:
+        if request != self._request:
             return
-        self._waiting = False
         if heights is None:
             self.failed.emit(error)
         else:
             self.loaded.emit(heights)
 
     def wait(self, ms: int = 30000) -> None:
-        self._pool.waitForDone(ms)
+        """Wait for the load and deliver its outcome (scripts and tests)."""
+        self._jobs.wait(ms / 1000.0)
+        workers.deliver_now()
+
+    def close(self) -> None:
+        """Join the load (it reads the project's scene); its outcome is dropped."""
+        self._request += 1
+        self._jobs.close()

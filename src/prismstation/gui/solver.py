@@ -15,9 +15,9 @@ from __future__ import annotations
 import copy
 import time
 
-from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
+from PySide6.QtCore import QObject, QTimer, Signal
 
-from prismstation.gui import relay
+from prismstation.gui import workers
 
 from prismstation.errors import PrismError
 from prismstation.ops.fit import solve_project
@@ -46,16 +46,8 @@ def _fit(snap, height_of):
     return sol, err, time.perf_counter() - t0
 
 
-class _FitJob(QRunnable):
-    def __init__(self, snap, token, height_of=None):
-        super().__init__()
-        self.snap = snap
-        self.height_of = height_of
-        self.token = token  # (relay id of the solver, project generation)
-        self.setAutoDelete(True)
-
-    def run(self) -> None:  # worker thread
-        relay.post(self.token[0], "_on_done", *_fit(self.snap, self.height_of), self.token)
+def _fit_job(on_done, snap, height_of, generation) -> None:  # worker thread
+    workers.post(on_done, *_fit(snap, height_of), generation)
 
 
 class Solver(QObject):
@@ -95,9 +87,7 @@ class Solver(QObject):
         self._generation = 0  # bumped per project: fits of a previous project are dropped
         self._running = False
         self._dirty = False
-        self._pool = QThreadPool(self)
-        self._pool.setMaxThreadCount(1)
-        self._token = relay.register(self)
+        self._jobs = workers.Jobs("fit")
         self._timer = QTimer(self)
         self._timer.setSingleShot(True)
         self._timer.setInterval(0)
@@ -135,14 +125,14 @@ class Solver(QObject):
     def refit_now(self):
         """Fit synchronously on this thread and publish (scripts, screenshots)."""
         self._timer.stop()
-        self._pool.waitForDone()
+        self._jobs.wait()
         self._dirty = False
         self._fit_points = max(len(self.project.points), 1)
         self._publish(*_fit(snapshot(self.project), self.height_of))
         return self.solution
 
     def _start(self) -> None:
-        if self.project is None or self._running or not self._dirty:
+        if self.project is None or self._running or not self._dirty or self._jobs.closed:
             return
         self._dirty = False
         snap = snapshot(self.project)
@@ -152,11 +142,11 @@ class Solver(QObject):
             self._publish(*_fit(snap, self.height_of))
             return
         self._running = True
-        self._pool.start(_FitJob(snap, (self._token, self._generation), self.height_of))
+        self._jobs.start(_fit_job, self._on_done, snap, self.height_of, self._generation)
 
-    def _on_done(self, sol, err, seconds, token) -> None:
+    def _on_done(self, sol, err, seconds, generation) -> None:
         self._running = False
-        if token[1] == self._generation:
+        if generation == self._generation:
             self._publish(sol, err, seconds)
         if self._dirty:
             self._timer.start()
@@ -178,5 +168,7 @@ class Solver(QObject):
         self.solution_changed.emit(sol)
 
     def shutdown(self) -> None:
+        """Join the running fit (it reads a snapshot and the reference DEM); none starts after."""
         self._timer.stop()
-        self._pool.waitForDone(5000)
+        self._generation += 1  # a fit delivered after this is dropped
+        self._jobs.close()

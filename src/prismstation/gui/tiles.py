@@ -2,18 +2,17 @@
 
 A tile key is ``(level, col, row)``: ``level`` is the decimation factor (1 = full resolution),
 and the tile covers the full-resolution rectangle ``RasterSource.tile_rect(level, col, row)``.
-Reads run in worker threads fed by one queue; results come back to the GUI thread by a queued
-signal. A request that is no longer wanted is dropped before a worker picks it up.
+Reads run in worker threads (:mod:`.workers`) fed by one queue; results come back to the GUI
+thread through :func:`workers.post`. A request no longer wanted is dropped before a worker picks
+it up.
 """
 from __future__ import annotations
 
 import math
 import threading
-import weakref
-
-from PySide6.QtCore import QObject, Signal
 
 from prismstation.errors import RasterReadError
+from prismstation.gui import workers
 from prismstation.io.raster import TILE_SIZE, RasterSource
 
 
@@ -48,37 +47,17 @@ def tiles_for_rect(source: RasterSource, level: int, rect_xywh) -> list[tuple[in
     return keys
 
 
-class _Relay(QObject):
-    """Carries results from the workers to the GUI thread. There is one for the process and it
-    is never deleted, so a worker never emits on a dead object whatever happens to the views
-    (a view deleted by Qt is disconnected, and deliveries queued for it are dropped)."""
-
-    tile_loaded = Signal(object, object, object)  # source, key, array
-    tile_failed = Signal(object, object, str)  # source, key, message
-
-
-_RELAY: _Relay | None = None
-
-
-def tile_relay() -> _Relay:
-    """The process-wide relay of tile results (create it from the GUI thread first)."""
-    global _RELAY
-    if _RELAY is None:
-        _RELAY = _Relay()
-    return _RELAY
-
-
 class _Queue:
-    """The state shared with the worker threads (never a Qt object that Qt may delete)."""
+    """The state shared with the worker threads (never a Qt object)."""
 
-    def __init__(self, source: RasterSource, relay: _Relay):
-        self.source, self.relay = source, relay
-        self.cond = threading.Condition()
+    def __init__(self, source: RasterSource, on_loaded, on_failed):
+        self.source, self.on_loaded, self.on_failed = source, on_loaded, on_failed
+        self.cond = threading.Condition(threading.Lock())
         self.keys: list = []  # keys to read, most wanted first
         self.running: set = set()
         self.stopped = False
 
-    def stop(self, *args) -> None:
+    def stop(self) -> None:
         with self.cond:
             self.stopped = True
             self.keys = []
@@ -105,11 +84,11 @@ class _Queue:
                     if self.stopped:
                         return
                 if error is None:
-                    self.relay.tile_loaded.emit(self.source, key, arr)
+                    workers.post(self.on_loaded, self.source, key, arr)
                 else:
-                    self.relay.tile_failed.emit(self.source, key, error)
+                    workers.post(self.on_failed, self.source, key, error)
         finally:
-            self.source.release_thread()
+            self.source.release_thread()  # this thread's handle, closed by this thread
 
 
 class TileLoader:
@@ -117,31 +96,18 @@ class TileLoader:
 
     The workers take keys from one queue that each :meth:`request` replaces: reads the view no
     longer wants are dropped before they start (a read already running completes and only fills
-    the cache). Each worker thread has its own rasterio handle (``RasterSource`` sees to it).
-    The workers end on :meth:`shutdown`, when ``owner`` (a QObject) is destroyed, or when the
-    loader is garbage-collected.
-
-    Signals (attributes; the process-wide :func:`tile_relay`'s, so filter on ``source``)
-    ------------------------------------------------------------------------------------
-    tile_loaded(source, key, array)
-        A tile was read (emitted from a worker, delivered queued to the GUI thread).
-    tile_failed(source, key, message)
+    the cache). Each worker thread has its own rasterio handle (``RasterSource`` sees to it) and
+    closes it as it ends. Results go to ``on_loaded(source, key, array)`` or
+    ``on_failed(source, key, message)`` on the GUI thread (:func:`workers.post`: a bound method
+    of a deleted view is not called). The owner calls :meth:`shutdown` (``wait=True``) before
+    it closes the source.
     """
 
-    def __init__(self, source: RasterSource, threads: int = 2, owner: QObject | None = None):
+    def __init__(self, source: RasterSource, threads: int = 2, on_loaded=None, on_failed=None):
         self.source = source
-        relay = tile_relay()
-        self.tile_loaded = relay.tile_loaded
-        self.tile_failed = relay.tile_failed
-        self._q = _Queue(source, relay)
-        self._threads = [threading.Thread(target=self._q.work, daemon=True,
-                                          name=f"tiles-{source.path.name}-{i}")
-                         for i in range(max(1, threads))]
-        for t in self._threads:
-            t.start()
-        weakref.finalize(self, self._q.stop)
-        if owner is not None:
-            owner.destroyed.connect(self._q.stop)
+        self._q = _Queue(source, on_loaded or _ignore, on_failed or _ignore)
+        self.jobs = workers.Jobs(f"tiles-{source.path.name}")
+        self._threads = [self.jobs.start(self._q.work) for _ in range(max(1, threads))]
 
     def request(self, keys) -> None:
         """Make ``keys`` (most wanted first) the queue; queued keys not among them are dropped."""
@@ -156,13 +122,18 @@ class TileLoader:
         with self._q.cond:
             return len(self._q.keys) + len(self._q.running)
 
-    def shutdown(self, wait: bool = False) -> None:
-        """Drop queued reads and end the workers after their running read (emitting nothing).
-
-        With ``wait`` the call blocks until they have ended; without, it returns at once (a
-        running read of a large file must not freeze the GUI).
-        """
+    def stop(self, *_) -> None:
+        """Drop queued reads and let the workers end after their running read (no wait)."""
         self._q.stop()
-        if wait:
-            for t in self._threads:
-                t.join(timeout=30)
+
+    def shutdown(self, wait: bool = True) -> bool:
+        """Drop queued reads and end the workers after their running read (nothing delivered
+        after this call). With ``wait`` (the default) block until they have ended, which the
+        owner must do before it closes the source. True when no worker runs."""
+        self._q.stop()
+        self.jobs.closed = True
+        return self.jobs.wait() if wait else not self.jobs.busy()
+
+
+def _ignore(*_) -> None:
+    pass

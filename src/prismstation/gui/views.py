@@ -14,12 +14,12 @@ from __future__ import annotations
 import weakref
 
 import numpy as np
-from PySide6.QtCore import QRunnable, Qt, QThreadPool, Signal
+from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import QSplitter, QVBoxLayout, QWidget
 
 from prismstation.core.scene import reference_view
 from prismstation.errors import PrismError
-from prismstation.gui import relay
+from prismstation.gui import workers
 from prismstation.gui.image_view import ImageView
 from prismstation.gui.overlays import ViewOverlay
 from prismstation.gui.text_label import TextLabel
@@ -30,23 +30,21 @@ PICK_TOLERANCE_SCREEN_PX = 8.0
 DRIVE_TO_MAX_SCALE = 1.0  # image px per screen px at most after a drive-to (zooms in to detail)
 
 
-class _LoadJob(QRunnable):
-    """Open a raster and read its coarse overview and statistics (worker thread)."""
-
-    def __init__(self, view: str, path: str, token):
-        super().__init__()
-        self.view, self.path, self.token = view, path, token  # (relay id, generation)
-
-    def run(self) -> None:
+def _load(on_loaded, view: str, path: str, generation: int) -> None:
+    """Open a raster, read its coarse overview and statistics (worker thread); the handle this
+    thread opened is closed here, the GUI thread opens its own."""
+    try:
+        src = RasterSource(path)
         try:
-            src = RasterSource(self.path)
             src.coarse()
             st = src.statistics((0.5, 99.5))
-            levels = (st.percentiles[0.5], st.percentiles[99.5])
-            relay.post(self.token[0], "_on_loaded", self.view, (self.token, src), levels, "",
-                       orphan=src.close)  # the window is gone: let the file go
-        except (PrismError, OSError, ValueError) as exc:
-            relay.post(self.token[0], "_on_loaded", self.view, (self.token, None), None, str(exc))
+        finally:
+            src.release_thread()
+        levels = (st.percentiles[0.5], st.percentiles[99.5])
+        workers.post(on_loaded, view, generation, src, levels, "",
+                     orphan=src.close)  # the views are gone: let the file go
+    except (PrismError, OSError, ValueError) as exc:
+        workers.post(on_loaded, view, generation, None, None, str(exc))
 
 
 class TripletViews(QWidget):
@@ -91,17 +89,15 @@ class TripletViews(QWidget):
         self.active_view: str | None = None
         self._pending: set[str] = set()
         self._generation = 0
-        self._token = relay.register(self)
-        self._pool = QThreadPool(self)
-        self._pool.setMaxThreadCount(3)
+        self._jobs = workers.Jobs("open-image")
+        self._sources: list[RasterSource] = []  # opened here: closed here, after their readers
         self.offer_overviews = None  # callable(source) set by the window when interactive
         self.height_of = None  # reference DEM heights: (n, 2) map metres -> (n,) metres
 
     # ------------------------------------------------------------------ project and images
     def set_project(self, project) -> None:
         """Build one pane per view of ``project.scene`` and load the images in workers."""
-        for v in self.views.values():
-            v.set_source(None)
+        self._release()
         for pane in self.panes.values():
             pane.setParent(None)
             pane.deleteLater()
@@ -126,7 +122,7 @@ class TripletViews(QWidget):
             self.splitter.addWidget(pane)
             self.views[name], self.headers[name], self.panes[name] = iv, header, pane
             self.overlays[name] = ViewOverlay(name, iv.vb)
-            self._wrap_drag(name, iv)
+            iv.vb.drag_handler = _MarkerDrag(self, name)
             iv.clicked.connect(lambda x, y, mods, n=name: self._on_clicked(n, x, y, mods))
             iv.cursor_moved.connect(lambda x, y, n=name: self.on_cursor(n, x, y))
             iv.view_changed.connect(lambda n=name: self._on_view_changed(n))
@@ -135,16 +131,25 @@ class TripletViews(QWidget):
         for name, view in project.scene.views.items():
             if view.image:
                 self._pending.add(name)
-                self._pool.start(_LoadJob(name, view.image, (self._token, self._generation)))
+                self._jobs.start(_load, self._on_loaded, name, view.image, self._generation)
             else:
                 self.headers[name].setText(f"{VIEW_TITLES.get(name, name)} — no image")
         self.refresh_measured()
         if not self._pending:
             self.images_loaded.emit()
 
-    def _on_loaded(self, name, gen_src, levels, error) -> None:
-        token, src = gen_src
-        if token[1] != self._generation or name not in self.views:
+    def _release(self) -> None:
+        """Join the tile readers of the images shown, then close the files. (A load still
+        running reads a file of its own: its result is dropped by generation, and closed.)"""
+        for v in self.views.values():
+            v.shutdown()
+            v.set_source(None)
+        for src in self._sources:
+            src.close()
+        self._sources = []
+
+    def _on_loaded(self, name, generation, src, levels, error) -> None:
+        if generation != self._generation or name not in self.views:
             if src is not None:
                 src.close()
             return
@@ -153,6 +158,7 @@ class TripletViews(QWidget):
             self.headers[name].setText(f"{VIEW_TITLES.get(name, name)} — image not readable")
             self.message.emit(f"view {name}: {error}")
         else:
+            self._sources.append(src)
             if self.offer_overviews is not None:
                 self.offer_overviews(src)
             self.views[name].set_source(src, levels)
@@ -170,7 +176,7 @@ class TripletViews(QWidget):
         t.start()
         while self._pending and t.elapsed() < timeout_ms:
             QCoreApplication.processEvents()
-            self._pool.waitForDone(10)
+            self._jobs.wait(0.01)
         QCoreApplication.processEvents()
         return not self._pending
 
@@ -271,40 +277,6 @@ class TripletViews(QWidget):
                 return
         self.place_requested.emit(name, x, y)
 
-    def _wrap_drag(self, name: str, iv: ImageView) -> None:
-        """A left drag that starts on a measured marker moves it (keeping the grab offset);
-        any other drag goes on to the view box (pan). Picking uses the marker positions, not
-        the items' bounding boxes, so it is exact at every zoom."""
-        vb_ref, views_ref = weakref.ref(iv.vb), weakref.ref(self)  # no reference cycles
-        pan = type(iv.vb).mouseDragEvent
-        state = {"pid": None, "offset": (0.0, 0.0)}
-
-        def drag(ev, axis=None):
-            vb, views = vb_ref(), views_ref()
-            if vb is None or views is None or name not in views.views:
-                return
-            scale = views.views[name].scale()
-            if ev.button() == Qt.MouseButton.LeftButton:
-                if ev.isStart():
-                    p = vb.mapSceneToView(ev.buttonDownScenePos())
-                    pid = views.overlays[name].nearest(p.x(), p.y(), PICK_TOLERANCE_SCREEN_PX * scale)
-                    state["pid"] = None if pid is None else str(pid)
-                    if pid is not None:
-                        m = views.project.measurement(str(pid), name)
-                        state["offset"] = (m.x - p.x(), m.y - p.y())
-                if state["pid"] is not None:
-                    ev.accept()
-                    p = vb.mapSceneToView(ev.scenePos())
-                    views.active_view = name
-                    views.move_requested.emit(state["pid"], name, p.x() + state["offset"][0],
-                                              p.y() + state["offset"][1], bool(ev.isFinish()))
-                    if ev.isFinish():
-                        state["pid"] = None
-                    return
-            pan(vb, ev, axis=axis)
-
-        iv.vb.mouseDragEvent = drag
-
     def cursor_height(self, name: str, x: float, y: float) -> float | None:
         """Height for the linked cursor: that of the point under the cursor, else that of the
         current point (the one being measured), else None (the reference DEM or the mean)."""
@@ -352,6 +324,41 @@ class TripletViews(QWidget):
         self.cursor_info.emit(name, x, y, positions, ground)
 
     def shutdown(self) -> None:
-        self._pool.waitForDone(5000)
-        for iv in self.views.values():
-            iv.set_source(None)
+        """End every job reading the images and close them (the window is closing)."""
+        self._jobs.close()
+        self._generation += 1  # loads delivered from now on are closed unseen
+        self._release()
+
+
+class _MarkerDrag:
+    """The drag handler of one view's box: a left drag that starts on a measured marker moves
+    it (keeping the grab offset); any other drag pans. Picking uses the marker positions, not
+    the items' bounding boxes, so it is exact at every zoom. Holds the views weakly."""
+
+    def __init__(self, views: TripletViews, name: str):
+        self.views_ref, self.name = weakref.ref(views), name
+        self.pid, self.offset = None, (0.0, 0.0)
+
+    def __call__(self, ev) -> bool:
+        views, name = self.views_ref(), self.name
+        if views is None or name not in views.views or ev.button() != Qt.MouseButton.LeftButton:
+            return False
+        vb = views.views[name].vb
+        if ev.isStart():
+            p = vb.mapSceneToView(ev.buttonDownScenePos())
+            scale = views.views[name].scale()
+            pid = views.overlays[name].nearest(p.x(), p.y(), PICK_TOLERANCE_SCREEN_PX * scale)
+            self.pid = None if pid is None else str(pid)
+            if pid is not None:
+                m = views.project.measurement(str(pid), name)
+                self.offset = (m.x - p.x(), m.y - p.y())
+        if self.pid is None:
+            return False
+        ev.accept()
+        p = vb.mapSceneToView(ev.scenePos())
+        views.active_view = name
+        views.move_requested.emit(self.pid, name, p.x() + self.offset[0], p.y() + self.offset[1],
+                                  bool(ev.isFinish()))
+        if ev.isFinish():
+            self.pid = None
+        return True

@@ -1,25 +1,108 @@
 """Workstation tools beyond measuring (matching, GCP-free orientation, DSMs, rectification…).
 
-Each module of this package (other than ones starting with ``_``) defines
-``install(window)``, called once when the main window is built: it adds its actions to
-``window.tools_menu`` (and docks through ``window._dock``) and connects to the window's
-signals. Modules are discovered, so adding a tool is adding a module; the main window stays
-wiring only.
+Each module of this package (other than ones starting with ``_``) defines ``install(ctx)``,
+called once when the main window is built, with a :class:`ToolContext`: the workspace, the
+views, a widget to parent dialogs, and ways to add actions, menus entries and docks. A tool
+registers itself in ``ctx.tools`` under its name. Modules are discovered, so adding a tool is
+adding a module; the main window stays wiring only.
+
+Each module says so with ``TOOL_CONTEXT = True``; one that does not yet still gets the main
+window itself (a tool written before the context, to be moved over).
 """
 from __future__ import annotations
 
 import importlib
 import pkgutil
 
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QAction, QKeySequence
+from PySide6.QtWidgets import QDockWidget
 
-def install_tools(window) -> None:
+
+class ToolContext:
+    """What a tool may use of the window.
+
+    Attributes
+    ----------
+    workspace : Workspace
+        Project, current point, undo stack, files, solver (also as the shortcuts below).
+    views : TripletViews
+    widget : QMainWindow
+        The parent of the tool's dialogs and message boxes (its status bar shows messages).
+    tools_menu, file_menu : QMenu
+    model_panel : ModelPanel
+    tools : dict
+        The installed tools by name.
+    """
+
+    def __init__(self, window):
+        self.workspace = window.workspace
+        self.views = window.views
+        self.widget = window
+        self.tools_menu = window.tools_menu
+        self.file_menu = window.menuBar().actions()[0].menu()
+        self.open_action = window.a_open
+        self.model_panel = window.panel
+        self.interactive = window.interactive
+        self.tools: dict = {}
+        self._docks = window.docks
+
+    # the workspace's parts, for brevity
+    project = property(lambda self: self.workspace.project)
+    current = property(lambda self: self.workspace.current)
+    undo_stack = property(lambda self: self.workspace.undo_stack)
+    files = property(lambda self: self.workspace.files)
+    solver = property(lambda self: self.workspace.solver)
+
+    def status(self, message: str, ms: int = 0) -> None:
+        """Show ``message`` in the window's status bar for ``ms`` milliseconds (0: until the next)."""
+        self.widget.statusBar().showMessage(message, ms)
+
+    def add_action(self, text, slot, shortcut=None, tip=None, checkable=False) -> QAction:
+        """An action of the window (its shortcut works anywhere in it); not put in a menu."""
+        a = QAction(text, self.widget)
+        if shortcut is not None:
+            a.setShortcuts(shortcut if isinstance(shortcut, list) else [QKeySequence(shortcut)])
+        if tip:
+            a.setStatusTip(tip)
+            a.setToolTip(tip)
+        a.setCheckable(checkable)
+        if slot is not None:
+            a.triggered.connect(slot)
+        self.widget.addAction(a)
+        return a
+
+    def add_dock(self, key: str, title: str, widget, area=Qt.DockWidgetArea.RightDockWidgetArea,
+                 tabify_with: str | None = None) -> QDockWidget:
+        """A dock of the window (listed in its View menu), optionally tabbed with dock
+        ``tabify_with`` (e.g. "points"), which stays in front."""
+        d = QDockWidget(title, self.widget)
+        d.setObjectName(f"dock_{key}")
+        d.setWidget(widget)
+        self.widget.addDockWidget(area, d)
+        self._docks[key] = d
+        if tabify_with in self._docks:
+            self.widget.tabifyDockWidget(self._docks[tabify_with], d)
+            self._docks[tabify_with].raise_()
+        return d
+
+    def shutdown(self) -> None:
+        """Cancel and join the tools' running jobs (the window is closing)."""
+        from prismstation.gui.tools._worker import stop_jobs_of
+        stop_jobs_of(self.widget)
+
+
+def install_tools(window) -> ToolContext:
     """Install every tool; their docks start hidden until the operator opens one from the
     Tools or View menu (all shown at once, they made the window taller than a laptop; a tab
     group of hidden docks leaves a stray tab bar on screen, so they are not tabified here)."""
+    ctx = ToolContext(window)
     before = set(window.docks)
     for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
         if not info.name.startswith("_"):
-            importlib.import_module(f"{__name__}.{info.name}").install(window)
+            mod = importlib.import_module(f"{__name__}.{info.name}")
+            mod.install(ctx if getattr(mod, "TOOL_CONTEXT", False) else window)
     for k in window.docks:
         if k not in before:
             window.docks[k].hide()
+    return ctx

@@ -44,7 +44,7 @@ class Coalescer(QObject):
 
 def watch_project(window, fn) -> Coalescer:
     """Call ``fn()`` after every edit, fit, and project (re)load of ``window``."""
-    c = Coalescer(fn, window)
+    c = Coalescer(fn, window.widget)
     window.undo_stack.indexChanged.connect(c.poke)
     window.solver.solution_changed.connect(c.poke)
     window.views.images_loaded.connect(c.poke)

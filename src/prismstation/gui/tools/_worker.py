@@ -1,6 +1,6 @@
 """Long tool operations off the GUI thread: progress, cancel, result or a one-line error.
 
-``Job(fn, title, window)`` runs ``fn(progress)`` in a :class:`QThread`.
+``Job(fn, title, window)`` runs ``fn(progress)`` in a worker thread (:mod:`prismstation.gui.workers`).
 ``progress(fraction, message="")`` (fraction 0–1) emits :attr:`Job.progress` and returns False
 once :meth:`Job.cancel` was called, which is how the engine's long loops learn to stop. The
 outcome is exactly one of :attr:`Job.result` (the return value), :attr:`Job.failed` (a message
@@ -11,21 +11,20 @@ it is cancelled and awaited when ``window`` closes or the application quits.
 """
 from __future__ import annotations
 
-import threading
-
 import shiboken6
 
-from PySide6.QtCore import QCoreApplication, QEvent, QThread, Qt, Signal
+from PySide6.QtCore import QCoreApplication, QEvent, QObject, Qt, Signal
 from PySide6.QtWidgets import QMessageBox, QProgressDialog
 
 from prismstation.errors import PrismError
+from prismstation.gui import workers
 
 _LIVE: set = set()  # running jobs are kept alive here until they end
 STOP_WAIT_MS = 60000  # how long a closing window or quitting application waits for a job
 
 
-class Job(QThread):
-    """Run ``fn(progress)`` in a thread (see module doc)."""
+class Job(QObject):
+    """Run ``fn(progress)`` in a worker thread (see module doc)."""
 
     progress = Signal(float, str)
     result = Signal(object)
@@ -34,10 +33,9 @@ class Job(QThread):
 
     def __init__(self, fn, title: str = "", window=None):
         super().__init__()
-        self.fn, self.title, self._window = fn, title, window
-        self._cancel = threading.Event()
-        self._outcome = None
-        self.finished.connect(self._deliver, Qt.ConnectionType.QueuedConnection)
+        self.fn, self.title, self._window = fn, title, _widget(window)
+        self._jobs = workers.Jobs("tool")
+        self._cancel = self._jobs.cancelled
 
     def cancel(self) -> None:
         self._cancel.set()
@@ -45,27 +43,38 @@ class Job(QThread):
     def is_cancelled(self) -> bool:
         return self._cancel.is_set()
 
-    def report(self, fraction: float, message: str = "") -> bool:
-        self.progress.emit(float(fraction), str(message))
+    def isRunning(self) -> bool:
+        return self._jobs.busy()
+
+    def wait(self, ms: int | None = None) -> bool:
+        """Join the thread (``ms`` milliseconds at most); True when it has ended."""
+        return self._jobs.wait(None if ms is None else ms / 1000.0)
+
+    def report(self, fraction: float, message: str = "") -> bool:  # worker thread
+        workers.post(self._progressed, float(fraction), str(message))
         return not self._cancel.is_set()
 
-    def run(self) -> None:  # worker thread
+    def _progressed(self, fraction: float, message: str) -> None:
+        self.progress.emit(fraction, message)
+
+    def _run(self) -> None:  # worker thread
         try:
             out = self.fn(self.report)
-            self._outcome = ("cancelled", None) if self._cancel.is_set() else ("result", out)
+            outcome = ("cancelled", None) if self._cancel.is_set() else ("result", out)
         except PrismError as exc:
-            self._outcome = ("cancelled", None) if self._cancel.is_set() else ("failed", str(exc))
+            outcome = ("cancelled", None) if self._cancel.is_set() else ("failed", str(exc))
         except Exception as exc:  # an engine bug must not take the window down: say what it was
-            self._outcome = ("failed", f"{self.title or 'the operation'} failed: {type(exc).__name__}: {exc}")
+            outcome = ("failed", f"{self.title or 'the operation'} failed: {type(exc).__name__}: {exc}")
+        workers.post(self._deliver, *outcome)
 
-    def start(self, *a) -> None:
+    def start(self) -> None:
         _LIVE.add(self)
         app = QCoreApplication.instance()
         if app is not None:
             app.aboutToQuit.connect(self._stop)
         if self._window is not None:
             self._window.installEventFilter(self)
-        super().start(*a)
+        self._jobs.start(self._run)
 
     def eventFilter(self, obj, ev) -> bool:  # the window is closing: stop first
         if ev.type() == QEvent.Type.Close and self.isRunning():
@@ -76,8 +85,7 @@ class Job(QThread):
         self.cancel()
         self.wait(STOP_WAIT_MS)
 
-    def _deliver(self) -> None:
-        kind, value = self._outcome or ("failed", "the operation ended without a result")
+    def _deliver(self, kind, value) -> None:
         _LIVE.discard(self)
         if self._window is not None and shiboken6.isValid(self._window):
             self._window.removeEventFilter(self)
@@ -95,11 +103,25 @@ class Job(QThread):
             self.cancelled.emit()
 
 
+def _widget(window):
+    """The widget of a tool context (or the widget itself)."""
+    from prismstation.gui.tools import ToolContext
+    return window.widget if isinstance(window, ToolContext) else window
+
+
+def stop_jobs_of(window) -> None:
+    """Cancel and join the running jobs started over ``window`` (it is closing)."""
+    for job in list(_LIVE):
+        if job._window is window and job.isRunning():
+            job._stop()
+
+
 def run_with_progress(window, title: str, fn, on_result, *, on_failed=None, dialog: bool = True) -> Job:
     """Start ``fn(progress)`` in a :class:`Job` with a cancellable progress dialog over
-    ``window`` (busy until the first progress report); ``on_result(value)`` and
+    ``window`` (a widget or a tool context; busy until the first progress report); ``on_result(value)`` and
     ``on_failed(message)`` run on the GUI thread while the window exists. Errors also go to a
     message box (when the window is interactive) and the status bar."""
+    window = _widget(window)
     job = Job(fn, title, window)
     dlg = None
     if dialog:

@@ -6,6 +6,8 @@ each displayed array as it is shown). The choice is kept per view name across pr
 """
 from __future__ import annotations
 
+TOOL_CONTEXT = True  # install() gets a ToolContext
+
 from prismstation.core.deblock import deblock
 from prismstation.errors import ModelError
 
@@ -51,5 +53,5 @@ class DeblockTool:
             a.setChecked(on)
 
 
-def install(window) -> None:
-    window.deblock_tool = DeblockTool(window)
+def install(ctx) -> None:
+    ctx.tools["deblock"] = DeblockTool(ctx)

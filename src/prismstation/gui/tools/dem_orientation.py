@@ -149,13 +149,11 @@ class DemOrientationTool:
         self._items = []
         self.scale = None
         self.panel = PatchTable()
-        window._dock("dem_patches", "Reference DEM patches", self.panel, Qt.DockWidgetArea.BottomDockWidgetArea)
-        if "points" in window.docks:
-            window.tabifyDockWidget(window.docks["points"], window.docks["dem_patches"])
-            window.docks["points"].raise_()
-        self.a_orient = window._act("Orient from reference &DEM…", self.choose,
+        self.dock = window.add_dock("dem_patches", "Reference DEM patches", self.panel,
+                        Qt.DockWidgetArea.BottomDockWidgetArea, tabify_with="points")
+        self.a_orient = window.add_action("Orient from reference &DEM…", self.choose,
                                     tip="Orientation with no GCP: match the image DSM to SRTM patch by patch")
-        self.a_gcp = window._act("Back to &GCP orientation", self.back_to_gcp,
+        self.a_gcp = window.add_action("Back to &GCP orientation", self.back_to_gcp,
                                  tip="Orient from the GCPs again (undoable)")
         window.tools_menu.addActions([self.a_orient, self.a_gcp])
         window.undo_stack.indexChanged.connect(lambda *_: self.refresh())
@@ -167,7 +165,7 @@ class DemOrientationTool:
     def choose(self) -> None:
         if self.w.project is None:
             return
-        dlg = OrientDialog(self.w, st.value(st.Key.LAST_IMPORT_DIR) or "", self.patch_km)
+        dlg = OrientDialog(self.w.widget, st.value(st.Key.LAST_IMPORT_DIR) or "", self.patch_km)
         if dlg.exec() == QDialog.DialogCode.Accepted and dlg.path.text():
             self.patch_km = dlg.patch.value()
             self.start(dlg.path.text(), self.patch_km * 1000.0)
@@ -197,7 +195,7 @@ class DemOrientationTool:
         used = sum(1 for p in result.patches if p.used)
         self.w.undo_stack.push(SetDemOrientation(project, result.to_dict(), "dem",
                                                  f"Orient from DEM ({used} patches)"))
-        self.w.docks["dem_patches"].raise_()
+        self.dock.raise_()
 
     def back_to_gcp(self) -> None:
         p = self.w.project
@@ -254,5 +252,8 @@ class DemOrientationTool:
                 self._items.append((iv.vb, item))
 
 
-def install(window) -> None:
-    window.dem_orientation = DemOrientationTool(window)
+TOOL_CONTEXT = True  # install() gets a ToolContext
+
+
+def install(ctx) -> None:
+    ctx.tools["dem_orientation"] = DemOrientationTool(ctx)

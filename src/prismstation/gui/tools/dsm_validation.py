@@ -64,7 +64,7 @@ class ResidualSDPanel(QWidget):
     HEAD = ("View", "GCP n", "GCP SD x", "GCP SD y", "ICP n", "ICP SD x", "ICP SD y")
 
     def __init__(self, window):
-        super().__init__(window)
+        super().__init__(window.widget)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(4, 4, 4, 4)
         lay.addWidget(QLabel("<b>SD of image residuals (px) — seed 004 Table 1</b>"))
@@ -300,10 +300,10 @@ class DsmValidationTool:
     def __init__(self, window):
         self.window = window
         self.sd_panel = ResidualSDPanel(window)
-        self.sd_dock = window._dock("residual_sd", "Residual SD", self.sd_panel,
+        self.sd_dock = window.add_dock("residual_sd", "Residual SD", self.sd_panel,
                                     Qt.DockWidgetArea.RightDockWidgetArea)
-        self.panel = DsmResultPanel(window)
-        self.dock = window._dock("dsm_validation", "DSM validation", self.panel,
+        self.panel = DsmResultPanel(window.widget)
+        self.dock = window.add_dock("dsm_validation", "DSM validation", self.panel,
                                  Qt.DockWidgetArea.BottomDockWidgetArea)
         self.dock.hide()
         self.job: Job | None = None
@@ -313,7 +313,7 @@ class DsmValidationTool:
         window.tools_menu.addAction(self.dock.toggleViewAction())
 
     def open_dialog(self) -> None:
-        d = DsmDialog(self.window, self.last)
+        d = DsmDialog(self.window.widget, self.last)
         if d.exec() == QDialog.DialogCode.Accepted:
             self.start(**d.values())
 
@@ -326,7 +326,7 @@ class DsmValidationTool:
                          reference_height=reference_height, mask=mask, geoid_grid=geoid_grid,
                          geoid_constant=geoid_constant)
         if not dsm or not reference:
-            self.window.statusBar().showMessage("Validate DSM: choose a DSM and a reference", 10000)
+            self.window.status("Validate DSM: choose a DSM and a reference", 10000)
             return None
         geoid = None
         if dsm_height != reference_height:
@@ -348,10 +348,13 @@ class DsmValidationTool:
         self.dock.show()
         self.dock.raise_()
         o = result[0].overall
-        self.window.statusBar().showMessage(
+        self.window.status(
             f"DSM − reference: bias {o.bias:.2f} m, SD {o.sd:.2f} m, RMSE {o.rmse:.2f} m, "
             f"NMAD {o.nmad:.2f} m over {o.count} cells", 15000)
 
 
-def install(window) -> None:
-    window.dsm_validation_tool = DsmValidationTool(window)
+TOOL_CONTEXT = True  # install() gets a ToolContext
+
+
+def install(ctx) -> None:
+    ctx.tools["dsm_validation"] = DsmValidationTool(ctx)

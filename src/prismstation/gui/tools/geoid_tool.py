@@ -195,7 +195,7 @@ def choose_geoid(window, dialog_cls=GeoidDialog) -> bool:
     """The dialog, then :func:`apply_geoid` of the choice; True when the project uses it."""
     if window.project is None:
         return False
-    dlg = dialog_cls(window.project.geoid, found_grids(), window)
+    dlg = dialog_cls(window.project.geoid, found_grids(), window.widget)
     if dlg.exec() != QDialog.DialogCode.Accepted:
         return False
     return apply_geoid(window, dlg.setting())
@@ -203,15 +203,18 @@ def choose_geoid(window, dialog_cls=GeoidDialog) -> bool:
 
 def refresh(window) -> None:
     text, bad = describe(window.project)
-    window.panel.set_geoid(text, bad)
+    window.model_panel.set_geoid(text, bad)
+
+
+TOOL_CONTEXT = True  # install() gets a ToolContext
 
 
 def install(window) -> None:
-    a = window._act("&Geoid…", lambda: choose_geoid(window),
-                    tip="The geoid for orthometric heights: a constant, a grid found, or a grid file")
+    a = window.add_action("&Geoid…", lambda: choose_geoid(window),
+                          tip="The geoid for orthometric heights: a constant, a grid found, or a grid file")
     window.tools_menu.addAction(a)
-    window.a_geoid = a
-    window.panel.geoid_requested.connect(lambda: choose_geoid(window))
+    window.tools["geoid"] = a
+    window.model_panel.geoid_requested.connect(lambda: choose_geoid(window))
     # after the window's own slot has bound the project
     window.files.project_opened.connect(lambda _p: refresh(window))
     window.solver.solution_changed.connect(lambda _s: refresh(window))

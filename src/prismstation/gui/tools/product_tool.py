@@ -10,11 +10,13 @@ missing.
 from __future__ import annotations
 
 
-def install(window) -> None:
-    a = window._act("New project from &product…", lambda: window.files.new_project_from_product(),
-                    tip="A new project on a JAXA PRISM 1B2 product folder (CEOS or GeoTIFF)")
-    window.a_new_product = a
-    window.tools_menu.addAction(a)
-    file_menu = window.menuBar().actions()[0].menu()
-    if file_menu is not None:
-        file_menu.insertAction(window.a_open, a)
+TOOL_CONTEXT = True  # install() gets a ToolContext
+
+
+def install(ctx) -> None:
+    a = ctx.add_action("New project from &product…", lambda: ctx.files.new_project_from_product(),
+                       tip="A new project on a JAXA PRISM 1B2 product folder (CEOS or GeoTIFF)")
+    ctx.tools["product"] = a
+    ctx.tools_menu.addAction(a)
+    if ctx.file_menu is not None:
+        ctx.file_menu.insertAction(ctx.open_action, a)

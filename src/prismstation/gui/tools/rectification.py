@@ -33,7 +33,7 @@ class TransformsPanel(QWidget):
     """RMSE table (transform × image) and residuals of the chosen transform for one view."""
 
     def __init__(self, window):
-        super().__init__(window)
+        super().__init__(window.widget)
         self.window = window
         self.reports: dict = {}     # view -> tuple[TransformReport, ...]
         self.ids: dict = {}         # view -> (ids, is_check)
@@ -154,7 +154,7 @@ class RectifyDialog(QDialog):
     """Transform, view, output CRS, resolution and output file of a rectification."""
 
     def __init__(self, window, panel: TransformsPanel):
-        super().__init__(window)
+        super().__init__(window.widget)
         self.setWindowTitle("Rectify")
         project = window.project
         f = QFormLayout(self)
@@ -196,7 +196,7 @@ class RectifyTool:
     def __init__(self, window):
         self.window = window
         self.panel = TransformsPanel(window)
-        self.dock = window._dock("transforms", "Transforms", self.panel,
+        self.dock = window.add_dock("transforms", "Transforms", self.panel,
                                  Qt.DockWidgetArea.RightDockWidgetArea)
         self.job: Job | None = None
         window.views.images_loaded.connect(self._show_for_single_view)
@@ -252,10 +252,13 @@ class RectifyTool:
                       f"{result.resolution:g} ({result.crs})")
 
     def _message(self, text: str) -> None:
-        self.window.statusBar().showMessage(text, 15000)
+        self.window.status(text, 15000)
         if getattr(self.window, "interactive", False) and "Cannot" in text:
-            QMessageBox.warning(self.window, "Rectify", text)
+            QMessageBox.warning(self.window.widget, "Rectify", text)
 
 
-def install(window) -> None:
-    window.rectify_tool = RectifyTool(window)
+TOOL_CONTEXT = True  # install() gets a ToolContext
+
+
+def install(ctx) -> None:
+    ctx.tools["rectify"] = RectifyTool(ctx)

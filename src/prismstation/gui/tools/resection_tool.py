@@ -36,7 +36,7 @@ class ResectionDialog(QDialog):
     """Interior orientation in, exterior orientation (± σ) and iteration history out."""
 
     def __init__(self, window):
-        super().__init__(window)
+        super().__init__(window.widget)
         self.window = window
         self.setWindowTitle("Space resection")
         self.results: dict = {}   # view -> ResectionResult
@@ -222,5 +222,8 @@ class ResectionTool:
         return self.dialog
 
 
-def install(window) -> None:
-    window.resection_tool = ResectionTool(window)
+TOOL_CONTEXT = True  # install() gets a ToolContext
+
+
+def install(ctx) -> None:
+    ctx.tools["resection"] = ResectionTool(ctx)

@@ -92,14 +92,14 @@ class TransferTool:
         self.candidates: dict = {}
         self._items = []
         self.panel = TransferPanel()
-        window._dock("transfer", "Point transfer", self.panel, Qt.DockWidgetArea.RightDockWidgetArea)
-        self.a_auto = window._act("Automatic &transfer", None, checkable=True,
+        window.add_dock("transfer", "Point transfer", self.panel, Qt.DockWidgetArea.RightDockWidgetArea)
+        self.a_auto = window.add_action("Automatic &transfer", None, checkable=True,
                                   tip="Search a point placed in one view in the other views")
         self.a_auto.setChecked(True)
-        self.a_accept = window._act("Accept transferred point", self.accept, [QKeySequence(Qt.Key.Key_Return), QKeySequence(Qt.Key.Key_Enter)],
+        self.a_accept = window.add_action("Accept transferred point", self.accept, [QKeySequence(Qt.Key.Key_Return), QKeySequence(Qt.Key.Key_Enter)],
                                     tip="Place the transferred point in the other views")
-        self.a_reject = window._act("Reject transferred point", self.reject, "Esc")
-        self.a_ties = window._act("Automatic tie &points…", self.choose_ties,
+        self.a_reject = window.add_action("Reject transferred point", self.reject, "Esc")
+        self.a_ties = window.add_action("Automatic tie &points…", self.choose_ties,
                                   tip="A grid of tie points over the N image, found in F and B")
         window.tools_menu.addActions([self.a_auto, self.a_accept, self.a_reject])
         window.tools_menu.addSeparator()
@@ -124,7 +124,7 @@ class TransferTool:
         """Search ``pid`` at image ``(x, y)`` of ``source`` in the other views (worker); returns the Job."""
         sol = self.w.solver.solution
         if sol is None or self.w.project is None:
-            self.w.statusBar().showMessage("Point transfer needs a fitted model", 8000)
+            self.w.status("Point transfer needs a fitted model", 8000)
             return None
         self.reject()
         scene = self.w.project.scene
@@ -146,21 +146,21 @@ class TransferTool:
         self.pid, self.source = pid, source
         job = self.job = Job(work, "Point transfer", self.w)
         job.result.connect(lambda res, job=job: self._on_result(job, pid, res))
-        job.failed.connect(lambda msg: shiboken6.isValid(self.w)
-                           and self.w.statusBar().showMessage(f"Point transfer: {msg}", 10000))
-        self.w.statusBar().showMessage(f"{pid}: searching in the other views…")
+        job.failed.connect(lambda msg: shiboken6.isValid(self.w.widget)
+                           and self.w.status(f"Point transfer: {msg}", 10000))
+        self.w.status(f"{pid}: searching in the other views…")
         job.start()
         return job
 
     def _on_result(self, job, pid, res) -> None:
-        if not shiboken6.isValid(self.w) or not shiboken6.isValid(self.panel):
+        if not shiboken6.isValid(self.w.widget) or not shiboken6.isValid(self.panel):
             return  # the window was closed while the search ran
         if job is not self.job or pid != self.pid or self.w.project is None or pid not in self.w.project.points:
             return
         self.candidates = {v: t for v, t in res.items() if self.w.project.measurement(pid, v) is None}
         parts = [f"{v} {'✓' if t.ok else '✗ ' + t.match.status} NCC {t.match.score:.2f} "
                  f"σ {t.match.sigma_x:.2f}/{t.match.sigma_y:.2f} px" for v, t in sorted(self.candidates.items())]
-        self.w.statusBar().showMessage(f"{pid} transferred: " + "; ".join(parts) + " — Enter accepts", 20000)
+        self.w.status(f"{pid} transferred: " + "; ".join(parts) + " — Enter accepts", 20000)
         self._update()
 
     def accept(self) -> bool:
@@ -220,7 +220,7 @@ class TransferTool:
     def choose_ties(self) -> None:
         if self.w.project is None:
             return
-        dlg = QDialog(self.w)
+        dlg = QDialog(self.w.widget)
         dlg.setWindowTitle("Automatic tie points")
         grid = QSpinBox(minimum=2, maximum=40, value=8)
         form = QFormLayout(dlg)
@@ -237,7 +237,7 @@ class TransferTool:
         """Run the automatic tie points in a worker with a progress dialog; returns the Job."""
         sol, project = self.w.solver.solution, self.w.project
         if sol is None or project is None:
-            self.w.statusBar().showMessage("Automatic tie points need a fitted model", 8000)
+            self.w.status("Automatic tie points need a fitted model", 8000)
             return None
 
         def work(progress):
@@ -255,14 +255,17 @@ class TransferTool:
         if project is not self.w.project:
             return
         if not ties:
-            self.w.statusBar().showMessage("Automatic tie points: none found", 10000)
+            self.w.status("Automatic tie points: none found", 10000)
             return
         ids = new_tie_ids(project, len(ties))
         points = [GroundPoint(pid, math.nan, math.nan, math.nan, kind="TIE") for pid in ids]
         ms = [Measurement(pid, v, float(t[v][0]), float(t[v][1])) for pid, t in zip(ids, ties) for v in ("N", "F", "B")]
         self.w.undo_stack.push(cmd.Import(project, points, ms, text=f"{len(ties)} automatic tie points"))
-        self.w.statusBar().showMessage(f"Automatic tie points: {len(ties)} added ({ids[0]}–{ids[-1]})", 10000)
+        self.w.status(f"Automatic tie points: {len(ties)} added ({ids[0]}–{ids[-1]})", 10000)
 
 
-def install(window) -> None:
-    window.transfer_tool = TransferTool(window)
+TOOL_CONTEXT = True  # install() gets a ToolContext
+
+
+def install(ctx) -> None:
+    ctx.tools["transfer"] = TransferTool(ctx)
