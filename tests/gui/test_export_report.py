@@ -85,3 +85,34 @@ def test_a_failed_export_is_shown_not_raised(window, qtbot, answered, monkeypatc
     answered.path = str(tmp_path / "report.docx")
     window.a_export.trigger()
     assert shown and "unknown report format" in shown[0]
+
+
+def test_window_and_command_line_write_the_same_report(window, qtbot, answered, tmp_path):
+    """The same project reported from File ▸ Export report… and from ``prismstation report``:
+    the same content but for the time it was made."""
+    from prismstation.cli import main
+    win = window
+    win.a_export.trigger()
+    from_window = _written(win, qtbot, answered.path)
+    cli = tmp_path / "cli.json"
+    assert main(["report", str(win.demo.path), "-o", str(cli), "--operator", answered.name]) == 0
+    from_cli = json.loads(cli.read_text())
+    for rep in (from_window, from_cli):
+        rep["header"].pop("created")
+    assert from_window["header"]["project"] == from_cli["header"]["project"] == str(win.demo.path)
+    assert _same(from_window, from_cli)
+
+
+def _same(a, b, path="") -> bool:
+    """Equal structures, floats to 1e-9 relative (two fits of the same data)."""
+    if isinstance(a, dict):
+        assert a.keys() == b.keys(), path
+        return all(_same(a[k], b[k], f"{path}.{k}") for k in a)
+    if isinstance(a, list):
+        assert len(a) == len(b), path
+        return all(_same(x, y, f"{path}[{i}]") for i, (x, y) in enumerate(zip(a, b)))
+    if isinstance(a, float) and isinstance(b, float):
+        assert a == pytest.approx(b, rel=1e-9, abs=1e-9), path
+        return True
+    assert a == b, path
+    return True

@@ -121,12 +121,15 @@ def _when(iso) -> str:
 
 
 def _header_rows(r: dict) -> list:
-    """Rows of the header table: ``(label, value)`` pairs, two per row (a long one alone)."""
+    """Rows of the header table: ``(label, value)`` pairs, two per row (a long one alone); a
+    list value is one line per item."""
     h = r.get("header") or {}
     settings = r.get("settings") or {}
     project = h.get("project") or r.get("project")
-    products = ", ".join(f"{v}: {pid}" for v, pid in (h.get("products") or {}).items()) or "—"
-    acquired = ", ".join(f"{v}: {_when(t)}" for v, t in (h.get("acquired") or {}).items()) or "—"
+    sids, pids = h.get("scene_ids") or {}, h.get("product_ids") or {}
+    products = [f"{v}: {' '.join(x for x in (sids.get(v), pids.get(v)) if x)}"
+                for v in dict.fromkeys([*sids, *pids])] or "—"
+    acquired = [f"{v}: {_when(t)}" for v, t in (h.get("acquired") or {}).items()] or "—"
     geoid = r.get("geoid")
     return [
         [("Date", _when(h.get("created"))), ("Operator", h.get("operator") or "—")],
@@ -153,7 +156,8 @@ def _header_table(r: dict) -> str:
         for label, value in row:
             cells.append(f'<td bgcolor="#e4e8f0" nowrap><b>{_esc(label)}</b></td>')
             span = ' colspan="3"' if len(row) == 1 else ""
-            cells.append(f"<td{span}>{_esc(value)}</td>")
+            text = "<br>".join(map(_esc, value)) if isinstance(value, list) else _esc(value)
+            cells.append(f"<td{span}>{text}</td>")
         out.append("<tr>" + "".join(cells) + "</tr>")
     return "\n".join(out + ["</table>"])
 

@@ -16,6 +16,7 @@ import csv
 import getpass
 import io
 import math
+import re
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -41,9 +42,12 @@ def default_operator() -> str:
 
 
 def scene_identity(scene, scene_path=None) -> dict:
-    """Scene id, product id of each view, product level, acquisition times and source of a
-    scene (from its ``scene.json`` when readable, where the product ids of the views are kept;
-    otherwise from what the Scene kept). Missing items are ``None`` / empty."""
+    """Who the scene is: ``scene_id`` (of the scene, else of its reference view), per view
+    ``scene_ids`` and ``product_ids`` (JAXA ``Scs_SceneID`` / ``Pds_ProductID``),
+    ``product_level`` (e.g. ``1B2R``), ``acquired`` (view → ISO time) and ``source`` (the
+    product kind, or the program that made the scene). Read from the ``scene.json`` when
+    readable (it keeps the ids of the views), otherwise from what the Scene kept; missing items
+    are ``None`` or empty."""
     data = dict(scene.extra)
     views = {}
     if scene_path is not None:
@@ -53,15 +57,21 @@ def scene_identity(scene, scene_path=None) -> dict:
             views = full.get("views") if isinstance(full.get("views"), dict) else {}
         except InputError:
             pass
-    products = {v: str(views[v]["product_id"]) for v in scene.views
-                if isinstance(views.get(v), dict) and views[v].get("product_id")}
-    scene_id = data.get("scene_id") or next((str(views[v]["scene_id"]) for v in scene.views
-                                             if isinstance(views.get(v), dict) and views[v].get("scene_id")), None)
+
+    def per_view(key):
+        return {v: str(views[v][key]) for v in scene.views
+                if isinstance(views.get(v), dict) and views[v].get(key)}
+    scene_ids, product_ids = per_view("scene_id"), per_view("product_id")
+    scene_id = data.get("scene_id") or scene_ids.get(scene.reference_view)
+    level = data.get("product_level")
+    if level is None:
+        m = next((re.search(r"1B[12][RG]?", p) for p in product_ids.values()), None)
+        level = m.group(0) if m else None
     product = data.get("product") if isinstance(data.get("product"), dict) else {}
     source = product.get("kind") or data.get("generator")
     times = data.get("times") if isinstance(data.get("times"), dict) else {}
-    return {"scene_id": None if scene_id is None else str(scene_id), "products": products,
-            "product_level": data.get("product_level"),
+    return {"scene_id": None if scene_id is None else str(scene_id), "scene_ids": scene_ids,
+            "product_ids": product_ids, "product_level": None if level is None else str(level),
             "acquired": {v: str(t) for v, t in times.items() if v in scene.views},
             "source": None if source is None else str(source)}
 

@@ -22,7 +22,9 @@ def _table(title, cols, rows) -> list[str]:
 
 def format_report(r: dict) -> str:
     h = r.get("header") or {}
-    products = ", ".join(f"{v} {pid}" for v, pid in (h.get("products") or {}).items())
+    sids, pids = h.get("scene_ids") or {}, h.get("product_ids") or {}
+    products = ", ".join(f"{v} {' '.join(x for x in (sids.get(v), pids.get(v)) if x)}"
+                         for v in dict.fromkeys([*sids, *pids]))
     lines = [f"{h.get('title', 'ALOS-PRISM orientation report')} — {r.get('project') or ''}",
              f"{str(h.get('created', '')).replace('T', ' ').replace('Z', ' UTC')}  operator {h.get('operator', '—')}  {h.get('software', r.get('program', ''))}",
              f"scene {h.get('scene_id') or '—'}" + (f"  products {products}" if products else "")
