@@ -38,6 +38,7 @@ FIGURE_CAPTIONS = {
 _SOURCE = {"parallax": "py", "reference": "DEM", "mean": "mean"}
 _TABLE_MARK = "\x00table\x00"  # numbered in document order by report_html
 _NEW_PAGE = ' style="page-break-before:always"'
+_NUMBER = re.compile(r"[+\-]?\d|—$")  # cells aligned right: numbers and the "no value" dash
 _app = None  # a QApplication made here for the command line, kept alive
 
 
@@ -89,7 +90,7 @@ def _table(tid, caption, head, rows, *, small=False, highlight=()) -> str:
         bg = ' bgcolor="#ffd6d6"' if i in highlight else ""
         cells = []
         for j, c in enumerate(row):
-            align = "left" if j == 0 else "right"
+            align = "right" if j and _NUMBER.match(str(c)) else "left"
             cells.append(f'<td align="{align}"{size}>{_esc(c)}</td>')
         out.append(f"<tr{bg}>" + "".join(cells) + "</tr>")
     out.append("</table>")
