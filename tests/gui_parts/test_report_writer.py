@@ -295,3 +295,10 @@ def test_single_view_and_empty_reports(tmp_path, qtbot):
     assert page.tables["table1"]["rows"][0] == ["n", "0", "0", "0", "0"]
     assert page.tables["residuals"]["rows"] == page.tables["known"]["rows"] == []
     assert "no GCP measured" in (tmp_path / "e.html").read_text(encoding="utf-8")
+
+
+def test_accuracy_note_follows_the_orientation(report):
+    assert "fit's own residuals" in report_html(report)
+    dem = {**report, "header": {**report["header"], "orientation": "reference DEM"}}
+    text = report_html(dem)
+    assert "both independent checks" in text and "fit's own residuals" not in text

@@ -176,9 +176,13 @@ def _summary(r: dict, ref: str) -> str:
                      _num(img.get(kind, {}).get("px", {}).get("planimetric_rms"))])
     bias = (r.get("model") or {}).get("bias", {}).get(ref, {})
     sigma = (r.get("settings") or {}).get("sigma_px")
-    note = (f'<p>σ0 of the bias fit in view {_esc(ref)}: {_num(bias.get("sigma0"), 3)} '
-            f'(unit weight; a-priori σ {_num(sigma)} px). GCP figures are the fit\'s own residuals; '
-            f'ICP figures are the independent check.</p>')
+    if (r.get("header") or {}).get("orientation") == "reference DEM":
+        note = ("<p>Oriented from the reference DEM, not from the GCPs: GCP and ICP figures are "
+                "both independent checks.</p>")
+    else:
+        note = (f'<p>σ0 of the bias fit in view {_esc(ref)}: {_num(bias.get("sigma0"), 3)} '
+                f'(unit weight; a-priori σ {_num(sigma)} px). GCP figures are the fit\'s own '
+                f'residuals; ICP figures are the independent check.</p>')
     return _table("summary", "Accuracy: root-mean-square ground residuals, estimated − known (m), "
                              f"and image residuals in view {ref} (px)",
                   ["", "n", "RMSE E", "RMSE N", "RMSE plan.", "RMSE h", f"RMS image {ref}"], rows) + note
