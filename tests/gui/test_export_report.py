@@ -116,3 +116,17 @@ def _same(a, b, path="") -> bool:
         return True
     assert a == b, path
     return True
+
+
+def test_an_edit_just_made_is_in_the_report(window, qtbot, answered):
+    """Export right after an edit, before the background fit has caught up: the report is of
+    the points as they are now."""
+    win = window
+    gcp = next(p.id for p in win.project.points.values() if p.kind == "GCP")
+    win.project.set_kind(gcp, "ICP")
+    assert win.solver.solution.revision != win.project.revision
+    win.a_export.trigger()
+    rep = _written(win, qtbot, answered.path)
+    assert next(p for p in rep["points"] if p["id"] == gcp)["kind"] == "ICP"
+    assert rep["statistics"]["ground"]["ICP"]["x"]["n"] == \
+        sum(1 for p in win.solver.solution.points if p.kind == "ICP" and p.ground_residual is not None)

@@ -57,8 +57,10 @@ def export_report(window, path: str | None = None) -> bool:
     content ``prismstation report`` writes): HTML or PDF (report writer), CSV or JSON. Without
     ``path``, asks for the file and the operator's name; says on the status bar what it wrote."""
     sol = window.solver.solution
-    if sol is None or window.project is None:
-        window.statusBar().showMessage("No fitted model to report yet", 8000)
+    if sol is not None and window.project is not None and sol.revision != window.project.revision:
+        sol = window.solver.refit_now()  # the report lists the points as they are now
+    if sol is None or window.project is None or sol.revision != window.project.revision:
+        window.statusBar().showMessage("No fit of the current points to report (see the model panel)", 8000)
         return False
     ask = path is None
     if ask:
