@@ -14,21 +14,24 @@ from prismstation.gui.report_writer import report_html, write_document
 
 
 class Tables(HTMLParser):
-    """``{table id: [[cell text, ...], ...]}`` and the ``src`` of every image."""
+    """``{table id: {"caption": text, "head": [...], "rows": [[cell text, ...], ...]}}`` and the
+    ``src`` of every image; a heading row of one cell is the table's caption."""
 
     def __init__(self):
         super().__init__()
         self.tables, self.images = {}, []
         self._id = self._row = self._cell = None
+        self._head = False
 
     def handle_starttag(self, tag, attrs):
         a = dict(attrs)
         if tag == "table":
             self._id = a.get("id")
-            self.tables[self._id] = []
+            self.tables[self._id] = {"caption": "", "head": [], "rows": []}
+        elif tag == "thead":
+            self._head = True
         elif tag == "tr" and self._id:
             self._row = []
-            self.tables[self._id].append(self._row)
         elif tag in ("td", "th") and self._row is not None:
             self._cell = []
         elif tag == "img":
@@ -36,8 +39,19 @@ class Tables(HTMLParser):
 
     def handle_endtag(self, tag):
         if tag in ("td", "th") and self._cell is not None:
-            self._row.append("".join(self._cell).strip())
+            self._row.append(" ".join("".join(self._cell).split()))
             self._cell = None
+        elif tag == "tr" and self._row is not None:
+            t = self.tables[self._id]
+            if self._head and len(self._row) == 1:
+                t["caption"] = self._row[0]
+            elif self._head:
+                t["head"] = self._row
+            else:
+                t["rows"].append(self._row)
+            self._row = None
+        elif tag == "thead":
+            self._head = False
         elif tag == "table":
             self._id = self._row = None
 
@@ -56,6 +70,10 @@ def num(cell):
     return float(cell.replace("+", ""))
 
 
+def by_label(table):
+    return {row[0]: row[1:] for row in table["rows"]}
+
+
 @pytest.fixture(scope="module")
 def report(fitted):
     return report_dict(fitted[2], project_path="demo.prismproj", geoid="constant 55.0 m")
@@ -63,37 +81,60 @@ def report(fitted):
 
 def check_tables(tables, r):
     st = r["statistics"]
-    t1 = {row[0]: row[1:] for row in tables["table1"][1:]}
+    t1 = by_label(tables["table1"])
     m = st["image"]["N"]
     for j, (kind, c) in enumerate((("GCP", "x"), ("GCP", "y"), ("ICP", "x"), ("ICP", "y"))):
         assert int(t1["n"][j]) == m[kind]["m"][c]["n"]
         for label, key in (("Minimum", "min"), ("Maximum", "max"), ("RMS", "rms"), ("Mean", "mean")):
             assert num(t1[label][j]) == pytest.approx(m[kind]["m"][c][key], abs=0.0051)
     assert num(t1["Planimetric RMS"][3]) == pytest.approx(m["ICP"]["m"]["planimetric_rms"], abs=0.0051)
-    t2 = {row[0]: row[1:] for row in tables["table2"][1:]}
+    t2 = by_label(tables["table2"])
     assert num(t2["Mean"][0]) == pytest.approx(st["F-N"]["mean"], abs=0.0051)
     assert num(t2["Std. dev."][1]) == pytest.approx(st["B-N"]["std"], abs=0.0051)
-    t3 = {row[0]: row[1:] for row in tables["table3"][1:]}
+    t3 = by_label(tables["table3"])
     assert num(t3["RMS"][1]) == pytest.approx(st["height"]["ICP"]["rms"], abs=0.0051)
     assert num(t3["Maximum"][0]) == pytest.approx(st["height"]["GCP"]["max"], abs=0.0051)
-    t4 = {row[0]: row[1:] for row in tables["ground"][1:]}
+    t4 = by_label(tables["ground"])
     assert num(t4["RMS"][2]) == pytest.approx(st["ground"]["ICP"]["x"]["rms"], abs=0.0051)
-    par = {row[0]: row[1:] for row in tables["parallax"][1:]}
+    summary = by_label(tables["summary"])
+    for kind in ("GCP", "ICP"):
+        g = st["ground"][kind]
+        n, e, nn, plan, h, img = summary[kind]
+        assert int(n) == g["x"]["n"]
+        assert (num(e), num(nn), num(plan), num(h)) == pytest.approx(
+            (g["x"]["rms"], g["y"]["rms"], g["planimetric_rms"], st["height"][kind]["rms"]), abs=0.0051)
+        assert num(img) == pytest.approx(m[kind]["px"]["planimetric_rms"], abs=0.0051)
+    par = by_label(tables["parallax"])
     assert num(par["c1 (m/px)"][0]) == pytest.approx(r["model"]["parallax"]["c1"], abs=5.1e-5)
-    bias = {row[0]: row[1:] for row in tables["bias"][1:]}
+    bias = by_label(tables["bias"])
     b5 = r["model"]["bias"]["N"]["parameters"]["B5"]
     value, std = (float(s) for s in bias["B5"][0].split("±"))
     assert value == pytest.approx(b5["value"], rel=1e-3) and std == pytest.approx(b5["std"], rel=1e-3)
     assert num(bias["σ0 (px)"][0]) == pytest.approx(r["model"]["bias"]["N"]["sigma0"], abs=5.1e-4)
-    rows = tables["points"][1:]
-    assert [row[0] for row in rows] == [p["id"] for p in r["points"]]
-    head = tables["points"][0]
-    for row, p in zip(rows, r["points"]):
-        cell = dict(zip(head, row))
-        assert num(cell["h est"]) == pytest.approx(p["h_est"], abs=0.0051)
+    # every point with known coordinates: those beside its ground residuals
+    known = [p for p in r["points"] if p.get("E_known") is not None]
+    t = tables["known"]
+    assert [row[0] for row in t["rows"]] == [p["id"] for p in known] != []
+    for row, p in zip(t["rows"], known):
+        cell = dict(zip(t["head"], row))
+        assert (num(cell["E"]), num(cell["N"]), num(cell["h"])) == pytest.approx(
+            (p["E_known"], p["N_known"], p["h_known"]), abs=0.00051)
         assert num(cell["dh"]) == pytest.approx(p["dh"], abs=0.0051)
-        assert num(cell["vx N"]) == pytest.approx(p["residual_px"]["N"][0], abs=0.0051)
         assert (cell["blunder"] == "yes") == p["blunder"]
+    t = tables["residuals"]
+    assert [row[0] for row in t["rows"]] == [p["id"] for p in r["points"]]
+    for row, p in zip(t["rows"], r["points"]):
+        cell = dict(zip(t["head"], row))
+        for v, (vx, vy) in p["residual_px"].items():
+            assert (num(cell[f"vx {v}"]), num(cell[f"vy {v}"])) == pytest.approx((vx, vy), abs=0.0051)
+    t = tables["estimates"]
+    for row, p in zip(t["rows"], r["points"]):
+        cell = dict(zip(t["head"], row))
+        if p.get("h_est") is not None:
+            assert num(cell["h est"]) == pytest.approx(p["h_est"], abs=0.0051)
+            assert num(cell["lat"]) == pytest.approx(p["lat_est"], abs=5.1e-8)
+    captions = [t["caption"] for t in tables.values() if t["caption"]]
+    assert [c.split(".")[0] for c in captions] == [f"Table {k}" for k in range(1, len(captions) + 1)]
 
 
 def test_html_tables_match_the_report(tmp_path, report, qtbot):
@@ -105,7 +146,8 @@ def test_html_tables_match_the_report(tmp_path, report, qtbot):
     text = out.read_text(encoding="utf-8")
     assert "EPSG:32629" in text and "constant 55.0 m" in text and "demo.prismproj" in text
     blunder_rows = re.findall(r'<tr bgcolor="#ffd6d6"><td[^>]*>([^<]+)</td>', text)
-    assert blunder_rows == [p["id"] for p in report["points"] if p["blunder"]] != []
+    flagged = [p["id"] for p in report["points"] if p["blunder"]]
+    assert flagged != [] and blunder_rows == flagged * 2  # known-coordinates and residual tables
 
 
 def test_given_figures_are_embedded(qtbot, report):
@@ -118,28 +160,92 @@ def test_given_figures_are_embedded(qtbot, report):
         write_document(report, "x.docx", figures={"height": im})
 
 
+PRISM_IDS = {v: (f"ALPSM{v}061122750", f"O1B2R_U{v}") for v in "NFB"}
+OPERATOR = "Jane Q. Operator"
+
+
+@pytest.fixture(scope="module")
+def prism_project(tmp_path_factory):
+    """A synthetic triplet project whose scene.json carries PRISM scene and product ids,
+    acquisition times and its source (as a JAXA product gives them), heights orthometric."""
+    from prismstation.cli import main
+    from tests.core.synth import make_points, make_scene
+    from tests.io.test_cli_pipeline import write_triplet
+    d = tmp_path_factory.mktemp("prism")
+    sc = make_scene()
+    write_triplet(d, sc, make_points(sc, n_gcp=9, n_icp=12, noise_px=0.3, seed=5), geoid=55.0, ortho=True)
+    doc = json.loads((d / "scene.json").read_text())
+    for v, (sid, pid) in PRISM_IDS.items():
+        doc["views"][v].update(scene_id=sid, product_id=pid)
+    doc.update(scene_id=PRISM_IDS["N"][0], times={v: f"2007-03-21T11:18:{20 + k}.5+00:00"
+                                                  for k, v in enumerate("FNB")},
+               product={"kind": "JAXA CEOS 1B2", "path": "/data/ALPSM061122750"})
+    (d / "scene.json").write_text(json.dumps(doc))
+    proj = d / "t.prismproj"
+    assert main(["new", str(proj), "--scene", str(d / "scene.json"), "--points", str(d / "points.csv"),
+                 "--measurements", str(d / "measurements.csv")]) == 0
+    return proj
+
+
+@pytest.fixture(scope="module")
+def prism_report(prism_project):
+    from prismstation.io.project import load_project
+    from prismstation.ops.fit import fit_report
+    return fit_report(load_project(prism_project), prism_project, operator=OPERATOR)[1]
+
+
+def pdftext(path) -> str:
+    return subprocess.run(["pdftotext", "-layout", str(path), "-"], capture_output=True,
+                          text=True, check=True).stdout
+
+
 @pytest.mark.skipif(not all(shutil.which(t) for t in ("pdftotext", "pdftoppm", "pdfimages")),
                     reason="poppler-utils not installed")
-def test_pdf_holds_the_numbers_and_pages_render(tmp_path, report, qtbot):
+def test_pdf_a_client_can_read(tmp_path, prism_report, qtbot):
+    """Page numbers, date, operator, version, scene and product ids, every point's known
+    coordinates beside its residuals, the statistics; no wording about source papers."""
+    from prismstation import __version__
+    r = prism_report
     out = tmp_path / "r.pdf"
-    write_document(report, out)
+    write_document(r, out)
     assert out.read_bytes()[:5] == b"%PDF-"
-    text = subprocess.run(["pdftotext", "-layout", str(out), "-"], capture_output=True,
-                          text=True, check=True).stdout
-    assert "Table 1" in text and "Table 3" in text and "EPSG:32629" in text
-    icp = report["statistics"]["image"]["N"]["ICP"]["m"]["planimetric_rms"]
-    assert f"{icp:.2f}" in text
-    for p in report["points"][:5] + report["points"][-5:]:
-        assert f"{p['h_est']:.2f}" in text
+    text = pdftext(out)
+    pages = text.rstrip("\f").split("\f")
+    n = len(pages)
+    assert n >= 4
+    for k, page in enumerate(pages, 1):
+        assert f"Page {k} of {n}" in page
+    created = r["header"]["created"]                      # e.g. 2026-12-01T17:49:38Z
+    assert f"{created[:10]} {created[11:19]} UTC" in pages[0]
+    assert OPERATOR in pages[0] and f"prismstation {__version__}" in pages[0]
+    for v, (sid, pid) in PRISM_IDS.items():
+        assert f"{v}: {sid} {pid}" in pages[0]
+    assert "1B2R" in pages[0] and "2007-03-21 11:18:21 UTC" in pages[0] and "JAXA CEOS 1B2" in pages[0]
+    assert "EPSG:32629" in text and "Table 1" in text
+    known = [p for p in r["points"] if p["kind"] in ("GCP", "ICP")]
+    assert len(known) == 21
+    rows = {}  # id → the first line that starts with it: its row of the known-coordinates table
+    for ln in text.splitlines():
+        if ln.split()[:1] and ln.split()[0] in {p["id"] for p in known}:
+            rows.setdefault(ln.split()[0], ln.split())
+    for p in known:
+        row = rows[p["id"]]
+        assert row[1] == p["kind"]
+        assert row[2:6] == [f"{p['E_known']:.3f}", f"{p['N_known']:.3f}", f"{p['h_known']:.3f}",
+                            f"{p['H_given']:.3f}"]
+        assert p["H_given"] == pytest.approx(p["h_known"] - 55.0)
+        assert [float(x) for x in row[6:9]] == pytest.approx([p["dE"], p["dN"], p["dh"]], abs=0.0051)
+    icp = r["statistics"]["ground"]["ICP"]["planimetric_rms"]
+    assert f"{icp:.2f}" in pages[0]
+    assert not re.search(r"seed|paper|eq\. ?\d|Fig\. ?\d", text, re.I)
     subprocess.run(["pdftoppm", "-r", "30", "-png", str(out), str(tmp_path / "page")], check=True)
-    pages = sorted(tmp_path.glob("page*.png"))
-    assert len(pages) >= 3
+    assert len(list(tmp_path.glob("page*.png"))) == n
     assert n_images(out) == 4
     # figures given by the caller (the window's own plots) are used instead
     from PySide6.QtGui import QImage
     im = QImage(400, 300, QImage.Format.Format_RGB32)
     im.fill(0x3366AA)
-    write_document(report, tmp_path / "given.pdf", figures={"vectors": im})
+    write_document(r, tmp_path / "given.pdf", figures={"vectors": im})
     assert n_images(tmp_path / "given.pdf") == 1
 
 
@@ -149,22 +255,26 @@ def n_images(pdf):
     return sum(1 for ln in listing[2:] if " image " in ln)
 
 
-def test_cli_report_pdf_and_html_from_the_dict_alone(tmp_path, capsys):
+def test_cli_report_every_format_holds_the_same_report(tmp_path, prism_project, capsys, qtbot):
+    """``prismstation report`` writes the one report model as JSON, CSV, HTML and PDF; ``fit``
+    prints the same header; no output speaks of source papers."""
     from prismstation.cli import main
-    from tests.core.synth import make_points, make_scene
-    from tests.io.test_cli_pipeline import write_triplet
-    sc = make_scene()
-    write_triplet(tmp_path, sc, make_points(sc, n_gcp=9, n_icp=12, noise_px=0.3, seed=5))
-    proj = tmp_path / "t.prismproj"
-    assert main(["new", str(proj), "--scene", str(tmp_path / "scene.json"),
-                 "--points", str(tmp_path / "points.csv"),
-                 "--measurements", str(tmp_path / "measurements.csv")]) == 0
-    assert main(["report", str(proj), "-o", str(tmp_path / "r.pdf")]) == 0
-    assert main(["report", str(proj), "-o", str(tmp_path / "r.html")]) == 0
-    assert main(["fit", str(proj), "--json", str(tmp_path / "r.json")]) == 0
-    assert (tmp_path / "r.pdf").read_bytes()[:5] == b"%PDF-"
-    rep = json.loads((tmp_path / "r.json").read_text())
-    check_tables(parse((tmp_path / "r.html").read_text(encoding="utf-8")).tables, rep)
+    outs = {ext: tmp_path / f"r.{ext}" for ext in ("json", "csv", "html", "pdf")}
+    for out in outs.values():
+        assert main(["report", str(prism_project), "-o", str(out), "--operator", OPERATOR]) == 0
+    assert main(["fit", str(prism_project)]) == 0
+    printed = capsys.readouterr().out
+    rep = json.loads(outs["json"].read_text())
+    assert rep["header"]["operator"] == OPERATOR and rep["header"]["scene_id"] == PRISM_IDS["N"][0]
+    assert rep["header"]["product_ids"] == {v: pid for v, (_, pid) in PRISM_IDS.items()}
+    page = parse(outs["html"].read_text(encoding="utf-8"))
+    check_tables(page.tables, rep)
+    info = " ".join(" ".join(row) for row in page.tables["info"]["rows"])
+    assert OPERATOR in info and "N: ALPSMN061122750 O1B2R_UN" in info
+    assert f"scene {PRISM_IDS['N'][0]}" in printed and "Table 1" in printed
+    texts = [outs[e].read_text(encoding="utf-8") for e in ("json", "csv", "html")] + [pdftext(outs["pdf"]), printed]
+    for t in texts:
+        assert not re.search(r"seed|paper|eq\. ?\d|Fig\. ?\d", t, re.I)
 
 
 def test_single_view_and_empty_reports(tmp_path, qtbot):
@@ -178,9 +288,17 @@ def test_single_view_and_empty_reports(tmp_path, qtbot):
     rep = report_dict(solve(single, pts))
     page = parse(report_html(rep))
     assert "table2" not in page.tables and "parallax" not in page.tables
-    assert len(page.tables["points"]) == 1 + 11
+    assert len(page.tables["residuals"]["rows"]) == len(page.tables["known"]["rows"]) == 11
     empty = report_dict(solve(sc, []))
     write_document(empty, tmp_path / "e.html")
     page = parse((tmp_path / "e.html").read_text(encoding="utf-8"))
-    assert page.tables["table1"][1] == ["n", "0", "0", "0", "0"] and len(page.tables["points"]) == 1
+    assert page.tables["table1"]["rows"][0] == ["n", "0", "0", "0", "0"]
+    assert page.tables["residuals"]["rows"] == page.tables["known"]["rows"] == []
     assert "no GCP measured" in (tmp_path / "e.html").read_text(encoding="utf-8")
+
+
+def test_accuracy_note_follows_the_orientation(report):
+    assert "fit's own residuals" in report_html(report)
+    dem = {**report, "header": {**report["header"], "orientation": "reference DEM"}}
+    text = report_html(dem)
+    assert "both independent checks" in text and "fit's own residuals" not in text

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from PySide6.QtWidgets import QFileDialog, QMessageBox
+from PySide6.QtWidgets import QFileDialog, QInputDialog, QMessageBox
 
 from prismstation.errors import PrismError
 from prismstation.gui import commands as cmd
@@ -37,19 +37,44 @@ def push_import(window, points, ms) -> None:
                                           f"Import {len(points)} points, {len(ms)} measurements"))
 
 
+def report_operator(window, ask: bool) -> str | None:
+    """The operator named on a report: the last name given (setting), else the login name;
+    with ``ask``, offered for editing first (``None``: the operator cancelled)."""
+    from prismstation.io.report import default_operator
+    name = st.value(st.Key.REPORT_OPERATOR) or default_operator()
+    if ask:
+        name, ok = QInputDialog.getText(window, "Export report", "Operator named on the report:",
+                                        text=name)
+        if not ok:
+            return None
+        name = name.strip() or default_operator()
+        st.set_value(st.Key.REPORT_OPERATOR, name)
+    return name
+
+
 def export_report(window, path: str | None = None) -> bool:
-    """Write the current Solution's report: HTML or PDF (report writer), CSV or JSON."""
+    """Write the current Solution's report (:func:`prismstation.ops.fit.project_report`, the
+    content ``prismstation report`` writes): HTML or PDF (report writer), CSV or JSON. Without
+    ``path``, asks for the file and the operator's name; says on the status bar what it wrote."""
     sol = window.solver.solution
-    if sol is None:
+    if sol is not None and window.project is not None and sol.revision != window.project.revision:
+        sol = window.solver.refit_now()  # the report lists the points as they are now
+    if sol is None or window.project is None or sol.revision != window.project.revision:
+        window.statusBar().showMessage("No fit of the current points to report (see the model panel)", 8000)
         return False
-    if path is None:
+    ask = path is None
+    if ask:
         path, _ = QFileDialog.getSaveFileName(window, "Export report", st.value(st.Key.LAST_EXPORT_DIR),
                                               REPORT_FILTER)
         if not path:
             return False
-    from prismstation.io.report import report_dict, write_report
-    rep = report_dict(sol, project_path=window.files.path)
+    operator = report_operator(window, ask)
+    if operator is None:
+        return False
+    from prismstation.io.report import write_report
+    from prismstation.ops.fit import project_report
     try:
+        rep = project_report(window.project, sol, window.files.path, operator=operator)
         if Path(path).suffix.lower() in (".html", ".htm", ".pdf"):
             from prismstation.gui.report_writer import write_document
             write_document(rep, path)

@@ -35,8 +35,8 @@ THEORY_COLOR = (0, 150, 60)
 BLUNDER_COLOR = (220, 20, 20)
 PLOT_NAMES = ("height", "height_minus_theory", "vectors", "std_residuals")
 PLOT_TITLES = {
-    "height": "Height vs F−B parallax (Fig. 4)",
-    "height_minus_theory": "Height − theoretical prediction vs parallax (Fig. 5)",
+    "height": "Height vs F−B parallax",
+    "height_minus_theory": "Height − theoretical prediction vs parallax",
     "vectors": "Residual vectors, view {view}",
     "std_residuals": "Standardised residuals of the GCPs",
 }

@@ -1,17 +1,22 @@
-"""The residual report as HTML or PDF through Qt's own writers (issue 3, item 8).
+"""The report as HTML or PDF through Qt's own writers.
 
-:func:`write_document` takes the dict of :func:`prismstation.io.report.report_dict` (FORMATS.md
-``fit --json``) and writes, by extension, a self-contained ``.html`` (figures as PNG data URIs) or
-a ``.pdf`` (``QTextDocument`` printed on a ``QPdfWriter``, A4). The statistics are laid out as
-the seed paper's Tables 1–3 plus the ground residuals; the figures are the four plots of
-:class:`prismstation.gui.plots.PlotsWidget`, drawn from the dict alone unless given.
+:func:`write_document` takes the dict of :func:`prismstation.io.report.report_dict` (the one
+report model: the window and ``prismstation report`` give the same) and writes, by extension, a
+self-contained ``.html`` (figures as PNG data URIs) or a ``.pdf`` (A4; the ``QTextDocument``
+painted page by page on a ``QPdfWriter`` with a footer naming the report and "Page i of n";
+table headings repeat on every page). Sections: header (date, operator, program, project,
+scene and product ids), accuracy, model, residual statistics, figures (the four plots of
+:class:`prismstation.gui.plots.PlotsWidget`, drawn from the dict unless given), points (known
+coordinates beside the residuals), notes.
 """
 from __future__ import annotations
 
 import base64
 import html
+import itertools
 import math
 import os
+import re
 import sys
 import tempfile
 from pathlib import Path
@@ -20,17 +25,20 @@ from prismstation.core.scene import reference_view
 from prismstation.errors import InputError
 
 FIGURE_CAPTIONS = {
-    "height": "Figure 1. Height (ellipsoidal) versus F−B parallax of the GCPs and ICPs, with the "
-              "fitted and the theoretical (eq. 4) lines — the seed paper's Fig. 4.",
-    "height_minus_theory": "Figure 2. Height minus the theoretical prediction versus parallax, "
-                           "with the fitted line in the same form — the seed paper's Fig. 5.",
-    "vectors": "Figure 3. Residual vectors (measured − predicted) in the reference image, "
-               "exaggerated as the title says; y (rows) downwards.",
-    "std_residuals": "Figure 4. Largest |standardised residual| of each GCP against the rejection "
-                     "threshold and its critical values; the flagged blunder in red.",
+    "height": "Ellipsoidal height versus F−B parallax of the GCPs and ICPs, with the fitted and "
+              "the theoretical height–parallax lines.",
+    "height_minus_theory": "Height minus the theoretical prediction c1·py versus parallax, with "
+                           "the fitted line in the same form.",
+    "vectors": "Residual vectors (measured − predicted) in view {view}, exaggerated as the title "
+               "says; y (rows) downwards.",
+    "std_residuals": "Largest |standardised residual| of each GCP against the rejection "
+                     "threshold and its critical values; a flagged blunder in red.",
 }
 
 _SOURCE = {"parallax": "py", "reference": "DEM", "mean": "mean"}
+_TABLE_MARK = "\x00table\x00"  # numbered in document order by report_html
+_NEW_PAGE = ' style="page-break-before:always"'
+_NUMBER = re.compile(r"[+\-]?\d|—$")  # cells aligned right: numbers and the "no value" dash
 _app = None  # a QApplication made here for the command line, kept alive
 
 
@@ -67,17 +75,23 @@ def _esc(s) -> str:
 
 
 def _table(tid, caption, head, rows, *, small=False, highlight=()) -> str:
-    """An HTML table; ``head`` list of column titles; ``rows`` lists of cell texts."""
-    size = ' style="font-size:6.5pt"' if small else ""  # Qt's rich text wants it per cell
-    out = [f'<p class="caption"><b>{caption}</b></p>' if caption else "",
-           f'<table id="{tid}" border="1" cellspacing="0" cellpadding="{2 if small else 3}">',
-           "<tr>" + "".join(f'<th bgcolor="#e4e8f0"{size}>{_esc(h)}</th>' for h in head) + "</tr>"]
+    """An HTML table; ``head`` list of column titles (repeated on each PDF page); ``rows``
+    lists of cell texts; ``caption`` numbered "Table k." in document order."""
+    # Qt's rich text wants the style per cell, and knows no "nowrap" attribute
+    size = f' style="white-space:nowrap{"; font-size:7pt" if small else ""}"'
+    # the caption is the table's first heading row: never parted from it by a page break,
+    # and repeated with the column titles on every page the table runs over
+    cap = (f'<tr><th colspan="{len(head)}" align="left" style="font-weight:normal">'
+           f'<b>{_TABLE_MARK}</b> {_esc(caption)}</th></tr>' if caption else "")
+    out = [f'<table id="{tid}" border="1" cellspacing="0" cellpadding="{2 if small else 3}">',
+           "<thead>" + cap + "<tr>" + "".join(f'<th bgcolor="#e4e8f0"{size}>{_esc(h)}</th>' for h in head)
+           + "</tr></thead>"]
     for i, row in enumerate(rows):
         bg = ' bgcolor="#ffd6d6"' if i in highlight else ""
         cells = []
         for j, c in enumerate(row):
-            align = "left" if j == 0 else "right"
-            cells.append(f'<td align="{align}" nowrap{size}>{_esc(c)}</td>')
+            align = "right" if j and _NUMBER.match(str(c)) else "left"
+            cells.append(f'<td align="{align}"{size}>{_esc(c)}</td>')
         out.append(f"<tr{bg}>" + "".join(cells) + "</tr>")
     out.append("</table>")
     return "\n".join(out)
@@ -96,31 +110,87 @@ def _stat_rows(columns, stats=("n", "min", "max", "mean", "rms", "std"), nd=2):
 
 
 # ---------------------------------------------------------------------------- HTML
-def report_html(report: dict, images: dict | None = None) -> str:
-    """The report as HTML; ``images`` maps plot names (``plots.PLOT_NAMES``) to ``src`` URLs."""
-    r = report
+def _when(iso) -> str:
+    """``2026-12-01T17:49:38Z`` / ``...+00:00`` → ``2026-12-01 17:49:38 UTC``."""
+    if not iso:
+        return "—"
+    s = str(iso).replace("T", " ")
+    for tail in ("Z", "+00:00"):
+        if s.endswith(tail):
+            return s[: -len(tail)].split(".")[0] + " UTC"
+    return s
+
+
+def _header_rows(r: dict) -> list:
+    """Rows of the header table: ``(label, value)`` pairs, two per row (a long one alone); a
+    list value is one line per item."""
+    h = r.get("header") or {}
+    settings = r.get("settings") or {}
+    project = h.get("project") or r.get("project")
+    sids, pids = h.get("scene_ids") or {}, h.get("product_ids") or {}
+    products = [f"{v}: {' '.join(x for x in (sids.get(v), pids.get(v)) if x)}"
+                for v in dict.fromkeys([*sids, *pids])] or "—"
+    acquired = [f"{v}: {_when(t)}" for v, t in (h.get("acquired") or {}).items()] or "—"
+    geoid = r.get("geoid")
+    return [
+        [("Date", _when(h.get("created"))), ("Operator", h.get("operator") or "—")],
+        [("Software", h.get("software") or r.get("program") or "—"),
+         ("Project", Path(project).name if project else "—")],
+        [("Scene ID", h.get("scene_id") or "—"), ("Product level", h.get("product_level") or "—")],
+        [("Products", products)],
+        [("Acquired", acquired)],
+        [("Source", h.get("source") or "—"), ("Orientation", f"from {h.get('orientation', 'GCP')}")],
+        [("CRS", r.get("crs") or "—"),
+         ("Heights", "ellipsoidal h" + (f"; geoid {geoid}" if geoid else ""))],
+        [("Bias model", settings.get("bias_model", "—")),
+         ("Height–parallax model", settings.get("parallax_model", "—"))],
+        [("A-priori σ of a measurement", f"{_num(settings.get('sigma_px'))} px"),
+         ("Blunder threshold |w|", _num(settings.get("blunder_threshold")))],
+        [("Mean scene height", f"{_num(r.get('mean_height_m'))} m")],
+    ]
+
+
+def _header_table(r: dict) -> str:
+    out = ['<table id="info" width="100%" border="1" cellspacing="0" cellpadding="3">']
+    for row in _header_rows(r):
+        cells = []
+        for label, value in row:
+            cells.append(f'<td bgcolor="#e4e8f0" nowrap><b>{_esc(label)}</b></td>')
+            span = ' colspan="3"' if len(row) == 1 else ""
+            text = "<br>".join(map(_esc, value)) if isinstance(value, list) else _esc(value)
+            cells.append(f"<td{span}>{text}</td>")
+        out.append("<tr>" + "".join(cells) + "</tr>")
+    return "\n".join(out + ["</table>"])
+
+
+def _summary(r: dict, ref: str) -> str:
+    """The accuracy in one table: ground RMSE of GCPs and ICPs, and the fit's σ0."""
     st = r.get("statistics", {})
+    g, hgt, img = st.get("ground", {}), st.get("height", {}), st.get("image", {}).get(ref, {})
+    rows = []
+    for kind in ("GCP", "ICP"):
+        if kind not in g:
+            continue
+        rows.append([kind, str(g[kind]["x"]["n"]), _num(g[kind]["x"]["rms"]), _num(g[kind]["y"]["rms"]),
+                     _num(g[kind]["planimetric_rms"]), _num((hgt.get(kind) or {}).get("rms")),
+                     _num(img.get(kind, {}).get("px", {}).get("planimetric_rms"))])
+    bias = (r.get("model") or {}).get("bias", {}).get(ref, {})
+    sigma = (r.get("settings") or {}).get("sigma_px")
+    if (r.get("header") or {}).get("orientation") == "reference DEM":
+        note = ("<p>Oriented from the reference DEM, not from the GCPs: GCP and ICP figures are "
+                "both independent checks.</p>")
+    else:
+        note = (f'<p>σ0 of the bias fit in view {_esc(ref)}: {_num(bias.get("sigma0"), 3)} '
+                f'(unit weight; a-priori σ {_num(sigma)} px). GCP figures are the fit\'s own '
+                f'residuals; ICP figures are the independent check.</p>')
+    return _table("summary", "Accuracy: root-mean-square ground residuals, estimated − known (m), "
+                             f"and image residuals in view {ref} (px)",
+                  ["", "n", "RMSE E", "RMSE N", "RMSE plan.", "RMSE h", f"RMS image {ref}"], rows) + note
+
+
+def _model(r: dict) -> list:
     model = r.get("model", {})
     bias = model.get("bias", {})
-    ref = reference_view(bias)
-    settings = r.get("settings") or {}
-    parts = ["<html><head><meta charset=\"utf-8\"><title>prismstation residual report</title>",
-             "<style>body{font-family:sans-serif;font-size:9pt} table{border-collapse:collapse;"
-             "margin-bottom:6px} th,td{padding:2px 5px} .caption{margin-top:10px}</style>",
-             "</head><body>",
-             "<h1>PRISM triplet orientation — residual report</h1>"]
-    info = [["Project", r.get("project") or "—"], ["CRS", r.get("crs") or "—"],
-            ["Geoid", r.get("geoid") or "none (heights as given)"],
-            ["Program", r.get("program") or "—"],
-            ["Bias model", settings.get("bias_model", "—")],
-            ["Parallax model", settings.get("parallax_model", "—")],
-            ["A-priori σ of a measurement", f"{_num(settings.get('sigma_px'))} px"],
-            ["Blunder threshold (|standardised residual|)", _num(settings.get("blunder_threshold"))],
-            ["Mean scene height", f"{_num(r.get('mean_height_m'))} m"]]
-    parts.append(_table("info", "", ["Item", "Value"], info))
-
-    # ---- model parameters
-    parts.append("<h2>Model</h2>")
     views = list(bias)
     names = []
     for v in views:
@@ -136,8 +206,9 @@ def report_html(report: dict, images: dict | None = None) -> str:
     rows.append(["σ0 (px)"] + [_num(bias[v].get("sigma0"), 3) for v in views])
     rows.append(["redundancy (dof)"] + [_num(bias[v].get("dof")) for v in views])
     rows.append(["observations"] + [_num(bias[v].get("n_observations")) for v in views])
-    parts.append(_table("bias", "Bias compensation x = x0′ + M·x0′ + b (eq. 3): parameter ± σ",
-                        ["Parameter"] + [f"view {v}" for v in views], rows))
+    parts = [_table("bias", "Bias compensation per view, x = x′ + M·x′ + b (x′: image position from the "
+                            "product's ancillary data; M 2×2, b in pixels): parameter ± σ",
+                    ["Parameter"] + [f"view {v}" for v in views], rows)]
     par = model.get("parallax")
     if par:
         rows = [["c0 (m)", _num(par.get("c0"), 2), _num(par.get("std_c0"), 2)],
@@ -148,37 +219,37 @@ def report_html(report: dict, images: dict | None = None) -> str:
                 ["fitted", f"{par.get('used')} (requested {par.get('requested')})", ""]]
         if par.get("note"):
             rows.append(["note", par["note"], ""])
-        parts.append(_table("parallax", "Height–parallax relation h = c0 + c1·py (eq. 4)",
+        parts.append(_table("parallax", "Height–parallax relation h = c0 + c1·py (py: F−B parallax, px)",
                             ["Parameter", "Value", "σ"], rows))
+    return parts
 
-    # ---- statistics
-    parts.append("<h2>Statistics</h2>")
+
+def _statistics(r: dict, ref: str) -> list:
+    st = r.get("statistics", {})
     img = st.get("image", {})
+    parts = []
     if ref in img:
         cols = [img[ref][k]["m"][c] for k in ("GCP", "ICP") for c in ("x", "y")]
         rows = _stat_rows(cols)
         rows.append(["Planimetric RMS", "", _num(img[ref]["GCP"]["m"]["planimetric_rms"]), "",
                      _num(img[ref]["ICP"]["m"]["planimetric_rms"])])
-        parts.append(_table("table1", f"Table 1. Residuals of GCPs and ICPs in the orientation of "
-                                      f"image {ref} (m)",
+        parts.append(_table("table1", f"Image residuals of GCPs and ICPs in view {ref}, scaled to metres "
+                                      "by the pixel size (m)",
                             ["", "GCP Rx", "GCP Ry", "ICP Rx", "ICP Ry"], rows))
-    rows = []
-    for v, d in img.items():
-        rows.append([v] + [x for k in ("GCP", "ICP") for x in
-                           (str(d[k]["px"]["x"]["n"]), _num(d[k]["px"]["x"]["rms"]),
-                            _num(d[k]["px"]["y"]["rms"]), _num(d[k]["px"]["planimetric_rms"]))])
+    rows = [[v] + [x for k in ("GCP", "ICP") for x in
+                   (str(d[k]["px"]["x"]["n"]), _num(d[k]["px"]["x"]["rms"]),
+                    _num(d[k]["px"]["y"]["rms"]), _num(d[k]["px"]["planimetric_rms"]))]
+            for v, d in img.items()]
     if rows:
         parts.append(_table("table1b", "Image residuals per view (px)",
                             ["View", "GCP n", "GCP RMS x", "GCP RMS y", "GCP RMS xy",
                              "ICP n", "ICP RMS x", "ICP RMS y", "ICP RMS xy"], rows))
     if "F-N" in st and "B-N" in st:
-        parts.append(_table("table2", "Table 2. Across-track differences of image coordinates "
-                                      "F − N and B − N (px)",
+        parts.append(_table("table2", "Across-track differences of image coordinates F − N and B − N (px)",
                             ["", "Δx F−N", "Δx B−N"],
                             _stat_rows([st["F-N"], st["B-N"]], ("n", "min", "max", "mean", "std"))))
     if "height" in st:
-        parts.append(_table("table3", "Table 3. Height residuals of GCPs and ICPs, height from "
-                                      "parallax − known (m)",
+        parts.append(_table("table3", "Height residuals, height from parallax − known (m)",
                             ["", "Rh GCP", "Rh ICP"],
                             _stat_rows([st["height"].get("GCP"), st["height"].get("ICP")])))
     if "ground" in st:
@@ -187,43 +258,82 @@ def report_html(report: dict, images: dict | None = None) -> str:
         rows = _stat_rows(cols, ("n", "min", "max", "mean", "rms"))
         rows.append(["Planimetric RMS", "", _num(g["GCP"]["planimetric_rms"]), "",
                      _num(g["ICP"]["planimetric_rms"])])
-        parts.append(_table("ground", "Table 4. Ground residuals, estimated − known (m)",
+        parts.append(_table("ground", "Ground residuals, estimated − known (m)",
                             ["", "GCP dE", "GCP dN", "ICP dE", "ICP dN"], rows))
+    return parts
 
-    # ---- figures
-    if images:
-        parts.append("<h2>Figures</h2>")
-        for name, src in images.items():
-            parts.append(f'<p align="center"><img src="{_esc(src)}" width="620"></p>'
-                         f'<p class="caption">{_esc(FIGURE_CAPTIONS.get(name, name))}</p>')
 
-    # ---- points
-    head = ["id", "kind", f"vx {ref}", f"vy {ref}", "py", "E est", "N est", "h est", "h from",
-            "dE", "dN", "dh", "|w|", "blunder"]
+def _points(r: dict, ref: str, views: list) -> list:
+    """Three tables: known coordinates beside ground residuals; image residuals; estimates."""
+    pts = r.get("points", [])
+    known = [p for p in pts if p.get("E_known") is not None]
+    ortho = any(p.get("height_kind") == "orthometric" for p in known)
+    head = ["id", "kind", "E", "N", "h"] + (["H given"] if ortho else []) + ["dE", "dN", "dh", "|w|", "blunder"]
     rows, flagged = [], []
-    for i, p in enumerate(r.get("points", [])):
-        v = (p.get("residual_px") or {}).get(ref) or (None, None)
-        rows.append([p["id"], p["kind"], _num(v[0], signed=True),
-                     _num(v[1], signed=True), _num(p.get("parallax_px")), _num(p.get("E_est")),
-                     _num(p.get("N_est")), _num(p.get("h_est")), _SOURCE.get(p.get("height_source"), p.get("height_source") or ""),
-                     _num(p.get("dE"), signed=True), _num(p.get("dN"), signed=True),
+    for i, p in enumerate(known):
+        given = [_num(p.get("H_given"), 3) if p.get("height_kind") == "orthometric" else ""] if ortho else []
+        rows.append([p["id"], p["kind"], _num(p["E_known"], 3), _num(p["N_known"], 3),
+                     _num(p.get("h_known"), 3)] + given +
+                    [_num(p.get("dE"), signed=True), _num(p.get("dN"), signed=True),
                      _num(p.get("dh"), signed=True), _num(p.get("std_residual")),
                      "yes" if p.get("blunder") else ""])
         if p.get("blunder"):
             flagged.append(i)
-    parts.append("<h2>Points</h2>")
-    parts.append(_table("points", f"Residuals v (measured − predicted) in view {ref} (px), "
-                                  f"F−B parallax py (px), estimated ground coordinates "
-                                  f"(h from py: parallax, DEM: reference, mean: mean height) "
-                                  f"(m, h ellipsoidal), ground residuals estimated − known (m), "
-                                  f"largest |standardised residual| |w|.",
-                        head, rows, small=True, highlight=flagged))
+    h_note = "; H orthometric as given" if ortho else ""
+    parts = [_table("known", f"Known coordinates (E, N in {r.get('crs') or 'the project CRS'}; "
+                             f"h ellipsoidal{h_note}) and ground residuals, estimated − known (m); "
+                             "|w|: largest standardised residual of a GCP; a flagged blunder shaded",
+                    head, rows, small=True, highlight=flagged)]
+    rows, flagged = [], []
+    for i, p in enumerate(pts):
+        res = p.get("residual_px") or {}
+        rows.append([p["id"], p["kind"]] + [_num(x, signed=True) for v in views
+                                             for x in (res.get(v) or (None, None))]
+                    + [_num(p.get("parallax_px"))])
+        if p.get("blunder"):
+            flagged.append(i)
+    parts.append(_table("residuals", "Image residuals, measured − predicted (px), and F−B parallax py (px)",
+                        ["id", "kind"] + [f"{c} {v}" for v in views for c in ("vx", "vy")] + ["py"],
+                        rows, small=True, highlight=flagged))
+    rows = [[p["id"], p["kind"], _num(p.get("E_est"), 2), _num(p.get("N_est"), 2), _num(p.get("h_est"), 2),
+             _SOURCE.get(p.get("height_source"), p.get("height_source") or ""),
+             _num(p.get("lat_est"), 7), _num(p.get("lon_est"), 7)] for p in pts]
+    parts.append(_table("estimates", "Estimated ground coordinates (E, N m; h ellipsoidal m, from py: "
+                                     "parallax, DEM: reference DEM, mean: mean height; latitude and "
+                                     "longitude WGS 84, degrees)",
+                        ["id", "kind", "E est", "N est", "h est", "h from", "lat", "lon"],
+                        rows, small=True))
+    return parts
+
+
+def report_html(report: dict, images: dict | None = None) -> str:
+    """The report as HTML; ``images`` maps plot names (``plots.PLOT_NAMES``) to ``src`` URLs."""
+    r = report
+    bias = r.get("model", {}).get("bias", {})
+    ref = reference_view(bias)
+    title = (r.get("header") or {}).get("title") or "ALOS-PRISM orientation report"
+    parts = [f"<html><head><meta charset=\"utf-8\"><title>{_esc(title)}</title>",
+             "<style>body{font-family:sans-serif;font-size:9pt} table{border-collapse:collapse;"
+             "margin-bottom:6px} th,td{padding:2px 5px} .caption{margin-top:10px}</style>",
+             "</head><body>", f"<h1>{_esc(title)}</h1>", _header_table(r),
+             "<h2>1. Accuracy</h2>", _summary(r, ref),
+             "<h2>2. Model</h2>", *_model(r),
+             "<h2>3. Residual statistics</h2>", *_statistics(r, ref)]
+    if images:
+        parts.append(f"<h2{_NEW_PAGE}>4. Figures</h2>")
+        for k, (name, src) in enumerate(images.items(), 1):
+            caption = FIGURE_CAPTIONS.get(name, name).format(view=ref)
+            parts.append(f'<p align="center"><img src="{_esc(src)}" width="620"></p>'
+                         f'<p class="caption">Figure {k}. {_esc(caption)}</p>')
+    parts.append(f"<h2{_NEW_PAGE}>{5 if images else 4}. Points</h2>")
+    parts += _points(r, ref, list(bias))
     notes = list(r.get("messages") or [])
     notes += [f"{p['id']}: {p['note']}" for p in r.get("points", []) if p.get("note")]
     if notes:
         parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{_esc(n)}</li>" for n in notes) + "</ul>")
     parts.append("</body></html>")
-    return "\n".join(p for p in parts if p)
+    number = itertools.count(1)
+    return re.sub(_TABLE_MARK, lambda _: f"Table {next(number)}.", "\n".join(p for p in parts if p))
 
 
 # ---------------------------------------------------------------------------- figures
@@ -296,24 +406,59 @@ def _atomic(path: Path, write) -> None:
             os.unlink(tmp)
 
 
+def _footer_text(report: dict) -> str:
+    h = report.get("header") or {}
+    bits = [h.get("title") or "ALOS-PRISM orientation report"]
+    if h.get("scene_id"):
+        bits.append(f"scene {h['scene_id']}")
+    bits.append(_when(h.get("created")))
+    return " · ".join(bits)
+
+
 def _write_pdf(report: dict, path, figures: dict) -> None:
-    """Print the report's QTextDocument on an A4 ``QPdfWriter`` at ``path``."""
-    from PySide6.QtCore import QMarginsF, QSizeF, QUrl
-    from PySide6.QtGui import QPageLayout, QPageSize, QPdfWriter, QTextDocument
-    doc = QTextDocument()
-    srcs = {}
-    for name, im in figures.items():
-        url = f"figure-{name}.png"
-        doc.addResource(QTextDocument.ResourceType.ImageResource, QUrl(url), im)
-        srcs[name] = url
-    doc.setHtml(report_html(report, srcs))
+    """Paint the report's QTextDocument page by page on an A4 ``QPdfWriter`` at ``path``, with
+    a footer on every page: the report's title, scene and date, and "Page i of n"."""
+    from PySide6.QtCore import QMarginsF, QRectF, QSizeF, Qt, QUrl
+    from PySide6.QtGui import (QColor, QFont, QPageLayout, QPageSize, QPainter, QPdfWriter,
+                               QTextDocument)
     writer = QPdfWriter(str(path))
-    writer.setTitle("prismstation residual report")
-    writer.setCreator(str(report.get("program") or "prismstation"))
+    h = report.get("header") or {}
+    writer.setTitle(h.get("title") or "ALOS-PRISM orientation report")
+    writer.setCreator(str(h.get("software") or report.get("program") or "prismstation"))
     writer.setPageLayout(QPageLayout(QPageSize(QPageSize.PageSizeId.A4),
                                      QPageLayout.Orientation.Portrait,
-                                     QMarginsF(15, 15, 15, 15), QPageLayout.Unit.Millimeter))
+                                     QMarginsF(15, 15, 15, 12), QPageLayout.Unit.Millimeter))
     writer.setResolution(96)  # lay out in CSS pixels; images keep their own pixels
-    doc.setPageSize(QSizeF(writer.width(), writer.height()))
-    doc.print_(writer)
+    doc = QTextDocument()
+    doc.documentLayout().setPaintDevice(writer)
+    for name, im in figures.items():
+        doc.addResource(QTextDocument.ResourceType.ImageResource, QUrl(f"figure-{name}.png"), im)
+    doc.setHtml(report_html(report, {name: f"figure-{name}.png" for name in figures}))
+    page = writer.pageLayout().paintRectPixels(writer.resolution())
+    footer = 26.0
+    width, body = float(page.width()), float(page.height()) - footer
+    doc.setPageSize(QSizeF(width, body))
+    n = doc.pageCount()
+    font = QFont("sans-serif")
+    font.setPointSizeF(7.5)
+    left = _footer_text(report)
+    painter = QPainter(writer)
+    try:
+        for i in range(n):
+            if i:
+                writer.newPage()
+            painter.save()
+            painter.translate(0, -i * body)
+            doc.drawContents(painter, QRectF(0, i * body, width, body))
+            painter.restore()
+            painter.setPen(QColor(110, 110, 110))
+            painter.setFont(font)
+            painter.drawLine(0, int(body + 6), int(width), int(body + 6))
+            box = QRectF(0, body + 8, width, footer - 8)
+            painter.drawText(box, Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter, left)
+            painter.drawText(box, Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter,
+                             f"Page {i + 1} of {n}")
+    finally:
+        painter.end()
+    del painter, doc
     del writer  # flushes and closes the file

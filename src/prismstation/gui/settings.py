@@ -27,6 +27,7 @@ class Key(Enum):
     LAST_PROJECT_DIR = ("files/last_project_dir", "")
     LAST_IMPORT_DIR = ("files/last_import_dir", "")
     LAST_EXPORT_DIR = ("files/last_export_dir", "")
+    REPORT_OPERATOR = ("report/operator", "")
     AUTOSAVE_SECONDS = ("files/autosave_seconds", 60)
     RESIDUAL_SCALE = ("view/residual_screen_px_per_px", 40.0)
     SHOW_LABELS = ("view/show_labels", True)

@@ -1,4 +1,5 @@
-"""Plain-text residual report laid out like the paper's Tables 1–3 (for the terminal)."""
+"""The residual report as plain text for the terminal: the header and the statistics of the
+report dict (:func:`prismstation.io.report.report_dict`); the points are in its other formats."""
 from __future__ import annotations
 
 from prismstation.core.scene import reference_view
@@ -6,6 +7,10 @@ from prismstation.core.scene import reference_view
 
 def _f(v, nd=2):
     return "—" if v is None else f"{v:+.{nd}f}" if isinstance(v, float) else str(v)
+
+
+def _u(v, nd=3):
+    return "—" if v is None else f"{v:.{nd}f}"
 
 
 def _table(title, cols, rows) -> list[str]:
@@ -16,16 +21,24 @@ def _table(title, cols, rows) -> list[str]:
 
 
 def format_report(r: dict) -> str:
-    lines = [f"prismstation report — {r.get('project') or ''}  CRS {r['crs']}  geoid {r.get('geoid')}", ""]
+    h = r.get("header") or {}
+    sids, pids = h.get("scene_ids") or {}, h.get("product_ids") or {}
+    products = ", ".join(f"{v} {' '.join(x for x in (sids.get(v), pids.get(v)) if x)}"
+                         for v in dict.fromkeys([*sids, *pids]))
+    lines = [f"{h.get('title', 'ALOS-PRISM orientation report')} — {r.get('project') or ''}",
+             f"{str(h.get('created', '')).replace('T', ' ').replace('Z', ' UTC')}  operator {h.get('operator', '—')}  {h.get('software', r.get('program', ''))}",
+             f"scene {h.get('scene_id') or '—'}" + (f"  products {products}" if products else "")
+             + f"  orientation from {h.get('orientation', 'GCP')}",
+             f"CRS {r['crs']}  geoid {r.get('geoid')}  heights ellipsoidal", ""]
     b = r["model"]["bias"].get("N") or next(iter(r["model"]["bias"].values()))
-    lines.append(f"Bias compensation ({b['model']}), σ0 = {_f(b.get('sigma0'), 3)}  dof = {b.get('dof')}")
+    lines.append(f"Bias compensation ({b['model']}), σ0 = {_u(b.get('sigma0'))} px  dof = {b.get('dof')}")
     for name, p in b["parameters"].items():
         sd = "" if p["std"] is None else f"  ± {p['std']:.2g}"
         lines.append(f"  {name:>3} = {p['value']:+.6g}{sd}")
     par = r["model"].get("parallax")
     if par:
         lines.append(f"Parallax line ({par['used']}): h = {par['c0']:+.2f} + {par['c1']:.4f}·py"
-                     f"   (theoretical c1 = {par['c1_theoretical']:.4f}; σ0 = {_f(par['sigma0_m'])} m)")
+                     f"   (theoretical c1 = {par['c1_theoretical']:.4f}; σ0 = {_u(par['sigma0_m'], 2)} m)")
     lines.append("")
     st = r["statistics"]
     ref = reference_view(st["image"])
@@ -40,19 +53,19 @@ def format_report(r: dict) -> str:
         rows.append(row)
     rows.append(["planimetric RMS", "", _f(st["image"][ref]["GCP"]["m"]["planimetric_rms"]), "",
                  _f(st["image"][ref]["ICP"]["m"]["planimetric_rms"])])
-    lines += _table(f"Image residuals, view {ref} (m)   [Table 1]", ["GCP Rx", "GCP Ry", "ICP Rx", "ICP Ry"], rows)
+    lines += _table(f"Table 1. Image residuals, view {ref} (m)", ["GCP Rx", "GCP Ry", "ICP Rx", "ICP Ry"], rows)
     if "F-N" in st:
         rows = [[s] + [_f(st[k][s]) if s != "n" else str(st[k][s]) for k in ("F-N", "B-N")]
                 for s in ("n", "min", "max", "mean", "std")]
-        lines += _table("Across-track differences to N (px)   [Table 2]", ["F−N", "B−N"], rows)
+        lines += _table("Table 2. Across-track differences to N (px)", ["F−N", "B−N"], rows)
         rows = [[s] + [_f(st["height"][k][s]) if s != "n" else str(st["height"][k][s]) for k in ("GCP", "ICP")]
                 for s in ("n", "min", "max", "mean", "rms")]
-        lines += _table("Height residuals (m)   [Table 3]", ["GCP Rh", "ICP Rh"], rows)
+        lines += _table("Table 3. Height residuals, from parallax − known (m)", ["GCP Rh", "ICP Rh"], rows)
     g = st["ground"]
     rows = [[s] + [_f(g[k][c][s]) if s != "n" else str(g[k][c][s]) for k in ("GCP", "ICP") for c in ("x", "y")]
             for s in ("n", "mean", "rms")]
     rows.append(["planimetric RMS", "", _f(g["GCP"]["planimetric_rms"]), "", _f(g["ICP"]["planimetric_rms"])])
-    lines += _table("Ground residuals, estimated − known (m)", ["GCP dE", "GCP dN", "ICP dE", "ICP dN"], rows)
+    lines += _table(f"Table {4 if 'F-N' in st else 2}. Ground residuals, estimated − known (m)", ["GCP dE", "GCP dN", "ICP dE", "ICP dN"], rows)
     flagged = [p["id"] for p in r["points"] if p.get("blunder")]
     if flagged:
         lines.append("Possible blunder (largest standardised residual): " + ", ".join(flagged))

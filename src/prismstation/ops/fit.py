@@ -9,7 +9,7 @@ from prismstation.core.solve import Solution, solve
 from prismstation.errors import InputError, ModelError
 from prismstation.io.geoid import to_ellipsoidal
 from prismstation.io.project import project_geoid
-from prismstation.io.report import report_dict
+from prismstation.io.report import report_dict, report_header
 from prismstation.model.project import Project, has_ground
 from prismstation.ops.orient_dem import control_from_record
 
@@ -50,12 +50,27 @@ def solve_project(project: Project, *, height_of=None) -> Solution:
                  height_of=height_of, revision=project.revision, control=control)
 
 
-def fit_report(project: Project, project_path=None, *, height_of=None) -> tuple[Solution, dict]:
-    """Fit ``project`` and build its residual report (:func:`prismstation.io.report.report_dict`);
-    a model that could not be fitted → :class:`ModelError` with the solver's messages. A project
-    oriented from a DEM is reported even when its GCP fit is not ok (it may have no GCP)."""
+def project_report(project: Project, sol: Solution, project_path=None, *, operator: str | None = None,
+                   created=None) -> dict:
+    """The report of ``sol`` fitted on ``project`` (:func:`prismstation.io.report.report_dict`):
+    header (date ``created``, default now; ``operator``, default the login name; program
+    version; project; scene and product ids) and the known coordinates of every point with
+    ground coordinates beside its residuals."""
+    h = ellipsoidal_heights(project)
+    known = {pid: {"E": p.E, "N": p.N, "h": h[pid], "H": p.H, "height_kind": p.height_kind}
+             for pid, p in project.points.items() if pid in h}
+    header = report_header(project.scene, scene_path=project.scene_path, project_path=project_path,
+                           operator=operator, created=created, orientation=project.settings.orientation)
+    geoid = project_geoid(project).describe() if project.geoid else None
+    return report_dict(sol, project_path=project_path, geoid=geoid, header=header, known=known)
+
+
+def fit_report(project: Project, project_path=None, *, height_of=None,
+               operator: str | None = None) -> tuple[Solution, dict]:
+    """Fit ``project`` and build its report (:func:`project_report`); a model that could not be
+    fitted → :class:`ModelError` with the solver's messages. A project oriented from a DEM is
+    reported even when its GCP fit is not ok (it may have no GCP)."""
     sol = solve_project(project, height_of=height_of)
     if not sol.ok and project.settings.orientation != "dem":
         raise ModelError("; ".join(sol.messages) or "the model could not be fitted")
-    geoid = project_geoid(project).describe() if project.geoid else None
-    return sol, report_dict(sol, project_path=project_path, geoid=geoid)
+    return sol, project_report(project, sol, project_path, operator=operator)

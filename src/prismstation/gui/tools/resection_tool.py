@@ -18,8 +18,23 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDoubleSpinBox, QFormLayout, 
 from prismstation.core.resection import PUSHBROOM_NOTE, FrameCamera, base_height, resect
 from prismstation.errors import PrismError
 from prismstation.gui.tools._rect_common import view_points
+from prismstation.io.report import scene_identity
 
 ANGLE_COLOURS = ("#d62728", "#2ca02c", "#1f77b4")
+PRISM_CAMERA = (1939.0, 7.0)    # PRISM's telescopes: focal length (mm), CCD detector pitch (µm)
+GENERIC_CAMERA = (1500.0, 7.0)  # any other project: a start the operator is expected to change
+
+
+def is_prism(project) -> bool:
+    """The project is a PRISM scene: made from a JAXA product, or its scene file names PRISM
+    scene or product ids (``ALPSM…``) or a 1B2 product level."""
+    if project.product:
+        return True
+    ident = scene_identity(project.scene, project.scene_path)
+    ids = [ident["scene_id"] or "", *ident["scene_ids"].values(), *ident["product_ids"].values()]
+    return (any(i.upper().startswith("ALPSM") for i in ids)
+            or (ident["source"] or "").upper().startswith("JAXA")
+            or str(ident["product_level"] or "").upper().startswith("1B2"))
 
 
 def _spin(lo, hi, value, decimals, suffix="") -> QDoubleSpinBox:
@@ -46,8 +61,9 @@ class ResectionDialog(QDialog):
         io = QGroupBox("Interior orientation")
         f = QFormLayout(io)
         self.view = QComboBox()
-        self.focal = _spin(0.1, 1e5, 1500.0, 3, " mm")
-        self.pitch = _spin(0.01, 1e4, 7.0, 3, " µm")
+        self.focal = _spin(0.1, 1e5, GENERIC_CAMERA[0], 3, " mm")
+        self.pitch = _spin(0.01, 1e4, GENERIC_CAMERA[1], 3, " µm")
+        self._defaults_for = None  # the project the interior orientation was last defaulted for
         self.cx = _spin(-1e6, 1e6, 0.0, 2, " px")
         self.cy = _spin(-1e6, 1e6, 0.0, 2, " px")
         f.addRow("View", self.view)
@@ -113,6 +129,13 @@ class ResectionDialog(QDialog):
 
     def refresh_views(self) -> None:
         p = self.window.project
+        if p is not None and p is not self._defaults_for:  # a new project: its camera defaults
+            self._defaults_for = p
+            focal, pitch = PRISM_CAMERA if is_prism(p) else GENERIC_CAMERA
+            self.focal.setValue(focal)
+            self.pitch.setValue(pitch)
+            self.cx.setValue(0.0)  # the principal point goes to the new image's centre below
+            self.cy.setValue(0.0)
         names = [] if p is None else list(p.scene.views)
         for c in (self.view, self.left_view, self.right_view):
             cur = c.currentText()
