@@ -1,0 +1,258 @@
+"""The DSM of an oriented triplet: coarse to fine, tiled, three pairs fused (issue 12).
+
+Levels: matching frames of ``g = g_fine·2^L`` metres per pixel (``g_fine = max(GSD,
+posting/2)``); the coarsest level is the first whose height search, the stated a-priori height
+uncertainty ``±R`` around the prior (the mean height of the fitted points, or a reference DEM),
+fits in ±24 px of the F–B pair. Each level's DSM (voids bridged, smoothed) is the prior of the
+next, searched within ``±5·g`` of the previous level (about 3 px of its F–B disparity). Each
+level is cut into tiles that overlap by ``overlap_m`` and are cross-faded (no seams); every
+tile is an independent Dask task (:mod:`prismstation.ops.dsm_tiles`).
+
+Output: heights (ellipsoidal, or orthometric through a geoid), the mask of cells all three
+images see, which of them matched (mask 1), were filled (2) or stayed void (0), the number of
+pairs agreeing per cell, and the fill percentage over the seen cells.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from scipy import ndimage
+
+from prismstation.core.solve import Solution
+from prismstation.errors import InputError
+from prismstation.ops.dsm_tiles import TileSpec, feather, run_tiles, sample_grid
+from prismstation.ops.progress import checkpoint, scaled
+
+MASK_VOID, MASK_MATCHED, MASK_FILLED = 0, 1, 2
+#: a-priori height uncertainty (m) of a reference DEM used as the prior (SRTM-like σ ≈ 10 m,
+#: and the orientation's own offset): the coarsest search is ±4σ
+REFERENCE_DEM_UNCERTAINTY_M = 40.0
+
+
+@dataclass(frozen=True)
+class Dsm:
+    """A DSM on a north-up grid.
+
+    heights : (rows, cols) float32 metres, NaN where void (or outside what all views see).
+    transform : rasterio order (a, b, c, d, e, f). crs : the scene's CRS.
+    height_kind : "ellipsoidal" or "orthometric". valid_fraction : filled share of seen cells.
+    mask : uint8, 0 void or unseen, 1 matched, 2 filled by interpolation. seen : bool, cells
+    that all three images see. quality : uint8, pairs agreeing (0–3; 1 = one pair checked
+    against its neighbourhood only). geoid : description of the geoid for orthometric heights.
+    """
+
+    heights: np.ndarray
+    transform: tuple
+    crs: str
+    height_kind: str
+    valid_fraction: float
+    mask: np.ndarray = None
+    seen: np.ndarray = None
+    quality: np.ndarray = None
+    posting_m: float = 0.0
+    geoid: str | None = None
+    info: dict = field(default_factory=dict)
+
+    @property
+    def fill_fraction(self) -> float:
+        """Share of the seen cells with a matched (not filled) height."""
+        n = int(self.seen.sum()) if self.seen is not None else 0
+        return float(((self.mask == MASK_MATCHED) & self.seen).sum() / n) if n else 0.0
+
+
+def _grid_over(en: np.ndarray, posting: float) -> tuple[tuple, tuple]:
+    lo, hi = en.min(axis=0), en.max(axis=0)
+    e0 = math.floor(lo[0] / posting) * posting
+    n0 = math.ceil(hi[1] / posting) * posting
+    cols = int(math.ceil((hi[0] - e0) / posting))
+    rows = int(math.ceil((n0 - lo[1]) / posting))
+    return (posting, 0.0, e0, 0.0, -posting, n0), (rows, cols)
+
+
+def _cell_centres(transform, shape) -> np.ndarray:
+    a, _, c, _, e, f = transform
+    rows, cols = shape
+    x = c + a * (np.arange(cols) + 0.5)
+    y = f + e * (np.arange(rows) + 0.5)
+    return np.stack(np.meshgrid(x, y), axis=-1)
+
+
+def seen_by_all(sol: Solution, transform, shape, heights, window) -> np.ndarray:
+    """Cells whose centre, at ``heights``, falls inside the N ``window`` and the F and B images."""
+    en = _cell_centres(transform, shape)
+    ok = np.ones(shape, bool)
+    for v in ("N", "F", "B"):
+        xy = sol.ground_to_image(v, en, heights)
+        if v == "N":
+            c0, r0, w, h = window
+        else:
+            (h, w), c0, r0 = sol.scene.views[v].shape, 0, 0
+        ok &= (xy[..., 0] >= c0) & (xy[..., 0] < c0 + w) & (xy[..., 1] >= r0) & (xy[..., 1] < r0 + h)
+    return ok
+
+
+def bridge(heights: np.ndarray, smooth_px: int = 5) -> np.ndarray:
+    """Voids bridged from the nearest valid cell and median-smoothed: a prior, not a product."""
+    ok = np.isfinite(heights)
+    if not ok.any():
+        raise InputError("dense matching found no height anywhere in the window")
+    idx = ndimage.distance_transform_edt(~ok, return_distances=False, return_indices=True)
+    return cv2.medianBlur(heights[tuple(idx)].astype(np.float32), smooth_px)
+
+
+def fill_voids(heights: np.ndarray, iterations: int = 200) -> np.ndarray:
+    """Voids filled by relaxation (repeated 3×3 means of the voids, valid cells fixed), started
+    from the nearest valid cell: a smooth membrane across holes. Returns a new array."""
+    ok = np.isfinite(heights)
+    out = bridge(heights, 3) if (~ok).any() else heights.copy()
+    out[ok] = heights[ok]
+    for _ in range(iterations):
+        out[~ok] = cv2.blur(out, (3, 3))[~ok]
+    return out
+
+
+def _tiles(shape, tile: int, overlap: int):
+    rows, cols = shape
+    for r in range(0, rows, tile):
+        for c in range(0, cols, tile):
+            r0, c0 = max(r - overlap, 0), max(c - overlap, 0)
+            yield r0, c0, min(r + tile + overlap, rows) - r0, min(c + tile + overlap, cols) - c0
+
+
+def _level(sol, transform, shape, g, half_range, prior, prior_t, *, tile_px, overlap_m,
+           refine, scheduler, workers, progress):
+    """One level: heights and quality on (transform, shape) from tiled matching."""
+    posting = transform[0]
+    tile = max(16, int(tile_px * g / posting))
+    overlap = max(2, int(math.ceil(overlap_m / posting)))
+    specs = []
+    for r0, c0, nr, nc in _tiles(shape, tile, overlap):
+        # the prior crop this tile's frame needs (its cells plus the along-track reach)
+        reach = 2.5 * half_range + 32 * g
+        specs.append(TileSpec(sol, (r0, c0, nr, nc), transform, g, half_range, *_crop(
+            prior, prior_t, transform, (r0, c0, nr, nc), reach), refine=refine))
+    results = run_tiles(specs, scheduler, workers, progress)
+    acc = np.zeros(shape, np.float64)
+    wsum = np.zeros(shape, np.float64)
+    qacc = np.zeros(shape, np.float64)
+    for spec, (h, q) in zip(specs, results):
+        r0, c0, nr, nc = spec.window
+        w = feather(nr, nc, overlap) * np.isfinite(h)
+        acc[r0:r0 + nr, c0:c0 + nc] += w * np.nan_to_num(h)
+        qacc[r0:r0 + nr, c0:c0 + nc] += w * q
+        wsum[r0:r0 + nr, c0:c0 + nc] += w
+    with np.errstate(invalid="ignore", divide="ignore"):
+        heights = np.where(wsum > 0, acc / wsum, np.nan).astype(np.float32)
+        quality = np.where(wsum > 0, np.rint(qacc / wsum), 0).astype(np.uint8)
+    return heights, quality, len(specs)
+
+
+def _crop(prior, prior_t, transform, window, reach):
+    """The part of the prior grid within ``reach`` metres of a tile's cells."""
+    a, _, c, _, e, f = transform
+    r0, c0, nr, nc = window
+    pa, _, pc, _, pe, pf = prior_t
+    x0, x1 = c + a * c0 - reach, c + a * (c0 + nc) + reach
+    y1, y0 = f + e * r0 + reach, f + e * (r0 + nr) - reach
+    rows, cols = prior.shape
+    i0, i1 = max(int((x0 - pc) / pa), 0), min(int(math.ceil((x1 - pc) / pa)) + 1, cols)
+    j0, j1 = max(int((y1 - pf) / pe), 0), min(int(math.ceil((y0 - pf) / pe)) + 1, rows)
+    i1, j1 = max(i1, i0 + 1), max(j1, j0 + 1)
+    crop = np.ascontiguousarray(prior[j0:j1, i0:i1], np.float32)
+    return crop, (pa, 0.0, pc + pa * i0, 0.0, pe, pf + pe * j0)
+
+
+def default_uncertainty(sol: Solution) -> float:
+    """±R (m) around the mean height when no reference DEM is given: 1.5 × the largest
+    departure of the fitted points from their mean, plus 300 m (summits and valleys the points
+    do not sample)."""
+    hs = [p.ground_est[2] for p in sol.points if p.ground_est is not None]
+    spread = max((abs(h - sol.mean_height) for h in hs), default=600.0)
+    return 1.5 * spread + 300.0
+
+
+def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dict | None = None,
+             orthometric_geoid=None, progress=None, reference=None,
+             height_uncertainty_m: float | None = None, fill: bool = False, refine: bool = False,
+             scheduler=None, workers: int | None = None, tile_px: int = 768,
+             overlap_m: float | None = None, **_ignored) -> Dsm:
+    """DSM of the ground seen in the N-image ``window`` (col0, row0, cols, rows; default all).
+
+    ``reference``: optional prior, a ``(heights, transform)`` north-up grid of ellipsoidal
+    heights in the scene CRS (a reference DEM read onto a grid). ``height_uncertainty_m``: the
+    a-priori ±R of the prior (default :func:`default_uncertainty`, or 40 m with a reference).
+    ``fill``: fill voids by interpolation (mask 2). ``refine``: ZNCC subpixel refinement
+    after SGBM. ``scheduler``, ``workers``: see :mod:`prismstation.ops.dsm_tiles`. ``record`` is
+    accepted for compatibility and not needed (the solution holds the DEM orientation).
+    ``progress(fraction, message)`` returning False cancels (:class:`Cancelled`).
+    """
+    sc = sol.scene
+    if not sc.is_triplet or sol.parallax is None:
+        raise InputError("a DSM needs an oriented N, F, B triplet")
+    if not (posting_m > 0 and math.isfinite(posting_m)):
+        raise InputError(f"the posting must be a positive number of metres, got {posting_m}")
+    rows_n, cols_n = sc.views["N"].shape
+    window = tuple(int(v) for v in (window or (0, 0, cols_n, rows_n)))
+    gsd = sc.views["N"].pixel_size_m
+    g_fine = max(gsd, posting_m / 2.0)
+    k_fb = sc.views["F"].tan_theta + sc.views["B"].tan_theta
+    R = float(height_uncertainty_m or (REFERENCE_DEM_UNCERTAINTY_M if reference is not None
+                                       else default_uncertainty(sol)))
+    levels = 0
+    while k_fb * R / (g_fine * 2 ** levels) > 24:
+        levels += 1
+    overlap_m = overlap_m or 24 * g_fine
+    c0, r0, w, h = window
+    corners = np.array([[c0, r0], [c0 + w, r0], [c0, r0 + h], [c0 + w, r0 + h]], float)
+    foot = np.concatenate([sol.image_to_ground("N", corners, sol.mean_height + d) for d in (-R, R)])
+    # the starting prior on the coarsest grid
+    g = g_fine * 2 ** levels
+    prior_t, prior_shape = _grid_over(foot, 2 * g)
+    if reference is not None:
+        prior = sample_grid(bridge(np.asarray(reference[0], np.float32), 3), reference[1],
+                            _cell_centres(prior_t, prior_shape))
+    else:
+        prior = np.full(prior_shape, sol.mean_height, np.float32)
+    half = R
+    info = {"height_uncertainty_m": R, "levels": []}
+    for L in range(levels, -1, -1):
+        g = g_fine * 2 ** L
+        posting = posting_m if L == 0 else 2 * g
+        t, shape = _grid_over(foot, posting)
+        frac0 = sum(4 ** -k for k in range(L + 1, levels + 1))
+        total = sum(4 ** -k for k in range(0, levels + 1))
+        part = scaled(progress, 0.95 * frac0 / total, 0.95 * (frac0 + 4 ** -L) / total)
+        checkpoint(part, 0.0, f"level {levels - L + 1} of {levels + 1}: {g:g} m pixels")
+        heights, quality, n_tiles = _level(sol, t, shape, g, half, prior, prior_t, tile_px=tile_px,
+                                           overlap_m=max(overlap_m, 4 * posting), refine=refine,
+                                           scheduler=scheduler, workers=workers, progress=part)
+        info["levels"].append({"g_m": g, "posting_m": posting, "half_range_m": half,
+                               "tiles": n_tiles, "filled": float(np.isfinite(heights).mean())})
+        if L:
+            # the next prior only from cells two or more pairs agree on (single-pair edges
+            # can be off by the whole coarse search range)
+            prior, prior_t = bridge(np.where(quality >= 2, heights, np.nan)), t
+            half = 5 * g
+    checkpoint(progress, 0.96, "mask and fill")
+    seen = seen_by_all(sol, t, shape, bridge(heights), window)
+    heights[~seen] = np.nan
+    quality[~seen] = 0
+    mask = np.where(np.isfinite(heights), MASK_MATCHED, MASK_VOID).astype(np.uint8)
+    if fill and np.isfinite(heights).any():
+        filled = fill_voids(heights)
+        new = seen & ~np.isfinite(heights)
+        heights[new] = filled[new]
+        mask[new] = MASK_FILLED
+    kind, geoid_name = "ellipsoidal", None
+    if orthometric_geoid is not None:
+        en = _cell_centres(t, shape)
+        heights = (heights - orthometric_geoid.undulation(en[..., 0], en[..., 1], sc.crs)).astype(np.float32)
+        kind = "orthometric"
+        geoid_name = orthometric_geoid.describe() if hasattr(orthometric_geoid, "describe") else "geoid"
+    n_seen = int(seen.sum())
+    valid = float(np.isfinite(heights[seen]).sum() / n_seen) if n_seen else 0.0
+    checkpoint(progress, 1.0, "done")
+    return Dsm(heights, t, sc.crs, kind, valid, mask, seen, quality, posting_m, geoid_name, info)
