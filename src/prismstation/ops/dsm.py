@@ -165,6 +165,19 @@ def _crop(prior, prior_t, transform, window, reach):
     return crop, (pa, 0.0, pc + pa * i0, 0.0, pe, pf + pe * j0)
 
 
+def _drop_unconfirmed(heights, quality, tolerance_m: float):
+    """Cells fewer than three pairs agree on are kept only within ``tolerance_m`` of the
+    surface the three-pair cells make around them (bridged, median-smoothed): a pair or two
+    agreeing on a false match (at image edges, where the prior was extrapolated) goes."""
+    full = quality >= 3
+    if not full.any():
+        return heights, quality
+    ref = bridge(np.where(full, heights, np.nan))
+    bad = (quality < 3) & ~(np.abs(heights - ref) <= tolerance_m)
+    heights = np.where(bad, np.nan, heights).astype(np.float32)
+    return heights, np.where(bad, 0, quality).astype(np.uint8)
+
+
 def default_uncertainty(sol: Solution) -> float:
     """±R (m) around the mean height when no reference DEM is given: 1.5 × the largest
     departure of the fitted points from their mean, plus 300 m (summits and valleys the points
@@ -176,7 +189,7 @@ def default_uncertainty(sol: Solution) -> float:
 
 def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dict | None = None,
              orthometric_geoid=None, progress=None, reference=None,
-             height_uncertainty_m: float | None = None, fill: bool = False, refine: bool = False,
+             height_uncertainty_m: float | None = None, fill: bool = False, refine: bool = True,
              scheduler=None, workers: int | None = None, tile_px: int = 768,
              overlap_m: float | None = None, **_ignored) -> Dsm:
     """DSM of the ground seen in the N-image ``window`` (col0, row0, cols, rows; default all).
@@ -237,6 +250,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
             prior, prior_t = bridge(np.where(quality >= 2, heights, np.nan)), t
             half = 5 * g
     checkpoint(progress, 0.96, "mask and fill")
+    heights, quality = _drop_unconfirmed(heights, quality, max(8.0, 2 * posting_m))
     seen = seen_by_all(sol, t, shape, bridge(heights), window)
     heights[~seen] = np.nan
     quality[~seen] = 0

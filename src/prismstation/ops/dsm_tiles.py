@@ -34,7 +34,7 @@ class TileSpec:
     half_range_m: float
     prior: np.ndarray
     prior_transform: tuple
-    refine: bool = False
+    refine: bool = True
 
 
 def _cell_corners(transform, window) -> np.ndarray:
