@@ -108,10 +108,11 @@ def fuse(values: np.ndarray, sigmas: np.ndarray, tau: float = 3.0) -> tuple[np.n
     v = np.asarray(values, np.float32)
     s = np.asarray(sigmas, np.float32)
     s = np.broadcast_to(s[:, None, None] if s.ndim == 1 else s, v.shape)
-    with np.errstate(invalid="ignore"), _quiet():
-        med = np.nanmedian(v, axis=0)
+    finite = np.isfinite(v)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        med = _nanmedian0(v)
         # a value's tolerance: its own σ and the median's (≈ the smallest σ present)
-        s_med = np.nanmin(np.where(np.isfinite(v), s, np.nan), axis=0)
+        s_med = np.min(np.where(finite, s, np.inf), axis=0)
         agree = np.abs(v - med) <= tau * np.sqrt(s * s + s_med * s_med)
         w = np.where(agree, 1.0 / (s * s), 0.0)
         n = agree.sum(axis=0)
@@ -133,7 +134,7 @@ def resolve_single(fused: np.ndarray, quality: np.ndarray, values: np.ndarray, t
     local = cv2.medianBlur(fused[tuple(idx)].astype(np.float32), 5)
     with np.errstate(invalid="ignore"):
         dev = np.abs(values - local[None])
-        best = np.nanargmin(np.where(np.isfinite(dev), dev, np.inf), axis=0)
+        best = np.argmin(np.where(np.isfinite(dev), dev, np.inf), axis=0)
     cand = np.take_along_axis(values, best[None], 0)[0]
     take = todo & (np.abs(cand - local) <= tolerance_m)
     fused[take] = cand[take]
@@ -141,14 +142,12 @@ def resolve_single(fused: np.ndarray, quality: np.ndarray, values: np.ndarray, t
     return fused, quality
 
 
-class _quiet:
-    """Silence numpy's all-NaN slice warnings inside a block."""
-
-    def __enter__(self):
-        import warnings
-        self._w = warnings.catch_warnings()
-        self._w.__enter__()
-        warnings.simplefilter("ignore", RuntimeWarning)
-
-    def __exit__(self, *exc):
-        self._w.__exit__(*exc)
+def _nanmedian0(v: np.ndarray) -> np.ndarray:
+    """Median over axis 0 ignoring NaN (NaN where all are), without numpy's warnings (which
+    are not thread-safe to silence)."""
+    srt = np.sort(v, axis=0)                       # NaN last
+    n = np.isfinite(v).sum(axis=0)
+    lo = np.clip((n - 1) // 2, 0, len(v) - 1)[None]
+    hi = np.clip(n // 2, 0, len(v) - 1)[None]
+    m = 0.5 * (np.take_along_axis(srt, lo, 0)[0] + np.take_along_axis(srt, hi, 0)[0])
+    return np.where(n > 0, m, np.nan)

@@ -133,9 +133,11 @@ def match_pair(left: np.ndarray, right: np.ndarray, frame: Frame, h0: np.ndarray
     if refine:
         d = sgm.refine_subpixel(np.nan_to_num(left), np.nan_to_num(right), d)
     rows, cols = frame.shape
-    # a disparity needs both windows inside their images
-    bad_l = cv2.dilate((~valid_l).astype(np.uint8), np.ones((block, block), np.uint8)) > 0
-    bad_r = cv2.dilate((~valid_r).astype(np.uint8), np.ones((block, block), np.uint8)) > 0
+    # a disparity needs both windows inside their images, and clear of the edge where SGBM's
+    # aggregation paths have run through the blank outside (measured: blunders within ~2 blocks)
+    edge = np.ones((2 * block, 2 * block), np.uint8)
+    bad_l = cv2.dilate((~valid_l).astype(np.uint8), edge) > 0
+    bad_r = cv2.dilate((~valid_r).astype(np.uint8), edge) > 0
     d[bad_l] = np.nan
     j, i = np.nonzero(np.isfinite(d))
     dv = d[j, i]

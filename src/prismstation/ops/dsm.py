@@ -250,7 +250,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
             prior, prior_t = bridge(np.where(quality >= 2, heights, np.nan)), t
             half = 5 * g
     checkpoint(progress, 0.96, "mask and fill")
-    heights, quality = _drop_unconfirmed(heights, quality, max(8.0, 2 * posting_m))
+    heights, quality = _drop_unconfirmed(heights, quality, max(6.0, posting_m))
     seen = seen_by_all(sol, t, shape, bridge(heights), window)
     heights[~seen] = np.nan
     quality[~seen] = 0
