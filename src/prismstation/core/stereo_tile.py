@@ -86,14 +86,8 @@ def relief_rate(sol: Solution, view: str, frame: Frame, step: int = 32) -> np.nd
     return cv2.resize(r, (cols, rows), interpolation=cv2.INTER_LINEAR)
 
 
-def frame_grid(frame: Frame) -> np.ndarray:
-    """Map points (rows, cols, 2) of the frame's pixel centres."""
-    rows, cols = frame.shape
-    return frame.to_map(*np.meshgrid(np.arange(cols) + 0.5, np.arange(rows) + 0.5))
-
-
 def resample_view(image: np.ndarray, index_of, sol: Solution, view: str, frame: Frame,
-                  h0: np.ndarray, r: np.ndarray, P: np.ndarray) -> np.ndarray:
+                  h0: np.ndarray, r: np.ndarray) -> np.ndarray:
     """``O_V`` on the frame (float32, NaN outside the image array).
 
     ``image`` an array of the view (window, possibly reduced); ``index_of`` (2, 3) maps image
@@ -101,12 +95,18 @@ def resample_view(image: np.ndarray, index_of, sol: Solution, view: str, frame: 
     the full image becomes the array index of that sample).
     """
     G = view_affine(sol, view)
-    W = P + h0[..., None] * r
     m = np.asarray(index_of, float)
-    A = m[:, :2] @ G[:, :2]
+    A = m[:, :2] @ G[:, :2]                       # map → array index, linear part
     o = m[:, :2] @ G[:, 2] + m[:, 2]
-    mx = (W[..., 0] * A[0, 0] + W[..., 1] * A[0, 1] + o[0]).astype(np.float32)
-    my = (W[..., 0] * A[1, 0] + W[..., 1] * A[1, 1] + o[1]).astype(np.float32)
+    F = frame.affine()                            # frame coords → map
+    M = A @ F[:, :2]                              # frame coords → array index
+    c = A @ F[:, 2] + o + 0.5 * M.sum(axis=1)     # (pixel centres at i + 0.5)
+    rows, cols = frame.shape
+    i = np.arange(cols, dtype=np.float32)[None, :]
+    j = np.arange(rows, dtype=np.float32)[:, None]
+    ar = r @ A.T.astype(np.float32)               # array-index shift per metre of height
+    mx = (c[0] + M[0, 0] * i + M[0, 1] * j + h0 * ar[..., 0]).astype(np.float32)
+    my = (c[1] + M[1, 0] * i + M[1, 1] * j + h0 * ar[..., 1]).astype(np.float32)
     return cv2.remap(np.asarray(image, np.float32), mx, my, cv2.INTER_CUBIC,
                      borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
 
@@ -121,7 +121,7 @@ class PairPoints:
 
 
 def match_pair(left: np.ndarray, right: np.ndarray, frame: Frame, h0: np.ndarray, r_l: np.ndarray,
-               r_r: np.ndarray, P: np.ndarray, half_range_m: float, *, block: int = 5,
+               r_r: np.ndarray, half_range_m: float, *, block: int = 5,
                refine: bool = False) -> PairPoints:
     """Match two frame images (float32, NaN outside) and turn disparities into ground points."""
     t = np.asarray(frame.t, np.float32)
@@ -136,26 +136,22 @@ def match_pair(left: np.ndarray, right: np.ndarray, frame: Frame, h0: np.ndarray
     # a disparity needs both windows inside their images, and clear of the edge where SGBM's
     # aggregation paths have run through the blank outside (measured: blunders within ~2 blocks)
     edge = np.ones((2 * block, 2 * block), np.uint8)
-    bad_l = cv2.dilate((~valid_l).astype(np.uint8), edge) > 0
-    bad_r = cv2.dilate((~valid_r).astype(np.uint8), edge) > 0
-    d[bad_l] = np.nan
-    j, i = np.nonzero(np.isfinite(d))
-    dv = d[j, i]
-    xr = np.rint(i - dv).astype(int)
-    inside = (xr >= 0) & (xr < cols)
-    j, i, dv, xr = j[inside], i[inside], dv[inside], xr[inside]
-    keep = ~bad_r[j, xr]
-    j, i, dv = j[keep], i[keep], dv[keep]
-    # h0 at the right image's position, linear along the row
-    xb = i - dv
-    x0 = np.clip(np.floor(xb).astype(int), 0, cols - 2)
-    a = np.clip(xb - x0, 0.0, 1.0)
-    h0_r = (1 - a) * h0[j, x0] + a * h0[j, x0 + 1]
-    h0_l = h0[j, i]
-    rl, rr = rt_l[j, i], rt_r[j, np.clip(np.rint(xb).astype(int), 0, cols - 1)]
-    h = (dv * frame.g + h0_l * rl - h0_r * rr) / (rl - rr)
-    en = P[j, i] + (h0_l - h)[:, None] * r_l[j, i]
-    return PairPoints(en, h.astype(np.float64), k)
+    bad_l = cv2.dilate((~valid_l).astype(np.uint8), edge)
+    bad_r = cv2.dilate((~valid_r).astype(np.uint8), edge)
+    # whole-frame arrays (float32, no gathers): the right image's column of each left pixel
+    xr = np.arange(cols, dtype=np.float32)[None, :] - d
+    yy = np.repeat(np.arange(rows, dtype=np.float32)[:, None], cols, 1)
+    at_r = lambda a, how: cv2.remap(a, xr, yy, how, borderMode=cv2.BORDER_CONSTANT, borderValue=1)  # noqa: E731
+    d[(bad_l > 0) | (at_r(bad_r, cv2.INTER_NEAREST) > 0)] = np.nan
+    h0_r = at_r(h0, cv2.INTER_LINEAR)               # h0 at the right image's position
+    rr = at_r(rt_r, cv2.INTER_LINEAR)
+    h = (d * frame.g + h0 * rt_l - h0_r * rr) / (rt_l - rr)
+    j, i = np.nonzero(np.isfinite(h))
+    h = h[j, i].astype(np.float64)
+    # ground position, relative to the frame origin (float32 would lose the UTM decimetres)
+    dh = (h0[j, i] - h)[:, None]
+    en = frame.to_map(i + 0.5, j + 0.5) + dh * r_l[j, i]
+    return PairPoints(en, h, k)
 
 
 def grid_pair(points: PairPoints, transform, shape) -> tuple[np.ndarray, np.ndarray]:
@@ -189,13 +185,12 @@ def tile_dsm(sol: Solution, images: dict, frame: Frame, h0: np.ndarray, transfor
     """Heights of a north-up output tile (``transform``, ``shape``) from the views in ``images``
     (``{view: (array, index_of)}``, see :func:`resample_view`), matched on ``frame`` around the
     prior ``h0`` (frame-shaped, metres) within ``±half_range_m``."""
-    P = frame_grid(frame)
     views = sorted({v for p in pairs for v in p})
     r = {v: relief_rate(sol, v, frame) for v in views}
-    ortho = {v: resample_view(*images[v], sol, v, frame, h0, r[v], P) for v in views}
+    ortho = {v: resample_view(*images[v], sol, v, frame, h0, r[v]) for v in views}
     vals, counts, sig = [], [], []
     for a, b in pairs:
-        pts = match_pair(ortho[a], ortho[b], frame, h0, r[a], r[b], P, half_range_m,
+        pts = match_pair(ortho[a], ortho[b], frame, h0, r[a], r[b], half_range_m,
                          block=block, refine=refine)
         hv, n = grid_pair(pts, transform, shape)
         vals.append(hv)

@@ -4,7 +4,8 @@ Levels: matching frames of ``g = g_fine·2^L`` metres per pixel (``g_fine = max(
 posting/2)``); the coarsest level is the first whose height search, the stated a-priori height
 uncertainty ``±R`` around the prior (the mean height of the fitted points, or a reference DEM),
 fits in ±24 px of the F–B pair. Each level's DSM (voids bridged, smoothed) is the prior of the
-next, searched within ``±5·g`` of the previous level (about 3 px of its F–B disparity). Each
+next, searched within ``±3·g`` of the previous level (≈ 2.6 px of its F–B disparity, 16
+disparities at the next level). Each
 level is cut into tiles that overlap by ``overlap_m`` and are cross-faded (no seams); every
 tile is an independent Dask task (:mod:`prismstation.ops.dsm_tiles`).
 
@@ -22,6 +23,7 @@ import numpy as np
 from scipy import ndimage
 
 from prismstation.core.solve import Solution
+from prismstation.core.stereo_tile import Frame, relief_rate, view_affine
 from prismstation.errors import InputError
 from prismstation.ops.dsm_tiles import TileSpec, feather, run_tiles, sample_grid
 from prismstation.ops.progress import checkpoint, scaled
@@ -82,10 +84,13 @@ def _cell_centres(transform, shape) -> np.ndarray:
 
 def seen_by_all(sol: Solution, transform, shape, heights, window) -> np.ndarray:
     """Cells whose centre, at ``heights``, falls inside the N ``window`` and the F and B images."""
+    a, _, c, _, e, f = transform
+    grid = Frame((c, f), (1.0, 0.0), (0.0, 1.0 if e > 0 else -1.0), a, shape)  # the grid as a frame
     en = _cell_centres(transform, shape)
     ok = np.ones(shape, bool)
     for v in ("N", "F", "B"):
-        xy = sol.ground_to_image(v, en, heights)
+        G = view_affine(sol, v)
+        xy = en @ G[:, :2].T + G[:, 2] + heights[..., None] * (relief_rate(sol, v, grid) @ G[:, :2].T)
         if v == "N":
             c0, r0, w, h = window
         else:
@@ -123,13 +128,15 @@ def _tiles(shape, tile: int, overlap: int):
 
 
 def _level(sol, transform, shape, g, half_range, prior, prior_t, *, tile_px, overlap_m,
-           refine, scheduler, workers, progress):
+           refine, scheduler, workers, progress, wanted=None):
     """One level: heights and quality on (transform, shape) from tiled matching."""
     posting = transform[0]
     tile = max(16, int(tile_px * g / posting))
     overlap = max(2, int(math.ceil(overlap_m / posting)))
     specs = []
     for r0, c0, nr, nc in _tiles(shape, tile, overlap):
+        if wanted is not None and not wanted[r0:r0 + nr, c0:c0 + nc].any():
+            continue                     # no cell of this tile is seen by all three images
         # the prior crop this tile's frame needs (its cells plus the along-track reach)
         reach = 2.5 * half_range + 32 * g
         specs.append(TileSpec(sol, (r0, c0, nr, nc), transform, g, half_range, *_crop(
@@ -239,7 +246,9 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
         total = sum(4 ** -k for k in range(0, levels + 1))
         part = scaled(progress, 0.95 * frac0 / total, 0.95 * (frac0 + 4 ** -L) / total)
         checkpoint(part, 0.0, f"level {levels - L + 1} of {levels + 1}: {g:g} m pixels")
-        heights, quality, n_tiles = _level(sol, t, shape, g, half, prior, prior_t, tile_px=tile_px,
+        wanted = seen_by_all(sol, t, shape, sample_grid(prior, prior_t, _cell_centres(t, shape)), window)
+        wanted = cv2.dilate(wanted.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+        heights, quality, n_tiles = _level(sol, t, shape, g, half, prior, prior_t, tile_px=tile_px, wanted=wanted,
                                            overlap_m=max(overlap_m, 4 * posting), refine=refine,
                                            scheduler=scheduler, workers=workers, progress=part)
         info["levels"].append({"g_m": g, "posting_m": posting, "half_range_m": half,
@@ -248,7 +257,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
             # the next prior only from cells two or more pairs agree on (single-pair edges
             # can be off by the whole coarse search range)
             prior, prior_t = bridge(np.where(quality >= 2, heights, np.nan)), t
-            half = 5 * g
+            half = 3 * g
     checkpoint(progress, 0.96, "mask and fill")
     heights, quality = _drop_unconfirmed(heights, quality, max(6.0, posting_m))
     seen = seen_by_all(sol, t, shape, bridge(heights), window)

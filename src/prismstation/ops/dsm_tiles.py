@@ -17,7 +17,7 @@ import numpy as np
 from scipy import ndimage
 
 from prismstation.core.solve import Solution
-from prismstation.core.stereo_tile import frame_grid, frame_over, tile_dsm
+from prismstation.core.stereo_tile import frame_over, tile_dsm
 from prismstation.ops.progress import checkpoint
 
 
@@ -51,6 +51,19 @@ def sample_grid(grid: np.ndarray, transform, en: np.ndarray) -> np.ndarray:
     col = (en[..., 0] - c) / a - 0.5
     row = (en[..., 1] - f) / e - 0.5
     return ndimage.map_coordinates(np.asarray(grid, np.float32), [row, col], order=1, mode="nearest")
+
+
+def _prior_on_frame(prior, prior_t, frame) -> np.ndarray:
+    """The prior grid (north-up) resampled bilinearly onto the frame's pixel centres (float32)."""
+    a, _, c, _, e, f = prior_t
+    F = frame.affine()
+    # frame coords → prior array index: ((E − c)/a − 0.5, (N − f)/e − 0.5)
+    S = np.array([[1 / a, 0.0, -c / a - 0.5], [0.0, 1 / e, -f / e - 0.5]])
+    M = S[:, :2] @ F[:, :2]
+    o = S[:, :2] @ F[:, 2] + S[:, 2] + 0.5 * M.sum(axis=1)
+    rows, cols = frame.shape
+    return cv2.warpAffine(np.asarray(prior, np.float32), np.column_stack([M, o]), (cols, rows),
+                          flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
 
 
 def _read_views(sol: Solution, frame, h_lo: float, h_hi: float, factor: int) -> dict:
@@ -93,7 +106,7 @@ def run_tile(spec: TileSpec):
     # along track: the reach of the height range in the most oblique view and SGBM's edge band
     margin_x = 0.6 * spec.half_range_m + 1.0 * spec.half_range_m + 16 * spec.g
     frame = frame_over(sol, corners, spec.g, margin_x, 8 * spec.g)
-    h0 = sample_grid(spec.prior, spec.prior_transform, frame_grid(frame))
+    h0 = _prior_on_frame(spec.prior, spec.prior_transform, frame)
     pixel = sol.scene.views["N"].pixel_size_m
     factor = max(1, int(round(spec.g / pixel)))
     images = _read_views(sol, frame, float(h0.min()) - spec.half_range_m,
@@ -125,8 +138,9 @@ def run_tiles(specs: list, scheduler=None, workers: int | None = None, progress=
                 done[0] += 1
                 checkpoint(progress, done[0] / len(specs), f"tile {done[0]} of {len(specs)}")
 
-        tasks = [dask.delayed(run_tile, pure=True)(s, dask_key_name=f"run_tile-{i}")
-                 for i, s in enumerate(specs)]
+        # named, untraversed specs: dask neither hashes nor walks the solution's points
+        tasks = [dask.delayed(run_tile)(dask.delayed(s, traverse=False, name=f"tile-spec-{i}"),
+                                        dask_key_name=f"run_tile-{i}") for i, s in enumerate(specs)]
         with Callback(posttask=post):
             return list(dask.compute(*tasks, scheduler=scheduler or "threads",
                                      num_workers=workers))
