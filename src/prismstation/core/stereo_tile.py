@@ -120,24 +120,41 @@ class PairPoints:
     k: float          # (r_A − r_B)·t, metres of parallax per metre of height
 
 
-def match_pair(left: np.ndarray, right: np.ndarray, frame: Frame, h0: np.ndarray, r_l: np.ndarray,
-               r_r: np.ndarray, half_range_m: float, *, block: int = 5,
-               refine: bool = False) -> PairPoints:
-    """Match two frame images (float32, NaN outside) and turn disparities into ground points."""
-    t = np.asarray(frame.t, np.float32)
-    rt_l, rt_r = r_l @ t, r_r @ t
-    k = float(np.median(rt_l - rt_r))
+@dataclass(frozen=True)
+class FrameImage:
+    """One view on the frame, prepared once for all its pairs: ``u8`` (stretched, for SGBM),
+    ``f32`` (NaN → 0, for the refinement), ``bad`` (uint8, 1 outside the image and within two
+    blocks of it), ``r`` (rows, cols, 2) relief rate and ``rt`` its along-track part."""
+
+    u8: np.ndarray
+    f32: np.ndarray
+    bad: np.ndarray
+    r: np.ndarray
+    rt: np.ndarray
+
+
+def prepare(ortho: np.ndarray, r: np.ndarray, frame: Frame, block: int = 5) -> FrameImage:
+    """A :class:`FrameImage` from a resampled view (float32, NaN outside) and its relief rate.
+
+    The band of two blocks along the image edge is marked bad: SGBM's aggregation paths run
+    through the blank outside there (measured: blunders within about two blocks)."""
+    valid = np.isfinite(ortho)
+    bad = cv2.dilate((~valid).astype(np.uint8), np.ones((2 * block, 2 * block), np.uint8))
+    return FrameImage(sgm.to_uint8(ortho, valid), np.where(valid, ortho, 0).astype(np.float32), bad,
+                      r, r @ np.asarray(frame.t, np.float32))
+
+
+def match_pair(left: FrameImage, right: FrameImage, frame: Frame, h0: np.ndarray,
+               half_range_m: float, *, block: int = 5, refine: bool = False) -> PairPoints:
+    """Match two prepared frame images and turn the disparities into ground points."""
+    rt_l, rt_r, r_l = left.rt, right.rt, left.r
+    k = float(np.median(rt_l[::8, ::8] - rt_r[::8, ::8]))
     lo, n = sgm.disparity_search(half_range_m, k, frame.g, block)
-    valid_l, valid_r = np.isfinite(left), np.isfinite(right)
-    d = sgm.sgbm(sgm.to_uint8(left, valid_l), sgm.to_uint8(right, valid_r), lo, n, block=block)
+    d = sgm.sgbm(left.u8, right.u8, lo, n, block=block)
     if refine:
-        d = sgm.refine_subpixel(np.nan_to_num(left), np.nan_to_num(right), d)
+        d = sgm.refine_subpixel(left.f32, right.f32, d)
     rows, cols = frame.shape
-    # a disparity needs both windows inside their images, and clear of the edge where SGBM's
-    # aggregation paths have run through the blank outside (measured: blunders within ~2 blocks)
-    edge = np.ones((2 * block, 2 * block), np.uint8)
-    bad_l = cv2.dilate((~valid_l).astype(np.uint8), edge)
-    bad_r = cv2.dilate((~valid_r).astype(np.uint8), edge)
+    bad_l, bad_r = left.bad, right.bad
     # whole-frame arrays (float32, no gathers): the right image's column of each left pixel
     xr = np.arange(cols, dtype=np.float32)[None, :] - d
     yy = np.repeat(np.arange(rows, dtype=np.float32)[:, None], cols, 1)
@@ -148,7 +165,7 @@ def match_pair(left: np.ndarray, right: np.ndarray, frame: Frame, h0: np.ndarray
     h = (d * frame.g + h0 * rt_l - h0_r * rr) / (rt_l - rr)
     j, i = np.nonzero(np.isfinite(h))
     h = h[j, i].astype(np.float64)
-    # ground position, relative to the frame origin (float32 would lose the UTM decimetres)
+    # ground positions in float64 (float32 would lose the UTM decimetres)
     dh = (h0[j, i] - h)[:, None]
     en = frame.to_map(i + 0.5, j + 0.5) + dh * r_l[j, i]
     return PairPoints(en, h, k)
@@ -187,11 +204,10 @@ def tile_dsm(sol: Solution, images: dict, frame: Frame, h0: np.ndarray, transfor
     prior ``h0`` (frame-shaped, metres) within ``±half_range_m``."""
     views = sorted({v for p in pairs for v in p})
     r = {v: relief_rate(sol, v, frame) for v in views}
-    ortho = {v: resample_view(*images[v], sol, v, frame, h0, r[v]) for v in views}
+    fi = {v: prepare(resample_view(*images[v], sol, v, frame, h0, r[v]), r[v], frame, block) for v in views}
     vals, counts, sig = [], [], []
     for a, b in pairs:
-        pts = match_pair(ortho[a], ortho[b], frame, h0, r[a], r[b], half_range_m,
-                         block=block, refine=refine)
+        pts = match_pair(fi[a], fi[b], frame, h0, half_range_m, block=block, refine=refine)
         hv, n = grid_pair(pts, transform, shape)
         vals.append(hv)
         counts.append(n)
