@@ -209,4 +209,4 @@ def test_cli_exits_non_zero_below_the_fill_threshold(triplet, tmp_path, capsys):
                "--fill"])
     err = capsys.readouterr().err
     assert rc == 3 and "LOW FILL" in err and out.exists()
-    assert main(["dsm", str(folder / "p.prismproj"), "-o", str(out), "--posting", "20"]) == 0
+    assert main(["dsm", str(folder / "p.prismproj"), "-o", str(out), "--posting", "20", "--min-fill", "50"]) == 0

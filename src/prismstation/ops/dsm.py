@@ -25,7 +25,7 @@ from scipy import ndimage
 from prismstation.core.solve import Solution
 from prismstation.core.stereo_tile import Frame, relief_rate, view_affine
 from prismstation.errors import InputError
-from prismstation.ops.dsm_tiles import TileSpec, feather, run_tiles, sample_grid
+from prismstation.ops.dsm_tiles import TileSpec, run_tiles, sample_grid
 from prismstation.ops.progress import checkpoint, scaled
 
 MASK_VOID, MASK_MATCHED, MASK_FILLED = 0, 1, 2
@@ -119,35 +119,50 @@ def fill_voids(heights: np.ndarray, iterations: int = 200) -> np.ndarray:
     return out
 
 
-def _tiles(shape, tile: int, overlap: int):
+def _track_tiles(sol, transform, shape, wanted, size_m: float, overlap_m: float):
+    """Rectangles aligned with the flight direction covering the wanted cells: ``(rect, window)``
+    with ``rect`` = (origin, t, u, x0, x1, y0, y1) in metres along/across track, overlap
+    included, and ``window`` = (row0, col0, rows, cols), the grid cells around it."""
+    en = _cell_centres(transform, shape)
+    pts = en[wanted] if wanted is not None else en.reshape(-1, 2)
+    origin = pts.mean(axis=0)
+    _, t = sol.scene.track.foot(origin)
+    u = np.array([-t[1], t[0]])
+    x, y = (pts - origin) @ t, (pts - origin) @ u
+    a, _, c, _, e, f = transform
     rows, cols = shape
-    for r in range(0, rows, tile):
-        for c in range(0, cols, tile):
-            r0, c0 = max(r - overlap, 0), max(c - overlap, 0)
-            yield r0, c0, min(r + tile + overlap, rows) - r0, min(c + tile + overlap, cols) - c0
+    for x0 in np.arange(x.min(), x.max() + 1e-6, size_m):
+        for y0 in np.arange(y.min(), y.max() + 1e-6, size_m):
+            r = (x0 - overlap_m, x0 + size_m + overlap_m, y0 - overlap_m, y0 + size_m + overlap_m)
+            inside = (x >= r[0]) & (x <= r[1]) & (y >= r[2]) & (y <= r[3])
+            if not inside.any():
+                continue
+            corners = np.array([origin + xx * t + yy * u for xx in r[:2] for yy in r[2:]])
+            i0 = max(int(np.floor((corners[:, 0].min() - c) / a)), 0)
+            i1 = min(int(np.ceil((corners[:, 0].max() - c) / a)), cols)
+            j0 = max(int(np.floor((corners[:, 1].max() - f) / e)), 0)
+            j1 = min(int(np.ceil((corners[:, 1].min() - f) / e)), rows)
+            if i1 > i0 and j1 > j0:
+                yield (tuple(origin), tuple(t), tuple(u)) + r, (j0, i0, j1 - j0, i1 - i0)
 
 
 def _level(sol, transform, shape, g, half_range, prior, prior_t, *, tile_px, overlap_m,
            refine, scheduler, workers, progress, wanted=None):
-    """One level: heights and quality on (transform, shape) from tiled matching."""
-    posting = transform[0]
-    tile = max(16, int(tile_px * g / posting))
-    overlap = max(2, int(math.ceil(overlap_m / posting)))
+    """One level: heights and quality on (transform, shape) from tiled matching; tiles are
+    rectangles along the flight direction (their frames waste no corners), cross-faded over
+    ``2·overlap_m``."""
     specs = []
-    for r0, c0, nr, nc in _tiles(shape, tile, overlap):
-        if wanted is not None and not wanted[r0:r0 + nr, c0:c0 + nc].any():
-            continue                     # no cell of this tile is seen by all three images
-        # the prior crop this tile's frame needs (its cells plus the along-track reach)
-        reach = 2.5 * half_range + 32 * g
-        specs.append(TileSpec(sol, (r0, c0, nr, nc), transform, g, half_range, *_crop(
-            prior, prior_t, transform, (r0, c0, nr, nc), reach), refine=refine))
+    reach = 2.5 * half_range + 32 * g      # the prior a frame needs beyond its cells
+    for rect, window in _track_tiles(sol, transform, shape, wanted, tile_px * g, overlap_m):
+        specs.append(TileSpec(sol, window, transform, g, half_range, *_crop(
+            prior, prior_t, transform, window, reach), refine=refine, rect=rect, overlap_m=overlap_m))
     results = run_tiles(specs, scheduler, workers, progress)
     acc = np.zeros(shape, np.float64)
     wsum = np.zeros(shape, np.float64)
     qacc = np.zeros(shape, np.float64)
-    for spec, (h, q) in zip(specs, results):
+    for spec, (h, q, w) in zip(specs, results):
         r0, c0, nr, nc = spec.window
-        w = feather(nr, nc, overlap) * np.isfinite(h)
+        w = w * np.isfinite(h)
         acc[r0:r0 + nr, c0:c0 + nc] += w * np.nan_to_num(h)
         qacc[r0:r0 + nr, c0:c0 + nc] += w * q
         wsum[r0:r0 + nr, c0:c0 + nc] += w

@@ -35,6 +35,8 @@ class TileSpec:
     prior: np.ndarray
     prior_transform: tuple
     refine: bool = True
+    rect: tuple | None = None      # (origin, t, u, x0, x1, y0, y1): the track-aligned rectangle
+    overlap_m: float = 0.0
 
 
 def _cell_corners(transform, window) -> np.ndarray:
@@ -95,14 +97,18 @@ def _read_views(sol: Solution, frame, h_lo: float, h_hi: float, factor: int) -> 
 
 
 def run_tile(spec: TileSpec):
-    """Heights and quality (pairs agreeing) of the tile's cells: ``(heights, quality)``."""
+    """Heights, quality (pairs agreeing) and blend weights of the tile's cells."""
     cv2.setNumThreads(1)
     sol = spec.sol
     a = spec.transform[0]
     rows, cols = spec.window[2], spec.window[3]
     tile_t = (a, 0.0, spec.transform[2] + a * spec.window[1], 0.0, spec.transform[4],
               spec.transform[5] + spec.transform[4] * spec.window[0])
-    corners = _cell_corners(spec.transform, spec.window)
+    if spec.rect is None:
+        corners = _cell_corners(spec.transform, spec.window)
+    else:
+        o, t, u, x0, x1, y0, y1 = spec.rect
+        corners = np.array([np.add(o, np.multiply(xx, t) + np.multiply(yy, u)) for xx in (x0, x1) for yy in (y0, y1)])
     # along track: the reach of the height range in the most oblique view and SGBM's edge band
     margin_x = 0.6 * spec.half_range_m + 1.0 * spec.half_range_m + 16 * spec.g
     frame = frame_over(sol, corners, spec.g, margin_x, 8 * spec.g)
@@ -113,16 +119,21 @@ def run_tile(spec: TileSpec):
                          float(h0.max()) + spec.half_range_m, factor)
     res = tile_dsm(sol, images, frame, h0, tile_t, (rows, cols), spec.half_range_m,
                    refine=spec.refine)
-    return res.heights, res.quality
+    return res.heights, res.quality, feather(spec, tile_t, (rows, cols))
 
 
-def feather(rows: int, cols: int, overlap: int) -> np.ndarray:
-    """Blend weights (rows, cols): 1 inside, falling linearly to ~0 across ``overlap`` cells at
-    each edge, so neighbouring tiles cross-fade over their shared band (no seams)."""
-    def ramp(n):
-        k = np.arange(n, dtype=np.float32)
-        return np.clip(np.minimum(k + 0.5, n - k - 0.5) / max(overlap, 1), 1e-3, 1.0)
-    return np.outer(ramp(rows), ramp(cols))
+def feather(spec: TileSpec, transform, shape) -> np.ndarray:
+    """Blend weights of the tile's cells: 0 outside its rectangle, rising linearly over
+    ``2·overlap_m`` from its edge, so that neighbours (which share that band) cross-fade with
+    weights summing to one — no seams. Without a rectangle: 1 everywhere."""
+    if spec.rect is None:
+        return np.ones(shape, np.float32)
+    o, t, u, x0, x1, y0, y1 = spec.rect
+    en = np.stack(np.meshgrid(transform[2] + transform[0] * (np.arange(shape[1]) + 0.5),
+                              transform[5] + transform[4] * (np.arange(shape[0]) + 0.5)), axis=-1) - np.asarray(o)
+    x, y = en @ np.asarray(t), en @ np.asarray(u)
+    d = np.minimum(np.minimum(x - x0, x1 - x), np.minimum(y - y0, y1 - y))
+    return np.clip(d / max(2 * spec.overlap_m, 1e-9), 0.0, 1.0).astype(np.float32)
 
 
 def run_tiles(specs: list, scheduler=None, workers: int | None = None, progress=None) -> list:
