@@ -188,12 +188,16 @@ def grid_pair(points: PairPoints, transform, shape) -> tuple[np.ndarray, np.ndar
 @dataclass(frozen=True)
 class TileResult:
     """Fused heights (rows, cols) float32 NaN-void, quality (pairs agreeing, uint8), the pair
-    grids (P, rows, cols) and their sample counts."""
+    grids (P, rows, cols) and their sample counts, and ``z_nmad``: the NMAD of the F–B
+    height's differences to F–N and N–B in units of their formal σ (1 when the a-priori
+    disparity σ is right; from ``z_count`` differences)."""
 
     heights: np.ndarray
     quality: np.ndarray
     pair_heights: np.ndarray
     pair_counts: np.ndarray
+    z_nmad: float = float("nan")
+    z_count: int = 0
 
 
 def tile_dsm(sol: Solution, images: dict, frame: Frame, h0: np.ndarray, transform, shape,
@@ -215,6 +219,12 @@ def tile_dsm(sol: Solution, images: dict, frame: Frame, h0: np.ndarray, transfor
             sig.append(sigma_px * frame.g / abs(pts.k) / np.sqrt(np.maximum(n, 1)))
     vals, counts, sig = np.stack(vals), np.stack(counts), np.stack(sig)
     h, q = sgm.fuse(vals, sig, tau)
+    # the σ claim against the scatter: differences of the F–B height to the other two, in σ
+    z = [(vals[2] - vals[p]) / np.sqrt(sig[2] ** 2 + sig[p] ** 2) for p in (0, 1)] if len(vals) == 3 else []
+    z = np.concatenate([v[q == 3] for v in z]) if z else np.zeros(0)
+    z = z[np.isfinite(z)]
+    # robust: NMAD of z (1.0 when the σ are right), from the cells all three pairs agree on
+    z_nmad = float(1.4826 * np.median(np.abs(z - np.median(z)))) if z.size else float("nan")
     tol = tau * 2 * float(sig.max())
     h, q = sgm.resolve_single(h, q, vals, max(tol, 3 * frame.g))
-    return TileResult(h, q, vals, counts.astype(np.int32))
+    return TileResult(h, q, vals, counts.astype(np.int32), z_nmad, int(z.size))

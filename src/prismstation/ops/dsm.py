@@ -160,7 +160,9 @@ def _level(sol, transform, shape, g, half_range, prior, prior_t, *, tile_px, ove
     acc = np.zeros(shape, np.float64)
     wsum = np.zeros(shape, np.float64)
     qacc = np.zeros(shape, np.float64)
-    for spec, (h, q, w) in zip(specs, results):
+    z = [(zn, n) for *_, (zn, n) in results if n]
+    z_nmad = float(np.average([zn for zn, _ in z], weights=[n for _, n in z])) if z else float("nan")
+    for spec, (h, q, w, _) in zip(specs, results):
         r0, c0, nr, nc = spec.window
         w = w * np.isfinite(h)
         acc[r0:r0 + nr, c0:c0 + nc] += w * np.nan_to_num(h)
@@ -169,7 +171,7 @@ def _level(sol, transform, shape, g, half_range, prior, prior_t, *, tile_px, ove
     with np.errstate(invalid="ignore", divide="ignore"):
         heights = np.where(wsum > 0, acc / wsum, np.nan).astype(np.float32)
         quality = np.where(wsum > 0, np.rint(qacc / wsum), 0).astype(np.uint8)
-    return heights, quality, len(specs)
+    return heights, quality, len(specs), z_nmad
 
 
 def _crop(prior, prior_t, transform, window, reach):
@@ -263,11 +265,12 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
         checkpoint(part, 0.0, f"level {levels - L + 1} of {levels + 1}: {g:g} m pixels")
         wanted = seen_by_all(sol, t, shape, sample_grid(prior, prior_t, _cell_centres(t, shape)), window)
         wanted = cv2.dilate(wanted.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
-        heights, quality, n_tiles = _level(sol, t, shape, g, half, prior, prior_t, tile_px=tile_px, wanted=wanted,
+        heights, quality, n_tiles, z_nmad = _level(sol, t, shape, g, half, prior, prior_t, tile_px=tile_px, wanted=wanted,
                                            overlap_m=max(overlap_m, 4 * posting), refine=refine,
                                            scheduler=scheduler, workers=workers, progress=part)
         info["levels"].append({"g_m": g, "posting_m": posting, "half_range_m": half,
-                               "tiles": n_tiles, "filled": float(np.isfinite(heights).mean())})
+                               "tiles": n_tiles, "filled": float(np.isfinite(heights).mean()),
+                               "pair_scatter_in_sigma": z_nmad})
         if L:
             # the next prior only from cells two or more pairs agree on (single-pair edges
             # can be off by the whole coarse search range)

@@ -97,7 +97,8 @@ def _read_views(sol: Solution, frame, h_lo: float, h_hi: float, factor: int) -> 
 
 
 def run_tile(spec: TileSpec):
-    """Heights, quality (pairs agreeing) and blend weights of the tile's cells."""
+    """Heights, quality (pairs agreeing) and blend weights of the tile's cells, and the tile's
+    σ check ``(z_nmad, count)`` (:class:`prismstation.core.stereo_tile.TileResult`)."""
     cv2.setNumThreads(1)
     sol = spec.sol
     a = spec.transform[0]
@@ -119,7 +120,7 @@ def run_tile(spec: TileSpec):
                          float(h0.max()) + spec.half_range_m, factor)
     res = tile_dsm(sol, images, frame, h0, tile_t, (rows, cols), spec.half_range_m,
                    refine=spec.refine)
-    return res.heights, res.quality, feather(spec, tile_t, (rows, cols))
+    return res.heights, res.quality, feather(spec, tile_t, (rows, cols)), (res.z_nmad, res.z_count)
 
 
 def feather(spec: TileSpec, transform, shape) -> np.ndarray:
