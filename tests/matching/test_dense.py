@@ -81,7 +81,6 @@ def test_flat_images_give_nan_and_heights_follow_the_line():
 
 
 # ---------------------------------------------------------------- the DSM engine (issue 12)
-import dask  # noqa: E402
 from prismstation.core import sgm  # noqa: E402
 from prismstation.errors import Cancelled  # noqa: E402
 
@@ -210,3 +209,21 @@ def test_cli_exits_non_zero_below_the_fill_threshold(triplet, tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 3 and "LOW FILL" in err and out.exists()
     assert main(["dsm", str(folder / "p.prismproj"), "-o", str(out), "--posting", "20", "--min-fill", "50"]) == 0
+
+
+def test_reference_prior_and_void_filling(triplet):
+    """A reference DEM narrows the search (fewer levels) and filled voids are marked 2."""
+    from prismstation.io.dem import read_dem
+    from prismstation.ops.dsm import MASK_FILLED, MASK_MATCHED, make_dsm
+    folder, _, sol = triplet
+    ref = read_dem(folder / "truth_dem.tif")
+    ref_h = ref.heights + np.random.default_rng(1).normal(0, 5, ref.heights.shape)   # a noisy reference
+    d = make_dsm(sol, posting_m=20.0, reference=(ref_h, tuple(ref.transform)[:6]), height_uncertainty_m=30.0,
+                 fill=True)
+    assert len(d.info["levels"]) < 4 and d.info["height_uncertainty_m"] == 30.0
+    filled = d.mask == MASK_FILLED
+    assert filled.any() and np.isfinite(d.heights[filled]).all() and not (filled & ~d.seen).any()
+    assert np.isfinite(d.heights[d.seen]).all() and d.fill_fraction == pytest.approx(
+        (d.mask[d.seen] == MASK_MATCHED).mean())
+    e = (d.heights - _truth_on(d, folder))[d.mask == MASK_MATCHED]
+    assert 1.4826 * np.median(np.abs(e - np.median(e))) < 2.5
