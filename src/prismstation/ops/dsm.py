@@ -5,7 +5,8 @@ posting/2)``); the coarsest level is the first whose height search, the stated a
 uncertainty ``±R`` around the prior (the mean height of the fitted points, or a reference DEM),
 fits in ±24 px of the F–B pair. Each level's DSM (voids bridged, smoothed) is the prior of the
 next, searched within ``±3·g`` of the previous level (≈ 2.6 px of its F–B disparity, 16
-disparities at the next level). Each
+disparities at the next level); the level at ``2·g_fine`` is skipped (the finest searches
+``±12·g_fine``: 32 disparities for F–B). Each
 level is cut into tiles that overlap by ``overlap_m`` and are cross-faded (no seams); every
 tile is an independent Dask task (:mod:`prismstation.ops.dsm_tiles`).
 
@@ -255,14 +256,18 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
         prior = np.full(prior_shape, sol.mean_height, np.float32)
     half = R
     info = {"height_uncertainty_m": R, "levels": []}
-    for L in range(levels, -1, -1):
+    # steps of 2 down to 4·g_fine, then straight to g_fine: the level at 2·g_fine cost a
+    # quarter of the finest and changed nothing measurable (2000 px, 5 m: NMAD 0.97 → 0.99 m,
+    # RMSE 1.34 → 1.36 m, time −27 %)
+    order = [L for L in range(levels, -1, -1) if not (L == 1 and levels >= 2)]
+    for L in order:
         g = g_fine * 2 ** L
         posting = posting_m if L == 0 else 2 * g
         t, shape = _grid_over(foot, posting)
-        frac0 = sum(4 ** -k for k in range(L + 1, levels + 1))
-        total = sum(4 ** -k for k in range(0, levels + 1))
+        frac0 = sum(4 ** -k for k in order if k > L)
+        total = sum(4 ** -k for k in order)
         part = scaled(progress, 0.95 * frac0 / total, 0.95 * (frac0 + 4 ** -L) / total)
-        checkpoint(part, 0.0, f"level {levels - L + 1} of {levels + 1}: {g:g} m pixels")
+        checkpoint(part, 0.0, f"level {order.index(L) + 1} of {len(order)}: {g:g} m pixels")
         wanted = seen_by_all(sol, t, shape, sample_grid(prior, prior_t, _cell_centres(t, shape)), window)
         wanted = cv2.dilate(wanted.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
         heights, quality, n_tiles, z_nmad = _level(sol, t, shape, g, half, prior, prior_t, tile_px=tile_px, wanted=wanted,
