@@ -132,12 +132,18 @@ def _track_tiles(sol, transform, shape, wanted, size_m: float, overlap_m: float)
     x, y = (pts - origin) @ t, (pts - origin) @ u
     a, _, c, _, e, f = transform
     rows, cols = shape
-    for x0 in np.arange(x.min(), x.max() + 1e-6, size_m):
-        for y0 in np.arange(y.min(), y.max() + 1e-6, size_m):
-            r = (x0 - overlap_m, x0 + size_m + overlap_m, y0 - overlap_m, y0 + size_m + overlap_m)
-            inside = (x >= r[0]) & (x <= r[1]) & (y >= r[2]) & (y <= r[3])
-            if not inside.any():
+    # as many tiles as the extent needs, evenly sized; each shrunk to the wanted cells in it
+    nx = max(1, int(np.ceil((x.max() - x.min()) / size_m)))
+    ny = max(1, int(np.ceil((y.max() - y.min()) / size_m)))
+    xs = np.linspace(x.min(), x.max(), nx + 1)
+    ys = np.linspace(y.min(), y.max(), ny + 1)
+    for k in range(nx):
+        for m in range(ny):
+            core = (x >= xs[k]) & (x <= xs[k + 1]) & (y >= ys[m]) & (y <= ys[m + 1])
+            if not core.any():
                 continue
+            r = (x[core].min() - overlap_m, x[core].max() + overlap_m,
+                 y[core].min() - overlap_m, y[core].max() + overlap_m)
             corners = np.array([origin + xx * t + yy * u for xx in r[:2] for yy in r[2:]])
             i0 = max(int(np.floor((corners[:, 0].min() - c) / a)), 0)
             i1 = min(int(np.ceil((corners[:, 0].max() - c) / a)), cols)
