@@ -1,6 +1,6 @@
 """The DSM GeoTIFF: Cloud-Optimized layout with a vertical CRS, nodata, mask and quality bands.
 
-Bands (float32, nodata :data:`NODATA`):
+Bands (float32, nodata NaN):
 
 1. ``height`` — metres, ellipsoidal or orthometric (the CRS says which);
 2. ``mask`` — 0 void (nothing matched) or not seen by all three images, 1 matched,
@@ -31,7 +31,7 @@ from rasterio.transform import Affine
 
 from prismstation.errors import RasterReadError
 
-NODATA = -32767.0
+NODATA = float("nan")   # what a plain read of band 1 shows as no height
 BANDS = ("height", "mask", "pairs_agreeing")
 
 
