@@ -26,7 +26,7 @@ from scipy import ndimage
 from prismstation.core.solve import Solution
 from prismstation.core.stereo_tile import Frame, relief_rate, view_affine
 from prismstation.errors import InputError
-from prismstation.ops.dsm_tiles import TileSpec, run_tiles, sample_grid
+from prismstation.ops.dsm_tiles import TileSpec, run_tiles
 from prismstation.ops.progress import checkpoint, scaled
 
 MASK_VOID, MASK_MATCHED, MASK_FILLED = 0, 1, 2
@@ -83,21 +83,36 @@ def _cell_centres(transform, shape) -> np.ndarray:
     return np.stack(np.meshgrid(x, y), axis=-1)
 
 
-def seen_by_all(sol: Solution, transform, shape, heights, window) -> np.ndarray:
-    """Cells whose centre, at ``heights``, falls inside the N ``window`` and the F and B images."""
+def seen_by_all(sol: Solution, transform, shape, heights, window, strip: int = 512) -> np.ndarray:
+    """Cells whose centre, at ``heights``, falls inside the N ``window`` and the F and B images
+    (computed in strips of rows: memory stays small on 14,000 px scenes)."""
     a, _, c, _, e, f = transform
-    grid = Frame((c, f), (1.0, 0.0), (0.0, 1.0 if e > 0 else -1.0), a, shape)  # the grid as a frame
-    en = _cell_centres(transform, shape)
+    rows, cols = shape
     ok = np.ones(shape, bool)
-    for v in ("N", "F", "B"):
-        G = view_affine(sol, v)
-        xy = en @ G[:, :2].T + G[:, 2] + heights[..., None] * (relief_rate(sol, v, grid) @ G[:, :2].T)
-        if v == "N":
-            c0, r0, w, h = window
-        else:
-            (h, w), c0, r0 = sol.scene.views[v].shape, 0, 0
-        ok &= (xy[..., 0] >= c0) & (xy[..., 0] < c0 + w) & (xy[..., 1] >= r0) & (xy[..., 1] < r0 + h)
+    for r0 in range(0, rows, strip):
+        n = min(strip, rows - r0)
+        t = (a, 0.0, c, 0.0, e, f + e * r0)
+        grid = Frame((c, f + e * r0), (1.0, 0.0), (0.0, 1.0 if e > 0 else -1.0), a, (n, cols))
+        en = _cell_centres(t, (n, cols))
+        for v in ("N", "F", "B"):
+            G = view_affine(sol, v)
+            xy = en @ G[:, :2].T + G[:, 2] + heights[r0:r0 + n, :, None] * (relief_rate(sol, v, grid) @ G[:, :2].T)
+            if v == "N":
+                c0, q0, w, h = window
+            else:
+                (h, w), c0, q0 = sol.scene.views[v].shape, 0, 0
+            ok[r0:r0 + n] &= (xy[..., 0] >= c0) & (xy[..., 0] < c0 + w) & (xy[..., 1] >= q0) & (xy[..., 1] < q0 + h)
     return ok
+
+
+def regrid(grid: np.ndarray, grid_t, transform, shape) -> np.ndarray:
+    """A north-up grid resampled (bilinear, edges extended) onto another north-up grid."""
+    a, _, c, _, e, f = grid_t
+    A, _, C, _, E, F = transform
+    # destination index → source index
+    m = np.array([[A / a, 0.0, (C + 0.5 * A - c) / a - 0.5], [0.0, E / e, (F + 0.5 * E - f) / e - 0.5]])
+    return cv2.warpAffine(np.asarray(grid, np.float32), m, (shape[1], shape[0]),
+                          flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
 
 
 def bridge(heights: np.ndarray, smooth_px: int = 5) -> np.ndarray:
@@ -124,8 +139,11 @@ def _track_tiles(sol, transform, shape, wanted, size_m: float, overlap_m: float)
     """Rectangles aligned with the flight direction covering the wanted cells: ``(rect, window)``
     with ``rect`` = (origin, t, u, x0, x1, y0, y1) in metres along/across track, overlap
     included, and ``window`` = (row0, col0, rows, cols), the grid cells around it."""
-    en = _cell_centres(transform, shape)
-    pts = en[wanted] if wanted is not None else en.reshape(-1, 2)
+    step = max(1, max(shape) // 1500)               # a subsample is enough to place tiles
+    sub = (transform[0] * step, 0.0, transform[2], 0.0, transform[4] * step, transform[5])
+    sub_shape = (-(-shape[0] // step), -(-shape[1] // step))
+    en = _cell_centres(sub, sub_shape)
+    pts = en[wanted[::step, ::step]] if wanted is not None else en.reshape(-1, 2)
     origin = pts.mean(axis=0)
     _, t = sol.scene.track.foot(origin)
     u = np.array([-t[1], t[0]])
@@ -164,9 +182,9 @@ def _level(sol, transform, shape, g, half_range, prior, prior_t, *, tile_px, ove
         specs.append(TileSpec(sol, window, transform, g, half_range, *_crop(
             prior, prior_t, transform, window, reach), refine=refine, rect=rect, overlap_m=overlap_m))
     results = run_tiles(specs, scheduler, workers, progress)
-    acc = np.zeros(shape, np.float64)
-    wsum = np.zeros(shape, np.float64)
-    qacc = np.zeros(shape, np.float64)
+    acc = np.zeros(shape, np.float32)
+    wsum = np.zeros(shape, np.float32)
+    qacc = np.zeros(shape, np.float32)
     z = [(zn, n) for *_, (zn, n) in results if n]
     z_nmad = float(np.average([zn for zn, _ in z], weights=[n for _, n in z])) if z else float("nan")
     for spec, (h, q, w, _) in zip(specs, results):
@@ -256,8 +274,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
     g = g_fine * 2 ** levels
     prior_t, prior_shape = _grid_over(foot, 2 * g)
     if reference is not None:
-        prior = sample_grid(bridge(np.asarray(reference[0], np.float32), 3), reference[1],
-                            _cell_centres(prior_t, prior_shape))
+        prior = regrid(bridge(np.asarray(reference[0], np.float32), 3), reference[1], prior_t, prior_shape)
     else:
         prior = np.full(prior_shape, sol.mean_height, np.float32)
     half = R
@@ -274,7 +291,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
         total = sum(4 ** -k for k in order)
         part = scaled(progress, 0.95 * frac0 / total, 0.95 * (frac0 + 4 ** -L) / total)
         checkpoint(part, 0.0, f"level {order.index(L) + 1} of {len(order)}: {g:g} m pixels")
-        wanted = seen_by_all(sol, t, shape, sample_grid(prior, prior_t, _cell_centres(t, shape)), window)
+        wanted = seen_by_all(sol, t, shape, regrid(prior, prior_t, t, shape), window)
         wanted = cv2.dilate(wanted.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
         heights, quality, n_tiles, z_nmad = _level(sol, t, shape, g, half, prior, prior_t, tile_px=tile_px, wanted=wanted,
                                            overlap_m=max(overlap_m, 4 * posting), refine=refine,
@@ -300,8 +317,9 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
         mask[new] = MASK_FILLED
     kind, geoid_name = "ellipsoidal", None
     if orthometric_geoid is not None:
-        en = _cell_centres(t, shape)
-        heights = (heights - orthometric_geoid.undulation(en[..., 0], en[..., 1], sc.crs)).astype(np.float32)
+        for r0 in range(0, shape[0], 512):
+            en = _cell_centres((t[0], 0.0, t[2], 0.0, t[4], t[5] + t[4] * r0), (min(512, shape[0] - r0), shape[1]))
+            heights[r0:r0 + 512] -= orthometric_geoid.undulation(en[..., 0], en[..., 1], sc.crs).astype(np.float32)
         kind = "orthometric"
         geoid_name = orthometric_geoid.describe() if hasattr(orthometric_geoid, "describe") else "geoid"
     n_seen = int(seen.sum())

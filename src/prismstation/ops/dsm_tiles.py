@@ -14,7 +14,6 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy import ndimage
 
 from prismstation.core.solve import Solution
 from prismstation.core.stereo_tile import frame_over, tile_dsm
@@ -45,14 +44,6 @@ def _cell_corners(transform, window) -> np.ndarray:
     x = c + a * np.array([c0, c0 + cols, c0, c0 + cols])
     y = f + e * np.array([r0, r0, r0 + rows, r0 + rows])
     return np.column_stack([x, y])
-
-
-def sample_grid(grid: np.ndarray, transform, en: np.ndarray) -> np.ndarray:
-    """Bilinear sample of a north-up grid at map points ``en`` (..., 2); edges extended."""
-    a, _, c, _, e, f = transform[:6]
-    col = (en[..., 0] - c) / a - 0.5
-    row = (en[..., 1] - f) / e - 0.5
-    return ndimage.map_coordinates(np.asarray(grid, np.float32), [row, col], order=1, mode="nearest")
 
 
 def _prior_on_frame(prior, prior_t, frame) -> np.ndarray:
