@@ -240,7 +240,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
              orthometric_geoid=None, progress=None, reference=None,
              height_uncertainty_m: float | None = None, fill: bool = False, refine: bool = True,
              scheduler=None, workers: int | None = None, tile_px: int = 768,
-             overlap_m: float | None = None, **_ignored) -> Dsm:
+             overlap_m: float | None = None) -> Dsm:
     """DSM of the ground seen in the N-image ``window`` (col0, row0, cols, rows; default all).
 
     ``reference``: optional prior, a ``(heights, transform)`` north-up grid of ellipsoidal
