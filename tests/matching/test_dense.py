@@ -78,3 +78,152 @@ def test_flat_images_give_nan_and_heights_follow_the_line():
     assert r.valid_fraction == 0.0
     h = heights_from_parallax(np.array([0.0, 10.0, np.nan]), 100.0, 2.496)
     assert h[0] == 100.0 and h[1] == pytest.approx(124.96) and np.isnan(h[2])
+
+
+# ---------------------------------------------------------------- the DSM engine (issue 12)
+from prismstation.core import sgm  # noqa: E402
+from prismstation.errors import Cancelled  # noqa: E402
+
+
+def test_search_range_covers_the_stated_uncertainty():
+    for R, k, g in ((600.0, 0.88, 40.0), (25.0, 0.44, 2.5), (1.0, 0.88, 2.5)):
+        lo, n = sgm.disparity_search(R, k, g)
+        assert n % 16 == 0 and lo <= -k * R / g - 1 and lo + n - 2 >= k * R / g
+
+
+def test_fusion_drops_the_blunder_and_leaves_disagreement_void():
+    v = np.array([[[10.0, 10.0, 10.0, np.nan]], [[10.4, 10.4, 30.0, 5.0]], [[10.2, 60.0, np.nan, np.nan]]])
+    s = np.array([1.0, 1.0, 0.5])
+    h, q = sgm.fuse(v, s, tau=3.0)
+    # cell 0: all agree, weighted towards the σ 0.5 value; cell 1: 60 m removed, not averaged
+    assert q[0, 0] == 3 and h[0, 0] == pytest.approx((10 + 10.4 + 4 * 10.2) / 6, abs=1e-5)
+    assert q[0, 1] == 2 and h[0, 1] == pytest.approx(10.2, abs=1e-5)
+    # two values 20 m apart: no way to tell which is right → void; a single value → void here
+    assert q[0, 2] == 0 and np.isnan(h[0, 2]) and q[0, 3] == 0 and np.isnan(h[0, 3])
+
+
+def test_sgbm_and_refinement_recover_a_known_disparity(texture):
+    left = (texture[:300, :300] - texture.min()) / np.ptp(texture) * 255
+    yy, xx = np.mgrid[0:300, 0:300].astype(np.float32)
+    d_true = 3.3 + 2.0 * np.sin(xx / 60.0) * np.cos(yy / 80.0)
+    # right(x − d) = left(x): right sampled at x + d(x)
+    right = ndimage.map_coordinates(left, [yy, xx + d_true], order=3, mode="reflect")
+    lo, n = sgm.disparity_search(8.0, 1.0, 1.0)
+    d = sgm.sgbm(left.astype(np.uint8), right.astype(np.uint8), lo, n)
+    r = sgm.refine_subpixel(left.astype(np.float32), right.astype(np.float32), d)
+    inner = (slice(20, -20), slice(40, -20))
+    e_raw, e_ref = (d - d_true)[inner], (r - d_true)[inner]
+    assert np.isfinite(e_raw).mean() > 0.9
+    rms = lambda e: float(np.sqrt(np.nanmean(e ** 2)))  # noqa: E731
+    assert rms(e_raw) < 0.4 and rms(e_ref) < 0.25 and rms(e_ref) < rms(e_raw)   # measured 0.21 → 0.09
+
+
+@pytest.fixture(scope="module")
+def triplet(tmp_path_factory):
+    """A small simulated triplet (700 px, 1.75 km), its project, fitted model and truth."""
+    from prismstation.cli.new import create
+    from prismstation.io.project import load_project, solve_project
+    from prismstation.sim import simulate
+    d = tmp_path_factory.mktemp("dsm")
+    simulate(d, size=700, seed=5)
+    create(d / "p.prismproj", d / "scene.json", d / "points.csv", d / "measurements.csv")
+    project = load_project(d / "p.prismproj")
+    return d, project, solve_project(project)
+
+
+@pytest.fixture(scope="module")
+def dsm10(triplet):
+    from prismstation.ops.dsm import make_dsm
+    calls = []
+    d = make_dsm(triplet[2], posting_m=10.0, progress=lambda f, m="": calls.append(f) or True)
+    return d, calls
+
+
+def _truth_on(d, folder):
+    from prismstation.io.dem import read_dem
+    return read_dem(folder / "truth_dem.tif", d.crs, d.transform, d.heights.shape,
+                    resampling="bilinear").heights
+
+
+def test_dsm_meets_accuracy_and_density_on_a_simulated_triplet(triplet, dsm10):
+    d, calls = dsm10
+    e = (d.heights - _truth_on(d, triplet[0]))[d.seen & np.isfinite(d.heights)]
+    nmad = 1.4826 * np.median(np.abs(e - np.median(e)))
+    assert d.fill_fraction > 0.95 and d.seen.mean() > 0.5
+    assert nmad < 1.5 and np.sqrt(np.mean(e ** 2)) < 3.0          # measured 0.96 / 1.21 m at 10 m
+    assert set(np.unique(d.mask)) <= {0, 1} and d.quality[d.mask == 1].min() >= 1
+    assert calls[-1] == 1.0 and all(b >= a for a, b in zip(calls, calls[1:]))
+
+
+def test_local_cluster_gives_the_same_dsm(triplet, dsm10):
+    from distributed import Client, LocalCluster
+
+    from prismstation.ops.dsm import make_dsm
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        d = make_dsm(triplet[2], posting_m=10.0, scheduler=client)
+    assert np.array_equal(d.heights, dsm10[0].heights, equal_nan=True)
+    assert np.array_equal(d.quality, dsm10[0].quality)
+
+
+def test_cancel_stops_the_dsm(triplet):
+    from prismstation.ops.dsm import make_dsm
+    seen = []
+    with pytest.raises(Cancelled):
+        make_dsm(triplet[2], posting_m=20.0, progress=lambda f, m="": seen.append(f) or len(seen) < 3)
+    assert len(seen) == 3
+
+
+def test_geotiff_reads_back_with_vertical_crs_overviews_and_bands(triplet, dsm10, tmp_path):
+    from dataclasses import replace
+
+    from prismstation.io.dsm import read_dsm_info, write_dsm
+    d = dsm10[0]
+    write_dsm(tmp_path / "e.tif", d)
+    info = read_dsm_info(tmp_path / "e.tif")
+    assert info["crs"].is_compound and len(info["crs"].axis_info) == 3
+    assert "ellipsoidal" in info["crs"].sub_crs_list[1].name
+    assert info["blocks"] == (256, 256) or min(d.heights.shape) < 256
+    assert info["bands"] == ("height", "mask", "pairs_agreeing") and np.isnan(info["nodata"])
+    assert float(info["tags"]["FILL_PERCENT"]) == pytest.approx(100 * d.fill_fraction, abs=0.01)
+    assert not list(tmp_path.glob("*.aux.xml")) and not list(tmp_path.glob(".dsm-*"))
+    with rasterio.open(tmp_path / "e.tif") as ds:
+        h = ds.read(1, masked=True)
+        assert np.allclose(h.filled(np.nan), d.heights, equal_nan=True)
+    # orthometric: compound with the geoid's vertical CRS; overviews on a grid big enough
+    big = replace(d, heights=np.kron(d.heights, np.ones((4, 4), np.float32)), mask=np.kron(d.mask, np.ones((4, 4), np.uint8)),
+                  seen=np.kron(d.seen, np.ones((4, 4), bool)), quality=np.kron(d.quality, np.ones((4, 4), np.uint8)),
+                  height_kind="orthometric", geoid="grid egm96_15.gtx")
+    write_dsm(tmp_path / "o.tif", big)
+    info = read_dsm_info(tmp_path / "o.tif")
+    assert info["crs"].is_compound and info["crs"].sub_crs_list[1].to_epsg() == 5773
+    assert info["overviews"] and info["blocks"] == (256, 256)
+
+
+def test_cli_exits_non_zero_below_the_fill_threshold(triplet, tmp_path, capsys):
+    from prismstation.cli import main
+    folder = triplet[0]
+    out = tmp_path / "d.tif"
+    rc = main(["dsm", str(folder / "p.prismproj"), "-o", str(out), "--posting", "20", "--min-fill", "100.1",
+               "--fill"])
+    err = capsys.readouterr().err
+    assert rc == 3 and "LOW FILL" in err and out.exists()
+    assert main(["dsm", str(folder / "p.prismproj"), "-o", str(out), "--posting", "20", "--min-fill", "50"]) == 0
+
+
+def test_reference_prior_and_void_filling(triplet):
+    """A reference DEM narrows the search (fewer levels) and filled voids are marked 2."""
+    from prismstation.io.dem import read_dem
+    from prismstation.ops.dsm import MASK_FILLED, MASK_MATCHED, make_dsm
+    folder, _, sol = triplet
+    ref = read_dem(folder / "truth_dem.tif")
+    ref_h = ref.heights + np.random.default_rng(1).normal(0, 5, ref.heights.shape)   # a noisy reference
+    d = make_dsm(sol, posting_m=20.0, reference=(ref_h, tuple(ref.transform)[:6]), height_uncertainty_m=30.0,
+                 fill=True)
+    assert len(d.info["levels"]) < 4 and d.info["height_uncertainty_m"] == 30.0
+    filled = d.mask == MASK_FILLED
+    assert filled.any() and np.isfinite(d.heights[filled]).all() and not (filled & ~d.seen).any()
+    assert np.isfinite(d.heights[d.seen]).all() and d.fill_fraction == pytest.approx(
+        (d.mask[d.seen] == MASK_MATCHED).mean())
+    e = (d.heights - _truth_on(d, folder))[d.mask == MASK_MATCHED]
+    assert 1.4826 * np.median(np.abs(e - np.median(e))) < 2.5

@@ -1,25 +1,40 @@
-"""``prismstation dsm PROJECT -o dsm.tif [--window col row w h] [--posting m] [--orthometric]``."""
+"""``prismstation dsm PROJECT -o dsm.tif [--posting m] [--window c r w h] [--reference DEM]
+[--orthometric] [--fill] [--min-fill %] [--scheduler ADDRESS]``: the triplet's DSM as a COG GeoTIFF.
+
+Exit status 3 (after writing the file) when fewer than ``--min-fill`` percent of the cells all
+three images see got a matched height.
+"""
 from __future__ import annotations
 
 import sys
 
 from prismstation.cli._common import existing
 from prismstation.errors import ModelError
-from prismstation.io.dem import write_dem
-from prismstation.io.dsm import make_dsm
+from prismstation.io.dsm import write_dsm
 from prismstation.io.project import load_project, project_geoid
 from prismstation.ops.fit import solve_project
+from prismstation.ops.dsm import make_dsm
+
+LOW_FILL_STATUS = 3
 
 
 def register(sub) -> None:
-    p = sub.add_parser("dsm", help="dense matching of F and B → DSM GeoTIFF through the fitted model")
+    p = sub.add_parser("dsm", help="semi-global matching of the three pairs → DSM GeoTIFF (COG)")
     p.add_argument("project")
     p.add_argument("-o", "--output", required=True, help="DSM GeoTIFF to write")
     p.add_argument("--window", nargs=4, type=int, metavar=("COL", "ROW", "W", "H"),
-                   help="N-image window in pixels (default: a 4 × 4 km patch at the centre; 'all' via --all)")
-    p.add_argument("--all", action="store_true", help="the whole N image")
-    p.add_argument("--posting", type=float, default=10.0, help="grid posting, m (default 10)")
-    p.add_argument("--orthometric", action="store_true", help="write orthometric heights (through the geoid)")
+                   help="N-image window in pixels (default: the whole N image)")
+    p.add_argument("--posting", type=float, default=5.0, help="grid posting, m (default 5 = 2 × GSD)")
+    p.add_argument("--orthometric", action="store_true", help="orthometric heights through the project's geoid")
+    p.add_argument("--reference", metavar="DEM", help="reference DEM (orthometric) as the coarse prior")
+    p.add_argument("--height-uncertainty", type=float, metavar="M",
+                   help="a-priori ± height uncertainty of the prior, m (default: from the points, or 40 m with --reference)")
+    p.add_argument("--fill", action="store_true", help="fill voids by interpolation (mask value 2)")
+    p.add_argument("--min-fill", type=float, default=90.0, metavar="PERCENT",
+                   help="exit with status 3 when fewer seen cells than this are matched (default 90)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="dask.distributed scheduler address (default: threads on this machine; 'processes' for processes)")
+    p.add_argument("--workers", type=int, help="local threads or processes (default: the CPU count)")
     p.set_defaults(func=run)
 
 
@@ -28,24 +43,49 @@ def run(args) -> int:
     sol = solve_project(project)
     if not sol.ok and project.settings.orientation != "dem":
         raise ModelError("; ".join(sol.messages) or "the model could not be fitted")
-    rows, cols = project.scene.views["N"].shape
-    if args.all:
-        window = None
-    elif args.window:
-        window = tuple(args.window)
-    else:
-        px = int(4000 / project.scene.views["N"].pixel_size_m)
-        w, h = min(px, cols), min(px, rows)
-        window = ((cols - w) // 2, (rows - h) // 2, w, h)
+    geoid = project_geoid(project)
+    reference = None
+    if args.reference:
+        ref = _on_scene_grid(existing(args.reference, "reference DEM"), project.scene, geoid)
+        reference = (ref.heights, tuple(ref.transform)[:6])
 
     def progress(fr, msg=""):
-        print(f"\r{fr:5.0%} {msg:<24}", end="", file=sys.stderr, flush=True)
+        print(f"\r{fr:5.0%} {msg:<32}", end="", file=sys.stderr, flush=True)
         return True
 
-    dsm = make_dsm(sol, window, posting_m=args.posting, record=project.dem_control,
-                   orthometric_geoid=project_geoid(project) if args.orthometric else None, progress=progress)
+    dsm = make_dsm(sol, tuple(args.window) if args.window else None, posting_m=args.posting,
+                   orthometric_geoid=geoid if args.orthometric else None, progress=progress,
+                   reference=reference, height_uncertainty_m=args.height_uncertainty, fill=args.fill,
+                   scheduler=args.scheduler, workers=args.workers)
     print(file=sys.stderr)
-    write_dem(args.output, dsm.heights, dsm.crs, dsm.transform)
-    print(f"wrote {args.output}: {dsm.heights.shape[1]} × {dsm.heights.shape[0]} cells at {args.posting:g} m, "
-          f"{dsm.height_kind} heights, {dsm.valid_fraction:.0%} filled")
+    write_dsm(args.output, dsm)
+    fill = 100.0 * dsm.fill_fraction
+    rows, cols = dsm.heights.shape
+    print(f"wrote {args.output}: {cols} × {rows} cells at {args.posting:g} m, {dsm.height_kind} heights, "
+          f"{fill:.1f} % of the {int(dsm.seen.sum())} cells all three images see matched"
+          + (f", {100.0 * (dsm.mask == 2).sum() / max(int(dsm.seen.sum()), 1):.1f} % filled" if args.fill else ""))
+    if fill < args.min_fill:
+        print(f"prismstation dsm: LOW FILL: only {fill:.1f} % of the seen cells matched "
+              f"(threshold {args.min_fill:g} %); the voids are marked 0 in the mask band", file=sys.stderr)
+        return LOW_FILL_STATUS
     return 0
+
+
+def _on_scene_grid(path, scene, geoid):
+    """A reference DEM resampled onto a 30 m grid of the scene's CRS, ellipsoidal heights."""
+    import numpy as np
+    from rasterio.warp import transform_bounds
+
+    from prismstation.io.dem import read_dem
+    src = read_dem(path)
+    l, b, r, t = transform_bounds(src.crs, scene.crs, *_bounds(src))
+    step = 30.0
+    cols, rows = int(np.ceil((r - l) / step)), int(np.ceil((t - b) / step))
+    return read_dem(path, scene.crs, (step, 0.0, l, 0.0, -step, t), (rows, cols), geoid=geoid)
+
+
+def _bounds(g):
+    rows, cols = g.heights.shape
+    x0, y0 = g.transform * (0, 0)
+    x1, y1 = g.transform * (cols, rows)
+    return min(x0, x1), min(y0, y1), max(x0, x1), max(y0, y1)

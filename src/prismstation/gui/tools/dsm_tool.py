@@ -2,8 +2,9 @@
 
 The whole N image or the area visible in the N view, at a chosen posting, with ellipsoidal or
 orthometric heights (through the project's geoid), computed in a worker
-(:func:`prismstation.io.dsm.make_dsm`) with a cancellable progress dialog, written by
-:func:`prismstation.io.dem.write_dem`. A DEM-oriented project uses its stored relative offsets.
+(:func:`prismstation.ops.dsm.make_dsm`: semi-global matching of the three pairs) with a
+cancellable progress dialog, written by :func:`prismstation.io.dsm.write_dsm` (COG with a vertical
+CRS, mask and pairs-agreeing bands).
 """
 from __future__ import annotations
 
@@ -115,26 +116,25 @@ class DsmTool:
 
     def start(self, req: DsmRequest):
         """Compute and write the DSM of ``req`` in a worker; returns the Job (result: the Dsm)."""
-        from prismstation.io.dem import write_dem
-        from prismstation.io.dsm import make_dsm
+        from prismstation.io.dsm import write_dsm
         from prismstation.io.project import project_geoid
+        from prismstation.ops.dsm import make_dsm
         sol, p = self.w.solver.solution, self.w.project
         if sol is None or p is None:
             self.w.statusBar().showMessage("A DSM needs a fitted model", 8000)
             return None
-        record = p.dem_control if p.settings.orientation == "dem" else None
         geoid = project_geoid(p) if req.orthometric else None
 
         def work(progress):
-            dsm = make_dsm(sol, req.window, posting_m=req.posting_m, record=record,
-                           orthometric_geoid=geoid, progress=lambda f, m="": progress(f, m))
-            write_dem(req.path, dsm.heights, dsm.crs, dsm.transform)
+            dsm = make_dsm(sol, req.window, posting_m=req.posting_m, orthometric_geoid=geoid,
+                           progress=lambda f, m="": progress(f, m))
+            write_dsm(req.path, dsm)
             return dsm
 
         def done(dsm):
             self.w.statusBar().showMessage(
                 f"Wrote {req.path}: {dsm.heights.shape[1]} × {dsm.heights.shape[0]} cells at {req.posting_m:g} m, "
-                f"{dsm.height_kind} heights, {dsm.valid_fraction:.0%} filled", 15000)
+                f"{dsm.height_kind} heights, {dsm.fill_fraction:.1%} of the cells all three images see matched", 15000)
 
         self.job = run_with_progress(self.w, "DSM", work, done)
         return self.job

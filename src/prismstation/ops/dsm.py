@@ -1,0 +1,328 @@
+"""The DSM of an oriented triplet: coarse to fine, tiled, three pairs fused (issue 12).
+
+Levels: matching frames of ``g = g_fine·2^L`` metres per pixel (``g_fine = max(GSD,
+posting/2)``); the coarsest level is the first whose height search, the stated a-priori height
+uncertainty ``±R`` around the prior (the mean height of the fitted points, or a reference DEM),
+fits in ±24 px of the F–B pair. Each level's DSM (voids bridged, smoothed) is the prior of the
+next, searched within ``±3·g`` of the previous level (≈ 2.6 px of its F–B disparity, 16
+disparities at the next level); the level at ``2·g_fine`` is skipped (the finest searches
+``±12·g_fine``: 32 disparities for F–B). Each
+level is cut into tiles that overlap by ``overlap_m`` and are cross-faded (no seams); every
+tile is an independent Dask task (:mod:`prismstation.ops.dsm_tiles`).
+
+Output: heights (ellipsoidal, or orthometric through a geoid), the mask of cells all three
+images see, which of them matched (mask 1), were filled (2) or stayed void (0), the number of
+pairs agreeing per cell, and the fill percentage over the seen cells.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from scipy import ndimage
+
+from prismstation.core.solve import Solution
+from prismstation.core.stereo_tile import Frame, relief_rate, view_affine
+from prismstation.errors import InputError
+from prismstation.ops.dsm_tiles import TileSpec, run_tiles
+from prismstation.ops.progress import checkpoint, scaled
+
+MASK_VOID, MASK_MATCHED, MASK_FILLED = 0, 1, 2
+#: a-priori height uncertainty (m) of a reference DEM used as the prior (SRTM-like σ ≈ 10 m,
+#: and the orientation's own offset): the coarsest search is ±4σ
+REFERENCE_DEM_UNCERTAINTY_M = 40.0
+
+
+@dataclass(frozen=True)
+class Dsm:
+    """A DSM on a north-up grid.
+
+    heights : (rows, cols) float32 metres, NaN where void (or outside what all views see).
+    transform : rasterio order (a, b, c, d, e, f). crs : the scene's CRS.
+    height_kind : "ellipsoidal" or "orthometric". valid_fraction : filled share of seen cells.
+    mask : uint8, 0 void or unseen, 1 matched, 2 filled by interpolation. seen : bool, cells
+    that all three images see. quality : uint8, pairs agreeing (0–3; 1 = one pair checked
+    against its neighbourhood only). geoid : description of the geoid for orthometric heights.
+    """
+
+    heights: np.ndarray
+    transform: tuple
+    crs: str
+    height_kind: str
+    valid_fraction: float
+    mask: np.ndarray = None
+    seen: np.ndarray = None
+    quality: np.ndarray = None
+    posting_m: float = 0.0
+    geoid: str | None = None
+    info: dict = field(default_factory=dict)
+
+    @property
+    def fill_fraction(self) -> float:
+        """Share of the seen cells with a matched (not filled) height."""
+        n = int(self.seen.sum()) if self.seen is not None else 0
+        return float(((self.mask == MASK_MATCHED) & self.seen).sum() / n) if n else 0.0
+
+
+def _grid_over(en: np.ndarray, posting: float) -> tuple[tuple, tuple]:
+    lo, hi = en.min(axis=0), en.max(axis=0)
+    e0 = math.floor(lo[0] / posting) * posting
+    n0 = math.ceil(hi[1] / posting) * posting
+    cols = int(math.ceil((hi[0] - e0) / posting))
+    rows = int(math.ceil((n0 - lo[1]) / posting))
+    return (posting, 0.0, e0, 0.0, -posting, n0), (rows, cols)
+
+
+def _cell_centres(transform, shape) -> np.ndarray:
+    a, _, c, _, e, f = transform
+    rows, cols = shape
+    x = c + a * (np.arange(cols) + 0.5)
+    y = f + e * (np.arange(rows) + 0.5)
+    return np.stack(np.meshgrid(x, y), axis=-1)
+
+
+def seen_by_all(sol: Solution, transform, shape, heights, window, strip: int = 512) -> np.ndarray:
+    """Cells whose centre, at ``heights``, falls inside the N ``window`` and the F and B images
+    (computed in strips of rows: memory stays small on 14,000 px scenes)."""
+    a, _, c, _, e, f = transform
+    rows, cols = shape
+    ok = np.ones(shape, bool)
+    for r0 in range(0, rows, strip):
+        n = min(strip, rows - r0)
+        t = (a, 0.0, c, 0.0, e, f + e * r0)
+        grid = Frame((c, f + e * r0), (1.0, 0.0), (0.0, 1.0 if e > 0 else -1.0), a, (n, cols))
+        en = _cell_centres(t, (n, cols))
+        for v in ("N", "F", "B"):
+            G = view_affine(sol, v)
+            xy = en @ G[:, :2].T + G[:, 2] + heights[r0:r0 + n, :, None] * (relief_rate(sol, v, grid) @ G[:, :2].T)
+            if v == "N":
+                c0, q0, w, h = window
+            else:
+                (h, w), c0, q0 = sol.scene.views[v].shape, 0, 0
+            ok[r0:r0 + n] &= (xy[..., 0] >= c0) & (xy[..., 0] < c0 + w) & (xy[..., 1] >= q0) & (xy[..., 1] < q0 + h)
+    return ok
+
+
+def regrid(grid: np.ndarray, grid_t, transform, shape) -> np.ndarray:
+    """A north-up grid resampled (bilinear, edges extended) onto another north-up grid."""
+    a, _, c, _, e, f = grid_t
+    A, _, C, _, E, F = transform
+    # destination index → source index
+    m = np.array([[A / a, 0.0, (C + 0.5 * A - c) / a - 0.5], [0.0, E / e, (F + 0.5 * E - f) / e - 0.5]])
+    return cv2.warpAffine(np.asarray(grid, np.float32), m, (shape[1], shape[0]),
+                          flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
+
+
+def bridge(heights: np.ndarray, smooth_px: int = 5) -> np.ndarray:
+    """Voids bridged from the nearest valid cell and median-smoothed: a prior, not a product."""
+    ok = np.isfinite(heights)
+    if not ok.any():
+        raise InputError("dense matching found no height anywhere in the window")
+    idx = ndimage.distance_transform_edt(~ok, return_distances=False, return_indices=True)
+    return cv2.medianBlur(heights[tuple(idx)].astype(np.float32), smooth_px)
+
+
+def fill_voids(heights: np.ndarray, iterations: int = 200) -> np.ndarray:
+    """Voids filled by relaxation (repeated 3×3 means of the voids, valid cells fixed), started
+    from the nearest valid cell: a smooth membrane across holes. Returns a new array."""
+    ok = np.isfinite(heights)
+    out = bridge(heights, 3) if (~ok).any() else heights.copy()
+    out[ok] = heights[ok]
+    for _ in range(iterations):
+        out[~ok] = cv2.blur(out, (3, 3))[~ok]
+    return out
+
+
+def _track_tiles(sol, transform, shape, wanted, size_m: float, overlap_m: float):
+    """Rectangles aligned with the flight direction covering the wanted cells: ``(rect, window)``
+    with ``rect`` = (origin, t, u, x0, x1, y0, y1) in metres along/across track, overlap
+    included, and ``window`` = (row0, col0, rows, cols), the grid cells around it."""
+    step = max(1, max(shape) // 1500)               # a subsample is enough to place tiles
+    sub = (transform[0] * step, 0.0, transform[2], 0.0, transform[4] * step, transform[5])
+    sub_shape = (-(-shape[0] // step), -(-shape[1] // step))
+    en = _cell_centres(sub, sub_shape)
+    pts = en[wanted[::step, ::step]] if wanted is not None else en.reshape(-1, 2)
+    origin = pts.mean(axis=0)
+    _, t = sol.scene.track.foot(origin)
+    u = np.array([-t[1], t[0]])
+    x, y = (pts - origin) @ t, (pts - origin) @ u
+    a, _, c, _, e, f = transform
+    rows, cols = shape
+    # as many tiles as the extent needs, evenly sized; each shrunk to the wanted cells in it
+    nx = max(1, int(np.ceil((x.max() - x.min()) / size_m)))
+    ny = max(1, int(np.ceil((y.max() - y.min()) / size_m)))
+    xs = np.linspace(x.min(), x.max(), nx + 1)
+    ys = np.linspace(y.min(), y.max(), ny + 1)
+    for k in range(nx):
+        for m in range(ny):
+            core = (x >= xs[k]) & (x <= xs[k + 1]) & (y >= ys[m]) & (y <= ys[m + 1])
+            if not core.any():
+                continue
+            r = (x[core].min() - overlap_m, x[core].max() + overlap_m,
+                 y[core].min() - overlap_m, y[core].max() + overlap_m)
+            corners = np.array([origin + xx * t + yy * u for xx in r[:2] for yy in r[2:]])
+            i0 = max(int(np.floor((corners[:, 0].min() - c) / a)), 0)
+            i1 = min(int(np.ceil((corners[:, 0].max() - c) / a)), cols)
+            j0 = max(int(np.floor((corners[:, 1].max() - f) / e)), 0)
+            j1 = min(int(np.ceil((corners[:, 1].min() - f) / e)), rows)
+            if i1 > i0 and j1 > j0:
+                yield (tuple(origin), tuple(t), tuple(u)) + r, (j0, i0, j1 - j0, i1 - i0)
+
+
+def _level(sol, transform, shape, g, half_range, prior, prior_t, *, tile_px, overlap_m,
+           refine, scheduler, workers, progress, wanted=None):
+    """One level: heights and quality on (transform, shape) from tiled matching; tiles are
+    rectangles along the flight direction (their frames waste no corners), cross-faded over
+    ``2·overlap_m``."""
+    specs = []
+    reach = 2.5 * half_range + 32 * g      # the prior a frame needs beyond its cells
+    for rect, window in _track_tiles(sol, transform, shape, wanted, tile_px * g, overlap_m):
+        specs.append(TileSpec(sol, window, transform, g, half_range, *_crop(
+            prior, prior_t, transform, window, reach), refine=refine, rect=rect, overlap_m=overlap_m))
+    results = run_tiles(specs, scheduler, workers, progress)
+    acc = np.zeros(shape, np.float32)
+    wsum = np.zeros(shape, np.float32)
+    qacc = np.zeros(shape, np.float32)
+    z = [(zn, n) for *_, (zn, n) in results if n]
+    z_nmad = float(np.average([zn for zn, _ in z], weights=[n for _, n in z])) if z else float("nan")
+    for spec, (h, q, w, _) in zip(specs, results):
+        r0, c0, nr, nc = spec.window
+        w = w * np.isfinite(h)
+        acc[r0:r0 + nr, c0:c0 + nc] += w * np.nan_to_num(h)
+        qacc[r0:r0 + nr, c0:c0 + nc] += w * q
+        wsum[r0:r0 + nr, c0:c0 + nc] += w
+    with np.errstate(invalid="ignore", divide="ignore"):
+        heights = np.where(wsum > 0, acc / wsum, np.nan).astype(np.float32)
+        quality = np.where(wsum > 0, np.rint(qacc / wsum), 0).astype(np.uint8)
+    return heights, quality, len(specs), z_nmad
+
+
+def _crop(prior, prior_t, transform, window, reach):
+    """The part of the prior grid within ``reach`` metres of a tile's cells."""
+    a, _, c, _, e, f = transform
+    r0, c0, nr, nc = window
+    pa, _, pc, _, pe, pf = prior_t
+    x0, x1 = c + a * c0 - reach, c + a * (c0 + nc) + reach
+    y1, y0 = f + e * r0 + reach, f + e * (r0 + nr) - reach
+    rows, cols = prior.shape
+    i0, i1 = max(int((x0 - pc) / pa), 0), min(int(math.ceil((x1 - pc) / pa)) + 1, cols)
+    j0, j1 = max(int((y1 - pf) / pe), 0), min(int(math.ceil((y0 - pf) / pe)) + 1, rows)
+    i1, j1 = max(i1, i0 + 1), max(j1, j0 + 1)
+    crop = np.ascontiguousarray(prior[j0:j1, i0:i1], np.float32)
+    return crop, (pa, 0.0, pc + pa * i0, 0.0, pe, pf + pe * j0)
+
+
+def _drop_unconfirmed(heights, quality, tolerance_m: float):
+    """Cells fewer than three pairs agree on are kept only within ``tolerance_m`` of the
+    surface the three-pair cells make around them (bridged, median-smoothed): a pair or two
+    agreeing on a false match (at image edges, where the prior was extrapolated) goes."""
+    full = quality >= 3
+    if not full.any():
+        return heights, quality
+    ref = bridge(np.where(full, heights, np.nan))
+    bad = (quality < 3) & ~(np.abs(heights - ref) <= tolerance_m)
+    heights = np.where(bad, np.nan, heights).astype(np.float32)
+    return heights, np.where(bad, 0, quality).astype(np.uint8)
+
+
+def default_uncertainty(sol: Solution) -> float:
+    """±R (m) around the mean height when no reference DEM is given: 1.5 × the largest
+    departure of the fitted points from their mean, plus 300 m (summits and valleys the points
+    do not sample)."""
+    hs = [p.ground_est[2] for p in sol.points if p.ground_est is not None]
+    spread = max((abs(h - sol.mean_height) for h in hs), default=600.0)
+    return 1.5 * spread + 300.0
+
+
+def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dict | None = None,
+             orthometric_geoid=None, progress=None, reference=None,
+             height_uncertainty_m: float | None = None, fill: bool = False, refine: bool = True,
+             scheduler=None, workers: int | None = None, tile_px: int = 768,
+             overlap_m: float | None = None) -> Dsm:
+    """DSM of the ground seen in the N-image ``window`` (col0, row0, cols, rows; default all).
+
+    ``reference``: optional prior, a ``(heights, transform)`` north-up grid of ellipsoidal
+    heights in the scene CRS (a reference DEM read onto a grid). ``height_uncertainty_m``: the
+    a-priori ±R of the prior (default :func:`default_uncertainty`, or 40 m with a reference).
+    ``fill``: fill voids by interpolation (mask 2). ``refine``: ZNCC subpixel refinement
+    after SGBM. ``scheduler``, ``workers``: see :mod:`prismstation.ops.dsm_tiles`. ``record`` is
+    accepted for compatibility and not needed (the solution holds the DEM orientation).
+    ``progress(fraction, message)`` returning False cancels (:class:`Cancelled`).
+    """
+    sc = sol.scene
+    if not sc.is_triplet or sol.parallax is None:
+        raise InputError("a DSM needs an oriented N, F, B triplet")
+    if not (posting_m > 0 and math.isfinite(posting_m)):
+        raise InputError(f"the posting must be a positive number of metres, got {posting_m}")
+    rows_n, cols_n = sc.views["N"].shape
+    window = tuple(int(v) for v in (window or (0, 0, cols_n, rows_n)))
+    gsd = sc.views["N"].pixel_size_m
+    g_fine = max(gsd, posting_m / 2.0)
+    k_fb = sc.views["F"].tan_theta + sc.views["B"].tan_theta
+    R = float(height_uncertainty_m or (REFERENCE_DEM_UNCERTAINTY_M if reference is not None
+                                       else default_uncertainty(sol)))
+    levels = 0
+    while k_fb * R / (g_fine * 2 ** levels) > 24:
+        levels += 1
+    overlap_m = overlap_m or 24 * g_fine
+    c0, r0, w, h = window
+    corners = np.array([[c0, r0], [c0 + w, r0], [c0, r0 + h], [c0 + w, r0 + h]], float)
+    foot = np.concatenate([sol.image_to_ground("N", corners, sol.mean_height + d) for d in (-R, R)])
+    # the starting prior on the coarsest grid
+    g = g_fine * 2 ** levels
+    prior_t, prior_shape = _grid_over(foot, 2 * g)
+    if reference is not None:
+        prior = regrid(bridge(np.asarray(reference[0], np.float32), 3), reference[1], prior_t, prior_shape)
+    else:
+        prior = np.full(prior_shape, sol.mean_height, np.float32)
+    half = R
+    info = {"height_uncertainty_m": R, "levels": []}
+    # steps of 2 down to 4·g_fine, then straight to g_fine: the level at 2·g_fine cost a
+    # quarter of the finest and changed nothing measurable (2000 px, 5 m: NMAD 0.97 → 0.99 m,
+    # RMSE 1.34 → 1.36 m, time −27 %)
+    order = [L for L in range(levels, -1, -1) if not (L == 1 and levels >= 2)]
+    for L in order:
+        g = g_fine * 2 ** L
+        posting = posting_m if L == 0 else 2 * g
+        t, shape = _grid_over(foot, posting)
+        frac0 = sum(4 ** -k for k in order if k > L)
+        total = sum(4 ** -k for k in order)
+        part = scaled(progress, 0.95 * frac0 / total, 0.95 * (frac0 + 4 ** -L) / total)
+        checkpoint(part, 0.0, f"level {order.index(L) + 1} of {len(order)}: {g:g} m pixels")
+        wanted = seen_by_all(sol, t, shape, regrid(prior, prior_t, t, shape), window)
+        wanted = cv2.dilate(wanted.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+        heights, quality, n_tiles, z_nmad = _level(sol, t, shape, g, half, prior, prior_t, tile_px=tile_px, wanted=wanted,
+                                           overlap_m=max(overlap_m, 4 * posting), refine=refine,
+                                           scheduler=scheduler, workers=workers, progress=part)
+        info["levels"].append({"g_m": g, "posting_m": posting, "half_range_m": half,
+                               "tiles": n_tiles, "filled": float(np.isfinite(heights).mean()),
+                               "pair_scatter_in_sigma": z_nmad})
+        if L:
+            # the next prior only from cells two or more pairs agree on (single-pair edges
+            # can be off by the whole coarse search range)
+            prior, prior_t = bridge(np.where(quality >= 2, heights, np.nan)), t
+            half = 3 * g
+    checkpoint(progress, 0.96, "mask and fill")
+    heights, quality = _drop_unconfirmed(heights, quality, max(6.0, posting_m))
+    seen = seen_by_all(sol, t, shape, bridge(heights), window)
+    heights[~seen] = np.nan
+    quality[~seen] = 0
+    mask = np.where(np.isfinite(heights), MASK_MATCHED, MASK_VOID).astype(np.uint8)
+    if fill and np.isfinite(heights).any():
+        filled = fill_voids(heights)
+        new = seen & ~np.isfinite(heights)
+        heights[new] = filled[new]
+        mask[new] = MASK_FILLED
+    kind, geoid_name = "ellipsoidal", None
+    if orthometric_geoid is not None:
+        for r0 in range(0, shape[0], 512):
+            en = _cell_centres((t[0], 0.0, t[2], 0.0, t[4], t[5] + t[4] * r0), (min(512, shape[0] - r0), shape[1]))
+            heights[r0:r0 + 512] -= orthometric_geoid.undulation(en[..., 0], en[..., 1], sc.crs).astype(np.float32)
+        kind = "orthometric"
+        geoid_name = orthometric_geoid.describe() if hasattr(orthometric_geoid, "describe") else "geoid"
+    n_seen = int(seen.sum())
+    valid = float(np.isfinite(heights[seen]).sum() / n_seen) if n_seen else 0.0
+    checkpoint(progress, 1.0, "done")
+    return Dsm(heights, t, sc.crs, kind, valid, mask, seen, quality, posting_m, geoid_name, info)
