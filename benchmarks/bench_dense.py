@@ -27,7 +27,8 @@ import rasterio
 
 from prismstation.cli.new import create
 from prismstation.io.dem import read_dem
-from prismstation.io.project import load_project, solve_project
+from prismstation.io.project import load_project
+from prismstation.ops.fit import solve_project
 from prismstation.ops.dsm import make_dsm
 from prismstation.sim import simulate
 

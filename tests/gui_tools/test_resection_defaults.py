@@ -15,7 +15,7 @@ def test_a_prism_scene_gets_prism_camera_and_a_plausible_orbit(window, sim):
     """The simulated PRISM 1B2R triplet: the dialog opens with 1939 mm and 7 µm, and the
     resection of N with them puts the camera at PRISM's altitude (a frame camera only
     approximates a pushbroom: within 0.2 %)."""
-    d = window.resection_tool.open()
+    d = window.tools["resection"].open()
     assert (d.focal.value(), d.pitch.value()) == PRISM_CAMERA == (1939.0, 7.0)
     d.view.setCurrentText("N")
     res = d.run()
@@ -42,7 +42,7 @@ def frame_window(qtbot, tmp_path):
 
 def test_other_projects_keep_the_generic_camera(frame_window):
     assert not is_prism(frame_window.project)
-    d = frame_window.resection_tool.open()
+    d = frame_window.tools["resection"].open()
     assert (d.focal.value(), d.pitch.value()) == GENERIC_CAMERA
 
 

@@ -122,7 +122,8 @@ def test_sgbm_and_refinement_recover_a_known_disparity(texture):
 def triplet(tmp_path_factory):
     """A small simulated triplet (700 px, 1.75 km), its project, fitted model and truth."""
     from prismstation.cli.new import create
-    from prismstation.io.project import load_project, solve_project
+    from prismstation.io.project import load_project
+    from prismstation.ops.fit import solve_project
     from prismstation.sim import simulate
     d = tmp_path_factory.mktemp("dsm")
     simulate(d, size=700, seed=5)
