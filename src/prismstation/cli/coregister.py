@@ -1,7 +1,8 @@
 """``prismstation coregister REFERENCE_DEM DEM --json OUT``: the 3-D shift laying DEM on REFERENCE_DEM.
 
-DEM is resampled onto the reference grid (bilinear or average), then :func:`core.coreg.coregister`
-estimates ``(dcol, drow, dz)`` in reference-grid pixels. Geographic grids (EPSG:4326 SRTM .hgt,
+DEM is resampled onto the reference grid (bilinear or average), then
+:func:`core.coarse.dem_offset` searches the whole a-priori range (``--max-shift-m``) at coarse
+resolution and :func:`core.coreg.coregister` refines ``(dcol, drow, dz)`` in reference-grid pixels. Geographic grids (EPSG:4326 SRTM .hgt,
 Copernicus GLO-30/90 GeoTIFF) work as they are: the adjustment's metric quantities (slopes, the
 shift in metres) use a local metric frame at the grid's centre (``io.dem.local_metric_transform``).
 
@@ -99,7 +100,8 @@ def result_dict(res, reference: str, dem: str, method: str = "lsm", crs_transfor
 
 
 def run(args) -> int:
-    from prismstation.core.coreg import coregister, nuth_kaab
+    from prismstation.core.coarse import dem_offset
+    from prismstation.core.coreg import nuth_kaab
     from prismstation.io.dem import local_metric_transform, read_dem
     from prismstation.io.jsonfile import write_atomic
 
@@ -114,8 +116,10 @@ def run(args) -> int:
     metric = local_metric_transform(ref.crs, ref.transform, ref.shape)
     if args.method == "nuth-kaab":
         res = nuth_kaab(ref.heights, dem.heights, metric)
-    else:
-        res = coregister(ref.heights, dem.heights, metric, max_shift=args.max_shift_m)
+    else:          # coarse exhaustive search over the a-priori range, then surface matching
+        pixel = float(np.sqrt(abs(metric[0] * metric[4] - metric[1] * metric[3])))
+        radius = args.max_shift_m if args.max_shift_m is not None else min(ref.shape) / 4 * pixel
+        res = dem_offset(ref.heights, dem.heights, metric, radius)
     doc = result_dict(res, args.reference, args.dem, args.method, tuple(ref.transform)[:6])
     if args.json:
         import json
