@@ -3,7 +3,7 @@
 The patches' shifts (e.g. dE, dN, dh in metres) are modelled as an affine function of patch
 position per component (MODEL.md §3 step 4), weighted by their formal σ. If those σ are right
 and the model holds, the weighted residuals' sum ``χ² = Σ (v/σ)²`` follows a χ² law with
-``dof = k·(n − 3)`` (n patches, k components). The test:
+``dof = k·(n − 3)`` (n patches, k components; ``model="constant"``: ``k·(n − 1)``). The test:
 
 * ``ok`` — χ² ≤ its ``1 − α`` quantile (default α = 0.05: 5 % false alarms on consistent
   fields); the σ are kept (scale 1, or ŝ0 if ``rescale_always``);
@@ -85,14 +85,16 @@ class Verdict:
                 "rejected": list(self.rejected)}
 
 
-def _design(x, y):
+def _design(x, y, model="affine"):
+    if model == "constant":
+        return np.ones((x.size, 1))
     xm, ym = x.mean(), y.mean()
     s = max(np.abs(x - xm).max(), np.abs(y - ym).max(), 1e-12)
     return np.column_stack([np.ones_like(x), (x - xm) / s, (y - ym) / s])
 
 
 def shift_field_verdict(x, y, shifts, sigmas, *, alpha: float = ALPHA, min_patches: int = MIN_PATCHES,
-                     rescale_always: bool = False) -> Verdict:
+                        rescale_always: bool = False, model: str = "affine") -> Verdict:
     """χ² test of an affine shift field against the shifts' σ.
 
     Parameters
@@ -102,21 +104,24 @@ def shift_field_verdict(x, y, shifts, sigmas, *, alpha: float = ALPHA, min_patch
     alpha : test level (false-alarm rate on consistent fields).
     min_patches : fewer patches give ``too_few``.
     rescale_always : scale σ by ŝ0 even when consistent (else only when inconsistent).
+    model : ``"affine"`` (3 parameters per component) or ``"constant"`` (1).
     """
     x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
     n = x.size
     s = np.asarray(shifts, float).reshape(n, -1)
     sig = np.asarray(sigmas, float).reshape(n, -1)
     k = s.shape[1]
+    u = 1 if model == "constant" else 3
+    least = max(min_patches, u + 1)
     nan = float("nan")
-    if n < max(min_patches, 4) or not np.all(np.isfinite(s)) or not np.all(sig > 0):
-        if n >= max(min_patches, 4):
+    if n < least or not np.all(np.isfinite(s)) or not np.all(sig > 0):
+        if n >= least:
             raise ValueError("shifts must be finite and σ positive")
-        return Verdict(TOO_FEW, f"{n} patches: at least {max(min_patches, 4)} are needed to test "
-                       "the shift field against its σ", n, k, max(k * (n - 3), 0), nan, nan, alpha,
+        return Verdict(TOO_FEW, f"{n} patches: at least {least} are needed to test "
+                       "the shift field against its σ", n, k, max(k * (n - u), 0), nan, nan, alpha,
                        nan, 1.0, None, nan, nan, (nan,) * n)
-    A = _design(x, y)
-    if np.linalg.matrix_rank(A) < 3:
+    A = _design(x, y, model)
+    if np.linalg.matrix_rank(A) < u:
         return Verdict(TOO_FEW, "the patches lie on a line: the affine field is undetermined",
                        n, k, 0, nan, nan, alpha, nan, 1.0, None, nan, nan, (nan,) * n)
     chi2, w = 0.0, np.zeros((n, k))
@@ -128,7 +133,7 @@ def shift_field_verdict(x, y, shifts, sigmas, *, alpha: float = ALPHA, min_patch
         chi2 += float(np.sum(p * v ** 2))
         qvv = sig[:, c] ** 2 - np.einsum("ij,jk,ik->i", A, Ninv, A)       # cofactors of v
         w[:, c] = v / np.sqrt(np.maximum(qvv, 1e-12 * sig[:, c] ** 2))
-    dof = k * (n - 3)
+    dof = k * (n - u)
     crit = float(stats.chi2.ppf(1 - alpha, dof))
     vf = chi2 / dof
     wmax = np.abs(w).max(axis=1)
@@ -149,7 +154,7 @@ def shift_field_verdict(x, y, shifts, sigmas, *, alpha: float = ALPHA, min_patch
 
 
 def snoop(x, y, shifts, sigmas, *, alpha: float = ALPHA, min_patches: int = MIN_PATCHES,
-          max_reject: int | None = None) -> Verdict:
+          max_reject: int | None = None, model: str = "affine") -> Verdict:
     """:func:`shift_field_verdict`, removing the worst patch while the field is inconsistent and
     that patch is a blunder (``|w|`` beyond the critical value), at most ``max_reject`` times
     (default a quarter of the patches); indices in the verdict refer to the input."""
@@ -162,7 +167,7 @@ def snoop(x, y, shifts, sigmas, *, alpha: float = ALPHA, min_patches: int = MIN_
     rejected: list[int] = []
     while True:
         v = shift_field_verdict(x[keep], y[keep], s[keep], sig[keep], alpha=alpha,
-                             min_patches=min_patches)
+                                min_patches=min_patches, model=model)
         if (v.status != INCONSISTENT or len(rejected) >= limit or v.worst is None
                 or not v.worst_w > v.w_critical):
             break

@@ -1,0 +1,151 @@
+"""Where F and B really are relative to N, before any fine matching (issue 11 item 2).
+
+Each view's ancillary geolocation is off by tens of metres, independently. This module finds a
+view's offset relative to N over the whole range the a-priori uncertainty allows:
+
+1. a window of N (``n_window = (col0, row0, cols, rows)``, N pixels) and the heights of its
+   pixels from the reference DEM (:func:`n_heights`, through the ancillary N model);
+2. the view's image resampled onto that N grid through the ancillary model at those heights
+   (:func:`warp_into_n`): relief displacement removed, so what is left is a translation (the
+   geolocation errors) plus small residual parallax from the reference DEM's errors;
+3. :func:`prismstation.core.coarse.image_offset` over the radius ``k·σ·√2 / GSD`` (two views,
+   each with a-priori σ per component) — coarse NCC on a pyramid, then sub-pixel LSM with σ.
+
+The result (:class:`ViewOffset`) is the N-space pixel vector from the ancillary prediction to
+where the view really sees N's ground point — the ``offsets_px`` the DEM orientation workflow
+uses to centre its searches (so its fine search may then be narrow). :func:`source_window`
+gives the window of the view to read so that the warp covers the N window and the radius.
+
+Wiring (ops): for a few N windows (e.g. :func:`lattice`), read N, compute heights, read each
+view's :func:`source_window`, call :func:`view_offset`; combine the windows with
+:func:`combine` (weighted mean, χ² consistency verdict from :mod:`prismstation.core.consistency`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from prismstation.core import prism
+from prismstation.core.coarse import K_SIGMA, Offset, image_offset, search_radius_px
+from prismstation.core.consistency import Verdict, shift_field_verdict
+from prismstation.core.scene import Scene
+
+
+def lattice(shape, window_px: int, k: int = 3, margin_px: int = 0) -> list[tuple[int, int, int, int]]:
+    """``k × k`` windows ``(col0, row0, window_px, window_px)`` spread over an image of
+    ``shape`` (rows, cols), ``margin_px`` from its borders (clipped to fit)."""
+    rows, cols = shape
+    w = int(min(window_px, rows - 2 * margin_px, cols - 2 * margin_px))
+    cs = np.linspace(margin_px, cols - margin_px - w, k).round().astype(int)
+    rs = np.linspace(margin_px, rows - margin_px - w, k).round().astype(int)
+    return [(int(c), int(r), w, w) for r in rs for c in cs]
+
+
+def n_pixel_centres(n_window) -> np.ndarray:
+    """N pixel centres ``(rows, cols, 2)`` (x, y) of a window (MODEL.md §1: centre at i + 0.5)."""
+    c0, r0, w, h = n_window
+    xs, ys = np.meshgrid(np.arange(c0, c0 + w) + 0.5, np.arange(r0, r0 + h) + 0.5)
+    return np.stack([xs, ys], axis=-1)
+
+
+def n_heights(scene: Scene, n_window, sample, h0: float, iterations: int = 3) -> np.ndarray:
+    """Heights ``(rows, cols)`` (ellipsoidal m) of the N window's pixels: ground through the
+    ancillary N model at the height ``sample(E, N)`` gives, iterated from ``h0``."""
+    xy = n_pixel_centres(n_window).reshape(-1, 2)
+    h = np.full(len(xy), float(h0))
+    for _ in range(iterations):
+        en = prism.ancillary_to_ground(scene, scene.views["N"], xy, h, iterations=4)
+        h = np.asarray(sample(en[:, 0], en[:, 1]), float)
+    return h.reshape(n_window[3], n_window[2])
+
+
+def source_window(scene: Scene, view: str, n_window, heights, margin_px: float):
+    """Window ``(col0, row0, cols, rows)`` of ``view`` covering the N window's ground at its
+    heights, grown by ``margin_px`` (the search radius plus a little)."""
+    c0, r0, w, h = n_window
+    sub = heights[::max(1, h // 16), ::max(1, w // 16)]
+    xy = n_pixel_centres(n_window)[::max(1, h // 16), ::max(1, w // 16)].reshape(-1, 2)
+    en = prism.ancillary_to_ground(scene, scene.views["N"], xy, sub.ravel(), iterations=4)
+    p = prism.ground_to_ancillary(scene, scene.views[view], en, sub.ravel())
+    lo = np.floor(p.min(0) - margin_px).astype(int)
+    hi = np.ceil(p.max(0) + margin_px).astype(int)
+    return int(lo[0]), int(lo[1]), int(hi[0] - lo[0]), int(hi[1] - lo[1])
+
+
+def warp_into_n(scene: Scene, view: str, image: np.ndarray, origin, n_window, heights,
+                shift_n_px=(0.0, 0.0)) -> np.ndarray:
+    """``view``'s ``image`` (a window whose top-left pixel corner is ``origin`` = (col, row) in
+    the full image) resampled onto the N window's grid through the ancillary model at
+    ``heights``; N pixels are first moved by ``shift_n_px``. Bicubic; NaN outside ``image``."""
+    xy = n_pixel_centres(n_window).reshape(-1, 2) + np.asarray(shift_n_px, float)
+    en = prism.ancillary_to_ground(scene, scene.views["N"], xy, heights.ravel(), iterations=4)
+    p = prism.ground_to_ancillary(scene, scene.views[view], en, heights.ravel())
+    mx = (p[:, 0] - origin[0] - 0.5).astype(np.float32).reshape(heights.shape)
+    my = (p[:, 1] - origin[1] - 0.5).astype(np.float32).reshape(heights.shape)
+    out = cv2.remap(np.asarray(image, np.float32), mx, my, cv2.INTER_CUBIC,
+                    borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
+    return out
+
+
+@dataclass(frozen=True)
+class ViewOffset:
+    """A view's offset from the ancillary prediction, in N pixels (x, y), with σ and status."""
+
+    view: str
+    n_window: tuple
+    dx: float
+    dy: float
+    sigma_dx: float
+    sigma_dy: float
+    radius_px: float
+    status: str
+    reason: str
+    score: float
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+
+def view_offset(scene: Scene, view: str, n_image: np.ndarray, n_window, v_image: np.ndarray,
+                v_origin, heights, sigma_apriori_m: float, k: float = K_SIGMA) -> ViewOffset:
+    """Offset of ``view`` relative to N over ``k·σ·√2 / GSD`` pixels (module docstring).
+
+    ``n_image`` is N's window ``n_window`` (rows, cols); ``v_image`` the view's window read at
+    ``v_origin`` (e.g. from :func:`source_window`); ``heights`` from :func:`n_heights`;
+    ``sigma_apriori_m`` each view's a-priori geolocation σ per component (m).
+    """
+    radius = search_radius_px(sigma_apriori_m * np.sqrt(2), scene.views["N"].pixel_size_m, k)
+    warped = warp_into_n(scene, view, v_image, v_origin, n_window, heights)
+    bad = ~np.isfinite(warped)
+    if bad.mean() > 0.02:
+        return ViewOffset(view, tuple(n_window), np.nan, np.nan, np.nan, np.nan, radius, "too_small",
+                          f"the {view} window covers only {1 - bad.mean():.0%} of the N window "
+                          "and its search range", np.nan)
+    warped[bad] = np.nanmean(warped)
+    # moving(x + d) = reference(x): N is the reference, the warped view the moving image
+    o: Offset = image_offset(np.asarray(n_image, np.float32), warped, radius)
+    return ViewOffset(view, tuple(n_window), o.dx, o.dy, o.sigma_dx, o.sigma_dy, radius,
+                      o.status, o.reason, o.score)
+
+
+def combine(offsets: list[ViewOffset], alpha: float = 0.05):
+    """Weighted mean ``(dx, dy)`` of the ok offsets, its σ (rescaled by the data when they
+    disagree), and the χ² verdict of a constant offset against the windows' σ."""
+    ok = [o for o in offsets if o.ok]
+    if not ok:
+        return np.array([np.nan, np.nan]), np.array([np.nan, np.nan]), None
+    d = np.array([[o.dx, o.dy] for o in ok])
+    s = np.array([[o.sigma_dx, o.sigma_dy] for o in ok])
+    w = 1 / s ** 2
+    mean = (d * w).sum(0) / w.sum(0)
+    sig = np.sqrt(1 / w.sum(0))
+    verdict: Verdict | None = None
+    if len(ok) >= 3:
+        x = np.array([o.n_window[0] + o.n_window[2] / 2 for o in ok])
+        y = np.array([o.n_window[1] + o.n_window[3] / 2 for o in ok])
+        verdict = shift_field_verdict(x, y, d, s, alpha=alpha, min_patches=3, model="constant")
+        sig = sig * verdict.scale
+    return mean, sig, verdict
