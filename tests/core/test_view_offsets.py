@@ -77,10 +77,13 @@ def _check(scene, offs, errors_en, capsys):
         for o in offs[v]:
             assert o.ok, o
             with capsys.disabled():
-                print(f"\n{v}: found ({o.dx:+.2f}, {o.dy:+.2f}) ± {o.sigma_dx:.3f} px, true "
+                print(f"\n{v}: found ({o.dx:+.2f}, {o.dy:+.2f}) ± ({o.sigma_dx:.3f}, {o.sigma_dy:.3f}) px, true "
                       f"({exp[v][0]:+.2f}, {exp[v][1]:+.2f})")
             assert abs(o.dx - exp[v][0]) < 0.5            # across track (1B2-R x)
             assert abs(o.dy - exp[v][1]) < 4.0            # along track: Δh·tanθ of the reference
+            # the σ claims it: within 2.5σ on each axis, the along-track σ of a few px
+            assert abs(o.dx - exp[v][0]) < 2.5 * o.sigma_dx + 0.1
+            assert abs(o.dy - exp[v][1]) < 2.5 * o.sigma_dy and o.sigma_dy < 3.0
         mean, sig, verdict = vo.combine(offs[v] * 2)       # ≥ 3 windows for a verdict
         assert verdict is not None and np.all(np.isfinite(sig))
 

@@ -32,6 +32,10 @@ from prismstation.core.coarse import K_SIGMA, Offset, image_offset, search_radiu
 from prismstation.core.consistency import Verdict, shift_field_verdict
 from prismstation.core.scene import Scene
 
+#: a-priori σ (m) of the reference heights under an N window (SRTM ~6 m plus slope × N's
+#: geolocation error of tens of metres)
+SIGMA_HEIGHT_M = 10.0
+
 
 def lattice(shape, window_px: int, k: int = 3, margin_px: int = 0) -> list[tuple[int, int, int, int]]:
     """``k × k`` windows ``(col0, row0, window_px, window_px)`` spread over an image of
@@ -110,12 +114,16 @@ class ViewOffset:
 
 
 def view_offset(scene: Scene, view: str, n_image: np.ndarray, n_window, v_image: np.ndarray,
-                v_origin, heights, sigma_apriori_m: float, k: float = K_SIGMA) -> ViewOffset:
+                v_origin, heights, sigma_apriori_m: float, k: float = K_SIGMA,
+                sigma_height_m: float = SIGMA_HEIGHT_M) -> ViewOffset:
     """Offset of ``view`` relative to N over ``k·σ·√2 / GSD`` pixels (module docstring).
 
     ``n_image`` is N's window ``n_window`` (rows, cols); ``v_image`` the view's window read at
     ``v_origin`` (e.g. from :func:`source_window`); ``heights`` from :func:`n_heights`;
-    ``sigma_apriori_m`` each view's a-priori geolocation σ per component (m).
+    ``sigma_apriori_m`` each view's a-priori geolocation σ per component (m);
+    ``sigma_height_m`` the a-priori σ of the window's mean reference height where N claims to
+    be (the reference's own error plus slope × N's geolocation error): its parallax
+    ``σ_h·|tanθ| / GSD`` along track is added to the matching σ, which knows only the images.
     """
     radius = search_radius_px(sigma_apriori_m * np.sqrt(2), scene.views["N"].pixel_size_m, k)
     warped = warp_into_n(scene, view, v_image, v_origin, n_window, heights)
@@ -127,8 +135,16 @@ def view_offset(scene: Scene, view: str, n_image: np.ndarray, n_window, v_image:
     warped[bad] = np.nanmean(warped)
     # moving(x + d) = reference(x): N is the reference, the warped view the moving image
     o: Offset = image_offset(np.asarray(n_image, np.float32), warped, radius)
-    return ViewOffset(view, tuple(n_window), o.dx, o.dy, o.sigma_dx, o.sigma_dy, radius,
-                      o.status, o.reason, o.score)
+    cov = np.asarray(o.cov, float)
+    if o.ok:
+        c0, r0, w, h = n_window
+        en = prism.ancillary_to_ground(scene, scene.views["N"], np.array([[c0 + w / 2, r0 + h / 2]]),
+                                       np.array([float(np.mean(heights))]))
+        d = prism.along_track_unit(scene, en)[0]
+        par = sigma_height_m * abs(scene.views[view].tan_theta) / scene.views["N"].pixel_size_m
+        cov = cov + par ** 2 * np.outer(d, d)
+    return ViewOffset(view, tuple(n_window), o.dx, o.dy, float(np.sqrt(cov[0, 0])),
+                      float(np.sqrt(cov[1, 1])), radius, o.status, o.reason, o.score)
 
 
 def combine(offsets: list[ViewOffset], alpha: float = 0.05):
