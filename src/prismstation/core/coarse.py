@@ -49,6 +49,9 @@ MIN_TEMPLATE = 24
 SIGMA_FLOOR_PX = 0.01
 #: side (px) of the central region the sub-pixel adjustment uses at most
 LSM_SIDE = 320
+#: the sub-pixel adjustment may move this far (px) from the integer NCC peak (a broad peak:
+#: residual parallax of views warped through an approximate DEM), else ``diverged``
+MAX_LSM_MOVE_PX = 3.0
 
 OK, LOW_SCORE, AMBIGUOUS, AT_EDGE, DIVERGED, TOO_SMALL = (
     "ok", "low_score", "ambiguous", "at_edge", "diverged", "too_small")
@@ -210,7 +213,7 @@ def _lsm_translation(ref, mov, dx, dy, score, second, level, radius, max_iter=20
         except np.linalg.LinAlgError:
             break
         dx, dy = dx + delta[0], dy + delta[1]
-        if np.hypot(dx - x0, dy - y0) > 1.5:
+        if np.hypot(dx - x0, dy - y0) > MAX_LSM_MOVE_PX:
             return Offset(dx, dy, nan, nan, ((nan, nan), (nan, nan)), score, second, level,
                           radius, DIVERGED, "the sub-pixel adjustment left the coarse peak")
         if np.hypot(delta[0], delta[1]) < 1e-4:
