@@ -33,7 +33,9 @@ sys.path.insert(0, str(ROOT / "src"))
 from prismstation.cli import main  # noqa: E402
 from prismstation.core.consistency import snoop  # noqa: E402
 from prismstation.sim import simulate  # noqa: E402
-from prismstation.sim.perturb import perturb_geolocation  # noqa: E402
+from prismstation.io.scene import read_scene  # noqa: E402
+from prismstation.ops.coarse_offsets import coarse_view_offsets  # noqa: E402
+from prismstation.sim.perturb import perturb_geolocation, truth_geometry  # noqa: E402
 from prismstation.sim.reference import make_reference_dem  # noqa: E402
 
 TARGETS = {14000: (2.5, 2.5), 6000: (5.0, 3.2)}
@@ -49,8 +51,29 @@ def errors_of_magnitude(m: float, rng) -> dict:
             zip("NFB", rng.uniform(0, 2 * np.pi, 3))}
 
 
-def run_case(sim: Path, ref: Path, errors: dict, work: Path, patch_km: float) -> dict:
+def coarse_error(sim: Path, scene_file: Path, errors: dict, sigma_m: float) -> dict:
+    """The engine's first step on this case: F and B offsets from N found over the a-priori
+    range, against the truth (px): the error of each, its σ and the verdict."""
+    truth = json.loads((sim / "truth.json").read_text())
+    orbit, _, _ = truth_geometry(truth)
+    scene = read_scene(scene_file)
+    t0 = time.perf_counter()
+    res = coarse_view_offsets(scene, sim / "srtm.tif", 55.0, sigma_apriori_m=sigma_m)
+    j = scene.views["N"].map_to_image.linear
+    e = {v: errors[v][0] * orbit.t + errors[v][1] * orbit.a for v in "NFB"}
+    out = {"coarse_seconds": time.perf_counter() - t0}
+    for v in "FB":
+        err = res.offsets_px[v] - j @ (e[v] - e["N"])
+        out[f"coarse_{v}"] = float(np.hypot(*err))
+        out[f"coarse_{v}_sigma"] = float(np.hypot(*res.sigma_px[v]))
+        out[f"coarse_{v}_verdict"] = res.verdicts[v].status if res.verdicts[v] else "too_few"
+    return out
+
+
+def run_case(sim: Path, ref: Path, errors: dict, work: Path, patch_km: float,
+             sigma_m: float = 50.0) -> dict:
     scene = perturb_geolocation(sim, errors, work / "scene.json")
+    coarse = coarse_error(sim, scene, errors, sigma_m)
     proj = work / "p.prismproj"
     out = work / "dem.json"
     err = io.StringIO()
@@ -62,9 +85,10 @@ def run_case(sim: Path, ref: Path, errors: dict, work: Path, patch_km: float) ->
             code = main(["orient-dem", str(proj), str(ref), "--patch-km", str(patch_km),
                          "--json", str(out)])
     seconds = time.perf_counter() - t0
-    row = {"seconds": seconds, "exit": code}
+    row = {"seconds": seconds, "exit": code, **coarse}
     if code != 0 or not out.exists():
-        row["failure"] = err.getvalue().strip().splitlines()[-1] if err.getvalue().strip() else f"exit {code}"
+        msg = err.getvalue().strip().splitlines()[-1] if err.getvalue().strip() else f"exit {code}"
+        row["failure"] = msg.split("prismstation orient-dem:")[-1].strip()
         return row
     rep = json.loads(out.read_text())
     truth = {p["id"]: p for p in json.loads((sim / "truth.json").read_text())["points"]}
@@ -99,8 +123,8 @@ def main_sweep(argv=None) -> int:
     a = ap.parse_args(argv)
     rows = []
     base = Path(a.keep) if a.keep else Path(tempfile.mkdtemp(prefix="orient_sweep_"))
-    print("| size | pass | seed | error m | plan m | height m | patches used | verdict | s | note |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("| size | pass | seed | error m | coarse F / B err px (σ) | plan m | height m | patches used | verdict | s | note |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for size in a.sizes:
         patch_km = a.patch_km or (4.0 if size >= 6000 else 1.0)
         for pas in a.passes:
@@ -122,7 +146,9 @@ def main_sweep(argv=None) -> int:
                     if "plan" in r and tgt:
                         bad = r["plan"] > tgt[0] or r["height"] > tgt[1]
                         note = ("MISSES TARGET" + (" (said so)" if r["verdict"] != "ok" else " SILENTLY")) if bad else "meets target"
-                    print(f"| {size} | {pas} | {seed} | {m:.0f} | {r.get('plan', float('nan')):.2f} | "
+                    cf = (f"{r['coarse_F']:.2f} ({r['coarse_F_sigma']:.2f}) / "
+                          f"{r['coarse_B']:.2f} ({r['coarse_B_sigma']:.2f})")
+                    print(f"| {size} | {pas} | {seed} | {m:.0f} | {cf} | {r.get('plan', float('nan')):.2f} | "
                           f"{r.get('height', float('nan')):.2f} | {r.get('used', '-')}/{r.get('patches', '-')} | "
                           f"{r.get('verdict', 'failed')} | {r['seconds']:.0f} | {note} |", flush=True)
     clean = [{k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in r.items()}
