@@ -283,9 +283,10 @@ def dem_offset(reference: np.ndarray, dem: np.ndarray, transform, radius_m: floa
     if not np.isfinite([c0, r0]).all():
         c0 = r0 = 0.0
     moved = shift_grid(np.asarray(dem, float), c0, r0)
-    res = coregister(reference, moved, transform, max_shift=max(2.0 * pixel * 2, radius_m), **kw)
+    res = coregister(reference, moved, transform, max_shift=max(4.0 * pixel, radius_m), **kw)
     dcol, drow = res.dcol + c0, res.drow + r0
-    out = replace(res, dcol=dcol, drow=drow, dx=a * dcol + b * drow, dy=d * dcol + e * drow)
+    out = replace(res, dcol=dcol, drow=drow, dx=a * dcol + b * drow, dy=d * dcol + e * drow,
+                  nmad_before=nmad(np.asarray(reference, float) - np.asarray(dem, float)))
     if out.converged and np.hypot(dcol, drow) > 1.5 * radius + 1:
         out = replace(out, converged=False, reason=f"the shift ({np.hypot(dcol, drow) * pixel:.0f} m) "
                       f"leaves the a-priori radius ({radius_m:.0f} m)")
