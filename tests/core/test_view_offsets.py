@@ -104,3 +104,22 @@ def test_offsets_after_perturbing_the_published_geolocation(scene_dir, capsys):
     orbit, _, _ = truth_geometry(truth)
     e = {v: errors[v][0] * orbit.t + errors[v][1] * orbit.a for v in "NFB"}
     _check(scene, offs, e, capsys)
+
+
+def test_combine_flags_a_window_that_disagrees():
+    """Windows agreeing within their σ and the field allowance combine to their weighted mean,
+    verdict ok; one window 8 px off (a false peak) makes the verdict inconsistent and widens σ."""
+    rng = np.random.default_rng(0)
+    wins = vo.lattice((4000, 4000), 512, k=3)
+
+    def make(shift_of_5=0.0):
+        return [vo.ViewOffset("F", w, 40 + rng.normal(0, 0.1) + (shift_of_5 if i == 5 else 0.0),
+                              -56 + rng.normal(0, 1.0), 0.05, 2.0, 100.0, "ok", "", 0.9)
+                for i, w in enumerate(wins)]
+    mean, sig, verdict = vo.combine(make())
+    assert verdict.ok and abs(mean[0] - 40) < 0.2 and abs(mean[1] + 56) < 1.0
+    mean2, sig2, verdict2 = vo.combine(make(8.0))
+    assert verdict2.status == "inconsistent" and verdict2.worst == 5 and sig2[0] > 2 * sig[0]
+    failed = make() + [vo.ViewOffset("F", wins[0], np.nan, np.nan, np.nan, np.nan, 100.0,
+                                     "low_score", "NCC 0.1", 0.1)]
+    assert np.allclose(vo.combine(failed)[0], vo.combine(failed[:-1])[0])

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from scipy import ndimage
 
 from prismstation.core import prism
 from prismstation.core.coarse import K_SIGMA, Offset, image_offset, search_radius_px
@@ -35,6 +36,10 @@ from prismstation.core.scene import Scene
 #: a-priori σ (m) of the reference heights under an N window (SRTM ~6 m plus slope × N's
 #: geolocation error of tens of metres)
 SIGMA_HEIGHT_M = 10.0
+#: a-priori σ (px) of a view's offset varying across the scene (drift, yaw: ~1 m)
+SIGMA_FIELD_PX = 0.4
+#: the ancillary mappings are computed every STRIDE N pixels (10 m) and interpolated
+STRIDE = 4
 
 
 def lattice(shape, window_px: int, k: int = 3, margin_px: int = 0) -> list[tuple[int, int, int, int]]:
@@ -54,15 +59,35 @@ def n_pixel_centres(n_window) -> np.ndarray:
     return np.stack([xs, ys], axis=-1)
 
 
-def n_heights(scene: Scene, n_window, sample, h0: float, iterations: int = 3) -> np.ndarray:
+def _strided(n_window, stride: int):
+    """Pixel centres of the window every ``stride`` px (last row/column included), and the
+    fractional indices of every pixel into that coarse grid, for interpolating back."""
+    c0, r0, w, h = n_window
+    cs = np.unique(np.r_[np.arange(0, w, stride), w - 1])
+    rs = np.unique(np.r_[np.arange(0, h, stride), h - 1])
+    xs, ys = np.meshgrid(c0 + cs + 0.5, r0 + rs + 0.5)
+    fi = np.interp(np.arange(w), cs, np.arange(cs.size))
+    fj = np.interp(np.arange(h), rs, np.arange(rs.size))
+    jj, ii = np.meshgrid(fj, fi, indexing="ij")
+    return np.stack([xs, ys], axis=-1), (jj, ii)
+
+
+def _upsample(coarse: np.ndarray, idx) -> np.ndarray:
+    return ndimage.map_coordinates(coarse, idx, order=1)
+
+
+def n_heights(scene: Scene, n_window, sample, h0: float, iterations: int = 3,
+              stride: int = STRIDE) -> np.ndarray:
     """Heights ``(rows, cols)`` (ellipsoidal m) of the N window's pixels: ground through the
-    ancillary N model at the height ``sample(E, N)`` gives, iterated from ``h0``."""
-    xy = n_pixel_centres(n_window).reshape(-1, 2)
+    ancillary N model at the height ``sample(E, N)`` gives, iterated from ``h0``; computed
+    every ``stride`` px and interpolated bilinearly (the reference's posting is coarser)."""
+    grid, idx = _strided(n_window, stride)
+    xy = grid.reshape(-1, 2)
     h = np.full(len(xy), float(h0))
     for _ in range(iterations):
         en = prism.ancillary_to_ground(scene, scene.views["N"], xy, h, iterations=4)
         h = np.asarray(sample(en[:, 0], en[:, 1]), float)
-    return h.reshape(n_window[3], n_window[2])
+    return _upsample(h.reshape(grid.shape[:2]), idx)
 
 
 def source_window(scene: Scene, view: str, n_window, heights, margin_px: float):
@@ -79,15 +104,19 @@ def source_window(scene: Scene, view: str, n_window, heights, margin_px: float):
 
 
 def warp_into_n(scene: Scene, view: str, image: np.ndarray, origin, n_window, heights,
-                shift_n_px=(0.0, 0.0)) -> np.ndarray:
+                shift_n_px=(0.0, 0.0), stride: int = STRIDE) -> np.ndarray:
     """``view``'s ``image`` (a window whose top-left pixel corner is ``origin`` = (col, row) in
     the full image) resampled onto the N window's grid through the ancillary model at
-    ``heights``; N pixels are first moved by ``shift_n_px``. Bicubic; NaN outside ``image``."""
-    xy = n_pixel_centres(n_window).reshape(-1, 2) + np.asarray(shift_n_px, float)
-    en = prism.ancillary_to_ground(scene, scene.views["N"], xy, heights.ravel(), iterations=4)
-    p = prism.ground_to_ancillary(scene, scene.views[view], en, heights.ravel())
-    mx = (p[:, 0] - origin[0] - 0.5).astype(np.float32).reshape(heights.shape)
-    my = (p[:, 1] - origin[1] - 0.5).astype(np.float32).reshape(heights.shape)
+    ``heights``; N pixels are first moved by ``shift_n_px``. The mapping is computed every
+    ``stride`` px and interpolated; the image is resampled bicubically; NaN outside ``image``."""
+    grid, idx = _strided(n_window, stride)
+    gh = heights[np.round(grid[..., 1] - n_window[1] - 0.5).astype(int),
+                 np.round(grid[..., 0] - n_window[0] - 0.5).astype(int)]
+    xy = grid.reshape(-1, 2) + np.asarray(shift_n_px, float)
+    en = prism.ancillary_to_ground(scene, scene.views["N"], xy, gh.ravel(), iterations=4)
+    p = prism.ground_to_ancillary(scene, scene.views[view], en, gh.ravel())
+    mx = _upsample((p[:, 0] - origin[0] - 0.5).reshape(grid.shape[:2]), idx).astype(np.float32)
+    my = _upsample((p[:, 1] - origin[1] - 0.5).reshape(grid.shape[:2]), idx).astype(np.float32)
     out = cv2.remap(np.asarray(image, np.float32), mx, my, cv2.INTER_CUBIC,
                     borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
     return out
@@ -147,14 +176,16 @@ def view_offset(scene: Scene, view: str, n_image: np.ndarray, n_window, v_image:
                       float(np.sqrt(cov[1, 1])), radius, o.status, o.reason, o.score)
 
 
-def combine(offsets: list[ViewOffset], alpha: float = 0.05):
+def combine(offsets: list[ViewOffset], alpha: float = 0.05, sigma_field_px: float = SIGMA_FIELD_PX):
     """Weighted mean ``(dx, dy)`` of the ok offsets, its σ (rescaled by the data when they
-    disagree), and the χ² verdict of a constant offset against the windows' σ."""
+    disagree), and the χ² verdict of a constant offset against the windows' σ, each widened
+    by ``sigma_field_px``: how much a view's offset may vary across the scene (attitude drift
+    and yaw) before a constant no longer describes it."""
     ok = [o for o in offsets if o.ok]
     if not ok:
         return np.array([np.nan, np.nan]), np.array([np.nan, np.nan]), None
     d = np.array([[o.dx, o.dy] for o in ok])
-    s = np.array([[o.sigma_dx, o.sigma_dy] for o in ok])
+    s = np.hypot(np.array([[o.sigma_dx, o.sigma_dy] for o in ok]), sigma_field_px)
     w = 1 / s ** 2
     mean = (d * w).sum(0) / w.sum(0)
     sig = np.sqrt(1 / w.sum(0))
