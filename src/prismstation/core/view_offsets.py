@@ -136,6 +136,10 @@ class ViewOffset:
     status: str
     reason: str
     score: float
+    #: the part of the σ from the reference heights (px, along ``along``, the N-space flight
+    #: direction); common to all windows, so it does not average out when they are combined
+    sigma_parallax_px: float = 0.0
+    along: tuple = (0.0, 1.0)
 
     @property
     def ok(self) -> bool:
@@ -165,6 +169,7 @@ def view_offset(scene: Scene, view: str, n_image: np.ndarray, n_window, v_image:
     # moving(x + d) = reference(x): N is the reference, the warped view the moving image
     o: Offset = image_offset(np.asarray(n_image, np.float32), warped, radius)
     cov = np.asarray(o.cov, float)
+    par, d = 0.0, np.array([0.0, 1.0])
     if o.ok:
         c0, r0, w, h = n_window
         en = prism.ancillary_to_ground(scene, scene.views["N"], np.array([[c0 + w / 2, r0 + h / 2]]),
@@ -173,14 +178,17 @@ def view_offset(scene: Scene, view: str, n_image: np.ndarray, n_window, v_image:
         par = sigma_height_m * abs(scene.views[view].tan_theta) / scene.views["N"].pixel_size_m
         cov = cov + par ** 2 * np.outer(d, d)
     return ViewOffset(view, tuple(n_window), o.dx, o.dy, float(np.sqrt(cov[0, 0])),
-                      float(np.sqrt(cov[1, 1])), radius, o.status, o.reason, o.score)
+                      float(np.sqrt(cov[1, 1])), radius, o.status, o.reason, o.score,
+                      float(par), (float(d[0]), float(d[1])))
 
 
 def combine(offsets: list[ViewOffset], alpha: float = 0.05, sigma_field_px: float = SIGMA_FIELD_PX):
     """Weighted mean ``(dx, dy)`` of the ok offsets, its σ (rescaled by the data when they
     disagree), and the χ² verdict of a constant offset against the windows' σ, each widened
     by ``sigma_field_px``: how much a view's offset may vary across the scene (attitude drift
-    and yaw) before a constant no longer describes it."""
+    and yaw) before a constant no longer describes it. The reference heights' parallax σ is
+    taken as common to all windows (a conservative choice: the reference's smoothing and N's
+    own geolocation error bias every window alike), so it is added to the mean's σ whole."""
     ok = [o for o in offsets if o.ok]
     if not ok:
         return np.array([np.nan, np.nan]), np.array([np.nan, np.nan]), None
@@ -195,4 +203,7 @@ def combine(offsets: list[ViewOffset], alpha: float = 0.05, sigma_field_px: floa
         y = np.array([o.n_window[1] + o.n_window[3] / 2 for o in ok])
         verdict = shift_field_verdict(x, y, d, s, alpha=alpha, min_patches=3, model="constant")
         sig = sig * verdict.scale
+    par = np.mean([o.sigma_parallax_px for o in ok])
+    along = np.mean([o.along for o in ok], axis=0)
+    sig = np.hypot(sig, par * np.abs(along))
     return mean, sig, verdict
