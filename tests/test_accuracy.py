@@ -63,6 +63,8 @@ def test_simulated_triplet_through_new_and_fit(case, tmp_path):
     assert len(ties) == 20 and all(p["height_source"] == "parallax" for p in ties)
     assert _rms([p["h_est"] - truth[p["id"]]["h"] for p in ties]) < 1.5 * FLOOR_H
 
-    # the relative orientation shift between F and N, like the paper's Table 2 (−4.0, sd 0.6)
+    # the relative orientation shift between F and N (the paper's Table 2): what the
+    # simulated geolocation errors put there, not a constant
     fn = report["statistics"]["F-N"]
-    assert fn["mean"] == pytest.approx(-4.0, abs=0.5) and fn["std"] < 1.0
+    stated = json.loads((d / "truth.json").read_text())["statistics"]["across_F_minus_N_px"]
+    assert fn["mean"] == pytest.approx(stated["mean"], abs=0.5) and fn["std"] < 1.0

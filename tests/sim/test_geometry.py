@@ -111,14 +111,24 @@ def test_forward_sees_earlier_than_nadir_by_tens_of_seconds():
     assert 40 < times["N"] - times["F"] < 55 and 40 < times["B"] - times["N"] < 55
 
 
-def test_across_track_offsets_like_table_2():
-    sc = _scenario(seed=7)
+def test_views_get_independent_geolocation_errors_within_the_bound():
+    """No fixed Table 2 offsets: across many draws each view's (along, across) error fills
+    the ±bound box uniformly and independently of the other views'."""
+    from prismstation.sim.scenario import draw_geolocation_errors
     rng = np.random.default_rng(0)
-    enh = np.column_stack([CENTRE[0] + rng.uniform(-2000, 2000, 30),
-                           CENTRE[1] + rng.uniform(-2000, 2000, 30), rng.uniform(0, 1400, 30)])
-    f = geo.across_offset_px(sc.orbit, sc.views["F"], sc.views["N"], enh)
-    b = geo.across_offset_px(sc.orbit, sc.views["B"], sc.views["N"], enh)
-    assert f.mean() == pytest.approx(-4.0, abs=0.3) and b.mean() == pytest.approx(0.3, abs=0.3)
+    e = np.array([[draw_geolocation_errors(rng, 100.0)[v] for v in "NFB"] for _ in range(3000)])
+    assert np.abs(e).max() <= 100.0 and np.abs(e).max() > 99.0
+    assert np.allclose(e.reshape(-1, 6).std(axis=0), 100 / np.sqrt(3), rtol=0.06)
+    c = np.corrcoef(e.reshape(-1, 6).T)
+    assert np.abs(c[np.triu_indices(6, 1)]).max() < 0.06
+    sc = build_scenario(np.random.default_rng(1), 2000, errors={"N": (0, 0), "F": (0, 40), "B": (0, 0)})
+    from prismstation.sim.scenario import geolocation_error_at
+    for v, want in (("N", (0, 0)), ("F", (0, 40))):
+        got = geolocation_error_at(sc.orbit, sc.views[v], sc.published[v], np.array([1000.0, 1000.0]))
+        assert np.allclose(got, want[0] * sc.orbit.t + want[1] * sc.orbit.a, atol=1e-6)
+        # drift and yaw: a few metres at most across a 5 km scene, not zero
+        corner = geolocation_error_at(sc.orbit, sc.views[v], sc.published[v], np.array([0.0, 0.0]))
+        assert 0.01 < np.hypot(*(corner - got)) < 5.0
 
 
 def _plane(a, b, c):

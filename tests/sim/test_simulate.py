@@ -47,13 +47,13 @@ def test_images_are_tiled_deflate_uint8_geotiffs(triplet):
             assert abs(t.b) > 0.1 and abs(t.d) > 0.1  # rotated: path-oriented 1B2-R
             img = ds.read(1)
             assert 60 < img.mean() < 190 and img.std() > 20
-        assert np.allclose(_m2i_from_tif(paths[name]), truth["views"][name]["map_to_image"],
-                           rtol=0, atol=1e-6)
-        # around E 540 km, N 4560 km
+        assert np.allclose(_m2i_from_tif(paths[name]),
+                           truth["views"][name]["published_map_to_image"], rtol=0, atol=1e-6)
+        # around E 540 km, N 4560 km (geolocation errors up to 50·√2 m, grid shifts 6 px)
         centre = geo.image_to_map(geo.View(name, 0, 0, geo.Attitude(),
-                                           tuple(truth["views"][name]["map_to_image"])),
+                                           tuple(truth["views"][name]["published_map_to_image"])),
                                   np.array([SIZE / 2, SIZE / 2]))
-        assert np.allclose(centre, [540000, 4560000], atol=100)
+        assert np.allclose(centre, [540000, 4560000], atol=120)
 
 
 def test_scene_json(triplet):
@@ -129,12 +129,27 @@ def test_truth_image_coords_follow_from_truth_ground(triplet):
         assert ortho.min() < 5.0 and 0.97 * relief < ortho.max() < 1.03 * relief
 
 
-def test_f_minus_n_across_offset_in_n_image_space(triplet):
-    """Table 2 of the paper: F measurements carried into N image space through the composed
-    affines lie ~4 px left (−x) of the N measurements; B about +0.3 px."""
+def test_geolocation_errors_independent_and_as_published(triplet):
+    """Each view's published grid is off by its own drawn error at the scene centre (h = 0),
+    within the ±50 m default bound; the errors differ between views (no Table 2 constants),
+    and F measurements carried into N space through the published affines show the
+    across-track offset truth.json states."""
+    from prismstation.sim.perturb import truth_geometry
+    from prismstation.sim.scenario import geolocation_error_at
     out, _ = triplet
     truth = json.loads((out / "truth.json").read_text())
-    m2i = {k: v["map_to_image"] for k, v in truth["views"].items()}
+    orbit, views, size = truth_geometry(truth)
+    errs = {}
+    for name, view in views.items():
+        e = truth["views"][name]["geolocation_error_m"]
+        assert abs(e["along"]) <= 50 and abs(e["across"]) <= 50
+        got = geolocation_error_at(orbit, view, truth["views"][name]["published_map_to_image"],
+                                   np.array([size / 2, size / 2]))
+        assert np.allclose(got, [e["E"], e["N"]], atol=1e-6)
+        assert np.hypot(*(got - (e["along"] * orbit.t + e["across"] * orbit.a))) < 1e-6
+        errs[name] = np.array([e["along"], e["across"]])
+    assert min(np.hypot(*(errs[a] - errs[b])) for a, b in ("NF", "NB", "FB")) > 1.0
+    m2i = {k: v["published_map_to_image"] for k, v in truth["views"].items()}
 
     def to_n(view, xy):
         a1, a2, a3, a4, a5, a6 = m2i[view]
@@ -143,9 +158,37 @@ def test_f_minus_n_across_offset_in_n_image_space(triplet):
         return en @ np.array([[b1, b3], [b2, b4]]) + [b5, b6]
 
     n = np.array([p["image"]["N"] for p in truth["points"]])
-    for view, expect in (("F", -4.0), ("B", 0.3)):
+    for view in "FB":
         dx = to_n(view, [p["image"][view] for p in truth["points"]])[:, 0] - n[:, 0]
-        assert dx.mean() == pytest.approx(expect, abs=0.35)
+        stated = truth["statistics"][f"across_{view}_minus_N_px"]["mean"]
+        # 1B2-R: +y is the flight direction, so the across component is x
+        assert dx.mean() == pytest.approx(stated, abs=0.05)
+        # the difference of the drawn across-track errors, in pixels, up to drift and yaw
+        expect = (errs[view][1] - errs["N"][1]) / 2.5
+        assert stated == pytest.approx(expect, abs=1.0), (view, stated, expect)
+
+
+def test_perturbed_scene_has_the_requested_errors(triplet, tmp_path):
+    """One rendering, many geolocations: the perturbed scene file reads as a scene, points at
+    the same images and its grids carry exactly the requested errors."""
+    from prismstation.io.scene import read_scene
+    from prismstation.sim.perturb import perturb_geolocation, truth_geometry
+    from prismstation.sim.scenario import geolocation_error_at
+    out, _ = triplet
+    want = {"N": (100.0, 0.0), "F": (-70.7, 70.7), "B": (0.0, -100.0)}
+    path = perturb_geolocation(out, want, tmp_path / "sub" / "scene_100.json")
+    scene = read_scene(path)
+    truth = json.loads((out / "truth.json").read_text())
+    orbit, views, size = truth_geometry(truth)
+    for name, (along, across) in want.items():
+        v = scene.views[name]
+        assert v.image == str((out / f"{name}.tif").resolve())
+        m = v.map_to_image.matrix
+        coeffs = (m[0, 0], m[0, 1], m[1, 0], m[1, 1], m[0, 2], m[1, 2])
+        got = geolocation_error_at(orbit, views[name], coeffs, np.array([size / 2, size / 2]))
+        assert np.allclose(got, along * orbit.t + across * orbit.a, atol=1e-6), name
+    with pytest.raises(ValueError):
+        perturb_geolocation(out, {"N": (0, 0)}, tmp_path / "x.json")
 
 
 def test_deterministic_by_seed(tmp_path):
@@ -173,7 +216,7 @@ def test_north_up_ascending_map_to_image_in_json(tmp_path):
     for name, v in scene["views"].items():
         a1, a2, a3, a4 = v["map_to_image"][:4]
         assert (a1, a2, a3, a4) == (0.4, 0.0, 0.0, -0.4)
-        assert v["map_to_image"] == truth["views"][name]["map_to_image"]
+        assert v["map_to_image"] == truth["views"][name]["published_map_to_image"]
         with rasterio.open(p[name]) as ds:
             assert ds.crs is None and ds.transform.is_identity
     tp = {q["id"]: q for q in truth["points"]}
@@ -186,11 +229,11 @@ def test_north_up_ascending_map_to_image_in_json(tmp_path):
 
 def test_cli_writes_and_rejects_bad_arguments(tmp_path, capsys):
     assert main(["simulate", str(tmp_path / "o"), "--size", "300", "--icp", "3", "--ties", "1",
-                 "--quiet", "--seed", "9"]) == 0
+                 "--quiet", "--seed", "9", "--geolocation-error-m", "100"]) == 0
     assert (tmp_path / "o" / "scene.json").exists()
     capsys.readouterr()
     for bad in (["--size", "abc"], ["--size", "10"], ["--noise-px", "-1"], ["--pass", "sideways"],
-                ["--gcp", "-2"]):
+                ["--gcp", "-2"], ["--geolocation-error-m", "-5"], ["--geolocation-error-m", "nan"]):
         with pytest.raises(SystemExit) as exc:
             code = main(["simulate", str(tmp_path / "x")] + bad)
             raise SystemExit(code)

@@ -39,6 +39,9 @@ def register(sub) -> None:
                    default="descending", help="orbit direction (default descending)")
     p.add_argument("--map-to-image-in-json", action="store_true",
                    help="write map_to_image into scene.json, TIFFs without georeferencing")
+    p.add_argument("--geolocation-error-m", type=float, default=50.0, metavar="MAX",
+                   help="bound of each view's own geolocation error, metres: along- and across-track "
+                        "components drawn independently, uniform in [-MAX, +MAX] (default 50; 0 = exact)")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.error = _one_line_error("prismstation simulate")
     p.set_defaults(func=run)
@@ -64,7 +67,8 @@ def run(args) -> int:
                          survey_sigma_xy=args.survey_sigma_xy,
                          survey_sigma_h=args.survey_sigma_h, north_up=args.north_up,
                          ascending=args.pass_direction == "ascending",
-                         map_to_image_in_json=args.map_to_image_in_json, progress=progress)
+                         map_to_image_in_json=args.map_to_image_in_json,
+                         geolocation_error_m=args.geolocation_error_m, progress=progress)
     except OSError as exc:
         raise InputError(f"cannot write: {exc.strerror or exc}", file=out) from None
     finally:

@@ -193,3 +193,33 @@ def write_dem(path, heights, crs, transform) -> None:
             ds.write(h, 1)
     except RasterioError as exc:
         raise RasterReadError(f"{path}: cannot write the DEM ({exc})") from None
+
+
+def local_metric_transform(crs, transform, shape) -> tuple[float, ...]:
+    """The grid's pixel → metres affine ``(a, b, 0, d, e, 0)`` in a local frame at its centre.
+
+    Projected CRS: the transform's terms times the CRS's linear unit (metres, feet...).
+    Geographic CRS (EPSG:4326 SRTM, Copernicus GLO-30...): degrees become metres east/north
+    on the CRS's ellipsoid at the grid's centre latitude φ0 (``M(φ0)`` per radian of latitude,
+    ``N(φ0)·cos φ0`` per radian of longitude): an equirectangular tangent frame, whose scale
+    departs from the true one by ``|cos φ / cos φ0 − 1|`` (about 1.2 % at the edge of a 1° tile at
+    45° N) — the DEM shift is estimated in grid pixels, so this only scales slope thresholds
+    and the shift's conversion to metres.
+    """
+    from pyproj import CRS as ProjCRS
+
+    t = Affine(*tuple(transform)[:6])
+    pc = ProjCRS.from_user_input(crs.to_wkt() if hasattr(crs, "to_wkt") else crs)
+    if pc.is_geographic:
+        ell = pc.ellipsoid
+        a_ax, inv_f = ell.semi_major_metre, ell.inverse_flattening
+        e2 = 0.0 if not inv_f else (2 - 1 / inv_f) / inv_f
+        rows, cols = shape
+        lat0 = np.radians(t.d * cols / 2 + t.e * rows / 2 + t.f)
+        w = 1 - e2 * np.sin(lat0) ** 2
+        m_per_rad_lat = a_ax * (1 - e2) / w ** 1.5
+        m_per_rad_lon = a_ax / np.sqrt(w) * np.cos(lat0)
+        kx, ky = np.radians(1.0) * m_per_rad_lon, np.radians(1.0) * m_per_rad_lat
+        return (t.a * kx, t.b * kx, 0.0, t.d * ky, t.e * ky, 0.0)
+    unit = pc.axis_info[0].unit_conversion_factor if pc.axis_info else 1.0
+    return (t.a * unit, t.b * unit, 0.0, t.d * unit, t.e * unit, 0.0)

@@ -65,7 +65,8 @@ def _grid_over(lo, hi, spacing):
 
 def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px=0.3,
              survey_sigma_xy=0.5, survey_sigma_h=1.0, north_up=False, ascending=False,
-             map_to_image_in_json=False, progress=None) -> dict:
+             map_to_image_in_json=False, geolocation_error_m=50.0, geolocation_errors=None,
+             progress=None) -> dict:
     """Write a synthetic ALOS-PRISM 1B2 triplet with known truth into ``outdir``.
 
     Parameters
@@ -81,6 +82,10 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
     ascending : ascending pass (heading 348°) instead of descending (192°).
     map_to_image_in_json : write each view's ``map_to_image`` into scene.json and leave the
         TIFFs without georeferencing.
+    geolocation_error_m : bound (m) of each view's independent geolocation error: along- and
+        across-track components each drawn uniform in ``[−bound, +bound]`` (0: exact
+        ancillary geolocation at the scene centre). See :mod:`prismstation.sim.scenario`.
+    geolocation_errors : optional ``{view: (along_m, across_m)}`` instead of drawing them.
     progress : optional ``callable(fraction)``.
 
     Returns
@@ -96,7 +101,10 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
     r_att, r_terrain, r_texture, r_points, r_noise, r_render = (
         np.random.default_rng(s) for s in ss.spawn(6))
 
-    scenario = build_scenario(r_att, size, north_up, ascending)
+    if not (np.isfinite(geolocation_error_m) and 0 <= geolocation_error_m <= 1000):
+        raise InputError(f"--geolocation-error-m must be between 0 and 1000, got {geolocation_error_m}")
+    scenario = build_scenario(r_att, size, north_up, ascending, geolocation_error_m,
+                              geolocation_errors)
     relief = scene_relief(size)
     h_min, h_max = GEOID - 1.0, GEOID + relief + 1.0
     lo, hi = _ground_bbox(scenario, h_min - 50.0, h_max + 50.0)
@@ -126,7 +134,7 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
     for k, name in enumerate(VIEWS):
         view = scenario.views[name]
         path = out / f"{name}.tif"
-        gt = None if map_to_image_in_json else image_to_map_transform(view.map_to_image)
+        gt = None if map_to_image_in_json else image_to_map_transform(scenario.published[name])
         rng = np.random.default_rng(r_render.integers(2 ** 63))
         with writer.product_writer(path, size, gt, CRS) as write:
             for r0 in range(0, size, block):
@@ -149,7 +157,8 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
                                     survey_sigma_xy=survey_sigma_xy,
                                     survey_sigma_h=survey_sigma_h, north_up=north_up,
                                     ascending=ascending,
-                                    map_to_image_in_json=map_to_image_in_json)))
+                                    map_to_image_in_json=map_to_image_in_json,
+                                    geolocation_error_m=geolocation_error_m)))
     report(1.0)
     return paths
 
@@ -174,7 +183,7 @@ def _write_tables(out, scenario, dem, points, rng, noise_px, sxy, sh, m2i_json, 
         v = {"image": f"{name}.tif", "pixel_size_m": PIXEL,
              "along_track_angle_deg": ANGLES_DEG[name]}
         if m2i_json:
-            v["map_to_image"] = list(scenario.views[name].map_to_image)
+            v["map_to_image"] = list(scenario.published[name])
         views_json[name] = v
     scene = {"format": "prismstation-scene/1", "crs": CRS, "satellite_altitude_m": ALTITUDE,
              "ground_track": _ground_track(scenario), "views": views_json,
@@ -209,11 +218,10 @@ def _write_tables(out, scenario, dem, points, rng, noise_px, sxy, sh, m2i_json, 
     writer.write_csv(paths["measurements"], ["id", "view", "x", "y"], meas)
 
     o = scenario.orbit
-    enh = np.array([[p.E, p.N, p.h] for p in points]) if points else np.zeros((0, 3))
     stats = {}
     for name in ("F", "B"):
-        if len(enh):
-            d = geo.across_offset_px(o, scenario.views[name], scenario.views["N"], enh)
+        if points:
+            d = published_across_px(scenario, name, points)
             stats[f"across_{name}_minus_N_px"] = {"mean": float(d.mean()), "std": float(d.std())}
     truth = {
         "format": "prismstation-sim-truth/1", "arguments": args,
@@ -231,8 +239,11 @@ def _write_tables(out, scenario, dem, points, rng, noise_px, sxy, sh, m2i_json, 
                          "alignment": scenario.alignment[name],
                          "grid_shift_px": list(scenario.grid_shift_px[name]),
                          "map_to_image": list(v.map_to_image),
-                         "geotransform": list(image_to_map_transform(v.map_to_image))}
+                         "published_map_to_image": list(scenario.published[name]),
+                         "geolocation_error_m": _error_entry(scenario, name),
+                         "geotransform": list(image_to_map_transform(scenario.published[name]))}
                   for name, v in scenario.views.items()},
+        "geolocation_error_bound_m": args["geolocation_error_m"],
         "dem": {"file": "truth_dem.tif", "heights": "ellipsoidal", "spacing_m": dem.spacing},
         "statistics": stats,
         "points": truth_points,
@@ -240,3 +251,31 @@ def _write_tables(out, scenario, dem, points, rng, noise_px, sxy, sh, m2i_json, 
     paths["truth"] = out / "truth.json"
     writer.write_json(paths["truth"], truth)
     return paths
+
+
+def _error_entry(scenario, name) -> dict:
+    along, across = scenario.geolocation_error_m[name]
+    e = along * scenario.orbit.t + across * scenario.orbit.a
+    return {"along": along, "across": across, "E": float(e[0]), "N": float(e[1]),
+            "where": "scene centre, h = 0; published minus true"}
+
+
+def published_across_px(scenario, name: str, points) -> np.ndarray:
+    """The across-track offset (px) of ``name`` relative to N as the fit reports it: each
+    point's true image position in ``name`` carried into N image space through the PUBLISHED
+    grids, minus its true N position, along ``(d_y, −d_x)`` of the N-space flight direction."""
+    def m2i(c, en):
+        return np.stack([c[0] * en[..., 0] + c[1] * en[..., 1] + c[4],
+                         c[2] * en[..., 0] + c[3] * en[..., 1] + c[5]], axis=-1)
+
+    def i2m(c, xy):
+        m = np.linalg.inv([[c[0], c[1]], [c[2], c[3]]])
+        return (np.asarray(xy) - [c[4], c[5]]) @ m.T
+
+    pn, pv = scenario.published["N"], scenario.published[name]
+    xn = np.array([p.xy["N"] for p in points])
+    xv = np.array([p.xy[name] for p in points])
+    d = np.array([[pn[0], pn[1]], [pn[2], pn[3]]]) @ scenario.orbit.t
+    d /= np.linalg.norm(d)
+    cross = np.array([d[1], -d[0]])
+    return (m2i(pn, i2m(pv, xv)) - xn) @ cross

@@ -1,0 +1,119 @@
+"""Step 1 of the DEM orientation (issue 11): where F and B really are relative to N, from files.
+
+:func:`coarse_view_offsets` reads the reference DEM (ellipsoidal through ``geoid``) over N's
+footprint, cuts N into a 3 × 3 lattice of windows, and for each window and view calls
+:func:`prismstation.core.view_offsets.view_offset` over the radius the a-priori σ allows; the
+windows are combined per view with a consistency verdict. The result's ``offsets_px`` have the
+meaning of the workflow's tie-point offsets (N-space pixels from the ancillary prediction to
+where the view sees the point), so the DEM orientation can use them in place of its
+fixed-range tie-point step and keep its fine searches narrow.
+
+A-priori: ``sigma_apriori_m`` (each view's geolocation σ per component, metres; default 50 m
+after seed 003's ~50 m shifts), ``k`` = 3 (search radius ``k·σ·√2 / GSD``),
+``sigma_height_m`` (reference heights, see ``view_offset``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import rasterio
+from rasterio.windows import Window
+from scipy import ndimage
+
+from prismstation.core import view_offsets as vo
+from prismstation.core.coarse import K_SIGMA, search_radius_px
+from prismstation.core.scene import Scene
+from prismstation.errors import InputError
+from prismstation.io.dem import read_dem
+from prismstation.ops.progress import checkpoint
+
+SIGMA_APRIORI_M = 50.0
+
+
+@dataclass(frozen=True)
+class CoarseOffsets:
+    """Per view (F, B): the combined N-space offset (px), its σ, the verdict, the windows."""
+
+    offsets_px: dict
+    sigma_px: dict
+    verdicts: dict
+    windows: tuple
+    sigma_apriori_m: float
+    radius_px: float
+
+    def ok(self, view: str) -> bool:
+        return bool(np.isfinite(self.offsets_px[view]).all())
+
+    def to_dict(self) -> dict:
+        def num(v):
+            return float(v) if np.isfinite(v) else None
+        return {"sigma_apriori_m": self.sigma_apriori_m, "radius_px": self.radius_px,
+                "offsets_px": {v: [num(c) for c in o] for v, o in self.offsets_px.items()},
+                "sigma_px": {v: [num(c) for c in s] for v, s in self.sigma_px.items()},
+                "verdicts": {v: (x.to_dict() if x is not None else None) for v, x in self.verdicts.items()},
+                "windows": [{"view": w.view, "n_window": list(w.n_window), "dx": num(w.dx),
+                             "dy": num(w.dy), "sigma_dx": num(w.sigma_dx), "sigma_dy": num(w.sigma_dy),
+                             "status": w.status, "reason": w.reason, "score": num(w.score)}
+                            for w in self.windows]}
+
+
+def _read(ds, c0, r0, w, h) -> np.ndarray:
+    """Window of band 1 as float32, NaN outside the image."""
+    out = np.full((h, w), np.nan, np.float32)
+    a0, b0 = max(c0, 0), max(r0, 0)
+    a1, b1 = min(c0 + w, ds.width), min(r0 + h, ds.height)
+    if a1 > a0 and b1 > b0:
+        out[b0 - r0:b1 - r0, a0 - c0:a1 - c0] = ds.read(1, window=Window(a0, b0, a1 - a0, b1 - b0))
+    return out
+
+
+def coarse_view_offsets(scene: Scene, reference_path, geoid, *, sigma_apriori_m: float = SIGMA_APRIORI_M,
+                        k: float = K_SIGMA, window_px: int = 512, grid: int = 3,
+                        posting_m: float = 30.0, progress=None) -> CoarseOffsets:
+    """F and B offsets relative to N over the a-priori range (module docstring)."""
+    if not scene.is_triplet:
+        raise InputError("the coarse view offsets need an N, F, B triplet")
+    N = scene.views["N"]
+    rows, cols = N.shape
+    radius = search_radius_px(sigma_apriori_m * np.sqrt(2), N.pixel_size_m, k)
+    corners = N.map_to_image.inverse()(np.array([[0, 0], [cols, 0], [0, rows], [cols, rows]], float))
+    pad = 1000.0 + 3 * sigma_apriori_m
+    lo, hi = corners.min(0) - pad, corners.max(0) + pad
+    shape = (int((hi[1] - lo[1]) // posting_m) + 1, int((hi[0] - lo[0]) // posting_m) + 1)
+    ref = read_dem(reference_path, scene.crs, (posting_m, 0.0, lo[0], 0.0, -posting_m, hi[1]), shape,
+                   geoid=geoid)
+    if not np.isfinite(ref.heights).any():
+        raise InputError("the reference DEM does not cover the scene", reference_path)
+    mean_h = float(np.nanmean(ref.heights))
+    filled = np.where(np.isfinite(ref.heights), ref.heights, mean_h)
+
+    def sample(e, n):
+        return ndimage.map_coordinates(filled, [(hi[1] - n) / posting_m - 0.5, (e - lo[0]) / posting_m - 0.5],
+                                       order=1, mode="nearest")
+
+    margin = int(radius) + 24
+    wins = vo.lattice((rows, cols), window_px, k=grid, margin_px=margin)
+    found = []
+    ds = {v: rasterio.open(scene.views[v].image) for v in "NFB"}
+    try:
+        for i, win in enumerate(wins):
+            checkpoint(progress, i / len(wins), f"coarse offsets: window {i + 1} of {len(wins)}")
+            c0, r0, w, h = win
+            n_img = _read(ds["N"], c0, r0, w, h)
+            if not np.isfinite(n_img).all():
+                continue
+            hh = vo.n_heights(scene, win, sample, mean_h)
+            for v in "FB":
+                a0, b0, aw, ah = vo.source_window(scene, v, win, hh, radius + 12)
+                found.append(vo.view_offset(scene, v, n_img, win, _read(ds[v], a0, b0, aw, ah),
+                                            (a0, b0), hh, sigma_apriori_m, k))
+    finally:
+        for d in ds.values():
+            d.close()
+    offsets, sigmas, verdicts = {}, {}, {}
+    for v in "FB":
+        mean, sig, verdict = vo.combine([o for o in found if o.view == v])
+        offsets[v], sigmas[v], verdicts[v] = mean, sig, verdict
+    checkpoint(progress, 1.0, "coarse offsets done")
+    return CoarseOffsets(offsets, sigmas, verdicts, tuple(found), float(sigma_apriori_m), float(radius))
