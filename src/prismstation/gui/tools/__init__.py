@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+import weakref
 
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction, QKeySequence
@@ -38,7 +39,7 @@ class ToolContext:
     def __init__(self, window):
         self.workspace = window.workspace
         self.views = window.views
-        self.widget = window
+        self._window = weakref.ref(window)  # the window holds the context: no cycle
         self.tools_menu = window.tools_menu
         self.file_menu = window.menuBar().actions()[0].menu()
         self.open_action = window.a_open
@@ -46,6 +47,10 @@ class ToolContext:
         self.interactive = window.interactive
         self.tools: dict = {}
         self._docks = window.docks
+
+    @property
+    def widget(self):
+        return self._window()
 
     # the workspace's parts, for brevity
     project = property(lambda self: self.workspace.project)

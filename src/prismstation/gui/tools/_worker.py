@@ -132,11 +132,17 @@ def run_with_progress(window, title: str, fn, on_result, *, on_failed=None, dial
         dlg.setAutoClose(False)
         dlg.setAutoReset(False)
         dlg.canceled.connect(job.cancel)
-        job.progress.connect(lambda f, m: (dlg.setMaximum(1000),
-                                           dlg.setValue(int(round(1000 * min(max(f, 0.0), 1.0)))),
-                                           dlg.setLabelText(f"{title}\n{m}" if m else title)))
         dlg.show()
-    job.progress.connect(lambda f, m: window.statusBar().showMessage(f"{title}: {f:.0%} {m}"))
+
+    def progressed(f, m):  # a report sent before the window closed may arrive after
+        if not shiboken6.isValid(window):
+            return
+        if dlg is not None and shiboken6.isValid(dlg):
+            dlg.setMaximum(1000)
+            dlg.setValue(int(round(1000 * min(max(f, 0.0), 1.0))))
+            dlg.setLabelText(f"{title}\n{m}" if m else title)
+        window.statusBar().showMessage(f"{title}: {f:.0%} {m}")
+    job.progress.connect(progressed)
 
     def close():
         if dlg is not None:
