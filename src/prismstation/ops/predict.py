@@ -7,7 +7,9 @@ A prediction takes the best ground position available for the point:
     given: exact);
 ``intersection``
     measured in two or more views: the least-squares intersection of those image rays through
-    the fitted model (MODEL.md §2);
+    the fitted model (MODEL.md §2), with the reference DEM's height (or the mean height) as
+    one more observation with its σ — where the pixels are coarse and the DEM good, the DEM
+    may know the height better than the rays;
 ``reference``
     measured in one view, the reference DEM under it: that view's ray at the DEM height, the
     height taken as an observation with the DEM's σ (:func:`dem_sigma`);
@@ -166,8 +168,8 @@ def ground_estimate(sol: Solution, point: PointInput, *, height_of=None, sigma_d
     first = next(iter(obs))
     h0, sigma_h, source = float(sol.mean_height), sigma_mean, "mean"
     xy_first = np.array(obs[first][:2], float)
-    if len(obs) == 1 and height_of is not None:
-        h = h0
+    if height_of is not None:
+        h, hd = h0, math.nan
         for _ in range(5):  # the ray meets the DEM: fixed point
             hd = float(np.asarray(height_of(sol.image_to_ground(first, xy_first, h)[None]))[0])
             if not math.isfinite(hd):
@@ -175,8 +177,8 @@ def ground_estimate(sol: Solution, point: PointInput, *, height_of=None, sigma_d
             h = hd
         if math.isfinite(hd):
             h0, sigma_h, source = h, sigma_dem, "reference"
-    if len(obs) >= 2:
-        source, sigma_h = "intersection", max(sigma_mean, 1.0) * 10  # the prior only regularises
+    if len(obs) >= 2:  # the DEM, when there, still weighs in (coarse pixels: it may be better)
+        source = "intersection"
     g = np.array([*sol.image_to_ground(first, xy_first, h0), h0], float)
     for _ in range(6):  # Gauss–Newton on (E, N, h)
         rows, res, W = [], [], []
