@@ -7,7 +7,8 @@ until a ground point or the geoid changes, so a click costs the predictions only
 from __future__ import annotations
 
 from prismstation.errors import PrismError
-from prismstation.ops.predict import known_ground, predict_all, project_inputs
+from prismstation.ops.predict import (DEFAULT_DEM_SIGMA_M, DEFAULT_HEIGHT_SPREAD_M, dem_sigma,
+                                      height_spread, known_ground, predict_all, project_inputs)
 
 
 class Predictions:
@@ -17,6 +18,8 @@ class Predictions:
         self.by_point: dict = {}
         self._ground_key = None
         self._ground: dict = {}
+        self.sigma_dem = DEFAULT_DEM_SIGMA_M       # of the reference DEM, measured at the points
+        self.sigma_mean = DEFAULT_HEIGHT_SPREAD_M  # of the mean height: the known heights' spread
 
     def update(self, project, solution, height_of=None) -> dict:
         """Recompute for ``solution`` of ``project`` (None: none); returns :attr:`by_point`."""
@@ -31,6 +34,8 @@ class Predictions:
             except PrismError:  # the geoid does not cover the points: the fit says so too
                 self._ground = {}
             self._ground_key = key
+        self.sigma_dem = dem_sigma(height_of, self._ground)
+        self.sigma_mean = height_spread(g[2] for g in self._ground.values())
         self.by_point = predict_all(solution, project_inputs(project, self._ground),
                                     height_of=height_of, ground=self._ground)
         return self.by_point
