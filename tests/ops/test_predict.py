@@ -85,3 +85,19 @@ def test_sigma_of_dem_and_of_the_mean_height_from_the_project():
     assert dem_sigma(lambda en: en[:, 0] / 100.0 + 100.0 + 3.0, ground) == pytest.approx(3.0)
     assert dem_sigma(None, ground) == DEFAULT_DEM_SIGMA_M
     assert height_spread(g[2] for g in ground.values()) == pytest.approx(np.std([100, 110, 120, 130, 140], ddof=1))
+
+
+def test_vectorised_known_ground_predictions_equal_the_single_ones():
+    from prismstation.ops.predict import predict_all
+    scene = make_scene()
+    truth = make_points(scene, n_gcp=9, n_icp=30, noise_px=0.2, seed=3)
+    sol = solve(scene, truth[:9])
+    pts = [PointInput(p.id, p.kind, {"N": (*p.image["N"], None)} if i % 2 else {}, p.ground, (0.5, 1.0))
+           for i, p in enumerate(truth[9:])]
+    allp = predict_all(sol, pts)
+    for p in pts:
+        one = predict_point(sol, p)
+        assert set(allp[p.id]) == set(one) == ({"F", "B"} if p.measured else {"N", "F", "B"})
+        for v, pr in one.items():
+            assert np.allclose(allp[p.id][v].xy, pr.xy) and np.allclose(allp[p.id][v].cov, pr.cov)
+            assert allp[p.id][v].source == "ground"

@@ -15,6 +15,8 @@ import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainterPath, QPen, QStaticText, QTransform
 
+from prismstation.ops.predict import CHI2_95_2D
+
 KIND_COLORS = {"GCP": QColor(255, 70, 70), "ICP": QColor(70, 200, 255), "TIE": QColor(255, 210, 60)}
 BLUNDER_COLOR = QColor(255, 0, 255)
 CURRENT_COLOR = QColor(255, 255, 255)
@@ -127,6 +129,21 @@ class LabelLayer(pg.GraphicsObject):
         p.setTransform(t)
 
 
+def ellipse_polylines(preds, n: int = 40) -> np.ndarray:
+    """``(len(preds) · (n + 2), 2)``: the closed 95 % ellipse of each prediction (image pixels),
+    a NaN row after each (vectorised over predictions)."""
+    xy = np.array([p.xy for p in preds], float)
+    cov = np.array([p.cov for p in preds], float)
+    w, v = np.linalg.eigh(cov)                                # (m, 2), (m, 2, 2)
+    axes = v * np.sqrt(CHI2_95_2D * np.clip(w, 0.0, None))[:, None, :]
+    t = np.linspace(0.0, 2 * np.pi, n + 1)
+    unit = np.stack([np.cos(t), np.sin(t)])                   # (2, n + 1)
+    pts = xy[:, :, None] + axes @ unit                        # (m, 2, n + 1)
+    out = np.full((len(preds), n + 2, 2), np.nan)
+    out[:, :n + 1] = pts.transpose(0, 2, 1)
+    return out.reshape(-1, 2)
+
+
 class ViewOverlay:
     """The overlay items of one view (``name``) in view box ``vb``."""
 
@@ -220,7 +237,7 @@ class ViewOverlay:
                         pred_pens.append(_pen(KIND_COLORS.get(kind, CURRENT_COLOR), 1.5, True))
                         label_pos.setdefault(r.id, xy)
                         if p is not None and kind in polys and np.all(np.isfinite(p.cov)):
-                            polys[kind].append(p.polygon())
+                            polys[kind].append(p)
                 else:
                     res = r.residual_px.get(v)
                     if res is not None:
@@ -237,14 +254,15 @@ class ViewOverlay:
         self._draw_vectors()
         self._update_labels(project, label_pos)
 
-    def _draw_ellipses(self, polys: dict) -> None:
-        key = tuple((k, tuple(p.tobytes() for p in v)) for k, v in polys.items())
+    def _draw_ellipses(self, preds: dict) -> None:
+        """The 95 % ellipses of ``preds`` (kind → [Prediction]), as closed polylines."""
+        key = tuple((k, tuple((p.xy, p.cov.tobytes()) for p in v)) for k, v in preds.items())
         if key == self._ellipse_key:
             return
         self._ellipse_key = key
         for k, item in self.ellipses.items():
-            if polys[k]:
-                xy = np.vstack([np.vstack([p, [np.nan, np.nan]]) for p in polys[k]])
+            if preds[k]:
+                xy = ellipse_polylines(preds[k])
                 item.setData(xy[:, 0], xy[:, 1], connect="finite")
             else:
                 item.setData([], [])

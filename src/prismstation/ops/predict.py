@@ -82,14 +82,6 @@ class Prediction:
         w = np.clip(w, 0.0, None)
         return (math.sqrt(chi2 * w[1]), math.sqrt(chi2 * w[0]), math.atan2(v[1, 1], v[0, 1]))
 
-    def polygon(self, n: int = 48, chi2: float = CHI2_95_2D) -> np.ndarray:
-        """``(n + 1, 2)`` image points around the ellipse (closed)."""
-        a, b, ang = self.ellipse(chi2)
-        t = np.linspace(0.0, 2 * np.pi, n + 1)
-        c, s = math.cos(ang), math.sin(ang)
-        u, w = a * np.cos(t), b * np.sin(t)
-        return np.column_stack([self.xy[0] + c * u - s * w, self.xy[1] + s * u + c * w])
-
 
 # ---------------------------------------------------------------------- heights and their σ
 def height_spread(heights) -> float:
@@ -114,16 +106,20 @@ def dem_sigma(height_of, ground: dict) -> float:
 
 # ---------------------------------------------------------------------- model derivatives
 def bias_jacobian(fit, xy0) -> np.ndarray:
-    """``(2, u)`` derivative of the bias-corrected position at ancillary ``xy0`` with respect to
-    the fit's published parameters (``fit.names``)."""
-    x, y = float(xy0[0]), float(xy0[1])
+    """``(..., 2, u)`` derivative of the bias-corrected position at ancillary ``xy0`` ``(..., 2)``
+    with respect to the fit's published parameters (``fit.names``)."""
+    xy0 = np.asarray(xy0, float)
+    x, y = xy0[..., 0], xy0[..., 1]
+    one, zero = np.ones_like(x), np.zeros_like(x)
     if fit.model == "shift":
-        return np.eye(2)
-    if fit.model == "similarity":   # x += a x − c y + b1 ; y += c x + a y + b2
-        return np.array([[x, -y, 1.0, 0.0], [y, x, 0.0, 1.0]])
-    if fit.model == "affine":       # x += B1 x + B2 y + B5 ; y += B3 x + B4 y + B6
-        return np.array([[x, y, 0, 0, 1.0, 0], [0, 0, x, y, 0, 1.0]])
-    return np.zeros((2, 0))
+        rows = [[one, zero], [zero, one]]
+    elif fit.model == "similarity":   # x += a x − c y + b1 ; y += c x + a y + b2
+        rows = [[x, -y, one, zero], [y, x, zero, one]]
+    elif fit.model == "affine":       # x += B1 x + B2 y + B5 ; y += B3 x + B4 y + B6
+        rows = [[x, y, zero, zero, one, zero], [zero, zero, x, y, zero, one]]
+    else:
+        return np.zeros(xy0.shape[:-1] + (2, 0))
+    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
 
 
 def bias_cov(sol: Solution, view: str, xy0) -> np.ndarray:
@@ -236,15 +232,59 @@ def predict_point(sol: Solution, point: PointInput, views=None, *, height_of=Non
     return out
 
 
+def _known_ground_predictions(sol: Solution, points) -> dict:
+    """:func:`predict_point` for points placed by their known ground, vectorised over points
+    (a project may hold hundreds of GCPs and ICPs not yet measured)."""
+    if not points:
+        return {}
+    g = np.array([p.ground for p in points], float)
+    C = np.zeros((len(points), 3, 3))
+    sig = np.array([p.sigma_ground for p in points], float)
+    C[:, 0, 0] = C[:, 1, 1] = sig[:, 0] ** 2
+    C[:, 2, 2] = sig[:, 1] ** 2
+    out: dict = {}
+    for v in sol.scene.views:
+        want = np.array([v not in p.measured for p in points])
+        if not want.any():
+            continue
+        gv, Cv = g[want], C[want]
+        xy = sol.ground_to_image(v, gv[:, :2], gv[:, 2])
+        J = np.empty((len(gv), 2, 3))
+        for k in range(3):
+            step = np.zeros(3)
+            step[k] = _STEP_M
+            hi, lo = gv + step, gv - step
+            J[:, :, k] = (sol.ground_to_image(v, hi[:, :2], hi[:, 2]) -
+                          sol.ground_to_image(v, lo[:, :2], lo[:, 2])) / (2 * _STEP_M)
+        cov = J @ Cv @ J.transpose(0, 2, 1)
+        fit = sol.bias[v]
+        if fit.cov is not None and fit.cov.size:
+            Jb = bias_jacobian(fit, fit.invert(xy))
+            cov = cov + Jb @ fit.cov @ Jb.transpose(0, 2, 1)
+        ok = np.isfinite(xy).all(axis=1)
+        for i, p in enumerate(q for q, w in zip(points, want) if w):
+            if ok[i]:
+                out.setdefault(p.id, {})[v] = Prediction(
+                    v, (float(xy[i, 0]), float(xy[i, 1])), cov[i], "ground", float(gv[i, 2]),
+                    float(math.sqrt(Cv[i, 2, 2])))
+    return out
+
+
 def predict_all(sol: Solution, points, *, height_of=None, ground: dict | None = None) -> dict:
     """``{id: {view: Prediction}}`` for every point of ``points`` (:class:`PointInput`) in the
     views it is not measured in. ``ground``: id → ``(E, N, h)`` of the points with known ground
     (for the σ of the DEM and of the mean height)."""
     ground = ground or {}
+    names = set(sol.scene.views)
+    todo = [p for p in points if not names <= set(p.measured)]
+    known = [p for p in todo if p.ground is not None and all(map(math.isfinite, p.ground))]
+    out = _known_ground_predictions(sol, known)
+    rest = [p for p in todo if p.measured and not (p.ground is not None and all(map(math.isfinite, p.ground)))]
+    if not rest:
+        return out
     s_dem = dem_sigma(height_of, ground)
     s_mean = height_spread(g[2] for g in ground.values())
-    out = {}
-    for p in points:
+    for p in rest:
         try:
             pr = predict_point(sol, p, height_of=height_of, sigma_dem=s_dem, sigma_mean=s_mean)
         except (np.linalg.LinAlgError, ValueError):
