@@ -35,9 +35,9 @@ def test_sigma_against_closure_on_the_real_pleiades_triplet(shared_data):
 
 def test_sigma_against_truth_on_a_simulated_triplet_with_relief(tmp_path):
     from prismstation.sim import simulate
-    simulate(tmp_path, size=800, seed=11)
-    s = summary(truth_rows(tmp_path, reps=2))
+    simulate(tmp_path, size=500, seed=11)
+    s = summary(truth_rows(tmp_path, reps=3))
     assert s["n"] >= 100
-    _check(s, 0.5, 1.4)
+    _check(s, 0.3, 1.4)             # across the parallax the floor is on the safe side
     assert s["rms_err"][1] > 0.1                      # the scatter along the parallax is real…
     assert s["rms_z_formal"][1] > 4                   # …and the formal σ does not see it
