@@ -18,9 +18,9 @@ from tests.gui.test_operator import click_image, settle
 SHIFT = Qt.KeyboardModifier.ShiftModifier
 
 
-def write_dem(win, path, sigma=4.0, seed=5):
+def write_dem(win, path, sigma=4.0, seed=5, scene=None):
     """A 30 m GeoTIFF DEM of the demo's terrain (the test project's heights) with noise."""
-    sc = win.project.scene
+    sc = win.project.scene if scene is None else scene
     size, p = sc.views["N"].shape[1], sc.views["N"].pixel_size_m
     centre = sc.views["N"].map_to_image.inverse()(np.array([size / 2, size / 2]))
     terrain = Terrain(centre, size * p, 5)
@@ -95,6 +95,28 @@ def test_predictions_use_the_dem_then_the_intersection_and_show_their_ellipse(qt
     drawn = win.views.overlays["B"].ellipse_points()
     assert not np.any(np.hypot(*(drawn - pr.xy).T) < 3 * pr.ellipse()[0])
     assert not np.any(np.all(np.isclose(markers(win.views.overlays["B"]), pr.xy), axis=1))
+
+
+def test_the_demo_opens_with_its_reference_dem(qtbot, demo, monkeypatch, tmp_path):
+    from prismstation.cli.demo import reference_dem
+    from prismstation.gui.app import run
+    from prismstation.gui.main_window import MainWindow
+    from prismstation.io.scene import read_scene
+    assert reference_dem(demo.path) is None
+    (demo.path.parent / "triplet").mkdir()
+    dem = write_dem(None, demo.path.parent / "triplet" / "srtm.tif", scene=read_scene(demo.scene_path))
+    assert reference_dem(demo.path) == dem
+    loaded, on_dem = [], MainWindow._on_dem
+
+    def spy(self, heights):
+        loaded.append((heights.path, self))
+        on_dem(self, heights)
+    monkeypatch.setattr(MainWindow, "_on_dem", spy)
+    assert run(str(demo.path), screenshot=str(tmp_path / "s.png"), reference_dem=reference_dem(demo.path)) == 0
+    (path, win), = loaded
+    assert str(path) == str(dem)
+    assert win.views.height_of is not None
+    assert 1.0 < win.views.predictions.sigma_dem < 10.0   # measured at the points (4 m noise)
 
 
 def test_an_unmeasured_gcp_is_predicted_from_its_ground(qtbot, window):
