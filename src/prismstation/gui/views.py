@@ -1,5 +1,10 @@
 """The N, F, B views side by side, with overlays, linked cursors and drive-to.
 
+Predicted positions (where a point is not measured) come from
+:mod:`prismstation.ops.predict` through :class:`~prismstation.gui.prediction.Predictions`,
+each with its 95 % error ellipse; ``navigated`` tells
+:class:`~prismstation.gui.linked_nav.LinkedNavigation` of a zoom or pan made by hand.
+
 Views of different images are not linked by pyqtgraph's ``setXLink`` (their geometries differ):
 the cursor in one view goes through the current :class:`~prismstation.core.solve.Solution`
 (pixel → ground at a height → pixel) to the others (ARCHITECTURE.md). The height is that of the
