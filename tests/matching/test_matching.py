@@ -53,7 +53,8 @@ def test_subpixel_affine_cases_are_recovered(texture):
         r = match_point(ref, *pt, srch, *pred, direction=d, search_range=6)
         assert r.ok, r.reason
         assert 0.5 < r.score <= 1.0
-        assert 0 < r.sigma_x < 0.1 and 0 < r.sigma_y < 0.1
+        assert 0 < r.formal_sigma_x < 0.1 and 0 < r.formal_sigma_y < 0.1
+        assert r.sigma_x > r.formal_sigma_x and r.sigma_y > r.formal_sigma_y  # calibrated
         errs.append(np.hypot(r.x - truth[0], r.y - truth[1]))
     rms = np.sqrt(np.mean(np.square(errs)))
     assert rms < 0.03, rms         # measured ~0.01 px; NCC alone gives ~0.25 px on these

@@ -39,6 +39,13 @@ def ensure_demo(directory=None, *, rebuild: bool = False, progress=None) -> Path
     return project
 
 
+def reference_dem(project) -> Path | None:
+    """The demo's reference DEM beside its images (None if absent): the window loads it when
+    the demo opens, so predictions and the linked cursor use its heights."""
+    p = Path(project).parent / "triplet" / "srtm.tif"
+    return p if p.is_file() else None
+
+
 def register(sub) -> None:
     p = sub.add_parser("demo", help="open the bundled demo project (made on first use)")
     p.add_argument("--dir", help=f"where the demo lives (default {default_dir()})")
@@ -58,4 +65,4 @@ def run(args) -> int:
         print(format_report(fit_report(proj, project)[1]))
         return 0
     from prismstation.gui.app import run as run_gui
-    return run_gui(str(project), screenshot=args.screenshot)
+    return run_gui(str(project), screenshot=args.screenshot, reference_dem=reference_dem(project))

@@ -99,9 +99,10 @@ def take_screenshot(window, path, size=(1680, 1050)) -> None:
         raise InputError("could not write the screenshot", path)
 
 
-def run(project_path=None, screenshot=None) -> int:
-    """Open the window (on ``project_path``) and run the event loop; with ``screenshot`` (a PNG
-    path) write a picture of the loaded, fitted window instead and return 0."""
+def run(project_path=None, screenshot=None, reference_dem=None) -> int:
+    """Open the window (on ``project_path``, with ``reference_dem`` loaded when given) and run
+    the event loop; with ``screenshot`` (a PNG path) write a picture of the loaded, fitted
+    window instead and return 0."""
     screenshot_path = screenshot
     if project_path is not None and not Path(project_path).exists():
         raise InputError("project not found", project_path)
@@ -128,6 +129,8 @@ def run(project_path=None, screenshot=None) -> int:
         if not win.open_project(str(project_path), recover=None if interactive else False):
             if not interactive:
                 return 2
+        elif reference_dem is not None:
+            win.load_reference_dem(reference_dem, wait=not interactive)
     elif interactive:
         win.files.recover_untitled()
     if screenshot_path is not None:

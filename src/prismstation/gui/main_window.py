@@ -19,6 +19,7 @@ from prismstation.gui import io_actions
 from prismstation.gui.tools import install_tools
 from prismstation.gui import settings as st
 from prismstation.gui.contrast import ContrastPanel
+from prismstation.gui.linked_nav import LinkedNavigation
 from prismstation.gui.loupe import Loupe
 from prismstation.gui.model_panel import ModelPanel
 from prismstation.gui.plots import PlotsWidget
@@ -42,6 +43,7 @@ class MainWindow(QMainWindow):
             ws.undo_stack, ws.files, ws.solver, ws.dem_loader)
         self.views = TripletViews(self)
         self.setCentralWidget(self.views)
+        self.linked_nav = LinkedNavigation(self.views, self)
         self.table_model = PointTableModel(self)
         self.table = PointTableView(self.table_model)
         self.panel = ModelPanel()
@@ -151,6 +153,9 @@ class MainWindow(QMainWindow):
                                 QKeySequence("Ctrl+Left")], S.SP_MediaSeekBackward)
         self.a_dem = self._act("Reference &DEM…", self.choose_reference_dem,
                                tip="Heights for the linked cursor and for points without parallax")
+        self.a_linked_nav = self._act("&Linked navigation", self.linked_nav.set_enabled, checkable=True,
+                                      tip="Zoom and pan in one view move the others to the same ground")
+        self.a_linked_nav.setChecked(True)
         self.a_labels = self._act("Point &labels", self.views.set_show_labels, "Ctrl+L", checkable=True)
         self.a_labels.setChecked(st.value(st.Key.SHOW_LABELS))
         self.a_about = self._act("&About", self.about)
@@ -173,7 +178,7 @@ class MainWindow(QMainWindow):
         m.addSeparator()
         m.addActions(list(self.a_kind.values()))
         m = mb.addMenu("&View")
-        m.addActions([self.a_zoom_in, self.a_zoom_out, self.a_fit])
+        m.addActions([self.a_zoom_in, self.a_zoom_out, self.a_fit, self.a_linked_nav])
         m.addSeparator()
         m.addActions([self.a_goto, self.a_next, self.a_prev, self.a_labels, self.a_dem])
         m.addSeparator()

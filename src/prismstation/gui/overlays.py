@@ -1,5 +1,5 @@
-"""What is drawn over one image: measured markers, predicted positions, residual vectors,
-labels, the current point and the linked-cursor crosshair.
+"""What is drawn over one image: measured markers, predicted positions with their 95 % error
+ellipses, residual vectors, labels, the current point and the linked-cursor crosshair.
 
 All items live in the view box of an :class:`~prismstation.gui.image_view.ImageView`, in image
 pixels (x = column, y = row, origin at the top-left corner of the top-left pixel). Markers keep
@@ -14,6 +14,8 @@ import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainterPath, QPen, QStaticText, QTransform
+
+from prismstation.ops.predict import CHI2_95_2D
 
 KIND_COLORS = {"GCP": QColor(255, 70, 70), "ICP": QColor(70, 200, 255), "TIE": QColor(255, 210, 60)}
 BLUNDER_COLOR = QColor(255, 0, 255)
@@ -127,6 +129,21 @@ class LabelLayer(pg.GraphicsObject):
         p.setTransform(t)
 
 
+def ellipse_polylines(preds, n: int = 40) -> np.ndarray:
+    """``(len(preds) · (n + 2), 2)``: the closed 95 % ellipse of each prediction (image pixels),
+    a NaN row after each (vectorised over predictions)."""
+    xy = np.array([p.xy for p in preds], float)
+    cov = np.array([p.cov for p in preds], float)
+    w, v = np.linalg.eigh(cov)                                # (m, 2), (m, 2, 2)
+    axes = v * np.sqrt(CHI2_95_2D * np.clip(w, 0.0, None))[:, None, :]
+    t = np.linspace(0.0, 2 * np.pi, n + 1)
+    unit = np.stack([np.cos(t), np.sin(t)])                   # (2, n + 1)
+    pts = xy[:, :, None] + axes @ unit                        # (m, 2, n + 1)
+    out = np.full((len(preds), n + 2, 2), np.nan)
+    out[:, :n + 1] = pts.transpose(0, 2, 1)
+    return out.reshape(-1, 2)
+
+
 class ViewOverlay:
     """The overlay items of one view (``name``) in view box ``vb``."""
 
@@ -146,6 +163,13 @@ class ViewOverlay:
         self.current = Markers(symbol="s", size=27, pxMode=True, brush=None,
                                           pen=pg.mkPen(CURRENT_COLOR, width=1.5))
         self.vectors = pg.PlotCurveItem(connect="pairs", pen=pg.mkPen(255, 120, 0, width=2))
+        # one curve per kind: the ellipses of its predictions, separated by NaN
+        self.ellipses = {k: pg.PlotCurveItem(connect="finite", pen=_pen(c, 1.2, True))
+                         for k, c in KIND_COLORS.items()}
+        for item in self.ellipses.values():
+            item.setZValue(20.5)
+            vb.addItem(item, ignoreBounds=True)
+        self._ellipse_key = None
         self.crosshair = Markers(symbol=CROSSHAIR_SYMBOL, size=46, pxMode=True, brush=None,
                                             pen=pg.mkPen(CURSOR_COLOR, width=1.5))
         for z, item in ((20, self.vectors), (21, self.predicted), (22, self.measured),
@@ -190,10 +214,13 @@ class ViewOverlay:
             self.blunders.setData(pos=list(xy)) if xy else self.blunders.clear()
 
     # ------------------------------------------------------------------ from the solution
-    def update_solution(self, project, solution) -> None:
-        """Predicted positions (hollow, unmeasured views), residual vectors, labels."""
+    def update_solution(self, project, solution, predictions=None) -> None:
+        """Predicted positions (hollow, unmeasured views) with their error ellipses, residual
+        vectors, labels. ``predictions``: ``{id: {view: Prediction}}``
+        (:mod:`prismstation.ops.predict`); None: the solution's own predicted positions."""
         v, points = self.name, project.points
         pred, pred_pens, segs = [], [], []
+        polys: dict = {k: [] for k in self.ellipses}
         label_pos = dict(zip(self.ids.tolist(), map(tuple, self.xy.tolist())))
         if solution is not None:
             for r in solution.points:
@@ -201,12 +228,16 @@ class ViewOverlay:
                     continue
                 meas = r.measured.get(v)
                 if meas is None:
-                    xy = r.predicted.get(v)
+                    p = None if predictions is None else predictions.get(r.id, {}).get(v)
+                    xy = r.predicted.get(v) if predictions is None else (None if p is None else p.xy)
                     if xy is not None and math.isfinite(xy[0]) and math.isfinite(xy[1]) and \
                             project.measurement(r.id, v) is None:
+                        kind = points[r.id].kind
                         pred.append(xy)
-                        pred_pens.append(_pen(KIND_COLORS.get(points[r.id].kind, CURRENT_COLOR), 1.5, True))
+                        pred_pens.append(_pen(KIND_COLORS.get(kind, CURRENT_COLOR), 1.5, True))
                         label_pos.setdefault(r.id, xy)
+                        if p is not None and kind in polys and np.all(np.isfinite(p.cov)):
+                            polys[kind].append(p)
                 else:
                     res = r.residual_px.get(v)
                     if res is not None:
@@ -218,9 +249,32 @@ class ViewOverlay:
                 self.predicted.setData(pos=np.array(pred), pen=pred_pens)
             else:
                 self.predicted.clear()
+        self._draw_ellipses(polys)
         self._residuals = np.array(segs, float).reshape(-1, 4)
         self._draw_vectors()
         self._update_labels(project, label_pos)
+
+    def _draw_ellipses(self, preds: dict) -> None:
+        """The 95 % ellipses of ``preds`` (kind → [Prediction]), as closed polylines."""
+        key = tuple((k, tuple((p.xy, p.cov.tobytes()) for p in v)) for k, v in preds.items())
+        if key == self._ellipse_key:
+            return
+        self._ellipse_key = key
+        for k, item in self.ellipses.items():
+            if preds[k]:
+                xy = ellipse_polylines(preds[k])
+                item.setData(xy[:, 0], xy[:, 1], connect="finite")
+            else:
+                item.setData([], [])
+
+    def ellipse_points(self) -> np.ndarray:
+        """``(n, 2)`` image points of every ellipse drawn (NaN rows between them; tests)."""
+        parts = []
+        for item in self.ellipses.values():
+            x, y = item.getData()
+            if x is not None and len(x):
+                parts.append(np.column_stack([x, y]))
+        return np.vstack(parts) if parts else np.zeros((0, 2))
 
     def set_scale(self, scale: float) -> None:
         """The view's zoom changed (image px per screen px): vectors keep their screen length."""

@@ -1,5 +1,10 @@
 """The N, F, B views side by side, with overlays, linked cursors and drive-to.
 
+Predicted positions (where a point is not measured) come from
+:mod:`prismstation.ops.predict` through :class:`~prismstation.gui.prediction.Predictions`,
+each with its 95 % error ellipse; ``navigated`` tells
+:class:`~prismstation.gui.linked_nav.LinkedNavigation` of a zoom or pan made by hand.
+
 Views of different images are not linked by pyqtgraph's ``setXLink`` (their geometries differ):
 the cursor in one view goes through the current :class:`~prismstation.core.solve.Solution`
 (pixel → ground at a height → pixel) to the others (ARCHITECTURE.md). The height is that of the
@@ -22,6 +27,7 @@ from prismstation.errors import PrismError
 from prismstation.gui import workers
 from prismstation.gui.image_view import ImageView
 from prismstation.gui.overlays import ViewOverlay
+from prismstation.gui.prediction import Predictions
 from prismstation.gui.text_label import TextLabel
 from prismstation.io.raster import RasterSource
 
@@ -64,6 +70,8 @@ class TripletViews(QWidget):
         through the model; ``ground`` is ``(E, N, h)`` or None.
     images_loaded()
         Every image of the project is displayed (or failed with a message).
+    navigated(view)
+        The operator zoomed or panned ``view`` by hand (wheel, drag; not a programmatic move).
     """
 
     place_requested = Signal(str, float, float)
@@ -71,6 +79,7 @@ class TripletViews(QWidget):
     point_picked = Signal(str)
     cursor_info = Signal(str, float, float, object, object)
     images_loaded = Signal()
+    navigated = Signal(str)
     message = Signal(str)
 
     def __init__(self, parent=None):
@@ -93,6 +102,7 @@ class TripletViews(QWidget):
         self._sources: list[RasterSource] = []  # opened here: closed here, after their readers
         self.offer_overviews = None  # callable(source) set by the window when interactive
         self.height_of = None  # reference DEM heights: (n, 2) map metres -> (n,) metres
+        self.predictions = Predictions()  # of the points in the views they are not measured in
 
     # ------------------------------------------------------------------ project and images
     def set_project(self, project) -> None:
@@ -126,6 +136,7 @@ class TripletViews(QWidget):
             iv.clicked.connect(lambda x, y, mods, n=name: self._on_clicked(n, x, y, mods))
             iv.cursor_moved.connect(lambda x, y, n=name: self.on_cursor(n, x, y))
             iv.view_changed.connect(lambda n=name: self._on_view_changed(n))
+            iv.vb.sigRangeChangedManually.connect(lambda *_, n=name: self.navigated.emit(n))
         self.splitter.setSizes([1000] * len(self.views))
         self._pending = set()
         for name, view in project.scene.views.items():
@@ -208,10 +219,17 @@ class TripletViews(QWidget):
         self.solution = solution
         if self.project is None:
             return
+        preds = self.predictions.update(self.project, solution, self.height_of)
         for ov in self.overlays.values():
             ov.update_measured(self.project, solution)
-            ov.update_solution(self.project, solution)
+            ov.update_solution(self.project, solution, preds)
         self._update_current()
+
+    def set_height_of(self, height_of) -> None:
+        """The reference DEM's heights (None: none): predictions are made again with them."""
+        self.height_of = height_of
+        if self.solution is not None:
+            self.set_solution(self.solution)
 
     def set_exaggeration(self, k: float) -> None:
         for ov in self.overlays.values():
@@ -232,12 +250,16 @@ class TripletViews(QWidget):
             ov.set_current(None if self.current is None else self.point_position(self.current, name))
 
     def point_position(self, pid: str, view: str):
-        """Image ``(x, y)`` of ``pid`` in ``view``: measured, else predicted by the model, else None."""
+        """Image ``(x, y)`` of ``pid`` in ``view``: measured, else predicted (from the best
+        ground available, :mod:`prismstation.ops.predict`), else the solution's, else None."""
         if self.project is None:
             return None
         m = self.project.measurement(pid, view)
         if m is not None:
             return (m.x, m.y)
+        p = self.predictions.get(pid, view)
+        if p is not None:
+            return p.xy
         r = self.solution.point(pid) if self.solution is not None else None
         if r is not None and view in r.predicted and np.all(np.isfinite(r.predicted[view])):
             return tuple(r.predicted[view])
@@ -291,6 +313,20 @@ class TripletViews(QWidget):
                 return float(r.ground_est[2])
         return None
 
+    def ground_height(self, name: str, xy) -> float:
+        """Height (m) of the ground under image ``xy`` of ``name``: the reference DEM's where it
+        has one (the ray meets it: fixed point), else the solution's mean height."""
+        sol = self.solution
+        h = float(sol.mean_height)
+        if self.height_of is not None:
+            xy = np.asarray(xy, float)
+            for _ in range(4):
+                hd = float(self.height_of(sol.image_to_ground(name, xy, h)[None])[0])
+                if not np.isfinite(hd):
+                    break
+                h = hd
+        return h
+
     def linked(self, name: str, x: float, y: float, h: float | None = None):
         """``(positions, ground)``: where image ``(x, y)`` of ``name`` falls in the other views
         at height ``h`` (default: :meth:`cursor_height`, else the reference DEM under the cursor,
@@ -302,13 +338,7 @@ class TripletViews(QWidget):
         xy = np.array([x, y], float)
         try:
             if h is None:
-                h = float(sol.mean_height)
-                if self.height_of is not None:  # ground at the DEM's height (fixed point)
-                    for _ in range(4):
-                        hd = float(self.height_of(sol.image_to_ground(name, xy, h)[None])[0])
-                        if not np.isfinite(hd):
-                            break
-                        h = hd
+                h = self.ground_height(name, xy)
             en = sol.image_to_ground(name, xy, h)
             out = {v: tuple(map(float, sol.ground_to_image(v, en, h))) for v in self.views if v != name}
         except (PrismError, ValueError, np.linalg.LinAlgError):

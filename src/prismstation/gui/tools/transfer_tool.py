@@ -3,10 +3,17 @@
 *Automatic transfer* (Tools, checkable, on by default): when a point is placed in one view and is
 measured in no other, it is searched in the other views in a worker
 (:func:`prismstation.ops.transfer.transfer`: along the parallax direction around the model's
-prediction, NCC then least-squares matching). The candidates appear as green circles in those
-views and in the *Point transfer* dock with their NCC score and formal σ (pixels); the status
-bar says the same. Enter (or *Accept*) places them, one undoable step; a click in a view places
-the point there instead (that candidate is dropped); Esc (or *Reject*) drops them all.
+prediction, NCC then least-squares matching). The height searched is the best the
+prediction has (:mod:`prismstation.ops.predict`: the reference DEM, else the mean height) and
+the search covers ±3 σ of it. The candidates appear as green circles in those views — each view
+is driven to its candidate — and in the *Point transfer* dock with their NCC score and σ
+(pixels, calibrated against empirical scatter: :func:`prismstation.core.matching.calibrated_sigma`);
+the status bar says the same. Enter (or *Accept*) places them, one undoable step; a click in a
+view places the point there instead (that candidate is dropped); Esc (or *Reject*) drops them all.
+
+*Transfer this point* (Tools, Ctrl+T): the same search for the current point from a view it is
+measured in (N first) to the views it is not — a point measured before automatic transfer was
+on, or whose transfer was rejected.
 
 *Automatic tie points…*: a grid over the N image transferred to F and B, blunders rejected
 (:func:`prismstation.ops.transfer.auto_tie_points`), added as new tie points in one undoable step.
@@ -99,9 +106,11 @@ class TransferTool:
         self.a_accept = window.add_action("Accept transferred point", self.accept, [QKeySequence(Qt.Key.Key_Return), QKeySequence(Qt.Key.Key_Enter)],
                                     tip="Place the transferred point in the other views")
         self.a_reject = window.add_action("Reject transferred point", self.reject, "Esc")
+        self.a_this = window.add_action("Transfer t&his point", self.transfer_current, "Ctrl+T",
+                                        tip="Search the current point, measured in one view, in the others")
         self.a_ties = window.add_action("Automatic tie &points…", self.choose_ties,
                                   tip="A grid of tie points over the N image, found in F and B")
-        window.tools_menu.addActions([self.a_auto, self.a_accept, self.a_reject])
+        window.tools_menu.addActions([self.a_auto, self.a_this, self.a_accept, self.a_reject])
         window.tools_menu.addSeparator()
         window.tools_menu.addAction(self.a_ties)
         self.panel.accept_button.clicked.connect(self.accept)
@@ -109,6 +118,8 @@ class TransferTool:
         window.views.place_requested.connect(self._on_placed)  # after the window's own place()
         window.files.project_opened.connect(lambda *_: self.reject())
         window.undo_stack.indexChanged.connect(lambda *_: self._prune())
+        window.undo_stack.indexChanged.connect(lambda *_: self._update_this())
+        window.workspace.current_changed.connect(lambda *_: self._update_this())
         self._update()
 
     # ------------------------------------------------------------------ transfer of one point
@@ -120,6 +131,39 @@ class TransferTool:
         if measured == [view] and len(p.scene.views) > 1:
             self.start(pid, view, x, y)
 
+    def transfer_current(self):
+        """Transfer the current point from a view it is measured in (N first) to the views it is
+        not measured in; returns the Job (None when there is nothing to transfer)."""
+        p, pid = self.w.project, self.w.current
+        if p is None or pid is None or pid not in p.points:
+            self.w.status("Transfer: choose a point measured in one view first", 8000)
+            return None
+        measured = [v for v in p.scene.views if p.measurement(pid, v) is not None]
+        if not measured or len(measured) == len(p.scene.views):
+            self.w.status(f"Transfer: {pid} is {'measured in every view' if measured else 'not measured'}", 8000)
+            return None
+        source = "N" if "N" in measured else measured[0]
+        m = p.measurement(pid, source)
+        return self.start(pid, source, m.x, m.y)
+
+    def prior_height(self, sol, source: str, x: float, y: float) -> tuple[float, float]:
+        """``(h, h_range)`` metres searched for a point at ``(x, y)`` of ``source``: the height
+        of its prediction from that one view (the reference DEM, else the mean height) and
+        ±3 σ of it, at least ±50 m (the DEM's σ is measured at GCPs, not at every tree)."""
+        from prismstation.ops.predict import PointInput, predict_point
+        preds = self.w.views.predictions
+        others = [v for v in sol.scene.views if v != source]
+        try:
+            pr = predict_point(sol, PointInput("", "TIE", {source: (x, y, None)}), others[:1],
+                               height_of=self.w.views.height_of, sigma_dem=preds.sigma_dem,
+                               sigma_mean=preds.sigma_mean)
+        except (np.linalg.LinAlgError, ValueError):
+            pr = {}
+        if not pr:
+            return float(sol.mean_height), 600.0
+        p = next(iter(pr.values()))
+        return p.height, max(3.0 * p.sigma_h, 50.0)
+
     def start(self, pid: str, source: str, x: float, y: float):
         """Search ``pid`` at image ``(x, y)`` of ``source`` in the other views (worker); returns the Job."""
         sol = self.w.solver.solution
@@ -128,20 +172,13 @@ class TransferTool:
             return None
         self.reject()
         scene = self.w.project.scene
-        h = None
-        height_of = self.w.views.height_of
-        if height_of is not None:
-            try:
-                hd = float(height_of(sol.image_to_ground(source, np.array([x, y]), sol.mean_height)[None])[0])
-                h = hd if math.isfinite(hd) else None
-            except Exception:  # no DEM height here: the mean height and its range
-                h = None
+        h, h_range = self.prior_height(sol, source, x, y)
 
         def work(progress):
             from prismstation.io.windows import ImageWindows
             from prismstation.ops.transfer import transfer
             with ImageWindows(scene) as im:
-                return transfer(sol, im, source, (x, y), h=h, h_range=150.0 if h is not None else 600.0)
+                return transfer(sol, im, source, (x, y), h=h, h_range=h_range)
 
         self.pid, self.source = pid, source
         job = self.job = Job(work, "Point transfer", self.w)
@@ -162,6 +199,15 @@ class TransferTool:
                  f"σ {t.match.sigma_x:.2f}/{t.match.sigma_y:.2f} px" for v, t in sorted(self.candidates.items())]
         self.w.status(f"{pid} transferred: " + "; ".join(parts) + " — Enter accepts", 20000)
         self._update()
+        self.drive_to_candidates()
+
+    def drive_to_candidates(self) -> None:
+        """Centre each view holding a candidate on it (its zoom kept): the operator sees at
+        once what to accept."""
+        for v, t in self.candidates.items():
+            iv = self.w.views.views.get(v)
+            if iv is not None and math.isfinite(t.x) and math.isfinite(t.y):
+                iv.center_on(t.x, t.y)
 
     def accept(self) -> bool:
         """Place the good candidates (one undoable step); True if anything was placed."""
@@ -192,6 +238,13 @@ class TransferTool:
         self.candidates = {v: t for v, t in self.candidates.items() if p.measurement(self.pid, v) is None}
         self._update()
 
+    def _update_this(self) -> None:
+        """*Transfer this point* is there for a current point measured in some views, not all."""
+        p, pid = self.w.project, self.w.current
+        n = 0 if p is None or pid not in p.points else sum(
+            p.measurement(pid, v) is not None for v in p.scene.views)
+        self.a_this.setEnabled(p is not None and 0 < n < len(p.scene.views))
+
     def _update(self) -> None:
         for vb, item in self._items:
             if shiboken6.isValid(vb) and shiboken6.isValid(item):
@@ -200,6 +253,7 @@ class TransferTool:
         pending = bool(self.candidates)
         self.a_accept.setEnabled(any(t.ok for t in self.candidates.values()))
         self.a_reject.setEnabled(pending)
+        self._update_this()
         self.a_ties.setEnabled(self.w.project is not None and self.w.project.scene.is_triplet)
         self.panel.show_candidates(self.pid if pending else None, self.candidates)
         for v, t in self.candidates.items():

@@ -1,0 +1,72 @@
+"""Transfer in the real window through real input: the candidates drive F and B to themselves,
+*Transfer this point* (Ctrl+T) for a point measured in one view, the prior height from the
+reference DEM, and calibrated σ — against the simulator's truth."""
+from __future__ import annotations
+
+import numpy as np
+from PySide6.QtCore import Qt
+
+from tests.gui.test_operator import click_image
+
+SHIFT = Qt.KeyboardModifier.ShiftModifier
+
+
+def _new_point_in_n(qtbot, window, xy):
+    window.set_current(None)
+    qtbot.keyClick(window, Qt.Key.Key_Insert)            # New point
+    pid = window.current
+    window.views.views["N"].center_on(*xy, 0.5)
+    click_image(qtbot, window, "N", *xy, SHIFT)
+    return pid
+
+
+def test_candidates_drive_the_views_and_carry_a_believable_sigma(qtbot, window, truth):
+    tool = window.tools["transfer"]
+    t = [t for t in truth.values() if t["kind"] == "ICP"][1]
+    for v in "FB":                                       # far from the point
+        window.views.views[v].center_on(50, 50, 0.5)
+    pid = _new_point_in_n(qtbot, window, t["image"]["N"])
+    qtbot.waitUntil(lambda: bool(tool.candidates), timeout=10000)
+    for v, c in tool.candidates.items():
+        assert c.ok
+        cx, cy = window.views.views[v].center()
+        assert np.hypot(cx - c.x, cy - c.y) < 0.5, v     # driven to its candidate
+        err = np.subtract((c.x, c.y), t["image"][v])
+        assert np.hypot(*err) < 0.6
+        m = c.match                                      # σ: calibrated, not the formal 0.01 px
+        assert m.sigma_y >= 0.2 and m.sigma_x >= 0.04 and m.sigma_y > 3 * m.formal_sigma_y
+        assert np.all(np.abs(err) < 4 * np.array([m.sigma_x, m.sigma_y]))
+    assert float(tool.panel.table.item(0, 5).text()) >= 0.2   # the dock shows it
+    assert window.project.measurement(pid, "F") is None
+
+
+def test_transfer_this_point_from_the_menu_key(qtbot, window, truth):
+    tool = window.tools["transfer"]
+    tool.a_auto.setChecked(False)
+    t = [t for t in truth.values() if t["kind"] == "ICP"][2]
+    pid = _new_point_in_n(qtbot, window, t["image"]["N"])
+    qtbot.wait(50)
+    assert not tool.candidates and tool.a_this.isEnabled()
+    assert tool.a_this in window.tools_menu.actions()
+    qtbot.keyClick(window, Qt.Key.Key_T, Qt.KeyboardModifier.ControlModifier)   # Ctrl+T
+    qtbot.waitUntil(lambda: bool(tool.candidates), timeout=10000)
+    assert tool.pid == pid and set(tool.candidates) == {"F", "B"}
+    qtbot.keyClick(window.views.views["N"].graphics, Qt.Key.Key_Return)
+    for v in "FB":
+        m = window.project.measurement(pid, v)
+        assert np.hypot(m.x - t["image"][v][0], m.y - t["image"][v][1]) < 0.6
+    assert not tool.a_this.isEnabled()                   # measured everywhere now
+
+
+def test_prior_height_from_the_reference_dem(qtbot, window, truth, sim):
+    tool = window.tools["transfer"]
+    sol = window.solver.solution
+    t = [t for t in truth.values() if t["kind"] == "TIE"][0]
+    h0, r0 = tool.prior_height(sol, "N", *t["image"]["N"])
+    assert r0 >= 3 * 50.0                                # the mean height: the spread of heights
+    window.load_reference_dem(sim / "srtm.tif", wait=True)
+    qtbot.waitUntil(lambda: window.views.height_of is not None and not window.solver.busy(), timeout=10000)
+    qtbot.wait(20)
+    h, r = tool.prior_height(sol, "N", *t["image"]["N"])
+    assert r < r0 and r == max(3 * window.views.predictions.sigma_dem, 50.0)
+    assert abs(h - t["h"]) < max(3 * window.views.predictions.sigma_dem, 30.0)
