@@ -285,6 +285,8 @@ class MainWindow(QMainWindow):
 
     def _on_project_changed(self, change) -> None:
         self._measured_timer.start()
+        if self.current is not None and self.current not in self.project.points:
+            self.set_current(None)  # undone or deleted: no current point that does not exist
 
     def _on_clean_changed(self, clean: bool) -> None:
         self.setWindowModified(not clean)
