@@ -69,6 +69,11 @@ class TextLabel(QWidget):
     def minimumSizeHint(self) -> QSize:
         return QSize(0, self._hint.height())
 
+    def shown_text(self) -> str:
+        """The text as painted: elided ("…") when it is wider than the label."""
+        r = self.rect().adjusted(self.PAD_X, 0, -self.PAD_X, 0)
+        return self.fontMetrics().elidedText(self._text, Qt.TextElideMode.ElideRight, r.width())
+
     def paintEvent(self, event) -> None:
         p = QPainter(self)
         p.fillRect(self.rect(), self._background if self._background is not None
@@ -76,6 +81,5 @@ class TextLabel(QWidget):
         if self._color is not None:
             p.setPen(self._color)
         r = self.rect().adjusted(self.PAD_X, 0, -self.PAD_X, 0)
-        p.drawText(r, int(self._align),
-                   self.fontMetrics().elidedText(self._text, Qt.TextElideMode.ElideRight, r.width()))
+        p.drawText(r, int(self._align), self.shown_text())
         p.end()
