@@ -66,7 +66,7 @@ class MeasureMode(QObject):
             self.group.addAction(a)
             window.addAction(a)
             self.actions[key] = a
-        self.label = TextLabel("", "Mode: measure W00000")
+        self.label = TextLabel("", "Mode: measure (no point)")  # longer ids are elided
         window.statusBar().insertPermanentWidget(0, self.label)
         self._cursors = {"create": _create_cursor(), "measure": QCursor(Qt.CursorShape.CrossCursor),
                          "navigate": QCursor(Qt.CursorShape.OpenHandCursor)}

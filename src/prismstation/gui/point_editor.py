@@ -100,7 +100,7 @@ class PointEditor:
         self.a_paste = QAction("&Paste points", table)
         self.a_paste.setShortcuts(QKeySequence.StandardKey.Paste)
         self.a_paste.setShortcutContext(Qt.ShortcutContext.WidgetWithChildrenShortcut)
-        self.a_paste.triggered.connect(self.paste)
+        self.a_paste.triggered.connect(lambda: self.paste())  # (not the "checked" flag as text)
         table.addAction(self.a_paste)
         self.a_new_gcp = QAction("New point from &coordinates…", window)
         self.a_new_gcp.setShortcut(QKeySequence("Ctrl+Shift+N"))
@@ -124,11 +124,12 @@ class PointEditor:
             if _same(new, p.points[pid]):
                 return False
             what = f"Rename {pid} → {new.id}" if new.id != pid else f"{pid}: {column.split(' (')[0]}"
+            was_current = self.w.current == pid
             self.w.undo_stack.push(cmd.EditPoint(p, pid, new, what))
         except PrismError as exc:
             self._message(str(exc))
             return False
-        if new.id != pid and self.w.current == pid:
+        if new.id != pid and was_current:
             self.w.set_current(new.id, drive=False)
         return True
 
