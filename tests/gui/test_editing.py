@@ -369,3 +369,18 @@ def test_new_gcp_by_coordinates_then_measured(qtbot, window):
     settle(qtbot, win)
     assert win.table_model.cell("K1", "Views") == "N F B"
     assert win.solver.solution.point("K1").residual_px
+
+
+def test_edits_typed_in_the_table_are_saved_and_reopened(qtbot, window):
+    win = window
+    type_into_cell(qtbot, win, "I3", "σ h (m)", "0.75")
+    type_into_cell(qtbot, win, "I3", "N (m)", "4560123.456")
+    type_into_cell(qtbot, win, "I3", "ID", "I3b")
+    key(qtbot, win, "Ctrl+S")
+    assert win.undo_stack.isClean()
+    assert win.open_project(win.demo.path, recover=False)
+    settle(qtbot, win)
+    p = win.project
+    assert "I3" not in p.points and p.points["I3b"].sigma_h_m == 0.75 and p.points["I3b"].N == 4560123.456
+    assert {v for (pid, v) in p.measurements if pid == "I3b"} == {"N", "F", "B"}
+    assert win.table_model.cell("I3b", "σ h (m)") == "0.750"

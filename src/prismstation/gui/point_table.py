@@ -321,9 +321,11 @@ class PointTableView(QTableView):
         if self.current_id() != pid or not sm.isSelected(idx):
             sm.select(idx, sm.SelectionFlag.ClearAndSelect | sm.SelectionFlag.Rows)
             sm.setCurrentIndex(idx, sm.SelectionFlag.NoUpdate)
-        # to the row only: a scroll back to the first column would move the cell being
-        # double-clicked (to edit it) away from under the mouse
-        self.scrollTo(self.source_model.index(r, max(self.horizontalHeader().logicalIndexAt(0), 0)))
+        # to the row only: a sideways scroll would move the cell being double-clicked (to
+        # edit it) away from under the mouse
+        x = self.horizontalScrollBar().value()
+        self.scrollTo(idx)
+        self.horizontalScrollBar().setValue(x)
 
     def ordered_ids(self) -> list[str]:
         """Ids in the order shown (after sorting)."""
