@@ -267,6 +267,8 @@ def test_typing_coordinates_sigma_kind_and_id_in_the_table(qtbot, window):
     # refused, with the reason in the status bar; nothing changes
     type_into_cell(qtbot, win, "G9", "Kind", "XYZ")
     assert p.points["G9"].kind == "ICP" and "XYZ" in win.statusBar().currentMessage()
+    from PySide6.QtWidgets import QToolTip
+    qtbot.waitUntil(lambda: QToolTip.isVisible() and "XYZ" in QToolTip.text(), timeout=2000)  # beside the cell
     type_into_cell(qtbot, win, "G2", "H (m)", "")
     assert "needs E, N and H" in win.statusBar().currentMessage()
     type_into_cell(qtbot, win, "G2", "E (m)", "abc")

@@ -21,10 +21,10 @@ import re
 from collections import Counter
 from dataclasses import replace
 
-from PySide6.QtCore import Qt
+from PySide6.QtCore import Qt, QTimer
 from PySide6.QtGui import QAction, QGuiApplication, QKeySequence
 from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QFormLayout, QLineEdit,
-                               QMessageBox)
+                               QMessageBox, QToolTip)
 
 from prismstation.errors import InputError, PrismError
 from prismstation.gui import commands as cmd
@@ -110,7 +110,13 @@ class PointEditor:
         window.edit_menu.insertAction(window.a_del_point, self.a_new_gcp)
 
     def _message(self, text: str) -> None:
+        """Say why an edit was refused: in the status bar, and beside the table's current cell
+        (a narrow window leaves the status bar little room for messages)."""
         self.w.statusBar().showMessage(text, 10000)
+        t = self.w.table
+        if t.isVisible():  # once the cell's editor has closed (closing it hides tooltips)
+            QTimer.singleShot(0, t, lambda: QToolTip.showText(
+                t.viewport().mapToGlobal(t.visualRect(t.currentIndex()).bottomLeft()), text, t.viewport()))
 
     # ------------------------------------------------------------------ one cell
     def edit(self, pid: str, column: str, text: str) -> bool:
