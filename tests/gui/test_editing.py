@@ -247,10 +247,30 @@ def type_into_cell(qtbot, win, pid, column, text):
     qtbot.wait(10)
 
 
+def choose_kind(qtbot, win, pid, kind):
+    """Double-click the Kind cell, choose ``kind`` in its list by keyboard, Enter."""
+    from PySide6.QtWidgets import QApplication, QComboBox
+    from prismstation.gui.point_table import COLUMNS
+    t, m = win.table, win.table_model
+    idx = m.index(m.row_of(pid), COLUMNS.index("Kind"))
+    t.scrollTo(idx)
+    pos = t.visualRect(idx).center()
+    qtbot.mouseClick(t.viewport(), Qt.MouseButton.LeftButton, pos=pos)
+    qtbot.mouseDClick(t.viewport(), Qt.MouseButton.LeftButton, pos=pos)
+    box = QApplication.focusWidget()
+    assert isinstance(box, QComboBox), box
+    qtbot.keyClicks(box, kind[0])                # the first letter picks the item
+    assert box.currentText() == kind
+    qtbot.keyClick(box, Qt.Key.Key_Return)
+    qtbot.wait(10)
+
+
 def test_typing_coordinates_sigma_kind_and_id_in_the_table(qtbot, window):
     win = window
     p, m = win.project, win.table_model
     g9 = p.points["G9"]
+    key(qtbot, win, "Insert")
+    tie = win.current
     n0 = win.undo_stack.count()
     type_into_cell(qtbot, win, "G9", "E (m)", f"{g9.E + 12.5:.3f}")
     assert p.points["G9"].E == round(g9.E + 12.5, 3) and p.points["G9"].N == g9.N
@@ -260,15 +280,15 @@ def test_typing_coordinates_sigma_kind_and_id_in_the_table(qtbot, window):
     assert (p.points["G9"].sigma_xy_m, p.points["G9"].sigma_h_m) == (0.25, 0.4)
     settle(qtbot, win)
     assert m.cell("G9", "σ plan (m)") == "0.250" and m.cell("G9", "E (m)") == f"{g9.E + 12.5:.3f}"
-    type_into_cell(qtbot, win, "G9", "Kind", "icp")
+    choose_kind(qtbot, win, "G9", "ICP")
     assert p.points["G9"].kind == "ICP"
     assert win.undo_stack.count() == n0 + 4                      # one step per edit
 
     # refused, with the reason in the status bar; nothing changes
-    type_into_cell(qtbot, win, "G9", "Kind", "XYZ")
-    assert p.points["G9"].kind == "ICP" and "XYZ" in win.statusBar().currentMessage()
+    choose_kind(qtbot, win, tie, "GCP")          # a tie point without coordinates
+    assert "needs E, N and H" in win.statusBar().currentMessage()
     from PySide6.QtWidgets import QToolTip
-    qtbot.waitUntil(lambda: QToolTip.isVisible() and "XYZ" in QToolTip.text(), timeout=2000)  # beside the cell
+    qtbot.waitUntil(lambda: QToolTip.isVisible() and "needs E, N" in QToolTip.text(), timeout=2000)  # beside the cell
     type_into_cell(qtbot, win, "G2", "H (m)", "")
     assert "needs E, N and H" in win.statusBar().currentMessage()
     type_into_cell(qtbot, win, "G2", "E (m)", "abc")

@@ -24,7 +24,7 @@ from dataclasses import replace
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtGui import QAction, QGuiApplication, QKeySequence
 from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QFormLayout, QLineEdit,
-                               QMessageBox, QToolTip)
+                               QMessageBox, QStyledItemDelegate, QToolTip)
 
 from prismstation.errors import InputError, PrismError
 from prismstation.gui import commands as cmd
@@ -97,6 +97,8 @@ class PointEditor:
         window.table_model.edit_handler = self.edit
         table = window.table
         table.setEditTriggers(table.EditTrigger.DoubleClicked | table.EditTrigger.EditKeyPressed)
+        self.kind_delegate = KindDelegate(table)
+        table.setItemDelegateForColumn(COLUMNS.index("Kind"), self.kind_delegate)
         self.a_paste = QAction("&Paste points", table)
         self.a_paste.setShortcuts(QKeySequence.StandardKey.Paste)
         self.a_paste.setShortcutContext(Qt.ShortcutContext.WidgetWithChildrenShortcut)
@@ -244,6 +246,21 @@ class PointEditor:
             self._message(f"{point.id}: click it in each view (the hollow marker is where the model puts it)")
             return point
         return None
+
+
+class KindDelegate(QStyledItemDelegate):
+    """The Kind cell's editor: a list of GCP, ICP, TIE (the letter keys choose, Enter sets)."""
+
+    def createEditor(self, parent, option, index):
+        box = QComboBox(parent)
+        box.addItems(list(KINDS))
+        return box
+
+    def setEditorData(self, editor, index):
+        editor.setCurrentText(index.data())
+
+    def setModelData(self, editor, model, index):
+        model.setData(index, editor.currentText())
 
 
 class NewPointDialog(QDialog):
