@@ -406,3 +406,19 @@ def test_edits_typed_in_the_table_are_saved_and_reopened(qtbot, window):
     assert "I3" not in p.points and p.points["I3b"].sigma_h_m == 0.75 and p.points["I3b"].N == 4560123.456
     assert {v for (pid, v) in p.measurements if pid == "I3b"} == {"N", "F", "B"}
     assert win.table_model.cell("I3b", "σ h (m)") == "0.750"
+
+
+def test_enter_in_a_cell_commits_the_edit_even_with_a_transfer_pending(qtbot, window):
+    """Enter and Esc are window shortcuts while a transfer waits (accept, reject): in a cell
+    being edited they commit or cancel the edit, and leave the transfer alone."""
+    win = window
+    tool = win.tools["transfer"]
+    tool.a_accept.setEnabled(True)            # as when candidates are shown
+    tool.a_reject.setEnabled(True)
+    fired = []
+    tool.a_accept.triggered.connect(lambda *_: fired.append("accept"))
+    tool.a_reject.triggered.connect(lambda *_: fired.append("reject"))
+    type_into_cell(qtbot, win, "I2", "σ plan (m)", "0.3")
+    assert win.project.points["I2"].sigma_xy_m == 0.3 and fired == []
+    choose_kind(qtbot, win, "I2", "GCP")
+    assert win.project.points["I2"].kind == "GCP" and fired == []

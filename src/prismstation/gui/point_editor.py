@@ -21,7 +21,7 @@ import re
 from collections import Counter
 from dataclasses import replace
 
-from PySide6.QtCore import Qt, QTimer
+from PySide6.QtCore import QEvent, Qt, QTimer
 from PySide6.QtGui import QAction, QGuiApplication, QKeySequence
 from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QFormLayout, QLineEdit,
                                QMessageBox, QStyledItemDelegate, QToolTip)
@@ -97,6 +97,8 @@ class PointEditor:
         window.table_model.edit_handler = self.edit
         table = window.table
         table.setEditTriggers(table.EditTrigger.DoubleClicked | table.EditTrigger.EditKeyPressed)
+        self.cell_delegate = CellDelegate(table)
+        table.setItemDelegate(self.cell_delegate)
         self.kind_delegate = KindDelegate(table)
         table.setItemDelegateForColumn(COLUMNS.index("Kind"), self.kind_delegate)
         self.a_paste = QAction("&Paste points", table)
@@ -248,7 +250,21 @@ class PointEditor:
         return None
 
 
-class KindDelegate(QStyledItemDelegate):
+class CellDelegate(QStyledItemDelegate):
+    """The table's cell editors keep Enter, Esc and Tab for themselves: the window has
+    shortcuts on those keys (accepting a point transfer, rejecting it) that would otherwise
+    take them while a cell is being edited."""
+
+    KEYS = (Qt.Key.Key_Return, Qt.Key.Key_Enter, Qt.Key.Key_Escape, Qt.Key.Key_Tab)
+
+    def eventFilter(self, editor, event):
+        if event.type() == QEvent.Type.ShortcutOverride and event.key() in self.KEYS:
+            event.accept()  # delivered to the editor as a key press, not to a shortcut
+            return True
+        return super().eventFilter(editor, event)
+
+
+class KindDelegate(CellDelegate):
     """The Kind cell's editor: a list of GCP, ICP, TIE (the letter keys choose, Enter sets)."""
 
     def createEditor(self, parent, option, index):
