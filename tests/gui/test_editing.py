@@ -398,6 +398,8 @@ def test_edits_typed_in_the_table_are_saved_and_reopened(qtbot, window):
     type_into_cell(qtbot, win, "I3", "σ h (m)", "0.75")
     type_into_cell(qtbot, win, "I3", "N (m)", "4560123.456")
     type_into_cell(qtbot, win, "I3", "ID", "I3b")
+    type_into_cell(qtbot, win, "I2", "ID", "CMV2")         # the mode keys go into the cell
+    assert "CMV2" in win.project.points and win.measure_mode.mode == "measure"
     key(qtbot, win, "Ctrl+S")
     assert win.undo_stack.isClean()
     assert win.open_project(win.demo.path, recover=False)

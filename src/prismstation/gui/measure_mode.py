@@ -72,6 +72,7 @@ class MeasureMode(QObject):
                          "navigate": QCursor(Qt.CursorShape.OpenHandCursor)}
         self._install_in_menus()
         window.workspace.current_changed.connect(lambda *_: self._show())
+        window.workspace.project_changed.connect(lambda *_: self._show())  # (no current point)
         window.views.images_loaded.connect(self._apply_to_views)
         window.a_new_point.triggered.connect(lambda: self.set_mode("measure"))
         self.set_mode("measure")
