@@ -174,6 +174,8 @@ def test_a_click_with_no_current_point_creates_nothing(qtbot, window):
     assert len(win.project.points) == n_points and win.undo_stack.count() == n_steps
     assert win.current is None
     assert "No current point" in win.statusBar().currentMessage()
+    from PySide6.QtWidgets import QToolTip
+    qtbot.waitUntil(lambda: QToolTip.isVisible() and "press C" in QToolTip.text(), timeout=2000)  # at the click
     assert win.tools["transfer"].pid is None          # no transfer started either
     assert win.measure_mode.label.text() == "Mode: measure (no point)"
 

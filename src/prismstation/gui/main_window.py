@@ -354,7 +354,7 @@ class MainWindow(QMainWindow):
     def place(self, view: str, x: float, y: float) -> None:
         if self.project is None:
             return
-        pid = self.measure_mode.target()  # None: this mode places nothing (it says why)
+        pid = self.measure_mode.target(view, x, y)  # None: this mode places nothing (it says why)
         if pid is None:
             return
         c = cmd.PlaceMeasurement(self.project, pid, view, x, y)

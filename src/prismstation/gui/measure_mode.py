@@ -14,9 +14,9 @@ and in the checked button of the toolbar.
 """
 from __future__ import annotations
 
-from PySide6.QtCore import QObject, QPointF, Qt, Signal
+from PySide6.QtCore import QObject, QPointF, Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QActionGroup, QColor, QCursor, QKeySequence, QPainter, QPen, QPixmap
-from PySide6.QtWidgets import QToolBar
+from PySide6.QtWidgets import QToolBar, QToolTip
 
 from prismstation.gui.text_label import TextLabel
 
@@ -114,18 +114,23 @@ class MeasureMode(QObject):
         """The cursor shown over the images in this mode."""
         return self._cursors[self.mode]
 
-    def target(self) -> str | None:
-        """The point a click on an image places: a new tie point id (Create, which then turns to
-        Measure), the current point (Measure), or None (Navigate, or no current point: the
-        status bar says what to do)."""
+    def target(self, view: str | None = None, x: float = 0.0, y: float = 0.0) -> str | None:
+        """The point a click at image ``(x, y)`` of ``view`` places: a new tie point id (Create,
+        which then turns to Measure), the current point (Measure), or None (Navigate, or no
+        current point: the status bar and a tip at the click say what to do)."""
         p, cur = self.w.project, self.w.current
         if p is None or self.mode == "navigate":
             return None
         if self.mode == "create":
             return p.new_point_id("T")
         if cur is None or cur not in p.points:
-            self.w.statusBar().showMessage(
-                "No current point: pick one (a marker, the table, PgDown) or press C to create one", 8000)
+            text = "No current point: pick one (a marker, the table, PgDown) or press C to create one"
+            self.w.statusBar().showMessage(text, 8000)
+            iv = self.w.views.views.get(view)
+            if iv is not None:
+                vp = iv.graphics.viewport()  # after the click's own events, which hide tips
+                at = vp.mapToGlobal(iv.map_to_viewport(x, y).toPoint())
+                QTimer.singleShot(0, vp, lambda: QToolTip.showText(at, text, vp))
             return None
         return cur
 
