@@ -29,7 +29,7 @@ def project(qapp):
 def test_place_new_id_creates_a_tie_point_and_undo_removes_it(project):
     stack = QUndoStack()
     before = state(project)
-    c = cmd.place_command(project, None, "B", 5.0, 6.0)
+    c = cmd.PlaceMeasurement(project, project.new_point_id("T"), "B", 5.0, 6.0)
     stack.push(c)
     assert project.points[c.pid].kind == "TIE" and math.isnan(project.points[c.pid].E)
     assert project.measurement(c.pid, "B") == Measurement(c.pid, "B", 5.0, 6.0)

@@ -143,6 +143,7 @@ def test_reopen_and_close_flush_the_journal(files, qtbot, monkeypatch):
 def test_the_window_shows_a_journal_write_error(window, qtbot, monkeypatch):
     monkeypatch.setattr(rec, "write_atomic", SlowDisk(fail=OSError(30, "Read-only file system")))
     win = window
+    win.measure_mode.set_mode("create")
     win.place("N", 150.0, 250.0)
     assert win.files.flush_journal(timeout=10)
     qtbot.waitUntil(lambda: "Recovery journal not written" in win.statusBar().currentMessage(),

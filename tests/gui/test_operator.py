@@ -102,9 +102,10 @@ def test_measure_a_gcp_by_clicks_undo_redo_save_reopen(qtbot, window):
     assert [model.cell(pid, c) for pid in model.ids for c in ("Views", "vx (px)", "h est (m)")] == table_before
 
 
-def test_click_without_selection_creates_a_tie_point_and_drag_moves_it(qtbot, window):
+def test_click_in_create_mode_creates_a_tie_point_and_drag_moves_it(qtbot, window):
     win = window
     win.set_current(None)
+    key(qtbot, win, "C")
     n0 = len(win.project.points)
     iv = win.views.views["N"]
     iv.set_scale(1.0)
@@ -262,6 +263,7 @@ def test_blunder_is_highlighted(qtbot, window):
 def test_autosave_and_recovery(qtbot, window, demo):
     from prismstation.gui.project_io import autosave_path
     win = window
+    key(qtbot, win, "C")                          # create mode: the click makes a tie point
     click_image(qtbot, win, "N", 200.0, 200.0, Qt.KeyboardModifier.ShiftModifier)
     pid = win.current
     assert win.files.autosave()
@@ -331,6 +333,7 @@ def test_unsaved_changes_prompt_and_relocated_images(qtbot, window, demo, tmp_pa
     from PySide6.QtWidgets import QMessageBox
     B = QMessageBox.StandardButton
     win = window
+    win.measure_mode.set_mode("create")
     win.place("N", 300.0, 300.0)
     assert win.isWindowModified()
     answers = []
@@ -414,6 +417,7 @@ def test_untitled_project_autosave_is_recovered(qtbot, window, demo):
     from prismstation.gui.project_io import autosave_path
     win = window
     assert win.files.new_project(str(demo.scene_path), )
+    win.measure_mode.set_mode("create")
     win.place("N", 111.0, 222.0)
     pid = win.current
     assert win.files.autosave() and autosave_path(None).is_file()

@@ -62,7 +62,7 @@ def test_the_table_paints_selection_blunder_and_text(qtbot, window):
     row in the blunder colour, alternate rows shaded, and text in the cells (dark pixels)."""
     from PySide6.QtGui import QPalette
 
-    from prismstation.gui.point_table import BLUNDER_BG
+    from prismstation.gui.point_table import BLUNDER, BLUNDER_BG
     win = window
     m = win.table_model
     win.set_current("G1", drive=False)
@@ -70,7 +70,7 @@ def test_the_table_paints_selection_blunder_and_text(qtbot, window):
     blunder = "G2"
     r_bl = m.row_of(blunder)
     row = list(m._rows[r_bl])
-    row[11] = True
+    row[BLUNDER] = True
     m._rows[r_bl] = tuple(row)  # as if the fit had flagged it
     t = win.table
     t.viewport().update()

@@ -19,6 +19,7 @@ def test_placed_point_is_transferred_and_accepted(qtbot, window, truth):
     pid0 = next(k for k, t in truth.items() if t["kind"] == "ICP")
     xy_true = truth[pid0]["image"]
     window.set_current(None)
+    window.measure_mode.set_mode("create")  # a click makes a new tie point
     window.views.place_requested.emit("N", *xy_true["N"])
     pid = window.current
     assert pid is not None and pid != pid0 and p.measurement(pid, "F") is None
@@ -49,6 +50,7 @@ def test_correcting_by_click_and_switching_off(qtbot, window, truth):
     tool = window.tools["transfer"]
     t = next(t for t in truth.values() if t["kind"] == "ICP")
     window.set_current(None)
+    window.measure_mode.set_mode("create")  # a click makes a new tie point
     window.views.place_requested.emit("N", *t["image"]["N"])
     pid = window.current
     qtbot.waitUntil(lambda: bool(tool.candidates), timeout=10000)
@@ -59,6 +61,7 @@ def test_correcting_by_click_and_switching_off(qtbot, window, truth):
     assert not tool.candidates
     tool.a_auto.setChecked(False)
     window.set_current(None)
+    window.measure_mode.set_mode("create")  # a click makes a new tie point
     window.views.place_requested.emit("N", *t["image"]["N"])
     qtbot.wait(300)
     assert not tool.candidates and (tool.job is None or not tool.job.isRunning())
@@ -136,6 +139,7 @@ def test_tools_menu_and_closing_during_a_search(qtbot, window, truth):
         assert t in texts
     t = next(t for t in truth.values() if t["kind"] == "ICP")
     window.set_current(None)
+    window.measure_mode.set_mode("create")  # a click makes a new tie point
     window.views.place_requested.emit("N", *t["image"]["N"])
     job = window.tools["transfer"].job
     window.files.maybe_save = lambda *a, **k: True

@@ -50,6 +50,7 @@ def step():
         x, y = rng.uniform(5, 395), rng.uniform(5, 395)
         fh.write(f"I P {pid} {view} {x!r} {y!r}\n")
         win.set_current(None)
+        win.measure_mode.set_mode("create")
         win.place(view, x, y)
         assert win.current == pid
         alive.append(pid)

@@ -173,8 +173,36 @@ class Import(QUndoCommand):
                     p.replace_point(old)
 
 
-def place_command(project, current: str | None, view: str, x: float, y: float) -> PlaceMeasurement:
-    """The command for a click at ``(x, y)`` in ``view``: places the current point there, or
-    creates a new tie point when none is current."""
-    pid = current if current is not None and current in project.points else project.new_point_id("T")
-    return PlaceMeasurement(project, pid, view, x, y)
+class EditPoint(QUndoCommand):
+    """Replace point ``pid`` by ``point``: its ground data (E, N, H in metres, height kind,
+    σ plan and height in metres), its kind, and — when ``point.id`` differs — its id, which its
+    measurements follow. Raises InputError at construction when the result is not valid (a
+    taken or empty id, a GCP or ICP without all three coordinates)."""
+
+    def __init__(self, project, pid: str, point: GroundPoint, text: str | None = None):
+        from prismstation.errors import InputError
+        from prismstation.model.project import has_ground
+        super().__init__(text or f"Edit {pid}")
+        if not point.id.strip():
+            raise InputError("a point id cannot be empty")
+        if point.id != pid and point.id in project.points:
+            raise InputError(f"point {point.id!r} already exists")
+        if point.kind != "TIE" and not has_ground(point):
+            raise InputError(f"{point.kind} {pid} needs E, N and H: make it a tie point first")
+        self.project, self.pid, self.new = project, pid, point
+        self.old = project.points[pid]
+
+    def _swap(self, old_id: str, point: GroundPoint) -> None:
+        p = self.project
+        if point.id == old_id:
+            p.replace_point(point)
+            return
+        with p.batch():  # a rename: the point and its measurements under the new id, one change
+            _, ms = p.remove_point(old_id)
+            p.load([point], [Measurement(point.id, m.view, m.x, m.y, m.sigma_px) for m in ms])
+
+    def redo(self) -> None:
+        self._swap(self.pid, self.new)
+
+    def undo(self) -> None:
+        self._swap(self.new.id, self.old)

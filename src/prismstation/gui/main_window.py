@@ -21,8 +21,10 @@ from prismstation.gui import settings as st
 from prismstation.gui.contrast import ContrastPanel
 from prismstation.gui.linked_nav import LinkedNavigation
 from prismstation.gui.loupe import Loupe
+from prismstation.gui.measure_mode import MeasureMode
 from prismstation.gui.model_panel import ModelPanel
 from prismstation.gui.plots import PlotsWidget
+from prismstation.gui.point_editor import PointEditor
 from prismstation.gui.point_table import PointTableModel, PointTableView
 from prismstation.gui.text_label import TextLabel
 from prismstation.gui.views import TripletViews
@@ -66,6 +68,8 @@ class MainWindow(QMainWindow):
         self._menus()
         self._toolbar()
         self._connect()
+        self.measure_mode = MeasureMode(self)
+        self.point_editor = PointEditor(self)
         self.tool_context = install_tools(self)
         self.tools = self.tool_context.tools
         if interactive:
@@ -93,8 +97,8 @@ class MainWindow(QMainWindow):
             lab = TextLabel(text, widest)
             sb.addPermanentWidget(lab)
             return lab
-        for v in ("N", "F", "B"):
-            self.status_xy[v] = label(f"{v}  —", f"{v}  x 00000.0  y 00000.0")
+        for v in ("N", "F", "B"):  # up to 99,999 px, and negative off the image's top-left
+            self.status_xy[v] = label(f"{v}  —", f"{v}  x -00000.0  y -00000.0")
         self.status_ground = label("E —  N —  h —", "E 0000000.0  N 00000000.0  h -0000.0 m")
         self.status_fit = label("", "fit 0000 ms · σ0 000.000")
 
@@ -175,6 +179,7 @@ class MainWindow(QMainWindow):
         m.addActions([self.a_undo, self.a_redo])
         m.addSeparator()
         m.addActions([self.a_new_point, self.a_del_point, self.a_del_meas])
+        self.edit_menu = m
         m.addSeparator()
         m.addActions(list(self.a_kind.values()))
         m = mb.addMenu("&View")
@@ -290,6 +295,8 @@ class MainWindow(QMainWindow):
 
     def _on_project_changed(self, change) -> None:
         self._measured_timer.start()
+        if self.current is not None and self.current not in self.project.points:
+            self.set_current(None)  # undone or deleted: no current point that does not exist
 
     def _on_clean_changed(self, clean: bool) -> None:
         self.setWindowModified(not clean)
@@ -352,10 +359,14 @@ class MainWindow(QMainWindow):
     def place(self, view: str, x: float, y: float) -> None:
         if self.project is None:
             return
-        c = cmd.place_command(self.project, self.current, view, x, y)
+        pid = self.measure_mode.target(view, x, y)  # None: this mode places nothing (it says why)
+        if pid is None:
+            return
+        c = cmd.PlaceMeasurement(self.project, pid, view, x, y)
         self.undo_stack.push(c)
         if c.pid != self.current:
             self.set_current(c.pid, drive=False)
+        self.measure_mode.placed(c.pid)
 
     def move(self, pid: str, view: str, x: float, y: float, finished: bool) -> None:
         if self.project is not None and pid in self.project.points:
@@ -438,7 +449,7 @@ class MainWindow(QMainWindow):
         pos[view] = (x, y)
         for v, lab in self.status_xy.items():
             xy = pos.get(v)
-            lab.setText(f"{v}  x {xy[0]:8.1f}  y {xy[1]:8.1f}" if xy is not None else f"{v}  —")
+            lab.setText(f"{v}  x {xy[0]:.1f}  y {xy[1]:.1f}" if xy is not None else f"{v}  —")
             if v != view and xy is not None and v in self.loupes:
                 self.loupes[v].set_position(*xy)
         if ground is not None:

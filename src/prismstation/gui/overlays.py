@@ -58,6 +58,12 @@ class Markers(pg.ScatterPlotItem):
 
     _br_key = None
 
+    def clear(self) -> None:
+        """Remove every spot, and repaint where they were: pyqtgraph's ``clear`` only repaints
+        the new (empty) bounds, which left ghost markers on screen until the view moved."""
+        self.prepareGeometryChange()
+        super().clear()
+
     def boundingRect(self) -> QRectF:
         key = self._br_key
         if key is None or key[0] is not self.bounds or key[1] != self._maxSpotPxWidth:

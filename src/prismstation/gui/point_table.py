@@ -20,7 +20,10 @@ from prismstation.core.scene import reference_view
 from prismstation.gui.overlays import KIND_COLORS
 
 COLUMNS = ("ID", "Kind", "Views", "vx (px)", "vy (px)", "|v| max (px)", "E est (m)", "N est (m)",
-           "h est (m)", "dh (m)", "std. res.")
+           "h est (m)", "dh (m)", "std. res.", "E (m)", "N (m)", "H (m)", "σ plan (m)", "σ h (m)")
+EDITABLE = ("ID", "Kind", "E (m)", "N (m)", "H (m)", "σ plan (m)", "σ h (m)")
+"""Columns the operator types into (the known ground data of the point)."""
+BLUNDER = len(COLUMNS)  # index of the blunder flag in a row, after the columns' values
 BLUNDER_BG = QColor(255, 190, 190)
 TOLERANCE_BG = QColor(255, 235, 180)
 
@@ -30,11 +33,12 @@ _ODD_BRUSH = QBrush(QColor(245, 245, 245))  # alternate rows (the view's own cos
 _KIND_BRUSHES = {k: QBrush(c.darker(140)) for k, c in KIND_COLORS.items()}
 _RIGHT = int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
 _LEFT = int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter)
-_DISPLAY, _BACKGROUND, _FOREGROUND, _ALIGN, _TOOLTIP, _SORT = (
+_DISPLAY, _BACKGROUND, _FOREGROUND, _ALIGN, _TOOLTIP, _SORT, _EDIT = (
     int(r) for r in (Qt.ItemDataRole.DisplayRole, Qt.ItemDataRole.BackgroundRole,
                      Qt.ItemDataRole.ForegroundRole, Qt.ItemDataRole.TextAlignmentRole,
-                     Qt.ItemDataRole.ToolTipRole, Qt.ItemDataRole.UserRole))
-_DIGITS = (None, None, None, 3, 3, 3, 2, 2, 2, 2, 2)
+                     Qt.ItemDataRole.ToolTipRole, Qt.ItemDataRole.UserRole,
+                     Qt.ItemDataRole.EditRole))
+_DIGITS = (None, None, None, 3, 3, 3, 2, 2, 2, 2, 2, 3, 3, 3, 3, 3)
 
 
 _SPECS = tuple(None if d is None else f".{d}f" for d in _DIGITS)
@@ -66,6 +70,7 @@ class PointTableModel(QAbstractTableModel):
         self._rows: list[tuple] = []
         self._text: list[list] = []
         self._sort = (-1, Qt.SortOrder.AscendingOrder)
+        self.edit_handler = None  # callable(pid, column, text): set by the point editor
 
     def set_project(self, project) -> None:
         self.project, self.solution = project, None
@@ -157,7 +162,8 @@ class PointTableModel(QAbstractTableModel):
                 if r.ground_residual is not None:
                     dh = r.ground_residual[2]
                 sr, blunder = r.std_residual, r.blunder
-            rows.append((pid, pt.kind, vs, vx, vy, vmax, e, n, h, dh, sr, blunder))
+            rows.append((pid, pt.kind, vs, vx, vy, vmax, e, n, h, dh, sr,
+                         pt.E, pt.N, pt.H, pt.sigma_xy_m, pt.sigma_h_m, blunder))
         return rows
 
     # ------------------------------------------------------------------ Qt model
@@ -181,15 +187,32 @@ class PointTableModel(QAbstractTableModel):
         row = self._rows[r]
         if role == _SORT:
             return _sort_key(row, c)
+        if role == _EDIT:
+            return self._text[r][c] if COLUMNS[c] in EDITABLE else None
         if role == _BACKGROUND:
-            return _BLUNDER_BRUSH if row[11] else _ODD_BRUSH if r % 2 else None
+            return _BLUNDER_BRUSH if row[BLUNDER] else _ODD_BRUSH if r % 2 else None
         if role == _FOREGROUND and c == 1:
             return _KIND_BRUSHES.get(row[1])
         if role == _ALIGN and c > 2:
             return _RIGHT
-        if role == _TOOLTIP and row[11]:
+        if role == _TOOLTIP and row[BLUNDER]:
             return f"{row[0]}: standardised residual {_fmt(row[10])} above the blunder threshold"
         return None
+
+    def flags(self, index):
+        f = super().flags(index)
+        if index.isValid() and COLUMNS[index.column()] in EDITABLE:
+            f |= Qt.ItemFlag.ItemIsEditable
+        return f
+
+    def setData(self, index, value, role=Qt.ItemDataRole.EditRole) -> bool:
+        """A cell typed into: handed to :attr:`edit_handler` ``(pid, column name, text)``,
+        which edits the project through an undoable command (the refresh that follows shows
+        it). Returns False: the model itself never changes a value."""
+        if (role == _EDIT and index.isValid() and self.edit_handler is not None
+                and COLUMNS[index.column()] in EDITABLE):
+            self.edit_handler(self.ids[index.row()], COLUMNS[index.column()], str(value))
+        return False
 
     def row_of(self, pid: str) -> int:
         return self._row_of.get(pid, -1)
@@ -201,7 +224,7 @@ class PointTableModel(QAbstractTableModel):
 
     def is_blunder(self, pid: str) -> bool:
         r = self.row_of(pid)
-        return r >= 0 and bool(self._rows[r][11])
+        return r >= 0 and bool(self._rows[r][BLUNDER])
 
 
 class PointTableView(QTableView):
@@ -257,8 +280,8 @@ class PointTableView(QTableView):
             row, texts, chosen = m._rows[r], m._text[r], r in selected
             if chosen:
                 p.fillRect(0, y, right, h, pal.highlight())
-            elif row[11] or r % 2:
-                p.fillRect(0, y, right, h, _BLUNDER_BRUSH if row[11] else _ODD_BRUSH)
+            elif row[BLUNDER] or r % 2:
+                p.fillRect(0, y, right, h, _BLUNDER_BRUSH if row[BLUNDER] else _ODD_BRUSH)
             for c, x, w in cols:
                 kind = _KIND_BRUSHES.get(row[1]) if c == 1 and not chosen else None
                 p.setPen(sel_pen if chosen else kind.color() if kind is not None else text_pen)
@@ -276,7 +299,8 @@ class PointTableView(QTableView):
     def _size_columns(self) -> None:
         fm = self.fontMetrics()
         for c, name in enumerate(COLUMNS):
-            sample = {"ID": "W0000", "Kind": "GCP", "Views": "N F B"}.get(name, "-000000.00")
+            sample = {"ID": "W0000", "Kind": "GCP", "Views": "N F B", "E (m)": "000000.000",
+                      "N (m)": "0000000.000", "H (m)": "0000.000"}.get(name, "-000000.00")
             self.setColumnWidth(c, max(fm.horizontalAdvance(name), fm.horizontalAdvance(sample)) + 14)
 
     def current_id(self) -> str | None:
@@ -297,7 +321,11 @@ class PointTableView(QTableView):
         if self.current_id() != pid or not sm.isSelected(idx):
             sm.select(idx, sm.SelectionFlag.ClearAndSelect | sm.SelectionFlag.Rows)
             sm.setCurrentIndex(idx, sm.SelectionFlag.NoUpdate)
+        # to the row only: a sideways scroll would move the cell being double-clicked (to
+        # edit it) away from under the mouse
+        x = self.horizontalScrollBar().value()
         self.scrollTo(idx)
+        self.horizontalScrollBar().setValue(x)
 
     def ordered_ids(self) -> list[str]:
         """Ids in the order shown (after sorting)."""

@@ -7,8 +7,10 @@ expected text) and ``setText`` only repaints the label itself; too long a text i
 """
 from __future__ import annotations
 
+import math
+
 from PySide6.QtCore import QSize, Qt
-from PySide6.QtGui import QColor, QFont, QPainter
+from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainter
 from PySide6.QtWidgets import QSizePolicy, QWidget
 
 
@@ -45,7 +47,10 @@ class TextLabel(QWidget):
         self._color = QColor(color) if color is not None else None
         self._align = align | Qt.AlignmentFlag.AlignVCenter
         fm = self.fontMetrics()
-        self._hint = QSize(fm.horizontalAdvance(widest if widest is not None else text) + 2 * self.PAD_X,
+        # the advance rounded up: elision measures in fractions of a pixel, and the sample
+        # text itself must fit
+        width = math.ceil(QFontMetricsF(self.font()).horizontalAdvance(widest if widest is not None else text))
+        self._hint = QSize(width + 1 + 2 * self.PAD_X,
                            fm.height() + 2 * self.PAD_Y)
         # paints its whole rectangle: a new text repaints this label only, not its parents
         self.setAttribute(Qt.WidgetAttribute.WA_OpaquePaintEvent)
@@ -69,6 +74,11 @@ class TextLabel(QWidget):
     def minimumSizeHint(self) -> QSize:
         return QSize(0, self._hint.height())
 
+    def shown_text(self) -> str:
+        """The text as painted: elided ("…") when it is wider than the label."""
+        r = self.rect().adjusted(self.PAD_X, 0, -self.PAD_X, 0)
+        return self.fontMetrics().elidedText(self._text, Qt.TextElideMode.ElideRight, r.width())
+
     def paintEvent(self, event) -> None:
         p = QPainter(self)
         p.fillRect(self.rect(), self._background if self._background is not None
@@ -76,6 +86,5 @@ class TextLabel(QWidget):
         if self._color is not None:
             p.setPen(self._color)
         r = self.rect().adjusted(self.PAD_X, 0, -self.PAD_X, 0)
-        p.drawText(r, int(self._align),
-                   self.fontMetrics().elidedText(self._text, Qt.TextElideMode.ElideRight, r.width()))
+        p.drawText(r, int(self._align), self.shown_text())
         p.end()

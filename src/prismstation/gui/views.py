@@ -103,6 +103,8 @@ class TripletViews(QWidget):
         self.offer_overviews = None  # callable(source) set by the window when interactive
         self.height_of = None  # reference DEM heights: (n, 2) map metres -> (n,) metres
         self.predictions = Predictions()  # of the points in the views they are not measured in
+        self.editable = True  # False (navigate mode): clicks and drags never place nor move
+        self.view_cursor = Qt.CursorShape.CrossCursor  # over the images (the measuring mode's)
 
     # ------------------------------------------------------------------ project and images
     def set_project(self, project) -> None:
@@ -126,7 +128,7 @@ class TripletViews(QWidget):
                                color="#e8e8e8", bold=True, stretch=True)
             header.setObjectName("viewHeader")
             iv = ImageView(pane)
-            iv.graphics.viewport().setCursor(Qt.CursorShape.CrossCursor)
+            iv.graphics.viewport().setCursor(self.view_cursor)
             lay.addWidget(header)
             lay.addWidget(iv, 1)
             self.splitter.addWidget(pane)
@@ -297,7 +299,8 @@ class TripletViews(QWidget):
             if pid is not None and pid != self.current:  # near the current point: re-place it
                 self.point_picked.emit(str(pid))
                 return
-        self.place_requested.emit(name, x, y)
+        if self.editable:
+            self.place_requested.emit(name, x, y)
 
     def cursor_height(self, name: str, x: float, y: float) -> float | None:
         """Height for the linked cursor: that of the point under the cursor, else that of the
@@ -371,7 +374,8 @@ class _MarkerDrag:
 
     def __call__(self, ev) -> bool:
         views, name = self.views_ref(), self.name
-        if views is None or name not in views.views or ev.button() != Qt.MouseButton.LeftButton:
+        if (views is None or name not in views.views or ev.button() != Qt.MouseButton.LeftButton
+                or not views.editable):
             return False
         vb = views.views[name].vb
         if ev.isStart():
