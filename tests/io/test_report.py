@@ -29,7 +29,7 @@ def test_identity_of_a_jaxa_product(tmp_path):
     """Scene and product ids, level, times and source as a CEOS product's scene.json has them."""
     from prismstation.io.products import write_scene_for_product
     from prismstation.io.scene import read_scene
-    from tests.formats.fixtures import ceos_builder as cb
+    from tests.io.formats.fixtures import ceos_builder as cb
     truth = cb.build_triplet(tmp_path / "product", one_folder=True)
     scene_path = write_scene_for_product(tmp_path / "product", tmp_path / "proj")
     scene = read_scene(scene_path)

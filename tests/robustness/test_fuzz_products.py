@@ -1,5 +1,5 @@
 """Fuzzing the JAXA product readers (``io.ceos``, ``io.products``): a CEOS triplet built byte by
-byte (tests/formats/fixtures/ceos_builder.py) with one file spoiled — numeric fields of the
+byte (tests/io/formats/fixtures/ceos_builder.py) with one file spoiled — numeric fields of the
 leader's map-projection and platform-position records, the image descriptor, record lengths,
 the F4 doubles, ``summary.txt`` lines — must read or raise a PrismError naming that file."""
 from __future__ import annotations
@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from prismstation.errors import PrismError
 from prismstation.io.products import scene_dict_from_product
-from tests.formats.fixtures import ceos_builder as cb
+from tests.io.formats.fixtures import ceos_builder as cb
 from tests.robustness import fuzzlib as fz
 
 # (record number, offset in the record, size) of the text fields the readers parse

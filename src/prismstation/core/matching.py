@@ -18,7 +18,7 @@ The σ reported (:func:`calibrated_sigma`) is the formal σ calibrated against e
 The formal σ assumes independent grey-value residuals and a template that moves as one affine
 patch; neither holds: image noise and texture are spatially correlated, and relief inside the
 template makes the parallax vary across it, which LSM averages. Calibration (reproduced by
-``benchmarks/match_sigma.py``; ``tests/matching/test_match_sigma.py`` checks it):
+``benchmarks/match_sigma.py``; ``tests/core/matching/test_match_sigma.py`` checks it):
 
 * real independent imagery — the Pléiades triplet crops of ``shared/data/real`` (one pass,
   three look angles), 296 points matched 1→2, 1→3 and 2→3: the closure 1→2→3 − 1→3 has an

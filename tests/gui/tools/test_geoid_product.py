@@ -139,7 +139,7 @@ def test_new_project_from_a_ceos_product(window, tmp_path):
     import rasterio
     from prismstation.gui.app import wait_settled
     from prismstation.io.project import load_project
-    from tests.formats.fixtures import ceos_builder as cb
+    from tests.io.formats.fixtures import ceos_builder as cb
     win = window
     truth = cb.build_triplet(tmp_path / "delivery")
     assert "New project from &product…" in [a.text() for a in win.menuBar().actions()[0].menu().actions()]

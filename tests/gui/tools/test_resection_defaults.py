@@ -33,7 +33,7 @@ def test_a_prism_scene_gets_prism_camera_and_a_plausible_orbit(window, sim):
 @pytest.fixture()
 def frame_window(qtbot, tmp_path):
     """The real window on a single frame-camera view (no PRISM scene)."""
-    from tests.gui_tools.single_view import make_frame_view
+    from tests.gui.tools.single_view import make_frame_view
     path, _ = make_frame_view(tmp_path / "frame")
     win = open_window(qtbot, path)
     yield win
@@ -53,7 +53,7 @@ def test_other_projects_keep_the_generic_camera(frame_window):
 def test_is_prism(tmp_path, extra, prism):
     from prismstation.io.scene import read_scene
     from prismstation.model.project import Project
-    from tests.gui_tools.single_view import make_frame_view
+    from tests.gui.tools.single_view import make_frame_view
     path, _ = make_frame_view(tmp_path / "frame")
     scene_path = path.parent / "scene.json"
     doc = json.loads(scene_path.read_text())

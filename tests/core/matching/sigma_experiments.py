@@ -1,5 +1,5 @@
 """The two experiments that calibrate the matcher's σ (:mod:`prismstation.core.matching`),
-shared by ``tests/matching/test_match_sigma.py`` and ``benchmarks/match_sigma.py``.
+shared by ``tests/core/matching/test_match_sigma.py`` and ``benchmarks/match_sigma.py``.
 
 Each returns rows ``(err_x, err_y, formal_σx, formal_σy, claimed_σx, claimed_σy)`` in pixels;
 the search (parallax) direction is close to the image y axis in both.

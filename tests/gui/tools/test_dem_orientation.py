@@ -56,7 +56,7 @@ def test_orient_from_srtm_in_the_window(qtbot, window, sim, truth):
     assert len(dh) >= 20 and np.sqrt(np.mean(np.square(dh))) < 5.0, np.sqrt(np.mean(np.square(dh)))
 
     # the picture for the docs only on request (PRISMSTATION_SCREENSHOTS=1): tests leave the tree alone
-    docs = Path(__file__).resolve().parents[2] / "docs" / "orient_srtm.png"
+    docs = Path(__file__).resolve().parents[3] / "docs" / "orient_srtm.png"
     out = docs if os.environ.get("PRISMSTATION_SCREENSHOTS") else sim / "orient_srtm.png"
     window.docks["dem_patches"].raise_()
     qtbot.wait(200)

@@ -23,7 +23,7 @@ from prismstation.io.raster import RasterSource  # noqa: E402
 from .conftest import H, W, pattern  # noqa: E402
 
 pytestmark = pytest.mark.gui
-DOCS = Path(__file__).resolve().parents[2] / "docs"
+DOCS = Path(__file__).resolve().parents[3] / "docs"
 
 
 @pytest.fixture()
@@ -183,7 +183,7 @@ def test_loupe_shows_full_resolution_pixels(qtbot, view, pattern_tif16):
 
 
 def test_screenshot_three_views(qtbot, tmp_path, pattern_tif):
-    real = Path(__file__).resolve().parents[3] / "shared" / "data" / "real" / "pleiades_triplet"
+    real = Path(__file__).resolve().parents[4] / "shared" / "data" / "real" / "pleiades_triplet"
     paths = sorted(real.glob("img_0*.tif")) or [pattern_tif] * 3
     win = QWidget()
     qtbot.addWidget(win)

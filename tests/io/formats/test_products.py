@@ -14,7 +14,7 @@ from rasterio.transform import Affine
 from prismstation.errors import InputError
 from prismstation.io import ceos
 from prismstation.io.products import scene_dict_from_product, write_scene_for_product
-from tests.formats.fixtures import ceos_builder as cb
+from tests.io.formats.fixtures import ceos_builder as cb
 
 
 @pytest.fixture(scope="module")

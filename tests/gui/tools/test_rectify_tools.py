@@ -13,7 +13,7 @@ from rasterio.transform import Affine
 
 from prismstation.core.rectify import KINDS, compare_transforms
 from prismstation.gui.tools._rect_common import view_points
-from tests.gui_tools.single_view import make_single_view
+from tests.gui.tools.single_view import make_single_view
 
 pytest.importorskip("pytestqt")
 
@@ -111,7 +111,7 @@ def test_too_few_points_is_a_message_not_a_file(sv_window, tmp_path):
 
 @pytest.fixture()
 def two_frame_window(qtbot, tmp_path):
-    from tests.gui_tools.single_view import make_frame_view
+    from tests.gui.tools.single_view import make_frame_view
     path, cam = make_frame_view(tmp_path / "frame2", two_views=True)
     win = _open_window(qtbot, path)
     win.frame_camera = cam
@@ -121,7 +121,7 @@ def two_frame_window(qtbot, tmp_path):
 
 def test_bh_from_two_resections(two_frame_window):
     from prismstation.core.resection import base_height
-    from tests.gui_tools.single_view import FRAME_EO, FRAME_EO_B
+    from tests.gui.tools.single_view import FRAME_EO, FRAME_EO_B
     window = two_frame_window
     assert list(window.views.views) == ["A", "A2"]
     d = window.tools["resection"].open()
@@ -139,7 +139,7 @@ def test_bh_from_two_resections(two_frame_window):
 
 from pathlib import Path  # noqa: E402
 
-_DOCS = Path(__file__).resolve().parents[2] / "docs"
+_DOCS = Path(__file__).resolve().parents[3] / "docs"
 
 
 @pytest.fixture()
@@ -172,7 +172,7 @@ def test_deblock_toggle_changes_displayed_tiles(big_window, qtbot):
 
 @pytest.fixture()
 def frame_window(qtbot, tmp_path):
-    from tests.gui_tools.single_view import make_frame_view
+    from tests.gui.tools.single_view import make_frame_view
     path, cam = make_frame_view(tmp_path / "frame")
     win = _open_window(qtbot, path)
     win.frame_camera = cam
@@ -181,7 +181,7 @@ def frame_window(qtbot, tmp_path):
 
 
 def test_resection_dialog_converges_on_a_frame_camera(frame_window, qtbot):
-    from tests.gui_tools.single_view import FRAME_EO
+    from tests.gui.tools.single_view import FRAME_EO
     window = frame_window
     cam = window.frame_camera
     d = window.tools["resection"].open()

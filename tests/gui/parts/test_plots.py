@@ -10,7 +10,7 @@ import pytest
 from prismstation.core.solve import solve
 from prismstation.gui.plots import PlotData, PlotsWidget
 from tests.core.synth import make_points, make_scene
-from tests.gui_parts.conftest import BLUNDER_ID
+from tests.gui.parts.conftest import BLUNDER_ID
 
 
 @pytest.fixture
