@@ -121,7 +121,7 @@ class MainWindow(QMainWindow):
         self.a_save = self._act("&Save", self.files.save, K.Save, S.SP_DialogSaveButton, "Save the project")
         self.a_save_as = self._act("Save &as…", lambda: self.files.save_as(), K.SaveAs)
         self.a_import = self._act("&Import points…", self.import_points, "Ctrl+I")
-        self.a_export = self._act("&Export report…", self.export_report, "Ctrl+E")
+        self.a_export = self._act("&Export report…", lambda: self.export_report(), "Ctrl+E")
         self.a_quit = self._act("&Quit", self.close, K.Quit)
         self.a_undo = self.undo_stack.createUndoAction(self, "&Undo")
         self.a_undo.setShortcuts(QKeySequence.StandardKey.Undo)
