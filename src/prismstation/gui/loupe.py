@@ -25,25 +25,40 @@ class Loupe(QWidget):
     ----------
     zoom : int
         Screen pixels per image pixel.
+        The largest; a smaller widget shows the pixels smaller (at least :data:`MIN_ZOOM`).
     pixels : int
         Side of the window shown, in image pixels (odd values centre the cursor's pixel).
+    label : str
+        The view's name, painted in the top-left corner (N, F, B).
     """
 
-    def __init__(self, parent=None, zoom: int = 8, pixels: int = 25):
+    MIN_ZOOM = 3
+
+    def __init__(self, parent=None, zoom: int = 8, pixels: int = 25, label: str = ""):
         super().__init__(parent)
-        self.zoom = int(zoom)
+        self.max_zoom = self.zoom = int(zoom)
         self.pixels = int(pixels)
+        self.label = label
         self.source = None
         self.levels = (0.0, 255.0)
         self.position: tuple[float, float] | None = None
         self.origin = (0, 0)  # image (column, row) of the window's top-left pixel
         self.window: np.ndarray | None = None  # (pixels, pixels) raw values
         self._qimage: QImage | None = None
-        self.setMinimumSize(self.sizeHint())
+        self.setMinimumSize(self.minimumSizeHint())
 
     def sizeHint(self) -> QSize:
-        side = self.zoom * self.pixels
+        side = self.max_zoom * self.pixels
         return QSize(side, side)
+
+    def minimumSizeHint(self) -> QSize:
+        side = self.MIN_ZOOM * self.pixels
+        return QSize(side, side)
+
+    def resizeEvent(self, ev) -> None:
+        """Whole screen pixels per image pixel, as many as the widget holds (no interpolation)."""
+        self.zoom = max(self.MIN_ZOOM, min(self.max_zoom, min(self.width(), self.height()) // self.pixels))
+        super().resizeEvent(ev)
 
     def attach(self, view) -> None:
         """Follow an ImageView: its source, its levels and the cursor over it."""
@@ -116,4 +131,13 @@ class Loupe(QWidget):
             p.drawText(self.rect().adjusted(4, 2, -4, -2),
                        Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignBottom,
                        f"x {self.position[0]:.2f}  y {self.position[1]:.2f}")
+        if self.label:
+            f = p.font()
+            f.setBold(True)
+            p.setFont(f)
+            p.fillRect(QRectF(0, 0, p.fontMetrics().horizontalAdvance(self.label) + 8,
+                              p.fontMetrics().height() + 2), QColor(0, 0, 0, 170))
+            p.setPen(QPen(QColor(255, 255, 255), 1))
+            p.drawText(self.rect().adjusted(4, 1, -4, -2),
+                       Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop, self.label)
         p.end()

@@ -23,16 +23,14 @@ from PySide6.QtGui import QFont, QImage
 from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QGridLayout, QHBoxLayout, QLabel,
                                QTabWidget, QVBoxLayout, QWidget)
 
+from prismstation.gui.palette import BLUNDER_RGB, FIT_RGB, KIND_RGB, THEORY_RGB
 from prismstation.gui.plot_data import PlotData, auto_exaggeration, line_x, segments
 from prismstation.gui.text_label import TextLabel
 
 __all__ = ["PlotsWidget", "PlotData", "PLOT_NAMES", "auto_exaggeration"]
 
-GCP_COLOR = (31, 100, 200)
-ICP_COLOR = (230, 120, 20)
-FIT_COLOR = (20, 20, 20)
-THEORY_COLOR = (0, 150, 60)
-BLUNDER_COLOR = (220, 20, 20)
+GCP_COLOR, ICP_COLOR = KIND_RGB["GCP"], KIND_RGB["ICP"]  # one colour per kind: gui/palette.py
+FIT_COLOR, THEORY_COLOR, BLUNDER_COLOR = FIT_RGB, THEORY_RGB, BLUNDER_RGB
 PLOT_NAMES = ("height", "height_minus_theory", "vectors", "std_residuals")
 PLOT_TITLES = {
     "height": "Height vs F−B parallax (Fig. 4)",
@@ -54,6 +52,9 @@ class PlotsWidget(QWidget):
         Draw grid lines (off by default: they dominate the repaint time).
     tabs : bool
         One tab per plot instead of a 2 × 2 grid (only the visible plot repaints).
+    own_exaggeration : bool
+        Show the plot's own exaggeration control (the window has one control for the images
+        and the plots, and calls :meth:`set_exaggeration`).
 
     Signals
     -------
@@ -62,7 +63,8 @@ class PlotsWidget(QWidget):
 
     point_clicked = Signal(str)
 
-    def __init__(self, parent=None, *, grid: bool = False, tabs: bool = False):
+    def __init__(self, parent=None, *, grid: bool = False, tabs: bool = False,
+                 own_exaggeration: bool = True):
         super().__init__(parent)
         self._data = PlotData()
         self._exaggeration = 100.0
@@ -102,9 +104,10 @@ class PlotsWidget(QWidget):
         self.auto_box.toggled.connect(self._on_auto)
         bar = QHBoxLayout()
         bar.setContentsMargins(4, 0, 4, 0)
-        bar.addWidget(QLabel("Residual vector exaggeration"))
-        bar.addWidget(self.spin)
-        bar.addWidget(self.auto_box)
+        label = QLabel("Residual vector exaggeration")
+        for w in (label, self.spin, self.auto_box):
+            bar.addWidget(w)
+            w.setVisible(own_exaggeration)
         self.summary = TextLabel(stretch=True, align=Qt.AlignmentFlag.AlignRight)  # no relayout
         bar.addWidget(self.summary, 1)
         lay = QVBoxLayout(self)
