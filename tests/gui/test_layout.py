@@ -49,3 +49,35 @@ def test_every_dock_is_in_view_panels(window):
         d = next(d for d in docks if d.windowTitle() == title)
         action(win, f"View ▸ Panels ▸ {title}").trigger()
         assert d.isVisible()
+
+
+def test_panels_open_and_close_within_the_screen(qtbot, window):
+    """Every panel opened from View ▸ Panels: the window keeps its 1920 × 1080 (it grew to
+    1600 × 1134 and stayed so); closed again, nothing is left changed."""
+    win = window
+    win.resize(1920, 1080)
+    qtbot.wait(20)
+    panels = [(n, a) for n, a in every_action(win) if n.startswith("View ▸ Panels ▸ ")]
+    hidden = [(n, a) for n, a in panels if not a.isChecked()]
+    assert len(hidden) >= 5
+    for n, a in hidden:
+        a.trigger()
+        qtbot.wait(5)
+        assert (win.width(), win.height()) == (1920, 1080), n
+    for n, a in hidden:
+        a.trigger()
+    qtbot.wait(20)
+    assert (win.width(), win.height()) == (1920, 1080)
+
+
+def test_1280x720_keeps_its_size_the_model_readable_and_the_toolbar_whole(qtbot, window):
+    win = window
+    win.resize(1280, 720)
+    win.default_layout()
+    qtbot.wait(50)
+    assert (win.width(), win.height()) == (1280, 720)
+    rows = win.panel.text.viewport().height() / win.panel.sections._row_height()
+    assert rows >= 6, f"the model panel shows {rows:.1f} lines"
+    tb = win.toolbar
+    assert tb.sizeHint().width() <= tb.width()  # no overflow (») button
+    assert win.accuracy.isVisible() and win.accuracy.height() < 40

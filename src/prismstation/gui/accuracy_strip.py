@@ -72,15 +72,15 @@ class AccuracyStrip(QFrame):
         self.values: dict[str, TextLabel] = {}
         for f, tip in FIELDS:
             if f == "σ0":
-                lay.addSpacing(12)
+                lay.addSpacing(8)
             name = QLabel(f)
             name.setToolTip(tip)
             lay.addWidget(name)
-            lab = TextLabel("—", "0000.00 px" if f == "σ0" else "00000.00 m", bold=True)
+            lab = TextLabel("—", "00.000 px" if f == "σ0" else "0000.00 m", bold=True)
             lab.setToolTip(tip)
             lay.addWidget(lab)
             self.values[f] = lab
-        lay.addSpacing(12)
+        lay.addSpacing(8)
         self.count = TextLabel("no fit", "000 GCP · 000 ICP")
         self.count.setToolTip("Measured GCPs (in the fit) and ICPs (checks only)")
         lay.addWidget(self.count)

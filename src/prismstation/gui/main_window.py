@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from PySide6.QtCore import Qt, QTimer
-from PySide6.QtWidgets import (QDockWidget, QHBoxLayout, QMainWindow, QMessageBox,
+from PySide6.QtWidgets import (QDockWidget, QHBoxLayout, QMainWindow, QMessageBox, QScrollArea,
                                QStackedWidget, QTabWidget, QVBoxLayout, QWidget)
 
 from prismstation.errors import PrismError
@@ -27,6 +27,17 @@ from prismstation.gui.start_page import StartPage
 from prismstation.gui.text_label import TextLabel
 from prismstation.gui.views import TripletViews
 from prismstation.gui.workspace import Workspace
+
+
+def _scrolled(widget) -> QScrollArea:
+    """``widget`` in a frameless scroll area: a dock's content then asks for little room, and
+    showing more panels than the screen holds scrolls them instead of growing the window
+    past the screen (the tools' panels have tables and forms hundreds of pixels tall)."""
+    sa = QScrollArea()
+    sa.setWidgetResizable(True)
+    sa.setFrameShape(QScrollArea.Shape.NoFrame)
+    sa.setWidget(widget)
+    return sa
 
 
 class MainWindow(QMainWindow):
@@ -70,10 +81,12 @@ class MainWindow(QMainWindow):
         self._dock("model", "Model", self.panel, Qt.DockWidgetArea.RightDockWidgetArea)
         self._dock("plots", "Plots", self.plots, Qt.DockWidgetArea.BottomDockWidgetArea)
         self._dock("loupe", "Loupe", self.loupe_box, Qt.DockWidgetArea.RightDockWidgetArea)
-        self._dock("contrast", "Contrast", self.contrast_tabs, Qt.DockWidgetArea.RightDockWidgetArea)
+        self._dock("contrast", "Contrast", self.contrast_tabs, Qt.DockWidgetArea.RightDockWidgetArea,
+                   scroll=True)
         self.tabifyDockWidget(self.docks["loupe"], self.docks["contrast"])
         self.docks["loupe"].raise_()
         self.splitDockWidget(self.docks["points"], self.docks["plots"], Qt.Orientation.Horizontal)
+        own_docks = set(self.docks)
         self._status_widgets()
         menus.build_actions(self)
         menus.build_menus(self)
@@ -82,6 +95,9 @@ class MainWindow(QMainWindow):
         self._connect()
         self.tool_context = install_tools(self)
         self.tools = self.tool_context.tools
+        for k, d in self.docks.items():  # a panel opened never makes the window grow
+            if k not in own_docks:
+                d.setWidget(_scrolled(d.widget()))
         menus.fill_panels_menu(self)
         self._work_state = None  # the docks' state while the start page is up
         if interactive:
@@ -95,10 +111,10 @@ class MainWindow(QMainWindow):
         self._update_actions()
 
     # ------------------------------------------------------------------ construction
-    def _dock(self, key, title, widget, area) -> QDockWidget:
+    def _dock(self, key, title, widget, area, scroll=False) -> QDockWidget:
         d = QDockWidget(title, self)
         d.setObjectName(f"dock_{key}")
-        d.setWidget(widget)
+        d.setWidget(_scrolled(widget) if scroll else widget)
         self.addDockWidget(area, d)
         self.docks[key] = d
         return d
@@ -406,11 +422,12 @@ class MainWindow(QMainWindow):
     def default_layout(self) -> None:
         """Dock sizes for a first start: images large, table and plots below, model at right."""
         d = self.docks
-        w, h = max(self.width(), 1200), max(self.height(), 800)
-        self.resizeDocks([d["model"], d["loupe"]], [int(h * 0.45), int(h * 0.2)], Qt.Orientation.Vertical)
-        self.resizeDocks([d["model"]], [int(w * 0.24)], Qt.Orientation.Horizontal)
+        w, h = self.width(), self.height()
+        loupe = min(int(h * 0.2), 190)  # 25 px at 4–7 screen px each; the model gets the rest
+        self.resizeDocks([d["model"], d["loupe"]], [h - loupe, loupe], Qt.Orientation.Vertical)
+        self.resizeDocks([d["model"]], [max(int(w * 0.24), 330)], Qt.Orientation.Horizontal)
         self.resizeDocks([d["points"], d["plots"]], [int(w * 0.42), int(w * 0.58)], Qt.Orientation.Horizontal)
-        self.resizeDocks([d["points"]], [int(h * 0.36)], Qt.Orientation.Vertical)
+        self.resizeDocks([d["points"]], [int(h * (0.3 if h < 900 else 0.36))], Qt.Orientation.Vertical)
 
     def _show_start(self, on: bool) -> None:
         """The start page (no project: panels hidden, their layout kept) or the work area."""

@@ -79,7 +79,7 @@ class PlotsWidget(QWidget):
             pw = pg.PlotWidget(background="w")
             if grid:  # pyqtgraph's grid costs ~10 ms a repaint per axis: reports only
                 pw.getPlotItem().showGrid(x=True, y=True, alpha=0.25)
-            pw.setMinimumSize(160, 120)
+            pw.setMinimumSize(140, 80)
             self.plots[name] = pw
             if self.tabs is not None:
                 self.tabs.addTab(pw, TAB_NAMES[name])
