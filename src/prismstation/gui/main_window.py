@@ -430,14 +430,17 @@ class MainWindow(QMainWindow):
         self.resizeDocks([d["points"]], [int(h * (0.3 if h < 900 else 0.36))], Qt.Orientation.Vertical)
 
     def _show_start(self, on: bool) -> None:
-        """The start page (no project: panels hidden, their layout kept) or the work area."""
+        """The start page (no project: panels and toolbar away, their layout kept) or the
+        work area. Docks are taken out of the layout, not hidden: a hidden tab group leaves a
+        stray tab bar."""
         if on and self._work_state is None:
             self._work_state = self.saveState()
             for d in self.docks.values():
-                d.hide()
+                self.removeDockWidget(d)
         elif not on and self._work_state is not None:
             self.restoreState(self._work_state)
             self._work_state = None
+        self.toolbar.setVisible(not on)
         self.central.setCurrentWidget(self.start_page if on else self.central.widget(1))
         self.start_page.set_demo_available(self.demo_maker is not None)
 
