@@ -107,8 +107,14 @@ class Loupe(QWidget):
         self.update()
 
     def screen_of(self, x: float, y: float) -> QPointF:
-        """Widget position of image point ``(x, y)`` in the loupe's current window."""
-        return QPointF((x - self.origin[0]) * self.zoom, (y - self.origin[1]) * self.zoom)
+        """Widget position of image point ``(x, y)`` in the loupe's current window (the
+        magnified pixels are centred in the widget)."""
+        o = self._offset()
+        return QPointF(o.x() + (x - self.origin[0]) * self.zoom, o.y() + (y - self.origin[1]) * self.zoom)
+
+    def _offset(self) -> QPointF:
+        side = self.pixels * self.zoom
+        return QPointF(max(0, (self.width() - side) // 2), max(0, (self.height() - side) // 2))
 
     def paintEvent(self, ev) -> None:
         p = QPainter(self)
@@ -116,7 +122,8 @@ class Loupe(QWidget):
         if self._qimage is not None:
             side = self.pixels * self.zoom
             p.setRenderHint(QPainter.RenderHint.SmoothPixmapTransform, False)
-            p.drawImage(QRectF(0, 0, side, side), self._qimage)
+            o = self._offset()
+            p.drawImage(QRectF(o.x(), o.y(), side, side), self._qimage)
         if self.position is not None:
             c = self.screen_of(*self.position)
             p.setRenderHint(QPainter.RenderHint.Antialiasing, True)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import (QDockWidget, QHBoxLayout, QMainWindow, QMessageBox, QScrollArea,
-                               QStackedWidget, QTabWidget, QVBoxLayout, QWidget)
+                               QStackedWidget, QTabBar, QTabWidget, QVBoxLayout, QWidget)
 
 from prismstation.errors import PrismError
 from prismstation.gui import commands as cmd
@@ -437,6 +437,8 @@ class MainWindow(QMainWindow):
             self._work_state = self.saveState()
             for d in self.docks.values():
                 self.removeDockWidget(d)
+            for bar in self.findChildren(QTabBar, options=Qt.FindChildOption.FindDirectChildrenOnly):
+                bar.hide()  # the layout shows the ones it uses again
         elif not on and self._work_state is not None:
             self.restoreState(self._work_state)
             self._work_state = None
