@@ -86,3 +86,20 @@ def test_help_user_guide_opens_the_guide(qtbot, window):
     assert viewer.isVisible()
     assert "prismstation user guide" in viewer.browser.toPlainText()
     viewer.close()
+
+
+def test_open_the_demo_from_the_start_page(qtbot, bare_window, demo):
+    win = bare_window
+    calls = []
+
+    def make_demo(progress=None):  # stands for cli.demo.ensure_demo (the real one takes ~40 s)
+        calls.append(progress(0.5, "simulating"))
+        return demo.path
+
+    win.demo_maker = make_demo
+    win.start_page.set_demo_available(True)
+    assert win.start_page.buttons["demo"].isVisible()
+    qtbot.mouseClick(win.start_page.buttons["demo"], Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: win.project is not None, timeout=10000)
+    assert calls == [True] and win.files.path == demo.path
+    assert win.central.currentWidget() is not win.start_page
