@@ -2,7 +2,9 @@
 
 Data flow for one click (ARCHITECTURE.md): a gesture in :class:`TripletViews` becomes a
 command pushed on the one ``QUndoStack``; the command edits the Project; the :class:`Solver`
-refits and publishes a Solution; views, table, model panel and plots read it.
+refits and publishes a Solution; views, table, model panel, plots and the accuracy strip read
+it. Actions and menus are built in :mod:`.menus`; without a project the central area is the
+:class:`~.start_page.StartPage`.
 """
 from __future__ import annotations
 
