@@ -85,6 +85,8 @@ def test_help_user_guide_opens_the_guide(qtbot, window):
     viewer = win.guide_viewer
     assert viewer.isVisible()
     assert "prismstation user guide" in viewer.browser.toPlainText()
+    qtbot.wait(20)
+    assert viewer.browser.horizontalScrollBar().maximum() == 0  # pictures fit the page
     viewer.close()
 
 

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 from PySide6.QtCore import QUrl
+from PySide6.QtGui import QTextCursor, QTextDocument
 from PySide6.QtWidgets import QDialog, QTextBrowser, QVBoxLayout
 
 
@@ -32,9 +33,38 @@ class GuideViewer(QDialog):
         self.browser.setOpenLinks(True)
         self.browser.setOpenExternalLinks(False)
         self.browser.setSearchPaths([str(path.parent)])
+        self.browser.sourceChanged.connect(lambda *_: self.fit_images())
         self.browser.setSource(QUrl.fromLocalFile(str(path)))
         QVBoxLayout(self).addWidget(self.browser)
         self.resize(900, 700)
+
+    def resizeEvent(self, ev) -> None:
+        super().resizeEvent(ev)
+        self.fit_images()
+
+    def fit_images(self) -> None:
+        """Pictures at most as wide as the page (screenshots are wider than the viewer)."""
+        doc = self.browser.document()
+        width = max(100, self.browser.viewport().width() - 40)
+        block = doc.begin()
+        while block.isValid():
+            it = block.begin()
+            while not it.atEnd():
+                frag = it.fragment()
+                fmt = frag.charFormat()
+                if fmt.isImageFormat():
+                    img = fmt.toImageFormat()
+                    pic = doc.resource(QTextDocument.ResourceType.ImageResource, QUrl(img.name()))
+                    natural = pic.width() if pic is not None and hasattr(pic, "width") else width
+                    if img.width() != min(natural, width):
+                        img.setWidth(min(natural, width))
+                        img.setHeight(0)  # keep the aspect ratio
+                        cur = QTextCursor(doc)
+                        cur.setPosition(frag.position())
+                        cur.setPosition(frag.position() + frag.length(), QTextCursor.MoveMode.KeepAnchor)
+                        cur.setCharFormat(img)
+                it += 1
+            block = block.next()
 
 
 def show_guide(parent) -> QDialog | None:

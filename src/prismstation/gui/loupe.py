@@ -24,8 +24,8 @@ class Loupe(QWidget):
     Parameters
     ----------
     zoom : int
-        Screen pixels per image pixel.
-        The largest; a smaller widget shows the pixels smaller (at least :data:`MIN_ZOOM`).
+        Screen pixels per image pixel, at most: a smaller widget shows whole screen pixels per
+        image pixel as many as fit (at least ``MIN_ZOOM``), centred.
     pixels : int
         Side of the window shown, in image pixels (odd values centre the cursor's pixel).
     label : str

@@ -445,6 +445,8 @@ class MainWindow(QMainWindow):
             self.restoreState(self._work_state)
             self._work_state = None
         self.toolbar.setVisible(not on)
+        for lab in self.statusBar().findChildren(TextLabel):  # coordinates of no image
+            lab.setVisible(not on)
         self.central.setCurrentWidget(self.start_page if on else self.central.widget(1))
         self.start_page.set_demo_available(self.demo_maker is not None)
 
