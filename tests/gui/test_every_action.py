@@ -69,24 +69,44 @@ def answered(monkeypatch, tmp_path):
     return asked
 
 
+def trigger_all(qtbot, win, actions) -> list[str]:
+    """Trigger every enabled action (Quit last); ``["name: Error: message"]`` of what raised."""
+    quit_last = [(n, a) for n, a in actions if "Quit" in n]
+    failures = []
+    for name, a in [x for x in actions if "Quit" not in x[0]] + quit_last:
+        if not shiboken6.isValid(a) or not a.isEnabled():  # a recent-files entry renewed
+            continue
+        if "Quit" in name and win.project is not None:
+            win.files.save()  # the unsaved-changes prompt would (rightly) keep it open
+        with qtbot.capture_exceptions() as exceptions:
+            a.trigger()
+            qtbot.wait(30)
+        failures += [f"{name}: {e[0].__name__}: {e[1]}" for e in exceptions]
+        if "Quit" not in name and win.current is None and win.project and win.project.points:
+            win.set_current(next(iter(win.project.points)))
+    return failures
+
+
 def test_no_menu_or_toolbar_action_raises(qtbot, window, answered):
     win = window
     win.set_current(next(iter(win.project.points)))
     actions = every_action(win)
     names = [n for n, _ in actions]
     assert len(actions) > 40 and any("Rectify" in n for n in names), names
-    quit_last = [(n, a) for n, a in actions if "Quit" in n]
-    failures = []
-    for name, a in [x for x in actions if "Quit" not in x[0]] + quit_last:
-        if not shiboken6.isValid(a) or not a.isEnabled():  # a recent-files entry renewed
-            continue
-        if "Quit" in name:
-            win.files.save()  # the unsaved-changes prompt would (rightly) keep it open
-        with qtbot.capture_exceptions() as exceptions:
-            a.trigger()
-            qtbot.wait(30)
-        failures += [f"{name}: {e[0].__name__}: {e[1]}" for e in exceptions]
-        if "Quit" not in name and win.current is None and win.project.points:
-            win.set_current(next(iter(win.project.points)))
-    assert failures == []
+    assert trigger_all(qtbot, win, actions) == []
     assert not win.isVisible()  # File ▸ Quit closed it (nothing was left to save)
+
+
+@pytest.fixture()
+def no_project_window(qtbot):
+    from tests.qt_windows import close_windows, new_window
+    win = new_window(qtbot)
+    yield win
+    close_windows(qtbot, win)
+
+
+def test_no_action_raises_on_the_start_page(qtbot, no_project_window, answered):
+    win = no_project_window
+    assert win.project is None and win.central.currentWidget() is win.start_page
+    assert trigger_all(qtbot, win, every_action(win)) == []
+    assert not win.isVisible()
