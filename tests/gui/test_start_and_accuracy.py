@@ -105,3 +105,12 @@ def test_open_the_demo_from_the_start_page(qtbot, bare_window, demo):
     qtbot.waitUntil(lambda: win.project is not None, timeout=10000)
     assert calls == [True] and win.files.path == demo.path
     assert win.central.currentWidget() is not win.start_page
+
+
+def test_kind_buttons_carry_their_colour(window):
+    from PySide6.QtGui import QColor
+    from prismstation.gui.palette import qcolor
+    for k, a in window.a_kind.items():
+        img = a.icon().pixmap(16, 16).toImage()
+        assert QColor(img.pixel(8, 8)) == qcolor(k)
+        assert window.toolbar.widgetForAction(a).text() == k

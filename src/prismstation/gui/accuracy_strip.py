@@ -69,6 +69,7 @@ class AccuracyStrip(QFrame):
         title = QLabel(f"<b><span style='color:{html('ICP')}'>ICP</span> RMSE</b>")
         title.setToolTip("Accuracy on the check points: independent of the fit")
         lay.addWidget(title)
+        lay.addSpacing(6)
         self.values: dict[str, TextLabel] = {}
         for f, tip in FIELDS:
             if f == "σ0":

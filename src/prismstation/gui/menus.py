@@ -8,6 +8,7 @@ from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QStyle
 
 from prismstation.gui import settings as st
+from prismstation.gui.palette import kind_icon
 
 
 def act(win, text, slot, shortcut=None, icon=None, tip=None, checkable=False) -> QAction:
@@ -137,9 +138,11 @@ def build_toolbar(win) -> None:
     tb.addActions([win.a_undo, win.a_redo])
     tb.addSeparator()
     tb.addActions([win.a_new_point, win.a_del_point])
-    for a in win.a_kind.values():
+    for k, a in win.a_kind.items():  # the kind's colour, and its name beside it
+        a.setIcon(kind_icon(k))
         tb.addAction(a)
         a.setText(a.text().replace("Make ", ""))
+        tb.widgetForAction(a).setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
     tb.addSeparator()
     tb.addActions([win.a_prev, win.a_next])
     tb.addSeparator()

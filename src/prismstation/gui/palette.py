@@ -22,6 +22,21 @@ def qcolor(kind_or_rgb, alpha: int = 255) -> QColor:
     return QColor(r, g, b, alpha)
 
 
+def kind_icon(kind: str, side: int = 16):
+    """A ``QIcon``: a filled disc in the colour of ``kind`` (toolbar and menus)."""
+    from PySide6.QtCore import Qt
+    from PySide6.QtGui import QIcon, QPainter, QPixmap
+    pm = QPixmap(side, side)
+    pm.fill(Qt.GlobalColor.transparent)
+    p = QPainter(pm)
+    p.setRenderHint(QPainter.RenderHint.Antialiasing)
+    p.setPen(qcolor(kind).darker(150))
+    p.setBrush(qcolor(kind))
+    p.drawEllipse(2, 2, side - 4, side - 4)
+    p.end()
+    return QIcon(pm)
+
+
 def html(kind: str) -> str:
     """``#rrggbb`` of a point kind (rich text)."""
     return qcolor(kind).name()
