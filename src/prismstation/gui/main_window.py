@@ -425,7 +425,7 @@ class MainWindow(QMainWindow):
         """Dock sizes for a first start: images large, table and plots below, model at right."""
         d = self.docks
         w, h = self.width(), self.height()
-        loupe = min(int(h * 0.2), 190)  # 25 px at 4–7 screen px each; the model gets the rest
+        loupe = int(h * 0.21)  # 25 px at 4–8 screen px each; the model panel gets the rest
         self.resizeDocks([d["model"], d["loupe"]], [h - loupe, loupe], Qt.Orientation.Vertical)
         self.resizeDocks([d["model"]], [max(int(w * 0.24), 330)], Qt.Orientation.Horizontal)
         self.resizeDocks([d["points"], d["plots"]], [int(w * 0.42), int(w * 0.58)], Qt.Orientation.Horizontal)
