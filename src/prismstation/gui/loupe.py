@@ -135,9 +135,12 @@ class Loupe(QWidget):
                 p.drawLine(QPointF(c.x(), 0), QPointF(c.x(), c.y() - gap))
                 p.drawLine(QPointF(c.x(), c.y() + gap), QPointF(c.x(), self.height()))
             p.setPen(QPen(QColor(255, 255, 0), 1))
+            x, y = self.position
+            text = f"x {x:.2f}  y {y:.2f}"
+            if p.fontMetrics().horizontalAdvance(text) > self.width() - 8:  # a narrow loupe
+                text = f"{x:.1f}, {y:.1f}"
             p.drawText(self.rect().adjusted(4, 2, -4, -2),
-                       Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignBottom,
-                       f"x {self.position[0]:.2f}  y {self.position[1]:.2f}")
+                       Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignBottom, text)
         if self.label:
             f = p.font()
             f.setBold(True)

@@ -425,11 +425,18 @@ class MainWindow(QMainWindow):
         """Dock sizes for a first start: images large, table and plots below, model at right."""
         d = self.docks
         w, h = self.width(), self.height()
-        loupe = int(h * 0.21)  # 25 px at 4–8 screen px each; the model panel gets the rest
-        self.resizeDocks([d["model"], d["loupe"]], [h - loupe, loupe], Qt.Orientation.Vertical)
-        self.resizeDocks([d["model"]], [max(int(w * 0.24), 330)], Qt.Orientation.Horizontal)
+        bottom = int(h * (0.3 if h < 900 else 0.36))
+        # the right column: what menus, toolbar, status bar and the bottom docks leave
+        right = h - bottom - self.menuBar().sizeHint().height() - self.toolbar.sizeHint().height() \
+            - self.statusBar().sizeHint().height() - 12
+        side = max(int(w * 0.24), 330)
+        # three square loupes side by side (no taller than wide), at most 12 % of the height;
+        # 50 px for the dock's title and tabs; the model panel gets the rest
+        loupe = min((side - 16) // 3, int(h * 0.12)) + 50
+        self.resizeDocks([d["model"], d["loupe"]], [right - loupe, loupe], Qt.Orientation.Vertical)
+        self.resizeDocks([d["model"]], [side], Qt.Orientation.Horizontal)
         self.resizeDocks([d["points"], d["plots"]], [int(w * 0.42), int(w * 0.58)], Qt.Orientation.Horizontal)
-        self.resizeDocks([d["points"]], [int(h * (0.3 if h < 900 else 0.36))], Qt.Orientation.Vertical)
+        self.resizeDocks([d["points"]], [bottom], Qt.Orientation.Vertical)
 
     def _show_start(self, on: bool) -> None:
         """The start page (no project: panels and toolbar away, their layout kept) or the
