@@ -98,7 +98,7 @@ def build_menus(win) -> None:
     m.addActions([win.a_import, win.a_export])
     m.addSeparator()
     m.addAction(win.a_quit)
-    m = mb.addMenu("&Edit")
+    m = win.edit_menu = mb.addMenu("&Edit")
     m.addActions([win.a_undo, win.a_redo])
     m.addSeparator()
     m.addActions([win.a_new_point, win.a_del_point, win.a_del_meas])
