@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction, QKeySequence
-from PySide6.QtWidgets import QStyle
+from PySide6.QtWidgets import QDockWidget, QStyle
 
 from prismstation.gui import settings as st
 from prismstation.gui.palette import kind_icon
@@ -110,21 +110,22 @@ def build_menus(win) -> None:
     m.addActions([win.a_goto, win.a_next, win.a_prev, win.a_labels, win.a_dem])
     m.addSeparator()
     win.panels_menu = m.addMenu("&Panels")
+    win.panels_menu.aboutToShow.connect(lambda: fill_panels_menu(win))
     win.tools_menu = mb.addMenu("&Tools")  # filled by prismstation.gui.tools modules
     m = mb.addMenu("&Help")
     m.addActions([win.a_guide, win.a_about])
 
 
 def fill_panels_menu(win) -> None:
-    """View ▸ Panels: every dock of the window (the window's own, then the tools'), by title."""
+    """View ▸ Panels: every dock of the window — its own, then the tools' by title (the window
+    fills it once its tools are installed, and again each time the menu opens)."""
+    own = [win.docks[k] for k in ("points", "model", "plots", "loupe", "contrast") if k in win.docks]
+    others = sorted((d for d in win.findChildren(QDockWidget) if d not in own),
+                    key=lambda d: d.windowTitle())
     win.panels_menu.clear()
-    own = ("points", "model", "plots", "loupe", "contrast")
-    keys = [k for k in own if k in win.docks] + sorted((k for k in win.docks if k not in own),
-                                                       key=lambda k: win.docks[k].windowTitle())
-    for i, k in enumerate(keys):
-        if i == len(own):
-            win.panels_menu.addSeparator()
-        win.panels_menu.addAction(win.docks[k].toggleViewAction())
+    win.panels_menu.addActions([d.toggleViewAction() for d in own])
+    win.panels_menu.addSeparator()
+    win.panels_menu.addActions([d.toggleViewAction() for d in others])
 
 
 def build_toolbar(win) -> None:
