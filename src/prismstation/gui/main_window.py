@@ -11,12 +11,12 @@ from __future__ import annotations
 from pathlib import Path
 
 from PySide6.QtCore import Qt, QTimer
-from PySide6.QtWidgets import (QDockWidget, QHBoxLayout, QMainWindow, QMessageBox, QScrollArea,
-                               QStackedWidget, QTabBar, QTabWidget, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (QDockWidget, QHBoxLayout, QMainWindow, QMessageBox,
+                               QStackedWidget, QTabWidget, QVBoxLayout, QWidget)
 
 from prismstation.errors import PrismError
 from prismstation.gui import commands as cmd
-from prismstation.gui import io_actions, menus
+from prismstation.gui import io_actions, menus, window_layout
 from prismstation.gui.accuracy_strip import AccuracyStrip
 from prismstation.gui.tools import install_tools
 from prismstation.gui import settings as st
@@ -29,17 +29,6 @@ from prismstation.gui.start_page import StartPage
 from prismstation.gui.text_label import TextLabel
 from prismstation.gui.views import TripletViews
 from prismstation.gui.workspace import Workspace
-
-
-def _scrolled(widget) -> QScrollArea:
-    """``widget`` in a frameless scroll area: a dock's content then asks for little room, and
-    showing more panels than the screen holds scrolls them instead of growing the window
-    past the screen (the tools' panels have tables and forms hundreds of pixels tall)."""
-    sa = QScrollArea()
-    sa.setWidgetResizable(True)
-    sa.setFrameShape(QScrollArea.Shape.NoFrame)
-    sa.setWidget(widget)
-    return sa
 
 
 class MainWindow(QMainWindow):
@@ -99,7 +88,7 @@ class MainWindow(QMainWindow):
         self.tools = self.tool_context.tools
         for k, d in self.docks.items():  # a panel opened never makes the window grow
             if k not in own_docks:
-                d.setWidget(_scrolled(d.widget()))
+                d.setWidget(window_layout.scrolled(d.widget()))
         menus.fill_panels_menu(self)
         self._work_state = None  # the docks' state while the start page is up
         if interactive:
@@ -116,7 +105,7 @@ class MainWindow(QMainWindow):
     def _dock(self, key, title, widget, area, scroll=False) -> QDockWidget:
         d = QDockWidget(title, self)
         d.setObjectName(f"dock_{key}")
-        d.setWidget(_scrolled(widget) if scroll else widget)
+        d.setWidget(window_layout.scrolled(widget) if scroll else widget)
         self.addDockWidget(area, d)
         self.docks[key] = d
         return d
@@ -422,40 +411,11 @@ class MainWindow(QMainWindow):
             self.default_layout()
 
     def default_layout(self) -> None:
-        """Dock sizes for a first start: images large, table and plots below, model at right."""
-        d = self.docks
-        w, h = self.width(), self.height()
-        bottom = int(h * (0.3 if h < 900 else 0.36))
-        # the right column: what menus, toolbar, status bar and the bottom docks leave
-        right = h - bottom - self.menuBar().sizeHint().height() - self.toolbar.sizeHint().height() \
-            - self.statusBar().sizeHint().height() - 12
-        side = max(int(w * 0.24), 330)
-        # three square loupes side by side (no taller than wide), at most 12 % of the height;
-        # 50 px for the dock's title and tabs; the model panel gets the rest
-        loupe = min((side - 16) // 3, int(h * 0.12)) + 50
-        self.resizeDocks([d["model"], d["loupe"]], [right - loupe, loupe], Qt.Orientation.Vertical)
-        self.resizeDocks([d["model"]], [side], Qt.Orientation.Horizontal)
-        self.resizeDocks([d["points"], d["plots"]], [int(w * 0.42), int(w * 0.58)], Qt.Orientation.Horizontal)
-        self.resizeDocks([d["points"]], [bottom], Qt.Orientation.Vertical)
+        """Dock sizes for a first start (:func:`.window_layout.default_layout`)."""
+        window_layout.default_layout(self)
 
     def _show_start(self, on: bool) -> None:
-        """The start page (no project: panels and toolbar away, their layout kept) or the
-        work area. Docks are taken out of the layout, not hidden: a hidden tab group leaves a
-        stray tab bar."""
-        if on and self._work_state is None:
-            self._work_state = self.saveState()
-            for d in self.docks.values():
-                self.removeDockWidget(d)
-            for bar in self.findChildren(QTabBar, options=Qt.FindChildOption.FindDirectChildrenOnly):
-                bar.hide()  # the layout shows the ones it uses again
-        elif not on and self._work_state is not None:
-            self.restoreState(self._work_state)
-            self._work_state = None
-        self.toolbar.setVisible(not on)
-        for lab in self.statusBar().findChildren(TextLabel):  # coordinates of no image
-            lab.setVisible(not on)
-        self.central.setCurrentWidget(self.start_page if on else self.central.widget(1))
-        self.start_page.set_demo_available(self.demo_maker is not None)
+        window_layout.show_start(self, on)
 
     def save_layout(self) -> None:
         st.set_value(st.Key.GEOMETRY, self.saveGeometry())
