@@ -315,6 +315,8 @@ def test_layout_and_recent_files_persist(qtbot, window, demo):
     w2 = MainWindow(interactive=False)
     qtbot.addWidget(w2)
     w2.show()
+    assert w2.central.currentWidget() is w2.start_page  # no project: the start page
+    assert w2.files.new_project(str(demo.path.parent / "scene.json"))
     assert w2.docks["plots"].isHidden() and not w2.docks["points"].isHidden()
     assert w2.recent_menu.actions()[0].text() == str(demo.path.resolve())
     w2.close()

@@ -11,5 +11,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from prismstation.cli.demo import ensure_demo
     from prismstation.gui.app import run as run_gui
-    return run_gui(args.project, screenshot=args.screenshot)
+    return run_gui(args.project, screenshot=args.screenshot, demo_maker=ensure_demo)

@@ -99,10 +99,11 @@ def take_screenshot(window, path, size=(1680, 1050)) -> None:
         raise InputError("could not write the screenshot", path)
 
 
-def run(project_path=None, screenshot=None, reference_dem=None) -> int:
+def run(project_path=None, screenshot=None, reference_dem=None, demo_maker=None) -> int:
     """Open the window (on ``project_path``, with ``reference_dem`` loaded when given) and run
     the event loop; with ``screenshot`` (a PNG path) write a picture of the loaded, fitted
-    window instead and return 0."""
+    window instead and return 0. ``demo_maker``: ``demo_maker(progress=…)`` makes the demo
+    project and returns its path (the start page's "Open the demo project")."""
     screenshot_path = screenshot
     if project_path is not None and not Path(project_path).exists():
         raise InputError("project not found", project_path)
@@ -122,7 +123,7 @@ def run(project_path=None, screenshot=None, reference_dem=None) -> int:
     from prismstation.gui.main_window import MainWindow
 
     interactive = screenshot_path is None
-    win = MainWindow(interactive=interactive)
+    win = MainWindow(interactive=interactive, demo_maker=demo_maker)
     win.files.interactive = interactive
     if project_path is not None:
         win.show()

@@ -11,6 +11,7 @@ from prismstation.errors import InputError
 from prismstation.io import pointfiles
 from prismstation.io.csvtable import split_text
 from prismstation.io.points import ground_points_from_table, measurements_from_table
+from prismstation.model.points import HEIGHT_KINDS, KINDS
 
 GROUND_FIELDS = (("id", True), ("E", True), ("N", True), ("H", True), ("kind", False),
                  ("height", False), ("sigma_xy_m", False), ("sigma_h_m", False))
@@ -20,7 +21,8 @@ ALIASES = {
            "nr", "no", "ponto"),
     "E": ("e", "east", "easting", "x", "mapx", "lon", "long", "longitude"),
     "N": ("n", "north", "northing", "y", "mapy", "lat", "latitude"),
-    "H": ("h", "z", "elevation", "elev", "alt", "altitude", "height_m", "ortho_h", "cota"),
+    "H": ("h", "z", "elevation", "elev", "alt", "altitude", "height_m", "ortho_h", "cota",
+          "height", "hgt"),
     "kind": ("kind", "type", "role"),
     "height": ("height", "height_kind", "datum"),
     "view": ("view", "image", "img", "band"),
@@ -42,26 +44,63 @@ def split_lines(text: str, delimiter: str, header: bool = True):
     return t.header_line, t.columns, t.rows
 
 
-def guess_mapping(columns, fields) -> dict:
-    """``{field: column}`` matching names case-insensitively, then by :data:`ALIASES`."""
+def _fits(field: str, values) -> bool:
+    """Whether a column's ``values`` (strings) can be ``field``: mostly numbers for E, N, H, x,
+    y and the σ fields, point kinds for kind, height kinds for height (a typo in a few cells
+    does not change the guess: the reader names those lines)."""
+    vals = [v.strip() for v in values if v.strip()]
+    if field == "kind":
+        good = [v.upper() in KINDS for v in vals]
+    elif field == "height":
+        good = [v.lower() in HEIGHT_KINDS for v in vals]
+    elif field in NUMERIC_FIELDS:
+        good = [bool(_NUMBER.match(v)) for v in vals]
+    else:
+        return True
+    return 2 * sum(good) >= len(good)
+
+
+def guess_mapping(columns, fields, rows=None) -> dict:
+    """``{field: column}`` matching names case-insensitively, then by :data:`ALIASES`.
+
+    ``rows`` (``[(line, cells)]``, optional): the first data rows; a column whose content
+    cannot be the field is not guessed for it (a numeric "Height" column is H, not the height
+    kind). Each column feeds at most one field."""
     low = {c.lower(): c for c in columns}
+    sample = {c: [r[i] for _, r in (rows or [])[:50] if i < len(r)] for i, c in enumerate(columns)}
+
+    def ok(f, c):
+        return rows is None or _fits(f, sample.get(c, []))
+
     out, used = {}, set()
     for f, _ in fields:  # exact names first: 'height' is a kind, not the H column
-        if f.lower() in low:
-            out[f] = low[f.lower()]
-            used.add(out[f])
+        c = low.get(f.lower())
+        if c is not None and c not in used and ok(f, c):
+            out[f] = c
+            used.add(c)
     for f, _ in fields:
         if f in out:
             continue
         for a in ALIASES.get(f, ()):
             c = low.get(a)
-            if c is not None and c not in used:
+            if c is not None and c not in used and ok(f, c):
                 out[f], _ = c, used.add(c)
                 break
     return out
 
 
+def shared_columns(mapping: dict) -> list[str]:
+    """Problems for every file column that feeds more than one field of ``mapping``."""
+    by_col: dict = {}
+    for f, c in mapping.items():
+        by_col.setdefault(c, []).append(f)
+    return [f"column {c!r} feeds both {' and '.join(fs)}: give each field its own column"
+            for c, fs in by_col.items() if len(fs) > 1]
+
+
 _DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+$")
+_NUMBER = re.compile(r"^[+-]?(\d+([.,]\d*)?|[.,]\d+)([eE][+-]?\d+)?$")
+NUMERIC_FIELDS = ("E", "N", "H", "x", "y", "sigma_xy_m", "sigma_h_m", "sigma_px")
 
 
 def has_decimal_comma(rows, delimiter: str) -> bool:

@@ -27,7 +27,7 @@ from prismstation.errors import InputError
 from prismstation.io import pointfiles
 from prismstation.io.csvtable import guess_delimiter
 from prismstation.gui.import_csv import (DELIMITERS, GROUND_FIELDS, MEASUREMENT_FIELDS, NONE,
-                                         PREVIEW_ROWS, guess_mapping, guess_view,
+                                         PREVIEW_ROWS, guess_mapping, guess_view, shared_columns,
                                          has_decimal_comma, is_point_file, read_mapped,
                                          split_lines)
 from prismstation.model.points import HEIGHT_KINDS
@@ -236,7 +236,7 @@ class ImportDialog(QDialog):
             self.decimal_comma.setChecked(has_decimal_comma(rows, d))
             self.decimal_comma.blockSignals(False)
             # the content whose required fields the header names best (ties: ground points)
-            n_req = [sum(f in guess_mapping(cols, fields) for f, req in fields if req)
+            n_req = [sum(f in guess_mapping(cols, fields, rows) for f, req in fields if req)
                      for fields in (GROUND_FIELDS, MEASUREMENT_FIELDS)]
             self.what.blockSignals(True)
             self.what.setCurrentIndex(1 if n_req[1] > n_req[0] else 0)
@@ -301,8 +301,8 @@ class ImportDialog(QDialog):
             self._build_point_file_form()
         else:
             self.columns_box.setTitle("Columns")
-            _, columns, _ = split_lines(self._text, self._delimiter(), self.has_header.isChecked())
-            guess = guess_mapping(columns, self._fields())
+            _, columns, rows = split_lines(self._text, self._delimiter(), self.has_header.isChecked())
+            guess = guess_mapping(columns, self._fields(), rows)
             key = (str(self.path), self.what.currentData(), tuple(columns))
             if self._kept is not None and self._kept[0] == key:  # same file and columns again
                 guess = {f: c for f, c in self._kept[1].items()}
@@ -382,6 +382,7 @@ class ImportDialog(QDialog):
         delim, header = self._delimiter(), self.has_header.isChecked()
         hline, columns, rows = split_lines(self._text, delim, header)
         errors = [InputError(f"map a column onto {f}", self.path) for f in missing]
+        errors += [InputError(p, self.path) for p in shared_columns(cols)]
         recs = []
         if not errors:
             recs, errors = read_mapped(self.path, what, self._text, cols, delimiter=delim,

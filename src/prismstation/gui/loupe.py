@@ -24,26 +24,41 @@ class Loupe(QWidget):
     Parameters
     ----------
     zoom : int
-        Screen pixels per image pixel.
+        Screen pixels per image pixel, at most: a smaller widget shows whole screen pixels per
+        image pixel as many as fit (at least ``MIN_ZOOM``), centred.
     pixels : int
         Side of the window shown, in image pixels (odd values centre the cursor's pixel).
+    label : str
+        The view's name, painted in the top-left corner (N, F, B).
     """
 
-    def __init__(self, parent=None, zoom: int = 8, pixels: int = 25):
+    MIN_ZOOM = 3
+
+    def __init__(self, parent=None, zoom: int = 8, pixels: int = 25, label: str = ""):
         super().__init__(parent)
-        self.zoom = int(zoom)
+        self.max_zoom = self.zoom = int(zoom)
         self.pixels = int(pixels)
+        self.label = label
         self.source = None
         self.levels = (0.0, 255.0)
         self.position: tuple[float, float] | None = None
         self.origin = (0, 0)  # image (column, row) of the window's top-left pixel
         self.window: np.ndarray | None = None  # (pixels, pixels) raw values
         self._qimage: QImage | None = None
-        self.setMinimumSize(self.sizeHint())
+        self.setMinimumSize(self.minimumSizeHint())
 
     def sizeHint(self) -> QSize:
-        side = self.zoom * self.pixels
+        side = self.max_zoom * self.pixels
         return QSize(side, side)
+
+    def minimumSizeHint(self) -> QSize:
+        side = self.MIN_ZOOM * self.pixels
+        return QSize(side, side)
+
+    def resizeEvent(self, ev) -> None:
+        """Whole screen pixels per image pixel, as many as the widget holds (no interpolation)."""
+        self.zoom = max(self.MIN_ZOOM, min(self.max_zoom, min(self.width(), self.height()) // self.pixels))
+        super().resizeEvent(ev)
 
     def attach(self, view) -> None:
         """Follow an ImageView: its source, its levels and the cursor over it."""
@@ -92,8 +107,14 @@ class Loupe(QWidget):
         self.update()
 
     def screen_of(self, x: float, y: float) -> QPointF:
-        """Widget position of image point ``(x, y)`` in the loupe's current window."""
-        return QPointF((x - self.origin[0]) * self.zoom, (y - self.origin[1]) * self.zoom)
+        """Widget position of image point ``(x, y)`` in the loupe's current window (the
+        magnified pixels are centred in the widget)."""
+        o = self._offset()
+        return QPointF(o.x() + (x - self.origin[0]) * self.zoom, o.y() + (y - self.origin[1]) * self.zoom)
+
+    def _offset(self) -> QPointF:
+        side = self.pixels * self.zoom
+        return QPointF(max(0, (self.width() - side) // 2), max(0, (self.height() - side) // 2))
 
     def paintEvent(self, ev) -> None:
         p = QPainter(self)
@@ -101,7 +122,8 @@ class Loupe(QWidget):
         if self._qimage is not None:
             side = self.pixels * self.zoom
             p.setRenderHint(QPainter.RenderHint.SmoothPixmapTransform, False)
-            p.drawImage(QRectF(0, 0, side, side), self._qimage)
+            o = self._offset()
+            p.drawImage(QRectF(o.x(), o.y(), side, side), self._qimage)
         if self.position is not None:
             c = self.screen_of(*self.position)
             p.setRenderHint(QPainter.RenderHint.Antialiasing, True)
@@ -113,7 +135,19 @@ class Loupe(QWidget):
                 p.drawLine(QPointF(c.x(), 0), QPointF(c.x(), c.y() - gap))
                 p.drawLine(QPointF(c.x(), c.y() + gap), QPointF(c.x(), self.height()))
             p.setPen(QPen(QColor(255, 255, 0), 1))
+            x, y = self.position
+            text = f"x {x:.2f}  y {y:.2f}"
+            if p.fontMetrics().horizontalAdvance(text) > self.width() - 8:  # a narrow loupe
+                text = f"{x:.1f}, {y:.1f}"
             p.drawText(self.rect().adjusted(4, 2, -4, -2),
-                       Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignBottom,
-                       f"x {self.position[0]:.2f}  y {self.position[1]:.2f}")
+                       Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignBottom, text)
+        if self.label:
+            f = p.font()
+            f.setBold(True)
+            p.setFont(f)
+            p.fillRect(QRectF(0, 0, p.fontMetrics().horizontalAdvance(self.label) + 8,
+                              p.fontMetrics().height() + 2), QColor(0, 0, 0, 170))
+            p.setPen(QPen(QColor(255, 255, 255), 1))
+            p.drawText(self.rect().adjusted(4, 1, -4, -2),
+                       Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop, self.label)
         p.end()

@@ -2,20 +2,22 @@
 
 Data flow for one click (ARCHITECTURE.md): a gesture in :class:`TripletViews` becomes a
 command pushed on the one ``QUndoStack``; the command edits the Project; the :class:`Solver`
-refits and publishes a Solution; views, table, model panel and plots read it.
+refits and publishes a Solution; views, table, model panel, plots and the accuracy strip read
+it. Actions and menus are built in :mod:`.menus`; without a project the central area is the
+:class:`~.start_page.StartPage`.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
 from PySide6.QtCore import Qt, QTimer
-from PySide6.QtGui import QAction, QKeySequence
-from PySide6.QtWidgets import (QDockWidget, QDoubleSpinBox, QLabel, QMainWindow,
-                               QMessageBox, QStyle, QTabWidget, QHBoxLayout, QWidget)
+from PySide6.QtWidgets import (QDockWidget, QHBoxLayout, QMainWindow, QMessageBox,
+                               QStackedWidget, QTabWidget, QVBoxLayout, QWidget)
 
 from prismstation.errors import PrismError
 from prismstation.gui import commands as cmd
-from prismstation.gui import io_actions
+from prismstation.gui import io_actions, menus, window_layout
+from prismstation.gui.accuracy_strip import AccuracyStrip
 from prismstation.gui.tools import install_tools
 from prismstation.gui import settings as st
 from prismstation.gui.contrast import ContrastPanel
@@ -26,6 +28,7 @@ from prismstation.gui.model_panel import ModelPanel
 from prismstation.gui.plots import PlotsWidget
 from prismstation.gui.point_editor import PointEditor
 from prismstation.gui.point_table import PointTableModel, PointTableView
+from prismstation.gui.start_page import StartPage
 from prismstation.gui.text_label import TextLabel
 from prismstation.gui.views import TripletViews
 from prismstation.gui.workspace import Workspace
@@ -33,9 +36,10 @@ from prismstation.gui.workspace import Workspace
 
 class MainWindow(QMainWindow):
     """The measurement workstation. ``interactive=False`` (tests, screenshots) never offers to
-    build overviews."""
+    build overviews. ``demo_maker(progress)``: makes the demo project (first use) and returns
+    its path; the start page offers the demo when it is given."""
 
-    def __init__(self, interactive: bool = True, threaded_fit: bool = True):
+    def __init__(self, interactive: bool = True, threaded_fit: bool = True, demo_maker=None):
         super().__init__()
         self.setObjectName("MainWindow")
         self.setWindowTitle("prismstation")
@@ -44,8 +48,21 @@ class MainWindow(QMainWindow):
         self.undo_stack, self.files, self.solver, self.dem_loader = (
             ws.undo_stack, ws.files, ws.solver, ws.dem_loader)
         self.views = TripletViews(self)
-        self.setCentralWidget(self.views)
         self.linked_nav = LinkedNavigation(self.views, self)
+        self.accuracy = AccuracyStrip(st.value(st.Key.RESIDUAL_SCALE))
+        self.exaggeration = self.accuracy.exaggeration  # the one residual-exaggeration control
+        work = QWidget()
+        lay = QVBoxLayout(work)
+        lay.setContentsMargins(0, 0, 0, 0)
+        lay.setSpacing(0)
+        lay.addWidget(self.accuracy)
+        lay.addWidget(self.views, 1)
+        self.start_page = StartPage()
+        self.demo_maker = demo_maker  # callable(progress) -> the demo project's path
+        self.central = QStackedWidget()
+        self.central.addWidget(self.start_page)
+        self.central.addWidget(work)
+        self.setCentralWidget(self.central)
         self.table_model = PointTableModel(self)
         self.table = PointTableView(self.table_model)
         self.panel = ModelPanel()
@@ -53,25 +70,33 @@ class MainWindow(QMainWindow):
         self.loupe_box = QWidget()
         QHBoxLayout(self.loupe_box).setContentsMargins(2, 2, 2, 2)
         self.contrast_tabs = QTabWidget()
-        self.plots = PlotsWidget()
+        self.plots = PlotsWidget(own_exaggeration=False)
         self.docks = {}
         self._dock("points", "Points", self.table, Qt.DockWidgetArea.BottomDockWidgetArea)
         self._dock("model", "Model", self.panel, Qt.DockWidgetArea.RightDockWidgetArea)
         self._dock("plots", "Plots", self.plots, Qt.DockWidgetArea.BottomDockWidgetArea)
         self._dock("loupe", "Loupe", self.loupe_box, Qt.DockWidgetArea.RightDockWidgetArea)
-        self._dock("contrast", "Contrast", self.contrast_tabs, Qt.DockWidgetArea.RightDockWidgetArea)
+        self._dock("contrast", "Contrast", self.contrast_tabs, Qt.DockWidgetArea.RightDockWidgetArea,
+                   scroll=True)
         self.tabifyDockWidget(self.docks["loupe"], self.docks["contrast"])
         self.docks["loupe"].raise_()
         self.splitDockWidget(self.docks["points"], self.docks["plots"], Qt.Orientation.Horizontal)
+        own_docks = set(self.docks)
         self._status_widgets()
-        self._actions()
-        self._menus()
-        self._toolbar()
+        menus.build_actions(self)
+        menus.build_menus(self)
+        self._fill_recent(st.value(st.Key.RECENT_FILES))
+        menus.build_toolbar(self)
         self._connect()
         self.measure_mode = MeasureMode(self)
         self.point_editor = PointEditor(self)
         self.tool_context = install_tools(self)
         self.tools = self.tool_context.tools
+        for k, d in self.docks.items():  # a panel opened never makes the window grow
+            if k not in own_docks:
+                d.setWidget(window_layout.scrolled(d.widget()))
+        menus.fill_panels_menu(self)
+        self._work_state = None  # the docks' state while the start page is up
         if interactive:
             self.views.offer_overviews = self._offer_overviews
         self._measured_timer = QTimer(self)
@@ -79,16 +104,20 @@ class MainWindow(QMainWindow):
         self._measured_timer.setInterval(0)
         self._measured_timer.timeout.connect(self.views.refresh_measured)
         self.restore_layout()
+        self._show_start(True)
         self._update_actions()
 
     # ------------------------------------------------------------------ construction
-    def _dock(self, key, title, widget, area) -> QDockWidget:
+    def _dock(self, key, title, widget, area, scroll=False) -> QDockWidget:
         d = QDockWidget(title, self)
         d.setObjectName(f"dock_{key}")
-        d.setWidget(widget)
+        d.setWidget(window_layout.scrolled(widget) if scroll else widget)
         self.addDockWidget(area, d)
         self.docks[key] = d
         return d
+
+    def _act(self, *args, **kw):  # for tools still given the window (dsm_tool)
+        return menus.act(self, *args, **kw)
 
     def _status_widgets(self) -> None:
         sb = self.statusBar()
@@ -97,127 +126,10 @@ class MainWindow(QMainWindow):
             lab = TextLabel(text, widest)
             sb.addPermanentWidget(lab)
             return lab
-        for v in ("N", "F", "B"):  # up to 99,999 px, and negative off the image's top-left
-            self.status_xy[v] = label(f"{v}  —", f"{v}  x -00000.0  y -00000.0")
+        for v in ("N", "F", "B"):
+            self.status_xy[v] = label(f"{v}  —", f"{v}  x -00000.0  y -00000.0")  # up to 99,999 px, and negative
         self.status_ground = label("E —  N —  h —", "E 0000000.0  N 00000000.0  h -0000.0 m")
         self.status_fit = label("", "fit 0000 ms · σ0 000.000")
-
-    def _act(self, text, slot, shortcut=None, icon=None, tip=None, checkable=False) -> QAction:
-        a = QAction(text, self)
-        if isinstance(shortcut, QKeySequence.StandardKey):
-            a.setShortcuts(shortcut)
-        elif shortcut is not None:
-            a.setShortcuts(shortcut if isinstance(shortcut, list) else [QKeySequence(shortcut)])
-        if icon is not None:
-            a.setIcon(self.style().standardIcon(icon))
-        if tip:
-            a.setStatusTip(tip)
-            a.setToolTip(tip)
-        a.setCheckable(checkable)
-        if slot is not None:
-            a.triggered.connect(slot)
-        self.addAction(a)
-        return a
-
-    def _actions(self) -> None:
-        K, S = QKeySequence.StandardKey, QStyle.StandardPixmap
-        self.a_new = self._act("&New project…", lambda: self.files.new_project(), K.New, S.SP_FileIcon)
-        self.a_open = self._act("&Open…", lambda: self.files.open_project(), K.Open, S.SP_DialogOpenButton,
-                                "Open a project")
-        self.a_save = self._act("&Save", self.files.save, K.Save, S.SP_DialogSaveButton, "Save the project")
-        self.a_save_as = self._act("Save &as…", lambda: self.files.save_as(), K.SaveAs)
-        self.a_import = self._act("&Import points…", self.import_points, "Ctrl+I")
-        self.a_export = self._act("&Export report…", lambda: self.export_report(), "Ctrl+E")
-        self.a_quit = self._act("&Quit", self.close, K.Quit)
-        self.a_undo = self.undo_stack.createUndoAction(self, "&Undo")
-        self.a_undo.setShortcuts(QKeySequence.StandardKey.Undo)
-        self.a_undo.setIcon(self.style().standardIcon(S.SP_ArrowBack))
-        self.a_redo = self.undo_stack.createRedoAction(self, "&Redo")
-        redo_keys = QKeySequence.keyBindings(K.Redo)
-        self.a_redo.setShortcuts(redo_keys + [QKeySequence(k) for k in ("Ctrl+Shift+Z", "Ctrl+Y")
-                                              if QKeySequence(k) not in redo_keys])
-        self.a_redo.setIcon(self.style().standardIcon(S.SP_ArrowForward))
-        self.addActions([self.a_undo, self.a_redo])
-        self.a_new_point = self._act("New &point", self.new_point, "Insert", S.SP_FileDialogNewFolder,
-                                     "New tie point: click in each view to place it")
-        self.a_del_point = self._act("&Delete point", self.delete_point, "Shift+Del", S.SP_TrashIcon,
-                                     "Delete the current point and its measurements")
-        self.a_del_meas = self._act("Delete &measurement", self.delete_measurement, "Del",
-                                    tip="Delete the current point's measurement in the view under the cursor")
-        self.a_kind = {k: self._act(f"Make {k}", lambda _=False, k=k: self.set_kind(k), f"Ctrl+{i + 1}")
-                       for i, k in enumerate(("GCP", "ICP", "TIE"))}
-        self.a_zoom_in = self._act("Zoom &in", lambda: self.views.zoom_all(1.5), [QKeySequence(K.ZoomIn),
-                                   QKeySequence("Ctrl+=")], S.SP_ArrowUp)
-        self.a_zoom_out = self._act("Zoom &out", lambda: self.views.zoom_all(1 / 1.5), K.ZoomOut, S.SP_ArrowDown)
-        self.a_fit = self._act("&Fit images", self.views.fit_all, "Ctrl+0", S.SP_TitleBarMaxButton)
-        self.a_goto = self._act("&Go to point", self.drive_to_current, "Space")
-        self.a_next = self._act("&Next point", lambda: self.step_point(1), [QKeySequence("PgDown"),
-                                QKeySequence("Ctrl+Right")], S.SP_MediaSeekForward)
-        self.a_prev = self._act("&Previous point", lambda: self.step_point(-1), [QKeySequence("PgUp"),
-                                QKeySequence("Ctrl+Left")], S.SP_MediaSeekBackward)
-        self.a_dem = self._act("Reference &DEM…", self.choose_reference_dem,
-                               tip="Heights for the linked cursor and for points without parallax")
-        self.a_linked_nav = self._act("&Linked navigation", self.linked_nav.set_enabled, checkable=True,
-                                      tip="Zoom and pan in one view move the others to the same ground")
-        self.a_linked_nav.setChecked(True)
-        self.a_labels = self._act("Point &labels", self.views.set_show_labels, "Ctrl+L", checkable=True)
-        self.a_labels.setChecked(st.value(st.Key.SHOW_LABELS))
-        self.a_about = self._act("&About", self.about)
-
-    def _menus(self) -> None:
-        mb = self.menuBar()
-        m = mb.addMenu("&File")
-        m.addActions([self.a_new, self.a_open])
-        self.recent_menu = m.addMenu("Open &recent")
-        m.addSeparator()
-        m.addActions([self.a_save, self.a_save_as])
-        m.addSeparator()
-        m.addActions([self.a_import, self.a_export])
-        m.addSeparator()
-        m.addAction(self.a_quit)
-        m = mb.addMenu("&Edit")
-        m.addActions([self.a_undo, self.a_redo])
-        m.addSeparator()
-        m.addActions([self.a_new_point, self.a_del_point, self.a_del_meas])
-        self.edit_menu = m
-        m.addSeparator()
-        m.addActions(list(self.a_kind.values()))
-        m = mb.addMenu("&View")
-        m.addActions([self.a_zoom_in, self.a_zoom_out, self.a_fit, self.a_linked_nav])
-        m.addSeparator()
-        m.addActions([self.a_goto, self.a_next, self.a_prev, self.a_labels, self.a_dem])
-        m.addSeparator()
-        for d in self.docks.values():
-            m.addAction(d.toggleViewAction())
-        self.tools_menu = mb.addMenu("&Tools")  # filled by prismstation.gui.tools modules
-        mb.addMenu("&Help").addAction(self.a_about)
-        self._fill_recent(st.value(st.Key.RECENT_FILES))
-
-    def _toolbar(self) -> None:
-        tb = self.addToolBar("Main")
-        tb.setObjectName("toolbar_main")
-        tb.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
-        tb.addActions([self.a_open, self.a_save])
-        tb.addSeparator()
-        tb.addActions([self.a_undo, self.a_redo])
-        for a in (self.a_undo, self.a_redo):  # icons only: "Undo Move G5 in N" would relayout
-            tb.widgetForAction(a).setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonIconOnly)
-        tb.addSeparator()
-        tb.addActions([self.a_new_point, self.a_del_point])
-        for a in self.a_kind.values():
-            tb.addAction(a)
-            a.setText(a.text().replace("Make ", ""))
-        tb.addSeparator()
-        tb.addActions([self.a_prev, self.a_next])
-        tb.addSeparator()
-        tb.addActions([self.a_zoom_in, self.a_zoom_out, self.a_fit])
-        tb.addSeparator()
-        tb.addWidget(QLabel(" Residual vectors ×"))
-        self.exaggeration = QDoubleSpinBox(decimals=0, minimum=1, maximum=5000, singleStep=10)
-        self.exaggeration.setToolTip("Residual vectors on the images: screen pixels per pixel of "
-                                     "residual (the same at every zoom)")
-        self.exaggeration.setValue(st.value(st.Key.RESIDUAL_SCALE))
-        tb.addWidget(self.exaggeration)
 
     def _connect(self) -> None:
         self.files.project_opened.connect(self.set_project)
@@ -238,7 +150,14 @@ class MainWindow(QMainWindow):
         self.table.setContextMenuPolicy(Qt.ContextMenuPolicy.ActionsContextMenu)
         self.table.addActions([self.a_goto, *self.a_kind.values(), self.a_del_point])
         self.panel.settings_requested.connect(self.change_settings)
-        self.exaggeration.valueChanged.connect(self._on_exaggeration)
+        self.accuracy.exaggeration_changed.connect(self._on_exaggeration)
+        sp = self.start_page
+        sp.open_requested.connect(lambda: self.files.open_project())
+        sp.scene_requested.connect(lambda: self.files.new_project())
+        sp.product_requested.connect(lambda: self.files.new_project_from_product())
+        sp.recent_requested.connect(lambda f: self.files.open_project(f))
+        sp.guide_requested.connect(self.show_guide)
+        sp.demo_requested.connect(self.open_demo)
         self.dem_loader.loaded.connect(self._on_dem)
         self.dem_loader.failed.connect(lambda m: self.statusBar().showMessage(f"Reference DEM: {m}", 10000))
         self.plots.point_clicked.connect(lambda pid: self.set_current(pid, drive=True))
@@ -265,11 +184,12 @@ class MainWindow(QMainWindow):
         split = st.value(st.Key.SPLITTER)
         if split is not None and not split.isEmpty():
             self.views.splitter.restoreState(split)
-        self.views.set_exaggeration(self.exaggeration.value())
+        self._on_exaggeration(self.exaggeration.value())
         self.views.set_show_labels(self.a_labels.isChecked())
         self.table_model.set_project(project)
         self.panel.set_settings(project.settings)
         self._bind_image_tools()
+        self._show_start(False)
         self._update_actions()
 
     def _bind_image_tools(self) -> None:
@@ -283,7 +203,7 @@ class MainWindow(QMainWindow):
         self.contrast_tabs.clear()
         self.loupes = {}
         for name, iv in self.views.views.items():
-            lp = Loupe(zoom=6, pixels=25)
+            lp = Loupe(zoom=6, pixels=25, label=name)
             lp.attach(iv)
             lay.addWidget(lp)
             self.loupes[name] = lp
@@ -311,6 +231,7 @@ class MainWindow(QMainWindow):
         for f in files:
             self.recent_menu.addAction(f, lambda f=f: self.files.open_project(f))
         self.recent_menu.setEnabled(bool(files))
+        self.start_page.set_recent(files)
 
     # ------------------------------------------------------------------ solution
     def on_solution(self, sol) -> None:
@@ -319,6 +240,7 @@ class MainWindow(QMainWindow):
         self.table.select_id(self.current)
         self.panel.set_solution(sol)
         self.plots.set_solution(sol)
+        self.accuracy.set_solution(sol)
         self.status_fit.setText(f"fit {self.solver.last_fit_ms:.0f} ms · σ0 "
                                 + (f"{sol.bias[sol.reference_view].sigma0:.3f}"
                                    if sol.bias[sol.reference_view].sigma0 is not None else "—"))
@@ -432,6 +354,7 @@ class MainWindow(QMainWindow):
 
     def _on_exaggeration(self, k) -> None:
         self.views.set_exaggeration(k)
+        self.plots.set_exaggeration(k)
         st.set_value(st.Key.RESIDUAL_SCALE, float(k))
 
     def _update_actions(self) -> None:
@@ -471,6 +394,18 @@ class MainWindow(QMainWindow):
         from prismstation.gui.overviews import offer_overviews
         offer_overviews(self, source)
 
+    def open_demo(self) -> None:
+        """Make the demo project on first use (in a worker, with progress), then open it."""
+        if self.demo_maker is None or not self.files.maybe_save():
+            return
+        from prismstation.gui.tools._worker import run_with_progress
+        run_with_progress(self, "Making the demo project", lambda progress: self.demo_maker(progress=progress),
+                          lambda path: self.files.open_project(str(path), check_unsaved=False))
+
+    def show_guide(self) -> None:
+        from prismstation.gui.guide import show_guide
+        show_guide(self)
+
     def about(self) -> None:
         from prismstation import __version__
         QMessageBox.about(self, "prismstation", f"prismstation {__version__}\n"
@@ -488,17 +423,15 @@ class MainWindow(QMainWindow):
             self.default_layout()
 
     def default_layout(self) -> None:
-        """Dock sizes for a first start: images large, table and plots below, model at right."""
-        d = self.docks
-        w, h = max(self.width(), 1200), max(self.height(), 800)
-        self.resizeDocks([d["model"], d["loupe"]], [int(h * 0.45), int(h * 0.2)], Qt.Orientation.Vertical)
-        self.resizeDocks([d["model"]], [int(w * 0.24)], Qt.Orientation.Horizontal)
-        self.resizeDocks([d["points"], d["plots"]], [int(w * 0.42), int(w * 0.58)], Qt.Orientation.Horizontal)
-        self.resizeDocks([d["points"]], [int(h * 0.36)], Qt.Orientation.Vertical)
+        """Dock sizes for a first start (:func:`.window_layout.default_layout`)."""
+        window_layout.default_layout(self)
+
+    def _show_start(self, on: bool) -> None:
+        window_layout.show_start(self, on)
 
     def save_layout(self) -> None:
         st.set_value(st.Key.GEOMETRY, self.saveGeometry())
-        st.set_value(st.Key.STATE, self.saveState())
+        st.set_value(st.Key.STATE, self._work_state if self._work_state is not None else self.saveState())
         if self.views.views:
             st.set_value(st.Key.SPLITTER, self.views.splitter.saveState())
         st.set_value(st.Key.SHOW_LABELS, self.a_labels.isChecked())

@@ -228,6 +228,19 @@ class ModelPanel(QWidget):
         self.parallax.addItems(list(PARALLAX_MODELS))
         self.sigma = QDoubleSpinBox(decimals=2, minimum=0.01, maximum=100.0, singleStep=0.1, suffix=" px")
         self.threshold = QDoubleSpinBox(decimals=2, minimum=1.0, maximum=20.0, singleStep=0.5)
+        for w, tip in (
+                (self.bias, "How each view's image coordinates are corrected: shift (2 parameters), "
+                            "similarity (4) or affine (6); more parameters need more GCPs spread "
+                            "over the image"),
+                (self.parallax, "Height from the F−B parallax h = c0 + c1·py: line fits c0 and c1 on "
+                                "the GCPs, offset fits c0 with the theoretical c1, theoretical "
+                                "takes both from the geometry"),
+                (self.sigma, "A-priori σ of one image measurement (pixels): weights the fit and "
+                             "scales the standardised residuals; σ0 near 1× this means the "
+                             "measurements are as good as assumed"),
+                (self.threshold, "A GCP whose standardised residual exceeds this is flagged as a "
+                                 "possible blunder (about 3 for 99.7 % under normal errors)")):
+            w.setToolTip(tip)
         form = QFormLayout()
         form.addRow("Bias model", self.bias)
         form.addRow("Parallax model", self.parallax)
@@ -239,6 +252,7 @@ class ModelPanel(QWidget):
         self.geoid.setWordWrap(True)
         self.geoid.setToolTip("The geoid that makes orthometric heights ellipsoidal (h = H + N)")
         self.geoid_button = QPushButton("Change…")
+        self.geoid_button.setToolTip("Choose a constant undulation or a geoid grid file")
         self.geoid_button.clicked.connect(self.geoid_requested)
         grow = QHBoxLayout()
         grow.addWidget(self.geoid, 1)

@@ -15,12 +15,11 @@ import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainterPath, QPen, QStaticText, QTransform
 
+from prismstation.gui.palette import BLUNDER_RGB, CURRENT_RGB, CURSOR_RGB, KIND_RGB, qcolor
 from prismstation.ops.predict import CHI2_95_2D
 
-KIND_COLORS = {"GCP": QColor(255, 70, 70), "ICP": QColor(70, 200, 255), "TIE": QColor(255, 210, 60)}
-BLUNDER_COLOR = QColor(255, 0, 255)
-CURRENT_COLOR = QColor(255, 255, 255)
-CURSOR_COLOR = QColor(80, 255, 80)
+KIND_COLORS = {k: qcolor(k) for k in KIND_RGB}  # one colour per kind: gui/palette.py
+BLUNDER_COLOR, CURRENT_COLOR, CURSOR_COLOR = (qcolor(c) for c in (BLUNDER_RGB, CURRENT_RGB, CURSOR_RGB))
 
 
 def _cross(gap: float = 0.18) -> QPainterPath:

@@ -18,21 +18,19 @@ from __future__ import annotations
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtGui import QFont, QImage
 from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QGridLayout, QHBoxLayout, QLabel,
-                               QTabWidget, QVBoxLayout, QWidget)
+                               QStackedWidget, QTabWidget, QVBoxLayout, QWidget)
 
+from prismstation.gui.palette import BLUNDER_RGB, FIT_RGB, KIND_RGB, THEORY_RGB
 from prismstation.gui.plot_data import PlotData, auto_exaggeration, line_x, segments
 from prismstation.gui.text_label import TextLabel
 
 __all__ = ["PlotsWidget", "PlotData", "PLOT_NAMES", "auto_exaggeration"]
 
-GCP_COLOR = (31, 100, 200)
-ICP_COLOR = (230, 120, 20)
-FIT_COLOR = (20, 20, 20)
-THEORY_COLOR = (0, 150, 60)
-BLUNDER_COLOR = (220, 20, 20)
+GCP_COLOR, ICP_COLOR = KIND_RGB["GCP"], KIND_RGB["ICP"]  # one colour per kind: gui/palette.py
+FIT_COLOR, THEORY_COLOR, BLUNDER_COLOR = FIT_RGB, THEORY_RGB, BLUNDER_RGB
 PLOT_NAMES = ("height", "height_minus_theory", "vectors", "std_residuals")
 PLOT_TITLES = {
     "height": "Height vs F−B parallax",
@@ -53,7 +51,12 @@ class PlotsWidget(QWidget):
     grid : bool
         Draw grid lines (off by default: they dominate the repaint time).
     tabs : bool
-        One tab per plot instead of a 2 × 2 grid (only the visible plot repaints).
+        One tab per plot instead of a 2 × 2 grid (only the visible plot repaints). Without it
+        the grid turns into tabs while the widget is shorter than :data:`COMPACT_HEIGHT`
+        (a laptop screen: four plots 80 px tall say nothing).
+    own_exaggeration : bool
+        Show the plot's own exaggeration control (the window has one control for the images
+        and the plots, and calls :meth:`set_exaggeration`).
 
     Signals
     -------
@@ -61,25 +64,30 @@ class PlotsWidget(QWidget):
     """
 
     point_clicked = Signal(str)
+    COMPACT_HEIGHT = 340  # px
 
-    def __init__(self, parent=None, *, grid: bool = False, tabs: bool = False):
+    def __init__(self, parent=None, *, grid: bool = False, tabs: bool = False,
+                 own_exaggeration: bool = True):
         super().__init__(parent)
         self._data = PlotData()
         self._exaggeration = 100.0
         self._shown: dict = {}  # id(item) -> what it shows (see _set)
         self._framed: dict = {}  # plot -> the range last set from the data (see _apply_ranges)
         self.plots: dict[str, pg.PlotWidget] = {}
-        cells = QGridLayout()
+        self._grid_box = QWidget()
+        cells = self._cells = QGridLayout(self._grid_box)
         cells.setContentsMargins(0, 0, 0, 0)
         cells.setSpacing(2)
-        self.tabs = QTabWidget() if tabs else None
+        self.tabs = QTabWidget()
+        self._fixed_tabs = tabs
+        self._compact = tabs
         for i, name in enumerate(PLOT_NAMES):
             pw = pg.PlotWidget(background="w")
             if grid:  # pyqtgraph's grid costs ~10 ms a repaint per axis: reports only
                 pw.getPlotItem().showGrid(x=True, y=True, alpha=0.25)
-            pw.setMinimumSize(160, 120)
+            pw.setMinimumSize(140, 80)
             self.plots[name] = pw
-            if self.tabs is not None:
+            if tabs:
                 self.tabs.addTab(pw, TAB_NAMES[name])
             else:
                 cells.addWidget(pw, i // 2, i % 2)
@@ -102,18 +110,39 @@ class PlotsWidget(QWidget):
         self.auto_box.toggled.connect(self._on_auto)
         bar = QHBoxLayout()
         bar.setContentsMargins(4, 0, 4, 0)
-        bar.addWidget(QLabel("Residual vector exaggeration"))
-        bar.addWidget(self.spin)
-        bar.addWidget(self.auto_box)
+        label = QLabel("Residual vector exaggeration")
+        for w in (label, self.spin, self.auto_box):
+            bar.addWidget(w)
+            w.setVisible(own_exaggeration)
         self.summary = TextLabel(stretch=True, align=Qt.AlignmentFlag.AlignRight)  # no relayout
         bar.addWidget(self.summary, 1)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(0, 0, 0, 0)
-        if self.tabs is not None:
-            lay.addWidget(self.tabs, 1)
-        else:
-            lay.addLayout(cells, 1)
+        self._stack = QStackedWidget()
+        self._stack.addWidget(self._grid_box)
+        self._stack.addWidget(self.tabs)
+        self._stack.setCurrentWidget(self.tabs if tabs else self._grid_box)
+        lay.addWidget(self._stack, 1)
         lay.addLayout(bar)
+
+    def resizeEvent(self, ev) -> None:
+        super().resizeEvent(ev)
+        if not self._fixed_tabs and (self.height() < self.COMPACT_HEIGHT) != self._compact:
+            QTimer.singleShot(0, lambda: self._arrange(self.height() < self.COMPACT_HEIGHT))
+
+    def _arrange(self, compact: bool) -> None:
+        """The four plots in tabs (``compact``) or in the 2 × 2 grid."""
+        if compact == self._compact:
+            return
+        self._compact = compact
+        for i, name in enumerate(PLOT_NAMES):
+            if compact:
+                self.tabs.addTab(self.plots[name], TAB_NAMES[name])
+            else:
+                self._cells.addWidget(self.plots[name], i // 2, i % 2)
+        self._stack.setCurrentWidget(self.tabs if compact else self._grid_box)
+        for pw in self.plots.values():
+            pw.setVisible(not compact or pw is self.tabs.currentWidget())
 
     # ------------------------------------------------------------------ construction
     def _scatter(self, pw, color, symbol, name, size=8, filled=True):

@@ -232,3 +232,31 @@ def test_every_bad_line_is_read_without_a_temporary_file(tmp_path, monkeypatch):
                              {"id": "id", "E": "E", "N": "N", "H": "H"})
     assert recs == [] and len(errs) == 200 and errs[-1].line == 201
     assert str(errs[0]) == f"{tmp_path / 'g.csv'}, line 2: column N: 'x' is not a number"
+
+
+def test_a_numeric_height_column_is_H_not_the_height_kind(dialog, tmp_path):
+    """A survey's "Height" column holds numbers: it is H; the height-kind field stays unmapped."""
+    src = tmp_path / "survey.csv"
+    src.write_text("Name,Easting,Northing,Height\n"
+                   + "".join(f"{i},{e},{n},{h}\n" for i, e, n, h, _ in ROWS))
+    dialog.set_path(src)
+    cols, _ = dialog.mapping()
+    assert cols == {"id": "Name", "E": "Easting", "N": "Northing", "H": "Height"}
+    assert dialog.errors() == [] and ok_enabled(dialog)
+    assert [p.H for p in dialog.result()[0]] == [100.5, 110.0, 120.25]
+    # a column of height kinds named "height" still maps onto the kind field
+    src.write_text("id,E,N,H,height\nA1,540000,4560000,100,orthometric\n")
+    dialog.set_path(src)
+    assert dialog.mapping()[0]["height"] == "height" and dialog.mapping()[0]["H"] == "H"
+
+
+def test_one_column_feeding_two_fields_is_named_and_blocks(dialog, tmp_path):
+    src = tmp_path / "g.csv"
+    src.write_text("id,E,N,H\nA1,540000,4560000,100\n")
+    dialog.set_path(src)
+    assert dialog.errors() == [] and ok_enabled(dialog)
+    dialog.set_mapping("N", "E")
+    assert dialog.errors() == [f"{src}: column 'E' feeds both E and N: give each field its own column"]
+    assert not ok_enabled(dialog)
+    dialog.set_mapping("N", "N")
+    assert dialog.errors() == [] and ok_enabled(dialog)

@@ -154,3 +154,20 @@ def test_live_lines_plain_report_lines_antialiased(qtbot, fitted, monkeypatch):
     assert sorted(w.render_images((300, 200))) == sorted(plots.PLOT_NAMES)
     assert made[-1] is not w and made[-1].fit_line.curve.opts["antialias"]
     assert pg.getConfigOption("antialias") is False
+
+
+def test_a_short_widget_shows_one_plot_per_tab_and_a_tall_one_the_grid(qtbot, fitted):
+    w = PlotsWidget(own_exaggeration=False)
+    qtbot.addWidget(w)
+    w.set_solution(fitted[2])
+    w.resize(900, 600)
+    w.show()
+    qtbot.waitUntil(lambda: w._stack.currentWidget() is w._grid_box)
+    assert all(p.isVisible() for p in w.plots.values())
+    w.resize(900, 200)  # a 720-line screen leaves the plots about this much
+    qtbot.waitUntil(lambda: w._stack.currentWidget() is w.tabs)
+    assert w.tabs.count() == 4 and w.plots["height"].isVisible() and w.plots["height"].height() > 100
+    w.resize(900, 600)
+    qtbot.waitUntil(lambda: w._stack.currentWidget() is w._grid_box)
+    assert w.tabs.count() == 0 and all(p.isVisible() for p in w.plots.values())
+    assert not w.spin.isVisible()

@@ -73,10 +73,11 @@ class TransformsPanel(QWidget):
         super().showEvent(ev)
         self.refresh()
 
-    def refresh(self) -> None:
+    def refresh(self, force: bool = False) -> None:
         """Refit every transform on every view's points (milliseconds) and redraw — only
-        while the panel is visible: on a triplet it is otherwise ~40 ms on every click."""
-        if not self.isVisible():
+        while the panel is visible (on a triplet it is otherwise ~40 ms on every click) or
+        when ``force``d (a rectification needs the fit whether the panel is open or not)."""
+        if not (force or self.isVisible()):
             return
         project = self.window.project
         key = None if project is None else (id(project), project.revision)
@@ -229,7 +230,7 @@ class RectifyTool:
         from prismstation.ops.rectify import rectify_raster
 
         w = self.window
-        self.panel.refresh()
+        self.panel.refresh(force=True)
         r = self.panel.report(view, kind)
         v = w.project.scene.views.get(view)
         image = None if v is None else v.image

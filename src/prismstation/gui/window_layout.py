@@ -1,0 +1,61 @@
+"""The main window's layout: dock sizes for a first start, the start page in and out, and
+scroll areas that keep panels from growing the window.
+
+Functions of the window (``win``: a :class:`~prismstation.gui.main_window.MainWindow`).
+"""
+from __future__ import annotations
+
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import QScrollArea, QTabBar
+
+from prismstation.gui.text_label import TextLabel
+
+
+def scrolled(widget) -> QScrollArea:
+    """``widget`` in a frameless scroll area: a dock's content then asks for little room, and
+    showing more panels than the screen holds scrolls them instead of growing the window
+    past the screen (the tools' panels have tables and forms hundreds of pixels tall)."""
+    sa = QScrollArea()
+    sa.setWidgetResizable(True)
+    sa.setFrameShape(QScrollArea.Shape.NoFrame)
+    sa.setWidget(widget)
+    return sa
+
+
+def default_layout(win) -> None:
+    """Dock sizes for a first start at ``win``'s size: images large, table and plots below,
+    model panel and loupes at right (measured: 7.5 model lines at 1280 × 720, 17 at 1920 × 1080)."""
+    d = win.docks
+    w, h = win.width(), win.height()
+    bottom = int(h * (0.3 if h < 900 else 0.36))
+    # the right column: what menus, toolbar, status bar and the bottom docks leave
+    right = h - bottom - win.menuBar().sizeHint().height() - win.toolbar.sizeHint().height() \
+        - win.statusBar().sizeHint().height() - 12
+    side = max(int(w * 0.24), 330)
+    # three square loupes side by side (no taller than wide), at most 12 % of the height;
+    # 50 px for the dock's title and tabs; the model panel gets the rest
+    loupe = min((side - 16) // 3, int(h * 0.12)) + 50
+    win.resizeDocks([d["model"], d["loupe"]], [right - loupe, loupe], Qt.Orientation.Vertical)
+    win.resizeDocks([d["model"]], [side], Qt.Orientation.Horizontal)
+    win.resizeDocks([d["points"], d["plots"]], [int(w * 0.42), int(w * 0.58)], Qt.Orientation.Horizontal)
+    win.resizeDocks([d["points"]], [bottom], Qt.Orientation.Vertical)
+
+
+def show_start(win, on: bool) -> None:
+    """The start page (no project: panels and toolbar away, their layout kept) or the
+    work area. Docks are taken out of the layout, not hidden: a hidden tab group leaves a
+    stray tab bar."""
+    if on and win._work_state is None:
+        win._work_state = win.saveState()
+        for d in win.docks.values():
+            win.removeDockWidget(d)
+        for bar in win.findChildren(QTabBar, options=Qt.FindChildOption.FindDirectChildrenOnly):
+            bar.hide()  # the layout shows the ones it uses again
+    elif not on and win._work_state is not None:
+        win.restoreState(win._work_state)
+        win._work_state = None
+    win.toolbar.setVisible(not on)
+    for lab in win.statusBar().findChildren(TextLabel):  # coordinates of no image
+        lab.setVisible(not on)
+    win.central.setCurrentWidget(win.start_page if on else win.central.widget(1))
+    win.start_page.set_demo_available(win.demo_maker is not None)
