@@ -114,3 +114,23 @@ def test_kind_buttons_carry_their_colour(window):
         img = a.icon().pixmap(16, 16).toImage()
         assert QColor(img.pixel(8, 8)) == qcolor(k)
         assert window.toolbar.widgetForAction(a).text() == k
+
+
+def test_no_stray_tab_bar_over_the_menu_bar_after_the_start_page(qtbot, bare_window, demo):
+    """Opening a project from the start page restores the docks; Qt used to leave tab bars of
+    groups it no longer lays out visible at the window's top-left corner, over File and Edit."""
+    from PySide6.QtWidgets import QTabBar
+    win = bare_window
+    assert win.open_project(demo.path, recover=False)
+    qtbot.wait(200)
+    menu = win.menuBar().geometry()
+    bars = [b for b in win.findChildren(QTabBar, options=Qt.FindChildOption.FindDirectChildrenOnly)
+            if b.isVisible()]
+    assert bars, "the Loupe / Contrast group shows its tabs"
+    for b in bars:
+        assert not b.geometry().intersects(menu), [b.tabText(i) for i in range(b.count())]
+        assert b.count() >= 2
+    # what the user sees at the menu bar's left end is the File menu, not a tab
+    img = win.grab().toImage()
+    tab_bars_at_origin = [b for b in bars if b.geometry().contains(5, 5)]
+    assert not tab_bars_at_origin and img.width() == win.width()

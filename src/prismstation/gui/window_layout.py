@@ -5,7 +5,7 @@ Functions of the window (``win``: a :class:`~prismstation.gui.main_window.MainWi
 """
 from __future__ import annotations
 
-from PySide6.QtCore import Qt
+from PySide6.QtCore import QEvent, QObject, Qt, QTimer
 from PySide6.QtWidgets import QScrollArea, QTabBar
 
 from prismstation.gui.text_label import TextLabel
@@ -59,3 +59,35 @@ def show_start(win, on: bool) -> None:
         lab.setVisible(not on)
     win.central.setCurrentWidget(win.start_page if on else win.central.widget(1))
     win.start_page.set_demo_available(win.demo_maker is not None)
+
+
+class StrayTabBars(QObject):
+    """Hides the dock tab bars Qt leaves behind outside the dock areas.
+
+    After ``restoreState`` (the start page going away) QMainWindow keeps showing tab bars of
+    tab groups it no longer lays out: with one tab, or a copy of a live group's, at the
+    window's top-left corner over the menu bar. A live bar sits below the menu bar and holds
+    two tabs or more; any other visible bar of the window is hidden, after every show of a
+    tab bar (checked once polished: at ChildAdded a new bar is not a QTabBar yet)."""
+
+    def __init__(self, win):
+        super().__init__(win)
+        self.win = win
+        win.installEventFilter(self)
+        for bar in win.findChildren(QTabBar, options=Qt.FindChildOption.FindDirectChildrenOnly):
+            bar.installEventFilter(self)
+
+    def eventFilter(self, obj, ev) -> bool:
+        if ev.type() == QEvent.Type.ChildPolished and isinstance(ev.child(), QTabBar):
+            ev.child().installEventFilter(self)
+        elif (ev.type() in (QEvent.Type.Show, QEvent.Type.Move, QEvent.Type.Resize) and isinstance(obj, QTabBar)) \
+                or (obj is self.win and ev.type() == QEvent.Type.LayoutRequest):
+            QTimer.singleShot(0, self.sweep)
+        return False
+
+    def sweep(self) -> None:
+        top = self.win.menuBar().geometry().bottom()
+        area = self.win.rect().adjusted(0, top + 1, 0, 0)
+        for bar in self.win.findChildren(QTabBar, options=Qt.FindChildOption.FindDirectChildrenOnly):
+            if bar.isVisible() and (bar.count() < 2 or not area.contains(bar.geometry())):
+                bar.hide()
