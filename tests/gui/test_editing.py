@@ -9,6 +9,7 @@ from PySide6.QtCore import QPoint, QPointF, Qt
 from PySide6.QtGui import QGuiApplication
 
 from prismstation.gui import commands as cmd
+from prismstation.gui.palette import KIND_RGB
 from tests.gui.test_operator import click_image, key, settle
 
 
@@ -75,7 +76,7 @@ def test_undoing_a_blunder_drag_clears_magenta_in_the_other_views(qtbot, window)
         assert_no_ghost(win, v, xy.x, xy.y)
 
 
-YELLOW = (255, 210, 60)  # tie points (markers, predictions, labels); the images are grey
+YELLOW = KIND_RGB["TIE"]  # tie points (markers, predictions, labels); the images are grey
 
 
 def free_spot(win, view="N"):

@@ -50,7 +50,7 @@ def answered(monkeypatch, tmp_path):
         return "", ""
 
     def box(kind, answer):
-        def f(parent, title="", text="", *a, **k):
+        def f(parent, title="", *a, **k):
             asked.append((kind, title))
             return answer
         return f

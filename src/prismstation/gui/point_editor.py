@@ -230,24 +230,17 @@ class PointEditor:
         p = self.w.project
         if p is None:
             return None
-        dlg = NewPointDialog(self.w, p.new_point_id("G"), self.default_height_kind())
-        while dlg.exec() == QDialog.DialogCode.Accepted:
-            try:
-                point = dlg.point()
-                if point.id in p.points:
-                    raise InputError(f"point {point.id!r} already exists")
-                c = cmd.AddPoint(p, point)
-                self.w.undo_stack.push(c)
-            except PrismError as exc:
-                QMessageBox.warning(self.w, "New point", str(exc))
-                continue
-            self.w.set_current(point.id, drive=True)
-            mode = getattr(self.w, "measure_mode", None)
-            if mode is not None:
-                mode.set_mode("measure")
-            self._message(f"{point.id}: click it in each view (the hollow marker is where the model puts it)")
-            return point
-        return None
+        dlg = NewPointDialog(self.w, p.new_point_id("G"), self.default_height_kind(), taken=p.points)
+        if dlg.exec() != QDialog.DialogCode.Accepted or dlg.accepted_point is None:
+            return None
+        point = dlg.accepted_point
+        self.w.undo_stack.push(cmd.AddPoint(p, point))
+        self.w.set_current(point.id, drive=True)
+        mode = getattr(self.w, "measure_mode", None)
+        if mode is not None:
+            mode.set_mode("measure")
+        self._message(f"{point.id}: click it in each view (the hollow marker is where the model puts it)")
+        return point
 
 
 class CellDelegate(QStyledItemDelegate):
@@ -282,7 +275,7 @@ class KindDelegate(CellDelegate):
 class NewPointDialog(QDialog):
     """Id, kind (GCP, ICP), E, N, H (metres), height kind, σ plan and σ h (metres, optional)."""
 
-    def __init__(self, parent, pid: str, height_kind: str):
+    def __init__(self, parent, pid: str, height_kind: str, taken=()):
         super().__init__(parent)
         self.setWindowTitle("New point from coordinates")
         form = QFormLayout(self)
@@ -308,6 +301,20 @@ class NewPointDialog(QDialog):
         buttons.rejected.connect(self.reject)
         form.addRow(buttons)
         self.e.setFocus()
+        self.taken = taken  # ids already in the project
+        self.accepted_point: GroundPoint | None = None
+
+    def accept(self) -> None:
+        """Close only on a valid, new point; otherwise say what is wrong and stay open."""
+        try:
+            point = self.point()
+            if point.id in self.taken:
+                raise InputError(f"point {point.id!r} already exists")
+        except PrismError as exc:
+            QMessageBox.warning(self, "New point", str(exc))
+            return
+        self.accepted_point = point
+        super().accept()
 
     def point(self) -> GroundPoint:
         """The point typed (raises InputError naming the field that is wrong)."""

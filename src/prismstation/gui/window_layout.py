@@ -82,7 +82,7 @@ class StrayTabBars(QObject):
             ev.child().installEventFilter(self)
         elif (ev.type() in (QEvent.Type.Show, QEvent.Type.Move, QEvent.Type.Resize) and isinstance(obj, QTabBar)) \
                 or (obj is self.win and ev.type() == QEvent.Type.LayoutRequest):
-            QTimer.singleShot(0, self.sweep)
+            QTimer.singleShot(0, self, self.sweep)  # dropped if the window is gone
         return False
 
     def sweep(self) -> None:
