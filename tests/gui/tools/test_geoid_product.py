@@ -155,6 +155,7 @@ def test_new_project_from_a_ceos_product(window, tmp_path):
     # Save As asks where; the scene goes beside the project
     win.files.choose_save = lambda: str(tmp_path / "work" / "mine.prismproj")
     (tmp_path / "work").mkdir()
+    win.measure_mode.set_mode("create")  # a click makes a new point only in Create mode
     win.place("N", 20.0, 15.0)
     assert win.files.save_as()
     assert (tmp_path / "work" / "scene.json").is_file()
