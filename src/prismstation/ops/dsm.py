@@ -4,11 +4,12 @@ Levels: matching frames of ``g = g_fine·2^L`` metres per pixel (``g_fine = max(
 posting/2)``); the coarsest level is the first whose height search, the stated a-priori height
 uncertainty ``±R`` around the prior (the mean height of the fitted points, or a reference DEM),
 fits in ±24 px of the F–B pair. Each level's DSM (voids bridged, smoothed) is the prior of the
-next, searched within ``±3·g`` of the previous level (≈ 2.6 px of its F–B disparity, 16
-disparities at the next level); the level at ``2·g_fine`` is skipped (the finest searches
-``±12·g_fine``: 32 disparities for F–B). Each
-level is cut into tiles that overlap by ``overlap_m`` and are cross-faded (no seams); every
-tile is an independent Dask task (:mod:`prismstation.ops.dsm_tiles`).
+next, searched within ``±3·g`` of the previous level (16 disparities at the next level); the
+level at ``2·g_fine`` is skipped and the finest searches ``±1.8·4·g_fine`` (16 disparities
+for F–B too). Only the finest level is refined to subpixel (the coarser ones
+only make a smoothed prior). Each level is cut into tiles that overlap by ``overlap_m`` and
+are cross-faded (no seams); every tile is an independent Dask task
+(:mod:`prismstation.ops.dsm_tiles`).
 
 Output: heights (ellipsoidal, or orthometric through a geoid), the mask of cells all three
 images see, which of them matched (mask 1), were filled (2) or stayed void (0), the number of
@@ -33,6 +34,11 @@ MASK_VOID, MASK_MATCHED, MASK_FILLED = 0, 1, 2
 #: a-priori height uncertainty (m) of a reference DEM used as the prior (SRTM-like σ ≈ 10 m,
 #: and the orientation's own offset): the coarsest search is ±4σ
 REFERENCE_DEM_UNCERTAINTY_M = 40.0
+#: a level after the coarsest searches ±this many of the previous level's pixels around it
+#: and into the finest level (1.8: the F–B search fits in 16 disparities; 2,000 px at 5 m: NMAD and
+#: RMSE per slope class within 0.02 m of 3, 12 % less time; 1.5 lost 1.5 % fill on a 700 px scene)
+NEXT_LEVEL_SEARCH_IN_G = 3.0
+FINEST_SEARCH_IN_G = 1.8
 
 
 @dataclass(frozen=True)
@@ -239,7 +245,7 @@ def default_uncertainty(sol: Solution) -> float:
 def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dict | None = None,
              orthometric_geoid=None, progress=None, reference=None,
              height_uncertainty_m: float | None = None, fill: bool = False, refine: bool = True,
-             scheduler=None, workers: int | None = None, tile_px: int = 768,
+             scheduler=None, workers: int | None = None, tile_px: int = 1024,
              overlap_m: float | None = None) -> Dsm:
     """DSM of the ground seen in the N-image ``window`` (col0, row0, cols, rows; default all).
 
@@ -266,7 +272,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
     levels = 0
     while k_fb * R / (g_fine * 2 ** levels) > 24:
         levels += 1
-    overlap_m = overlap_m or 24 * g_fine
+    overlap_m = overlap_m or 10 * g_fine
     c0, r0, w, h = window
     corners = np.array([[c0, r0], [c0 + w, r0], [c0, r0 + h], [c0 + w, r0 + h]], float)
     foot = np.concatenate([sol.image_to_ground("N", corners, sol.mean_height + d) for d in (-R, R)])
@@ -294,7 +300,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
         wanted = seen_by_all(sol, t, shape, regrid(prior, prior_t, t, shape), window)
         wanted = cv2.dilate(wanted.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
         heights, quality, n_tiles, z_nmad = _level(sol, t, shape, g, half, prior, prior_t, tile_px=tile_px, wanted=wanted,
-                                           overlap_m=max(overlap_m, 4 * posting), refine=refine,
+                                           overlap_m=max(overlap_m, 4 * posting), refine=refine and L == 0,
                                            scheduler=scheduler, workers=workers, progress=part)
         info["levels"].append({"g_m": g, "posting_m": posting, "half_range_m": half,
                                "tiles": n_tiles, "filled": float(np.isfinite(heights).mean()),
@@ -303,7 +309,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
             # the next prior only from cells two or more pairs agree on (single-pair edges
             # can be off by the whole coarse search range)
             prior, prior_t = bridge(np.where(quality >= 2, heights, np.nan)), t
-            half = 3 * g
+            half = (FINEST_SEARCH_IN_G if order[order.index(L) + 1] == 0 else NEXT_LEVEL_SEARCH_IN_G) * g
     checkpoint(progress, 0.96, "mask and fill")
     heights, quality = _drop_unconfirmed(heights, quality, max(6.0, posting_m))
     seen = seen_by_all(sol, t, shape, bridge(heights), window)
