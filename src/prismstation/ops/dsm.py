@@ -95,19 +95,25 @@ def seen_by_all(sol: Solution, transform, shape, heights, window, strip: int = 5
     a, _, c, _, e, f = transform
     rows, cols = shape
     ok = np.ones(shape, bool)
+    i = np.arange(cols, dtype=np.float32)[None, :]
     for r0 in range(0, rows, strip):
         n = min(strip, rows - r0)
-        t = (a, 0.0, c, 0.0, e, f + e * r0)
+        j = np.arange(n, dtype=np.float32)[:, None]
         grid = Frame((c, f + e * r0), (1.0, 0.0), (0.0, 1.0 if e > 0 else -1.0), a, (n, cols))
-        en = _cell_centres(t, (n, cols))
+        h = heights[r0:r0 + n]
         for v in ("N", "F", "B"):
             G = view_affine(sol, v)
-            xy = en @ G[:, :2].T + G[:, 2] + heights[r0:r0 + n, :, None] * (relief_rate(sol, v, grid) @ G[:, :2].T)
+            rr = relief_rate(sol, v, grid) @ G[:, :2].T.astype(np.float32)
+            # image pixel = G·(cell centre + h·r): affine in the cell indices, float32 from the
+            # strip's first cell (float64) on
+            base = G[:, :2] @ np.array([c + 0.5 * a, f + e * (r0 + 0.5)]) + G[:, 2]
+            x = np.float32(base[0]) + np.float32(G[0, 0] * a) * i + np.float32(G[0, 1] * e) * j + h * rr[..., 0]
+            y = np.float32(base[1]) + np.float32(G[1, 0] * a) * i + np.float32(G[1, 1] * e) * j + h * rr[..., 1]
             if v == "N":
-                c0, q0, w, h = window
+                c0, q0, w, hh = window
             else:
-                (h, w), c0, q0 = sol.scene.views[v].shape, 0, 0
-            ok[r0:r0 + n] &= (xy[..., 0] >= c0) & (xy[..., 0] < c0 + w) & (xy[..., 1] >= q0) & (xy[..., 1] < q0 + h)
+                (hh, w), c0, q0 = sol.scene.views[v].shape, 0, 0
+            ok[r0:r0 + n] &= (x >= c0) & (x < c0 + w) & (y >= q0) & (y < q0 + hh)
     return ok
 
 
