@@ -84,7 +84,8 @@ def main() -> None:
     project = load_project(scene(folder, args.size, args.seed))
     sol = solve_project(project)
     t_plain, mpix, cpu_plain = plain_sgbm(folder)
-    print(f"triplet {args.size} px ({mpix:.1f} Mpix per image), {folder}")
+    rows, cols = sol.scene.views["N"].shape
+    print(f"triplet {cols} × {rows} px ({mpix:.1f} Mpix per image), {folder}")
     print(f"plain StereoSGBM N–F, 128 disparities: {t_plain:6.1f} s wall, {cpu_plain:6.1f} s CPU, "
           f"{mpix / t_plain:6.2f} Mpix/s")
     print(f"{'posting':>8} {'wall s':>7} {'cpu s':>7} {'Mpix/s':>7} {'×plain':>7} {'×cpu':>7} {'fill %':>7} "
