@@ -35,8 +35,8 @@ MASK_VOID, MASK_MATCHED, MASK_FILLED = 0, 1, 2
 #: and the orientation's own offset): the coarsest search is ±4σ
 REFERENCE_DEM_UNCERTAINTY_M = 40.0
 #: a level after the coarsest searches ±this many of the previous level's pixels around it
-#: and into the finest level (1.8: the F–B search fits in 16 disparities; 2,000 px at 5 m: NMAD and
-#: RMSE per slope class within 0.02 m of 3, 12 % less time; 1.5 lost 1.5 % fill on a 700 px scene)
+#: and into the finest level (1.8: the F–B search fits in 16 disparities, not 32; 2,000 px at 5 m:
+#: NMAD and RMSE per slope class within 0.02 m of 3; 1.5 lost 1.5 % fill on a 700 px scene)
 NEXT_LEVEL_SEARCH_IN_G = 3.0
 FINEST_SEARCH_IN_G = 1.8
 
