@@ -199,16 +199,22 @@ def _level(sol, transform, shape, g, half_range, prior, prior_t, *, tile_px, ove
     qacc = np.zeros(shape, np.float32)
     z = [(zn, n) for *_, (zn, n) in results if n]
     z_nmad = float(np.average([zn for zn, _ in z], weights=[n for _, n in z])) if z else float("nan")
-    for spec, (h, q, w, _) in zip(specs, results):
+    for i, spec in enumerate(specs):
+        (h, q, w, _), results[i] = results[i], None        # each tile's arrays freed once added
         r0, c0, nr, nc = spec.window
         w = w * np.isfinite(h)
         acc[r0:r0 + nr, c0:c0 + nc] += w * np.nan_to_num(h)
         qacc[r0:r0 + nr, c0:c0 + nc] += w * q
         wsum[r0:r0 + nr, c0:c0 + nc] += w
-    with np.errstate(invalid="ignore", divide="ignore"):
-        heights = np.where(wsum > 0, acc / wsum, np.nan).astype(np.float32)
-        quality = np.where(wsum > 0, np.rint(qacc / wsum), 0).astype(np.uint8)
-    return heights, quality, len(specs), z_nmad
+    # in place: no grid-sized temporaries (a 14,000 px scene at 5 m has ~56 million cells)
+    none = wsum <= 0
+    wsum[none] = 1.0
+    np.divide(acc, wsum, out=acc)
+    acc[none] = np.nan
+    np.divide(qacc, wsum, out=qacc)
+    quality = np.rint(qacc, out=qacc).astype(np.uint8)
+    quality[none] = 0
+    return acc, quality, len(specs), z_nmad
 
 
 def _crop(prior, prior_t, transform, window, reach):
