@@ -109,5 +109,6 @@ def test_cancel_button_of_the_progress_dialog_stops_and_leaves_no_file(qtbot, wi
     kind, _ = job_outcome(job, timeout=30000)
     assert kind == "cancelled"
     assert not job.isRunning()
+    assert max(progressed) < 0.5, progressed         # the engine stopped, not merely the write
     assert list(out.parent.iterdir()) == []          # neither the DSM nor a temporary file
     assert "cancelled" in window.statusBar().currentMessage()
