@@ -112,15 +112,6 @@ def resample_view(image: np.ndarray, index_of, sol: Solution, view: str, frame: 
 
 
 @dataclass(frozen=True)
-class PairPoints:
-    """Matched ground points of one pair: ``en`` (n, 2) map metres, ``h`` (n,) ellipsoidal m."""
-
-    en: np.ndarray
-    h: np.ndarray
-    k: float          # (r_A − r_B)·t, metres of parallax per metre of height
-
-
-@dataclass(frozen=True)
 class FrameImage:
     """One view on the frame, prepared once for all its pairs: ``u8`` (stretched, for SGBM),
     ``f32`` (NaN → 0, for the refinement), ``bad`` (uint8, 1 outside the image and within two
@@ -145,8 +136,11 @@ def prepare(ortho: np.ndarray, r: np.ndarray, frame: Frame, block: int = 5) -> F
 
 
 def match_pair(left: FrameImage, right: FrameImage, frame: Frame, h0: np.ndarray,
-               half_range_m: float, *, block: int = 5, refine: bool = False) -> PairPoints:
-    """Match two prepared frame images and turn the disparities into ground points."""
+               half_range_m: float, transform, shape, *, block: int = 5,
+               refine: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
+    """Match two prepared frame images; the heights binned onto the north-up grid
+    ``transform`` (a, b, c, d, e, f), ``shape``: ``(mean height, sample count, k)`` per cell,
+    NaN where none; ``k = (r_A − r_B)·t``, metres of parallax per metre of height."""
     rt_l, rt_r, r_l = left.rt, right.rt, left.r
     k = float(np.median(rt_l[::8, ::8] - rt_r[::8, ::8]))
     lo, n = sgm.disparity_search(half_range_m, k, frame.g, block)
@@ -154,35 +148,33 @@ def match_pair(left: FrameImage, right: FrameImage, frame: Frame, h0: np.ndarray
     if refine:
         d = sgm.refine_subpixel(left.f32, right.f32, d)
     rows, cols = frame.shape
-    bad_l, bad_r = left.bad, right.bad
     # whole-frame arrays (float32, no gathers): the right image's column of each left pixel
     xr = np.arange(cols, dtype=np.float32)[None, :] - d
     yy = np.repeat(np.arange(rows, dtype=np.float32)[:, None], cols, 1)
     at_r = lambda a, how: cv2.remap(a, xr, yy, how, borderMode=cv2.BORDER_CONSTANT, borderValue=1)  # noqa: E731
-    d[(bad_l > 0) | (at_r(bad_r, cv2.INTER_NEAREST) > 0)] = np.nan
+    d[(left.bad > 0) | (at_r(right.bad, cv2.INTER_NEAREST) > 0)] = np.nan
     h0_r = at_r(h0, cv2.INTER_LINEAR)               # h0 at the right image's position
     rr = at_r(rt_r, cv2.INTER_LINEAR)
     h = (d * frame.g + h0 * rt_l - h0_r * rr) / (rt_l - rr)
-    j, i = np.nonzero(np.isfinite(h))
-    h = h[j, i].astype(np.float64)
-    # ground positions in float64 (float32 would lose the UTM decimetres)
-    dh = (h0[j, i] - h)[:, None]
-    en = frame.to_map(i + 0.5, j + 0.5) + dh * r_l[j, i]
-    return PairPoints(en, h, k)
-
-
-def grid_pair(points: PairPoints, transform, shape) -> tuple[np.ndarray, np.ndarray]:
-    """Mean height and sample count per cell of a north-up grid ``transform`` (a, b, c, d, e, f)."""
+    # ground position W_A(P_A) − h·r_A as the output grid's fractional cell index; float32
+    # relative to the grid's corner (35 km in float32: millimetres)
     a, _, c, _, e, f = (float(v) for v in tuple(transform)[:6])
-    rows, cols = shape
-    ci = np.floor((points.en[:, 0] - c) / a).astype(int)
-    ri = np.floor((points.en[:, 1] - f) / e).astype(int)
-    ok = (ci >= 0) & (ci < cols) & (ri >= 0) & (ri < rows)
-    kk = ri[ok] * cols + ci[ok]
-    n = np.bincount(kk, minlength=rows * cols).reshape(rows, cols)
-    s = np.bincount(kk, weights=points.h[ok], minlength=rows * cols).reshape(rows, cols)
+    t, u, g = np.asarray(frame.t), np.asarray(frame.u), frame.g
+    x = (np.arange(cols, dtype=np.float32) + 0.5)[None, :]
+    y = (np.arange(rows, dtype=np.float32) + 0.5)[:, None]
+    dh = h0 - h
+    cell = []
+    for axis, origin, step in ((0, c, a), (1, f, e)):
+        o = np.float32((frame.origin[axis] - origin) / step)
+        cell.append(np.floor(o + x * np.float32(g * t[axis] / step) + y * np.float32(g * u[axis] / step)
+                             + dh * (r_l[..., axis] / np.float32(step))))
+    ci, ri = cell
+    ok = np.isfinite(h) & (ci >= 0) & (ci < shape[1]) & (ri >= 0) & (ri < shape[0])
+    kk = ri[ok].astype(np.int64) * shape[1] + ci[ok].astype(np.int64)
+    cnt = np.bincount(kk, minlength=shape[0] * shape[1]).reshape(shape)
+    s = np.bincount(kk, weights=h[ok], minlength=shape[0] * shape[1]).reshape(shape)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(n > 0, s / n, np.nan).astype(np.float32), n
+        return np.where(cnt > 0, s / cnt, np.nan).astype(np.float32), cnt, k
 
 
 @dataclass(frozen=True)
@@ -211,12 +203,12 @@ def tile_dsm(sol: Solution, images: dict, frame: Frame, h0: np.ndarray, transfor
     fi = {v: prepare(resample_view(*images[v], sol, v, frame, h0, r[v]), r[v], frame, block) for v in views}
     vals, counts, sig = [], [], []
     for a, b in pairs:
-        pts = match_pair(fi[a], fi[b], frame, h0, half_range_m, block=block, refine=refine)
-        hv, n = grid_pair(pts, transform, shape)
+        hv, n, k = match_pair(fi[a], fi[b], frame, h0, half_range_m, transform, shape,
+                              block=block, refine=refine)
         vals.append(hv)
         counts.append(n)
         with np.errstate(divide="ignore"):
-            sig.append(sigma_px * frame.g / abs(pts.k) / np.sqrt(np.maximum(n, 1)))
+            sig.append(sigma_px * frame.g / abs(k) / np.sqrt(np.maximum(n, 1)))
     vals, counts, sig = np.stack(vals), np.stack(counts), np.stack(sig)
     h, q = sgm.fuse(vals, sig, tau)
     # the σ claim against the scatter: differences of the F–B height to the other two, in σ

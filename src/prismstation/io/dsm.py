@@ -25,7 +25,6 @@ import pyproj
 import rasterio
 from rasterio.crs import CRS
 from rasterio.errors import RasterioError
-from rasterio.io import MemoryFile
 from rasterio.shutil import copy as rio_copy
 from rasterio.transform import Affine
 
@@ -65,28 +64,31 @@ def write_dsm(path, dsm) -> None:
     path = Path(path)
     h = np.asarray(dsm.heights, np.float32)
     rows, cols = h.shape
-    mask = np.zeros(h.shape, np.float32) if dsm.mask is None else dsm.mask.astype(np.float32)
-    qual = np.zeros(h.shape, np.float32) if dsm.quality is None else dsm.quality.astype(np.float32)
     seen = np.isfinite(h) if dsm.seen is None else dsm.seen
-    data = np.stack([np.where(np.isfinite(h), h, NODATA), np.where(seen, mask, NODATA),
-                     np.where(seen, qual, NODATA)]).astype(np.float32)
     profile = dict(driver="GTiff", width=cols, height=rows, count=3, dtype="float32",
                    crs=vertical_crs(dsm.crs, dsm.height_kind, dsm.geoid),
-                   transform=Affine(*tuple(dsm.transform)[:6]), nodata=NODATA)
+                   transform=Affine(*tuple(dsm.transform)[:6]), nodata=NODATA,
+                   tiled=True, blockxsize=256, blockysize=256, GEOTIFF_VERSION="1.1")
     matched = int(((dsm.mask == 1) & seen).sum()) if dsm.mask is not None else int(np.isfinite(h).sum())
     n_seen = int(seen.sum())
     tags = {"FILL_PERCENT": f"{100.0 * matched / n_seen if n_seen else 0.0:.2f}",
             "SEEN_CELLS": str(n_seen), "POSTING_M": f"{dsm.posting_m:g}", "HEIGHTS": dsm.height_kind}
     fd, tmp = tempfile.mkstemp(prefix=".dsm-", suffix=".tif", dir=path.parent)
     os.close(fd)
+    plain = tmp[:-4] + "-plain.tif"   # the bands written one at a time (no stacked copy in memory)
     try:
-        with rasterio.Env(GDAL_PAM_ENABLED="NO"), MemoryFile() as mem:
-            with mem.open(**profile) as ds:
-                ds.write(data)
+        with rasterio.Env(GDAL_PAM_ENABLED="NO"):
+            with rasterio.open(plain, "w", **profile) as ds:
+                ds.write(np.where(np.isfinite(h), h, NODATA).astype(np.float32), 1)
+                for i, band in ((2, dsm.mask), (3, dsm.quality)):
+                    v = np.zeros(h.shape, np.float32) if band is None else band.astype(np.float32)
+                    v[~seen] = NODATA
+                    ds.write(v, i)
+                    del v
                 ds.update_tags(**tags)
                 for i, name in enumerate(BANDS, 1):
                     ds.set_band_description(i, name)
-            with mem.open() as src:
+            with rasterio.open(plain) as src:
                 rio_copy(src, tmp, driver="COG", COMPRESS="DEFLATE", PREDICTOR="YES", BLOCKSIZE=256,
                          OVERVIEWS="AUTO", OVERVIEW_RESAMPLING="AVERAGE", GEOTIFF_VERSION="1.1")
         os.replace(tmp, path)
@@ -95,8 +97,9 @@ def write_dsm(path, dsm) -> None:
     except RasterioError as exc:
         raise RasterReadError(f"{path}: cannot write the DSM ({exc})") from None
     finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        for f in (tmp, plain, plain + ".aux.xml"):
+            if os.path.exists(f):
+                os.unlink(f)
 
 
 def read_dsm_info(path) -> dict:

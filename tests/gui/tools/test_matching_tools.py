@@ -97,41 +97,6 @@ def test_automatic_tie_points_one_undo_step(qtbot, window, sim):
     assert set(p.points) == before
 
 
-def test_export_dsm_of_the_visible_area(qtbot, window, sim, tmp_path):
-    from rasterio.warp import Resampling, reproject
-
-    from prismstation.gui.tools.dsm_tool import DsmDialog, visible_window
-    iv = window.views.views["N"]
-    iv.center_on(600, 600, 500 / iv.width())   # about 500 px of the N image across
-    qtbot.wait(50)
-    win = visible_window(window)
-    x, y, w, h = iv.visible_rect()
-    assert win is not None and abs(win[0] - max(x, 0)) <= 1 and win[2] <= 1200 and win[3] <= 1200
-    dlg = DsmDialog(window, str(tmp_path / "dsm.tif"), win)
-    dlg.posting.setValue(10.0)
-    assert dlg.area.isChecked() and dlg.ellipsoidal.isChecked()
-    req = dlg.request()
-    assert req.window == win and not req.orthometric
-    job = window.dsm_tool.start(req)
-    got = []
-    job.result.connect(got.append)
-    qtbot.waitUntil(lambda: bool(got), timeout=40000)
-    with rasterio.open(tmp_path / "dsm.tif") as ds, rasterio.open(sim / "truth_dem.tif") as t:
-        a = ds.read(1).astype(float)
-        ref = np.full(a.shape, np.nan)
-        reproject(t.read(1).astype(float), ref, src_transform=t.transform, src_crs=t.crs,
-                  dst_transform=ds.transform, dst_crs=ds.crs, resampling=Resampling.bilinear)
-        assert ds.transform.a == 10.0
-    d = (a - ref)[np.isfinite(a - ref)]
-    print(f"DSM {a.shape}: median {np.median(d):+.2f} m, NMAD {1.4826 * np.median(np.abs(d - np.median(d))):.2f} m")
-    px = window.project.scene.views["N"].pixel_size_m
-    cells = win[2] * win[3] * px * px / 100.0     # the N window's area in 10 m cells
-    # F and B do not see the whole height of N (the overlap): about half the window is matched
-    # part of the visible N area lies outside what F and B see, and its size follows the layout
-    assert d.size > 0.3 * cells and abs(np.median(d)) < 3.0, (d.size, cells)
-    assert "Wrote" in window.statusBar().currentMessage()
-
-
 def test_tools_menu_and_closing_during_a_search(qtbot, window, truth):
     texts = [a.text() for a in window.tools_menu.actions()]
     for t in ("Automatic &transfer", "Automatic tie &points…", "Orient from reference &DEM…",
