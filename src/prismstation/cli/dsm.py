@@ -14,6 +14,7 @@ from prismstation.io.dsm import write_dsm
 from prismstation.io.project import load_project, project_geoid
 from prismstation.ops.fit import solve_project
 from prismstation.ops.dsm import make_dsm
+from prismstation.ops.reference_heights import load_for_scene
 
 LOW_FILL_STATUS = 3
 
@@ -46,8 +47,8 @@ def run(args) -> int:
     geoid = project_geoid(project)
     reference = None
     if args.reference:
-        ref = _on_scene_grid(existing(args.reference, "reference DEM"), project.scene, geoid)
-        reference = (ref.heights, tuple(ref.transform)[:6])
+        ref = load_for_scene(existing(args.reference, "reference DEM"), project)  # as the window does
+        reference = (ref.grid.heights, tuple(ref.grid.transform)[:6])
 
     def progress(fr, msg=""):
         print(f"\r{fr:5.0%} {msg:<32}", end="", file=sys.stderr, flush=True)
@@ -70,22 +71,3 @@ def run(args) -> int:
         return LOW_FILL_STATUS
     return 0
 
-
-def _on_scene_grid(path, scene, geoid):
-    """A reference DEM resampled onto a 30 m grid of the scene's CRS, ellipsoidal heights."""
-    import numpy as np
-    from rasterio.warp import transform_bounds
-
-    from prismstation.io.dem import read_dem
-    src = read_dem(path)
-    l, b, r, t = transform_bounds(src.crs, scene.crs, *_bounds(src))
-    step = 30.0
-    cols, rows = int(np.ceil((r - l) / step)), int(np.ceil((t - b) / step))
-    return read_dem(path, scene.crs, (step, 0.0, l, 0.0, -step, t), (rows, cols), geoid=geoid)
-
-
-def _bounds(g):
-    rows, cols = g.heights.shape
-    x0, y0 = g.transform * (0, 0)
-    x1, y1 = g.transform * (cols, rows)
-    return min(x0, x1), min(y0, y1), max(x0, x1), max(y0, y1)
