@@ -97,7 +97,6 @@ class MainWindow(QMainWindow):
                 d.setWidget(window_layout.scrolled(d.widget()))
         menus.fill_panels_menu(self)
         self._work_state = None  # the docks' state while the start page is up
-        window_layout.StrayTabBars(self)
         if interactive:
             self.views.offer_overviews = self._offer_overviews
         self._measured_timer = QTimer(self)

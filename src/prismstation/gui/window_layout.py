@@ -5,7 +5,7 @@ Functions of the window (``win``: a :class:`~prismstation.gui.main_window.MainWi
 """
 from __future__ import annotations
 
-from PySide6.QtCore import QEvent, QObject, Qt, QTimer
+from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import QScrollArea, QTabBar
 
 from prismstation.gui.text_label import TextLabel
@@ -54,6 +54,8 @@ def show_start(win, on: bool) -> None:
     elif not on and win._work_state is not None:
         win.restoreState(win._work_state)
         win._work_state = None
+        for ms in (0, 200):  # after the layout passes the restore starts
+            QTimer.singleShot(ms, win, lambda: hide_stray_tab_bars(win))
     win.toolbar.setVisible(not on)
     for lab in win.statusBar().findChildren(TextLabel):  # coordinates of no image
         lab.setVisible(not on)
@@ -61,33 +63,15 @@ def show_start(win, on: bool) -> None:
     win.start_page.set_demo_available(win.demo_maker is not None)
 
 
-class StrayTabBars(QObject):
-    """Hides the dock tab bars Qt leaves behind outside the dock areas.
-
-    After ``restoreState`` (the start page going away) QMainWindow keeps showing tab bars of
-    tab groups it no longer lays out: with one tab, or a copy of a live group's, at the
+def hide_stray_tab_bars(win) -> None:
+    """Hide the dock tab bars Qt leaves visible outside the dock areas after ``restoreState``
+    (the start page going away): with one tab, or a copy of a live group's, drawn at the
     window's top-left corner over the menu bar. A live bar sits below the menu bar and holds
-    two tabs or more; any other visible bar of the window is hidden, after every show of a
-    tab bar (checked once polished: at ChildAdded a new bar is not a QTabBar yet)."""
-
-    def __init__(self, win):
-        super().__init__(win)
-        self.win = win
-        win.installEventFilter(self)
-        for bar in win.findChildren(QTabBar, options=Qt.FindChildOption.FindDirectChildrenOnly):
-            bar.installEventFilter(self)
-
-    def eventFilter(self, obj, ev) -> bool:
-        if ev.type() == QEvent.Type.ChildPolished and isinstance(ev.child(), QTabBar):
-            ev.child().installEventFilter(self)
-        elif (ev.type() in (QEvent.Type.Show, QEvent.Type.Move, QEvent.Type.Resize) and isinstance(obj, QTabBar)) \
-                or (obj is self.win and ev.type() == QEvent.Type.LayoutRequest):
-            QTimer.singleShot(0, self, self.sweep)  # dropped if the window is gone
-        return False
-
-    def sweep(self) -> None:
-        top = self.win.menuBar().geometry().bottom()
-        area = self.win.rect().adjusted(0, top + 1, 0, 0)
-        for bar in self.win.findChildren(QTabBar, options=Qt.FindChildOption.FindDirectChildrenOnly):
-            if bar.isVisible() and (bar.count() < 2 or not area.contains(bar.geometry())):
-                bar.hide()
+    two tabs or more. Called once per restore, deferred (not from an event filter: Qt shows
+    some of these bars again on its next layout pass, and fighting it repaints forever)."""
+    top = win.menuBar().geometry().bottom()
+    area = win.rect().adjusted(0, top + 1, 0, 0)
+    for bar in win.findChildren(QTabBar, options=Qt.FindChildOption.FindDirectChildrenOnly):
+        if bar.isVisible() and bar.geometry().intersects(win.rect()) and (
+                bar.count() < 2 or not area.contains(bar.geometry())):
+            bar.hide()

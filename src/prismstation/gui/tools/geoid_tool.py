@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import shiboken6
+
 from PySide6.QtGui import QUndoCommand
 from PySide6.QtWidgets import (QButtonGroup, QDialog, QDialogButtonBox, QDoubleSpinBox, QFileDialog,
                                QGridLayout, QLabel, QLineEdit, QListWidget, QPushButton, QRadioButton,
@@ -202,8 +204,11 @@ def choose_geoid(window, dialog_cls=GeoidDialog) -> bool:
 
 
 def refresh(window) -> None:
+    panel = window.model_panel  # the undo stack can outlive the window's widgets at close
+    if panel is None or not shiboken6.isValid(panel):
+        return
     text, bad = describe(window.project)
-    window.model_panel.set_geoid(text, bad)
+    panel.set_geoid(text, bad)
 
 
 TOOL_CONTEXT = True  # install() gets a ToolContext
