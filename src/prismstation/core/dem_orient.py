@@ -15,6 +15,7 @@ import numpy as np
 
 from prismstation.core import prism
 from prismstation.core.prism import BiasFit, ParallaxLine
+from prismstation.core.consistency import ALPHA, MIN_PATCHES, snoop
 from prismstation.core.scene import Scene
 from prismstation.core.shift_field import ShiftField
 from prismstation.core.solve import Control
@@ -110,24 +111,22 @@ def affine_field(patches: list[PatchShift]):
     return lambda xx, yy: np.broadcast_to(mean, np.shape(xx) + (3,)).copy()
 
 
-def reject_outlier_patches(patches: list[PatchShift], k: float = 3.0, floor_m: float = 2.0):
-    """Mark patches whose shift departs from the affine field of the others by more than
-    ``k``·NMAD (at least ``floor_m``); one pass, worst first, until none is left."""
+def judge_patches(patches: list[PatchShift], alpha: float = ALPHA, min_patches: int = MIN_PATCHES):
+    """Test the usable patches' shift field against their σ (:func:`prismstation.core.consistency.snoop`,
+    σ at least 0.1 m) and mark the blunders it removes as not used. Returns ``(patches, verdict)``;
+    the verdict's indices refer to the usable patches."""
     patches = list(patches)
-    while sum(p.used for p in patches) > 4:
-        field = affine_field(patches)
-        use = [i for i, p in enumerate(patches) if p.used]
-        res = np.array([np.array([patches[i].dE, patches[i].dN, patches[i].dh])
-                        - field(patches[i].x, patches[i].y) for i in use])
-        norm = np.abs(res)
-        scale = np.maximum(1.4826 * np.median(np.abs(norm - np.median(norm, 0)), 0), floor_m / k)
-        ratio = (norm / scale).max(axis=1)
-        worst = int(np.argmax(ratio))
-        if ratio[worst] <= k:
-            break
-        i = use[worst]
-        patches[i] = replace(patches[i], used=False, reason="shift departs from the other patches' field")
-    return patches
+    use = [i for i, p in enumerate(patches) if p.used]
+    verdict = snoop([patches[i].x for i in use], [patches[i].y for i in use],
+                    [[patches[i].dE, patches[i].dN, patches[i].dh] for i in use],
+                    [[max(patches[i].sigma_E, 0.1), max(patches[i].sigma_N, 0.1), max(patches[i].sigma_h, 0.1)]
+                     for i in use], alpha=alpha, min_patches=min_patches)
+    for j in verdict.rejected:
+        i = use[j]
+        patches[i] = replace(patches[i], used=False,
+                             reason=f"a blunder: departs from the other patches' field by "
+                                    f"more than its σ allows (χ² test, α {alpha})")
+    return patches, verdict
 
 
 def control_from_shifts(scene: Scene, patches: list[PatchShift], mean_height: float,
