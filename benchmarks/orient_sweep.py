@@ -78,7 +78,7 @@ def run_case(sim: Path, ref: Path, errors: dict, work: Path, patch_km: float,
     err = io.StringIO()
     t0 = time.perf_counter()
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-        code = main(["new", str(proj), "--scene", str(scene), "--points", str(sim / "points.csv"),
+        code = main(["new", str(proj), "--force", "--scene", str(scene), "--points", str(sim / "points.csv"),
                      "--measurements", str(sim / "measurements.csv")])
         if code == 0:
             code = main(["orient-dem", str(proj), str(ref), "--patch-km", str(patch_km),
