@@ -40,11 +40,12 @@ def test_transfer_with_the_ancillary_model_finds_views_off_by_60_m(tmp_path):
 
 
 def test_fitted_model_searches_narrow():
-    from tests.core.synth import make_scene
+    from dataclasses import replace
+
     from prismstation.core.prism import BiasFit
+    from tests.core.synth import make_scene
     sc = make_scene()
     sol = solve(sc, [], control=identity_control(sc, 500.0))
-    fitted = type(sol)(**{**sol.__dict__, "bias": {v: BiasFit.fit(np.random.default_rng(0).uniform(0, 1e4, (8, 2)),
-                                                                   np.random.default_rng(0).uniform(0, 1e4, (8, 2)) + 3.0,
-                                                                   "shift") for v in sc.views}})
+    xy0 = np.random.default_rng(0).uniform(0, 1e4, (8, 2))
+    fitted = replace(sol, bias={v: BiasFit.fit(xy0, xy0 + 3.0, "shift") for v in sc.views})
     assert model_sigma_m(sol) == SIGMA_APRIORI_M and model_sigma_m(fitted) == FITTED_SIGMA_M
