@@ -31,10 +31,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from prismstation.cli import main  # noqa: E402
-from prismstation.core.consistency import snoop  # noqa: E402
 from prismstation.sim import simulate  # noqa: E402
 from prismstation.io.scene import read_scene  # noqa: E402
-from prismstation.ops.coarse_offsets import coarse_view_offsets  # noqa: E402
 from prismstation.sim.perturb import perturb_geolocation, truth_geometry  # noqa: E402
 from prismstation.sim.reference import make_reference_dem  # noqa: E402
 
@@ -51,46 +49,48 @@ def errors_of_magnitude(m: float, rng) -> dict:
             zip("NFB", rng.uniform(0, 2 * np.pi, 3))}
 
 
-def coarse_error(sim: Path, scene_file: Path, errors: dict, sigma_m: float) -> dict:
-    """The engine's first step on this case: F and B offsets from N found over the a-priori
-    range, against the truth (px): the error of each, its σ and the verdict."""
+def coarse_error(sim: Path, scene_file: Path, errors: dict, dem_control: dict) -> dict:
+    """The engine's first step in this case (from the report): F and B offsets from N found over
+    the a-priori range, against the truth (px): the error of each, its σ and the verdict."""
     truth = json.loads((sim / "truth.json").read_text())
     orbit, _, _ = truth_geometry(truth)
     scene = read_scene(scene_file)
-    t0 = time.perf_counter()
-    res = coarse_view_offsets(scene, sim / "srtm.tif", 55.0, sigma_apriori_m=sigma_m)
+    co = dem_control["coarse"]
     j = scene.views["N"].map_to_image.linear
     e = {v: errors[v][0] * orbit.t + errors[v][1] * orbit.a for v in "NFB"}
-    out = {"coarse_seconds": time.perf_counter() - t0}
+    out = {}
     for v in "FB":
-        err = res.offsets_px[v] - j @ (e[v] - e["N"])
+        err = np.asarray(co["offsets_px"][v], float) - j @ (e[v] - e["N"])
         out[f"coarse_{v}"] = float(np.hypot(*err))
-        out[f"coarse_{v}_sigma"] = float(np.hypot(*res.sigma_px[v]))
-        out[f"coarse_{v}_verdict"] = res.verdicts[v].status if res.verdicts[v] else "too_few"
+        out[f"coarse_{v}_sigma"] = float(np.hypot(*co["sigma_px"][v]))
+        out[f"coarse_{v}_verdict"] = (co["verdicts"][v] or {}).get("status", "too_few")
     return out
 
 
 def run_case(sim: Path, ref: Path, errors: dict, work: Path, patch_km: float,
              sigma_m: float = 50.0) -> dict:
+    """One case: perturb, ``new``, ``orient-dem --geolocation-sigma-m sigma_m`` (exit 3 = a
+    verdict that is not ok, still measured), then the check points against the truth."""
     scene = perturb_geolocation(sim, errors, work / "scene.json")
-    coarse = coarse_error(sim, scene, errors, sigma_m)
     proj = work / "p.prismproj"
     out = work / "dem.json"
+    out.unlink(missing_ok=True)
     err = io.StringIO()
     t0 = time.perf_counter()
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-        code = main(["new", str(proj), "--scene", str(scene), "--points", str(sim / "points.csv"),
+        code = main(["new", str(proj), "--force", "--scene", str(scene), "--points", str(sim / "points.csv"),
                      "--measurements", str(sim / "measurements.csv")])
         if code == 0:
             code = main(["orient-dem", str(proj), str(ref), "--patch-km", str(patch_km),
-                         "--json", str(out)])
+                         "--json", str(out), "--geolocation-sigma-m", str(sigma_m)])
     seconds = time.perf_counter() - t0
-    row = {"seconds": seconds, "exit": code, **coarse}
-    if code != 0 or not out.exists():
+    row = {"seconds": seconds, "exit": code}
+    if not out.exists():
         msg = err.getvalue().strip().splitlines()[-1] if err.getvalue().strip() else f"exit {code}"
         row["failure"] = msg.split("prismstation orient-dem:")[-1].strip()
         return row
     rep = json.loads(out.read_text())
+    row.update(coarse_error(sim, scene, errors, rep["dem_control"]))
     truth = {p["id"]: p for p in json.loads((sim / "truth.json").read_text())["points"]}
     pts = [p for p in rep["points"] if p["kind"] in ("GCP", "ICP") and p.get("E_est") is not None]
     dE = [p["E_est"] - truth[p["id"]]["E"] for p in pts]
@@ -98,14 +98,7 @@ def run_case(sim: Path, ref: Path, errors: dict, work: Path, patch_km: float,
     dh = [p["h_est"] - truth[p["id"]]["h"] for p in pts]
     patches = rep["dem_control"]["patches"]
     used = [p for p in patches if p["used"]]
-    if used:
-        v = snoop([p["x"] for p in used], [p["y"] for p in used],
-                  [[p["dE"], p["dN"], p["dh"]] for p in used],
-                  [[max(p["sigma_E"] or 0.1, 0.1), max(p["sigma_N"] or 0.1, 0.1),
-                    max(p["sigma_h"] or 0.1, 0.1)] for p in used])
-        verdict = v.status
-    else:
-        verdict = "too_few"
+    verdict = rep["dem_control"]["verdict"]["status"]
     row.update(points=len(pts), plan=float(np.hypot(_rms(dE), _rms(dN))), height=_rms(dh),
                used=len(used), patches=len(patches), verdict=verdict)
     return row
@@ -116,7 +109,12 @@ def main_sweep(argv=None) -> int:
     ap.add_argument("--sizes", type=int, nargs="+", default=[1600])
     ap.add_argument("--errors", type=float, nargs="+", default=[0.0, 25.0, 50.0, 100.0])
     ap.add_argument("--passes", nargs="+", default=["descending"], choices=["descending", "ascending"])
-    ap.add_argument("--seeds", type=int, nargs="+", default=[0])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0],
+                    help="seeds of the error draws (and of the scene, unless --scene-seed)")
+    ap.add_argument("--scene-seed", type=int, default=None,
+                    help="render one scene with this seed per size and pass, and vary only the "
+                         "error directions with --seeds (the scene is the slow part)")
+    ap.add_argument("--sigma-m", type=float, default=50.0, help="orient-dem --geolocation-sigma-m")
     ap.add_argument("--patch-km", type=float, default=None,
                     help="patch size (default: 4 km, 1 km below 6,000 px)")
     ap.add_argument("--keep", metavar="DIR", help="keep the scenes in DIR")
@@ -129,32 +127,36 @@ def main_sweep(argv=None) -> int:
         patch_km = a.patch_km or (4.0 if size >= 6000 else 1.0)
         for pas in a.passes:
             for seed in a.seeds:
-                sim = base / f"s{size}_{pas}_{seed}"
+                scene_seed = seed if a.scene_seed is None else a.scene_seed
+                sim = base / f"s{size}_{pas}_{scene_seed}"
                 if not (sim / "truth.json").exists():
-                    simulate(sim, size=size, seed=seed, ascending=pas == "ascending",
+                    simulate(sim, size=size, seed=scene_seed, ascending=pas == "ascending",
                              geolocation_error_m=0.0)
-                    make_reference_dem(sim / "truth_dem.tif", sim / "srtm.tif", seed=seed + 1)
+                if not (sim / "srtm.tif").exists():
+                    make_reference_dem(sim / "truth_dem.tif", sim / "srtm.tif", seed=scene_seed + 1)
                 rng = np.random.default_rng(1000 + seed)
                 for m in a.errors:
-                    work = sim / f"e{int(m)}"
+                    work = sim / f"e{int(m)}_d{seed}"
                     work.mkdir(exist_ok=True)
-                    r = run_case(sim, sim / "srtm.tif", errors_of_magnitude(m, rng), work, patch_km)
-                    r.update(size=size, pass_=pas, seed=seed, error=m)
+                    r = run_case(sim, sim / "srtm.tif", errors_of_magnitude(m, rng), work, patch_km,
+                                 a.sigma_m)
+                    r.update(size=size, pass_=pas, seed=seed, scene_seed=scene_seed, error=m)
                     rows.append(r)
                     tgt = TARGETS.get(size)
                     note = r.get("failure", "")
                     if "plan" in r and tgt:
                         bad = r["plan"] > tgt[0] or r["height"] > tgt[1]
                         note = ("MISSES TARGET" + (" (said so)" if r["verdict"] != "ok" else " SILENTLY")) if bad else "meets target"
-                    cf = (f"{r['coarse_F']:.2f} ({r['coarse_F_sigma']:.2f}) / "
+                    cf = "-" if "coarse_F" not in r else (f"{r['coarse_F']:.2f} ({r['coarse_F_sigma']:.2f}) / "
                           f"{r['coarse_B']:.2f} ({r['coarse_B_sigma']:.2f})")
                     print(f"| {size} | {pas} | {seed} | {m:.0f} | {cf} | {r.get('plan', float('nan')):.2f} | "
                           f"{r.get('height', float('nan')):.2f} | {r.get('used', '-')}/{r.get('patches', '-')} | "
                           f"{r.get('verdict', 'failed')} | {r['seconds']:.0f} | {note} |", flush=True)
     clean = [{k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in r.items()}
              for r in rows]
-    (base / "sweep.json").write_text(json.dumps(clean, indent=2, allow_nan=False))
-    print(f"\nscenes and sweep.json in {base}")
+    name = f"sweep_{'_'.join(map(str, a.sizes))}_{'_'.join(a.passes)}_{'_'.join(map(str, a.seeds))}.json"
+    (base / name).write_text(json.dumps(clean, indent=2, allow_nan=False))
+    print(f"\nscenes and {name} in {base}")
     return 0
 
 

@@ -3,7 +3,7 @@ import pytest
 
 from prismstation.core import prism
 from prismstation.core.dem_orient import (PatchShift, control_from_shifts, grid_points, patch_windows,
-                                          reject_outlier_patches)
+                                          judge_patches)
 from prismstation.core.solve import PointObs, solve
 from tests.core.synth import make_scene
 
@@ -33,8 +33,9 @@ def test_control_from_patch_shifts_recovers_truth():
         dE, dN, dh = _shift(x, y)
         patches.append(PatchShift((c0, r0, w, h), x, y, dE, dN, dh, 1, 1, 1, 100, 0.9))
     patches[5] = PatchShift(patches[5].window, patches[5].x, patches[5].y, 400, 0, 0, 1, 1, 1, 100, 0.9)
-    patches = reject_outlier_patches(patches)
+    patches, verdict = judge_patches(patches)
     assert [p.used for p in patches].count(False) == 1 and not patches[5].used
+    assert verdict.ok and verdict.rejected == (5,) and "blunder" in patches[5].reason
     ctl = control_from_shifts(sc, patches, mean_height=700)
     sol = solve(sc, pts, control=ctl)
     g = np.array([p.ground_residual for p in sol.points])

@@ -1,10 +1,17 @@
-"""``prismstation orient-dem PROJECT REFERENCE_DEM``: orientation with no GCP (seed 003)."""
+"""``prismstation orient-dem PROJECT REFERENCE_DEM``: orientation with no GCP (seed 003, issue 11).
+
+Exit status 0 when the patch shifts agree with their σ, 3 (with one line on stderr) when they do
+not or too few patches matched: the orientation is then stored and reported, but not trusted.
+"""
 from __future__ import annotations
+
+import sys
 
 from prismstation.cli._common import end_progress, existing, progress_printer
 from prismstation.io.project import load_project, save_project
 from prismstation.io.report import write_report
 from prismstation.io.text_report import format_report
+from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 from prismstation.ops.fit import fit_report
 from prismstation.ops.orient_dem import apply_orientation, orient_from_dem
 
@@ -13,6 +20,10 @@ def register(sub) -> None:
     p = sub.add_parser("orient-dem", help="orient the triplet from a reference DEM (SRTM), no GCP")
     p.add_argument("project")
     p.add_argument("reference", help="reference DEM: SRTM .hgt or GeoTIFF, orthometric heights")
+    p.add_argument("--geolocation-sigma-m", type=float, default=SIGMA_APRIORI_M, metavar="M",
+                   help="a-priori σ of each view's ancillary geolocation, per component, metres; "
+                        "every search covers 3 σ (default 50: the ~50 m shifts seed 003 reports "
+                        "for uncalibrated products; about 10 for calibrated ones)")
     p.add_argument("--patch-km", type=float, default=4.0, help="patch size (default 4 km)")
     p.add_argument("--posting", type=float, default=30.0, help="grid posting of the matching, m (default 30)")
     p.add_argument("--json", metavar="OUT", help="write the report (with the patch shifts) as JSON")
@@ -23,8 +34,9 @@ def register(sub) -> None:
 def run(args) -> int:
     project = load_project(existing(args.project, "project"))
     existing(args.reference, "reference DEM")
-    result = orient_from_dem(project, args.reference, patch_m=args.patch_km * 1000,
-                             posting_m=args.posting, progress=progress_printer())
+    result = orient_from_dem(project, args.reference, sigma_apriori_m=args.geolocation_sigma_m,
+                             patch_m=args.patch_km * 1000, posting_m=args.posting,
+                             progress=progress_printer())
     end_progress()
     apply_orientation(project, result)
     if args.save:
@@ -34,11 +46,17 @@ def run(args) -> int:
     if args.json:
         write_report(report, args.json)
     used = [p for p in result.patches if p.used]
-    print(f"{len(used)} of {len(result.patches)} patches matched the reference; "
-          f"{result.ties} tie points; F−N {result.across_px['F']:+.2f} px, B−N {result.across_px['B']:+.2f} px across track")
+    off = result.offsets_px
+    print(f"a-priori geolocation σ {result.sigma_apriori_m:g} m per view; F−N ({off['F'][0]:+.2f}, "
+          f"{off['F'][1]:+.2f}) px, B−N ({off['B'][0]:+.2f}, {off['B'][1]:+.2f}) px from the ancillary model")
+    print(f"{len(used)} of {len(result.patches)} patches matched the reference")
     for p in result.patches:
-        state = "used" if p.used else f"rejected: {p.reason}"
+        state = "used" if p.used else f"not used: {p.reason}"
         print(f"  patch at ({p.x:7.0f}, {p.y:7.0f}) px: dE {p.dE:+7.2f} dN {p.dN:+7.2f} dh {p.dh:+7.2f} m  "
               f"σ ({p.sigma_E:.2f}, {p.sigma_N:.2f}, {p.sigma_h:.2f})  {state}")
+    print(f"verdict: {result.verdict.message}")
     print(format_report(report))
-    return 0
+    if result.exit_status:
+        print(f"prismstation orient-dem: NOT TRUSTED ({result.verdict.status}): {result.verdict.message}",
+              file=sys.stderr)
+    return result.exit_status

@@ -3,10 +3,9 @@
 :func:`coarse_view_offsets` reads the reference DEM (ellipsoidal through ``geoid``) over N's
 footprint, cuts N into a 3 × 3 lattice of windows, and for each window and view calls
 :func:`prismstation.core.view_offsets.view_offset` over the radius the a-priori σ allows; the
-windows are combined per view with a consistency verdict. The result's ``offsets_px`` have the
-meaning of the workflow's tie-point offsets (N-space pixels from the ancillary prediction to
-where the view sees the point), so the DEM orientation can use them in place of its
-fixed-range tie-point step and keep its fine searches narrow.
+windows are combined per view with a consistency verdict. The result's ``offsets_px`` are
+N-space pixels from the ancillary prediction to where the view sees the point: the DEM
+orientation (:mod:`prismstation.ops.orient_dem`) removes them before its per-patch matching.
 
 A-priori: ``sigma_apriori_m`` (each view's geolocation σ per component, metres; default 50 m
 after seed 003's ~50 m shifts), ``k`` = 3 (search radius ``k·σ·√2 / GSD``),

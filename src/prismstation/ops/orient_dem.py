@@ -1,14 +1,23 @@
-"""Orientation of a triplet from a reference DEM, no GCP (seed 003, MODEL.md §3): the workflow.
+"""Orientation of a triplet from a reference DEM, no GCP (seed 003, MODEL.md §3, issue 11).
 
-1. Ancillary model only; the reference DEM (orthometric → ellipsoidal through the project's
-   geoid) gives the expected heights.
-2. Tie points on a lattice, matched N→F and N→B, measure the across-track offsets F−N and
-   B−N (the paper's relative orientation, Table 2) and the along-track offset of the parallax.
-3. Per patch of the N image: F and B matched densely in N space along the flight direction →
-   parallax → relative DEM (``h = c1·py``) placed on the map by the ancillary model, gridded,
-   and laid on the reference by least-squares surface matching → shift ``(dE, dN, dh)`` with σ.
-4. Outlying patches rejected; the shifts become the model (:mod:`prismstation.core.dem_orient`).
-``progress`` per :mod:`prismstation.ops.progress`; a cancel raises
+Every search takes its range from a stated a-priori uncertainty (docs/orientation_engine.md):
+
+1. Where F and B are relative to N, over the whole range the geolocation σ allows
+   (:func:`prismstation.ops.coarse_offsets.coarse_view_offsets`).
+2. Per patch of the N image: F and B, with those offsets removed, matched densely in N space
+   along the flight direction around the reference DEM's parallax → a relative DEM
+   (``h = c1·py``) placed on the map by the ancillary N model, gridded.
+3. Where that relative DEM lies on the reference: :func:`prismstation.core.coarse.dem_offset`
+   searches the radius N's geolocation σ allows, then least-squares surface matching gives
+   ``(dE, dN, dh)`` with σ.
+4. The patch shifts are tested against their σ (:func:`prismstation.core.dem_orient.judge_patches`,
+   a χ² test with data snooping); the verdict goes into the result, the report and the exit status.
+5. The shifts of the patches kept become the model (:mod:`prismstation.core.dem_orient`).
+
+A-priori settings: ``sigma_apriori_m`` (each view's ancillary geolocation σ per component; 50 m
+by default, after seed 003's shifts of about 50 m, seed 004 reports ±10 m after calibration),
+``sigma_height_m`` (the reference DEM's height σ, 10 m: SRTM's stated 16 m absolute at 90 %),
+``k`` = 3 σ per search. ``progress`` per :mod:`prismstation.ops.progress`; a cancel raises
 :class:`~prismstation.errors.Cancelled`.
 """
 from __future__ import annotations
@@ -22,35 +31,46 @@ import numpy as np
 
 from prismstation.core import prism
 from prismstation.core.affine import Affine2D
-from prismstation.core.coreg import coregister
-from prismstation.core.dem_orient import (PatchShift, control_from_shifts, grid_points, patch_windows,
-                                          reject_outlier_patches, relative_dem_points)
+from prismstation.core.coarse import K_SIGMA, dem_offset
+from prismstation.core.consistency import Verdict
+from prismstation.core.dem_orient import (PatchShift, control_from_shifts, grid_points, judge_patches,
+                                          patch_windows, relative_dem_points)
 from prismstation.core.dense import parallax_map
-from prismstation.core.matching import match_point
 from prismstation.core.solve import Control
+from prismstation.core.view_offsets import SIGMA_HEIGHT_M
 from prismstation.errors import InputError
 from prismstation.io.dem import read_dem
 from prismstation.io.jsonfile import plain
 from prismstation.io.project import project_geoid
 from prismstation.io.windows import ImageWindows, scaling, shift
 from prismstation.model.project import Project
-from prismstation.ops.progress import ProgressFn, checkpoint
+from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M, coarse_view_offsets
+from prismstation.ops.progress import ProgressFn, checkpoint, scaled
 
 
 @dataclass(frozen=True)
 class DemOrientation:
+    """The result: patches (with shifts, σ and whether used), the view offsets F−N and B−N
+    (N-space px, from the ancillary prediction to where the view sees the point), the coarse
+    step's record, the consistency verdict of the patch field and the model."""
+
     reference: str
     patches: tuple
     mean_height: float
-    offsets_px: dict          # 'F', 'B' -> where the view sees a point relative to the
-    #                           ancillary prediction from N (N-space pixel vector, median of ties)
-    across_px: dict           # the across-track components (the paper's Table 2)
-    ties: int                 # tie points matched in all three views
+    offsets_px: dict
+    coarse: dict
+    verdict: Verdict
+    sigma_apriori_m: float
     control: Control
+
+    @property
+    def exit_status(self) -> int:
+        return self.verdict.exit_status
 
     def to_dict(self) -> dict:
         return {"reference": self.reference, "mean_height": self.mean_height,
-                "offsets_px": self.offsets_px, "across_px": self.across_px, "ties": self.ties,
+                "sigma_apriori_m": self.sigma_apriori_m, "offsets_px": self.offsets_px,
+                "coarse": self.coarse, "verdict": self.verdict.to_dict(),
                 "patches": [plain(asdict(p)) for p in self.patches]}
 
 
@@ -67,101 +87,105 @@ def control_from_record(scene, record: dict) -> Control:
     return control_from_shifts(scene, patches, record["mean_height"], record.get("offsets_px"))
 
 
-def orient_from_dem(project: Project, reference_path, *, patch_m: float = 4000.0, posting_m: float = 30.0,
-                    search_px: int = 12, ties: int = 7, decimation: int = 2,
+def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float = SIGMA_APRIORI_M,
+                    sigma_height_m: float = SIGMA_HEIGHT_M, patch_m: float = 4000.0,
+                    posting_m: float = 30.0, decimation: int = 2,
                     progress: ProgressFn | None = None) -> DemOrientation:
-    """Orient ``project``'s triplet from the reference DEM at ``reference_path`` (see module doc)."""
+    """Orient ``project``'s triplet from the reference DEM at ``reference_path`` (see module doc).
+
+    Raises InputError when the views cannot be related (step 1) or no patch matches; an
+    untrustworthy patch field is not an error: it is ``result.verdict`` (exit status 3).
+    """
     scene = project.scene
     if not scene.is_triplet:
         raise InputError("orientation from a DEM needs an N, F, B triplet")
     missing = [v.image for v in scene.views.values() if not v.image or not os.path.exists(v.image)]
     if missing:
         raise InputError("image not found (relocate the scene's images)", missing[0])
+    if not sigma_apriori_m > 0:
+        raise InputError(f"the a-priori geolocation σ must be positive, got {sigma_apriori_m} m")
     geoid = project_geoid(project)
     N, F, B = (scene.views[v] for v in "NFB")
     rows, cols = N.shape
     c1 = prism.theoretical_c1(scene)
-    # reference DEM over the whole N footprint, ellipsoidal, north-up in the scene CRS
+
+    # 1. F and B relative to N over the a-priori range
+    coarse = coarse_view_offsets(scene, reference_path, geoid, sigma_apriori_m=sigma_apriori_m,
+                                 progress=scaled(progress, 0.0, 0.25))
+    bad = [v for v in "FB" if not coarse.ok(v)]
+    if bad:
+        why = "; ".join(w.reason for w in coarse.windows if w.view in bad and w.reason)[:300]
+        raise InputError(f"view {' and '.join(bad)} could not be found relative to N within "
+                         f"{coarse.radius_px:.0f} px (a-priori σ {sigma_apriori_m:g} m per view): "
+                         f"{why or 'no window matched'}", reference_path)
+    offsets = {v: np.asarray(coarse.offsets_px[v], float) for v in "FB"}
+
+    # reference DEM over the N footprint and the search radius, ellipsoidal, north-up
+    radius_m = K_SIGMA * sigma_apriori_m            # N's own error against the reference
     corners = N.map_to_image.inverse()(np.array([[0, 0], [cols, 0], [0, rows], [cols, rows]], float))
-    lo, hi = corners.min(0) - 1000, corners.max(0) + 1000
+    lo, hi = corners.min(0) - 1000 - radius_m, corners.max(0) + 1000 + radius_m
     shape = (int((hi[1] - lo[1]) // posting_m) + 1, int((hi[0] - lo[0]) // posting_m) + 1)
     transform = (posting_m, 0.0, lo[0], 0.0, -posting_m, hi[1])
     ref = read_dem(reference_path, scene.crs, transform, shape, geoid=geoid)
     if not np.isfinite(ref.heights).any():
         raise InputError("the reference DEM does not cover the scene", reference_path)
     mean_h = float(np.nanmean(ref.heights))
+    filled = np.nan_to_num(ref.heights, nan=mean_h).astype(np.float32)
+    gy, gx = np.gradient(filled, posting_m)
+    slope = np.hypot(gx, gy)
 
-    def ref_height(en):
+    def at(grid, en):
         col = (en[..., 0] - lo[0]) / posting_m - 0.5
         row = (hi[1] - en[..., 1]) / posting_m - 0.5
-        hh = cv2.remap(np.nan_to_num(ref.heights, nan=mean_h).astype(np.float32),
-                       col.astype(np.float32).reshape(-1, 1), row.astype(np.float32).reshape(-1, 1),
-                       cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        return hh.reshape(col.shape).astype(float)
+        v = cv2.remap(grid, col.astype(np.float32).reshape(-1, 1), row.astype(np.float32).reshape(-1, 1),
+                      cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return v.reshape(col.shape).astype(float)
 
     def ground_at_ref(xy):
         h = np.full(len(xy), mean_h)
         for _ in range(3):
             en = prism.ancillary_to_ground(scene, N, xy, h)
-            h = ref_height(en)
+            h = at(filled, en)
         return en, h
 
+    # 2.–3. patches
+    # the parallax's a-priori σ (px) from the offsets' along-track σ
+    d = N.map_to_image.apply_linear(prism.along_track_unit(scene, ground_at_ref(
+        np.array([[cols / 2, rows / 2]]))[0][0]))
+    d = d / np.linalg.norm(d)
+    sigma_py_off = float(np.hypot(*(np.hypot(*(d * coarse.sigma_px[v])) for v in "FB")))
+    patch_px = max(int(round(patch_m / N.pixel_size_m)), 64)
+    wins = patch_windows((rows, cols), patch_px, margin_px=32)
+    tanF, tanB = F.tan_theta, B.tan_theta
     images = ImageWindows(scene)
+    shifts = []
     try:
-        # 2. tie points: across-track offsets and the parallax offset
-        g = (np.arange(ties) + 0.5) / ties
-        txy = np.column_stack([np.tile(g * cols, ties), np.repeat(g * rows, ties)])
-        ten, th = ground_at_ref(txy)
-        d_n = prism.along_track_unit(scene, ten)
-        cross = np.column_stack([d_n[:, 1], -d_n[:, 0]])
-        found = {"F": [], "B": []}
-        for i, (xy, en, h) in enumerate(zip(txy, ten, th)):
-            checkpoint(progress, 0.15 * i / len(txy), "matching tie points")
-            nwin, nc0, nr0 = images.read("N", xy[0] - 40, xy[1] - 40, 80, 80)
-            for v in ("F", "B"):
-                view = scene.views[v]
-                pred = prism.ground_to_ancillary(scene, view, en, h)
-                sw, sc0, sr0 = images.read(v, pred[0] - 110, pred[1] - 110, 220, 220)
-                if nwin is None or sw is None:
-                    continue
-                dv = view.map_to_image.apply_linear(prism.scene_track_dir(scene, en))
-                m = match_point(nwin, xy[0] - nc0, xy[1] - nr0, sw, pred[0] - sc0, pred[1] - sr0,
-                                direction=dv, search_range=60, across_range=12, half_window=12,
-                                min_score=0.6)
-                if m.ok:
-                    pv = prism.to_nadir_space(scene, view)(np.array([m.x + sc0, m.y + sr0]))
-                    pp = prism.to_nadir_space(scene, view)(pred)
-                    found[v].append((i, pv - pp, float((pv - xy) @ cross[i])))
-        both = {i for i, _, _ in found["F"]} & {i for i, _, _ in found["B"]}
-        if len(both) < 3:
-            raise InputError("fewer than 3 tie points matched in N, F and B: images too different "
-                             "or the reference DEM does not fit the scene", reference_path)
-        offsets = {v: np.median([o for _, o, _ in found[v]], axis=0) for v in found}
-        across = {v: float(np.median([a for _, _, a in found[v]])) for v in found}
-
-        # 3. patches
-        patch_px = max(int(round(patch_m / N.pixel_size_m)), 64)
-        wins = patch_windows((rows, cols), patch_px, margin_px=max(search_px, 16))
-        tanF, tanB = F.tan_theta, B.tan_theta
-        shifts = []
         for k, win in enumerate(wins):
-            checkpoint(progress, 0.15 + 0.8 * k / len(wins), f"patch {k + 1} of {len(wins)}")
-            shifts.append(_patch(scene, images, win, ground_at_ref, c1, offsets, search_px,
-                                 tanF / (tanF + tanB), ref, posting_m, lo, hi, decimation))
+            checkpoint(progress, 0.25 + 0.7 * k / len(wins), f"patch {k + 1} of {len(wins)}")
+            shifts.append(_patch(scene, images, win, ground_at_ref, at, slope, c1, offsets, sigma_py_off,
+                                 sigma_apriori_m, sigma_height_m, radius_m, tanF / (tanF + tanB), ref,
+                                 posting_m, lo, hi, decimation))
     finally:
         images.close()
-    patches = reject_outlier_patches(shifts)
-    if sum(p.used for p in patches) == 0:
-        raise InputError("no patch could be matched to the reference DEM", reference_path)
+    if not any(p.used for p in shifts):
+        raise InputError("no patch could be matched to the reference DEM: "
+                         + "; ".join(sorted({p.reason for p in shifts}))[:300], reference_path)
+    # 4. the field against its σ
+    patches, verdict = judge_patches(shifts)
     checkpoint(progress, 1.0, "done")
     offsets = {v: [float(c) for c in o] for v, o in offsets.items()}
     control = control_from_shifts(scene, patches, mean_h, offsets)
-    return DemOrientation(str(reference_path), tuple(patches), mean_h, offsets, across, len(both), control)
+    return DemOrientation(str(reference_path), tuple(patches), mean_h, offsets, coarse.to_dict(), verdict,
+                          float(sigma_apriori_m), control)
 
 
-def _patch(scene, images, win, ground_at_ref, c1, offsets, search_px, n_weight,
-           ref, posting_m, lo, hi, f) -> PatchShift:
-    """One patch at N-space decimation ``f`` (F and B averaged f×f; SRTM is 90 m anyway)."""
+def _patch(scene, images, win, ground_at_ref, at, slope, c1, offsets, sigma_py_off, sigma_apriori_m,
+           sigma_height_m, radius_m, n_weight, ref, posting_m, lo, hi, f) -> PatchShift:
+    """One patch at N-space decimation ``f`` (F and B averaged f×f; SRTM is 90 m anyway).
+
+    The parallax search covers K_SIGMA σ of the prior's error: the reference heights' σ, the
+    height error of sampling them where N's error puts the patch (σ_geolocation × the patch's
+    RMS slope) and the offsets' along-track σ."""
     c0, r0, w, h = win
     x, y = c0 + w / 2, r0 + h / 2
     fail = lambda why: PatchShift(win, x, y, *(np.nan,) * 6, 0, 0.0, False, why)  # noqa: E731
@@ -170,6 +194,9 @@ def _patch(scene, images, win, ground_at_ref, c1, offsets, search_px, n_weight,
     gx, gy = np.meshgrid(np.arange(wd[0] + 0.5, wd[0] + wd[2], step) * f,
                          np.arange(wd[1] + 0.5, wd[1] + wd[3], step) * f)
     en, hh = ground_at_ref(np.column_stack([gx.ravel(), gy.ravel()]))
+    rms_slope = float(np.sqrt(np.mean(at(slope, en) ** 2)))
+    sigma_py = float(np.hypot(np.hypot(sigma_height_m, sigma_apriori_m * rms_slope) / c1, sigma_py_off))
+    search_px = int(np.ceil(K_SIGMA * sigma_py / f)) + 1
     prior = cv2.resize((hh / c1 / f).reshape(gx.shape).astype(np.float32), (wd[2], wd[3]),
                        interpolation=cv2.INTER_LINEAR)
     d = prism.along_track_unit(scene, en.mean(0))
@@ -180,14 +207,14 @@ def _patch(scene, images, win, ground_at_ref, c1, offsets, search_px, n_weight,
         back = prism.to_nadir_space(scene, view).inverse()
         box = np.array([[c0 - reach, r0 - reach], [c0 + w + reach, r0 - reach],
                         [c0 - reach, r0 + h + reach], [c0 + w + reach, r0 + h + reach]], float)
-        pc = back(box)
+        o = np.asarray(offsets[v], float)
+        pc = back(box + o)
         (a0, b0), (a1, b1) = pc.min(0), pc.max(0)
         arr, ac0, ar0 = images.read(v, a0, b0, a1 - a0, b1 - b0)
         if arr is None:
             return fail(f"the {v} image does not cover the patch")
         if f > 1:
             arr = cv2.resize(arr, (arr.shape[1] // f, arr.shape[0] // f), interpolation=cv2.INTER_AREA)
-        o = np.asarray(offsets[v], float)
         corr = Affine2D([[1, 0, -o[0]], [0, 1, -o[1]]])
         to_n[v] = (scaling(1 / f) @ corr @ prism.to_nadir_space(scene, view) @ shift(ac0, ar0) @ scaling(f)).matrix
         arrays[v] = arr
@@ -196,7 +223,7 @@ def _patch(scene, images, win, ground_at_ref, c1, offsets, search_px, n_weight,
     if pm.valid_fraction < 0.05:
         return fail(f"only {pm.valid_fraction:.0%} of the patch matched")
     E, Nn, hr = relative_dem_points(scene, pm.parallax * f, wd, c1, step=1, scale=f)
-    pad = 300.0
+    pad = radius_m + 300.0
     elo = np.array([E.min() - pad, Nn.min() - pad]); ehi = np.array([E.max() + pad, Nn.max() + pad])
     i0, i1 = int((elo[0] - lo[0]) // posting_m), int((ehi[0] - lo[0]) // posting_m) + 1
     j0, j1 = int((hi[1] - ehi[1]) // posting_m), int((hi[1] - elo[1]) // posting_m) + 1
@@ -206,8 +233,8 @@ def _patch(scene, images, win, ground_at_ref, c1, offsets, search_px, n_weight,
     rel = grid_points(E, Nn, hr, t, refp.shape)
     if np.isfinite(rel).sum() < 50:
         return fail("too few cells of the relative DEM")
-    r = coregister(refp, rel, t)
+    r = dem_offset(refp, rel, t, radius_m)
     if not r.converged or not np.isfinite([r.dx, r.dy, r.dz]).all():
-        return fail("surface matching did not converge (flat terrain?)")
+        return fail(r.reason or "surface matching did not converge (flat terrain?)")
     return PatchShift(win, x, y, r.dx, r.dy, r.dz, r.sigma_dx, r.sigma_dy, r.sigma_dz, r.count,
                       pm.valid_fraction)

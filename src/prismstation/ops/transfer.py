@@ -2,7 +2,10 @@
 
 A point placed in one view is searched in the others around the current model's prediction,
 along the parallax (flight) direction as far as the height is uncertain, by NCC then
-least-squares matching (:func:`prismstation.core.matching.match_point`).
+least-squares matching (:func:`prismstation.core.matching.match_point`). Both directions also
+cover the model's geolocation σ per view (:func:`model_sigma_m`): with the ancillary model
+alone the a-priori σ (50 m: ±85 px between two views), once the views' biases are fitted
+:data:`FITTED_SIGMA_M` (±9 px); the radius is ``search_radius_px(σ·√2, GSD)`` (3 σ).
 """
 from __future__ import annotations
 
@@ -11,10 +14,24 @@ from dataclasses import dataclass
 import numpy as np
 
 from prismstation.core import prism
+from prismstation.core.coarse import search_radius_px
 from prismstation.core.matching import MatchResult, match_point
 from prismstation.core.solve import Solution
 from prismstation.io.windows import ImageWindows
+from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 from prismstation.ops.progress import ProgressFn, checkpoint
+
+#: σ (m, per component) of a view's geolocation once its bias is fitted: the paper's
+#: check-point accuracy without and with GCPs (seed 003: under 5 m planimetric)
+FITTED_SIGMA_M = 5.0
+
+
+def model_sigma_m(sol: Solution) -> float:
+    """σ (m) per view and component the searches assume for ``sol``: the ancillary model's
+    a-priori σ until every view's bias is fitted (by GCPs or a reference DEM), then
+    :data:`FITTED_SIGMA_M`."""
+    fitted = all(b.model != "none" for b in sol.bias.values())
+    return FITTED_SIGMA_M if fitted else SIGMA_APRIORI_M
 
 
 @dataclass(frozen=True)
@@ -45,6 +62,7 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     en = sol.image_to_ground(source, xy, h)
     t = prism.scene_track_dir(sc, en)
     ref, rc0, rr0 = images.around(source, xy[0], xy[1], half_window + 8)
+    radius = search_radius_px(model_sigma_m(sol) * np.sqrt(2), sc.views[source].pixel_size_m)
     out = {}
     for v, view in sc.views.items():
         if v == source or ref is None:
@@ -53,12 +71,12 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
         d = view.map_to_image.apply_linear(t)
         # pixels per metre of height along the search direction, relative to the source view
         k = abs(view.look_sign * view.tan_theta - sc.views[source].look_sign * sc.views[source].tan_theta)
-        rng = 4.0 + k * h_range * np.hypot(*d)
+        rng = radius + k * h_range * np.hypot(*d)
         win, c0, r0 = images.around(v, pred[0], pred[1], int(rng) + half_window + 12)
         if win is None:
             continue
         m = match_point(ref, xy[0] - rc0, xy[1] - rr0, win, pred[0] - c0, pred[1] - r0, direction=d,
-                        search_range=rng, across_range=3.0, half_window=half_window, min_score=min_score)
+                        search_range=rng, across_range=radius, half_window=half_window, min_score=min_score)
         out[v] = Transfer(v, m.x + c0, m.y + r0, (float(pred[0]), float(pred[1])), m)
     return out
 

@@ -16,7 +16,7 @@ def sim_master(tmp_path_factory):
     from prismstation.sim import simulate
     from prismstation.sim.reference import make_reference_dem
     d = tmp_path_factory.mktemp("sim")
-    simulate(d, size=1200, seed=7, geolocation_error_m=10.0)   # ±10 m until issue 11's engine drives the tool
+    simulate(d, size=1200, seed=7)   # the simulator's default: each view off by up to ±50 m
     make_reference_dem(d / "truth_dem.tif", d / "srtm.tif", seed=1)
     create(d / "p.prismproj", d / "scene.json", d / "points.csv", d / "measurements.csv")
     return d

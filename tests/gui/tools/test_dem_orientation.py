@@ -35,8 +35,11 @@ def test_orient_from_srtm_in_the_window(qtbot, window, sim, truth):
     rows = tool.panel.table.rowCount()
     used = [p for p in record["patches"] if p["used"]]
     assert rows == len(record["patches"]) >= 4 and len(used) >= 4
-    states = [tool.panel.table.item(i, 8).text() for i in range(rows)]
+    states = [tool.panel.table.item(i, 9).text() for i in range(rows)]
     assert states.count("used") == len(used)
+    # the a-priori σ and the verdict are shown
+    assert "σ 50 m per view" in tool.panel.summary.text()
+    assert record["verdict"]["status"] == "ok" and "trusted" in tool.panel.verdict.text()
     assert tool._items, "no shift vectors on the N view"
 
     # the solver reports it like a GCP orientation: ICP statistics against the simulator's truth
@@ -114,3 +117,28 @@ def test_menu_route_through_the_dialog(qtbot, window, sim, monkeypatch):
     qtbot.waitUntil(lambda: window.project.settings.orientation == "dem", timeout=60000)
     assert window.tools["dem_orientation"].patch_km == 1.0
     assert window.tools["dem_orientation"].panel.table.rowCount() == len(window.project.dem_control["patches"])
+
+
+def test_menu_route_with_too_few_patches_says_not_trusted(qtbot, window, sim, monkeypatch):
+    """Through the menu: a-priori σ 60 m and 1.5 km patches on a 3 km scene → 4 patches, too few
+    to test the field: stored (undoable) but the panel and the status bar say it is not trusted."""
+    from PySide6.QtWidgets import QDialog
+
+    from prismstation.gui.tools import dem_orientation as mod
+
+    def fake_exec(dlg):
+        assert dlg.sigma.value() == 50.0                  # the default a-priori σ is shown
+        dlg.path.setText(str(sim / "srtm.tif"))
+        dlg.patch.setValue(1.5)
+        dlg.sigma.setValue(60.0)
+        return QDialog.DialogCode.Accepted
+
+    monkeypatch.setattr(mod.OrientDialog, "exec", fake_exec)
+    tool = window.tools["dem_orientation"]
+    tool.a_orient.trigger()
+    qtbot.waitUntil(lambda: window.project.settings.orientation == "dem", timeout=60000)
+    record = window.project.dem_control
+    assert record["sigma_apriori_m"] == 60.0 and record["verdict"]["status"] == "too_few"
+    assert "σ 60 m per view" in tool.panel.summary.text()
+    assert "NOT TRUSTED (too_few)" in tool.panel.verdict.text()
+    assert "NOT TRUSTED" in window.statusBar().currentMessage()

@@ -1,11 +1,15 @@
-"""Tools ▸ Orient from reference DEM… : orientation with no GCP (issue 4 item 4, seed 003).
+"""Tools ▸ Orient from reference DEM… : orientation with no GCP (seed 003, issue 11).
 
-The reference (SRTM ``.hgt`` or GeoTIFF, orthometric) is matched patch by patch in a worker
-(:func:`prismstation.ops.orient_dem.orient_from_dem`) with a cancellable progress dialog. The
-result becomes the project's orientation in one undoable step (``project.dem_control``
-plus ``Settings.orientation = "dem"``); the solver then reports it like a GCP orientation (model
-panel, ICP statistics, plots). A *Reference DEM patches* dock lists the patch shifts, and the
-shifts are drawn as exaggerated vectors on the N view. *Back to GCP orientation* is undoable too.
+The dialog asks for the reference (SRTM ``.hgt`` or GeoTIFF, orthometric), the patch size and
+the a-priori geolocation σ per view, which sets every search range of the engine
+(:func:`prismstation.ops.orient_dem.orient_from_dem`, run in a worker with a cancellable
+progress dialog). The result becomes the project's orientation in one undoable step
+(``project.dem_control`` plus ``Settings.orientation = "dem"``); the solver then reports it like
+a GCP orientation (model panel, ICP statistics, plots). A *Reference DEM patches* dock shows the
+a-priori σ, the view offsets, the consistency verdict of the patch field (in red, and in a
+message box and the status bar, when the patches do not agree with their σ or are too few) and
+the patch shifts, which are also drawn as exaggerated vectors on the N view. *Back to GCP
+orientation* is undoable too.
 """
 from __future__ import annotations
 
@@ -17,11 +21,12 @@ import shiboken6
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QColor, QUndoCommand
 from PySide6.QtWidgets import (QDialog, QDialogButtonBox, QDoubleSpinBox, QFileDialog, QFormLayout,
-                               QHBoxLayout, QLabel, QLineEdit, QPushButton, QTableWidget,
+                               QHBoxLayout, QLabel, QLineEdit, QMessageBox, QPushButton, QTableWidget,
                                QTableWidgetItem, QVBoxLayout, QWidget)
 
 from prismstation.gui import settings as st
 from prismstation.gui.tools._worker import run_with_progress
+from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 
 VECTOR_FRACTION = 0.08  # the longest shift vector is drawn this fraction of the N image width
 
@@ -56,9 +61,10 @@ class SetDemOrientation(QUndoCommand):
 
 
 class OrientDialog(QDialog):
-    """Reference DEM file and patch size."""
+    """Reference DEM file, patch size and the a-priori geolocation σ per view."""
 
-    def __init__(self, parent=None, path: str = "", patch_km: float = 4.0):
+    def __init__(self, parent=None, path: str = "", patch_km: float = 4.0,
+                 sigma_m: float = SIGMA_APRIORI_M):
         super().__init__(parent)
         self.setWindowTitle("Orient from reference DEM")
         self.path = QLineEdit(path)
@@ -69,11 +75,17 @@ class OrientDialog(QDialog):
         row.addWidget(browse)
         self.patch = QDoubleSpinBox(decimals=1, minimum=0.5, maximum=20.0, singleStep=0.5, suffix=" km")
         self.patch.setValue(patch_km)
+        self.sigma = QDoubleSpinBox(decimals=0, minimum=1.0, maximum=500.0, singleStep=5.0, suffix=" m")
+        self.sigma.setValue(sigma_m)
+        self.sigma.setToolTip("σ of each view's ancillary geolocation, per component: every search "
+                              "covers 3 σ. 50 m: the shifts seed 003 reports for uncalibrated "
+                              "products; about 10 m for calibrated ones.")
         form = QFormLayout(self)
         form.addRow(QLabel("Orientation with no GCP: the image DSM is matched to the reference\n"
                            "(SRTM .hgt or GeoTIFF, orthometric heights) patch by patch."))
         form.addRow("Reference DEM", row)
         form.addRow("Patch size", self.patch)
+        form.addRow("Geolocation σ per view", self.sigma)
         bb = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel)
         bb.accepted.connect(self.accept)
         bb.rejected.connect(self.reject)
@@ -89,7 +101,7 @@ class OrientDialog(QDialog):
 class PatchTable(QWidget):
     """The patches of the stored DEM orientation: position, shift, σ, used or why rejected."""
 
-    HEADERS = ("x px", "y px", "dE m", "dN m", "dh m", "σE m", "σN m", "σh m", "state")
+    HEADERS = ("x px", "y px", "dE m", "dN m", "dh m", "σE m", "σN m", "σh m", "|w|", "state")
 
     def __init__(self, parent=None):
         super().__init__(parent)
@@ -97,27 +109,35 @@ class PatchTable(QWidget):
         lay.setContentsMargins(2, 2, 2, 2)
         self.summary = QLabel("No orientation from a reference DEM yet (Tools ▸ Orient from reference DEM…).")
         self.summary.setWordWrap(True)
+        self.verdict = QLabel("")
+        self.verdict.setWordWrap(True)
         self.table = QTableWidget(0, len(self.HEADERS))
         self.table.setHorizontalHeaderLabels(self.HEADERS)
         self.table.verticalHeader().setVisible(False)
         self.table.setEditTriggers(QTableWidget.EditTrigger.NoEditTriggers)
         self.table.setSortingEnabled(True)
         lay.addWidget(self.summary)
+        lay.addWidget(self.verdict)
         lay.addWidget(self.table, 1)
 
     def show_record(self, record, active: bool, scale: float | None = None) -> None:
         self.table.setSortingEnabled(False)
         patches = (record or {}).get("patches", [])
+        verdict = (record or {}).get("verdict") or {}
+        # the normalised residual |w| of each patch the test kept (in the order of the usable ones)
+        usable = [i for i, p in enumerate(patches) if p.get("used") or "blunder" in (p.get("reason") or "")]
+        w = dict(zip(usable, verdict.get("w") or []))
         self.table.setRowCount(len(patches))
         for i, p in enumerate(patches):
-            vals = [p["x"], p["y"], p["dE"], p["dN"], p["dh"], p["sigma_E"], p["sigma_N"], p["sigma_h"]]
+            vals = [p["x"], p["y"], p["dE"], p["dN"], p["dh"], p["sigma_E"], p["sigma_N"], p["sigma_h"],
+                    w.get(i)]
             for j, v in enumerate(vals):
                 it = QTableWidgetItem()
                 v = _num(v)
                 it.setData(Qt.ItemDataRole.DisplayRole, round(v, 0 if j < 2 else 2) if np.isfinite(v) else "—")
                 it.setTextAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
                 self.table.setItem(i, j, it)
-            state = "used" if p.get("used") else f"rejected: {p.get('reason') or '—'}"
+            state = "used" if p.get("used") else f"not used: {p.get('reason') or '—'}"
             it = QTableWidgetItem(state)
             if not p.get("used"):
                 it.setForeground(QColor("#c0392b"))
@@ -126,16 +146,33 @@ class PatchTable(QWidget):
         self.table.resizeColumnsToContents()
         if record is None:
             self.summary.setText("No orientation from a reference DEM yet (Tools ▸ Orient from reference DEM…).")
+            self.verdict.setText("")
             return
         used = sum(1 for p in patches if p.get("used"))
         state = "in use" if active else "not in use (GCP orientation)"
-        across = {k: _num(v) for k, v in (record.get("across_px") or {}).items()}
+        off = {k: [_num(c) for c in v] for k, v in (record.get("offsets_px") or {}).items()}
+        nan2 = [float("nan")] * 2
         vec = f"; vectors on N × {scale:.0f}" if scale else ""
         ref = str(record.get("reference", "?"))
+        sigma = record.get("sigma_apriori_m")
         self.summary.setToolTip(ref)
-        self.summary.setText(f"Reference {ref.replace(chr(92), '/').rsplit('/', 1)[-1]} — {state}. {used} of {len(patches)} "
-                             f"patches used, {record.get('ties', 0)} tie points; across track F−N "
-                             f"{across.get('F', float('nan')):+.2f} px, B−N {across.get('B', float('nan')):+.2f} px{vec}.")
+        self.summary.setText(
+            f"Reference {ref.replace(chr(92), '/').rsplit('/', 1)[-1]} — {state}. A-priori geolocation σ "
+            f"{_num(sigma):.0f} m per view. {used} of {len(patches)} patches used; from the ancillary model "
+            f"F−N ({off.get('F', nan2)[0]:+.1f}, {off.get('F', nan2)[1]:+.1f}) px, "
+            f"B−N ({off.get('B', nan2)[0]:+.1f}, {off.get('B', nan2)[1]:+.1f}) px{vec}.")
+        self.verdict.setText(verdict_text(record))
+        self.verdict.setStyleSheet("" if verdict.get("status") == "ok" else "color: #c0392b; font-weight: bold")
+
+
+def verdict_text(record) -> str:
+    """One line on whether the stored orientation's patch field can be trusted."""
+    v = (record or {}).get("verdict")
+    if not v:
+        return "No consistency verdict (an orientation made before issue 11's engine): not tested."
+    if v.get("status") == "ok":
+        return f"Verdict: trusted — the patch shifts agree with their σ ({v.get('message', '')})."
+    return f"Verdict: NOT TRUSTED ({v.get('status')}) — {v.get('message', '')}"
 
 
 class DemOrientationTool:
@@ -146,6 +183,7 @@ class DemOrientationTool:
         self.job = None
         self.result = None
         self.patch_km = 4.0
+        self.sigma_m = SIGMA_APRIORI_M
         self._items = []
         self.scale = None
         self.panel = PatchTable()
@@ -165,12 +203,13 @@ class DemOrientationTool:
     def choose(self) -> None:
         if self.w.project is None:
             return
-        dlg = OrientDialog(self.w.widget, st.value(st.Key.LAST_IMPORT_DIR) or "", self.patch_km)
+        dlg = OrientDialog(self.w.widget, st.value(st.Key.LAST_IMPORT_DIR) or "", self.patch_km, self.sigma_m)
         if dlg.exec() == QDialog.DialogCode.Accepted and dlg.path.text():
-            self.patch_km = dlg.patch.value()
-            self.start(dlg.path.text(), self.patch_km * 1000.0)
+            self.patch_km, self.sigma_m = dlg.patch.value(), dlg.sigma.value()
+            self.start(dlg.path.text(), self.patch_km * 1000.0, sigma_m=self.sigma_m)
 
-    def start(self, reference_path, patch_m: float = 4000.0, posting_m: float = 30.0):
+    def start(self, reference_path, patch_m: float = 4000.0, posting_m: float = 30.0,
+              sigma_m: float = SIGMA_APRIORI_M):
         """Orient the window's project from ``reference_path`` in a worker; returns the Job."""
         from prismstation.gui.solver import snapshot
         from prismstation.ops.orient_dem import orient_from_dem
@@ -181,8 +220,8 @@ class DemOrientationTool:
         path = str(reference_path)
 
         def work(progress):
-            return orient_from_dem(snap, path, patch_m=patch_m, posting_m=posting_m,
-                                   progress=lambda f, m="": progress(f, m))
+            return orient_from_dem(snap, path, sigma_apriori_m=sigma_m, patch_m=patch_m,
+                                   posting_m=posting_m, progress=lambda f, m="": progress(f, m))
 
         self.job = run_with_progress(self.w, "Orientation from the reference DEM", work,
                                      lambda res: self._apply(project, res))
@@ -195,7 +234,13 @@ class DemOrientationTool:
         used = sum(1 for p in result.patches if p.used)
         self.w.undo_stack.push(SetDemOrientation(project, result.to_dict(), "dem",
                                                  f"Orient from DEM ({used} patches)"))
+        self.dock.show()
         self.dock.raise_()
+        if not result.verdict.ok:
+            text = verdict_text(result.to_dict())
+            self.w.status(text)
+            if getattr(self.w, "interactive", False):
+                QMessageBox.warning(self.w.widget, "Orientation from the reference DEM", text)
 
     def back_to_gcp(self) -> None:
         p = self.w.project
