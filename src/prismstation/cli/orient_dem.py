@@ -5,6 +5,8 @@ not or too few patches matched: the orientation is then stored and reported, but
 """
 from __future__ import annotations
 
+import math
+
 import sys
 
 from prismstation.cli._common import end_progress, existing, progress_printer
@@ -52,8 +54,12 @@ def run(args) -> int:
     print(f"{len(used)} of {len(result.patches)} patches matched the reference")
     for p in result.patches:
         state = "used" if p.used else f"not used: {p.reason}"
-        print(f"  patch at ({p.x:7.0f}, {p.y:7.0f}) px: dE {p.dE:+7.2f} dN {p.dN:+7.2f} dh {p.dh:+7.2f} m  "
-              f"σ ({p.sigma_E:.2f}, {p.sigma_N:.2f}, {p.sigma_h:.2f})  {state}")
+        if math.isfinite(p.dE):
+            shift = (f"dE {p.dE:+7.2f} dN {p.dN:+7.2f} dh {p.dh:+7.2f} m  "
+                     f"σ ({p.sigma_E:.2f}, {p.sigma_N:.2f}, {p.sigma_h:.2f})")
+        else:
+            shift = "no shift"
+        print(f"  patch at ({p.x:7.0f}, {p.y:7.0f}) px: {shift}  {state}")
     print(f"verdict: {result.verdict.message}")
     print(format_report(report))
     if result.exit_status:

@@ -31,7 +31,7 @@ def format_report(r: dict) -> str:
              + f"  orientation from {h.get('orientation', 'GCP')}",
              f"CRS {r['crs']}  geoid {r.get('geoid')}  heights ellipsoidal", ""]
     b = r["model"]["bias"].get("N") or next(iter(r["model"]["bias"].values()))
-    lines.append(f"Bias compensation ({b['model']}), σ0 = {_u(b.get('sigma0'))} px  dof = {b.get('dof')}")
+    lines.append(f"Bias compensation ({b['model']}), σ0 = {_u(b.get('sigma0'))} px  dof = {b.get('dof') if b.get('dof') is not None else '—'}")
     for name, p in b["parameters"].items():
         sd = "" if p["std"] is None else f"  ± {p['std']:.2g}"
         lines.append(f"  {name:>3} = {p['value']:+.6g}{sd}")
