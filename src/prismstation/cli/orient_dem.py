@@ -6,7 +6,6 @@ not or too few patches matched: the orientation is then stored and reported, but
 from __future__ import annotations
 
 import math
-
 import sys
 
 from prismstation.cli._common import end_progress, existing, progress_printer
