@@ -37,7 +37,7 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
-from prismstation.core.coreg import CoregResult, coregister, correlation_area, nmad, shift_grid
+from prismstation.core.coreg import CoregResult, block_mean, coregister, correlation_area, nmad, shift_grid
 
 #: k of ``radius = k·σ_apriori / GSD``
 K_SIGMA = 3.0
@@ -232,18 +232,6 @@ def _lsm_translation(ref, mov, dx, dy, score, second, level, radius, max_iter=20
 
 
 # ------------------------------------------------------------------ heights against heights
-def _block_mean(a: np.ndarray, f: int) -> np.ndarray:
-    if f == 1:
-        return a
-    rows, cols = (a.shape[0] // f) * f, (a.shape[1] // f) * f
-    blocks = a[:rows, :cols].reshape(rows // f, f, cols // f, f)
-    valid = np.isfinite(blocks).sum(axis=(1, 3))
-    with np.errstate(invalid="ignore"):
-        mean = np.nansum(blocks, axis=(1, 3)) / np.maximum(valid, 1)
-    mean[valid < f * f / 2] = np.nan
-    return mean
-
-
 def coarse_dem_shift(reference: np.ndarray, dem: np.ndarray, radius_cells: float):
     """Exhaustive integer search of ``(dcol, drow)`` within ``radius_cells`` minimising the NMAD
     of ``reference − dem shifted`` (coreg's sign convention), on a block-mean pyramid level
@@ -255,7 +243,7 @@ def coarse_dem_shift(reference: np.ndarray, dem: np.ndarray, radius_cells: float
     f = 1
     while radius_cells / f > COARSE_RADIUS and min(ref.shape) / (2 * f) >= 24:
         f *= 2
-    rl, dl = _block_mean(ref, f), _block_mean(dm, f)
+    rl, dl = block_mean(ref, f), block_mean(dm, f)
     r = int(np.ceil(radius_cells / f)) + 1
     cost = np.full((2 * r + 1, 2 * r + 1), np.inf)
     for j in range(2 * r + 1):

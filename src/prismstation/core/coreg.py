@@ -119,7 +119,7 @@ def shift_grid(a: np.ndarray, dcol: float, drow: float) -> np.ndarray:
     return out
 
 
-def _downsample(a: np.ndarray, f: int) -> np.ndarray:
+def block_mean(a: np.ndarray, f: int) -> np.ndarray:
     """Block mean by ``f`` (NaN where a block has fewer than half valid cells)."""
     if f == 1:
         return a
@@ -219,7 +219,7 @@ def coregister(reference: np.ndarray, dem: np.ndarray, transform=IDENTITY, *, le
     total = 0
     for level in reversed(range(levels)):
         f = 2 ** level
-        r_l, d_l = _downsample(ref, f), _downsample(dm, f)
+        r_l, d_l = block_mean(ref, f), block_mean(dm, f)
         slope = np.tan(np.radians(max_slope_deg)) * pixel * f
         c, r, dz, cov, it, count, converged = _lsm_level(
             r_l, d_l, dcol / f, drow / f, dz, max_iter, tol / f if level else tol,

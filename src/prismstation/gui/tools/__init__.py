@@ -16,7 +16,7 @@ import pkgutil
 import weakref
 
 from PySide6.QtCore import Qt
-from PySide6.QtGui import QAction, QKeySequence
+from PySide6.QtGui import QAction
 from PySide6.QtWidgets import QDockWidget
 
 
@@ -65,17 +65,8 @@ class ToolContext:
 
     def add_action(self, text, slot, shortcut=None, tip=None, checkable=False) -> QAction:
         """An action of the window (its shortcut works anywhere in it); not put in a menu."""
-        a = QAction(text, self.widget)
-        if shortcut is not None:
-            a.setShortcuts(shortcut if isinstance(shortcut, list) else [QKeySequence(shortcut)])
-        if tip:
-            a.setStatusTip(tip)
-            a.setToolTip(tip)
-        a.setCheckable(checkable)
-        if slot is not None:
-            a.triggered.connect(slot)
-        self.widget.addAction(a)
-        return a
+        from prismstation.gui.menus import act
+        return act(self.widget, text, slot, shortcut, tip=tip, checkable=checkable)
 
     def add_dock(self, key: str, title: str, widget, area=Qt.DockWidgetArea.RightDockWidgetArea,
                  tabify_with: str | None = None) -> QDockWidget:
