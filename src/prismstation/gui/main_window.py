@@ -399,8 +399,13 @@ class MainWindow(QMainWindow):
         if self.demo_maker is None or not self.files.maybe_save():
             return
         from prismstation.gui.tools._worker import run_with_progress
+        def opened(path) -> None:
+            if self.files.open_project(str(path), check_unsaved=False):
+                dem = Path(path).parent / "triplet" / "srtm.tif"  # the demo's reference DEM (cli/demo.py)
+                if dem.is_file():
+                    self.load_reference_dem(dem)
         run_with_progress(self, "Making the demo project", lambda progress: self.demo_maker(progress=progress),
-                          lambda path: self.files.open_project(str(path), check_unsaved=False))
+                          opened)
 
     def show_guide(self) -> None:
         from prismstation.gui.guide import show_guide
