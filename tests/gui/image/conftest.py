@@ -45,3 +45,19 @@ def pattern_tif16(tmp_path_factory):
 def plain_tif(tmp_path):
     """A copy of the pattern without overviews (for building them)."""
     return write_pattern(tmp_path / "plain.tif", overviews=())
+
+
+@pytest.fixture()
+def view(qtbot, pattern_tif):
+    """An ImageView (600 × 400, shown) on the pattern GeoTIFF, grey levels 0–255."""
+    from prismstation.gui.image_view import ImageView
+    from prismstation.io.raster import RasterSource
+    v = ImageView()
+    qtbot.addWidget(v)
+    v.resize(600, 400)
+    v.show()
+    qtbot.waitExposed(v)
+    v.set_source(RasterSource(pattern_tif))
+    v.set_levels(0, 255)
+    yield v
+    v.close()

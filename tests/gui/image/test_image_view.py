@@ -26,19 +26,6 @@ pytestmark = pytest.mark.gui
 DOCS = Path(__file__).resolve().parents[3] / "docs"
 
 
-@pytest.fixture()
-def view(qtbot, pattern_tif):
-    v = ImageView()
-    qtbot.addWidget(v)
-    v.resize(600, 400)
-    v.show()
-    qtbot.waitExposed(v)
-    v.set_source(RasterSource(pattern_tif))
-    v.set_levels(0, 255)
-    yield v
-    v.close()
-
-
 def grey_at(widget, pos: QPoint) -> int:
     img = widget.grab().toImage()
     return img.pixelColor(pos).red()

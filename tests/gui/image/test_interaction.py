@@ -18,18 +18,6 @@ from prismstation.io.raster import RasterSource  # noqa: E402
 pytestmark = pytest.mark.gui
 
 
-@pytest.fixture()
-def view(qtbot, pattern_tif):
-    v = ImageView()
-    qtbot.addWidget(v)
-    v.resize(600, 400)
-    v.show()
-    qtbot.waitExposed(v)
-    v.set_source(RasterSource(pattern_tif))
-    yield v
-    v.close()
-
-
 def test_left_drag_pans_the_image_with_the_mouse(qtbot, view):
     view.center_on(1500, 1000, scale=2.0)
     vp = view.graphics.viewport()
