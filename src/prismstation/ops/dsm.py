@@ -193,19 +193,23 @@ def _level(sol, transform, shape, g, half_range, prior, prior_t, *, tile_px, ove
     for rect, window in _track_tiles(sol, transform, shape, wanted, tile_px * g, overlap_m):
         specs.append(TileSpec(sol, window, transform, g, half_range, *_crop(
             prior, prior_t, transform, window, reach), refine=refine, rect=rect, overlap_m=overlap_m))
-    results = run_tiles(specs, scheduler, workers, progress)
     acc = np.zeros(shape, np.float32)
     wsum = np.zeros(shape, np.float32)
     qacc = np.zeros(shape, np.float32)
-    z = [(zn, n) for *_, (zn, n) in results if n]
-    z_nmad = float(np.average([zn for zn, _ in z], weights=[n for _, n in z])) if z else float("nan")
-    for i, spec in enumerate(specs):
-        (h, q, w, _), results[i] = results[i], None        # each tile's arrays freed once added
-        r0, c0, nr, nc = spec.window
+    z = []
+
+    def add(i, result):
+        h, q, w, zn = result
+        r0, c0, nr, nc = specs[i].window
         w = w * np.isfinite(h)
         acc[r0:r0 + nr, c0:c0 + nc] += w * np.nan_to_num(h)
         qacc[r0:r0 + nr, c0:c0 + nc] += w * q
         wsum[r0:r0 + nr, c0:c0 + nc] += w
+        if zn[1]:
+            z.append(zn)
+
+    run_tiles(specs, add, scheduler, workers, progress)
+    z_nmad = float(np.average([zn for zn, _ in z], weights=[n for _, n in z])) if z else float("nan")
     # in place: no grid-sized temporaries (a 14,000 px scene at 5 m has ~56 million cells)
     none = wsum <= 0
     wsum[none] = 1.0

@@ -128,36 +128,46 @@ def feather(spec: TileSpec, transform, shape) -> np.ndarray:
     return np.clip(d / max(2 * spec.overlap_m, 1e-9), 0.0, 1.0).astype(np.float32)
 
 
-def run_tiles(specs: list, scheduler=None, workers: int | None = None, progress=None) -> list:
-    """Results of :func:`run_tile` for ``specs``, in their order (see the module docstring for
-    ``scheduler``). ``progress(fraction, message)`` after each tile; False cancels."""
+def run_tiles(specs: list, consume, scheduler=None, workers: int | None = None, progress=None) -> None:
+    """Run :func:`run_tile` on ``specs`` and hand each result to ``consume(index, result)`` as
+    it arrives, so that no more than a few tiles' arrays are held at once (a 14,000 px scene at
+    5 m has ~56 million cells: all its tiles' results together would be ~0.7 GB). See the
+    module docstring for ``scheduler``. ``progress(fraction, message)`` after each tile; False
+    cancels. Local schedulers run the tiles in batches of four per worker."""
     import dask
+    done = 0
+
+    def take(i, result):
+        nonlocal done
+        consume(i, result)
+        done += 1
+        checkpoint(progress, done / len(specs), f"tile {done} of {len(specs)}")
+
     if scheduler is None or scheduler in ("threads", "processes", "sync"):
-        from dask.callbacks import Callback
-        done = [0]
-
-        def post(key, result, dsk, state, worker_id):
-            if isinstance(key, tuple) or str(key).startswith("run_tile"):
-                done[0] += 1
-                checkpoint(progress, done[0] / len(specs), f"tile {done[0]} of {len(specs)}")
-
-        # named, untraversed specs: dask neither hashes nor walks the solution's points
-        tasks = [dask.delayed(run_tile)(dask.delayed(s, traverse=False, name=f"tile-spec-{i}"),
-                                        dask_key_name=f"run_tile-{i}") for i, s in enumerate(specs)]
-        with Callback(posttask=post):
-            return list(dask.compute(*tasks, scheduler=scheduler or "threads",
-                                     num_workers=workers))
+        from dask.system import CPU_COUNT
+        batch = 4 * max(1, workers or CPU_COUNT)
+        for b0 in range(0, len(specs), batch):
+            # named, untraversed specs: dask neither hashes nor walks the solution's points
+            tasks = [dask.delayed(run_tile)(dask.delayed(specs[i], traverse=False, name=f"tile-spec-{i}"),
+                                            dask_key_name=f"run_tile-{i}")
+                     for i in range(b0, min(b0 + batch, len(specs)))]
+            results = list(dask.compute(*tasks, scheduler=scheduler or "threads", num_workers=workers))
+            for k in range(len(results)):
+                take(b0 + k, results[k])
+                results[k] = None
+        return
     from distributed import Client, as_completed
     client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
     try:
         futures = client.map(run_tile, specs, pure=True)
+        index = {f.key: i for i, f in enumerate(futures)}
         try:
-            for k, _ in enumerate(as_completed(futures), 1):
-                checkpoint(progress, k / len(specs), f"tile {k} of {len(specs)}")
+            for future in as_completed(futures):
+                take(index[future.key], future.result())
+                future.release()
         except BaseException:
             client.cancel(futures)
             raise
-        return client.gather(futures)
     finally:
         if client is not scheduler:
             client.close()
