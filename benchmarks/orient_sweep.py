@@ -12,7 +12,8 @@ the consistency verdict of the patch shift field (``core.consistency.snoop``), t
 
 Targets (issue 11): 14,000 px ≤ 2.5 m planimetric and height; 6,000 px within the paper's
 < 5 m and ≤ 3.2 m; no case wrong without saying so (a wrong case must have a non-ok verdict or
-a failure).
+a failure). Beside each RMSE, the orientation's stated σ (``orient-dem``'s ``sigma_m``): a
+case more than 3 σ off is marked.
 """
 from __future__ import annotations
 
@@ -99,8 +100,11 @@ def run_case(sim: Path, ref: Path, errors: dict, work: Path, patch_km: float,
     patches = rep["dem_control"]["patches"]
     used = [p for p in patches if p["used"]]
     verdict = rep["dem_control"]["verdict"]["status"]
+    sg = rep["dem_control"].get("sigma_m") or {}
     row.update(points=len(pts), plan=float(np.hypot(_rms(dE), _rms(dN))), height=_rms(dh),
-               used=len(used), patches=len(patches), verdict=verdict)
+               used=len(used), patches=len(patches), verdict=verdict,
+               sigma_plan=float(np.hypot(sg.get("E", np.nan), sg.get("N", np.nan))),
+               sigma_h=float(sg.get("h", np.nan)))
     return row
 
 
@@ -121,7 +125,7 @@ def main_sweep(argv=None) -> int:
     a = ap.parse_args(argv)
     rows = []
     base = Path(a.keep) if a.keep else Path(tempfile.mkdtemp(prefix="orient_sweep_"))
-    print("| size | pass | seed | error m | coarse F / B err px (σ) | plan m | height m | patches used | verdict | s | note |")
+    print("| size | pass | seed | error m | coarse F / B err px (σ) | plan m (σ) | height m (σ) | patches used | verdict | s | note |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for size in a.sizes:
         patch_km = a.patch_km or (4.0 if size >= 6000 else 1.0)
@@ -147,6 +151,8 @@ def main_sweep(argv=None) -> int:
                     if "plan" in r and tgt:
                         bad = r["plan"] > tgt[0] or r["height"] > tgt[1]
                         note = ("MISSES TARGET" + (" (said so)" if r["verdict"] != "ok" else " SILENTLY")) if bad else "meets target"
+                    if "plan" in r and (r["plan"] > 3 * r["sigma_plan"] or r["height"] > 3 * r["sigma_h"]):
+                        note += "; error beyond 3 × the stated σ"
                     cf = "-" if "coarse_F" not in r else (f"{r['coarse_F']:.2f} ({r['coarse_F_sigma']:.2f}) / "
                           f"{r['coarse_B']:.2f} ({r['coarse_B_sigma']:.2f})")
                     print(f"| {size} | {pas} | {seed} | {m:.0f} | {cf} | {r.get('plan', float('nan')):.2f} | "

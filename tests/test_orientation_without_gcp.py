@@ -49,6 +49,11 @@ def test_orientation_from_srtm_transfer_ties_and_dsm(tmp_path, capsys):
     # issue 4: planimetric ≤ 2.5 m and height ≤ 2.5 m (the paper: < 5 m and 3.2 m); the
     # surveyed coordinates of the check points carry 0.5 m / 1 m noise of their own
     assert np.hypot(_rms(dE), _rms(dN)) < 3.0 and _rms(dh) < 2.5, (_rms(dE), _rms(dN), _rms(dh))
+    # the orientation's σ is stated (command line and report) and the check points agree with it
+    sg = rep["dem_control"]["sigma_m"]
+    assert "orientation σ in the reference DEM's frame" in capsys.readouterr().out
+    assert 1.0 < np.hypot(sg["E"], sg["N"]) < 5.0 and 1.0 < sg["h"] < 4.0, sg
+    assert _rms(dE) < 2.5 * sg["E"] and _rms(dN) < 2.5 * sg["N"] and _rms(dh) < 2.5 * sg["h"], sg
     # saved in the project: reopening gives the same orientation
     again = solve_project(load_project(proj))
     assert again.settings.orientation == "dem"

@@ -2,7 +2,8 @@ import numpy as np
 import pytest
 
 from prismstation.core import prism
-from prismstation.core.dem_orient import (PatchShift, control_from_shifts, grid_points, patch_windows,
+from prismstation.core.dem_orient import (COMMON_SIGMA_M, FIELD_SIGMA_M, PatchShift, affine_field,
+                                          control_from_shifts, grid_points, orientation_sigma, patch_windows,
                                           judge_patches)
 from prismstation.core.solve import PointObs, solve
 from tests.core.synth import make_scene
@@ -54,3 +55,37 @@ def test_patch_windows_cover_without_slivers():
     w = patch_windows((2000, 2100), 400, margin_px=50)
     assert len(w) == 25 and min(p[2] for p in w) >= 350
     assert w[0][:2] == (50, 50) and w[-1][0] + w[-1][2] == 2050
+
+
+def test_orientation_sigma_agrees_with_the_scatter_of_fitted_fields():
+    """The fitted part of :func:`orientation_sigma` (without the common part) against the
+    scatter of fields fitted to shifts drawn with the patches' σ: formal vs empirical."""
+    rng = np.random.default_rng(3)
+    xs, ys = np.meshgrid(np.arange(4) * 1500 + 750, np.arange(4) * 1500 + 750)
+    formal = np.array([0.8, 0.6, 0.3])
+    sig = np.sqrt(formal ** 2 + np.square(FIELD_SIGMA_M))
+    at = (np.array([300.0, 3000.0, 5900.0]), np.array([300.0, 3000.0, 100.0]))
+    errors, sigmas = [], []
+    for _ in range(400):
+        noise = rng.normal(0.0, 1.0, (16, 3)) * sig
+        patches = [PatchShift((0, 0, 1, 1), x, y, *(np.array(_shift(x, y)) + e), *formal, 500, 0.9)
+                   for x, y, e in zip(xs.ravel(), ys.ravel(), noise)]
+        field = affine_field(patches)
+        errors.append(field(*at) - np.array([_shift(x, y) for x, y in zip(*at)]))
+        sigmas.append(np.sqrt(orientation_sigma(patches, *at) ** 2 - np.square(COMMON_SIGMA_M)))
+    errors, sigmas = np.array(errors), np.array(sigmas)
+    ratio = np.sqrt(np.mean(errors ** 2, axis=0)) / np.median(sigmas, axis=0)
+    assert np.all((ratio > 0.85) & (ratio < 1.15)), ratio   # σ0 ≥ 1 only: slightly conservative
+    # five times the stated scatter: σ0 scales the field's σ up with it
+    noisy = [PatchShift((0, 0, 1, 1), x, y, *(np.array(_shift(x, y)) + 5 * e), *formal, 500, 0.9)
+             for x, y, e in zip(xs.ravel(), ys.ravel(), rng.normal(0.0, 1.0, (16, 3)) * sig)]
+    def fitted(ps):
+        return np.sqrt(orientation_sigma(ps, 3000.0, 3000.0) ** 2 - np.square(COMMON_SIGMA_M))
+    assert np.all(fitted(noisy) > 3 * fitted(patches)), (fitted(noisy), fitted(patches))
+
+def test_orientation_sigma_without_patches_or_with_a_line_of_them():
+    assert np.isnan(orientation_sigma([], 0.0, 0.0)).all()
+    line = [PatchShift((0, 0, 1, 1), 100.0 * i, 50.0, 1.0, 2.0, 3.0, 0.5, 0.5, 0.2, 100, 0.9) for i in range(4)]
+    s = orientation_sigma(line, 0.0, 0.0)
+    mean_sigma = np.sqrt((0.5 ** 2 + np.square(FIELD_SIGMA_M)) / 4)[:2]
+    assert s[:2] == pytest.approx(np.hypot(mean_sigma, COMMON_SIGMA_M[:2]))

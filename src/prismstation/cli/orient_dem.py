@@ -60,6 +60,9 @@ def run(args) -> int:
             shift = "no shift"
         print(f"  patch at ({p.x:7.0f}, {p.y:7.0f}) px: {shift}  {state}")
     print(f"verdict: {result.verdict.message}")
+    sg = result.sigma_m
+    print(f"orientation σ in the reference DEM's frame: E {sg['E']:.1f} m, N {sg['N']:.1f} m "
+          f"(planimetric {result.sigma_plan_m:.1f} m), h {sg['h']:.1f} m")
     print(format_report(report))
     if result.exit_status:
         print(f"prismstation orient-dem: NOT TRUSTED ({result.verdict.status}): {result.verdict.message}",

@@ -27,6 +27,7 @@ from rasterio.crs import CRS
 from rasterio.errors import RasterioError
 from rasterio.shutil import copy as rio_copy
 from rasterio.transform import Affine
+from rasterio.windows import Window
 
 from prismstation.errors import RasterReadError
 
@@ -59,6 +60,10 @@ def vertical_crs(crs, height_kind: str, geoid: str | None = None) -> CRS:
     return CRS.from_wkt(pyproj.crs.CompoundCRS(f"{h.name} + {v.name}", [h, v]).to_wkt())
 
 
+#: rows written at once
+STRIP_ROWS = 1024
+
+
 def write_dsm(path, dsm) -> None:
     """Write ``dsm`` (:class:`prismstation.ops.dsm.Dsm`) as a COG GeoTIFF at ``path``."""
     path = Path(path)
@@ -75,16 +80,19 @@ def write_dsm(path, dsm) -> None:
             "SEEN_CELLS": str(n_seen), "POSTING_M": f"{dsm.posting_m:g}", "HEIGHTS": dsm.height_kind}
     fd, tmp = tempfile.mkstemp(prefix=".dsm-", suffix=".tif", dir=path.parent)
     os.close(fd)
-    plain = tmp[:-4] + "-plain.tif"   # the bands written one at a time (no stacked copy in memory)
+    plain = tmp[:-4] + "-plain.tif"   # written in strips of rows: no grid-sized copy in memory
     try:
         with rasterio.Env(GDAL_PAM_ENABLED="NO"):
             with rasterio.open(plain, "w", **profile) as ds:
-                ds.write(np.where(np.isfinite(h), h, NODATA).astype(np.float32), 1)
-                for i, band in ((2, dsm.mask), (3, dsm.quality)):
-                    v = np.zeros(h.shape, np.float32) if band is None else band.astype(np.float32)
-                    v[~seen] = NODATA
-                    ds.write(v, i)
-                    del v
+                for r0 in range(0, rows, STRIP_ROWS):
+                    window = Window(0, r0, cols, min(STRIP_ROWS, rows - r0))
+                    hs, ss = h[r0:r0 + STRIP_ROWS], seen[r0:r0 + STRIP_ROWS]
+                    ds.write(np.where(np.isfinite(hs), hs, NODATA).astype(np.float32), 1, window=window)
+                    for i, band in ((2, dsm.mask), (3, dsm.quality)):
+                        v = (np.zeros(hs.shape, np.float32) if band is None
+                             else band[r0:r0 + STRIP_ROWS].astype(np.float32))
+                        v[~ss] = NODATA
+                        ds.write(v, i, window=window)
                 ds.update_tags(**tags)
                 for i, name in enumerate(BANDS, 1):
                     ds.set_band_description(i, name)

@@ -127,13 +127,40 @@ def regrid(grid: np.ndarray, grid_t, transform, shape) -> np.ndarray:
                           flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
 
 
+#: rows per strip and rows of halo above and below it when a large grid is bridged in strips:
+#: a void is bridged from cells at most ``BRIDGE_HALO`` rows away across the strip boundary
+BRIDGE_STRIP, BRIDGE_HALO = 2048, 512
+
+
 def bridge(heights: np.ndarray, smooth_px: int = 5) -> np.ndarray:
-    """Voids bridged from the nearest valid cell and median-smoothed: a prior, not a product."""
+    """Voids bridged from the nearest valid cell and median-smoothed: a prior, not a product.
+
+    Grids taller than one strip are done in strips of :data:`BRIDGE_STRIP` rows with
+    :data:`BRIDGE_HALO` rows either side (the nearest-cell search needs 8 bytes per cell:
+    ~0.6 GB at once on a 14,000 px scene at 5 m); a strip with no valid cell within its halo
+    takes the median of the whole grid."""
     ok = np.isfinite(heights)
     if not ok.any():
         raise InputError("dense matching found no height anywhere in the window")
+    rows = heights.shape[0]
+    if rows <= BRIDGE_STRIP + 2 * BRIDGE_HALO:
+        return _bridge(heights, ok, smooth_px)
+    out = np.empty(heights.shape, np.float32)
+    median = None
+    for r0 in range(0, rows, BRIDGE_STRIP):
+        a, b = max(r0 - BRIDGE_HALO, 0), min(r0 + BRIDGE_STRIP + BRIDGE_HALO, rows)
+        r1 = min(r0 + BRIDGE_STRIP, rows)
+        if ok[a:b].any():
+            out[r0:r1] = _bridge(heights[a:b], ok[a:b], smooth_px)[r0 - a:r1 - a]
+        else:
+            median = float(np.nanmedian(heights)) if median is None else median
+            out[r0:r1] = median
+    return out
+
+
+def _bridge(heights, ok, smooth_px):
     idx = ndimage.distance_transform_edt(~ok, return_distances=False, return_indices=True)
-    return cv2.medianBlur(heights[tuple(idx)].astype(np.float32), smooth_px)
+    return cv2.medianBlur(np.asarray(heights[tuple(idx)], np.float32), smooth_px)
 
 
 def fill_voids(heights: np.ndarray, iterations: int = 200) -> np.ndarray:
@@ -236,17 +263,21 @@ def _crop(prior, prior_t, transform, window, reach):
     return crop, (pa, 0.0, pc + pa * i0, 0.0, pe, pf + pe * j0)
 
 
-def _drop_unconfirmed(heights, quality, tolerance_m: float):
+def _drop_unconfirmed(heights, quality, tolerance_m: float) -> None:
     """Cells fewer than three pairs agree on are kept only within ``tolerance_m`` of the
     surface the three-pair cells make around them (bridged, median-smoothed): a pair or two
-    agreeing on a false match (at image edges, where the prior was extrapolated) goes."""
+    agreeing on a false match (at image edges, where the prior was extrapolated) goes. In
+    place, in strips of rows (:func:`bridge`)."""
     full = quality >= 3
     if not full.any():
-        return heights, quality
-    ref = bridge(np.where(full, heights, np.nan))
-    bad = (quality < 3) & ~(np.abs(heights - ref) <= tolerance_m)
-    heights = np.where(bad, np.nan, heights).astype(np.float32)
-    return heights, np.where(bad, 0, quality).astype(np.uint8)
+        return
+    ref = bridge(np.where(full, heights, np.float32(np.nan)))
+    del full
+    for r0 in range(0, heights.shape[0], BRIDGE_STRIP):
+        h, q, r = (a[r0:r0 + BRIDGE_STRIP] for a in (heights, quality, ref))
+        bad = (q < 3) & ~(np.abs(h - r) <= tolerance_m)
+        h[bad] = np.nan
+        q[bad] = 0
 
 
 def default_uncertainty(sol: Solution) -> float:
@@ -327,7 +358,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
             prior, prior_t = bridge(np.where(quality >= 2, heights, np.nan)), t
             half = (FINEST_SEARCH_IN_G if order[order.index(L) + 1] == 0 else NEXT_LEVEL_SEARCH_IN_G) * g
     checkpoint(progress, 0.96, "mask and fill")
-    heights, quality = _drop_unconfirmed(heights, quality, max(6.0, posting_m))
+    _drop_unconfirmed(heights, quality, max(6.0, posting_m))
     seen = seen_by_all(sol, t, shape, bridge(heights), window)
     heights[~seen] = np.nan
     quality[~seen] = 0

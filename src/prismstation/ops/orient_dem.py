@@ -34,7 +34,7 @@ from prismstation.core.affine import Affine2D
 from prismstation.core.coarse import K_SIGMA, dem_offset
 from prismstation.core.consistency import Verdict
 from prismstation.core.dem_orient import (PatchShift, control_from_shifts, grid_points, judge_patches,
-                                          patch_windows, relative_dem_points)
+                                          orientation_sigma, patch_windows, relative_dem_points)
 from prismstation.core.dense import parallax_map
 from prismstation.core.solve import Control
 from prismstation.core.view_offsets import SIGMA_HEIGHT_M
@@ -62,6 +62,11 @@ class DemOrientation:
     verdict: Verdict
     sigma_apriori_m: float
     control: Control
+    sigma_m: dict     # the orientation's σ (m): {"E", "N", "h"}, RMS over the N image
+
+    @property
+    def sigma_plan_m(self) -> float:
+        return float(np.hypot(self.sigma_m["E"], self.sigma_m["N"]))
 
     @property
     def exit_status(self) -> int:
@@ -70,7 +75,7 @@ class DemOrientation:
     def to_dict(self) -> dict:
         return {"reference": self.reference, "mean_height": self.mean_height,
                 "sigma_apriori_m": self.sigma_apriori_m, "offsets_px": self.offsets_px,
-                "coarse": self.coarse, "verdict": self.verdict.to_dict(),
+                "coarse": self.coarse, "verdict": self.verdict.to_dict(), "sigma_m": self.sigma_m,
                 "patches": [plain(asdict(p)) for p in self.patches]}
 
 
@@ -175,8 +180,11 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     checkpoint(progress, 1.0, "done")
     offsets = {v: [float(c) for c in o] for v, o in offsets.items()}
     control = control_from_shifts(scene, patches, mean_h, offsets)
+    g = (np.arange(5) + 0.5) / 5
+    sig = orientation_sigma(patches, *np.meshgrid(g * cols, g * rows))
+    sigma_m = {k: float(np.sqrt(np.mean(sig[..., i] ** 2))) for i, k in enumerate("ENh")}
     return DemOrientation(str(reference_path), tuple(patches), mean_h, offsets, coarse.to_dict(), verdict,
-                          float(sigma_apriori_m), control)
+                          float(sigma_apriori_m), control, sigma_m)
 
 
 def _patch(scene, images, win, ground_at_ref, at, slope, c1, offsets, sigma_py_off, sigma_apriori_m,

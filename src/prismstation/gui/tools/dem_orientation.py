@@ -166,13 +166,16 @@ class PatchTable(QWidget):
 
 
 def verdict_text(record) -> str:
-    """One line on whether the stored orientation's patch field can be trusted."""
+    """One line on whether the stored orientation's patch field can be trusted, and its σ."""
     v = (record or {}).get("verdict")
     if not v:
         return "No consistency verdict (an orientation made before issue 11's engine): not tested."
+    sg = {k: _num(x) for k, x in ((record or {}).get("sigma_m") or {}).items()}
+    sigma = (f" Orientation σ (in the reference DEM's frame): planimetric "
+             f"{np.hypot(sg['E'], sg['N']):.1f} m, height {sg['h']:.1f} m." if {"E", "N", "h"} <= set(sg) else "")
     if v.get("status") == "ok":
-        return f"Verdict: trusted — the patch shifts agree with their σ ({v.get('message', '')})."
-    return f"Verdict: NOT TRUSTED ({v.get('status')}) — {v.get('message', '')}"
+        return f"Verdict: trusted — the patch shifts agree with their σ ({v.get('message', '')}).{sigma}"
+    return f"Verdict: NOT TRUSTED ({v.get('status')}) — {v.get('message', '')}{sigma}"
 
 
 class DemOrientationTool:
