@@ -40,6 +40,8 @@ def test_orient_from_srtm_in_the_window(qtbot, window, sim, truth):
     # the a-priori σ and the verdict are shown
     assert "σ 50 m per view" in tool.panel.summary.text()
     assert record["verdict"]["status"] == "ok" and "trusted" in tool.panel.verdict.text()
+    sg = record["sigma_m"]
+    assert f"planimetric {(sg['E'] ** 2 + sg['N'] ** 2) ** 0.5:.1f} m, height {sg['h']:.1f} m" in tool.panel.verdict.text()
     assert tool._items, "no shift vectors on the N view"
 
     # the solver reports it like a GCP orientation: ICP statistics against the simulator's truth
