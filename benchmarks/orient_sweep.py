@@ -155,8 +155,8 @@ def main_sweep(argv=None) -> int:
                         note += "; error beyond 3 × the stated σ"
                     cf = "-" if "coarse_F" not in r else (f"{r['coarse_F']:.2f} ({r['coarse_F_sigma']:.2f}) / "
                           f"{r['coarse_B']:.2f} ({r['coarse_B_sigma']:.2f})")
-                    print(f"| {size} | {pas} | {seed} | {m:.0f} | {cf} | {r.get('plan', float('nan')):.2f} | "
-                          f"{r.get('height', float('nan')):.2f} | {r.get('used', '-')}/{r.get('patches', '-')} | "
+                    print(f"| {size} | {pas} | {seed} | {m:.0f} | {cf} | {r.get('plan', float('nan')):.2f} ({r.get('sigma_plan', float('nan')):.1f}) | "
+                          f"{r.get('height', float('nan')):.2f} ({r.get('sigma_h', float('nan')):.1f}) | {r.get('used', '-')}/{r.get('patches', '-')} | "
                           f"{r.get('verdict', 'failed')} | {r['seconds']:.0f} | {note} |", flush=True)
     clean = [{k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in r.items()}
              for r in rows]
