@@ -210,9 +210,12 @@ def control_from_shifts(scene: Scene, patches: list[PatchShift], mean_height: fl
     dh = s[:, 2]
     t = prism.along_track_unit(scene, en_anc).mean(0)
     py_off = float((offs.get("F", np.zeros(2)) - offs.get("B", np.zeros(2))) @ t)
-    parallax = ParallaxLine("offset", "offset", float(dh.mean() - c1 * py_off), c1, c1, None, None, None,
-                            f"from reference-DEM control: c0 = mean dh over the image "
-                            f"(dh ranges {dh.min():+.1f} to {dh.max():+.1f} m); c1 theoretical")
+    # the patches' dh field is affine over N: c0 follows it (a tilted line)
+    d0, dx, dy = np.linalg.lstsq(np.column_stack([np.ones(len(xy)), xy]), dh, rcond=None)[0]
+    parallax = ParallaxLine("offset", "offset", float(d0 - c1 * py_off), c1, c1, None, None, None,
+                            f"from reference-DEM control: c0 follows the patches' dh over the image "
+                            f"({dh.min():+.1f} to {dh.max():+.1f} m); c1 theoretical",
+                            (float(dx), float(dy)))
     return Control(bias, parallax, "reference DEM", float(mean_height))
 
 

@@ -253,7 +253,12 @@ def fit_bias(xy0, xy, model: str, sigma=None, *, what: str = "bias") -> BiasFit:
 @dataclass(frozen=True, eq=False)
 class ParallaxLine:
     """``h = c0 + c1·py`` (metres from pixels). ``used`` says what was fitted:
-    ``line`` (c0, c1), ``offset`` (c0; c1 theoretical) or ``theoretical`` (nothing)."""
+    ``line`` (c0, c1), ``offset`` (c0; c1 theoretical) or ``theoretical`` (nothing).
+
+    ``tilt`` (metres per N-image pixel, x and y): ``c0`` varying over the scene as
+    ``c0 + tilt·xy`` at N-image position ``xy`` (the F–B midpoint in N space). Zero for a
+    GCP fit (the paper's line); a reference-DEM orientation sets it from its patches' height
+    field, which varies by metres across a 14,000 px scene (attitude drift)."""
 
     requested: str
     used: str
@@ -264,9 +269,18 @@ class ParallaxLine:
     std_c1: float | None = None
     lsq: lsq.LsqResult | None = None
     note: str = ""
+    tilt: tuple = (0.0, 0.0)
 
-    def height(self, py) -> np.ndarray:
-        return self.c0 + self.c1 * np.asarray(py, dtype=float)
+    def height(self, py, xy=None) -> np.ndarray:
+        """Heights (m) of parallaxes ``py`` (px, shape (...)) at N-image positions ``xy``
+        (..., 2), which a tilted line needs."""
+        h = self.c0 + self.c1 * np.asarray(py, dtype=float)
+        if self.tilt[0] or self.tilt[1]:
+            if xy is None:
+                raise ValueError("a tilted parallax line needs the N-image positions")
+            xy = np.asarray(xy, dtype=float)
+            h = h + self.tilt[0] * xy[..., 0] + self.tilt[1] * xy[..., 1]
+        return h
 
     @property
     def sigma0(self) -> float | None:

@@ -219,6 +219,7 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
     any_m = np.any(np.column_stack([has[v] for v in views]), axis=1) if n else np.zeros(0, bool)
     triplet = scene.is_triplet
     py = np.full(n, np.nan)
+    mid = np.full((n, 2), np.nan)              # F–B midpoint in N space: where the parallax is
     across = {"F": np.full(n, np.nan), "B": np.full(n, np.nan)}
     if triplet and n:
         T = {v: prism.to_nadir_space(scene, views[v]) for v in ("F", "B")}
@@ -226,7 +227,8 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
         fb = has["F"] & has["B"]
         if fb.any():
             f, b = T["F"](X["F"][fb]), T["B"](X["B"][fb])
-            d = prism.along_track_unit(scene, n_inv((f + b) / 2))
+            mid[fb] = (f + b) / 2
+            d = prism.along_track_unit(scene, n_inv(mid[fb]))
             py[fb] = np.einsum("ij,ij->i", f - b, d)
         if has["N"].any():
             ct = prism.along_track_unit(scene, n_inv(X["N"][has["N"]]))
@@ -238,7 +240,7 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
 
     # heights: parallax, else the reference DEM (iterated with planimetry), else the mean
     use_py = np.isfinite(py) & (parallax is not None)
-    h = np.where(use_py, parallax.height(py) if parallax is not None else np.nan, mean_h)
+    h = np.where(use_py, parallax.height(py, np.nan_to_num(mid)) if parallax is not None else np.nan, mean_h)
     source = np.where(use_py, "parallax", "mean").astype(object)
 
     def planimetry(h):

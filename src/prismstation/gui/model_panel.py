@@ -51,7 +51,9 @@ def solution_sections(sol) -> tuple[list, list]:
         sections.append((f"Parallax line h = c0 + c1·py ({par.used})" + (f" — σ0 = {_f(s0)} m" if s0 is not None else ""),
                          ["", "value", "σ", "theory"],
                          [["c0 (m)", _f(par.c0, 2, True), _f(par.std_c0), "0"],
-                          ["c1 (m/px)", _f(par.c1, 4), _f(par.std_c1, 4), _f(par.c1_theory, 4)]]))
+                          ["c1 (m/px)", _f(par.c1, 4), _f(par.std_c1, 4), _f(par.c1_theory, 4)]]
+                         + ([[f"c0 tilt {a} (m per 1000 px)", _f(1000 * t, 3, True), "—", "0"]
+                             for a, t in zip("xy", par.tilt)] if any(par.tilt) else [])))
     st = sol.stats
     ref = sol.reference_view
     img = st.get("image", {}).get(ref, {})

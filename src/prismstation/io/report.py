@@ -125,7 +125,7 @@ def report_dict(sol: Solution, *, project_path=None, geoid: str | None = None,
         model["parallax"] = {"requested": par.requested, "used": par.used, "c0": par.c0, "c1": par.c1,
                              "std_c0": par.std_c0, "std_c1": par.std_c1, "c1_theoretical": par.c1_theory,
                              "sigma0_m": par.sigma0, "dof": None if par.lsq is None else par.lsq.dof,
-                             "note": par.note}
+                             "note": par.note, "tilt_m_per_px": [float(par.tilt[0]), float(par.tilt[1])]}
     stats = {k: v for k, v in sol.stats.items() if k != "reference_view"}
     est = np.array([p.ground_est[:2] if p.ground_est is not None else (np.nan, np.nan)
                     for p in sol.points], float).reshape(-1, 2)

@@ -25,7 +25,7 @@ import numpy as np
 from scipy import ndimage
 
 from prismstation.core.solve import Solution
-from prismstation.core.stereo_tile import Frame, relief_rate, view_affine
+from prismstation.core.stereo_tile import Frame, model_height_correction, relief_rate, view_affine
 from prismstation.errors import InputError
 from prismstation.ops.dsm_tiles import TileSpec, run_tiles
 from prismstation.ops.progress import checkpoint, scaled
@@ -358,6 +358,18 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
             prior, prior_t = bridge(np.where(quality >= 2, heights, np.nan)), t
             half = (FINEST_SEARCH_IN_G if order[order.index(L) + 1] == 0 else NEXT_LEVEL_SEARCH_IN_G) * g
     checkpoint(progress, 0.96, "mask and fill")
+    # the fitted model's heights (its calibrated parallax line), not the biases' intersection
+    lo, hi = np.nanpercentile(heights[::7, ::7], [1, 99]) if np.isfinite(heights).any() else (sol.mean_height,) * 2
+    corr = model_height_correction(sol, float(lo), float(hi))
+    span = []
+    for r0 in range(0, shape[0], 512):
+        en = _cell_centres((t[0], 0.0, t[2], 0.0, t[4], t[5] + t[4] * r0), (min(512, shape[0] - r0), shape[1]))
+        dh = corr(en, heights[r0:r0 + 512]).astype(np.float32)
+        heights[r0:r0 + 512] += dh
+        if np.isfinite(dh).any():
+            span += [float(np.nanmin(dh)), float(np.nanmax(dh))]
+    info["model_height_correction_m"] = {"min": min(span, default=0.0), "max": max(span, default=0.0),
+                                         "per_m_of_height": corr.coef[3]}
     _drop_unconfirmed(heights, quality, max(6.0, posting_m))
     seen = seen_by_all(sol, t, shape, bridge(heights), window)
     heights[~seen] = np.nan

@@ -228,3 +228,24 @@ def test_reference_prior_and_void_filling(triplet):
         (d.mask[d.seen] == MASK_MATCHED).mean())
     e = (d.heights - _truth_on(d, folder))[d.mask == MASK_MATCHED]
     assert 1.4826 * np.median(np.abs(e - np.median(e))) < 2.5
+
+
+def test_dsm_heights_follow_the_fitted_models_parallax_line(triplet):
+    """The correction turns the matching's geometric height into the model's (F–B parallax
+    line) height anywhere in the scene and at any height, not only on its lattice."""
+    from prismstation.core import prism
+    from prismstation.core.stereo_tile import model_height_correction
+    _, _, sol = triplet
+    sc = sol.scene
+    corr = model_height_correction(sol, 300.0, 900.0)
+    rng = np.random.default_rng(0)
+    rows, cols = sc.views["N"].shape
+    xy = rng.uniform(0, 1, (50, 2)) * (cols, rows)
+    hh = rng.uniform(250.0, 950.0, 50)
+    en = sol.image_to_ground("N", xy, hh)
+    T = {v: prism.to_nadir_space(sc, sc.views[v]) for v in "FB"}
+    f, b = T["F"](sol.ground_to_image("F", en, hh)), T["B"](sol.ground_to_image("B", en, hh))
+    py = np.einsum("ij,ij->i", f - b, prism.along_track_unit(sc, prism.image_to_map(sc.views["N"])((f + b) / 2)))
+    line = sol.parallax.height(py)
+    assert np.abs(hh + corr(en, hh) - line).max() < 0.01
+    assert np.abs(line - hh).max() > 0.05          # the two geometries do differ on this scene
