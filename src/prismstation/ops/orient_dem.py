@@ -205,8 +205,12 @@ def _patch(scene, images, win, ground_at_ref, at, slope, c1, offsets, sigma_py_o
     rms_slope = float(np.sqrt(np.mean(at(slope, en) ** 2)))
     sigma_py = float(np.hypot(np.hypot(sigma_height_m, sigma_apriori_m * rms_slope) / c1, sigma_py_off))
     search_px = int(np.ceil(K_SIGMA * sigma_py / f)) + 1
-    prior = cv2.resize((hh / c1 / f).reshape(gx.shape).astype(np.float32), (wd[2], wd[3]),
-                       interpolation=cv2.INTER_LINEAR)
+    # the samples sit at decimated pixel centres 0.5 + step·k of the window: interpolate there
+    # (a plain resize would take them as the centres of step-wide blocks, step/2 − 0.5 off)
+    u = (np.arange(wd[2], dtype=np.float32) / step)[None, :].repeat(wd[3], 0)
+    v = (np.arange(wd[3], dtype=np.float32) / step)[:, None].repeat(wd[2], 1)
+    prior = cv2.remap((hh / c1 / f).reshape(gx.shape).astype(np.float32), u, v, cv2.INTER_LINEAR,
+                      borderMode=cv2.BORDER_REPLICATE)
     d = prism.along_track_unit(scene, en.mean(0))
     reach = float(np.abs(prior).max()) * f + (search_px + 20) * f
     arrays, to_n = {}, {}
@@ -221,8 +225,9 @@ def _patch(scene, images, win, ground_at_ref, at, slope, c1, offsets, sigma_py_o
         arr, ac0, ar0 = images.read(v, a0, b0, a1 - a0, b1 - b0)
         if arr is None:
             return fail(f"the {v} image does not cover the patch")
-        if f > 1:
-            arr = cv2.resize(arr, (arr.shape[1] // f, arr.shape[0] // f), interpolation=cv2.INTER_AREA)
+        if f > 1:  # whole f × f blocks from the array's corner (a resize of the rest would stretch it)
+            hh_, ww_ = arr.shape[0] // f * f, arr.shape[1] // f * f
+            arr = cv2.resize(arr[:hh_, :ww_], (ww_ // f, hh_ // f), interpolation=cv2.INTER_AREA)
         corr = Affine2D([[1, 0, -o[0]], [0, 1, -o[1]]])
         to_n[v] = (scaling(1 / f) @ corr @ prism.to_nadir_space(scene, view) @ shift(ac0, ar0) @ scaling(f)).matrix
         arrays[v] = arr
