@@ -250,6 +250,15 @@ def fit_bias(xy0, xy, model: str, sigma=None, *, what: str = "bias") -> BiasFit:
 
 
 # ---------------------------------------------------------------- parallax line (eq. 4)
+def fb_parallax(scene: Scene, xy_f, xy_b):
+    """F−B parallax of F and B image coordinates ``(n, 2)``: ``(py (n,), mid (n, 2))``, py in
+    N pixels along track, ``mid`` the F–B midpoint in N space (where the parallax is)."""
+    f = to_nadir_space(scene, scene.views["F"])(np.asarray(xy_f, float))
+    b = to_nadir_space(scene, scene.views["B"])(np.asarray(xy_b, float))
+    mid = (f + b) / 2
+    return np.einsum("ij,ij->i", f - b, along_track_unit(scene, image_to_map(scene.views["N"])(mid))), mid
+
+
 @dataclass(frozen=True, eq=False)
 class ParallaxLine:
     """``h = c0 + c1·py`` (metres from pixels). ``used`` says what was fitted:

@@ -201,10 +201,7 @@ def _parallax(scene: Scene, pts) -> np.ndarray:
     """F−B parallax (pixels, along track in N space) of points measured in F and B."""
     if not pts:
         return np.zeros(0)
-    f = prism.to_nadir_space(scene, scene.views["F"])(np.array([p.image["F"] for p in pts], float))
-    b = prism.to_nadir_space(scene, scene.views["B"])(np.array([p.image["B"] for p in pts], float))
-    en = prism.image_to_map(scene.views["N"])((f + b) / 2)
-    return np.einsum("ij,ij->i", f - b, prism.along_track_unit(scene, en))
+    return prism.fb_parallax(scene, [p.image["F"] for p in pts], [p.image["B"] for p in pts])[0]
 
 
 def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
@@ -226,10 +223,7 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
         n_inv = prism.image_to_map(views["N"])
         fb = has["F"] & has["B"]
         if fb.any():
-            f, b = T["F"](X["F"][fb]), T["B"](X["B"][fb])
-            mid[fb] = (f + b) / 2
-            d = prism.along_track_unit(scene, n_inv(mid[fb]))
-            py[fb] = np.einsum("ij,ij->i", f - b, d)
+            py[fb], mid[fb] = prism.fb_parallax(scene, X["F"][fb], X["B"][fb])
         if has["N"].any():
             ct = prism.along_track_unit(scene, n_inv(X["N"][has["N"]]))
             cross = np.column_stack([ct[:, 1], -ct[:, 0]])

@@ -253,17 +253,14 @@ def model_height_correction(sol: Solution, h_lo: float, h_hi: float, n: int = 9)
     rows, cols = sc.views["N"].shape
     g = (np.arange(n) + 0.5) / n
     xy = np.column_stack([np.tile(g * cols, n), np.repeat(g * rows, n)])
-    T = {v: prism.to_nadir_space(sc, sc.views[v]) for v in ("F", "B")}
-    n_inv = prism.image_to_map(sc.views["N"])
     A, y = [], []
     origin = None
     for h in (float(h_lo), float(h_hi) if h_hi > h_lo else float(h_lo) + 100.0):
         hh = np.full(len(xy), h)
         en = sol.image_to_ground("N", xy, hh)
         origin = en.mean(axis=0) if origin is None else origin
-        f, b = T["F"](sol.ground_to_image("F", en, hh)), T["B"](sol.ground_to_image("B", en, hh))
-        py = np.einsum("ij,ij->i", f - b, prism.along_track_unit(sc, n_inv((f + b) / 2)))
+        py, mid = prism.fb_parallax(sc, sol.ground_to_image("F", en, hh), sol.ground_to_image("B", en, hh))
         A.append(np.column_stack([np.ones(len(en)), en - origin, hh]))
-        y.append(sol.parallax.height(py, (f + b) / 2) - hh)
+        y.append(sol.parallax.height(py, mid) - hh)
     coef, *_ = np.linalg.lstsq(np.vstack(A), np.concatenate(y), rcond=None)
     return HeightCorrection(tuple(float(v) for v in origin), tuple(float(v) for v in coef))
