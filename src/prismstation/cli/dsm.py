@@ -1,5 +1,5 @@
 """``prismstation dsm PROJECT -o dsm.tif [--posting m] [--window c r w h] [--reference DEM]
-[--orthometric] [--fill] [--min-fill %] [--scheduler ADDRESS]``: the triplet's DSM as a COG GeoTIFF.
+[--orthometric] [--fill] [--min-fill %] [--heights auto|line|rays] [--scheduler ADDRESS]``: the triplet's DSM as a COG GeoTIFF.
 
 Exit status 3 (after writing the file) when fewer than ``--min-fill`` percent of the cells all
 three images see got a matched height.
@@ -13,7 +13,7 @@ from prismstation.errors import ModelError
 from prismstation.io.dsm import write_dsm
 from prismstation.io.project import load_project, project_geoid
 from prismstation.ops.fit import solve_project
-from prismstation.ops.dsm import make_dsm
+from prismstation.ops.dsm import HEIGHT_MODELS, make_dsm
 from prismstation.ops.reference_heights import load_for_scene
 
 LOW_FILL_STATUS = 3
@@ -33,6 +33,9 @@ def register(sub) -> None:
     p.add_argument("--fill", action="store_true", help="fill voids by interpolation (mask value 2)")
     p.add_argument("--min-fill", type=float, default=90.0, metavar="PERCENT",
                    help="exit with status 3 when fewer seen cells than this are matched (default 90)")
+    p.add_argument("--heights", choices=HEIGHT_MODELS, default="auto",
+                   help="heights from the model's parallax line, the rays through its biases, or "
+                        "auto: the one the GCPs predict better, left out in turn (default)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="dask.distributed scheduler address (default: threads on this machine; 'processes' for processes)")
     p.add_argument("--workers", type=int, help="local threads or processes (default: the CPU count)")
@@ -57,7 +60,7 @@ def run(args) -> int:
     dsm = make_dsm(sol, tuple(args.window) if args.window else None, posting_m=args.posting,
                    orthometric_geoid=geoid if args.orthometric else None, progress=progress,
                    reference=reference, height_uncertainty_m=args.height_uncertainty, fill=args.fill,
-                   scheduler=args.scheduler, workers=args.workers)
+                   scheduler=args.scheduler, workers=args.workers, heights_model=args.heights)
     print(file=sys.stderr)
     write_dsm(args.output, dsm)
     fill = 100.0 * dsm.fill_fraction
@@ -65,6 +68,8 @@ def run(args) -> int:
     print(f"wrote {args.output}: {cols} × {rows} cells at {args.posting:g} m, {dsm.height_kind} heights, "
           f"{fill:.1f} % of the {int(dsm.seen.sum())} cells all three images see matched"
           + (f", {100.0 * (dsm.mask == 2).sum() / max(int(dsm.seen.sum()), 1):.1f} % filled" if args.fill else ""))
+    hm = dsm.info["heights"]
+    print(f"heights: {'the parallax line' if hm['model'] == 'line' else 'the rays through the biases'} ({hm['reason']})")
     if fill < args.min_fill:
         print(f"prismstation dsm: LOW FILL: only {fill:.1f} % of the seen cells matched "
               f"(threshold {args.min_fill:g} %); the voids are marked 0 in the mask band", file=sys.stderr)

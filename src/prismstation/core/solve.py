@@ -86,6 +86,7 @@ class Solution:
     mean_height: float
     revision: int = 0
     failures: dict = field(default_factory=dict)  # view -> FailedFit of its bias (reference view)
+    observations: tuple = ()      # the PointObs of a GCP fit (to refit it without some of them)
 
     # ---- geometry through the current model (linked cursors, predictions)
     def ground_to_image(self, view: str, en, h) -> np.ndarray:
@@ -194,7 +195,7 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
     results = _point_results(scene, points, bias, parallax, mean_h, height_of, settings, adjustment)
     stats = _statistics(scene, results)
     return Solution(scene, settings, bias, parallax, tuple(results), stats, tuple(messages),
-                    mean_h, revision, failures)
+                    mean_h, revision, failures, tuple(points))
 
 
 def _parallax(scene: Scene, pts) -> np.ndarray:

@@ -25,7 +25,8 @@ import numpy as np
 from scipy import ndimage
 
 from prismstation.core.solve import Solution
-from prismstation.core.stereo_tile import Frame, model_height_correction, relief_rate, view_affine
+from prismstation.core.dsm_heights import HEIGHT_MODELS, choose_heights, model_height_correction
+from prismstation.core.stereo_tile import Frame, relief_rate, view_affine
 from prismstation.errors import InputError
 from prismstation.ops.dsm_tiles import TileSpec, run_tiles
 from prismstation.ops.progress import checkpoint, scaled
@@ -289,11 +290,27 @@ def default_uncertainty(sol: Solution) -> float:
     return 1.5 * spread + 300.0
 
 
+def _follow_line(sol: Solution, heights: np.ndarray, t, info: dict) -> None:
+    """Turn the matching's ray heights (grid ``heights``, transform ``t``) into the model's
+    parallax-line heights in place, in strips of rows; the correction's range into ``info``."""
+    lo, hi = np.nanpercentile(heights[::7, ::7], [1, 99]) if np.isfinite(heights).any() else (sol.mean_height,) * 2
+    corr = model_height_correction(sol, float(lo), float(hi))
+    span = []
+    for r0 in range(0, heights.shape[0], 512):
+        en = _cell_centres((t[0], 0.0, t[2], 0.0, t[4], t[5] + t[4] * r0), (min(512, heights.shape[0] - r0), heights.shape[1]))
+        dh = corr(en, heights[r0:r0 + 512]).astype(np.float32)
+        heights[r0:r0 + 512] += dh
+        if np.isfinite(dh).any():
+            span += [float(np.nanmin(dh)), float(np.nanmax(dh))]
+    info["model_height_correction_m"] = {"min": min(span, default=0.0), "max": max(span, default=0.0),
+                                         "per_m_of_height": corr.coef[3]}
+
+
 def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dict | None = None,
              orthometric_geoid=None, progress=None, reference=None,
              height_uncertainty_m: float | None = None, fill: bool = False, refine: bool = True,
              scheduler=None, workers: int | None = None, tile_px: int = 1024,
-             overlap_m: float | None = None) -> Dsm:
+             overlap_m: float | None = None, heights_model: str = "auto") -> Dsm:
     """DSM of the ground seen in the N-image ``window`` (col0, row0, cols, rows; default all).
 
     ``reference``: optional prior, a ``(heights, transform)`` north-up grid of ellipsoidal
@@ -303,12 +320,17 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
     after SGBM. ``scheduler``, ``workers``: see :mod:`prismstation.ops.dsm_tiles`. ``record`` is
     accepted for compatibility and not needed (the solution holds the DEM orientation).
     ``progress(fraction, message)`` returning False cancels (:class:`Cancelled`).
+    ``heights_model``: ``auto``, ``line`` or ``rays`` (:mod:`prismstation.core.dsm_heights`);
+    the choice and its reason are in ``info["heights"]``.
     """
     sc = sol.scene
     if not sc.is_triplet or sol.parallax is None:
         raise InputError("a DSM needs an oriented N, F, B triplet")
     if not (posting_m > 0 and math.isfinite(posting_m)):
         raise InputError(f"the posting must be a positive number of metres, got {posting_m}")
+    if heights_model not in HEIGHT_MODELS:
+        raise InputError(f"unknown DSM height model {heights_model!r}; choose one of {', '.join(HEIGHT_MODELS)}")
+    choice = choose_heights(sol, heights_model)
     rows_n, cols_n = sc.views["N"].shape
     window = tuple(int(v) for v in (window or (0, 0, cols_n, rows_n)))
     gsd = sc.views["N"].pixel_size_m
@@ -358,18 +380,9 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
             prior, prior_t = bridge(np.where(quality >= 2, heights, np.nan)), t
             half = (FINEST_SEARCH_IN_G if order[order.index(L) + 1] == 0 else NEXT_LEVEL_SEARCH_IN_G) * g
     checkpoint(progress, 0.96, "mask and fill")
-    # the fitted model's heights (its calibrated parallax line), not the biases' intersection
-    lo, hi = np.nanpercentile(heights[::7, ::7], [1, 99]) if np.isfinite(heights).any() else (sol.mean_height,) * 2
-    corr = model_height_correction(sol, float(lo), float(hi))
-    span = []
-    for r0 in range(0, shape[0], 512):
-        en = _cell_centres((t[0], 0.0, t[2], 0.0, t[4], t[5] + t[4] * r0), (min(512, shape[0] - r0), shape[1]))
-        dh = corr(en, heights[r0:r0 + 512]).astype(np.float32)
-        heights[r0:r0 + 512] += dh
-        if np.isfinite(dh).any():
-            span += [float(np.nanmin(dh)), float(np.nanmax(dh))]
-    info["model_height_correction_m"] = {"min": min(span, default=0.0), "max": max(span, default=0.0),
-                                         "per_m_of_height": corr.coef[3]}
+    info["heights"] = choice.record()
+    if choice.model == "line":
+        _follow_line(sol, heights, t, info)
     _drop_unconfirmed(heights, quality, max(6.0, posting_m))
     seen = seen_by_all(sol, t, shape, bridge(heights), window)
     heights[~seen] = np.nan

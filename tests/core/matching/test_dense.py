@@ -210,6 +210,29 @@ def test_cli_exits_non_zero_below_the_fill_threshold(triplet, tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 3 and "LOW FILL" in err and out.exists()
     assert main(["dsm", str(folder / "p.prismproj"), "-o", str(out), "--posting", "20", "--min-fill", "50"]) == 0
+    said = capsys.readouterr().out
+    assert "heights: the" in said and "leave-one-out over 9 GCPs" in said   # auto: the GCPs chose
+
+
+def test_cli_heights_model_as_asked_and_tagged(triplet, tmp_path, capsys):
+    """``--heights line`` and ``rays`` differ by the model's height correction; the GeoTIFF
+    says which it holds."""
+    import rasterio
+    from prismstation.cli import main
+    from prismstation.io.dsm import read_dsm_info
+    folder = triplet[0]
+    h = {}
+    for m in ("line", "rays"):
+        out = tmp_path / f"{m}.tif"
+        assert main(["dsm", str(folder / "p.prismproj"), "-o", str(out), "--posting", "20", "--heights", m]) == 0
+        assert read_dsm_info(out)["tags"]["HEIGHT_MODEL"] == f"{m} ({m} as asked)"
+        with rasterio.open(out) as ds:
+            h[m] = ds.read(1, masked=True).filled(np.nan)
+    d = h["line"] - h["rays"]
+    assert np.isfinite(d).mean() > 0.5 and 0.01 < np.nanmax(np.abs(d)) < 5.0
+    with pytest.raises(SystemExit):
+        main(["dsm", str(folder / "p.prismproj"), "-o", str(tmp_path / "x.tif"), "--heights", "plane"])
+    assert "invalid choice" in capsys.readouterr().err
 
 
 def test_reference_prior_and_void_filling(triplet):
@@ -234,7 +257,7 @@ def test_dsm_heights_follow_the_fitted_models_parallax_line(triplet):
     """The correction turns the matching's geometric height into the model's (F–B parallax
     line) height anywhere in the scene and at any height, not only on its lattice."""
     from prismstation.core import prism
-    from prismstation.core.stereo_tile import model_height_correction
+    from prismstation.core.dsm_heights import model_height_correction
     _, _, sol = triplet
     sc = sol.scene
     corr = model_height_correction(sol, 300.0, 900.0)

@@ -137,6 +137,9 @@ def result_message(path: str, dsm, min_fill_percent: float) -> tuple[str, bool]:
     text = (f"Wrote {path}: {cols} × {rows} cells at {dsm.posting_m:g} m, {dsm.height_kind} heights; "
             f"{fill:.1f} % of the {seen} cells all three images see matched"
             + (f", {filled:.1f} % filled by interpolation" if filled else ""))
+    hm = (dsm.info or {}).get("heights")
+    if hm:
+        text += f". Heights: {'parallax line' if hm['model'] == 'line' else 'rays through the biases'} ({hm['reason']})"
     low = fill < min_fill_percent
     if low:
         text = (f"LOW FILL: only {fill:.1f} % of the seen cells matched (minimum {min_fill_percent:g} %); "
