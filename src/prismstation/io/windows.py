@@ -13,6 +13,7 @@ from rasterio.windows import Window
 
 from prismstation.core.affine import Affine2D
 from prismstation.errors import RasterReadError
+from prismstation.io.raster import limit_gdal_cache
 
 
 class ImageWindows:
@@ -22,6 +23,7 @@ class ImageWindows:
     """
 
     def __init__(self, scene):
+        limit_gdal_cache()   # windows are read once: GDAL's default cache only grows RSS
         self._ds = {}
         try:
             for v, view in scene.views.items():

@@ -127,6 +127,24 @@ def test_gdal_block_cache_is_bounded(pattern_tif, monkeypatch):
     assert int(get_gdal_config("GDAL_CACHEMAX")) <= raster.GDAL_CACHE_MB * 1024 * 1024
 
 
+def test_gdal_block_cache_is_bounded_for_the_dsm_and_orientation_reads(pattern_tif, monkeypatch):
+    """The DSM's tiles read every image once through ImageWindows: GDAL's default cache (5 % of
+    RAM) would only add its size to the peak RSS."""
+    from types import SimpleNamespace
+
+    from rasterio.env import get_gdal_config, set_gdal_config
+
+    from prismstation.io import raster
+    from prismstation.io.windows import ImageWindows
+
+    monkeypatch.delenv("GDAL_CACHEMAX", raising=False)
+    monkeypatch.setattr(raster, "_gdal_cache_limited", False)
+    set_gdal_config("GDAL_CACHEMAX", 2 ** 30)
+    with ImageWindows(SimpleNamespace(views={"N": SimpleNamespace(image=str(pattern_tif))})) as w:
+        assert w.read("N", 0, 0, 8, 8)[0].shape == (8, 8)
+    assert int(get_gdal_config("GDAL_CACHEMAX")) <= raster.GDAL_CACHE_MB * 1024 * 1024
+
+
 @pytest.mark.parametrize("dtype, top", [(np.uint8, 256), (np.uint16, 4000), (np.uint16, 65536)])
 def test_integer_statistics_match_numpy(dtype, top):
     from prismstation.io.raster import _integer_statistics
