@@ -28,7 +28,7 @@ from prismstation.core.solve import Solution
 from prismstation.core.dsm_heights import HEIGHT_MODELS, choose_heights, model_height_correction
 from prismstation.core.stereo_tile import Frame, relief_rate, view_affine
 from prismstation.errors import InputError
-from prismstation.ops.dsm_tiles import TileSpec, run_tiles
+from prismstation.ops.dsm_tiles import TileSpec, release_large_arrays, run_tiles
 from prismstation.ops.progress import checkpoint, scaled
 
 MASK_VOID, MASK_MATCHED, MASK_FILLED = 0, 1, 2
@@ -223,7 +223,7 @@ def _level(sol, transform, shape, g, half_range, prior, prior_t, *, tile_px, ove
             prior, prior_t, transform, window, reach), refine=refine, rect=rect, overlap_m=overlap_m))
     acc = np.zeros(shape, np.float32)
     wsum = np.zeros(shape, np.float32)
-    qacc = np.zeros(shape, np.float32)
+    qacc = np.zeros(shape, np.float16)     # Σ w·q ≤ 6: resolution 0.004, rounded to 0–3 below
     z = []
 
     def add(i, result):
@@ -238,14 +238,17 @@ def _level(sol, transform, shape, g, half_range, prior, prior_t, *, tile_px, ove
 
     run_tiles(specs, add, scheduler, workers, progress)
     z_nmad = float(np.average([zn for zn, _ in z], weights=[n for _, n in z])) if z else float("nan")
-    # in place: no grid-sized temporaries (a 14,000 px scene at 5 m has ~56 million cells)
-    none = wsum <= 0
-    wsum[none] = 1.0
-    np.divide(acc, wsum, out=acc)
-    acc[none] = np.nan
-    np.divide(qacc, wsum, out=qacc)
-    quality = np.rint(qacc, out=qacc).astype(np.uint8)
-    quality[none] = 0
+    # in place and in strips: no grid-sized temporaries (a 14,000 px scene at 5 m has ~56
+    # million cells)
+    quality = np.zeros(shape, np.uint8)
+    for r0 in range(0, shape[0], BRIDGE_STRIP):
+        a, w, q = (v[r0:r0 + BRIDGE_STRIP] for v in (acc, wsum, qacc))
+        none = w <= 0
+        w[none] = 1.0
+        np.divide(a, w, out=a)
+        a[none] = np.nan
+        quality[r0:r0 + BRIDGE_STRIP] = np.where(none, 0, np.rint(q / w))
+    del wsum, qacc
     return acc, quality, len(specs), z_nmad
 
 
@@ -326,6 +329,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
     sc = sol.scene
     if not sc.is_triplet or sol.parallax is None:
         raise InputError("a DSM needs an oriented N, F, B triplet")
+    release_large_arrays()
     if not (posting_m > 0 and math.isfinite(posting_m)):
         raise InputError(f"the posting must be a positive number of metres, got {posting_m}")
     if heights_model not in HEIGHT_MODELS:

@@ -10,6 +10,8 @@ existing ``dask.distributed`` scheduler (``"tcp://host:8786"``), or a ``distribu
 """
 from __future__ import annotations
 
+import ctypes
+import sys
 from dataclasses import dataclass
 
 import cv2
@@ -72,13 +74,9 @@ def _read_views(sol: Solution, frame, h_lo: float, h_hi: float, factor: int) -> 
             xy = np.concatenate([sol.ground_to_image(v, corners, h) for h in (h_lo, h_hi)])
             lo = np.floor(xy.min(axis=0)) - 4 * factor
             hi = np.ceil(xy.max(axis=0)) + 4 * factor
-            arr, c0, r0 = images.read(v, lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1])
+            arr, c0, r0 = images.read_reduced(v, lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1], factor)
             if arr is None:
                 arr, c0, r0 = np.full((2, 2), np.nan, np.float32), 0, 0
-            if factor > 1:
-                hh, ww = arr.shape[0] // factor * factor, arr.shape[1] // factor * factor
-                arr = cv2.resize(arr[:hh, :ww], (max(ww // factor, 1), max(hh // factor, 1)),
-                                 interpolation=cv2.INTER_AREA)
             # full-image pixel coordinate x → array index (x − c0)/factor − 0.5
             out[v] = (arr, np.array([[1 / factor, 0, -c0 / factor - 0.5],
                                      [0, 1 / factor, -r0 / factor - 0.5]]))
@@ -87,9 +85,29 @@ def _read_views(sol: Solution, frame, h_lo: float, h_hi: float, factor: int) -> 
     return out
 
 
+_MMAP_FIXED = False
+
+
+def release_large_arrays() -> None:
+    """glibc: allocations over 128 KiB always come from mmap and go back to the system when
+    freed. By default glibc raises that threshold (up to 32 MiB) each time such a block is
+    freed, after which the tiles' arrays (1–30 MB) are carved from per-thread heaps that keep
+    their freed memory: a 6,000 px DSM at 5 m peaked at 746 MB with the default, 641 MB
+    with this. Once per process; elsewhere a no-op."""
+    global _MMAP_FIXED
+    if _MMAP_FIXED or not sys.platform.startswith("linux"):
+        return
+    _MMAP_FIXED = True
+    try:
+        ctypes.CDLL("libc.so.6").mallopt(-3, 128 * 1024)   # M_MMAP_THRESHOLD
+    except (OSError, AttributeError):
+        pass
+
+
 def run_tile(spec: TileSpec):
     """Heights, quality (pairs agreeing) and blend weights of the tile's cells, and the tile's
     σ check ``(z_nmad, count)`` (:class:`prismstation.core.stereo_tile.TileResult`)."""
+    release_large_arrays()
     cv2.setNumThreads(1)
     sol = spec.sol
     a = spec.transform[0]

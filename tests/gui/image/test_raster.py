@@ -145,6 +145,29 @@ def test_gdal_block_cache_is_bounded_for_the_dsm_and_orientation_reads(pattern_t
     assert int(get_gdal_config("GDAL_CACHEMAX")) <= raster.GDAL_CACHE_MB * 1024 * 1024
 
 
+@pytest.mark.parametrize("factor, window", [(1, (3, 5, 40, 30)), (3, (0, 0, 10000, 10000)),
+                                            (4, (-7.5, 13.2, 301, 257)), (5, (1, 1, 4, 4))])
+def test_reduced_window_reads_are_block_means_read_in_strips(pattern_tif16, factor, window, monkeypatch):
+    """The DSM's coarse levels read whole images reduced: strips of rows give the block
+    means of the whole window, cropped to whole blocks, at the same origin."""
+    from types import SimpleNamespace
+
+    from prismstation.io import windows
+    from prismstation.io.windows import ImageWindows
+
+    monkeypatch.setattr(windows, "READ_STRIP_ROWS", 50)     # several strips, a short last one
+    with ImageWindows(SimpleNamespace(views={"N": SimpleNamespace(image=str(pattern_tif16))})) as w:
+        full, c0, r0 = w.read("N", *window)
+        red, c1, r1 = w.read_reduced("N", *window, factor)
+    assert (c1, r1) == (c0, r0)
+    if factor * 1 > min(full.shape):
+        assert red is None
+        return
+    rows, cols = full.shape[0] // factor, full.shape[1] // factor
+    blocks = full[:rows * factor, :cols * factor].reshape(rows, factor, cols, factor).mean(axis=(1, 3))
+    np.testing.assert_allclose(red, blocks, rtol=1e-5)
+
+
 @pytest.mark.parametrize("dtype, top", [(np.uint8, 256), (np.uint16, 4000), (np.uint16, 65536)])
 def test_integer_statistics_match_numpy(dtype, top):
     from prismstation.io.raster import _integer_statistics
