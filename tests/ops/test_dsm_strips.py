@@ -28,6 +28,17 @@ def test_bridge_in_strips_equals_the_whole_grid_bridge(monkeypatch):
     np.testing.assert_array_equal(strips, whole)
 
 
+@pytest.mark.parametrize("strip", [10 ** 6, 40])
+def test_bridge_from_a_subset_of_the_cells_needs_no_masked_copy(monkeypatch, strip):
+    """``valid`` bridges from those cells only: what a NaN'd copy of the grid would give."""
+    h = _surface(seed=3)
+    valid = np.isfinite(h) & (np.random.default_rng(4).random(h.shape) < 0.5)
+    monkeypatch.setattr(ops_dsm, "BRIDGE_STRIP", strip)
+    monkeypatch.setattr(ops_dsm, "BRIDGE_HALO", 30)
+    np.testing.assert_array_equal(ops_dsm.bridge(h, valid=valid),
+                                  ops_dsm.bridge(np.where(valid, h, np.float32(np.nan))))
+
+
 def test_a_strip_with_nothing_near_takes_the_median(monkeypatch):
     h = _surface()
     h[150:260] = np.nan

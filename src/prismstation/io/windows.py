@@ -17,7 +17,7 @@ from prismstation.io.raster import limit_gdal_cache
 
 
 #: full-resolution rows read at a time by :meth:`ImageWindows.read_reduced`
-READ_STRIP_ROWS = 4096
+READ_STRIP_ROWS = 1024
 
 
 class ImageWindows:

@@ -130,17 +130,18 @@ def regrid(grid: np.ndarray, grid_t, transform, shape) -> np.ndarray:
 
 #: rows per strip and rows of halo above and below it when a large grid is bridged in strips:
 #: a void is bridged from cells at most ``BRIDGE_HALO`` rows away across the strip boundary
-BRIDGE_STRIP, BRIDGE_HALO = 2048, 512
+BRIDGE_STRIP, BRIDGE_HALO = 1024, 512
 
 
-def bridge(heights: np.ndarray, smooth_px: int = 5) -> np.ndarray:
+def bridge(heights: np.ndarray, smooth_px: int = 5, valid: np.ndarray | None = None) -> np.ndarray:
     """Voids bridged from the nearest valid cell and median-smoothed: a prior, not a product.
+    ``valid``: the cells to bridge from (default: the finite ones; a subset of them).
 
     Grids taller than one strip are done in strips of :data:`BRIDGE_STRIP` rows with
     :data:`BRIDGE_HALO` rows either side (the nearest-cell search needs 8 bytes per cell:
     ~0.6 GB at once on a 14,000 px scene at 5 m); a strip with no valid cell within its halo
     takes the median of the whole grid."""
-    ok = np.isfinite(heights)
+    ok = np.isfinite(heights) if valid is None else valid
     if not ok.any():
         raise InputError("dense matching found no height anywhere in the window")
     rows = heights.shape[0]
@@ -154,7 +155,7 @@ def bridge(heights: np.ndarray, smooth_px: int = 5) -> np.ndarray:
         if ok[a:b].any():
             out[r0:r1] = _bridge(heights[a:b], ok[a:b], smooth_px)[r0 - a:r1 - a]
         else:
-            median = float(np.nanmedian(heights)) if median is None else median
+            median = float(np.median(heights[ok])) if median is None else median
             out[r0:r1] = median
     return out
 
@@ -275,7 +276,7 @@ def _drop_unconfirmed(heights, quality, tolerance_m: float) -> None:
     full = quality >= 3
     if not full.any():
         return
-    ref = bridge(np.where(full, heights, np.float32(np.nan)))
+    ref = bridge(heights, valid=full)
     del full
     for r0 in range(0, heights.shape[0], BRIDGE_STRIP):
         h, q, r = (a[r0:r0 + BRIDGE_STRIP] for a in (heights, quality, ref))
