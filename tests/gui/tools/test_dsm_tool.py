@@ -89,6 +89,9 @@ def test_result_message_warns_only_below_the_minimum():
     assert not low and "75.0 % of the 4 cells" in text and "LOW FILL" not in text
     text, low = dsm_tool.result_message("x.tif", d, 80.0)
     assert low and text.startswith("LOW FILL: only 75.0 %")
+    d.info["heights"] = {"model": "rays", "reason": "leave-one-out over 9 GCPs: line 3.44 m, rays 2.26 m RMS"}
+    text, _ = dsm_tool.result_message("x.tif", d, 70.0)
+    assert text.endswith("Heights: rays through the biases (leave-one-out over 9 GCPs: line 3.44 m, rays 2.26 m RMS)")
 
 
 def test_cancel_button_of_the_progress_dialog_stops_and_leaves_no_file(qtbot, window, tmp_path, job_outcome, monkeypatch):
