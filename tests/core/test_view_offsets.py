@@ -123,3 +123,28 @@ def test_combine_flags_a_window_that_disagrees():
     failed = make() + [vo.ViewOffset("F", wins[0], np.nan, np.nan, np.nan, np.nan, 100.0,
                                      "low_score", "NCC 0.1", 0.1)]
     assert np.allclose(vo.combine(failed)[0], vo.combine(failed[:-1])[0])
+
+
+def test_gradient_recovers_a_drifting_offset():
+    """Attitude drift makes a view's offset vary over N: the windows' offsets give it as an
+    affine field about N's centre; too few windows, or windows on a line, give a constant."""
+    rng = np.random.default_rng(3)
+    centre = np.array([7000.0, 7000.0])
+    o, G = np.array([1.2, -0.4]), np.array([[2e-5, -1e-5], [3e-5, -2.1e-4]])   # −1.5…+1.5 px along y
+    wins = vo.lattice((14000, 14000), 512, k=3, margin_px=100)
+
+    def win(w):
+        p = np.array([w[0] + w[2] / 2, w[1] + w[3] / 2])
+        d = o + G @ (p - centre) + rng.normal(0, 0.05, 2)
+        return vo.ViewOffset("F", w, d[0], d[1], 0.05, 0.05, 100.0, "ok", "", 0.9)
+    found = [win(w) for w in wins]
+    o_hat, G_hat = vo.gradient(found, centre)
+    assert np.abs(o_hat - o).max() < 0.08 and np.abs(G_hat - G).max() < 1.5e-5
+    at = vo.offset_at(o_hat, G_hat, centre, np.array([[100.0, 13900.0], [7000.0, 7000.0]]))
+    assert at[1] == pytest.approx(o_hat) and at[0] == pytest.approx(o + G @ ([100, 13900] - centre), abs=0.2)
+    few = found[:3]
+    o3, G3 = vo.gradient(few, centre)
+    assert not G3.any() and o3 == pytest.approx(np.mean([[f.dx, f.dy] for f in few], axis=0))
+    line = [f for f in found if f.n_window[1] == wins[0][1]] + [found[0]]   # one row of windows
+    assert not vo.gradient(line, centre)[1].any()
+    assert np.isnan(vo.gradient([], centre)[0]).all()

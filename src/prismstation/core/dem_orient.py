@@ -19,6 +19,7 @@ from prismstation.core.consistency import ALPHA, MIN_PATCHES, snoop
 from prismstation.core.scene import Scene
 from prismstation.core.shift_field import ShiftField
 from prismstation.core.solve import Control
+from prismstation.core.view_offsets import offset_at
 
 
 def patch_windows(shape, patch_px: int, margin_px: int = 0) -> list[tuple[int, int, int, int]]:
@@ -174,23 +175,26 @@ def judge_patches(patches: list[PatchShift], alpha: float = ALPHA, min_patches: 
 
 def control_from_shifts(scene: Scene, patches: list[PatchShift], mean_height: float,
                         view_offsets: dict | None = None, grid: int = 7,
-                        bias_model: str = "affine") -> Control:
+                        bias_model: str = "affine", offset_gradients: dict | None = None) -> Control:
     """The sensor model implied by the patches' shifts (MODEL.md §3 step 4).
 
     Virtual control points on a ``grid × grid`` lattice over the N image, at the relative
     height ``mean_height − dh``: the ancillary model places them at ``P``; the truth is
     ``P + (dE, dN)`` at height ``+ dh``. ``view_offsets`` (N-space pixel vectors) say where
     F and B see a point relative to the ancillary prediction from N (relative orientation);
-    the relative DEM was made with them removed. Fitting each view's bias to the virtual
-    points and the parallax line's offset ``c0 = mean dh − c1·(offF − offB)·t`` gives a model
-    that carries every measurement to the reference DEM's frame. ``c1`` stays theoretical.
+    the relative DEM was made with them removed; ``offset_gradients`` (2 × 2 px per N pixel,
+    about the N image's centre) how they vary over N. Fitting each view's bias to the virtual
+    points and the parallax line's offset ``c0 = dh − c1·(offF − offB)·t`` (affine over N)
+    gives a model that carries every measurement to the reference DEM's frame. ``c1`` stays
+    theoretical.
     """
-    offs = {k: np.asarray(v, float) for k, v in (view_offsets or {}).items()}
     field = affine_field(patches)
     views = scene.views
     rows, cols = views["N"].shape or (14000, 14000)
     g = (np.arange(grid) + 0.5) / grid
     xy = np.column_stack([np.tile(g * cols, grid), np.repeat(g * rows, grid)])
+    grads = offset_gradients or {}
+    offs = {k: offset_at(v, grads.get(k), (cols / 2, rows / 2), xy) for k, v in (view_offsets or {}).items()}
     s = field(xy[:, 0], xy[:, 1])
     h_rel = mean_height - s[:, 2]
     en_anc = prism.ancillary_to_ground(scene, views["N"], xy, h_rel)
@@ -209,10 +213,10 @@ def control_from_shifts(scene: Scene, patches: list[PatchShift], mean_height: fl
     c1 = prism.theoretical_c1(scene)
     dh = s[:, 2]
     t = prism.along_track_unit(scene, en_anc).mean(0)
-    py_off = float((offs.get("F", np.zeros(2)) - offs.get("B", np.zeros(2))) @ t)
-    # the patches' dh field is affine over N: c0 follows it (a tilted line)
-    d0, dx, dy = np.linalg.lstsq(np.column_stack([np.ones(len(xy)), xy]), dh, rcond=None)[0]
-    parallax = ParallaxLine("offset", "offset", float(d0 - c1 * py_off), c1, c1, None, None, None,
+    py_off = (offs.get("F", np.zeros(2)) - offs.get("B", np.zeros(2))) @ t
+    # the patches' dh field and the offsets are affine over N: c0 follows them (a tilted line)
+    d0, dx, dy = np.linalg.lstsq(np.column_stack([np.ones(len(xy)), xy]), dh - c1 * py_off, rcond=None)[0]
+    parallax = ParallaxLine("offset", "offset", float(d0), c1, c1, None, None, None,
                             f"from reference-DEM control: c0 follows the patches' dh over the image "
                             f"({dh.min():+.1f} to {dh.max():+.1f} m); c1 theoretical",
                             (float(dx), float(dy)))

@@ -4,8 +4,9 @@
 footprint, cuts N into a 3 × 3 lattice of windows, and for each window and view calls
 :func:`prismstation.core.view_offsets.view_offset` over the radius the a-priori σ allows; the
 windows are combined per view with a consistency verdict. The result's ``offsets_px`` are
-N-space pixels from the ancillary prediction to where the view sees the point: the DEM
-orientation (:mod:`prismstation.ops.orient_dem`) removes them before its per-patch matching.
+N-space pixels from the ancillary prediction to where the view sees the point, at N's centre,
+and ``gradients_px`` how they vary over N (attitude drift): the DEM orientation
+(:mod:`prismstation.ops.orient_dem`) removes them before its per-patch matching.
 
 A-priori: ``sigma_apriori_m`` (each view's geolocation σ per component, metres; default 50 m
 after seed 003's ~50 m shifts), ``k`` = 3 (search radius ``k·σ·√2 / GSD``),
@@ -33,7 +34,9 @@ SIGMA_APRIORI_M = 50.0
 
 @dataclass(frozen=True)
 class CoarseOffsets:
-    """Per view (F, B): the combined N-space offset (px), its σ, the verdict, the windows."""
+    """Per view (F, B): the N-space offset (px) at the N image's centre, its σ, the verdict,
+    the windows, and the offset's gradient over N (px per N pixel, 2 × 2,
+    :func:`prismstation.core.view_offsets.gradient`)."""
 
     offsets_px: dict
     sigma_px: dict
@@ -41,6 +44,7 @@ class CoarseOffsets:
     windows: tuple
     sigma_apriori_m: float
     radius_px: float
+    gradients_px: dict | None = None
 
     def ok(self, view: str) -> bool:
         return bool(np.isfinite(self.offsets_px[view]).all())
@@ -50,6 +54,8 @@ class CoarseOffsets:
             return float(v) if np.isfinite(v) else None
         return {"sigma_apriori_m": self.sigma_apriori_m, "radius_px": self.radius_px,
                 "offsets_px": {v: [num(c) for c in o] for v, o in self.offsets_px.items()},
+                "gradients_px": {v: [[num(c) for c in row] for row in np.asarray(g)]
+                                 for v, g in (self.gradients_px or {}).items()},
                 "sigma_px": {v: [num(c) for c in s] for v, s in self.sigma_px.items()},
                 "verdicts": {v: (x.to_dict() if x is not None else None) for v, x in self.verdicts.items()},
                 "windows": [{"view": w.view, "n_window": list(w.n_window), "dx": num(w.dx),
@@ -112,9 +118,11 @@ def coarse_view_offsets(scene: Scene, reference_path, geoid, *, sigma_apriori_m:
     finally:
         for d in ds.values():
             d.close()
-    offsets, sigmas, verdicts = {}, {}, {}
+    offsets, sigmas, verdicts, grads = {}, {}, {}, {}
     for v in "FB":
-        mean, sig, verdict = vo.combine([o for o in found if o.view == v])
-        offsets[v], sigmas[v], verdicts[v] = mean, sig, verdict
+        mine = [o for o in found if o.view == v]
+        _, sigmas[v], verdicts[v] = vo.combine(mine)
+        offsets[v], grads[v] = vo.gradient(mine, (cols / 2, rows / 2))
     checkpoint(progress, 1.0, "coarse offsets done")
-    return CoarseOffsets(offsets, sigmas, verdicts, tuple(found), float(sigma_apriori_m), float(radius))
+    return CoarseOffsets(offsets, sigmas, verdicts, tuple(found), float(sigma_apriori_m), float(radius),
+                         grads)

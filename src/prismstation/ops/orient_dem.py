@@ -37,7 +37,7 @@ from prismstation.core.dem_orient import (PatchShift, control_from_shifts, grid_
                                           orientation_sigma, patch_windows, relative_dem_points)
 from prismstation.core.dense import parallax_map
 from prismstation.core.solve import Control
-from prismstation.core.view_offsets import SIGMA_HEIGHT_M
+from prismstation.core.view_offsets import SIGMA_HEIGHT_M, offset_at
 from prismstation.errors import InputError
 from prismstation.io.dem import read_dem
 from prismstation.io.jsonfile import plain
@@ -63,6 +63,7 @@ class DemOrientation:
     sigma_apriori_m: float
     control: Control
     sigma_m: dict     # the orientation's σ (m): {"E", "N", "h"}, RMS over the N image
+    gradients_px: dict | None = None   # the offsets' gradients over N (px per N pixel, 2 × 2)
 
     @property
     def sigma_plan_m(self) -> float:
@@ -75,7 +76,7 @@ class DemOrientation:
     def to_dict(self) -> dict:
         return {"reference": self.reference, "mean_height": self.mean_height,
                 "sigma_apriori_m": self.sigma_apriori_m, "offsets_px": self.offsets_px,
-                "coarse": self.coarse, "verdict": self.verdict.to_dict(), "sigma_m": self.sigma_m,
+                "offset_gradients_px": self.gradients_px, "coarse": self.coarse, "verdict": self.verdict.to_dict(), "sigma_m": self.sigma_m,
                 "patches": [plain(asdict(p)) for p in self.patches]}
 
 
@@ -89,7 +90,8 @@ def apply_orientation(project: Project, result: DemOrientation) -> None:
 def control_from_record(scene, record: dict) -> Control:
     """Rebuild the model from a project's saved ``dem_control`` record."""
     patches = [PatchShift(**{**p, "window": tuple(p["window"])}) for p in record["patches"]]
-    return control_from_shifts(scene, patches, record["mean_height"], record.get("offsets_px"))
+    return control_from_shifts(scene, patches, record["mean_height"], record.get("offsets_px"),
+                               offset_gradients=record.get("offset_gradients_px"))
 
 
 def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float = SIGMA_APRIORI_M,
@@ -124,6 +126,10 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
                          f"{coarse.radius_px:.0f} px (a-priori σ {sigma_apriori_m:g} m per view): "
                          f"{why or 'no window matched'}", reference_path)
     offsets = {v: np.asarray(coarse.offsets_px[v], float) for v in "FB"}
+    grads = {v: np.asarray(coarse.gradients_px[v], float) for v in "FB"}
+
+    def offset_of(v, xy):
+        return offset_at(offsets[v], grads[v], (cols / 2, rows / 2), xy)
 
     # reference DEM over the N footprint and the search radius, ellipsoidal, north-up
     radius_m = K_SIGMA * sigma_apriori_m            # N's own error against the reference
@@ -167,7 +173,7 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     try:
         for k, win in enumerate(wins):
             checkpoint(progress, 0.25 + 0.7 * k / len(wins), f"patch {k + 1} of {len(wins)}")
-            shifts.append(_patch(scene, images, win, ground_at_ref, at, slope, c1, offsets, sigma_py_off,
+            shifts.append(_patch(scene, images, win, ground_at_ref, at, slope, c1, offset_of, sigma_py_off,
                                  sigma_apriori_m, sigma_height_m, radius_m, tanF / (tanF + tanB), ref,
                                  posting_m, lo, hi, decimation))
     finally:
@@ -179,21 +185,23 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     patches, verdict = judge_patches(shifts)
     checkpoint(progress, 1.0, "done")
     offsets = {v: [float(c) for c in o] for v, o in offsets.items()}
-    control = control_from_shifts(scene, patches, mean_h, offsets)
+    grads = {v: [[float(c) for c in row] for row in g] for v, g in grads.items()}
+    control = control_from_shifts(scene, patches, mean_h, offsets, offset_gradients=grads)
     g = (np.arange(5) + 0.5) / 5
     sig = orientation_sigma(patches, *np.meshgrid(g * cols, g * rows))
     sigma_m = {k: float(np.sqrt(np.mean(sig[..., i] ** 2))) for i, k in enumerate("ENh")}
     return DemOrientation(str(reference_path), tuple(patches), mean_h, offsets, coarse.to_dict(), verdict,
-                          float(sigma_apriori_m), control, sigma_m)
+                          float(sigma_apriori_m), control, sigma_m, grads)
 
 
-def _patch(scene, images, win, ground_at_ref, at, slope, c1, offsets, sigma_py_off, sigma_apriori_m,
+def _patch(scene, images, win, ground_at_ref, at, slope, c1, offset_of, sigma_py_off, sigma_apriori_m,
            sigma_height_m, radius_m, n_weight, ref, posting_m, lo, hi, f) -> PatchShift:
     """One patch at N-space decimation ``f`` (F and B averaged f×f; SRTM is 90 m anyway).
 
     The parallax search covers K_SIGMA σ of the prior's error: the reference heights' σ, the
     height error of sampling them where N's error puts the patch (σ_geolocation × the patch's
-    RMS slope) and the offsets' along-track σ."""
+    RMS slope) and the offsets' along-track σ. ``offset_of(view, xy)``: the view's offset (px)
+    from N at N position ``xy``, taken at the patch's centre."""
     c0, r0, w, h = win
     x, y = c0 + w / 2, r0 + h / 2
     fail = lambda why: PatchShift(win, x, y, *(np.nan,) * 6, 0, 0.0, False, why)  # noqa: E731
@@ -219,7 +227,7 @@ def _patch(scene, images, win, ground_at_ref, at, slope, c1, offsets, sigma_py_o
         back = prism.to_nadir_space(scene, view).inverse()
         box = np.array([[c0 - reach, r0 - reach], [c0 + w + reach, r0 - reach],
                         [c0 - reach, r0 + h + reach], [c0 + w + reach, r0 + h + reach]], float)
-        o = np.asarray(offsets[v], float)
+        o = offset_of(v, np.array([x, y], float))
         pc = back(box + o)
         (a0, b0), (a1, b1) = pc.min(0), pc.max(0)
         arr, ac0, ar0 = images.read(v, a0, b0, a1 - a0, b1 - b0)
