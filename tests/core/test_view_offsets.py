@@ -148,3 +148,10 @@ def test_gradient_recovers_a_drifting_offset():
     line = [f for f in found if f.n_window[1] == wins[0][1]] + [found[0]]   # one row of windows
     assert not vo.gradient(line, centre)[1].any()
     assert np.isnan(vo.gradient([], centre)[0]).all()
+    # windows that scatter by ±2 px around a constant (the reference's height errors where N's
+    # 100 m error samples it on slopes) give no gradient to carry over the scene
+    rng2 = np.random.default_rng(11)
+    noisy = [vo.ViewOffset("F", w, -7.4 + rng2.normal(0, 0.05), -12 + rng2.normal(0, 2.5), 0.05, 2.0,
+                           100.0, "ok", "", 0.9) for w in wins]
+    o_n, G_n = vo.gradient(noisy, centre)
+    assert not G_n.any() and o_n == pytest.approx(np.mean([[f.dx, f.dy] for f in noisy], axis=0))

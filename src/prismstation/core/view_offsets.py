@@ -210,29 +210,44 @@ def combine(offsets: list[ViewOffset], alpha: float = 0.05, sigma_field_px: floa
 
 
 #: fewest ok windows for an offset gradient (an affine field has three parameters per axis)
-MIN_WINDOWS_FOR_GRADIENT = 4
+MIN_WINDOWS_FOR_GRADIENT = 5
+#: significance level of the F-test that keeps a gradient (per image axis)
+GRADIENT_ALPHA = 0.01
 
 
 def gradient(offsets: list[ViewOffset], centre) -> tuple[np.ndarray, np.ndarray]:
     """The view's offset as an affine field over N: ``o + G·(p − centre)`` (px, ``o`` (2,),
-    ``G`` (2, 2) px per N pixel), weighted by the windows' σ. Attitude drift makes it vary:
-    on a simulated 14,000 px scene the mean of F's and B's offsets ran from +1.3 to −1.5 px
-    along track, which a constant leaves in the relative DEMs' placement. ``G`` is zero (and
-    ``o`` the weighted mean) with fewer than :data:`MIN_WINDOWS_FOR_GRADIENT` ok windows or
-    windows on one line."""
+    ``G`` (2, 2) px per N pixel). Attitude drift makes it vary: on a simulated 14,000 px
+    scene the mean of F's and B's offsets ran from +1.3 to −1.5 px along track, which a
+    constant leaves in the relative DEMs' placement. The windows also scatter by the
+    reference's height errors (px along track where N's error samples it on slopes), which a
+    fitted gradient would carry over the whole scene; so per image axis the gradient is kept
+    only when it explains the windows' scatter, by an F-test of the affine against a constant
+    at :data:`GRADIENT_ALPHA` on the windows' own residuals. ``G`` is zero (and ``o`` the
+    mean) otherwise, with fewer than :data:`MIN_WINDOWS_FOR_GRADIENT` ok windows or windows
+    on one line."""
+    from scipy import stats
+
     ok = [o for o in offsets if o.ok]
     d = np.array([[o.dx, o.dy] for o in ok]).reshape(-1, 2)
     if not len(ok):
         return np.array([np.nan, np.nan]), np.zeros((2, 2))
+    mean = d.mean(axis=0)
     p = np.array([[o.n_window[0] + o.n_window[2] / 2, o.n_window[1] + o.n_window[3] / 2] for o in ok])
     p = p - np.asarray(centre, float)
-    s = np.hypot(np.array([[o.sigma_dx, o.sigma_dy] for o in ok]), 0.05)
     A = np.column_stack([np.ones(len(ok)), p])
-    if len(ok) < MIN_WINDOWS_FOR_GRADIENT or np.linalg.matrix_rank(A / np.abs(A).max(0), tol=1e-3) < 3:
-        w = 1 / s ** 2
-        return (d * w).sum(0) / w.sum(0), np.zeros((2, 2))
-    coef = np.array([np.linalg.lstsq(A / s[:, [k]], d[:, k] / s[:, k], rcond=None)[0] for k in range(2)])
-    return coef[:, 0], coef[:, 1:]
+    n = len(ok)
+    if n < MIN_WINDOWS_FOR_GRADIENT or np.linalg.matrix_rank(A / np.abs(A).max(0), tol=1e-3) < 3:
+        return mean, np.zeros((2, 2))
+    o, G = mean.copy(), np.zeros((2, 2))
+    for k in range(2):
+        coef = np.linalg.lstsq(A, d[:, k], rcond=None)[0]
+        ssr_a = float(np.sum((d[:, k] - A @ coef) ** 2))
+        ssr_c = float(np.sum((d[:, k] - mean[k]) ** 2))
+        f = (ssr_c - ssr_a) / 2 / max(ssr_a / (n - 3), 1e-12)
+        if f > stats.f.ppf(1 - GRADIENT_ALPHA, 2, n - 3):
+            o[k], G[k] = coef[0], coef[1:]
+    return o, G
 
 
 def offset_at(offset, grad, centre, xy) -> np.ndarray:
