@@ -140,10 +140,12 @@ def main_sweep(argv=None) -> int:
                     make_reference_dem(sim / "truth_dem.tif", sim / "srtm.tif", seed=scene_seed + 1)
                 rng = np.random.default_rng(1000 + seed)
                 for m in a.errors:
+                    errors = errors_of_magnitude(m, rng)
+                    if m == 0 and a.scene_seed is not None and seed != a.seeds[0]:
+                        continue    # no error, one scene: the same case as the first draw's
                     work = sim / f"e{int(m)}_d{seed}"
                     work.mkdir(exist_ok=True)
-                    r = run_case(sim, sim / "srtm.tif", errors_of_magnitude(m, rng), work, patch_km,
-                                 a.sigma_m)
+                    r = run_case(sim, sim / "srtm.tif", errors, work, patch_km, a.sigma_m)
                     r.update(size=size, pass_=pas, seed=seed, scene_seed=scene_seed, error=m)
                     rows.append(r)
                     tgt = TARGETS.get(size)
