@@ -51,7 +51,11 @@ def test_orientation_from_srtm_transfer_ties_and_dsm(tmp_path, capsys):
     assert np.hypot(_rms(dE), _rms(dN)) < 3.0 and _rms(dh) < 2.5, (_rms(dE), _rms(dN), _rms(dh))
     # the orientation's σ is stated (command line and report) and the check points agree with it
     sg = rep["dem_control"]["sigma_m"]
-    assert "orientation σ in the reference DEM's frame" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "orientation σ in the reference DEM's frame" in out and "from the ancillary model at N's centre" in out
+    # the views' offsets from N as fields over N (zero gradients where the windows show none)
+    grads = rep["dem_control"]["offset_gradients_px"]
+    assert set(grads) == {"F", "B"} and all(np.shape(g) == (2, 2) and np.isfinite(g).all() for g in grads.values())
     assert 1.0 < np.hypot(sg["E"], sg["N"]) < 5.0 and 1.0 < sg["h"] < 4.0, sg
     assert _rms(dE) < 2.5 * sg["E"] and _rms(dN) < 2.5 * sg["N"] and _rms(dh) < 2.5 * sg["h"], sg
     # saved in the project: reopening gives the same orientation

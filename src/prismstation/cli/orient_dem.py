@@ -49,7 +49,14 @@ def run(args) -> int:
     used = [p for p in result.patches if p.used]
     off = result.offsets_px
     print(f"a-priori geolocation σ {result.sigma_apriori_m:g} m per view; F−N ({off['F'][0]:+.2f}, "
-          f"{off['F'][1]:+.2f}) px, B−N ({off['B'][0]:+.2f}, {off['B'][1]:+.2f}) px from the ancillary model")
+          f"{off['F'][1]:+.2f}) px, B−N ({off['B'][0]:+.2f}, {off['B'][1]:+.2f}) px from the ancillary model"
+          " at N's centre")
+    rows, cols = project.scene.views["N"].shape
+    for v, g in (result.gradients_px or {}).items():
+        if any(c for row in g for c in row):
+            span = [abs(g[k][0]) * cols + abs(g[k][1]) * rows for k in range(2)]
+            print(f"  {v}−N varies over N (attitude drift): up to ±{span[0] / 2:.2f} px in x, "
+                  f"±{span[1] / 2:.2f} px in y from its centre value")
     print(f"{len(used)} of {len(result.patches)} patches matched the reference")
     for p in result.patches:
         state = "used" if p.used else f"not used: {p.reason}"
