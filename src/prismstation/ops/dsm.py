@@ -28,7 +28,7 @@ from prismstation.core.solve import Solution
 from prismstation.core.dsm_heights import HEIGHT_MODELS, choose_heights, model_height_correction
 from prismstation.core.stereo_tile import Frame, relief_rate, view_affine
 from prismstation.errors import InputError
-from prismstation.ops.dsm_tiles import TileSpec, release_large_arrays, run_tiles
+from prismstation.ops.dsm_tiles import TileSpec, return_freed_memory, run_tiles
 from prismstation.ops.progress import checkpoint, scaled
 
 MASK_VOID, MASK_MATCHED, MASK_FILLED = 0, 1, 2
@@ -250,6 +250,7 @@ def _level(sol, transform, shape, g, half_range, prior, prior_t, *, tile_px, ove
         a[none] = np.nan
         quality[r0:r0 + BRIDGE_STRIP] = np.where(none, 0, np.rint(q / w))
     del wsum, qacc
+    return_freed_memory()
     return acc, quality, len(specs), z_nmad
 
 
@@ -330,7 +331,6 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
     sc = sol.scene
     if not sc.is_triplet or sol.parallax is None:
         raise InputError("a DSM needs an oriented N, F, B triplet")
-    release_large_arrays()
     if not (posting_m > 0 and math.isfinite(posting_m)):
         raise InputError(f"the posting must be a positive number of metres, got {posting_m}")
     if heights_model not in HEIGHT_MODELS:
