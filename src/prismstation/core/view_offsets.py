@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy import ndimage
+from scipy import ndimage, stats
 
 from prismstation.core import prism
 from prismstation.core.coarse import K_SIGMA, Offset, image_offset, search_radius_px
@@ -226,8 +226,6 @@ def gradient(offsets: list[ViewOffset], centre) -> tuple[np.ndarray, np.ndarray]
     at :data:`GRADIENT_ALPHA` on the windows' own residuals. ``G`` is zero (and ``o`` the
     mean) otherwise, with fewer than :data:`MIN_WINDOWS_FOR_GRADIENT` ok windows or windows
     on one line."""
-    from scipy import stats
-
     ok = [o for o in offsets if o.ok]
     d = np.array([[o.dx, o.dy] for o in ok]).reshape(-1, 2)
     if not len(ok):

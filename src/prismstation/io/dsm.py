@@ -78,7 +78,7 @@ def write_dsm(path, dsm) -> None:
     n_seen = int(seen.sum())
     tags = {"FILL_PERCENT": f"{100.0 * matched / n_seen if n_seen else 0.0:.2f}",
             "SEEN_CELLS": str(n_seen), "POSTING_M": f"{dsm.posting_m:g}", "HEIGHTS": dsm.height_kind}
-    hm = (getattr(dsm, "info", None) or {}).get("heights")
+    hm = dsm.info.get("heights")
     if hm:
         tags["HEIGHT_MODEL"] = f"{hm['model']} ({hm['reason']})"
     fd, tmp = tempfile.mkstemp(prefix=".dsm-", suffix=".tif", dir=path.parent)

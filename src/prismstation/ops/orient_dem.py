@@ -230,12 +230,10 @@ def _patch(scene, images, win, ground_at_ref, at, slope, c1, offset_of, sigma_py
         o = offset_of(v, np.array([x, y], float))
         pc = back(box + o)
         (a0, b0), (a1, b1) = pc.min(0), pc.max(0)
-        arr, ac0, ar0 = images.read(v, a0, b0, a1 - a0, b1 - b0)
+        # whole f × f blocks from the window's corner (a resize of the rest would stretch it)
+        arr, ac0, ar0 = images.read_reduced(v, a0, b0, a1 - a0, b1 - b0, f)
         if arr is None:
             return fail(f"the {v} image does not cover the patch")
-        if f > 1:  # whole f × f blocks from the array's corner (a resize of the rest would stretch it)
-            hh_, ww_ = arr.shape[0] // f * f, arr.shape[1] // f * f
-            arr = cv2.resize(arr[:hh_, :ww_], (ww_ // f, hh_ // f), interpolation=cv2.INTER_AREA)
         corr = Affine2D([[1, 0, -o[0]], [0, 1, -o[1]]])
         to_n[v] = (scaling(1 / f) @ corr @ prism.to_nadir_space(scene, view) @ shift(ac0, ar0) @ scaling(f)).matrix
         arrays[v] = arr
