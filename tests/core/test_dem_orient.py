@@ -4,7 +4,7 @@ import pytest
 from prismstation.core import prism
 from prismstation.core.dem_orient import (COMMON_SIGMA_M, FIELD_SIGMA_M, PatchShift, affine_field,
                                           control_from_shifts, grid_points, orientation_sigma, patch_windows,
-                                          judge_patches)
+                                          judge_patches, reoffset_patches)
 from prismstation.core.solve import PointObs, solve
 from prismstation.core import view_offsets as vo
 from tests.core.synth import make_scene
@@ -126,3 +126,33 @@ def test_view_offsets_varying_over_n_reach_the_biases_and_the_parallax_line(with
         assert np.abs(g).max() < 0.05, np.abs(g).max(0)
     else:
         assert np.abs(g).max() > 1.0
+
+
+def test_reoffset_patches_moves_the_shift_as_the_relative_dem_moves():
+    """A relative DEM built by the parallax map's placement rule (a cell's value sits at
+    ``pF − w·py·d``, ``h = c1·py``) with F's and B's N-space content moved by other offsets:
+    the cloud moves, and the patch's shift onto the reference moves back by as much."""
+    sc = make_scene()
+    c1 = prism.theoretical_c1(sc)
+    tF, tB = sc.views["F"].tan_theta, sc.views["B"].tan_theta
+    w = tF / (tF + tB)
+    rng = np.random.default_rng(1)
+    x, y = 5000.0, 9000.0
+    xy = np.array([x, y]) + rng.uniform(-800, 800, (200, 2))
+    h = rng.uniform(300, 1500, 200)
+    en = prism.ancillary_to_ground(sc, sc.views["N"], xy, h)
+    d = prism.along_track_unit(sc, en.mean(0))
+    py = h / c1
+    pF, pB = xy + w * py[:, None] * d, xy - (1 - w) * py[:, None] * d
+    old = {"F": np.array([3.0, -40.0]), "B": np.array([-2.0, 25.0])}
+    new = {"F": np.array([3.4, -41.5]), "B": np.array([-2.3, 26.2])}
+    qF, qB = pF - (new["F"] - old["F"]), pB - (new["B"] - old["B"])
+    py2 = (qF - qB) @ d
+    xy2 = qF - w * py2[:, None] * d
+    en2 = prism.ancillary_to_ground(sc, sc.views["N"], xy2, c1 * py2)
+    moved = np.r_[(en2 - en).mean(0), c1 * (py2 - py).mean()]
+    assert np.abs(moved).max() > 1.0
+    patch = PatchShift((0, 0, 1, 1), x, y, 10.0, -5.0, 20.0, 1, 1, 1, 100, 0.9)
+    got = reoffset_patches(sc, [patch], lambda v, p: old[v], lambda v, p: new[v], w, 900.0)[0]
+    np.testing.assert_allclose([got.dE, got.dN, got.dh], np.array([10.0, -5.0, 20.0]) - moved, atol=0.02)
+    assert (got.sigma_E, got.used) == (1, True)

@@ -156,6 +156,39 @@ def orientation_sigma(patches: list[PatchShift], x, y) -> np.ndarray:
     return np.sqrt(fit ** 2 + np.square(COMMON_SIGMA_M))
 
 
+def reoffset_patches(scene: Scene, patches: list[PatchShift], old_offset_of, new_offset_of,
+                     n_weight: float, mean_height: float) -> list[PatchShift]:
+    """The patches' shifts had their relative DEMs been made with the view offsets
+    ``new_offset_of(view, xy)`` instead of ``old_offset_of`` (N-space px at N position
+    ``xy``), without matching them again.
+
+    A patch's F (B) image entered N space moved by −offset, so a change δF, δB at its centre
+    moves every matched cell alike: its parallax by −(δF − δB)·d (``d`` the N-space flight
+    direction) — the height by c1 times that — and its N position by −δF across track and
+    −((1 − w)·δF + w·δB)·d along it (``w = n_weight``: where :func:`prismstation.core.dense.parallax_map`
+    places a value). The relative DEM moves by that, so its shift onto the reference moves back.
+    Exact for offsets constant over a patch (their gradients change them by ≲ 0.1 px per 4 km).
+    The patches keep their σ and their used flag."""
+    c1 = prism.theoretical_c1(scene)
+    out = []
+    for p in patches:
+        if not np.isfinite([p.dE, p.dN, p.dh]).all():
+            out.append(p)
+            continue
+        xy = np.array([[p.x, p.y]], float)
+        dF = new_offset_of("F", xy[0]) - old_offset_of("F", xy[0])
+        dB = new_offset_of("B", xy[0]) - old_offset_of("B", xy[0])
+        h = np.array([mean_height - p.dh])
+        en = prism.ancillary_to_ground(scene, scene.views["N"], xy, h)
+        d = prism.along_track_unit(scene, en)[0]
+        dpy = float((dF - dB) @ d)
+        moved = xy - dF + n_weight * dpy * d
+        en2 = prism.ancillary_to_ground(scene, scene.views["N"], moved, h - c1 * dpy)
+        dE, dN = (en2 - en)[0]
+        out.append(replace(p, dE=p.dE - float(dE), dN=p.dN - float(dN), dh=p.dh + c1 * dpy))
+    return out
+
+
 def judge_patches(patches: list[PatchShift], alpha: float = ALPHA, min_patches: int = MIN_PATCHES):
     """Test the usable patches' shift field against their σ (:func:`prismstation.core.consistency.snoop`,
     σ from :func:`patch_sigmas`) and mark the blunders it removes as not used. Returns ``(patches, verdict)``;

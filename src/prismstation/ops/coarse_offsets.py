@@ -76,8 +76,9 @@ def _read(ds, c0, r0, w, h) -> np.ndarray:
 
 def coarse_view_offsets(scene: Scene, reference_path, geoid, *, sigma_apriori_m: float = SIGMA_APRIORI_M,
                         k: float = K_SIGMA, window_px: int = 512, grid: int = 3,
-                        posting_m: float = 30.0, progress=None) -> CoarseOffsets:
-    """F and B offsets relative to N over the a-priori range (module docstring)."""
+                        posting_m: float = 30.0, n_shift=None, progress=None) -> CoarseOffsets:
+    """F and B offsets relative to N over the a-priori range (module docstring); ``n_shift``
+    as in :func:`prismstation.core.view_offsets.n_heights` (N's error, once known)."""
     if not scene.is_triplet:
         raise InputError("the coarse view offsets need an N, F, B triplet")
     N = scene.views["N"]
@@ -110,7 +111,7 @@ def coarse_view_offsets(scene: Scene, reference_path, geoid, *, sigma_apriori_m:
             n_img = _read(ds["N"], c0, r0, w, h)
             if not np.isfinite(n_img).all():
                 continue
-            hh = vo.n_heights(scene, win, sample, mean_h)
+            hh = vo.n_heights(scene, win, sample, mean_h, n_shift=n_shift)
             for v in "FB":
                 a0, b0, aw, ah = vo.source_window(scene, v, win, hh, radius + 12)
                 found.append(vo.view_offset(scene, v, n_img, win, _read(ds[v], a0, b0, aw, ah),

@@ -12,7 +12,10 @@ Every search takes its range from a stated a-priori uncertainty (docs/orientatio
    ``(dE, dN, dh)`` with σ.
 4. The patch shifts are tested against their σ (:func:`prismstation.core.dem_orient.judge_patches`,
    a χ² test with data snooping); the verdict goes into the result, the report and the exit status.
-5. The shifts of the patches kept become the model (:mod:`prismstation.core.dem_orient`).
+5. Step 1 again, now that N's own error is known to metres: the reference heights under each
+   window are taken where N really looks; the patches' shifts follow the new offsets
+   (:func:`prismstation.core.dem_orient.reoffset_patches`, no second matching) and are judged again.
+6. The shifts of the patches kept become the model (:mod:`prismstation.core.dem_orient`).
 
 A-priori settings: ``sigma_apriori_m`` (each view's ancillary geolocation σ per component; 50 m
 by default, after seed 003's shifts of about 50 m, seed 004 reports ±10 m after calibration),
@@ -33,8 +36,9 @@ from prismstation.core import prism
 from prismstation.core.affine import Affine2D
 from prismstation.core.coarse import K_SIGMA, dem_offset
 from prismstation.core.consistency import Verdict
-from prismstation.core.dem_orient import (PatchShift, control_from_shifts, grid_points, judge_patches,
-                                          orientation_sigma, patch_windows, relative_dem_points)
+from prismstation.core.dem_orient import (PatchShift, affine_field, control_from_shifts, grid_points,
+                                          judge_patches, orientation_sigma, patch_windows,
+                                          relative_dem_points, reoffset_patches)
 from prismstation.core.dense import parallax_map
 from prismstation.core.solve import Control
 from prismstation.core.view_offsets import SIGMA_HEIGHT_M, offset_at
@@ -148,9 +152,13 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     def at(grid, en):
         col = (en[..., 0] - lo[0]) / posting_m - 0.5
         row = (hi[1] - en[..., 1]) / posting_m - 0.5
-        v = cv2.remap(grid, col.astype(np.float32).reshape(-1, 1), row.astype(np.float32).reshape(-1, 1),
-                      cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        return v.reshape(col.shape).astype(float)
+        # cv2.remap takes maps under 32,767 rows: lay the points out 1,024 to a row
+        n = col.size
+        pad = -n % 1024
+        c = np.pad(col.astype(np.float32).ravel(), (0, pad)).reshape(-1, 1024)
+        r = np.pad(row.astype(np.float32).ravel(), (0, pad)).reshape(-1, 1024)
+        v = cv2.remap(grid, c, r, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return v.ravel()[:n].reshape(col.shape).astype(float)
 
     def ground_at_ref(xy):
         h = np.full(len(xy), mean_h)
@@ -183,6 +191,22 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
                          + "; ".join(sorted({p.reason for p in shifts}))[:300], reference_path)
     # 4. the field against its σ
     patches, verdict = judge_patches(shifts)
+    # 5. N's own error is now known to metres: step 1 again with the reference heights taken
+    # where N really looks (tens of metres off on slopes made its windows scatter by pixels,
+    # so the offsets' drift over N went unseen), and the patches moved to the new offsets
+    field = affine_field(patches)
+    second = coarse_view_offsets(scene, reference_path, geoid, sigma_apriori_m=sigma_apriori_m,
+                                 n_shift=lambda xy: field(xy[:, 0], xy[:, 1])[..., :2],
+                                 progress=scaled(progress, 0.95, 1.0))
+    first = coarse.to_dict()
+    if all(second.ok(v) for v in "FB"):
+        new_off = {v: np.asarray(second.offsets_px[v], float) for v in "FB"}
+        new_grad = {v: np.asarray(second.gradients_px[v], float) for v in "FB"}
+        shifts = reoffset_patches(scene, shifts, lambda v, xy: offset_of(v, xy),
+                                  lambda v, xy: offset_at(new_off[v], new_grad[v], (cols / 2, rows / 2), xy),
+                                  tanF / (tanF + tanB), mean_h)
+        patches, verdict = judge_patches(shifts)
+        coarse, offsets, grads = second, new_off, new_grad
     checkpoint(progress, 1.0, "done")
     offsets = {v: [float(c) for c in o] for v, o in offsets.items()}
     grads = {v: [[float(c) for c in row] for row in g] for v, g in grads.items()}
@@ -190,7 +214,8 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     g = (np.arange(5) + 0.5) / 5
     sig = orientation_sigma(patches, *np.meshgrid(g * cols, g * rows))
     sigma_m = {k: float(np.sqrt(np.mean(sig[..., i] ** 2))) for i, k in enumerate("ENh")}
-    return DemOrientation(str(reference_path), tuple(patches), mean_h, offsets, coarse.to_dict(), verdict,
+    record = {**coarse.to_dict(), "first_pass": first if coarse is second else None}
+    return DemOrientation(str(reference_path), tuple(patches), mean_h, offsets, record, verdict,
                           float(sigma_apriori_m), control, sigma_m, grads)
 
 
