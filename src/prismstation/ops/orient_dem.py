@@ -198,15 +198,19 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     second = coarse_view_offsets(scene, reference_path, geoid, sigma_apriori_m=sigma_apriori_m,
                                  n_shift=lambda xy: field(xy[:, 0], xy[:, 1])[..., :2],
                                  progress=scaled(progress, 0.95, 1.0))
-    first = coarse.to_dict()
-    if all(second.ok(v) for v in "FB"):
+    record = coarse.to_dict()
+    if not all(second.ok(v) for v in "FB"):
+        record["second_pass"] = "not used: " + ("; ".join(
+            f"{w.view}: {w.reason}" for w in second.windows if w.reason)[:300] or "a view was not found")
+    else:
         new_off = {v: np.asarray(second.offsets_px[v], float) for v in "FB"}
         new_grad = {v: np.asarray(second.gradients_px[v], float) for v in "FB"}
         shifts = reoffset_patches(scene, shifts, lambda v, xy: offset_of(v, xy),
                                   lambda v, xy: offset_at(new_off[v], new_grad[v], (cols / 2, rows / 2), xy),
                                   tanF / (tanF + tanB), mean_h)
         patches, verdict = judge_patches(shifts)
-        coarse, offsets, grads = second, new_off, new_grad
+        offsets, grads = new_off, new_grad
+        record = {**second.to_dict(), "first_pass": record}
     checkpoint(progress, 1.0, "done")
     offsets = {v: [float(c) for c in o] for v, o in offsets.items()}
     grads = {v: [[float(c) for c in row] for row in g] for v, g in grads.items()}
@@ -214,7 +218,6 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     g = (np.arange(5) + 0.5) / 5
     sig = orientation_sigma(patches, *np.meshgrid(g * cols, g * rows))
     sigma_m = {k: float(np.sqrt(np.mean(sig[..., i] ** 2))) for i, k in enumerate("ENh")}
-    record = {**coarse.to_dict(), "first_pass": first if coarse is second else None}
     return DemOrientation(str(reference_path), tuple(patches), mean_h, offsets, record, verdict,
                           float(sigma_apriori_m), control, sigma_m, grads)
 
