@@ -56,6 +56,10 @@ def test_orientation_from_srtm_transfer_ties_and_dsm(tmp_path, capsys):
     # the views' offsets from N as fields over N (zero gradients where the windows show none)
     grads = rep["dem_control"]["offset_gradients_px"]
     assert set(grads) == {"F", "B"} and all(np.shape(g) == (2, 2) and np.isfinite(g).all() for g in grads.values())
+    # the coarse step's second pass (N placed by the patches) is recorded beside the first
+    coarse = rep["dem_control"]["coarse"]
+    assert coarse["first_pass"]["offsets_px"].keys() == coarse["offsets_px"].keys() == {"F", "B"}
+    assert "second pass with N placed by the patches" in out
     assert 1.0 < np.hypot(sg["E"], sg["N"]) < 5.0 and 1.0 < sg["h"] < 4.0, sg
     assert _rms(dE) < 2.5 * sg["E"] and _rms(dN) < 2.5 * sg["N"] and _rms(dh) < 2.5 * sg["h"], sg
     # saved in the project: reopening gives the same orientation

@@ -57,6 +57,13 @@ def run(args) -> int:
             span = [abs(g[k][0]) * cols + abs(g[k][1]) * rows for k in range(2)]
             print(f"  {v}−N varies over N (attitude drift): up to ±{span[0] / 2:.2f} px in x, "
                   f"±{span[1] / 2:.2f} px in y from its centre value")
+    first = result.coarse.get("first_pass")
+    if first:
+        moved = [max(abs(a - b) for a, b in zip(off[v], first["offsets_px"][v])) for v in "FB"]
+        print(f"  second pass with N placed by the patches: the offsets moved by up to "
+              f"{max(moved):.2f} px")
+    elif result.coarse.get("second_pass"):
+        print(f"  second pass {result.coarse['second_pass']}")
     print(f"{len(used)} of {len(result.patches)} patches matched the reference")
     for p in result.patches:
         state = "used" if p.used else f"not used: {p.reason}"
