@@ -47,6 +47,8 @@ COARSE_RADIUS = 8
 MIN_TEMPLATE = 24
 #: σ floor (px) of a sub-pixel offset: cubic resampling and model error
 SIGMA_FLOOR_PX = 0.01
+#: the sub-pixel adjustment stops when a step moves less than this (px; a tenth of the σ floor)
+LSM_TOL_PX = 1e-3
 #: side (px) of the central region the sub-pixel adjustment uses at most
 LSM_SIDE = 320
 #: the sub-pixel adjustment may move this far (px) from the integer NCC peak (a broad peak:
@@ -128,13 +130,14 @@ def _peak(scores):
 
 
 def image_offset(reference: np.ndarray, moving: np.ndarray, radius_px: float, *,
-                 min_score: float = 0.3, max_second_ratio: float = 0.9) -> Offset:
+                 min_score: float = 0.3, max_second_ratio: float = 0.9, subpixel: bool = True) -> Offset:
     """Offset of ``moving`` relative to ``reference`` (same shape and geometry) anywhere within
     ``radius_px`` (a disc's bounding square), coarse to fine (see the module docstring).
 
     The windows should be at least ~3 radii wide (the template is the reference's core, the
     window shrunk by the radius on each side at the coarse level). ``min_score`` is the least
     coarse NCC accepted; a second peak above ``max_second_ratio`` × the best is ambiguous.
+    ``subpixel=False``: the integer peak only (no σ), for a first estimate to be refined.
     """
     ref = np.asarray(reference, np.float32)
     mov = np.asarray(moving, np.float32)
@@ -180,6 +183,9 @@ def image_offset(reference: np.ndarray, moving: np.ndarray, radius_px: float, *,
     if best < min_score:         # smooth coarse levels correlate well; full resolution decides
         return fail(LOW_SCORE, f"NCC {best:.2f} < {min_score} at full resolution", cx, cy, best,
                     second, level)
+    if not subpixel:
+        return Offset(float(cx), float(cy), nan, nan, ((nan, nan), (nan, nan)), best, second, level,
+                      radius, OK)
     return _lsm_translation(ref, mov, float(cx), float(cy), best, second, level, radius)
 
 
@@ -216,7 +222,7 @@ def _lsm_translation(ref, mov, dx, dy, score, second, level, radius, max_iter=20
         if np.hypot(dx - x0, dy - y0) > MAX_LSM_MOVE_PX:
             return Offset(dx, dy, nan, nan, ((nan, nan), (nan, nan)), score, second, level,
                           radius, DIVERGED, "the sub-pixel adjustment left the coarse peak")
-        if np.hypot(delta[0], delta[1]) < 1e-4:
+        if np.hypot(delta[0], delta[1]) < LSM_TOL_PX:
             break
     s = ndimage.map_coordinates(coeffs, [yy + dy, xx + dx], order=3, prefilter=False, mode="nearest")
     A = np.column_stack([s.ravel(), np.ones(s.size)])

@@ -174,13 +174,14 @@ def view_offset(scene: Scene, view: str, n_image: np.ndarray, n_window, v_image:
     warped[bad] = np.nanmean(warped)
     # moving(x + d) = reference(x): N is the reference, the warped view the moving image
     n_image = np.asarray(n_image, np.float32)
-    o: Offset = image_offset(n_image, warped, radius)
+    o: Offset = image_offset(n_image, warped, radius, subpixel=REWARPS == 0)
     dx, dy = o.dx, o.dy
     # The warp took the relief where the ancillary model puts the view's pixel, |d| px from
     # the ground the view really sees there: on a slope s that is s·|d|·GSD metres of height,
     # |d|·s·tanθ px along track (6 px scatter at 100 m per view on a 14,000 px scene). Warp
-    # again with the offset found and match what is left, over that bound (slopes ≤ 45°).
-    for _ in range(REWARPS):
+    # again with the offset found and match what is left, over that bound (slopes ≤ 45°);
+    # whole pixels until the last match, which adds the sub-pixel value and its σ.
+    for k in range(REWARPS):
         if not o.ok:
             break
         again = warp_into_n(scene, view, v_image, v_origin, n_window, heights, shift_n_px=(dx, dy))
@@ -190,7 +191,7 @@ def view_offset(scene: Scene, view: str, n_image: np.ndarray, n_window, v_image:
                               "N window where the offset puts it", o.score)
         again[np.isnan(again)] = np.nanmean(again)
         bound = float(np.hypot(o.dx, o.dy)) * abs(scene.views[view].tan_theta) + 2.0
-        o = image_offset(n_image, again, min(bound, radius))
+        o = image_offset(n_image, again, min(bound, radius), subpixel=k == REWARPS - 1)
         dx, dy = dx + o.dx, dy + o.dy
     cov = np.asarray(o.cov, float)
     par, d = 0.0, np.array([0.0, 1.0])
