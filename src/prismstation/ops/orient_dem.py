@@ -41,6 +41,7 @@ from prismstation.core.dem_orient import (PatchShift, affine_field, control_from
                                           relative_dem_points, reoffset_patches)
 from prismstation.core.dense import parallax_map
 from prismstation.core.solve import Control
+from prismstation.core.sample import remap_points
 from prismstation.core.view_offsets import SIGMA_HEIGHT_M, offset_at
 from prismstation.errors import InputError
 from prismstation.io.dem import read_dem
@@ -152,13 +153,7 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     def at(grid, en):
         col = (en[..., 0] - lo[0]) / posting_m - 0.5
         row = (hi[1] - en[..., 1]) / posting_m - 0.5
-        # cv2.remap takes maps under 32,767 rows: lay the points out 1,024 to a row
-        n = col.size
-        pad = -n % 1024
-        c = np.pad(col.astype(np.float32).ravel(), (0, pad)).reshape(-1, 1024)
-        r = np.pad(row.astype(np.float32).ravel(), (0, pad)).reshape(-1, 1024)
-        v = cv2.remap(grid, c, r, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        return v.ravel()[:n].reshape(col.shape).astype(float)
+        return remap_points(grid, col, row).astype(float)
 
     def ground_at_ref(xy):
         h = np.full(len(xy), mean_h)

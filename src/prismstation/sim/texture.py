@@ -14,25 +14,6 @@ from prismstation.sim.terrain import Grid
 _PERIOD = 1024  # cells of a wrapped value-noise lattice
 
 
-def remap_points(src: np.ndarray, col, row, interpolation=cv2.INTER_LINEAR) -> np.ndarray:
-    """``src`` sampled at continuous indices (``col``, ``row``; cell centres at integers) of
-    any shape, through ``cv2.remap`` (whose 1/32-pixel weights are fine for rendering)."""
-    shape = np.shape(col)
-    col = np.asarray(col, dtype=np.float32).ravel()
-    row = np.asarray(row, dtype=np.float32).ravel()
-    n = col.size
-    width = 4096
-    m = -(-n // width) if n else 1
-    pad = m * width - n
-    mc = np.pad(col, (0, pad)).reshape(m, width)
-    mr = np.pad(row, (0, pad)).reshape(m, width)
-    out = np.empty((m, width), dtype=src.dtype)
-    for r0 in range(0, m, 4096):   # cv2 wants < 32767 rows
-        out[r0:r0 + 4096] = cv2.remap(src, mc[r0:r0 + 4096], mr[r0:r0 + 4096], interpolation,
-                                      borderMode=cv2.BORDER_REPLICATE)
-    return out.ravel()[:n].reshape(shape)
-
-
 class _Noise:
     """Smooth value noise of feature size ``scale`` (m), ~unit variance, wrapped."""
 
