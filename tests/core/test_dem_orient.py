@@ -3,6 +3,7 @@ import pytest
 
 from prismstation.core import prism
 from prismstation.core.dem_orient import (COMMON_SIGMA_M, FIELD_SIGMA_M, PatchShift, affine_field,
+                                          smooth_like_reference,
                                           control_from_shifts, grid_points, orientation_sigma, patch_windows,
                                           judge_patches, reoffset_patches)
 from prismstation.core.solve import PointObs, solve
@@ -156,3 +157,46 @@ def test_reoffset_patches_moves_the_shift_as_the_relative_dem_moves():
     got = reoffset_patches(sc, [patch], lambda v, p: old[v], lambda v, p: new[v], w, 900.0)[0]
     np.testing.assert_allclose([got.dE, got.dN, got.dh], np.array([10.0, -5.0, 20.0]) - moved, atol=0.02)
     assert (got.sigma_E, got.used) == (1, True)
+
+
+def test_smooth_like_reference_is_the_box_and_tent_of_the_reference_cells():
+    rng = np.random.default_rng(3)
+    z = rng.normal(size=(40, 40))
+    assert np.array_equal(smooth_like_reference(z, (1, 1)), z)
+    s = smooth_like_reference(z, (3, 3))
+    ker = np.convolve(np.ones(3), [1, 2, 3, 2, 1]) / 27          # box 3 ⊗ tent of half-width 3
+    want = np.einsum("i,j,ij->", ker, ker, z[10:17, 10:17])
+    assert s[13, 13] == pytest.approx(want)
+    # the border: the outer taps weigh 1/27 each, so one row of them missing passes need = 0.95
+    assert np.isnan(s[:2]).all() and np.isfinite(s[2, 3:-3]).all() and np.isfinite(s[3:-3, 3:-3]).all()
+    z[20, 20] = np.nan                                   # one void: the cells whose kernel it hits
+    s = smooth_like_reference(z, (3, 3), need=0.999)
+    assert np.isnan(s[17:24, 17:24]).all() and np.isfinite(s[16, 20]) and np.isfinite(s[24, 20])
+    assert np.isfinite(smooth_like_reference(z, (3, 3), need=0.9)[20, 20])
+
+
+def test_voids_that_follow_the_relief_do_not_move_the_smoothed_shift():
+    """A 90 m reference (cell means, read bilinearly onto 30 m) and the true 30 m terrain with
+    voids where the matcher typically fails — small crests facing one way: matched as it is, the
+    terrain lands metres off; smoothed to the reference's resolution, within 0.5 m."""
+    from scipy import ndimage
+    from prismstation.core.coarse import dem_offset
+    rng = np.random.default_rng(0)
+    n = 540                                                      # 10 m cells
+    f = ndimage.gaussian_filter(rng.normal(size=(n, n)), 12)
+    g = ndimage.gaussian_filter(rng.normal(size=(n, n)), 3)
+    h10 = 400 * f / f.std() + 25 * g / g.std()
+    h30 = h10.reshape(n // 3, 3, n // 3, 3).mean((1, 3))
+    h90 = h10.reshape(n // 9, 9, n // 9, 9).mean((1, 3))
+    c = (np.arange(n // 3) + 0.5) / 3 - 0.5                      # 30 m centres in 90 m cells
+    rr, cc = np.meshgrid(c, c, indexing="ij")
+    ref = ndimage.map_coordinates(h90, [rr, cc], order=1, mode="nearest")
+    crest = h30 - ndimage.uniform_filter(h30, 5)
+    void = ndimage.binary_dilation((crest > 0.5 * crest.std()) & (np.gradient(h30, axis=1) < 0)
+                                   & (rng.random(h30.shape) < 0.3))
+    rel = np.where(void, np.nan, h30)
+    t, crop = (30.0, 0, 0, 0, -30.0, 0), (slice(8, -8), slice(8, -8))
+    raw = dem_offset(ref[crop], rel[crop], t, 100.0)
+    smooth = dem_offset(ref[crop], smooth_like_reference(rel, (3, 3))[crop], t, 100.0)
+    assert abs(raw.dx) > 3.0                                     # the voids' bias, unsmoothed
+    assert np.hypot(smooth.dx, smooth.dy) < 0.5 and abs(smooth.dz) < 1.5

@@ -41,6 +41,10 @@ class DemGrid:
         orthometric unless a geoid made them ellipsoidal).
     path : str or None
         The file read.
+    source_cell_m : (float, float) or None
+        The file's own cell size in metres (along its columns, along its rows; geographic
+        grids at their centre latitude): what detail the heights can hold, whatever grid
+        they were resampled onto.
     """
 
     heights: np.ndarray
@@ -48,6 +52,7 @@ class DemGrid:
     transform: Affine
     height_kind: str = "orthometric"
     path: str | None = None
+    source_cell_m: tuple[float, float] | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -150,7 +155,8 @@ def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
             E, N = grid_coordinates(out_t, heights.shape)
             heights = to_ellipsoidal(heights, geoid, E, N, out_crs)
         kind = "ellipsoidal"
-    return DemGrid(heights, out_crs, out_t, kind, str(path))
+    a, b, _, d, e, _ = local_metric_transform(src_crs, src_transform, src.shape)
+    return DemGrid(heights, out_crs, out_t, kind, str(path), (float(np.hypot(a, d)), float(np.hypot(b, e))))
 
 
 def resample_to_grid(path, grid: DemGrid, *, resampling: str = "bilinear",

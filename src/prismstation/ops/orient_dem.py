@@ -38,7 +38,7 @@ from prismstation.core.coarse import K_SIGMA, dem_offset
 from prismstation.core.consistency import Verdict
 from prismstation.core.dem_orient import (PatchShift, affine_field, control_from_shifts, grid_points,
                                           judge_patches, orientation_sigma, patch_windows,
-                                          relative_dem_points, reoffset_patches)
+                                          relative_dem_points, reoffset_patches, smooth_like_reference)
 from prismstation.core.dense import parallax_map
 from prismstation.core.solve import Control
 from prismstation.core.sample import remap_points
@@ -146,6 +146,8 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     if not np.isfinite(ref.heights).any():
         raise InputError("the reference DEM does not cover the scene", reference_path)
     mean_h = float(np.nanmean(ref.heights))
+    # the reference's own cells, in grid cells: the relative DEMs are smoothed to match
+    ref_cells = tuple(c / posting_m for c in (ref.source_cell_m or (posting_m, posting_m)))
     filled = np.nan_to_num(ref.heights, nan=mean_h).astype(np.float32)
     gy, gx = np.gradient(filled, posting_m)
     slope = np.hypot(gx, gy)
@@ -178,7 +180,7 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
             checkpoint(progress, 0.25 + 0.7 * k / len(wins), f"patch {k + 1} of {len(wins)}")
             shifts.append(_patch(scene, images, win, ground_at_ref, at, slope, c1, offset_of, sigma_py_off,
                                  sigma_apriori_m, sigma_height_m, radius_m, tanF / (tanF + tanB), ref,
-                                 posting_m, lo, hi, decimation))
+                                 posting_m, lo, hi, decimation, ref_cells))
     finally:
         images.close()
     if not any(p.used for p in shifts):
@@ -218,8 +220,10 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
 
 
 def _patch(scene, images, win, ground_at_ref, at, slope, c1, offset_of, sigma_py_off, sigma_apriori_m,
-           sigma_height_m, radius_m, n_weight, ref, posting_m, lo, hi, f) -> PatchShift:
+           sigma_height_m, radius_m, n_weight, ref, posting_m, lo, hi, f, ref_cells) -> PatchShift:
     """One patch at N-space decimation ``f`` (F and B averaged f×f; SRTM is 90 m anyway).
+    Its relative DEM is gridded at ``posting_m`` and smoothed to the reference's resolution
+    (``ref_cells`` grid cells per reference cell: :func:`prismstation.core.dem_orient.smooth_like_reference`).
 
     The parallax search covers K_SIGMA σ of the prior's error: the reference heights' σ, the
     height error of sampling them where N's error puts the patch (σ_geolocation × the patch's
@@ -272,7 +276,7 @@ def _patch(scene, images, win, ground_at_ref, at, slope, c1, offset_of, sigma_py
     i0, j0 = max(i0, 0), max(j0, 0)
     refp = ref.heights[j0:j1, i0:i1]
     t = (posting_m, 0.0, lo[0] + i0 * posting_m, 0.0, -posting_m, hi[1] - j0 * posting_m)
-    rel = grid_points(E, Nn, hr, t, refp.shape)
+    rel = smooth_like_reference(grid_points(E, Nn, hr, t, refp.shape), ref_cells)
     if np.isfinite(rel).sum() < 50:
         return fail("too few cells of the relative DEM")
     r = dem_offset(refp, rel, t, radius_m)
