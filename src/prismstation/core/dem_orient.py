@@ -87,7 +87,7 @@ def smooth_like_reference(rel: np.ndarray, cells, need: float = 0.95) -> np.ndar
     is left in the residuals, and where the matcher left voids — on steep relief, not at
     random — it no longer averages out: on simulated triplets the patch shifts came out
     0.8 m along track (in the flight direction) with the true terrain on the matched cells,
-    0.1 m with this kernel on them. ``k`` ≤ 1: ``rel`` unchanged."""
+    0.1–0.2 m with this kernel on them. ``k`` ≤ 1: ``rel`` unchanged."""
     rel = np.asarray(rel, float)
     ok = np.isfinite(rel).astype(float)
     s = np.where(ok > 0, rel, 0.0)
