@@ -175,6 +175,17 @@ def test_smooth_like_reference_is_the_box_and_tent_of_the_reference_cells():
     assert np.isfinite(smooth_like_reference(z, (3, 3), need=0.9)[20, 20])
 
 
+@pytest.mark.parametrize("cells", [(2, 2), (2.33, 3.08), (3, 3), (4, 1)])
+def test_smooth_like_reference_does_not_move_the_surface(cells):
+    """Any ratio of reference cells to grid cells — whole, even or not whole (3″ of longitude
+    over 30 m at 45° N is 2.3) — leaves a tilted plane where it is: a kernel that is not centred
+    would shift the relative DEM by half a cell (15 m at 30 m)."""
+    y, x = np.mgrid[0:60, 0:60].astype(float)
+    plane = 3.0 * x - 2.0 * y
+    s = smooth_like_reference(plane, cells)
+    assert np.abs(s[10:-10, 10:-10] - plane[10:-10, 10:-10]).max() < 1e-9
+
+
 def test_voids_that_follow_the_relief_do_not_move_the_smoothed_shift():
     """A 90 m reference (cell means, read bilinearly onto 30 m) and the true 30 m terrain with
     voids where the matcher typically fails — small crests facing one way: matched as it is, the
