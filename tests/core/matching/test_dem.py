@@ -26,7 +26,7 @@ def test_hgt_resampled_to_utm_agrees_with_the_independent_utm_product(shared_dat
     assert 1850 < np.nanmax(around) < 1925
     # the grid says what detail it can hold: 3″ cells at 44.5° N, whatever grid they are read onto
     dx, dy = geo.source_cell_m
-    assert dx == pytest.approx(3 / 3600 * np.radians(1) * 180 / np.pi * 111_320 * np.cos(np.radians(44.5)), rel=0.01)
+    assert dx == pytest.approx(3 / 3600 * 111_320 * np.cos(np.radians(44.5)), rel=0.01)   # m per degree
     assert dy == pytest.approx(92.5, abs=0.5)
     assert utm.source_cell_m == pytest.approx((abs(utm.transform.a), abs(utm.transform.e)))
 
