@@ -12,8 +12,10 @@ extras=""
 debs="python3-venv libegl1 libgl1 libx11-6 libdbus-1-3 libfontconfig1 libfreetype6 libglib2.0-0
 libxkbcommon0 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 libxcb-image0 libxcb-keysyms1
 libxcb-render-util0 libxcb-shape0 libxcb-xkb1 proj-data fonts-dejavu-core"
-# the tests' own tools: pdftotext, pdftoppm and pdfimages read the PDF report back
-[ -n "$extras" ] && debs="$debs poppler-utils"
+# the tests' own tools: pdftotext, pdftoppm and pdfimages read the PDF report back; a real
+# X desktop (Xvfb, the openbox window manager, xdotool, wmctrl, xprop/xwininfo) to start,
+# maximize and quit the window as a user does
+[ -n "$extras" ] && debs="$debs poppler-utils xvfb xauth openbox xdotool wmctrl x11-utils"
 missing=""
 for p in $debs; do dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"; done
 if [ -n "$missing" ] && command -v apt-get >/dev/null; then

@@ -104,7 +104,6 @@ class MainWindow(QMainWindow):
         self._measured_timer.setInterval(0)
         self._measured_timer.timeout.connect(self.views.refresh_measured)
         self.restore_layout()
-        self._show_start(True)
         self._update_actions()
 
     # ------------------------------------------------------------------ construction
@@ -417,15 +416,9 @@ class MainWindow(QMainWindow):
                           "Orientation of ALOS-PRISM stereo triplets (empirical model).")
 
     def restore_layout(self) -> None:
-        g, s = st.value(st.Key.GEOMETRY), st.value(st.Key.STATE)
-        if g is not None and not g.isEmpty():
-            self.restoreGeometry(g)
-        else:
-            self.resize(1600, 1000)
-        if s is not None and not s.isEmpty():
-            self.restoreState(s)
-        else:
-            self.default_layout()
+        """The saved docks and geometry, or defaults that fit this screen, with the start page
+        up (:func:`.window_layout.restore`)."""
+        window_layout.restore(self, st.value(st.Key.GEOMETRY), st.value(st.Key.STATE))
 
     def default_layout(self) -> None:
         """Dock sizes for a first start (:func:`.window_layout.default_layout`)."""

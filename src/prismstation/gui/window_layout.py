@@ -5,7 +5,8 @@ Functions of the window (``win``: a :class:`~prismstation.gui.main_window.MainWi
 """
 from __future__ import annotations
 
-from PySide6.QtCore import Qt, QTimer
+from PySide6.QtCore import QRect, Qt, QTimer
+from PySide6.QtGui import QGuiApplication
 from PySide6.QtWidgets import QScrollArea, QTabBar
 
 from prismstation.gui.text_label import TextLabel
@@ -20,6 +21,52 @@ def scrolled(widget) -> QScrollArea:
     sa.setFrameShape(QScrollArea.Shape.NoFrame)
     sa.setWidget(widget)
     return sa
+
+
+# what a window manager adds around the window (title bar, borders), for a first size
+FRAME_W, FRAME_H = 16, 48
+
+
+def restore(win, geometry, state) -> None:
+    """Lay out a new window: the saved dock ``state`` (else :func:`default_layout`), the start
+    page, then the saved ``geometry`` when it fits the screen (else :func:`fit_to_screen`).
+
+    The order matters. Qt defers the dock state of a window that is maximized but not yet
+    shown to its first resize; restored after a maximized geometry, that deferred state
+    still names the docks the start page then takes out of the layout, and the first
+    ``show()`` crashes in ``QLayout::activate`` (on a real X server, not offscreen). So the
+    state is restored while the window is still a plain, unshown one, and the geometry —
+    maximized or not — last."""
+    fit_to_screen(win)
+    if state is not None and not state.isEmpty() and win.restoreState(state):
+        pass
+    else:
+        default_layout(win)
+    show_start(win, True)
+    if geometry is None or geometry.isEmpty() or not win.restoreGeometry(geometry):
+        return
+    a, n = available(win), win.normalGeometry()
+    if n.width() > a.width() - FRAME_W or n.height() > a.height() - FRAME_H or not a.intersects(n):
+        maximized = win.isMaximized()  # saved on a larger screen: keep only "maximized"
+        win.setWindowState(Qt.WindowState.WindowNoState)
+        fit_to_screen(win)
+        if maximized:
+            win.setWindowState(Qt.WindowState.WindowMaximized)
+
+
+def available(win) -> QRect:
+    """The available geometry (screen less panels) of the screen ``win`` is on."""
+    screen = win.screen() or QGuiApplication.primaryScreen()
+    return screen.availableGeometry()
+
+
+def fit_to_screen(win) -> None:
+    """A first size: 1,600 × 1,000 px, or 80 % of a larger screen, never more than the
+    available area less the window manager's frame; centred on the screen."""
+    a = available(win)
+    w = min(max(1600, int(a.width() * 0.8)), a.width() - FRAME_W)
+    h = min(max(1000, int(a.height() * 0.8)), a.height() - FRAME_H)
+    win.setGeometry(a.x() + (a.width() - w) // 2, a.y() + (a.height() - h + FRAME_H) // 2, w, h)
 
 
 def default_layout(win) -> None:

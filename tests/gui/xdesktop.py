@@ -1,0 +1,122 @@
+"""A real X desktop for tests: Xvfb with the openbox window manager, and the workstation
+started on it as a user starts it (``prismstation gui PROJECT``, ``QT_QPA_PLATFORM=xcb``),
+driven by xdotool and wmctrl. Offscreen hides what a real desktop does (window-manager
+maximize, deferred layouts, frames); these helpers let a test see it."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+TOOLS = ("Xvfb", "openbox", "xdotool", "wmctrl", "xprop", "xwininfo")
+
+
+def missing_tools() -> list[str]:
+    return [t for t in TOOLS if shutil.which(t) is None]
+
+
+class Desktop:
+    """An X server of ``width`` × ``height`` with a window manager; ``env`` for its clients."""
+
+    def __init__(self, width: int, height: int):
+        r, w = os.pipe()
+        self.xvfb = subprocess.Popen(["Xvfb", "-displayfd", str(w), "-screen", "0", f"{width}x{height}x24",
+                                      "-nolisten", "tcp"], pass_fds=(w,), stderr=subprocess.DEVNULL)
+        os.close(w)
+        with os.fdopen(r) as f:
+            num = f.readline().strip()
+        if not num:
+            raise RuntimeError("Xvfb did not start")
+        self.env = {**os.environ, "DISPLAY": f":{num}", "QT_QPA_PLATFORM": "xcb"}
+        self.wm = subprocess.Popen(["openbox"], env=self.env, stdout=subprocess.DEVNULL,
+                                   stderr=subprocess.DEVNULL)
+        self.wait(lambda: self.run("wmctrl", "-m", check=False).returncode == 0, 10, "openbox")
+
+    def run(self, *cmd, check=True) -> subprocess.CompletedProcess:
+        r = subprocess.run(cmd, env=self.env, capture_output=True, text=True, timeout=30)
+        if check and r.returncode:
+            raise AssertionError(f"{' '.join(cmd)} exited with {r.returncode}: {r.stderr.strip()}")
+        return r
+
+    @staticmethod
+    def wait(cond, seconds: float, what: str):
+        t = time.monotonic() + seconds
+        while time.monotonic() < t:
+            v = cond()
+            if v:
+                return v
+            time.sleep(0.1)
+        raise AssertionError(f"timed out waiting for {what}")
+
+    def close(self) -> None:
+        for p in (self.wm, self.xvfb):
+            p.terminate()
+            try:
+                p.wait(5)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+
+class App:
+    """``prismstation gui PROJECT`` on ``desktop`` with its settings in ``settings_dir``."""
+
+    def __init__(self, desktop: Desktop, project: Path, settings_dir: Path):
+        self.d = desktop
+        env = {**desktop.env, "PRISMSTATION_SETTINGS_DIR": str(settings_dir), "PYTHONFAULTHANDLER": "1"}
+        exe = Path(sys.executable).with_name("prismstation")  # the command the README gives
+        self.proc = subprocess.Popen([str(exe), "gui", str(project)],
+                                     env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        self.wid = desktop.wait(self._window, 60, "the main window")
+
+    def _window(self) -> str | None:
+        if self.proc.poll() is not None:
+            raise AssertionError(f"the workstation exited with {self.proc.returncode} before its "
+                                 f"window showed:\n{self.proc.stdout.read()}")
+        r = self.d.run("xdotool", "search", "--onlyvisible", "--pid", str(self.proc.pid),
+                       "--name", "prismstation", check=False)
+        ids = r.stdout.split()
+        return ids[0] if ids else None
+
+    def geometry(self) -> tuple[int, int, int, int]:
+        """The window's client area (x, y, width, height) on the screen."""
+        out = self.d.run("xwininfo", "-id", self.wid).stdout  # (xdotool adds the frame twice)
+        g = dict(line.strip().split(":", 1) for line in out.splitlines() if line.count(":") == 1)
+        return tuple(int(g[k]) for k in ("Absolute upper-left X", "Absolute upper-left Y", "Width", "Height"))
+
+    def maximized(self) -> bool:
+        out = self.d.run("xprop", "-id", self.wid, "_NET_WM_STATE").stdout
+        return "_NET_WM_STATE_MAXIMIZED_VERT" in out and "_NET_WM_STATE_MAXIMIZED_HORZ" in out
+
+    def maximize(self) -> None:
+        """What the title bar's maximize button asks of the window manager."""
+        self.d.run("wmctrl", "-i", "-r", self.wid, "-b", "add,maximized_vert,maximized_horz")
+        self.d.wait(self.maximized, 10, "the window to be maximized")
+
+    def alive_for(self, seconds: float) -> bool:
+        try:
+            self.proc.wait(seconds)
+        except subprocess.TimeoutExpired:
+            return True
+        return False
+
+    def quit(self) -> tuple[int, str]:
+        """Ctrl+Q in the window; the exit status and everything the process printed."""
+        self.wid = self.d.wait(self._window, 10, "the main window")
+        self.d.run("xdotool", "windowactivate", "--sync", self.wid)
+        self.d.run("xdotool", "key", "ctrl+q")  # real key events (XTEST), to the active window
+        try:
+            self.proc.wait(30)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+            raise AssertionError("Ctrl+Q did not quit the workstation") from None
+        return self.proc.returncode, self.proc.stdout.read()
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
