@@ -1,4 +1,4 @@
-"""ICP accuracy of the empirical model on rigorous simulated triplets (issue 2 item 8).
+"""ICP accuracy of the empirical model on rigorous simulated triplets.
 
 Prints, per geometry and over several seeds, the ICP RMSE per axis in image pixels (N view)
 and on the ground (E, N, h metres), beside the noise floors. Usage:

@@ -1,4 +1,4 @@
-"""Click → refit → table, statistics and plots repainted, with 200 points (issue 3, item 10).
+"""Click → refit → table, statistics and plots repainted, with 200 points.
 
 A real main window (offscreen unless a display is set) on a rendered triplet with 20 GCPs and
 180 ICPs. Each round is one mouse click on the N view (QTest) that moves the current GCP's

@@ -91,7 +91,7 @@ def main():
                   f"{err[2]:7.2f} {dt:6.2f}")
     print("\nwhole tile:")
     summary(totals)
-    # the use of MODEL.md §3: 4.3 km patches (48 x 48 cells) cut from the same pairs
+    # the use of docs/model.md §3: 4.3 km patches (48 x 48 cells) cut from the same pairs
     print("\n48 x 48-cell patches (4.3 km) at 4 places, same shifts (multi-pixel ones within 6 px):")
     totals = {m: [] for m in methods}
     for (dcol, drow, dz), dem in pairs:

@@ -1,4 +1,4 @@
-"""Time the live plots and the report writer on synthetic Solutions (issue 3, items 6, 8, 10).
+"""Time the live plots and the report writer on synthetic Solutions.
 
 Prints the median time of ``PlotsWidget.set_solution`` plus the repaint it causes (events
 processed, so the four views really paint) for 53 and 200 points, wall-clock and process CPU

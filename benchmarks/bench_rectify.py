@@ -1,4 +1,4 @@
-"""Figures for issue 5: transform noise floor, GDAL agreement, warp speed, deblocking, DSM validation.
+"""Single-image figures: transform noise floor, GDAL agreement, warp speed, deblocking, DSM validation.
 
 Run: ``.venv/bin/python benchmarks/bench_rectify.py`` (uses ../shared/data/real when present).
 """

@@ -1,4 +1,4 @@
-"""Responsiveness of the large-image display (issue 3, items 2 and 10).
+"""Responsiveness of the large-image display.
 
 Makes (once, cached) three full-size 14,000 × 16,000 uint8 textured GeoTIFFs (tiled 512, deflate,
 overviews 2–64), opens three ImageViews side by side in an offscreen window, and prints:

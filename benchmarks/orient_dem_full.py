@@ -1,4 +1,4 @@
-"""GCP-free orientation on a full-size simulated PRISM triplet (issue 4 item 5).
+"""GCP-free orientation on a full-size simulated PRISM triplet.
 
 Simulates a 14,000 px triplet (35 km, relief to 1400 m, realistic texture), an SRTM-like
 reference (truth terrain at 90 m, orthometric, 2 m noise, voids), orients it with
@@ -7,7 +7,7 @@ truth beside the targets (planimetric ≤ 2.5 m, height ≤ 2.5 m; the paper: < 
 Usage: python benchmarks/orient_dem_full.py [--dir DIR] [--size 14000] [--seed 3]
 
 The simulator draws each view's geolocation error (±50 m per component by default); the
-orientation runs issue 11's engine (``--geolocation-sigma-m``, default 50 m) and prints its
+orientation runs the engine of docs/orientation_engine.md (``--geolocation-sigma-m``, default 50 m) and prints its
 consistency verdict. Figures across error levels, sizes and passes: ``benchmarks/orient_sweep.py``
 and the README (the 2026-11-22 figures of this script, 1.88 m / 1.09 m, were made with the old
 engine on the old simulator's fixed offsets).

@@ -1,4 +1,4 @@
-"""Orientation without GCPs across geolocation errors (issue 11 item 5): a sweep.
+"""Orientation without GCPs across geolocation errors: a sweep.
 
 Each scene is rendered ONCE (``simulate``) with an SRTM-like reference; its published
 geolocation is then perturbed (``sim.perturb.perturb_geolocation``) to each error level: every
@@ -10,7 +10,7 @@ the consistency verdict of the patch shift field (``core.consistency.snoop``), t
     python benchmarks/orient_sweep.py --sizes 1600 --errors 0 25 50 100 --seeds 0
     python benchmarks/orient_sweep.py --sizes 6000 14000 --passes descending ascending --seeds 0 1 2
 
-Targets (issue 11): 14,000 px ≤ 2.5 m planimetric and height; 6,000 px within the paper's
+Targets: 14,000 px ≤ 2.5 m planimetric and height; 6,000 px within the paper's
 < 5 m and ≤ 3.2 m; no case wrong without saying so (a wrong case must have a non-ok verdict or
 a failure). Beside each RMSE, the orientation's stated σ (``orient-dem``'s ``sigma_m``): a
 case more than 3 σ off is marked.

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-# Qt without a screen (PLATFORM.md): a plain `pytest` must be safe on a headless machine.
+# Qt without a screen: a plain `pytest` must be safe on a headless machine.
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -46,7 +46,7 @@ def test_orientation_from_srtm_transfer_ties_and_dsm(tmp_path, capsys):
     dE = [p["E_est"] - truth[p["id"]]["E"] for p in pts]
     dN = [p["N_est"] - truth[p["id"]]["N"] for p in pts]
     dh = [p["h_est"] - truth[p["id"]]["h"] for p in pts]
-    # issue 4: planimetric ≤ 2.5 m and height ≤ 2.5 m (the paper: < 5 m and 3.2 m); the
+    # the project's target: planimetric ≤ 2.5 m and height ≤ 2.5 m (the paper: < 5 m and 3.2 m); the
     # surveyed coordinates of the check points carry 0.5 m / 1 m noise of their own
     assert np.hypot(_rms(dE), _rms(dN)) < 3.0 and _rms(dh) < 2.5, (_rms(dE), _rms(dN), _rms(dh))
     # the orientation's σ is stated (command line and report) and the check points agree with it

@@ -1,4 +1,4 @@
-"""The shift-field consistency test (issue 11 item 3): rejects one 50 m blunder patch, accepts
+"""The shift-field consistency test: rejects one 50 m blunder patch, accepts
 a consistent field, rescales σ by what the data show, and its false-alarm rate on consistent
 fields is its stated α (Monte Carlo)."""
 import json

@@ -11,7 +11,7 @@ from prismstation.core import view_offsets as vo
 from tests.core.synth import make_scene
 
 
-def _shift(x, y):  # an affine field of shifts (m) over the N image, like seed 003's ~50 m
+def _shift(x, y):  # an affine field of shifts (m) over the N image, like the ~50 m Gonçalves reports
     return np.array([40 + 3e-3 * x, -30 + 1e-3 * y, 12 - 5e-4 * x])
 
 

@@ -11,7 +11,7 @@ from prismstation.errors import ModelError
 from tests.core.synth import PAPER_B, PAPER_M, make_points, make_scene
 
 
-def test_eq4_theoretical_parallax_scale():  # MODEL.md §6, 000 eq. 4
+def test_eq4_theoretical_parallax_scale():  # docs/model.md §6, Gonçalves 2008 eq. 4
     c1 = 2.5 / (math.tan(math.radians(26.8)) + math.tan(math.radians(26.4)))
     assert round(c1, 4) == 2.4962
     assert prism.theoretical_c1(make_scene()) == pytest.approx(c1)
@@ -51,7 +51,7 @@ def test_relief_direction_and_size():
 
 
 @pytest.mark.parametrize("heading,path", [(192, True), (192, False), (348, True), (348, False)])
-def test_exact_recovery_of_paper_coefficients(heading, path):  # MODEL.md §6, 000 eq. 3
+def test_exact_recovery_of_paper_coefficients(heading, path):  # docs/model.md §6, Gonçalves 2008 eq. 3
     sc = make_scene(heading, path)
     sol = solve(sc, make_points(sc), Settings("affine", "line"))
     fit = sol.bias["N"]

@@ -1,4 +1,4 @@
-"""A triplet written outside the project, in FORMATS.md's formats, through new → fit --json."""
+"""A triplet written outside the project, in docs/formats.md's formats, through new → fit --json."""
 import csv
 import json
 import math

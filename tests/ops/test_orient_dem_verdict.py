@@ -1,4 +1,4 @@
-"""orient-dem says when its result is not to be trusted (issue 11 item 3): exit status 3, one
+"""orient-dem says when its result is not to be trusted: exit status 3, one
 line on stderr, the verdict in the JSON; and a clear error when the views cannot be found."""
 import json
 

@@ -1,4 +1,4 @@
-"""Point transfer takes its search range from the model's geolocation σ (issue 11 item 2):
+"""Point transfer takes its search range from the model's geolocation σ:
 wide with the ancillary model, narrow once the biases are fitted."""
 import json
 

@@ -1,6 +1,6 @@
 """``prismstation bh --left X Y Z --right X Y Z [--json OUT]``: base, height and B/H.
 
-``B = |XR − XL|`` (3-D), ``H = (ZL + ZR) / 2`` (seed 002). A position may also be taken from
+``B = |XR − XL|`` (3-D), ``H = (ZL + ZR) / 2`` (Subaryono et al.). A position may also be taken from
 the JSON a ``prismstation resection --json`` wrote (``--left-resection`` / ``--right-resection``).
 """
 from __future__ import annotations

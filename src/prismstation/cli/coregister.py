@@ -6,7 +6,7 @@ resolution and :func:`core.coreg.coregister` refines ``(dcol, drow, dz)`` in ref
 Copernicus GLO-30/90 GeoTIFF) work as they are: the adjustment's metric quantities (slopes, the
 shift in metres) use a local metric frame at the grid's centre (``io.dem.local_metric_transform``).
 
-FORMATS.md fixes the signs: ``shift_px`` is what to add to the DEM's pixel positions, in
+docs/formats.md fixes the signs: ``shift_px`` is what to add to the DEM's pixel positions, in
 reference-grid pixels, to lay it on the reference; ``shift_m`` the same in metres (east, north)
 at the grid's centre; ``shift_crs`` in CRS units (degrees for a geographic grid); ``dz`` is added
 to its heights. Both DEMs must hold heights of the same kind (orthometric or ellipsoidal).
@@ -59,7 +59,7 @@ def _num(v, key: str, nulls: dict, why: str):
 
 
 def result_dict(res, reference: str, dem: str, method: str = "lsm", crs_transform=None) -> dict:
-    """The JSON document of FORMATS.md: ``shift_px``, ``shift_m``, ``shift_crs``, ``dz``, their σ,
+    """The JSON document of docs/formats.md: ``shift_px``, ``shift_m``, ``shift_crs``, ``dz``, their σ,
     ``converged`` and ``reason``; non-finite numbers are null, explained in ``nulls``.
     ``crs_transform`` (a, b, c, d, e, f) converts the pixel shift into CRS units (default: the
     metric frame's, i.e. ``shift_crs`` = ``shift_m``)."""

@@ -15,7 +15,7 @@ def register(sub) -> None:
     p = sub.add_parser("new", help="create a project from a scene, ground points and measurements")
     p.add_argument("project", help=f"project file to write ({SUFFIX})")
     src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--scene", help="scene.json (FORMATS.md)")
+    src.add_argument("--scene", help="scene.json (docs/formats.md)")
     src.add_argument("--product", help="a JAXA product folder (CEOS or GeoTIFF 1B2)")
     p.add_argument("--points", help="ground points CSV (id,E,N,H[,kind,height,...])")
     p.add_argument("--measurements", help="image measurements CSV (id,view,x,y)")
@@ -57,7 +57,7 @@ def create(project_path, scene_path, points=None, measurements=None, *, crs=None
 def run(args) -> int:
     scene_path = args.scene
     if args.product:
-        from prismstation.io.products import write_scene_for_product  # issue 6
+        from prismstation.io.products import write_scene_for_product
         scene_path = write_scene_for_product(args.product, Path(args.project).parent)
     project = create(args.project, scene_path, args.points, args.measurements, crs=args.crs,
                      height=args.height, geoid=args.geoid, force=args.force)

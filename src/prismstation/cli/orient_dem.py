@@ -1,4 +1,4 @@
-"""``prismstation orient-dem PROJECT REFERENCE_DEM``: orientation with no GCP (seed 003, issue 11).
+"""``prismstation orient-dem PROJECT REFERENCE_DEM``: orientation with no GCP (Gonçalves, SRTM as ground control).
 
 Exit status 0 when the patch shifts agree with their σ, 3 (with one line on stderr) when they do
 not or too few patches matched: the orientation is then stored and reported, but not trusted.
@@ -23,7 +23,7 @@ def register(sub) -> None:
     p.add_argument("reference", help="reference DEM: SRTM .hgt or GeoTIFF, orthometric heights")
     p.add_argument("--geolocation-sigma-m", type=float, default=SIGMA_APRIORI_M, metavar="M",
                    help="a-priori σ of each view's ancillary geolocation, per component, metres; "
-                        "every search covers 3 σ (default 50: the ~50 m shifts seed 003 reports "
+                        "every search covers 3 σ (default 50: the ~50 m shifts Gonçalves reports "
                         "for uncalibrated products; about 10 for calibrated ones)")
     p.add_argument("--patch-km", type=float, default=4.0, help="patch size (default 4 km)")
     p.add_argument("--posting", type=float, default=30.0, help="grid posting of the matching, m (default 30)")

@@ -1,6 +1,6 @@
 """``prismstation points IN -o OUT [--to-crs CRS]``: convert ground-control files.
 
-Formats: the ground-point CSV of FORMATS.md, QGIS ``.points``, OpenDroneMap ``gcp_list.txt``,
+Formats: the ground-point CSV of docs/formats.md, QGIS ``.points``, OpenDroneMap ``gcp_list.txt``,
 Ames Stereo Pipeline ``.gcp`` (see :mod:`prismstation.io.pointfiles`). The input format comes from
 its extension and content, the output format from the output's extension (``.txt`` = ODM) or
 ``--to``.
@@ -32,12 +32,12 @@ def register(subparsers) -> None:
                    help="height kind of points whose file does not say (default ellipsoidal)")
     p.add_argument("--view", help="image (view) to write to a QGIS .points file, which holds one")
     p.add_argument("--measurements", metavar="M.csv",
-                   help="also write the image measurements as FORMATS.md measurement CSV")
+                   help="also write the image measurements as docs/formats.md measurement CSV")
     p.set_defaults(func=run)
 
 
 def measurements_csv(pf) -> str:
-    """Text of the FORMATS.md measurement CSV: ``id,view,x,y,sigma_px`` (MODEL.md pixels)."""
+    """Text of the docs/formats.md measurement CSV: ``id,view,x,y,sigma_px`` (docs/model.md pixels)."""
     out = io.StringIO()
     w = csv.writer(out, lineterminator="\n")
     w.writerow(["id", "view", "x", "y", "sigma_px"])

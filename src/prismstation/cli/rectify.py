@@ -1,7 +1,7 @@
-"""``prismstation rectify IMAGE POINTS.csv --transform KIND -o OUT.tif`` (MODEL.md §4).
+"""``prismstation rectify IMAGE POINTS.csv --transform KIND -o OUT.tif`` (docs/model.md §4).
 
 Fits every image→map transform on the GCPs of one view, prints the side-by-side RMSE table
-(GCPs and ICPs, seed 002's Table 4.1) and the chosen transform's residuals, and writes the
+(GCPs and ICPs, as Subaryono et al.'s Table 4.1) and the chosen transform's residuals, and writes the
 image rectified through the chosen transform as a GeoTIFF.
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""``prismstation resection POINTS.csv --focal-mm F --pixel-um P ...`` (MODEL.md §4).
+"""``prismstation resection POINTS.csv --focal-mm F --pixel-um P ...`` (docs/model.md §4).
 
 Space resection of one view from ground points (``id,E,N,H``) and their image measurements,
 by Gauss–Newton on the collinearity equations. Prints the exterior orientation with standard

@@ -1,7 +1,7 @@
 """``prismstation simulate OUTDIR [--seed N] [--size N] ...``: a synthetic PRISM 1B2 triplet.
 
 Writes ``N.tif``, ``F.tif``, ``B.tif``, ``scene.json``, ``points.csv``, ``measurements.csv``
-(FORMATS.md) and the truth: ``truth.json``, ``truth_dem.tif`` (ellipsoidal heights).
+(docs/formats.md) and the truth: ``truth.json``, ``truth_dem.tif`` (ellipsoidal heights).
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""``prismstation validate-dsm DSM REFERENCE --json OUT`` (FORMATS.md, MODEL.md §5).
+"""``prismstation validate-dsm DSM REFERENCE --json OUT`` (docs/formats.md, docs/model.md §5).
 
 Statistics of DSM − reference (metres) over the cells where both are valid, on the DSM's grid:
 bias, sd, rmse, min, max, count, nmad, median, percentiles, and per class of ``--mask``.

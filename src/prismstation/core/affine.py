@@ -48,7 +48,7 @@ class Affine2D:
 
     @classmethod
     def from_coeffs(cls, a1, a2, a3, a4, a5, a6) -> "Affine2D":
-        """FORMATS.md / paper eq. 1 order: ``x = A1·E + A2·N + A5``, ``y = A3·E + A4·N + A6``."""
+        """docs/formats.md / paper eq. 1 order: ``x = A1·E + A2·N + A5``, ``y = A3·E + A4·N + A6``."""
         return cls([[a1, a2, a5], [a3, a4, a6]])
 
     @classmethod
@@ -70,7 +70,7 @@ class Affine2D:
         return self.matrix[:, 2]
 
     def coeffs(self) -> list[float]:
-        """The six values in FORMATS.md order ``[A1, A2, A3, A4, A5, A6]``."""
+        """The six values in docs/formats.md order ``[A1, A2, A3, A4, A5, A6]``."""
         (a, b, c), (d, e, f) = self.matrix
         return [a, b, d, e, c, f]
 

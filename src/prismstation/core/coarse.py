@@ -1,4 +1,4 @@
-"""Coarse-to-fine offsets over the whole range an a-priori uncertainty allows (issue 11).
+"""Coarse-to-fine offsets over the whole range an a-priori uncertainty allows.
 
 Nothing is assumed small: each search radius comes from a stated a-priori σ,
 ``radius = k·σ_apriori / GSD`` (:func:`search_radius_px`, ``k`` = :data:`K_SIGMA` = 3), and the

@@ -1,7 +1,7 @@
-"""Are the patch shifts consistent with their σ? A χ² test of the shift field (issue 11 item 3).
+"""Are the patch shifts consistent with their σ? A χ² test of the shift field.
 
 The patches' shifts (e.g. dE, dN, dh in metres) are modelled as an affine function of patch
-position per component (MODEL.md §3 step 4), weighted by their formal σ. If those σ are right
+position per component (docs/model.md §3 step 4), weighted by their formal σ. If those σ are right
 and the model holds, the weighted residuals' sum ``χ² = Σ (v/σ)²`` follows a χ² law with
 ``dof = k·(n − 3)`` (n patches, k components; ``model="constant"``: ``k·(n − 1)``). The test:
 

@@ -2,10 +2,10 @@
 
 Grid convention: both DEMs are 2-D arrays on ONE grid (rows, cols), NaN where void; the
 grid's affine ``transform = (a, b, c, d, e, f)`` (rasterio ``Affine`` order) maps a grid
-position ``(col, row)`` (MODEL.md §1: pixel centre at ``i + 0.5``) to CRS coordinates
+position ``(col, row)`` (docs/model.md §1: pixel centre at ``i + 0.5``) to CRS coordinates
 ``x = a·col + b·row + c``, ``y = d·col + e·row + f``.
 
-Shift convention (FORMATS.md, ``coregister``): ``(dcol, drow)`` is what to add to the DEM's
+Shift convention (docs/formats.md, ``coregister``): ``(dcol, drow)`` is what to add to the DEM's
 pixel positions to lay it on the reference, and ``dz`` is added to its heights::
 
     reference(col, row) ≈ dem(col - dcol, row - drow) + dz

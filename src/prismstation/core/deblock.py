@@ -1,4 +1,4 @@
-"""JPEG block-noise reduction for display and matching (seed 004 §3).
+"""JPEG block-noise reduction for display and matching (Tadono et al. 2008, §3).
 
 PRISM data were JPEG-compressed on board; flat areas show steps on the 8×8 (or 16×8) grid of
 the compression blocks. This is a simplified deblocking filter in the spirit of H.264's loop

@@ -1,4 +1,4 @@
-"""Orientation without GCPs from a reference DEM (seed 003, MODEL.md §3) — the pure parts.
+"""Orientation without GCPs from a reference DEM (Gonçalves, SRTM as ground control; docs/model.md §3) — the pure parts.
 
 The workflow (``prismstation.ops.orient_dem``) matches F and B densely in N space per patch,
 turns parallax into a *relative DEM* placed on the map by the ancillary model, and finds the
@@ -44,7 +44,7 @@ def patch_windows(shape, patch_px: int, margin_px: int = 0) -> list[tuple[int, i
 
 def relative_dem_points(scene: Scene, py: np.ndarray, window, c1: float, step: int = 1, scale: float = 1.0):
     """Ground points ``(E, N, h)`` of a parallax map: ``h = c1·py`` (no offset yet) and the
-    ancillary N model (no bias) places each cell on the map (MODEL.md §3 step 2).
+    ancillary N model (no bias) places each cell on the map (docs/model.md §3 step 2).
 
     ``py`` ``(rows, cols)`` (N pixels) on the grid of ``window = (col0, row0, cols, rows)`` in
     N space decimated by ``scale`` (cell ``[j, i]`` centred at N pixel
@@ -240,7 +240,7 @@ def judge_patches(patches: list[PatchShift], alpha: float = ALPHA, min_patches: 
 def control_from_shifts(scene: Scene, patches: list[PatchShift], mean_height: float,
                         view_offsets: dict | None = None, grid: int = 7,
                         bias_model: str = "affine", offset_gradients: dict | None = None) -> Control:
-    """The sensor model implied by the patches' shifts (MODEL.md §3 step 4).
+    """The sensor model implied by the patches' shifts (docs/model.md §3 step 4).
 
     Virtual control points on a ``grid × grid`` lattice over the N image, at the relative
     height ``mean_height − dh``: the ancillary model places them at ``P``; the truth is
@@ -288,7 +288,7 @@ def control_from_shifts(scene: Scene, patches: list[PatchShift], mean_height: fl
 
 
 def identity_control(scene: Scene, mean_height: float) -> Control:
-    """The ancillary model alone (MODEL.md §3 step 1)."""
+    """The ancillary model alone (docs/model.md §3 step 1)."""
     c1 = prism.theoretical_c1(scene)
     return Control({v: BiasFit.identity() for v in scene.views},
                    ParallaxLine("theoretical", "theoretical", 0.0, c1, c1), "ancillary data", mean_height)

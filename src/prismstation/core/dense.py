@@ -1,9 +1,9 @@
 """Dense matching of F and B in N image space along the parallax direction → parallax map.
 
-Coordinates follow MODEL.md §1 (``x`` column, ``y`` row, pixel centre at ``i + 0.5``). The
+Coordinates follow docs/model.md §1 (``x`` column, ``y`` row, pixel centre at ``i + 0.5``). The
 caller gives, for F and B, the 2×3 affine mapping that view's image coordinates (of the array
 given) to N image coordinates, the parallax direction ``d`` in N space (unit vector of flight
-direction) and a window of N image space. The parallax of a ground point is (MODEL.md §2)
+direction) and a window of N image space. The parallax of a ground point is (docs/model.md §2)
 
     py = (pF − pB) · d          (N-image pixels)
 
@@ -56,7 +56,7 @@ class ParallaxMap:
 
 
 def heights_from_parallax(py, c0: float, c1: float) -> np.ndarray:
-    """Heights ``h = c0 + c1·py`` (MODEL.md §2, eq. 4); NaN stays NaN. Units of ``c0``, ``c1``."""
+    """Heights ``h = c0 + c1·py`` (docs/model.md §2, eq. 4); NaN stays NaN. Units of ``c0``, ``c1``."""
     return c0 + c1 * np.asarray(py, float)
 
 
@@ -146,7 +146,7 @@ def parallax_map(f_image, b_image, f_to_n, b_to_n, window, direction, *, prior=0
     f_image, b_image : ndarray (rows, cols)
         F and B images (any numeric dtype), or windows of them.
     f_to_n, b_to_n : array_like (2, 3)
-        Affines from each array's image coordinates to N image coordinates (MODEL.md §1).
+        Affines from each array's image coordinates to N image coordinates (docs/model.md §1).
     window : (col0, row0, cols, rows)
         N-image window (integer pixels) of the output map.
     direction : (dx, dy)

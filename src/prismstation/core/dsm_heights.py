@@ -3,7 +3,7 @@
 One GCP fit gives two heights for a point seen in F and B. The matching intersects **rays**
 through each view's fitted bias affine (six parameters per view) and the relief geometry; the
 model's **line** turns the F–B parallax into a height by ``h = c0 + c1·py`` (two parameters,
-MODEL.md §2, what the check points report). The line cannot follow a height error that drifts
+docs/model.md §2, what the check points report). The line cannot follow a height error that drifts
 across the scene (attitude drift: metres over a 35 km PRISM scene); the rays follow any drift
 linear in the image, at the price of extrapolating the biases' noise. Measured at the check
 points of simulated scenes (9 GCPs): 14,000 px, rays 1.44 m against the line's 2.38 m; 6,000 px
@@ -49,7 +49,7 @@ def model_height_correction(sol: Solution, h_lo: float, h_hi: float, n: int = 9)
 
     The matching (:func:`prismstation.core.stereo_tile.match_pair`) intersects rays through each view's fitted bias and the
     relief geometry; the model judges heights by the F–B parallax line calibrated on the GCPs
-    (MODEL.md §2, what its check points report). Away from the GCPs the two differ by a tilt
+    (docs/model.md §2, what its check points report). Away from the GCPs the two differ by a tilt
     (the F and B biases, six parameters each, extrapolate their noise) and a scale (c1 against
     its theoretical value) — measured ±1.7 m across a 5 km simulated scene. Evaluated on an
     ``n × n`` lattice over the N image at ``h_lo`` and ``h_hi``: predict F and B from the model,

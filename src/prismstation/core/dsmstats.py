@@ -1,4 +1,4 @@
-"""Accuracy statistics: DSM minus reference, and image residuals per view (MODEL.md §5, seed 004).
+"""Accuracy statistics: DSM minus reference, and image residuals per view (docs/model.md §5; Tadono et al. 2008).
 
 DSM statistics are taken over the cells where both surfaces are finite (NaN marks no data).
 Differences ``d = DSM − reference`` in metres; heights must be of one kind beforehand.
@@ -121,7 +121,7 @@ def validate_dsm(dsm, reference, classes=None, class_nodata=None) -> DsmValidati
 
 @dataclass(frozen=True)
 class ViewResidualSD:
-    """One row of seed 004's Table 1: residual standard deviations in image space (pixels)."""
+    """One row of Tadono et al. (2008), Table 1: residual standard deviations in image space (pixels)."""
 
     view: str
     n_scenes: int

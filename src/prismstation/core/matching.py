@@ -1,6 +1,6 @@
 """Point transfer between two images: NCC along a search direction, then least-squares matching.
 
-Coordinates follow MODEL.md §1: image ``x`` = column, ``y`` = row, in pixels, continuous,
+Coordinates follow docs/model.md §1: image ``x`` = column, ``y`` = row, in pixels, continuous,
 origin at the top-left corner of the top-left pixel, so the centre of array element
 ``[j, i]`` is ``(i + 0.5, j + 0.5)``. Images are 2-D numpy arrays of any numeric dtype.
 
@@ -78,7 +78,7 @@ class MatchResult:
     Attributes
     ----------
     x, y : float
-        Matched position in the search image (pixels, MODEL.md §1). On failure, the best
+        Matched position in the search image (pixels, docs/model.md §1). On failure, the best
         estimate available (NCC peak or prediction); check :attr:`ok`.
     sigma_x, sigma_y : float
         Standard deviations of ``x``, ``y`` (pixels): the formal ones calibrated against
@@ -154,7 +154,7 @@ def match_point(reference: np.ndarray, x: float, y: float, search: np.ndarray,
     reference, search : ndarray, shape (rows, cols)
         Images, any numeric dtype (uint16 included).
     x, y : float
-        Point in the reference image (pixels, MODEL.md §1).
+        Point in the reference image (pixels, docs/model.md §1).
     x_pred, y_pred : float
         Predicted position in the search image (pixels).
     direction : (dx, dy) or None

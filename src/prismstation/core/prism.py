@@ -1,4 +1,4 @@
-"""The empirical PRISM 1B2 model of seed 000 (MODEL.md §2): relief, bias, parallax.
+"""The empirical PRISM 1B2 model of Gonçalves (2008) (docs/model.md §2): relief, bias, parallax.
 
 Map points ``en`` are ``(..., 2)`` metres, heights ``h`` ellipsoidal metres (broadcastable to
 ``en[..., 0]``), image points ``xy`` ``(..., 2)`` pixels (x = column, y = row).
@@ -299,7 +299,7 @@ class ParallaxLine:
 def fit_parallax(py, h, mode: str, c1_theory: float) -> ParallaxLine:
     """Fit the height–parallax relation over GCPs (``py`` pixels, ``h`` metres, ``(n,)``).
 
-    Degrades as MODEL.md says: ``line`` with one GCP fits only ``c0``; with none, the
+    Degrades as docs/model.md says: ``line`` with one GCP fits only ``c0``; with none, the
     theoretical line through the origin. σ0 is in metres (unit weights).
     """
     if mode not in PARALLAX_MODELS:

@@ -1,4 +1,4 @@
-"""2-D image → map transforms for single-image rectification (MODEL.md §4, seed 002).
+"""2-D image → map transforms for single-image rectification (docs/model.md §4; Subaryono et al., AVNIR).
 
 Every transform maps image coordinates ``(x, y)`` (column, row, pixels, origin at the
 top-left corner of the top-left pixel) to map coordinates ``(X, Y)`` (metres, projected CRS).
@@ -78,7 +78,7 @@ class FittedTransform:
     kind : one of :data:`KINDS`.
     params : (u,) parameters in the published (un-normalised) form:
         affine ``[a1, a2, a3, b1, b2, b3]`` with ``X = a1·x + a2·y + a3``, ``Y = b1·x + b2·y + b3``;
-        projective ``[a1, a2, a3, a4, a5, a6, c1, c2]`` (seed 002's equations);
+        projective ``[a1, a2, a3, a4, a5, a6, c1, c2]`` (Subaryono et al.'s equations);
         polyN ``[A_0..A_{m−1}, B_0..B_{m−1}]`` for the terms of :func:`poly_exponents`.
     cov : (u, u) covariance of ``params`` (σ0²-scaled; NaN without redundancy).
     sigma0 : a-posteriori standard deviation of one map coordinate (metres), NaN if dof = 0.
@@ -313,7 +313,7 @@ def _published_map(kind, p, ns: Normaliser, nd: Normaliser):
     return T, offset
 
 
-# -- side-by-side comparison with check points (seed 002, Table 4.1) --------------------------
+# -- side-by-side comparison with check points (Subaryono et al., Table 4.1) --------------------------
 
 @dataclass(frozen=True, eq=False)
 class TransformReport:

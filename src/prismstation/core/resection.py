@@ -1,9 +1,9 @@
-"""Space resection of a frame image by collinearity, and the B/H ratio (MODEL.md §4, seed 002).
+"""Space resection of a frame image by collinearity, and the B/H ratio (docs/model.md §4; Subaryono et al., AVNIR).
 
 Conventions
 -----------
 - Image points ``(x, y)`` in pixels: column, row, origin at the top-left corner of the top-left
-  pixel (MODEL.md §1). They become photo coordinates in metres relative to the principal point
+  pixel (docs/model.md §1). They become photo coordinates in metres relative to the principal point
   ``(cx, cy)`` (pixels) with the photo y axis pointing up:
   ``xp = (x − cx)·pitch``, ``yp = −(y − cy)·pitch``.
 - Ground points ``(X, Y, Z)`` in metres of a right-handed local or projected system, Z up.
@@ -80,7 +80,7 @@ class ResectionResult:
     sigma0_px : a-posteriori σ of one image coordinate (pixels).
     residuals_px : (n, 2) observed − computed image coordinates (pixels).
     start : (6,) the starting values.
-    corrections : (k, 6) the Gauss–Newton correction applied at each iteration (seed 002's
+    corrections : (k, 6) the Gauss–Newton correction applied at each iteration (Subaryono et al.'s
         Figures 4.1–4.2 plot these).
     history : (k + 1, 6) parameters after each iteration, starting values first.
     converged : whether corrections fell below the tolerance within the iterations allowed.
@@ -274,7 +274,7 @@ class BaseHeight:
 
 
 def base_height(left_xyz, right_xyz) -> BaseHeight:
-    """B, H and B/H of two sensor positions ``(X, Y, Z)`` in metres (seed 002, §2.2)."""
+    """B, H and B/H of two sensor positions ``(X, Y, Z)`` in metres (Subaryono et al., §2.2)."""
     left = np.asarray(left_xyz, float).reshape(3)
     right = np.asarray(right_xyz, float).reshape(3)
     if not (np.all(np.isfinite(left)) and np.all(np.isfinite(right))):

@@ -9,7 +9,7 @@ import numpy as np
 
 from prismstation.core.affine import Affine2D
 
-#: sign of the along-track relief shift of each view: forward ahead, backward behind (MODEL.md §2)
+#: sign of the along-track relief shift of each view: forward ahead, backward behind (docs/model.md §2)
 LOOK_SIGN = {"F": 1.0, "B": -1.0}
 
 

@@ -1,6 +1,6 @@
-"""Affine field of shifts over an image (MODEL.md §3 step 4): ``shift_k(x, y) = p[k,0] +
+"""Affine field of shifts over an image (docs/model.md §3 step 4): ``shift_k(x, y) = p[k,0] +
 p[k,1]·x + p[k,2]·y`` for ``k`` shift components (e.g. dE, dN, dh in metres) at positions
-``(x, y)`` (e.g. N-image pixels, MODEL.md §1). An estimator of
+``(x, y)`` (e.g. N-image pixels, docs/model.md §1). An estimator of
 :mod:`prismstation.core.estimate` from positions ``(n, 2)`` to shifts ``(n, k)``.
 """
 from __future__ import annotations

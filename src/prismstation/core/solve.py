@@ -118,7 +118,7 @@ class Solution:
 
 @dataclass(frozen=True, eq=False)
 class Control:
-    """An orientation obtained without GCPs (MODEL.md §3): bias per view and parallax line
+    """An orientation obtained without GCPs (docs/model.md §3): bias per view and parallax line
     derived elsewhere (from a reference DEM); :func:`solve` then only evaluates points."""
 
     bias: dict
@@ -130,7 +130,7 @@ class Control:
 def solve(scene: Scene, points, settings: Settings = Settings(), *,
           height_of: HeightFn | None = None, revision: int = 0,
           control: Control | None = None) -> Solution:
-    """Fit the model of MODEL.md §2 to ``points`` (iterable of :class:`PointObs`).
+    """Fit the model of docs/model.md §2 to ``points`` (iterable of :class:`PointObs`).
 
     With ``control`` the model is taken as given and every point with ground coordinates is
     in effect a check point.

@@ -1,4 +1,4 @@
-"""Residual statistics per component (MODEL.md §2, the paper's Tables 1–3)."""
+"""Residual statistics per component (docs/model.md §2, the paper's Tables 1–3)."""
 from __future__ import annotations
 
 import math
@@ -86,7 +86,7 @@ class ImageStats:
 
 @dataclass(frozen=True)
 class FitStatistics(Mapping):
-    """Tables 1–3 of the paper and their extensions (MODEL.md §2), per point kind
+    """Tables 1–3 of the paper and their extensions (docs/model.md §2), per point kind
     (``"GCP"``, ``"ICP"``).
 
     ``image[view][kind]`` image residuals, ``ground[kind]`` planimetric ground residuals

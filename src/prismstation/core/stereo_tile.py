@@ -4,7 +4,7 @@ The matching frame is a ground grid aligned with the flight direction: frame pix
 (x column, y row, centres at ``i + 0.5``) is the map point ``P = origin + g·(x·t + y·u)``,
 ``t`` the unit flight direction, ``u`` across it, ``g`` metres per pixel. View ``V`` is
 resampled onto the frame at the prior surface ``h0``: ``O_V(P) = I_V(G_V(W_V(P)))`` with
-``W_V(P) = P + h0(P)·r_V(P)``, ``r_V`` the relief shift per metre of height (MODEL.md §2) and
+``W_V(P) = P + h0(P)·r_V(P)``, ``r_V`` the relief shift per metre of height (docs/model.md §2) and
 ``G_V`` the view's ancillary affine followed by its fitted bias. Because the across-track
 relief shift is the same in every view, a height error moves a point along ``t`` only: the
 parallax runs along x. A ground point ``Q`` at height ``h`` seen at ``P_A`` in the left and

@@ -1,4 +1,4 @@
-"""Where F and B really are relative to N, before any fine matching (issue 11 item 2).
+"""Where F and B really are relative to N, before any fine matching.
 
 Each view's ancillary geolocation is off by tens of metres, independently. This module finds a
 view's offset relative to N over the whole range the a-priori uncertainty allows:
@@ -55,7 +55,7 @@ def lattice(shape, window_px: int, k: int = 3, margin_px: int = 0) -> list[tuple
 
 
 def n_pixel_centres(n_window) -> np.ndarray:
-    """N pixel centres ``(rows, cols, 2)`` (x, y) of a window (MODEL.md §1: centre at i + 0.5)."""
+    """N pixel centres ``(rows, cols, 2)`` (x, y) of a window (docs/model.md §1: centre at i + 0.5)."""
     c0, r0, w, h = n_window
     xs, ys = np.meshgrid(np.arange(c0, c0 + w) + 0.5, np.arange(r0, r0 + h) + 0.5)
     return np.stack([xs, ys], axis=-1)

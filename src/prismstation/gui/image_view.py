@@ -6,7 +6,7 @@ Tiles are read by a :class:`~prismstation.gui.tiles.TileLoader` in worker thread
 the GUI thread (:func:`~prismstation.gui.workers.post`); requests are dropped when the view has moved on; tiles come from the
 source's LRU cache when they are there.
 
-Coordinates (MODEL.md §1): scene coordinates of the view box are image pixels, x = column to the
+Coordinates (docs/model.md §1): scene coordinates of the view box are image pixels, x = column to the
 right, y = row down (the y axis is inverted), origin at the top-left corner of the top-left pixel;
 the centre of pixel (i, j) is (i + 0.5, j + 0.5).
 """

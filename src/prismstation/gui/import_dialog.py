@@ -1,7 +1,7 @@
-"""Import of ground points or image measurements (issue 3, item 8).
+"""Import of ground points or image measurements.
 
 :class:`ImportDialog` reads a CSV with any delimiter and any column names (one combo per field
-maps a file column onto FORMATS.md's names), or another tool's point file (QGIS ``.points``,
+maps a file column onto docs/formats.md's names), or another tool's point file (QGIS ``.points``,
 OpenDroneMap ``gcp_list.txt``, Ames Stereo Pipeline ``.gcp``) through
 :mod:`prismstation.io.pointfiles`. It shows a preview of the first rows and every bad line as
 ``file, line N: problem``. On accept, :meth:`ImportDialog.result` gives

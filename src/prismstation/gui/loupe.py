@@ -1,6 +1,6 @@
 """Loupe: a magnified window of the full-resolution pixels under the cursor.
 
-The loupe shows ``n × n`` full-resolution pixels around the image point ``(x, y)`` (MODEL.md §1:
+The loupe shows ``n × n`` full-resolution pixels around the image point ``(x, y)`` (docs/model.md §1:
 x = column, y = row, origin top-left corner of the top-left pixel), each drawn as a
 ``zoom × zoom`` block without interpolation, and a crosshair at the exact subpixel position.
 Pixels come from the view's :class:`~prismstation.io.raster.RasterSource` (cached full-resolution

@@ -1,6 +1,6 @@
 """The main window: wiring only (views, table, model panel, plots, files, undo, solver).
 
-Data flow for one click (ARCHITECTURE.md): a gesture in :class:`TripletViews` becomes a
+Data flow for one click (docs/architecture.md): a gesture in :class:`TripletViews` becomes a
 command pushed on the one ``QUndoStack``; the command edits the Project; the :class:`Solver`
 refits and publishes a Solution; views, table, model panel, plots and the accuracy strip read
 it. Actions and menus are built in :mod:`.menus`; without a project the central area is the

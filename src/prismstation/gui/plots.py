@@ -1,10 +1,10 @@
-"""Live plots of a fitted :class:`~prismstation.core.solve.Solution` (issue 3, item 6).
+"""Live plots of a fitted :class:`~prismstation.core.solve.Solution`.
 
 Four pyqtgraph plots in a 2 × 2 grid, each a ``pg.PlotWidget`` whose items are created once and
 only get new data on :meth:`PlotsWidget.set_solution` (no rebuilding):
 
 (a) ellipsoidal height of GCPs and ICPs vs F−B parallax with the fitted and the theoretical
-    parallax line (the seed paper's Fig. 4);
+    parallax line (Gonçalves 2008, Fig. 4);
 (b) height minus the theoretical prediction ``c1_theory·py`` vs parallax with the fitted line
     in the same form (Fig. 5);
 (c) residual vectors (measured − predicted) in the image space of the reference view (N),

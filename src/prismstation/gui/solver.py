@@ -1,6 +1,6 @@
 """Refit after every change of the project, and publish the Solution.
 
-Data flow (ARCHITECTURE.md): a command edits the :class:`Project`; ``Project.changed`` arms a
+Data flow (docs/architecture.md): a command edits the :class:`Project`; ``Project.changed`` arms a
 zero-delay timer, so that many edits in one event-loop turn (an import, an undo macro) cause one
 refit. A fit expected to take less than :attr:`Solver.inline_ms` (the last fit's time per point
 times the points now: a few hundred points take a few milliseconds) runs right there on the GUI

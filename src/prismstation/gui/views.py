@@ -7,12 +7,12 @@ each with its 95 % error ellipse; ``navigated`` tells
 
 Views of different images are not linked by pyqtgraph's ``setXLink`` (their geometries differ):
 the cursor in one view goes through the current :class:`~prismstation.core.solve.Solution`
-(pixel → ground at a height → pixel) to the others (ARCHITECTURE.md). The height is that of the
+(pixel → ground at a height → pixel) to the others (docs/architecture.md). The height is that of the
 point under the cursor when there is one (its estimated or known height), else the mean scene
 height of the solution.
 
 Image coordinates: x = column, y = row, pixels, origin at the top-left corner of the top-left
-pixel (MODEL.md §1).
+pixel (docs/model.md §1).
 """
 from __future__ import annotations
 

@@ -18,11 +18,11 @@ Map projection ancillary record (ASCII fields unless noted)::
     668 F16  nominal satellite altitude (km)     700 F16 nominal heading
     1916 6 x B8 (big-endian IEEE doubles) a, b, c, d, e, f of the "F4" map -> image affine
 
-Our reading of the F4 coefficients (seed 000 eq. 1; issue 6): ``x' = a*x + b*y + e``,
+Our reading of the F4 coefficients (Gonçalves 2008, eq. 1): ``x' = a*x + b*y + e``,
 ``y' = c*x + d*y + f`` with map ``x`` = (E - 500 km) and ``y`` = (N - false northing) in
 kilometres (false northing 10 000 km in the southern hemisphere, else 0), and ``(x', y')`` the
 image address (pixel, line) counted from 1 at the centre of the first pixel, as CEOS numbers
-pixels. In MODEL.md pixels (origin at the top-left corner) that address is ``(x' - 0.5, y' - 0.5)``.
+pixels. In docs/model.md pixels (origin at the top-left corner) that address is ``(x' - 0.5, y' - 0.5)``.
 
 Platform position record::
 
@@ -91,7 +91,7 @@ class CeosView:
     """What one CEOS 1B2 view holds, in our conventions.
 
     ``map_to_image`` is ``[A1..A6]`` with ``x = A1*E + A2*N + A5``, ``y = A3*E + A4*N + A6``
-    (E, N metres of ``crs``; x, y MODEL.md pixels). ``f4`` keeps the file's a..f as read.
+    (E, N metres of ``crs``; x, y docs/model.md pixels). ``f4`` keeps the file's a..f as read.
     """
 
     view: str
@@ -160,7 +160,7 @@ def _num(rec: bytes, off: int, size: int, what: str, path, rec_no: int, *, optio
 
 
 def f4_to_map_to_image(f4, zone_south: bool) -> tuple:
-    """``map_to_image`` [A1..A6] (metres of UTM, MODEL.md pixels) from the F4 a..f (km, CEOS)."""
+    """``map_to_image`` [A1..A6] (metres of UTM, docs/model.md pixels) from the F4 a..f (km, CEOS)."""
     a, b, c, d, e, f = (float(v) for v in f4)
     fe, fn = 500000.0, (10000000.0 if zone_south else 0.0)
     shift = CEOS_FIRST_PIXEL - 0.5

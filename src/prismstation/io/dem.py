@@ -2,7 +2,7 @@
 on its own grid or resampled onto a target grid, optionally made ellipsoidal) and a writer.
 
 Grids are ``(crs, transform, shape)``: ``transform`` a rasterio ``Affine`` from pixel
-``(col, row)`` (MODEL.md §1, origin at the top-left corner of the top-left pixel) to CRS
+``(col, row)`` (docs/model.md §1, origin at the top-left corner of the top-left pixel) to CRS
 coordinates; arrays are ``(rows, cols)`` float64 with NaN for voids.
 """
 from __future__ import annotations

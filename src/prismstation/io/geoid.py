@@ -1,4 +1,4 @@
-"""Geoid undulation ``Ngeoid`` (metres) so that ``h = H + Ngeoid`` (MODEL.md §1).
+"""Geoid undulation ``Ngeoid`` (metres) so that ``h = H + Ngeoid`` (docs/model.md §1).
 
 A constant, or a geoid grid (EGM96 ``egm96_15.gtx`` or any grid GDAL reads) sampled
 bilinearly at the points' geographic position (converted from the project CRS by pyproj).
@@ -119,7 +119,7 @@ def geoid_from_setting(setting: dict | None, base_dir=None, default: float = 0.0
 
 
 def to_ellipsoidal(H, geoid, E=None, N=None, crs=None) -> np.ndarray:
-    """Ellipsoidal heights ``h = H + Ngeoid`` (MODEL.md §1).
+    """Ellipsoidal heights ``h = H + Ngeoid`` (docs/model.md §1).
 
     Parameters
     ----------

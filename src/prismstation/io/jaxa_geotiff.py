@@ -50,7 +50,7 @@ def read_geotiff_view(tif_path, summary_path=None) -> dict:
     -------
     dict
         ``view`` (N/F/B or None), ``image`` (path), ``crs``, ``map_to_image`` [A1..A6] (inverse
-        geotransform, metres -> MODEL.md pixels), ``pixel_size_m``, ``width``, ``height``,
+        geotransform, metres -> docs/model.md pixels), ``pixel_size_m``, ``width``, ``height``,
         ``time`` (scene centre, aware datetime or None), ``scene_id``, ``product_id``,
         ``summary`` (dict), ``extra`` (paths of the ``RPC``/``HDR`` files found beside it).
     """

@@ -1,4 +1,4 @@
-"""Other tools' ground-control files: read, write, convert (FORMATS.md ``prismstation points``).
+"""Other tools' ground-control files: read, write, convert (docs/formats.md ``prismstation points``).
 
 Formats (detected from extension and content, see :func:`detect_format`):
 
@@ -19,13 +19,13 @@ Formats (detected from extension and content, see :func:`detect_format`):
           image ``name col row sigma_col sigma_row`` (commas and/or blanks); ``#`` comments; datum
           WGS84 (``# WKT:`` comment lines name another). Heights are above the datum (ellipsoidal).
           Vision Workbench puts pixel centres at integers, so ``x = col + 0.5``.
-``csv``   the ground-point CSV of FORMATS.md (``id,E,N,H[,kind,height,sigma_xy_m,sigma_h_m]``);
+``csv``   the ground-point CSV of docs/formats.md (``id,E,N,H[,kind,height,sigma_xy_m,sigma_h_m]``);
           it has no CRS and no image measurements.
 
 Conventions of the returned objects: ``E``, ``N`` in the units of ``PointFile.crs`` (x = easting
 or longitude, y = northing or latitude; pyproj ``always_xy``); ``H`` always in metres (a feet grid's
 heights are converted on reading and back on writing); measurements ``(x, y)`` in pixels with origin
-at the top-left corner of the top-left pixel (MODEL.md §1), ``view`` = the image name of the file.
+at the top-left corner of the top-left pixel (docs/model.md §1), ``view`` = the image name of the file.
 
 Geographic files whose column read as latitude holds values |v| > 90 while the other column has
 none are read with the two columns swapped, and ``PointFile.warnings`` says so

@@ -1,4 +1,4 @@
-"""Ground points and image measurements in the CSV forms of FORMATS.md.
+"""Ground points and image measurements in the CSV forms of docs/formats.md.
 
 Ground points: header row, columns by name in any order, ``id,E,N,H`` required, optional
 ``kind`` (GCP/ICP/TIE), ``height`` (orthometric/ellipsoidal), ``sigma_xy_m``, ``sigma_h_m``;
@@ -150,7 +150,7 @@ def _fmt(v) -> str:
 
 
 def ground_points_csv(points) -> str:
-    """The CSV text of ground points (FORMATS.md columns, then extra columns)."""
+    """The CSV text of ground points (docs/formats.md columns, then extra columns)."""
     extras = sorted({k for p in points for k in p.extra})
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")

@@ -1,4 +1,4 @@
-"""A JAXA PRISM 1B2 product folder -> the ``scene.json`` dict of FORMATS.md.
+"""A JAXA PRISM 1B2 product folder -> the ``scene.json`` dict of docs/formats.md.
 
 :func:`scene_dict_from_product` accepts a folder holding one view, a folder holding the three
 views (N, F, B) side by side, or a folder of three view folders; CEOS (``LED-``/``IMG-`` files,
@@ -111,7 +111,7 @@ def _fallback_track(view: dict) -> list:
 
 
 def scene_dict_from_views(views: dict, product: Path, kind: str) -> dict:
-    """The FORMATS.md scene dict from view records (see module docstring for the sources)."""
+    """The docs/formats.md scene dict from view records (see module docstring for the sources)."""
     if len(views) == 2:
         raise InputError(f"a triplet needs N, F and B; the product has only {', '.join(views)}",
                          product)
@@ -172,7 +172,7 @@ def scene_dict_from_views(views: dict, product: Path, kind: str) -> dict:
 
 
 def scene_dict_from_product(path, image_dir=None) -> dict:
-    """The ``scene.json`` dict (FORMATS.md) of a JAXA PRISM 1B2 product.
+    """The ``scene.json`` dict (docs/formats.md) of a JAXA PRISM 1B2 product.
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""``*.prismproj`` files (FORMATS.md): versioned JSON, saved atomically with a backup, and the
+"""``*.prismproj`` files (docs/formats.md): versioned JSON, saved atomically with a backup, and the
 geoid object of a project's geoid setting (:func:`project_geoid`).
 
 Top-level keys beside the points: ``dem_control`` (:attr:`Project.dem_control`),

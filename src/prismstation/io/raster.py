@@ -6,7 +6,7 @@ overview), keeps an LRU cache of display tiles bounded in megabytes, and gives d
 from a coarse overview read. It is safe to call from several threads: each thread gets its own
 rasterio handle (rasterio datasets must not be shared between threads).
 
-Coordinates follow MODEL.md §1: image ``x`` = column, ``y`` = row, in full-resolution pixels, origin
+Coordinates follow docs/model.md §1: image ``x`` = column, ``y`` = row, in full-resolution pixels, origin
 at the top-left corner of the top-left pixel. Arrays are row-major ``(rows, cols)``.
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Reading control points for a single image (MODEL.md §4); the rectification itself is
+"""Reading control points for a single image (docs/model.md §4); the rectification itself is
 :func:`prismstation.ops.rectify.rectify_raster`.
 
 Image coordinates ``(x, y)``: column, row in pixels, origin at the top-left corner of the

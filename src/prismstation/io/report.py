@@ -1,9 +1,9 @@
-"""The residual report of a fitted project: one dict (FORMATS.md ``fit --json``), written as JSON
+"""The residual report of a fitted project: one dict (docs/formats.md ``fit --json``), written as JSON
 or CSV here and as HTML or PDF by :mod:`prismstation.gui.report_writer`, so that every format —
 from the window or from ``prismstation report`` — holds the same content.
 
 The dict: ``header`` (who, when, with what, on which scene: :func:`report_header`), the model
-parameters with their σ, the statistics of MODEL.md §2 and one entry per point with its known
+parameters with their σ, the statistics of docs/model.md §2 and one entry per point with its known
 coordinates (``E_known``, ``N_known`` m in the project CRS, ``h_known`` ellipsoidal m — what the
 residuals are taken against — and ``H_given`` with its ``height_kind`` as the point file gave
 it), measured and predicted image positions (pixels, x column, y row), residuals (measured −
@@ -112,7 +112,7 @@ def _lonlat(crs: str, en: np.ndarray) -> np.ndarray:
 
 def report_dict(sol: Solution, *, project_path=None, geoid: str | None = None,
                 header: dict | None = None, known: dict | None = None) -> dict:
-    """The report of ``sol``: header, parameters with σ, statistics (MODEL.md §2), points.
+    """The report of ``sol``: header, parameters with σ, statistics (docs/model.md §2), points.
 
     ``header``: from :func:`report_header` (default: one made from ``sol.scene`` now, by the
     login name). ``known``: point id → ``{"E", "N", "h", "H", "height_kind"}`` (metres; ``h``

@@ -1,4 +1,4 @@
-"""``scene.json`` (FORMATS.md) → :class:`prismstation.core.scene.Scene`.
+"""``scene.json`` (docs/formats.md) → :class:`prismstation.core.scene.Scene`.
 
 Each view's ``map_to_image`` comes from its ``map_to_image`` key when present, else from the
 inverse of the image's geotransform (rotated ones included), read through rasterio.

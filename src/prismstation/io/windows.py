@@ -1,7 +1,7 @@
 """Window reads of a scene's images: one rasterio handle per view, opened for one thread.
 
 Image pixels ``(x, y)`` = (column, row), origin at the top-left corner of the top-left pixel
-(MODEL.md §1). A window is returned with the image pixel ``(col0, row0)`` of its own top-left
+(docs/model.md §1). A window is returned with the image pixel ``(col0, row0)`` of its own top-left
 corner; :func:`shift` and :func:`scaling` build the affine maps between window, decimated and
 image pixels.
 """

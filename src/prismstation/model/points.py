@@ -1,8 +1,8 @@
-"""Ground points and image measurements as the project holds them (FORMATS.md).
+"""Ground points and image measurements as the project holds them (docs/formats.md).
 
 Coordinates: ``E``, ``N`` in metres of the project CRS; ``H`` in metres, of the kind named by
 ``height_kind`` (``"ellipsoidal"`` or ``"orthometric"``). Image coordinates ``x`` (column), ``y``
-(row) in pixels, origin at the top-left corner of the top-left pixel (MODEL.md §1).
+(row) in pixels, origin at the top-left corner of the top-left pixel (docs/model.md §1).
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Step 1 of the DEM orientation (issue 11): where F and B really are relative to N, from files.
+"""Step 1 of the DEM orientation: where F and B really are relative to N, from files.
 
 :func:`coarse_view_offsets` reads the reference DEM (ellipsoidal through ``geoid``) over N's
 footprint, cuts N into a 3 × 3 lattice of windows, and for each window and view calls
@@ -9,7 +9,7 @@ and ``gradients_px`` how they vary over N (attitude drift): the DEM orientation
 (:mod:`prismstation.ops.orient_dem`) removes them before its per-patch matching.
 
 A-priori: ``sigma_apriori_m`` (each view's geolocation σ per component, metres; default 50 m
-after seed 003's ~50 m shifts), ``k`` = 3 (search radius ``k·σ·√2 / GSD``),
+after the ~50 m shifts Gonçalves reports with SRTM as control), ``k`` = 3 (search radius ``k·σ·√2 / GSD``),
 ``sigma_height_m`` (reference heights, see ``view_offset``).
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The DSM of an oriented triplet: coarse to fine, tiled, three pairs fused (issue 12).
+"""The DSM of an oriented triplet: coarse to fine, tiled, three pairs fused.
 
 Levels: matching frames of ``g = g_fine·2^L`` metres per pixel (``g_fine = max(GSD,
 posting/2)``); the coarsest level is the first whose height search, the stated a-priori height

@@ -1,4 +1,4 @@
-"""Orientation of a triplet from a reference DEM, no GCP (seed 003, MODEL.md §3, issue 11).
+"""Orientation of a triplet from a reference DEM, no GCP (Gonçalves, SRTM as ground control; docs/model.md §3).
 
 Every search takes its range from a stated a-priori uncertainty (docs/orientation_engine.md):
 
@@ -18,7 +18,7 @@ Every search takes its range from a stated a-priori uncertainty (docs/orientatio
 6. The shifts of the patches kept become the model (:mod:`prismstation.core.dem_orient`).
 
 A-priori settings: ``sigma_apriori_m`` (each view's ancillary geolocation σ per component; 50 m
-by default, after seed 003's shifts of about 50 m, seed 004 reports ±10 m after calibration),
+by default, after the shifts of about 50 m Gonçalves reports with SRTM as control; Tadono et al. (2008) report ±10 m after calibration),
 ``sigma_height_m`` (the reference DEM's height σ, 10 m: SRTM's stated 16 m absolute at 90 %),
 ``k`` = 3 σ per search. ``progress`` per :mod:`prismstation.ops.progress`; a cancel raises
 :class:`~prismstation.errors.Cancelled`.

@@ -7,7 +7,7 @@ A prediction takes the best ground position available for the point:
     given: exact);
 ``intersection``
     measured in two or more views: the least-squares intersection of those image rays through
-    the fitted model (MODEL.md §2), with the reference DEM's height (or the mean height) as
+    the fitted model (docs/model.md §2), with the reference DEM's height (or the mean height) as
     one more observation with its σ — where the pixels are coarse and the DEM good, the DEM
     may know the height better than the rays;
 ``reference``

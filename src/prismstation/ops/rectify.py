@@ -1,5 +1,5 @@
 """Rectification of a single image through a fitted image→map transform into a GeoTIFF
-(MODEL.md §4), by inverse mapping block by block.
+(docs/model.md §4), by inverse mapping block by block.
 
 Image coordinates ``(x, y)``: column, row in pixels, origin at the top-left corner of the
 top-left pixel. Map coordinates ``(E, N)`` in metres of the points' CRS.

@@ -1,4 +1,4 @@
-"""DSM validation against a reference DSM of another resolution or CRS (MODEL.md §5, seed 004).
+"""DSM validation against a reference DSM of another resolution or CRS (docs/model.md §5; Tadono et al. 2008).
 
 The reference is resampled (``rasterio.warp``, bilinear by default) onto the grid of the DSM;
 heights are made one kind (orthometric → ellipsoidal through a geoid object with

@@ -1,4 +1,4 @@
-"""``simulate()``: a synthetic PRISM 1B2 triplet with its truth, in the FORMATS.md formats."""
+"""``simulate()``: a synthetic PRISM 1B2 triplet with its truth, in the docs/formats.md formats."""
 from __future__ import annotations
 
 from dataclasses import asdict

@@ -1,6 +1,6 @@
 """The simulated acquisition: orbit, the three views, their attitude errors and product grids.
 
-Numbers follow seed 000 (Gonçalves): PRISM at Hs = 691 650 m, 2.5 m pixels, along-track
+Numbers follow Gonçalves (2008): PRISM at Hs = 691 650 m, 2.5 m pixels, along-track
 angles 26.4° (F) and 26.8° (B), a scene in Portugal (UTM 29N around E 540 km, N 4560 km).
 
 Two grids per view. The *render grid* (``View.map_to_image``) is the product's true
@@ -8,8 +8,8 @@ pixel ↔ nominal-ground relation: the image is rendered through it and the trut
 coordinates follow from it. The *published grid* (``Scenario.published``) is what the product's
 ancillary data claim (the GeoTIFF geotransform or scene.json ``map_to_image``): it is off by the
 view's geolocation error. The errors are drawn per view, independently (:func:`draw_geolocation_errors`):
-along- and across-track components each uniform in ``[−max, +max]`` metres (seed 003 reports
-shifts of about 50 m; seed 004 ±10 m after calibration, tens of metres before). They are
+along- and across-track components each uniform in ``[−max, +max]`` metres (Gonçalves reports
+shifts of about 50 m with SRTM as control; Tadono et al. 2008 ±10 m after calibration, tens of metres before). They are
 exact at the scene centre at h = 0; elsewhere the attitude drift and yaw of each view (drawn
 independently, :data:`DRIFT_SIGMA_RAD_S`) make them vary by metres across the scene.
 """

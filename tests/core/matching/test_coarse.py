@@ -1,4 +1,4 @@
-"""Coarse to fine over the whole a-priori range (issue 11 item 2): image offsets on real
+"""Coarse to fine over the whole a-priori range: image offsets on real
 Pléiades texture and on the simulator's texture, 0–120 m per view; heights against heights
 against the real SRTM tile; failures are verdicts, never a confident wrong offset."""
 import numpy as np

@@ -80,7 +80,7 @@ def test_flat_images_give_nan_and_heights_follow_the_line():
     assert h[0] == 100.0 and h[1] == pytest.approx(124.96) and np.isnan(h[2])
 
 
-# ---------------------------------------------------------------- the DSM engine (issue 12)
+# ---------------------------------------------------------------- the DSM engine
 from prismstation.core import sgm  # noqa: E402
 from prismstation.errors import Cancelled  # noqa: E402
 

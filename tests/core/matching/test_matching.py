@@ -16,7 +16,7 @@ def texture(shared_data):
 
 
 def warp_case(img, p, A, t, noise, rng, half=60):
-    """Search crop made from ``img`` by q = A (p' - p) + p + t (continuous coords, MODEL.md §1).
+    """Search crop made from ``img`` by q = A (p' - p) + p + t (continuous coords, docs/model.md §1).
 
     Returns the reference crop, the point in it, the search crop and the true position in it.
     """

@@ -1,4 +1,4 @@
-"""The engine modules of issue 5 import neither rasterio, pyproj nor Qt (ARCHITECTURE.md)."""
+"""The rectification engine modules import neither rasterio, pyproj nor Qt (docs/architecture.md)."""
 import subprocess
 import sys
 

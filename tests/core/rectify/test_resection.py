@@ -1,4 +1,4 @@
-"""Space resection on simulated frame cameras, and the B/H ratio of seed 002 (MODEL.md §6)."""
+"""Space resection on simulated frame cameras, and the B/H ratio of Subaryono et al. (docs/model.md §6)."""
 import json
 import math
 
@@ -73,7 +73,7 @@ def test_angles_of_inverts_rotation_matrix():
 
 @pytest.mark.parametrize("tilt_deg,kappa_deg", [(18.8, 0.0), (30.0, 90.0), (30.0, -150.0)])
 def test_resection_of_tilted_satellite_views(tilt_deg, kappa_deg):
-    """Off-nadir views (seed 002's right image pointed 18.8°) converge from the homography start."""
+    """Off-nadir views (Subaryono et al.'s right image pointed 18.8°) converge from the homography start."""
     rng = np.random.default_rng(5)
     cam = FrameCamera(1.082, 7e-6, 5000.0, 5000.0)
     eo = np.array([202559.7, 3894686.0, 580710.5, math.radians(tilt_deg), math.radians(-2.0),
@@ -102,7 +102,7 @@ def test_resection_sigma_is_calibrated_over_trials():
 
 
 def test_resection_of_a_narrow_satellite_view_converges():
-    """Seed 002's setting: f = 1082 mm, ~620 km altitude, tilted view, 10 iterations."""
+    """Subaryono et al.'s setting: f = 1082 mm, ~620 km altitude, tilted view, 10 iterations."""
     rng = np.random.default_rng(2)
     cam = FrameCamera(1.082, 7e-6, 5000.0, 5000.0)
     eo = np.array([366305.4, 3766906.0, 619052.4, math.radians(1.0), math.radians(-2.2),

@@ -41,7 +41,7 @@ def test_semicolon_file_with_own_names_maps_and_imports(dialog, tmp_path):
     dialog.refresh()
     dialog.accept()
     points, meas = dialog.result()
-    # reference: the io reader on the same data in FORMATS.md's own CSV form
+    # reference: the io reader on the same data in docs/formats.md's own CSV form
     ref = tmp_path / "ref.csv"
     ref.write_text("id,E,N,H,kind\n" + "".join(f"{i},{e},{n},{h},{k}\n" for i, e, n, h, k in ROWS))
     assert points == read_ground_points(ref, height="orthometric") and meas == []

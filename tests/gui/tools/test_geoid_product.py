@@ -1,4 +1,4 @@
-"""Tools ▸ Geoid… and File ▸ New project from product… in the real window (issue 6 items 1, 4)."""
+"""Tools ▸ Geoid… and File ▸ New project from product… in the real window."""
 from __future__ import annotations
 
 import gc

@@ -199,7 +199,7 @@ def test_resection_dialog_converges_on_a_frame_camera(frame_window, qtbot):
     assert len(curves) == 3 and len(curves[0].xData) == len(res.corrections)
     assert "approximation for a pushbroom" in " ".join(
         w.text() for w in d.findChildren(type(d.bh_label)))
-    # B/H from typed positions (MODEL.md §6 arithmetic, by hand)
+    # B/H from typed positions (docs/model.md §6 arithmetic, by hand)
     for v, s in zip((0, 0, 691650, 100000, 0, 691650), [s for row in d.pos for s in row]):
         s.setValue(v)
     bh = d.compute_bh()

@@ -48,7 +48,7 @@ def test_odm_gcp_list_with_comments(shared_data):
     assert (hv04.E, hv04.N, hv04.H) == (274920.710, 4603258.802, 400.0)
     m = [m for m in pf.measurements if m.id == "HV04" and m.view == "DJI_0063.JPG"]
     # file row "274920.710 4603258.802 400 2202.425 1319.122 DJI_0063.JPG HV04":
-    # OpenSfM puts pixel centres at integers, MODEL.md at +0.5
+    # OpenSfM puts pixel centres at integers, docs/model.md at +0.5
     assert len(m) == 1 and m[0].x == pytest.approx(2202.925) and m[0].y == pytest.approx(1319.622)
     assert not any(m.view == "1JI_0076.JPG" and m.y < 0 for m in pf.measurements)
 

@@ -36,7 +36,7 @@ def test_map_to_image_by_hand(triplet):
         a, b, c, d, e, f = t.f4
         # a few ground points around the scene, by hand from the F4 relation: map km from the
         # central meridian (500 km false easting) and the equator, CEOS address 1 at the first
-        # pixel's centre -> MODEL.md pixels = address - 0.5
+        # pixel's centre -> docs/model.md pixels = address - 0.5
         for E, N in [(585979.86, 4372741.79), (586012.0, 4372700.5), (500000.0, 0.0)]:
             xk, yk = (E - 500000.0) / 1000.0, N / 1000.0
             x_hand = a * xk + b * yk + e - 0.5

@@ -1,4 +1,4 @@
-"""JPEG block-noise reduction for display (seed 004 §3), switchable per view.
+"""JPEG block-noise reduction for display (Tadono et al. 2008, §3), switchable per view.
 
 Tools ▸ JPEG block-noise reduction has one checkable action per view; a checked view shows its
 overview and tiles through :func:`prismstation.core.deblock.deblock` (8 × 8 blocks, applied to

@@ -1,4 +1,4 @@
-"""Tools ▸ Orient from reference DEM… : orientation with no GCP (seed 003, issue 11).
+"""Tools ▸ Orient from reference DEM…: orientation with no GCP (Gonçalves, SRTM as ground control).
 
 The dialog asks for the reference (SRTM ``.hgt`` or GeoTIFF, orthometric), the patch size and
 the a-priori geolocation σ per view, which sets every search range of the engine
@@ -78,7 +78,7 @@ class OrientDialog(QDialog):
         self.sigma = QDoubleSpinBox(decimals=0, minimum=1.0, maximum=500.0, singleStep=5.0, suffix=" m")
         self.sigma.setValue(sigma_m)
         self.sigma.setToolTip("σ of each view's ancillary geolocation, per component: every search "
-                              "covers 3 σ. 50 m: the shifts seed 003 reports for uncalibrated "
+                              "covers 3 σ. 50 m: the shifts Gonçalves reports for uncalibrated "
                               "products; about 10 m for calibrated ones.")
         form = QFormLayout(self)
         form.addRow(QLabel("Orientation with no GCP: the image DSM is matched to the reference\n"
@@ -169,7 +169,7 @@ def verdict_text(record) -> str:
     """One line on whether the stored orientation's patch field can be trusted, and its σ."""
     v = (record or {}).get("verdict")
     if not v:
-        return "No consistency verdict (an orientation made before issue 11's engine): not tested."
+        return "No consistency verdict (an orientation made by an earlier version, before the consistency test): not tested."
     sg = {k: _num(x) for k, x in ((record or {}).get("sigma_m") or {}).items()}
     sigma = (f" Orientation σ (in the reference DEM's frame): planimetric "
              f"{np.hypot(sg['E'], sg['N']):.1f} m, height {sg['h']:.1f} m." if {"E", "N", "h"} <= set(sg) else "")

@@ -1,4 +1,4 @@
-"""Tools ▸ Export DSM… : the triplet's DSM as a GeoTIFF (issue 12).
+"""Tools ▸ Export DSM…: the triplet's DSM as a GeoTIFF.
 
 The whole N image or the area visible in the N view, at a chosen posting, with ellipsoidal or
 orthometric heights (through the project's geoid), computed in a worker by the same engine as

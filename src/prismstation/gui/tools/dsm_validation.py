@@ -1,7 +1,7 @@
-"""Accuracy assessment in the window (seed 004).
+"""Accuracy assessment in the window (Tadono et al. 2008).
 
 - A "Residual SD" dock: per view, the standard deviation of the image residuals (pixels) of
-  the GCPs and of the ICPs of the current Solution (seed 004's Table 1), refreshed after every fit.
+  the GCPs and of the ICPs of the current Solution (Tadono et al. 2008, Table 1), refreshed after every fit.
 - Tools ▸ Validate DSM…: a DSM against a reference DSM (any resolution / CRS, heights of one
   kind through a geoid, optional class mask) with
   :func:`prismstation.ops.validate.validate_dsm_files` in a worker; a "DSM validation" dock
@@ -67,7 +67,7 @@ class ResidualSDPanel(QWidget):
         super().__init__(window.widget)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(4, 4, 4, 4)
-        lay.addWidget(QLabel("<b>SD of image residuals (px) — seed 004 Table 1</b>"))
+        lay.addWidget(QLabel("<b>SD of image residuals (px) — as Tadono et al. 2008, Table 1</b>"))
         self.table = _table(self.HEAD)
         lay.addWidget(self.table)
         self.solution = None

@@ -1,7 +1,7 @@
-"""Single-image rectification in the window (MODEL.md §4, seed 002).
+"""Single-image rectification in the window (docs/model.md §4; Subaryono et al., AVNIR).
 
 A "Transforms" dock shows, for the project's GCPs/ICPs in every view, the side-by-side RMSE of
-the affine, projective and polynomial (1–3) image→map transforms (seed 002's Table 4.1: one
+the affine, projective and polynomial (1–3) image→map transforms (Subaryono et al.'s Table 4.1: one
 row per transform, GCP and ICP RMSE per image) and the per-point residuals of the chosen
 transform; it refreshes after every edit. Tools ▸ Rectify… writes a GeoTIFF through the chosen
 transform with :func:`prismstation.ops.rectify.rectify_raster` in a worker thread.
@@ -205,7 +205,7 @@ class RectifyTool:
         window.tools_menu.addAction(self.dock.toggleViewAction())
 
     def _show_for_single_view(self, *args) -> None:
-        """A single-image project (seed 002) is about transforms: show their table."""
+        """A single-image project (the AVNIR rectification of Subaryono et al.) is about transforms: show their table."""
         p = self.window.project
         if p is not None and len(p.scene.views) == 1:
             self.dock.show()

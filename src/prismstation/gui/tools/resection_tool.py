@@ -1,6 +1,6 @@
 """Tools ▸ Space resection…: a frame-camera resection of one view on its GCPs, with the
-Gauss–Newton history plotted (seed 002's Figs 4.1–4.2), and the B/H ratio of two resections
-or of two typed sensor positions (MODEL.md §6).
+Gauss–Newton history plotted (Subaryono et al., Figs 4.1–4.2), and the B/H ratio of two resections
+or of two typed sensor positions (docs/model.md §6).
 
 Ground coordinates are the points' ``E, N, H`` (metres, project CRS); image coordinates pixels
 (column, row, origin top-left corner). A pushbroom image only approximates a frame camera: the

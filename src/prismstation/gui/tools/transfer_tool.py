@@ -1,4 +1,4 @@
-"""Point transfer and automatic tie points (issue 4 items 1–2).
+"""Point transfer and automatic tie points.
 
 *Automatic transfer* (Tools, checkable, on by default): when a point is placed in one view and is
 measured in no other, it is searched in the other views in a worker
