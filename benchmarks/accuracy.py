@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from prismstation.cli.new import create
+from prismstation.ops.project import create
 from prismstation.io.report import report_dict
 from prismstation.ops.fit import solve_project
 from prismstation.sim import simulate

@@ -36,7 +36,7 @@ import cv2
 import numpy as np
 import rasterio
 
-from prismstation.cli.new import create
+from prismstation.ops.project import create
 from prismstation.io.dem import read_dem
 from prismstation.io.project import load_project
 from prismstation.ops.fit import solve_project

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from prismstation.cli.new import create
+from prismstation.ops.project import create
 from prismstation.core.solve import solve
 from prismstation.ops.orient_dem import orient_from_dem
 from prismstation.sim import simulate

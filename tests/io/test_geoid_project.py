@@ -69,7 +69,7 @@ def test_measurement_view_checked(tmp_path):
 
 
 def _project(tmp_path):
-    from prismstation.cli.new import create
+    from prismstation.ops.project import create
     sc = make_scene()
     write_triplet(tmp_path, sc, make_points(sc, noise_px=0.3), geoid=55.0, ortho=True)
     return create(tmp_path / "p.prismproj", tmp_path / "scene.json", tmp_path / "points.csv",

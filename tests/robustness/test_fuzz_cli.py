@@ -16,7 +16,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from prismstation.cli import main
-from prismstation.cli.new import create
+from prismstation.ops.project import create
 from prismstation.errors import PrismError
 from prismstation.io.project import load_project, project_to_dict
 from tests.robustness import fuzzlib as fz

@@ -14,7 +14,7 @@ import pytest
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-from prismstation.cli.new import create
+from prismstation.ops.project import create
 from prismstation.errors import InputError
 from prismstation.io import pointfiles as pfm
 from prismstation.io.points import read_ground_points, read_measurements

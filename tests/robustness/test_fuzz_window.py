@@ -7,7 +7,7 @@ import json
 import pytest
 from hypothesis import given
 
-from prismstation.cli.new import create
+from prismstation.ops.project import create
 from prismstation.io.project import project_to_dict
 from tests.robustness import fuzzlib as fz
 

@@ -23,7 +23,7 @@ def default_dir() -> Path:
 
 def ensure_demo(directory=None, *, rebuild: bool = False, progress=None) -> Path:
     """Make the demo project if absent; returns the project path."""
-    from prismstation.cli.new import create
+    from prismstation.ops.project import create
     from prismstation.sim import simulate
     from prismstation.sim.reference import make_reference_dem
 

@@ -1,14 +1,12 @@
-"""``prismstation new PROJECT --scene scene.json [--points P.csv] [--measurements M.csv]``."""
+"""``prismstation new PROJECT --scene scene.json [--points P.csv] [--measurements M.csv]``
+(:func:`prismstation.ops.project.create`)."""
 from __future__ import annotations
 
 from pathlib import Path
 
-from prismstation.errors import InputError
-from prismstation.io.points import read_ground_points, read_measurements
-from prismstation.io.project import SUFFIX, save_project
-from prismstation.io.scene import read_scene
+from prismstation.io.project import SUFFIX
 from prismstation.model.points import HEIGHT_KINDS
-from prismstation.model.project import Project
+from prismstation.ops.project import create
 
 
 def register(sub) -> None:
@@ -24,34 +22,6 @@ def register(sub) -> None:
     p.add_argument("--geoid", help="geoid: a number (constant undulation, m), a grid file, or 'auto'")
     p.add_argument("--force", action="store_true", help="overwrite an existing project")
     p.set_defaults(func=run)
-
-
-def geoid_setting(value: str | None, scene) -> dict:
-    if value is None:
-        return {"kind": "constant", "value": scene.geoid_undulation_m or 0.0}
-    if value == "auto":
-        return {"kind": "auto", "value": scene.geoid_undulation_m or 0.0}
-    try:
-        return {"kind": "constant", "value": float(value)}
-    except ValueError:
-        if not Path(value).is_file():
-            raise InputError("geoid grid not found", value) from None
-        return {"kind": "grid", "path": str(Path(value).resolve())}
-
-
-def create(project_path, scene_path, points=None, measurements=None, *, crs=None, height=None,
-           geoid=None, force=False) -> Project:
-    """Build and save a project (the ``new`` command as a function)."""
-    project_path = Path(project_path)
-    if project_path.exists() and not force:
-        raise InputError("already exists (use --force to overwrite)", project_path)
-    scene = read_scene(scene_path)
-    project = Project(scene, str(Path(scene_path).resolve()), geoid=geoid_setting(geoid, scene))
-    pts = read_ground_points(points, crs=crs, to_crs=scene.crs, height=height) if points else []
-    ms = read_measurements(measurements, views=list(scene.views)) if measurements else []
-    project.load(pts, ms)
-    save_project(project, project_path)
-    return project
 
 
 def run(args) -> int:

@@ -121,7 +121,7 @@ def test_sgbm_and_refinement_recover_a_known_disparity(texture):
 @pytest.fixture(scope="module")
 def triplet(tmp_path_factory):
     """A small simulated triplet (700 px, 1.75 km), its project, fitted model and truth."""
-    from prismstation.cli.new import create
+    from prismstation.ops.project import create
     from prismstation.io.project import load_project
     from prismstation.ops.fit import solve_project
     from prismstation.sim import simulate

@@ -12,7 +12,7 @@ from tests.qt_windows import close_windows, open_window
 
 @pytest.fixture(scope="session")
 def sim_master(tmp_path_factory):
-    from prismstation.cli.new import create
+    from prismstation.ops.project import create
     from prismstation.sim import simulate
     from prismstation.sim.reference import make_reference_dem
     d = tmp_path_factory.mktemp("sim")

@@ -1,0 +1,47 @@
+"""Project creation: a scene, its ground points and image measurements → a saved project.
+
+The ``prismstation new`` command and the demo call :func:`create`; so do the benchmarks and
+the tests that need a project on disk.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from prismstation.errors import InputError
+from prismstation.io.points import read_ground_points, read_measurements
+from prismstation.io.project import save_project
+from prismstation.io.scene import read_scene
+from prismstation.model.project import Project
+
+
+def geoid_setting(value: str | None, scene) -> dict:
+    """The project's geoid setting from the user's ``value``: None (the scene's constant
+    undulation, or 0), ``"auto"``, a number of metres, or the path of a geoid grid file."""
+    if value is None:
+        return {"kind": "constant", "value": scene.geoid_undulation_m or 0.0}
+    if value == "auto":
+        return {"kind": "auto", "value": scene.geoid_undulation_m or 0.0}
+    try:
+        return {"kind": "constant", "value": float(value)}
+    except ValueError:
+        if not Path(value).is_file():
+            raise InputError("geoid grid not found", value) from None
+        return {"kind": "grid", "path": str(Path(value).resolve())}
+
+
+def create(project_path, scene_path, points=None, measurements=None, *, crs=None, height=None,
+           geoid=None, force=False) -> Project:
+    """Build the project of ``scene_path`` (scene.json) with the ground points CSV ``points``
+    (in ``crs``, default the scene's; ``height`` the kind of heights without a column) and the
+    measurements CSV ``measurements``, save it at ``project_path`` and return it. An existing
+    file is an :class:`~prismstation.errors.InputError` unless ``force``."""
+    project_path = Path(project_path)
+    if project_path.exists() and not force:
+        raise InputError("already exists (use --force to overwrite)", project_path)
+    scene = read_scene(scene_path)
+    project = Project(scene, str(Path(scene_path).resolve()), geoid=geoid_setting(geoid, scene))
+    pts = read_ground_points(points, crs=crs, to_crs=scene.crs, height=height) if points else []
+    ms = read_measurements(measurements, views=list(scene.views)) if measurements else []
+    project.load(pts, ms)
+    save_project(project, project_path)
+    return project
