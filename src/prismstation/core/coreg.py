@@ -80,6 +80,11 @@ class CoregResult:
     converged: bool
     reason: str = ""
 
+    def __bool__(self) -> bool:
+        """False when no shift was found (``reason`` says why): the failure convention of
+        :mod:`prismstation.core.estimate`."""
+        return bool(self.converged)
+
 
 def nmad(values: np.ndarray) -> float:
     """Normalised median absolute deviation (1.4826·median|v − median v|) of finite values."""
