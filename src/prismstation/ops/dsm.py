@@ -22,11 +22,11 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
-from scipy import ndimage
 
-from prismstation.core.solve import Solution
+from prismstation.core.dsm_grid import (BRIDGE_STRIP, bridge, cell_centres, drop_unconfirmed,
+                                        fill_voids, grid_over, regrid, seen_by_all)
 from prismstation.core.dsm_heights import HEIGHT_MODELS, choose_heights, model_height_correction
-from prismstation.core.stereo_tile import Frame, relief_rate, view_affine
+from prismstation.core.solve import Solution
 from prismstation.errors import InputError
 from prismstation.ops.dsm_tiles import TileSpec, return_freed_memory, run_tiles
 from prismstation.ops.progress import checkpoint, scaled
@@ -73,109 +73,6 @@ class Dsm:
         return float(((self.mask == MASK_MATCHED) & self.seen).sum() / n) if n else 0.0
 
 
-def _grid_over(en: np.ndarray, posting: float) -> tuple[tuple, tuple]:
-    lo, hi = en.min(axis=0), en.max(axis=0)
-    e0 = math.floor(lo[0] / posting) * posting
-    n0 = math.ceil(hi[1] / posting) * posting
-    cols = int(math.ceil((hi[0] - e0) / posting))
-    rows = int(math.ceil((n0 - lo[1]) / posting))
-    return (posting, 0.0, e0, 0.0, -posting, n0), (rows, cols)
-
-
-def _cell_centres(transform, shape) -> np.ndarray:
-    a, _, c, _, e, f = transform
-    rows, cols = shape
-    x = c + a * (np.arange(cols) + 0.5)
-    y = f + e * (np.arange(rows) + 0.5)
-    return np.stack(np.meshgrid(x, y), axis=-1)
-
-
-def seen_by_all(sol: Solution, transform, shape, heights, window, strip: int = 512) -> np.ndarray:
-    """Cells whose centre, at ``heights``, falls inside the N ``window`` and the F and B images
-    (computed in strips of rows: memory stays small on 14,000 px scenes)."""
-    a, _, c, _, e, f = transform
-    rows, cols = shape
-    ok = np.ones(shape, bool)
-    i = np.arange(cols, dtype=np.float32)[None, :]
-    for r0 in range(0, rows, strip):
-        n = min(strip, rows - r0)
-        j = np.arange(n, dtype=np.float32)[:, None]
-        grid = Frame((c, f + e * r0), (1.0, 0.0), (0.0, 1.0 if e > 0 else -1.0), a, (n, cols))
-        h = heights[r0:r0 + n]
-        for v in ("N", "F", "B"):
-            G = view_affine(sol, v)
-            rr = relief_rate(sol, v, grid) @ G[:, :2].T.astype(np.float32)
-            # image pixel = G·(cell centre + h·r): affine in the cell indices, float32 from the
-            # strip's first cell (float64) on
-            base = G[:, :2] @ np.array([c + 0.5 * a, f + e * (r0 + 0.5)]) + G[:, 2]
-            x = np.float32(base[0]) + np.float32(G[0, 0] * a) * i + np.float32(G[0, 1] * e) * j + h * rr[..., 0]
-            y = np.float32(base[1]) + np.float32(G[1, 0] * a) * i + np.float32(G[1, 1] * e) * j + h * rr[..., 1]
-            if v == "N":
-                c0, q0, w, hh = window
-            else:
-                (hh, w), c0, q0 = sol.scene.views[v].shape, 0, 0
-            ok[r0:r0 + n] &= (x >= c0) & (x < c0 + w) & (y >= q0) & (y < q0 + hh)
-    return ok
-
-
-def regrid(grid: np.ndarray, grid_t, transform, shape) -> np.ndarray:
-    """A north-up grid resampled (bilinear, edges extended) onto another north-up grid."""
-    a, _, c, _, e, f = grid_t
-    A, _, C, _, E, F = transform
-    # destination index → source index
-    m = np.array([[A / a, 0.0, (C + 0.5 * A - c) / a - 0.5], [0.0, E / e, (F + 0.5 * E - f) / e - 0.5]])
-    return cv2.warpAffine(np.asarray(grid, np.float32), m, (shape[1], shape[0]),
-                          flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
-
-
-#: rows per strip and rows of halo above and below it when a large grid is bridged in strips:
-#: a void is bridged from cells at most ``BRIDGE_HALO`` rows away across the strip boundary
-BRIDGE_STRIP, BRIDGE_HALO = 1024, 512
-
-
-def bridge(heights: np.ndarray, smooth_px: int = 5, valid: np.ndarray | None = None) -> np.ndarray:
-    """Voids bridged from the nearest valid cell and median-smoothed: a prior, not a product.
-    ``valid``: the cells to bridge from (default: the finite ones; a subset of them).
-
-    Grids taller than one strip are done in strips of :data:`BRIDGE_STRIP` rows with
-    :data:`BRIDGE_HALO` rows either side (the nearest-cell search needs 8 bytes per cell:
-    ~0.6 GB at once on a 14,000 px scene at 5 m); a strip with no valid cell within its halo
-    takes the median of the whole grid."""
-    ok = np.isfinite(heights) if valid is None else valid
-    if not ok.any():
-        raise InputError("dense matching found no height anywhere in the window")
-    rows = heights.shape[0]
-    if rows <= BRIDGE_STRIP + 2 * BRIDGE_HALO:
-        return _bridge(heights, ok, smooth_px)
-    out = np.empty(heights.shape, np.float32)
-    median = None
-    for r0 in range(0, rows, BRIDGE_STRIP):
-        a, b = max(r0 - BRIDGE_HALO, 0), min(r0 + BRIDGE_STRIP + BRIDGE_HALO, rows)
-        r1 = min(r0 + BRIDGE_STRIP, rows)
-        if ok[a:b].any():
-            out[r0:r1] = _bridge(heights[a:b], ok[a:b], smooth_px)[r0 - a:r1 - a]
-        else:
-            median = float(np.median(heights[ok])) if median is None else median
-            out[r0:r1] = median
-    return out
-
-
-def _bridge(heights, ok, smooth_px):
-    idx = ndimage.distance_transform_edt(~ok, return_distances=False, return_indices=True)
-    return cv2.medianBlur(np.asarray(heights[tuple(idx)], np.float32), smooth_px)
-
-
-def fill_voids(heights: np.ndarray, iterations: int = 200) -> np.ndarray:
-    """Voids filled by relaxation (repeated 3×3 means of the voids, valid cells fixed), started
-    from the nearest valid cell: a smooth membrane across holes. Returns a new array."""
-    ok = np.isfinite(heights)
-    out = bridge(heights, 3) if (~ok).any() else heights.copy()
-    out[ok] = heights[ok]
-    for _ in range(iterations):
-        out[~ok] = cv2.blur(out, (3, 3))[~ok]
-    return out
-
-
 def _track_tiles(sol, transform, shape, wanted, size_m: float, overlap_m: float):
     """Rectangles aligned with the flight direction covering the wanted cells: ``(rect, window)``
     with ``rect`` = (origin, t, u, x0, x1, y0, y1) in metres along/across track, overlap
@@ -183,7 +80,7 @@ def _track_tiles(sol, transform, shape, wanted, size_m: float, overlap_m: float)
     step = max(1, max(shape) // 1500)               # a subsample is enough to place tiles
     sub = (transform[0] * step, 0.0, transform[2], 0.0, transform[4] * step, transform[5])
     sub_shape = (-(-shape[0] // step), -(-shape[1] // step))
-    en = _cell_centres(sub, sub_shape)
+    en = cell_centres(sub, sub_shape)
     pts = en[wanted[::step, ::step]] if wanted is not None else en.reshape(-1, 2)
     origin = pts.mean(axis=0)
     _, t = sol.scene.track.foot(origin)
@@ -269,23 +166,6 @@ def _crop(prior, prior_t, transform, window, reach):
     return crop, (pa, 0.0, pc + pa * i0, 0.0, pe, pf + pe * j0)
 
 
-def _drop_unconfirmed(heights, quality, tolerance_m: float) -> None:
-    """Cells fewer than three pairs agree on are kept only within ``tolerance_m`` of the
-    surface the three-pair cells make around them (bridged, median-smoothed): a pair or two
-    agreeing on a false match (at image edges, where the prior was extrapolated) goes. In
-    place, in strips of rows (:func:`bridge`)."""
-    full = quality >= 3
-    if not full.any():
-        return
-    ref = bridge(heights, valid=full)
-    del full
-    for r0 in range(0, heights.shape[0], BRIDGE_STRIP):
-        h, q, r = (a[r0:r0 + BRIDGE_STRIP] for a in (heights, quality, ref))
-        bad = (q < 3) & ~(np.abs(h - r) <= tolerance_m)
-        h[bad] = np.nan
-        q[bad] = 0
-
-
 def default_uncertainty(sol: Solution) -> float:
     """±R (m) around the mean height when no reference DEM is given: 1.5 × the largest
     departure of the fitted points from their mean, plus 300 m (summits and valleys the points
@@ -302,7 +182,7 @@ def _follow_line(sol: Solution, heights: np.ndarray, t, info: dict) -> None:
     corr = model_height_correction(sol, float(lo), float(hi))
     span = []
     for r0 in range(0, heights.shape[0], 512):
-        en = _cell_centres((t[0], 0.0, t[2], 0.0, t[4], t[5] + t[4] * r0), (min(512, heights.shape[0] - r0), heights.shape[1]))
+        en = cell_centres((t[0], 0.0, t[2], 0.0, t[4], t[5] + t[4] * r0), (min(512, heights.shape[0] - r0), heights.shape[1]))
         dh = corr(en, heights[r0:r0 + 512]).astype(np.float32)
         heights[r0:r0 + 512] += dh
         if np.isfinite(dh).any():
@@ -352,7 +232,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
     foot = np.concatenate([sol.image_to_ground("N", corners, sol.mean_height + d) for d in (-R, R)])
     # the starting prior on the coarsest grid
     g = g_fine * 2 ** levels
-    prior_t, prior_shape = _grid_over(foot, 2 * g)
+    prior_t, prior_shape = grid_over(foot, 2 * g)
     if reference is not None:
         prior = regrid(bridge(np.asarray(reference[0], np.float32), 3), reference[1], prior_t, prior_shape)
     else:
@@ -366,7 +246,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
     for L in order:
         g = g_fine * 2 ** L
         posting = posting_m if L == 0 else 2 * g
-        t, shape = _grid_over(foot, posting)
+        t, shape = grid_over(foot, posting)
         frac0 = sum(4 ** -k for k in order if k > L)
         total = sum(4 ** -k for k in order)
         part = scaled(progress, 0.95 * frac0 / total, 0.95 * (frac0 + 4 ** -L) / total)
@@ -388,7 +268,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
     info["heights"] = choice.record()
     if choice.model == "line":
         _follow_line(sol, heights, t, info)
-    _drop_unconfirmed(heights, quality, max(6.0, posting_m))
+    drop_unconfirmed(heights, quality, max(6.0, posting_m))
     seen = seen_by_all(sol, t, shape, bridge(heights), window)
     heights[~seen] = np.nan
     quality[~seen] = 0
@@ -401,7 +281,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
     kind, geoid_name = "ellipsoidal", None
     if orthometric_geoid is not None:
         for r0 in range(0, shape[0], 512):
-            en = _cell_centres((t[0], 0.0, t[2], 0.0, t[4], t[5] + t[4] * r0), (min(512, shape[0] - r0), shape[1]))
+            en = cell_centres((t[0], 0.0, t[2], 0.0, t[4], t[5] + t[4] * r0), (min(512, shape[0] - r0), shape[1]))
             heights[r0:r0 + 512] -= orthometric_geoid.undulation(en[..., 0], en[..., 1], sc.crs).astype(np.float32)
         kind = "orthometric"
         geoid_name = orthometric_geoid.describe() if hasattr(orthometric_geoid, "describe") else "geoid"
