@@ -7,7 +7,7 @@ OpenDroneMap ``gcp_list.txt``, Ames Stereo Pipeline ``.gcp``) through
 ``file, line N: problem``. On accept, :meth:`ImportDialog.result` gives
 ``(points: list[GroundPoint], measurements: list[Measurement])`` in the project CRS.
 
-The CSV path never re-implements the readers: :func:`~prismstation.gui.import_csv.read_mapped`
+The CSV path never re-implements the readers: :func:`~prismstation.io.mapped_csv.read_mapped`
 reads the file through :mod:`prismstation.io.csvtable` and the io point readers with the chosen
 column mapping; they return every bad line, each with its own message, file and line.
 """
@@ -26,10 +26,10 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QDialog, QDialogButtonBox, 
 from prismstation.errors import InputError
 from prismstation.io import pointfiles
 from prismstation.io.csvtable import guess_delimiter
-from prismstation.gui.import_csv import (DELIMITERS, GROUND_FIELDS, MEASUREMENT_FIELDS, NONE,
-                                         PREVIEW_ROWS, guess_mapping, guess_view, shared_columns,
-                                         has_decimal_comma, is_point_file, read_mapped,
-                                         split_lines)
+from prismstation.io.mapped_csv import (DELIMITERS, GROUND_FIELDS, MEASUREMENT_FIELDS, NONE,
+                                        PREVIEW_ROWS, guess_mapping, guess_view, shared_columns,
+                                        has_decimal_comma, is_point_file, read_mapped,
+                                        split_lines)
 from prismstation.model.points import HEIGHT_KINDS
 
 __all__ = ["ImportDialog", "PreviewModel", "guess_delimiter", "guess_mapping", "GROUND_FIELDS",

@@ -1,6 +1,7 @@
-"""Column-mapped CSV reading for the import dialog (no Qt): column guesses, and
-:func:`read_mapped`, which reads the file through the io table reader and the io point readers
-with the operator's column mapping, returning every bad line (file, line, problem).
+"""Column-mapped CSV reading (the import dialog's, no Qt): column guesses from names and
+contents, and :func:`read_mapped`, which reads the file through the table reader
+(:mod:`~prismstation.io.csvtable`) and the point readers (:mod:`~prismstation.io.points`) with
+the operator's column mapping, returning every bad line (file, line, problem).
 """
 from __future__ import annotations
 
