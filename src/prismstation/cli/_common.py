@@ -4,8 +4,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
 from prismstation.errors import InputError
+from prismstation.ops.fit import BIAS_MODELS, PARALLAX_MODELS
 
 
 def add_model_options(p) -> None:

@@ -5,9 +5,9 @@ the JSON a ``prismstation resection --json`` wrote (``--left-resection`` / ``--r
 """
 from __future__ import annotations
 
-from prismstation.core.resection import base_height
 from prismstation.errors import InputError
 from prismstation.io.jsonfile import write_json
+from prismstation.ops.resection import base_height
 
 
 def register(sub) -> None:

@@ -8,12 +8,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prismstation.core.rectify import KINDS, compare_transforms, format_rmse_table
 from prismstation.errors import InputError, ModelError
 from prismstation.cli._common import end_progress, progress_printer
 from prismstation.io.jsonfile import write_json
 from prismstation.io.rectify_io import read_point_pairs
-from prismstation.ops.rectify import rectify_raster
+from prismstation.ops.rectify import KINDS, fit_transforms, format_rmse_table, rectify_raster
 
 
 def register(sub) -> None:
@@ -58,7 +57,7 @@ def run(args) -> int:
     if not Path(args.image).exists():
         raise InputError("image not found", file=args.image)
     pairs = read_point_pairs(args.points, args.measurements, args.view)
-    reports = compare_transforms(pairs.xy, pairs.en, pairs.is_check)
+    reports = fit_transforms(pairs)
     name = pairs.view or Path(args.image).stem
     print(f"{len(pairs.ids)} points ({int((~pairs.is_check).sum())} GCP, "
           f"{int(pairs.is_check.sum())} ICP), view {name}; planimetric RMSE:")

@@ -1,4 +1,5 @@
-"""``prismstation resection POINTS.csv --focal-mm F --pixel-um P ...`` (docs/model.md §4).
+"""``prismstation resection POINTS.csv --focal-mm F --pixel-um P ...`` (docs/model.md §4;
+:func:`prismstation.ops.resection.resect_points`).
 
 Space resection of one view from ground points (``id,E,N,H``) and their image measurements,
 by Gauss–Newton on the collinearity equations. Prints the exterior orientation with standard
@@ -10,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from prismstation.core.resection import PARAM_NAMES, FrameCamera, resect
 from prismstation.errors import InputError
 from prismstation.io.jsonfile import write_json
 from prismstation.io.rectify_io import read_point_pairs
+from prismstation.ops.resection import PARAM_NAMES, resect_points
 
 
 def register(sub) -> None:
@@ -58,19 +59,10 @@ def _principal_point(args) -> tuple[float, float]:
 
 
 def run(args) -> int:
-    if not (args.focal_mm > 0 and args.pixel_um > 0):
-        raise InputError("--focal-mm and --pixel-um must be positive")
-    if args.iterations < 1:
-        raise InputError("--iterations must be at least 1")
     pairs = read_point_pairs(args.points, args.measurements, args.view)
-    use = np.ones(len(pairs.ids), bool) if args.use_icp else ~pairs.is_check
-    if np.any(np.isnan(pairs.h[use])):
-        missing = [i for i, h, u in zip(pairs.ids, pairs.h, use) if u and np.isnan(h)]
-        raise InputError(f"height H missing for point(s) {', '.join(missing[:5])}", file=args.points)
-    cx, cy = _principal_point(args)
-    cam = FrameCamera(args.focal_mm / 1000.0, args.pixel_um * 1e-6, cx, cy)
-    xyz = np.column_stack([pairs.en[use], pairs.h[use]])
-    res = resect(cam, pairs.xy[use], xyz, max_iterations=args.iterations)
+    res, use = resect_points(pairs, focal_mm=args.focal_mm, pixel_um=args.pixel_um,
+                             principal_point=_principal_point(args), max_iterations=args.iterations,
+                             use_icp=args.use_icp, source=args.points)
     d = res.as_dict()
     print(f"space resection of {int(use.sum())} points, view {pairs.view or '-'}: "
           f"{'converged' if res.converged else 'NOT converged'} after {len(res.corrections)} iterations, "

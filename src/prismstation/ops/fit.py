@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
 from prismstation.core.solve import Solution, solve
 from prismstation.errors import InputError, ModelError
 from prismstation.io.geoid import to_ellipsoidal
@@ -12,6 +13,10 @@ from prismstation.io.project import project_geoid
 from prismstation.io.report import report_dict, report_header
 from prismstation.model.project import Project, has_ground
 from prismstation.ops.orient_dem import control_from_record
+
+#: the bias and parallax models a fit can use (their names: the front ends' choices)
+__all__ = ["BIAS_MODELS", "PARALLAX_MODELS", "ellipsoidal_heights", "fit_report", "project_report",
+           "solve_project"]
 
 
 def ellipsoidal_heights(project: Project) -> dict[str, float]:

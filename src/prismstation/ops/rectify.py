@@ -12,8 +12,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from prismstation.core.rectify import KINDS, TransformReport, compare_transforms, format_rmse_table
 from prismstation.errors import InputError, ModelError, RasterReadError
 from prismstation.ops.progress import ProgressFn, checkpoint, partial_output
+
+__all__ = ["KINDS", "RectifyResult", "fit_transforms", "format_rmse_table", "rectify_raster"]
+
+
+def fit_transforms(pairs) -> tuple[TransformReport, ...]:
+    """Every image→map transform of :data:`KINDS` fitted to the GCPs of ``pairs``
+    (:class:`~prismstation.io.rectify_io.PointPairs`) and checked on its ICPs, in that order."""
+    return compare_transforms(pairs.xy, pairs.en, pairs.is_check)
 
 
 @dataclass(frozen=True)
