@@ -1,19 +1,18 @@
 """``prismstation dsm PROJECT -o dsm.tif [--posting m] [--window c r w h] [--reference DEM]
 [--orthometric] [--fill] [--min-fill %] [--heights auto|line|rays] [--scheduler ADDRESS]``: the triplet's DSM as a COG GeoTIFF.
 
-Exit status 3 (after writing the file) when fewer than ``--min-fill`` percent of the cells all
-three images see got a matched height.
+The export is :func:`prismstation.ops.dsm_export.export_dsm`, the same as the window's. Exit
+status 3 (after writing the file) when fewer than ``--min-fill`` percent of the cells all three
+images see got a matched height.
 """
 from __future__ import annotations
 
 import sys
 
 from prismstation.cli._common import existing
-from prismstation.errors import ModelError
-from prismstation.io.dsm import write_dsm
-from prismstation.io.project import load_project, project_geoid
+from prismstation.io.project import load_project
+from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest, export_dsm
 from prismstation.ops.fit import solve_project
-from prismstation.ops.dsm import HEIGHT_MODELS, make_dsm
 from prismstation.ops.reference_heights import load_for_scene
 
 LOW_FILL_STATUS = 3
@@ -45,34 +44,29 @@ def register(sub) -> None:
 def run(args) -> int:
     project = load_project(existing(args.project, "project"))
     sol = solve_project(project)
-    if not sol.ok and project.settings.orientation != "dem":
-        raise ModelError("; ".join(sol.messages) or "the model could not be fitted")
-    geoid = project_geoid(project)
     reference = None
     if args.reference:
-        ref = load_for_scene(existing(args.reference, "reference DEM"), project)  # as the window does
-        reference = (ref.grid.heights, tuple(ref.grid.transform)[:6])
+        reference = load_for_scene(existing(args.reference, "reference DEM"), project)  # as the window does
 
     def progress(fr, msg=""):
         print(f"\r{fr:5.0%} {msg:<32}", end="", file=sys.stderr, flush=True)
         return True
 
-    dsm = make_dsm(sol, tuple(args.window) if args.window else None, posting_m=args.posting,
-                   orthometric_geoid=geoid if args.orthometric else None, progress=progress,
-                   reference=reference, height_uncertainty_m=args.height_uncertainty, fill=args.fill,
-                   scheduler=args.scheduler, workers=args.workers, heights_model=args.heights)
+    request = DsmRequest(args.output, tuple(args.window) if args.window else None, args.posting,
+                         args.orthometric, args.height_uncertainty, args.fill, args.min_fill,
+                         args.heights, args.scheduler, args.workers)
+    out = export_dsm(sol, project, request, reference=reference, progress=progress)
+    dsm = out.dsm
     print(file=sys.stderr)
-    write_dsm(args.output, dsm)
-    fill = 100.0 * dsm.fill_fraction
+    fill = out.fill_percent
     rows, cols = dsm.heights.shape
     print(f"wrote {args.output}: {cols} × {rows} cells at {args.posting:g} m, {dsm.height_kind} heights, "
-          f"{fill:.1f} % of the {int(dsm.seen.sum())} cells all three images see matched"
-          + (f", {100.0 * (dsm.mask == 2).sum() / max(int(dsm.seen.sum()), 1):.1f} % filled" if args.fill else ""))
+          f"{fill:.1f} % of the {out.seen_cells} cells all three images see matched"
+          + (f", {out.filled_percent:.1f} % filled" if args.fill else ""))
     hm = dsm.info["heights"]
     print(f"heights: {'the parallax line' if hm['model'] == 'line' else 'the rays through the biases'} ({hm['reason']})")
-    if fill < args.min_fill:
+    if out.low_fill:
         print(f"prismstation dsm: LOW FILL: only {fill:.1f} % of the seen cells matched "
               f"(threshold {args.min_fill:g} %); the voids are marked 0 in the mask band", file=sys.stderr)
         return LOW_FILL_STATUS
     return 0
-

@@ -12,7 +12,9 @@ ellipsoid, or, for orthometric heights, the geoid's (EGM96 → EPSG:5773, EGM200
 any other geoid a named one). All of it lives in the GeoTIFF keys (GeoTIFF 1.1), none in a side
 file. Tiled 256 × 256, deflate, internal overviews (COG driver).
 Tags: ``FILL_PERCENT`` (matched share of the seen cells), ``SEEN_CELLS``, ``POSTING_M``,
-``HEIGHTS``. The file is written beside the target and renamed over it (atomic).
+``HEIGHTS``. The file is written beside the target and renamed over it (atomic); the
+uncompressed GeoTIFF the COG is copied from (12 bytes a cell: ~0.6 GB for a 14,000 px scene at
+5 m) is written in the system's temporary folder (``TMPDIR``), not beside the target.
 """
 from __future__ import annotations
 
@@ -83,7 +85,10 @@ def write_dsm(path, dsm) -> None:
         tags["HEIGHT_MODEL"] = f"{hm['model']} ({hm['reason']})"
     fd, tmp = tempfile.mkstemp(prefix=".dsm-", suffix=".tif", dir=path.parent)
     os.close(fd)
-    plain = tmp[:-4] + "-plain.tif"   # written in strips of rows: no grid-sized copy in memory
+    # the plain copy is written in strips of rows (no grid-sized copy in memory), then copied
+    # into the COG: a scratch file, in the temporary folder
+    fd, plain = tempfile.mkstemp(prefix="prismstation-dsm-", suffix=".tif")
+    os.close(fd)
     try:
         with rasterio.Env(GDAL_PAM_ENABLED="NO"):
             with rasterio.open(plain, "w", **profile) as ds:

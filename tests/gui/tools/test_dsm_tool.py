@@ -18,15 +18,19 @@ def _settle(qtbot, win):
 
 
 def _answer(monkeypatch, seen, **values):
-    """Patch the dialog: ``exec`` sets ``values`` on its widgets and answers OK."""
+    """Patch the dialog: ``exec`` sets ``values`` on its widgets and answers OK (the prefilled
+    path is kept as ``dlg.prefilled``)."""
     def exec_(dlg):
         seen.append(dlg)
+        dlg.prefilled = dlg.path.text()
         for name, v in values.items():
             w = getattr(dlg, name)
             if name == "path":
                 w.setText(str(v))
-            elif name in ("fill", "reference", "area", "whole", "orthometric"):
+            elif name in ("fill", "reference", "area", "whole", "orthometric", "ellipsoidal"):
                 w.setChecked(v)
+            elif name == "heights":
+                w.setCurrentIndex(w.findData(v))
             else:
                 w.setValue(v)
         return QDialog.DialogCode.Accepted
@@ -55,12 +59,14 @@ def test_menu_export_with_the_reference_prior_reports_fill(qtbot, window, sim, t
     seen = []
     out = tmp_path / "dsm.tif"
     # a minimum of 100 % cannot be met: the message must warn
-    _answer(monkeypatch, seen, path=out, posting=10.0, uncertainty=60.0, min_fill=100.0, area=True)
+    _answer(monkeypatch, seen, path=out, posting=10.0, uncertainty=60.0, min_fill=100.0, area=True,
+            ellipsoidal=True)        # the truth is ellipsoidal
     _menu_action(window).trigger()
     assert seen and seen[0].reference.isEnabled() and seen[0].reference.isChecked()
     assert "srtm.tif" in seen[0].reference.text()
-    kind, dsm = job_outcome(tool.job, timeout=60000)
-    assert kind == "result", dsm
+    kind, export = job_outcome(tool.job, timeout=60000)
+    assert kind == "result", export
+    dsm = export.dsm
     k = calls[0]
     assert k["reference"] is not None and k["height_uncertainty_m"] == 60.0 and k["posting_m"] == 10.0
     assert k["reference"][0] is window.solver.height_of.grid.heights
@@ -81,16 +87,17 @@ def test_menu_export_with_the_reference_prior_reports_fill(qtbot, window, sim, t
 
 def test_result_message_warns_only_below_the_minimum():
     from prismstation.ops.dsm import Dsm
+    from prismstation.ops.dsm_export import DsmExport, DsmRequest
     mask = np.array([[1, 1], [1, 0]], np.uint8)
     seen = np.ones((2, 2), bool)
     d = Dsm(np.zeros((2, 2), np.float32), (5, 0, 0, 0, -5, 0), "EPSG:32654", "ellipsoidal", 0.75,
             mask, seen, np.zeros((2, 2), np.uint8), 5.0)
-    text, low = dsm_tool.result_message("x.tif", d, 70.0)
+    text, low = dsm_tool.result_message(DsmExport("x.tif", d, DsmRequest("x.tif", min_fill_percent=70.0)))
     assert not low and "75.0 % of the 4 cells" in text and "LOW FILL" not in text
-    text, low = dsm_tool.result_message("x.tif", d, 80.0)
+    text, low = dsm_tool.result_message(DsmExport("x.tif", d, DsmRequest("x.tif", min_fill_percent=80.0)))
     assert low and text.startswith("LOW FILL: only 75.0 %")
     d.info["heights"] = {"model": "rays", "reason": "leave-one-out over 9 GCPs: line 3.44 m, rays 2.26 m RMS"}
-    text, _ = dsm_tool.result_message("x.tif", d, 70.0)
+    text, _ = dsm_tool.result_message(DsmExport("x.tif", d, DsmRequest("x.tif", min_fill_percent=70.0)))
     assert text.endswith("Heights: rays through the biases (leave-one-out over 9 GCPs: line 3.44 m, rays 2.26 m RMS)")
 
 
@@ -115,3 +122,51 @@ def test_cancel_button_of_the_progress_dialog_stops_and_leaves_no_file(qtbot, wi
     assert max(progressed) < 0.5, progressed         # the engine stopped, not merely the write
     assert list(out.parent.iterdir()) == []          # neither the DSM nor a temporary file
     assert "cancelled" in window.statusBar().currentMessage()
+
+
+def test_dialog_prefilled_from_the_project_and_a_fine_posting_kept(qtbot, window, sim, tmp_path, job_outcome, monkeypatch):
+    """The path beside the project, the geoid named, the heights kind of the project's points;
+    a 1 m posting and the height model reach the export as typed (were: 1 m became 5 m, no
+    --heights in the window); the scratch copy of the GeoTIFF is not written beside the output."""
+    import tempfile
+
+    import prismstation.io.dsm as dsm_io
+    import prismstation.ops.dsm as ops_dsm
+    from prismstation.model.project import has_ground
+    tool = window.tools["dsm"]
+    p = window.project
+    seen, calls, beside = [], [], []
+    real, real_copy = ops_dsm.make_dsm, dsm_io.rio_copy
+    monkeypatch.setattr(ops_dsm, "make_dsm", lambda *a, **k: calls.append(k) or real(*a, **k))
+    out = tmp_path / "out" / "fine.tif"
+    out.parent.mkdir()
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+
+    def copy(src, dst, **kw):              # while the COG is written: what lies where
+        beside.append(sorted(f.name for f in out.parent.iterdir()))
+        beside.append(sorted(f.name for f in scratch.iterdir()))
+        return real_copy(src, dst, **kw)
+    monkeypatch.setattr(dsm_io, "rio_copy", copy)
+    iv = window.views.views["N"]
+    iv.center_on(500, 500, 160 / iv.width())
+    qtbot.wait(50)
+    _answer(monkeypatch, seen, path=out, posting=1.0, heights="rays", area=True, min_fill=0.0)
+    _menu_action(window).trigger()
+    dlg = seen[0]
+    assert dlg.prefilled == str(sim / "p_dsm.tif")
+    kinds = [q.height_kind for q in p.points.values() if has_ground(q)]
+    assert dlg.orthometric.isChecked() == (kinds.count("orthometric") >= kinds.count("ellipsoidal"))
+    assert "geoid: constant" in dlg.orthometric.text() or "geoid: grid" in dlg.orthometric.text()
+    kind, res = job_outcome(tool.job, timeout=120000)
+    assert kind == "result", res
+    assert calls[0]["posting_m"] == 1.0 and calls[0]["heights_model"] == "rays"
+    assert res.dsm.posting_m == 1.0 and res.dsm.info["heights"]["model"] == "rays"
+    with rasterio.open(out) as ds:
+        assert ds.transform.a == 1.0
+    # beside the output only the compressed file being written; the scratch copy elsewhere
+    assert all(n.startswith(".") for n in beside[0]) and len(beside[0]) <= 2, beside
+    assert any(n.startswith("prismstation-dsm-") for n in beside[1]), beside
+    assert sorted(f.name for f in out.parent.iterdir()) == ["fine.tif"]
+    assert list(scratch.iterdir()) == []

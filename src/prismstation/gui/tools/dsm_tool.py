@@ -1,46 +1,32 @@
 """Tools ▸ Export DSM…: the triplet's DSM as a GeoTIFF.
 
 The whole N image or the area visible in the N view, at a chosen posting, with ellipsoidal or
-orthometric heights (through the project's geoid), computed in a worker by the same engine as
-``prismstation dsm`` (:func:`prismstation.ops.dsm.make_dsm`: semi-global matching of the
-three pairs, coarse to fine) with the engine's options: the a-priori height uncertainty of
-the prior, void filling, the minimum fill, and the loaded reference DEM as the prior. A
-progress dialog whose Cancel button stops the job (nothing is written then); the result
-message gives the fill percentage and warns loudly below the minimum fill. The file is
-written by :func:`prismstation.io.dsm.write_dsm` (COG with a vertical CRS, mask and
-pairs-agreeing bands).
+orthometric heights (through the project's geoid), computed and written in a worker by the
+same export as ``prismstation dsm`` (:func:`prismstation.ops.dsm_export.export_dsm`) with the
+same options: the a-priori height uncertainty of the prior, the height model (``--heights``),
+void filling, the minimum fill, and the loaded reference DEM as the prior. The dialog is
+prefilled from the project (a file beside it, orthometric heights when its points are
+orthometric, the geoid named). A progress dialog whose Cancel button stops the job (nothing is
+written then); the result message gives the fill percentage and warns loudly below the
+minimum fill.
 """
 from __future__ import annotations
 
-import os
-from dataclasses import dataclass
 from pathlib import Path
 
-from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QDialog, QDialogButtonBox, QDoubleSpinBox,
-                               QFileDialog, QFormLayout, QHBoxLayout, QLineEdit, QMessageBox,
-                               QPushButton, QRadioButton)
+from PySide6.QtWidgets import (QAbstractSpinBox, QButtonGroup, QCheckBox, QComboBox, QDialog,
+                               QDialogButtonBox, QDoubleSpinBox, QFileDialog, QFormLayout,
+                               QHBoxLayout, QLineEdit, QMessageBox, QPushButton, QRadioButton)
 
 from prismstation.gui import settings as st
 from prismstation.gui.tools._worker import run_with_progress
+from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest
+
+#: the height models as the dialog names them (``prismstation dsm --heights``)
+HEIGHT_MODEL_NAMES = {"auto": "automatic (the one the GCPs predict better)",
+                      "line": "the model's parallax line", "rays": "the rays through the biases"}
 
 TOOL_CONTEXT = True  # install() gets a ToolContext
-
-
-@dataclass(frozen=True)
-class DsmRequest:
-    """What to export: ``window`` (col0, row0, cols, rows) N-image pixels or None for all;
-    ``height_uncertainty_m`` the a-priori ± of the prior (None: the engine's default);
-    ``min_fill_percent`` below which the result warns; ``use_reference``: the loaded
-    reference DEM is the prior."""
-
-    path: str
-    window: tuple | None
-    posting_m: float
-    orthometric: bool
-    height_uncertainty_m: float | None = None
-    fill: bool = False
-    min_fill_percent: float = 90.0
-    use_reference: bool = False
 
 
 def visible_window(ctx) -> tuple | None:
@@ -62,7 +48,10 @@ def visible_window(ctx) -> tuple | None:
 class DsmDialog(QDialog):
     """File, extent, posting, height kind and the engine's options."""
 
-    def __init__(self, parent, default_path: str, visible: tuple | None, reference: str | None = None):
+    def __init__(self, parent, default_path: str, visible: tuple | None, reference: str | None = None,
+                 *, geoid: str | None = None, orthometric: bool = False):
+        """``geoid``: the project's geoid, described (None: it cannot be used, orthometric
+        heights are off); ``orthometric``: the heights kind to preselect."""
         super().__init__(parent)
         self.setWindowTitle("Export DSM")
         self.visible = visible
@@ -83,19 +72,29 @@ class DsmDialog(QDialog):
         self.extent_group.addButton(self.whole)
         self.extent_group.addButton(self.area)
         self.ellipsoidal = QRadioButton("ellipsoidal")
-        self.orthometric = QRadioButton("orthometric (geoid)")
-        self.ellipsoidal.setChecked(True)
+        self.orthometric = QRadioButton(f"orthometric (geoid: {geoid})" if geoid else "orthometric (no usable geoid)")
+        self.orthometric.setEnabled(geoid is not None)
+        (self.orthometric if orthometric and geoid is not None else self.ellipsoidal).setChecked(True)
         self.height_group = QButtonGroup(self)
         self.height_group.addButton(self.ellipsoidal)
         self.height_group.addButton(self.orthometric)
         hk = QHBoxLayout()
         hk.addWidget(self.ellipsoidal)
         hk.addWidget(self.orthometric)
-        self.posting = QDoubleSpinBox(decimals=1, minimum=2.5, maximum=500.0, singleStep=5.0, suffix=" m")
+        # any posting the engine takes (finer than the images' pixel too: more cells, no more
+        # detail); a value out of range is set to the nearest, never back to the previous one
+        self.posting = QDoubleSpinBox(decimals=1, minimum=0.1, maximum=500.0, singleStep=5.0, suffix=" m")
+        self.posting.setCorrectionMode(QAbstractSpinBox.CorrectionMode.CorrectToNearestValue)
         self.posting.setValue(5.0)
+        self.posting.setToolTip("grid posting; 5 m = 2 × the images' 2.5 m pixel (a finer posting adds cells, not detail)")
         self.uncertainty = QDoubleSpinBox(decimals=0, minimum=0.0, maximum=5000.0, singleStep=10.0, suffix=" m")
         self.uncertainty.setSpecialValueText("automatic")   # 0: from the points, or 40 m with a reference
         self.uncertainty.setToolTip("± a-priori height uncertainty of the prior: the coarsest search range")
+        self.heights = QComboBox()
+        for key in HEIGHT_MODELS:
+            self.heights.addItem(HEIGHT_MODEL_NAMES.get(key, key), key)
+        self.heights.setToolTip("heights from the model's parallax line, the rays through its biases, or the "
+                                "one the GCPs predict better, left out in turn")
         self.fill = QCheckBox("fill voids by interpolation (marked 2 in the mask band)")
         self.min_fill = QDoubleSpinBox(decimals=0, minimum=0.0, maximum=100.0, singleStep=5.0, suffix=" %")
         self.min_fill.setValue(90.0)
@@ -107,6 +106,7 @@ class DsmDialog(QDialog):
         form.addRow("Extent", ext)
         form.addRow("Posting", self.posting)
         form.addRow("Heights", hk)
+        form.addRow("Height model", self.heights)
         form.addRow("Height uncertainty", self.uncertainty)
         form.addRow("Prior", self.reference)
         form.addRow("Voids", self.fill)
@@ -125,14 +125,18 @@ class DsmDialog(QDialog):
         return DsmRequest(self.path.text(), self.visible if self.area.isChecked() else None,
                           self.posting.value(), self.orthometric.isChecked(),
                           self.uncertainty.value() or None, self.fill.isChecked(),
-                          self.min_fill.value(), self.reference.isEnabled() and self.reference.isChecked())
+                          self.min_fill.value(), self.heights.currentData())
+
+    def use_reference(self) -> bool:
+        """The loaded reference DEM is the prior."""
+        return self.reference.isEnabled() and self.reference.isChecked()
 
 
-def result_message(path: str, dsm, min_fill_percent: float) -> tuple[str, bool]:
-    """The operator's summary of a written DSM, and whether it filled less than the minimum."""
-    fill = 100.0 * dsm.fill_fraction
-    seen = int(dsm.seen.sum()) if dsm.seen is not None else 0
-    filled = 100.0 * int(((dsm.mask == 2) & dsm.seen).sum()) / max(seen, 1) if dsm.mask is not None else 0.0
+def result_message(out) -> tuple[str, bool]:
+    """The operator's summary of a written DSM (:class:`~prismstation.ops.dsm_export.DsmExport`),
+    and whether it filled less than the minimum."""
+    dsm, path, fill, seen, filled = out.dsm, out.path, out.fill_percent, out.seen_cells, out.filled_percent
+    min_fill_percent = out.request.min_fill_percent
     rows, cols = dsm.heights.shape
     text = (f"Wrote {path}: {cols} × {rows} cells at {dsm.posting_m:g} m, {dsm.height_kind} heights; "
             f"{fill:.1f} % of the {seen} cells all three images see matched"
@@ -140,7 +144,7 @@ def result_message(path: str, dsm, min_fill_percent: float) -> tuple[str, bool]:
     hm = (dsm.info or {}).get("heights")
     if hm:
         text += f". Heights: {'parallax line' if hm['model'] == 'line' else 'rays through the biases'} ({hm['reason']})"
-    low = fill < min_fill_percent
+    low = out.low_fill
     if low:
         text = (f"LOW FILL: only {fill:.1f} % of the seen cells matched (minimum {min_fill_percent:g} %); "
                 f"the voids are 0 in the mask band. " + text)
@@ -163,44 +167,56 @@ class DsmTool:
         """The loaded reference DEM (:class:`~prismstation.ops.reference_heights.DemHeights`) or None."""
         return getattr(self.ctx.solver, "height_of", None)
 
+    def default_path(self) -> Path:
+        """Where the DSM goes unless the operator says otherwise: beside the project file
+        (``<project>_dsm.tif``), else beside the scene, else the last import folder."""
+        p = self.ctx.project
+        path = getattr(self.ctx.files, "path", None)
+        if path:
+            return Path(path).with_name(f"{Path(path).stem}_dsm.tif")
+        if p is not None and p.scene_path:
+            return Path(p.scene_path).with_name("dsm.tif")
+        return Path(st.value(st.Key.LAST_IMPORT_DIR) or ".") / "dsm.tif"
+
+    def geoid(self) -> str | None:
+        """The project's geoid, described (None when it cannot be used: a grid not found)."""
+        from prismstation.errors import InputError
+        from prismstation.io.project import project_geoid
+        try:
+            g = project_geoid(self.ctx.project)
+        except InputError:
+            return None
+        return g.describe() if hasattr(g, "describe") else "the project's"
+
     def choose(self) -> None:
         if self.ctx.project is None or (self.job is not None and self.job.isRunning()):
             return
-        path = getattr(self.ctx.files, "path", None)
-        folder = Path(path).parent if path else Path(st.value(st.Key.LAST_IMPORT_DIR) or ".")
         ref = self.reference()
         name = Path(str(getattr(ref, "path", "") or "reference")).name if ref is not None else None
-        dlg = DsmDialog(self.ctx.widget, str(folder / "dsm.tif"), visible_window(self.ctx), name)
+        from prismstation.model.project import has_ground
+        kinds = [q.height_kind for q in self.ctx.project.points.values() if has_ground(q)]
+        orthometric = bool(kinds) and kinds.count("orthometric") >= kinds.count("ellipsoidal")
+        dlg = DsmDialog(self.ctx.widget, str(self.default_path()), visible_window(self.ctx), name,
+                        geoid=self.geoid(), orthometric=orthometric)
         if dlg.exec() == QDialog.DialogCode.Accepted and dlg.path.text():
-            self.start(dlg.request())
+            self.start(dlg.request(), use_reference=dlg.use_reference())
 
-    def start(self, req: DsmRequest):
-        """Compute and write the DSM of ``req`` in a worker; returns the Job (result: the Dsm)."""
-        from prismstation.io.dsm import write_dsm
-        from prismstation.io.project import project_geoid
-        from prismstation.ops.dsm import make_dsm
-        from prismstation.ops.progress import checkpoint
+    def start(self, req: DsmRequest, *, use_reference: bool = False):
+        """Compute and write the DSM of ``req`` in a worker, with the loaded reference DEM as
+        the prior when ``use_reference``; returns the Job (result: the
+        :class:`~prismstation.ops.dsm_export.DsmExport`)."""
+        from prismstation.ops.dsm_export import export_dsm
         sol, p = self.ctx.solver.solution, self.ctx.project
         if sol is None or p is None:
             self.ctx.status("A DSM needs a fitted model", 8000)
             return None
-        geoid = project_geoid(p) if req.orthometric else None
-        ref = self.reference() if req.use_reference else None
-        reference = None if ref is None else (ref.grid.heights, tuple(ref.grid.transform)[:6])
+        ref = self.reference() if use_reference else None
 
         def work(progress):
-            dsm = make_dsm(sol, req.window, posting_m=req.posting_m, orthometric_geoid=geoid,
-                           reference=reference, height_uncertainty_m=req.height_uncertainty_m,
-                           fill=req.fill, progress=progress)
-            checkpoint(progress, 0.99, "writing")
-            write_dsm(req.path, dsm)
-            if not progress(1.0, "written"):     # cancelled while writing: leave no file
-                os.unlink(req.path)
-                checkpoint(progress, 1.0)
-            return dsm
+            return export_dsm(sol, p, req, reference=ref, progress=progress)
 
-        def done(dsm):
-            self.message, low = result_message(req.path, dsm, req.min_fill_percent)
+        def done(out):
+            self.message, low = result_message(out)
             self.ctx.status(self.message, 30000 if low else 15000)
             if getattr(self.ctx, "interactive", False):
                 (QMessageBox.warning if low else QMessageBox.information)(self.ctx.widget, "DSM", self.message)
