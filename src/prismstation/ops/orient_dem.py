@@ -99,11 +99,84 @@ def control_from_record(scene, record: dict) -> Control:
                                offset_gradients=record.get("offset_gradients_px"))
 
 
+@dataclass(frozen=True)
+class ReferenceGrid:
+    """The reference DEM read over N's footprint and the search radius: ellipsoidal heights
+    ``dem.heights`` (NaN where void) on the north-up grid of ``posting_m`` whose corner cells
+    span ``lo`` (west, south) to ``hi`` (east, north), metres; ``filled`` the same with voids
+    at the mean height ``mean_h`` (float32), ``slope`` its gradient's norm (m/m), ``cells`` the
+    reference's own cell size in grid cells (col, row)."""
+
+    dem: object
+    lo: np.ndarray
+    hi: np.ndarray
+    posting_m: float
+    mean_h: float
+    filled: np.ndarray
+    slope: np.ndarray
+    cells: tuple
+
+    def at(self, grid: np.ndarray, en: np.ndarray) -> np.ndarray:
+        """``grid`` (one of this grid's arrays) sampled bilinearly at map points ``en`` (..., 2)."""
+        col = (en[..., 0] - self.lo[0]) / self.posting_m - 0.5
+        row = (self.hi[1] - en[..., 1]) / self.posting_m - 0.5
+        return remap_points(grid, col, row).astype(float)
+
+    def ground(self, scene, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Where N's ancillary rays through image points ``xy`` (n, 2) meet the reference:
+        ``(en (n, 2), h (n,))``."""
+        h = np.full(len(xy), self.mean_h)
+        for _ in range(3):
+            en = prism.ancillary_to_ground(scene, scene.views["N"], xy, h)
+            h = self.at(self.filled, en)
+        return en, h
+
+
+@dataclass
+class OrientRun:
+    """What the steps of :func:`orient_from_dem` share: the project's scene and geoid, the
+    a-priori settings, and what the steps find (the view offsets, the reference grid)."""
+
+    scene: object
+    reference_path: object
+    geoid: object
+    sigma_apriori_m: float
+    sigma_height_m: float
+    posting_m: float
+    decimation: int
+    progress: ProgressFn | None
+    coarse: object = None         # step 1: the coarse offsets (CoarseOffsets)
+    offsets: dict = None          # F−N and B−N at N's centre (N-space px), from step 1 (then 5)
+    grads: dict = None            # their gradients over N (px per N pixel)
+    ref: ReferenceGrid = None     # the reference DEM on the matching's grid
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.scene.views["N"].shape
+
+    @property
+    def radius_m(self) -> float:
+        """How far N's own error may put it from the reference (K_SIGMA σ)."""
+        return K_SIGMA * self.sigma_apriori_m
+
+    @property
+    def n_weight(self) -> float:
+        """N's weight between F and B along track: tan θ_F / (tan θ_F + tan θ_B)."""
+        tanF, tanB = (self.scene.views[v].tan_theta for v in "FB")
+        return tanF / (tanF + tanB)
+
+    def offset_of(self, v: str, xy) -> np.ndarray:
+        """View ``v``'s offset from N (px) at N position ``xy``."""
+        rows, cols = self.shape
+        return offset_at(self.offsets[v], self.grads[v], (cols / 2, rows / 2), xy)
+
+
 def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float = SIGMA_APRIORI_M,
                     sigma_height_m: float = SIGMA_HEIGHT_M, patch_m: float = 4000.0,
                     posting_m: float = 30.0, decimation: int = 2,
                     progress: ProgressFn | None = None) -> DemOrientation:
-    """Orient ``project``'s triplet from the reference DEM at ``reference_path`` (see module doc).
+    """Orient ``project``'s triplet from the reference DEM at ``reference_path`` (see module doc;
+    one function per step below).
 
     Raises InputError when the views cannot be related (step 1) or no patch matches; an
     untrustworthy patch field is not an error: it is ``result.verdict`` (exit status 3).
@@ -116,119 +189,130 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
         raise InputError("image not found (relocate the scene's images)", missing[0])
     if not sigma_apriori_m > 0:
         raise InputError(f"the a-priori geolocation σ must be positive, got {sigma_apriori_m} m")
-    geoid = project_geoid(project)
-    N, F, B = (scene.views[v] for v in "NFB")
-    rows, cols = N.shape
-    c1 = prism.theoretical_c1(scene)
+    run = OrientRun(scene, reference_path, project_geoid(project), sigma_apriori_m, sigma_height_m,
+                    posting_m, decimation, progress)
+    relate_views(run)                                            # 1.
+    run.ref = read_reference(run)
+    shifts = match_patches(run, patch_m)                         # 2.–3.
+    patches, verdict = judge_patches(shifts)                     # 4.
+    shifts, record = second_pass(run, shifts, patches)           # 5.
+    if shifts is not None:
+        patches, verdict = judge_patches(shifts)
+    checkpoint(progress, 1.0, "done")
+    return make_result(run, patches, verdict, record)           # 6.
 
-    # 1. F and B relative to N over the a-priori range
-    coarse = coarse_view_offsets(scene, reference_path, geoid, sigma_apriori_m=sigma_apriori_m,
-                                 progress=scaled(progress, 0.0, 0.25))
+
+def relate_views(run: OrientRun) -> None:
+    """Step 1: F and B relative to N over the a-priori range; sets ``run.coarse``,
+    ``run.offsets``, ``run.grads``."""
+    coarse = coarse_view_offsets(run.scene, run.reference_path, run.geoid, sigma_apriori_m=run.sigma_apriori_m,
+                                 progress=scaled(run.progress, 0.0, 0.25))
     bad = [v for v in "FB" if not coarse.ok(v)]
     if bad:
         why = "; ".join(w.reason for w in coarse.windows if w.view in bad and w.reason)[:300]
         raise InputError(f"view {' and '.join(bad)} could not be found relative to N within "
-                         f"{coarse.radius_px:.0f} px (a-priori σ {sigma_apriori_m:g} m per view): "
-                         f"{why or 'no window matched'}", reference_path)
-    offsets = {v: np.asarray(coarse.offsets_px[v], float) for v in "FB"}
-    grads = {v: np.asarray(coarse.gradients_px[v], float) for v in "FB"}
+                         f"{coarse.radius_px:.0f} px (a-priori σ {run.sigma_apriori_m:g} m per view): "
+                         f"{why or 'no window matched'}", run.reference_path)
+    run.offsets = {v: np.asarray(coarse.offsets_px[v], float) for v in "FB"}
+    run.grads = {v: np.asarray(coarse.gradients_px[v], float) for v in "FB"}
+    run.coarse = coarse
 
-    def offset_of(v, xy):
-        return offset_at(offsets[v], grads[v], (cols / 2, rows / 2), xy)
 
-    # reference DEM over the N footprint and the search radius, ellipsoidal, north-up
-    radius_m = K_SIGMA * sigma_apriori_m            # N's own error against the reference
+def read_reference(run: OrientRun) -> ReferenceGrid:
+    """The reference DEM over the N footprint and the search radius, ellipsoidal, north-up."""
+    N, posting_m = run.scene.views["N"], run.posting_m
+    rows, cols = run.shape
     corners = N.map_to_image.inverse()(np.array([[0, 0], [cols, 0], [0, rows], [cols, rows]], float))
-    lo, hi = corners.min(0) - 1000 - radius_m, corners.max(0) + 1000 + radius_m
+    lo, hi = corners.min(0) - 1000 - run.radius_m, corners.max(0) + 1000 + run.radius_m
     shape = (int((hi[1] - lo[1]) // posting_m) + 1, int((hi[0] - lo[0]) // posting_m) + 1)
     transform = (posting_m, 0.0, lo[0], 0.0, -posting_m, hi[1])
-    ref = read_dem(reference_path, scene.crs, transform, shape, geoid=geoid)
+    ref = read_dem(run.reference_path, run.scene.crs, transform, shape, geoid=run.geoid)
     if not np.isfinite(ref.heights).any():
-        raise InputError("the reference DEM does not cover the scene", reference_path)
+        raise InputError("the reference DEM does not cover the scene", run.reference_path)
     mean_h = float(np.nanmean(ref.heights))
     # the reference's own cells, in grid cells: the relative DEMs are smoothed to match
-    ref_cells = tuple(c / posting_m for c in (ref.source_cell_m or (posting_m, posting_m)))
+    cells = tuple(c / posting_m for c in (ref.source_cell_m or (posting_m, posting_m)))
     filled = np.nan_to_num(ref.heights, nan=mean_h).astype(np.float32)
     gy, gx = np.gradient(filled, posting_m)
-    slope = np.hypot(gx, gy)
+    return ReferenceGrid(ref, lo, hi, posting_m, mean_h, filled, np.hypot(gx, gy), cells)
 
-    def at(grid, en):
-        col = (en[..., 0] - lo[0]) / posting_m - 0.5
-        row = (hi[1] - en[..., 1]) / posting_m - 0.5
-        return remap_points(grid, col, row).astype(float)
 
-    def ground_at_ref(xy):
-        h = np.full(len(xy), mean_h)
-        for _ in range(3):
-            en = prism.ancillary_to_ground(scene, N, xy, h)
-            h = at(filled, en)
-        return en, h
-
-    # 2.–3. patches
+def match_patches(run: OrientRun, patch_m: float) -> list[PatchShift]:
+    """Steps 2–3: every patch of N matched (:func:`match_patch`); InputError when none was."""
+    scene, N = run.scene, run.scene.views["N"]
+    rows, cols = run.shape
     # the parallax's a-priori σ (px) from the offsets' along-track σ
-    d = N.map_to_image.apply_linear(prism.along_track_unit(scene, ground_at_ref(
-        np.array([[cols / 2, rows / 2]]))[0][0]))
+    d = N.map_to_image.apply_linear(prism.along_track_unit(scene, run.ref.ground(
+        scene, np.array([[cols / 2, rows / 2]]))[0][0]))
     d = d / np.linalg.norm(d)
-    sigma_py_off = float(np.hypot(*(np.hypot(*(d * coarse.sigma_px[v])) for v in "FB")))
+    sigma_py_off = float(np.hypot(*(np.hypot(*(d * run.coarse.sigma_px[v])) for v in "FB")))
     patch_px = max(int(round(patch_m / N.pixel_size_m)), 64)
     wins = patch_windows((rows, cols), patch_px, margin_px=32)
-    tanF, tanB = F.tan_theta, B.tan_theta
     images = ImageWindows(scene)
     shifts = []
     try:
         for k, win in enumerate(wins):
-            checkpoint(progress, 0.25 + 0.7 * k / len(wins), f"patch {k + 1} of {len(wins)}")
-            shifts.append(_patch(scene, images, win, ground_at_ref, at, slope, c1, offset_of, sigma_py_off,
-                                 sigma_apriori_m, sigma_height_m, radius_m, tanF / (tanF + tanB), ref,
-                                 posting_m, lo, hi, decimation, ref_cells))
+            checkpoint(run.progress, 0.25 + 0.7 * k / len(wins), f"patch {k + 1} of {len(wins)}")
+            shifts.append(match_patch(run, images, win, sigma_py_off))
     finally:
         images.close()
     if not any(p.used for p in shifts):
         raise InputError("no patch could be matched to the reference DEM: "
-                         + "; ".join(sorted({p.reason for p in shifts}))[:300], reference_path)
-    # 4. the field against its σ
-    patches, verdict = judge_patches(shifts)
-    # 5. N's own error is now known to metres: step 1 again with the reference heights taken
-    # where N really looks (tens of metres off on slopes made its windows scatter by pixels,
-    # so the offsets' drift over N went unseen), and the patches moved to the new offsets
+                         + "; ".join(sorted({p.reason for p in shifts}))[:300], run.reference_path)
+    return shifts
+
+
+def second_pass(run: OrientRun, shifts, patches):
+    """Step 5: N's own error is now known to metres: step 1 again with the reference heights
+    taken where N really looks (tens of metres off on slopes made its windows scatter by
+    pixels, so the offsets' drift over N went unseen), and the patches moved to the new
+    offsets. ``patches``: step 4's judged patches. Returns ``(shifts, record)``: the moved
+    shifts (None when the second pass could not be used) and the coarse step's record;
+    updates ``run.offsets``, ``run.grads``."""
     field = affine_field(patches)
-    second = coarse_view_offsets(scene, reference_path, geoid, sigma_apriori_m=sigma_apriori_m,
+    rows, cols = run.shape
+    second = coarse_view_offsets(run.scene, run.reference_path, run.geoid, sigma_apriori_m=run.sigma_apriori_m,
                                  n_shift=lambda xy: field(xy[:, 0], xy[:, 1])[..., :2],
-                                 progress=scaled(progress, 0.95, 1.0))
-    record = coarse.to_dict()
+                                 progress=scaled(run.progress, 0.95, 1.0))
+    record = run.coarse.to_dict()
     if not all(second.ok(v) for v in "FB"):
         record["second_pass"] = "not used: " + ("; ".join(
             f"{w.view}: {w.reason}" for w in second.windows if w.reason)[:300] or "a view was not found")
-    else:
-        new_off = {v: np.asarray(second.offsets_px[v], float) for v in "FB"}
-        new_grad = {v: np.asarray(second.gradients_px[v], float) for v in "FB"}
-        shifts = reoffset_patches(scene, shifts, lambda v, xy: offset_of(v, xy),
-                                  lambda v, xy: offset_at(new_off[v], new_grad[v], (cols / 2, rows / 2), xy),
-                                  tanF / (tanF + tanB), mean_h)
-        patches, verdict = judge_patches(shifts)
-        offsets, grads = new_off, new_grad
-        record = {**second.to_dict(), "first_pass": record}
-    checkpoint(progress, 1.0, "done")
-    offsets = {v: [float(c) for c in o] for v, o in offsets.items()}
-    grads = {v: [[float(c) for c in row] for row in g] for v, g in grads.items()}
-    control = control_from_shifts(scene, patches, mean_h, offsets, offset_gradients=grads)
+        return None, record
+    new_off = {v: np.asarray(second.offsets_px[v], float) for v in "FB"}
+    new_grad = {v: np.asarray(second.gradients_px[v], float) for v in "FB"}
+    shifts = reoffset_patches(run.scene, shifts, run.offset_of,
+                              lambda v, xy: offset_at(new_off[v], new_grad[v], (cols / 2, rows / 2), xy),
+                              run.n_weight, run.ref.mean_h)
+    run.offsets, run.grads = new_off, new_grad
+    return shifts, {**second.to_dict(), "first_pass": record}
+
+
+def make_result(run: OrientRun, patches, verdict, record) -> DemOrientation:
+    """Step 6: the shifts of the patches kept become the model; its σ over the N image."""
+    rows, cols = run.shape
+    offsets = {v: [float(c) for c in o] for v, o in run.offsets.items()}
+    grads = {v: [[float(c) for c in row] for row in g] for v, g in run.grads.items()}
+    control = control_from_shifts(run.scene, patches, run.ref.mean_h, offsets, offset_gradients=grads)
     g = (np.arange(5) + 0.5) / 5
     sig = orientation_sigma(patches, *np.meshgrid(g * cols, g * rows))
     sigma_m = {k: float(np.sqrt(np.mean(sig[..., i] ** 2))) for i, k in enumerate("ENh")}
-    return DemOrientation(str(reference_path), tuple(patches), mean_h, offsets, record, verdict,
-                          float(sigma_apriori_m), control, sigma_m, grads)
+    return DemOrientation(str(run.reference_path), tuple(patches), run.ref.mean_h, offsets, record, verdict,
+                          float(run.sigma_apriori_m), control, sigma_m, grads)
 
 
-def _patch(scene, images, win, ground_at_ref, at, slope, c1, offset_of, sigma_py_off, sigma_apriori_m,
-           sigma_height_m, radius_m, n_weight, ref, posting_m, lo, hi, f, ref_cells) -> PatchShift:
-    """One patch at N-space decimation ``f`` (F and B averaged f×f; SRTM is 90 m anyway).
-    Its relative DEM is gridded at ``posting_m`` and smoothed to the reference's resolution
-    (``ref_cells`` grid cells per reference cell: :func:`prismstation.core.dem_orient.smooth_like_reference`).
+def match_patch(run: OrientRun, images, win, sigma_py_off: float) -> PatchShift:
+    """One patch at N-space decimation ``f = run.decimation`` (F and B averaged f×f; SRTM is 90 m
+    anyway). Its relative DEM is gridded at ``run.posting_m`` and smoothed to the reference's
+    resolution (:func:`prismstation.core.dem_orient.smooth_like_reference`).
 
     The parallax search covers K_SIGMA σ of the prior's error: the reference heights' σ, the
     height error of sampling them where N's error puts the patch (σ_geolocation × the patch's
-    RMS slope) and the offsets' along-track σ. ``offset_of(view, xy)``: the view's offset (px)
-    from N at N position ``xy``, taken at the patch's centre."""
+    RMS slope) and the offsets' along-track σ ``sigma_py_off`` (px); F and B are placed by
+    their offsets from N (:meth:`OrientRun.offset_of`) at the patch's centre."""
+    scene, ref, f, posting_m = run.scene, run.ref, run.decimation, run.posting_m
+    lo, hi = ref.lo, ref.hi
+    c1 = prism.theoretical_c1(scene)
     c0, r0, w, h = win
     x, y = c0 + w / 2, r0 + h / 2
     fail = lambda why: PatchShift(win, x, y, *(np.nan,) * 6, 0, 0.0, False, why)  # noqa: E731
@@ -236,9 +320,9 @@ def _patch(scene, images, win, ground_at_ref, at, slope, c1, offset_of, sigma_py
     step = 8
     gx, gy = np.meshgrid(np.arange(wd[0] + 0.5, wd[0] + wd[2], step) * f,
                          np.arange(wd[1] + 0.5, wd[1] + wd[3], step) * f)
-    en, hh = ground_at_ref(np.column_stack([gx.ravel(), gy.ravel()]))
-    rms_slope = float(np.sqrt(np.mean(at(slope, en) ** 2)))
-    sigma_py = float(np.hypot(np.hypot(sigma_height_m, sigma_apriori_m * rms_slope) / c1, sigma_py_off))
+    en, hh = ref.ground(scene, np.column_stack([gx.ravel(), gy.ravel()]))
+    rms_slope = float(np.sqrt(np.mean(ref.at(ref.slope, en) ** 2)))
+    sigma_py = float(np.hypot(np.hypot(run.sigma_height_m, run.sigma_apriori_m * rms_slope) / c1, sigma_py_off))
     search_px = int(np.ceil(K_SIGMA * sigma_py / f)) + 1
     # the samples sit at decimated pixel centres 0.5 + step·k of the window: interpolate there
     # (a plain resize would take them as the centres of step-wide blocks, step/2 − 0.5 off)
@@ -254,7 +338,7 @@ def _patch(scene, images, win, ground_at_ref, at, slope, c1, offset_of, sigma_py
         back = prism.to_nadir_space(scene, view).inverse()
         box = np.array([[c0 - reach, r0 - reach], [c0 + w + reach, r0 - reach],
                         [c0 - reach, r0 + h + reach], [c0 + w + reach, r0 + h + reach]], float)
-        o = offset_of(v, np.array([x, y], float))
+        o = run.offset_of(v, np.array([x, y], float))
         pc = back(box + o)
         (a0, b0), (a1, b1) = pc.min(0), pc.max(0)
         # whole f × f blocks from the window's corner (a resize of the rest would stretch it)
@@ -265,21 +349,21 @@ def _patch(scene, images, win, ground_at_ref, at, slope, c1, offset_of, sigma_py
         to_n[v] = (scaling(1 / f) @ corr @ prism.to_nadir_space(scene, view) @ shift(ac0, ar0) @ scaling(f)).matrix
         arrays[v] = arr
     pm = parallax_map(arrays["F"], arrays["B"], to_n["F"], to_n["B"], wd, d, prior=prior,
-                      search_range=search_px, half_window=4, n_weight=n_weight)
+                      search_range=search_px, half_window=4, n_weight=run.n_weight)
     if pm.valid_fraction < 0.05:
         return fail(f"only {pm.valid_fraction:.0%} of the patch matched")
     E, Nn, hr = relative_dem_points(scene, pm.parallax * f, wd, c1, step=1, scale=f)
-    pad = radius_m + 300.0
+    pad = run.radius_m + 300.0
     elo = np.array([E.min() - pad, Nn.min() - pad]); ehi = np.array([E.max() + pad, Nn.max() + pad])
     i0, i1 = int((elo[0] - lo[0]) // posting_m), int((ehi[0] - lo[0]) // posting_m) + 1
     j0, j1 = int((hi[1] - ehi[1]) // posting_m), int((hi[1] - elo[1]) // posting_m) + 1
     i0, j0 = max(i0, 0), max(j0, 0)
-    refp = ref.heights[j0:j1, i0:i1]
+    refp = ref.dem.heights[j0:j1, i0:i1]
     t = (posting_m, 0.0, lo[0] + i0 * posting_m, 0.0, -posting_m, hi[1] - j0 * posting_m)
-    rel = smooth_like_reference(grid_points(E, Nn, hr, t, refp.shape), ref_cells)
+    rel = smooth_like_reference(grid_points(E, Nn, hr, t, refp.shape), ref.cells)
     if np.isfinite(rel).sum() < 50:
         return fail("too few cells of the relative DEM")
-    r = dem_offset(refp, rel, t, radius_m)
+    r = dem_offset(refp, rel, t, run.radius_m)
     if not r.converged or not np.isfinite([r.dx, r.dy, r.dz]).all():
         return fail(r.reason or "surface matching did not converge (flat terrain?)")
     return PatchShift(win, x, y, r.dx, r.dy, r.dz, r.sigma_dx, r.sigma_dy, r.sigma_dz, r.count,
