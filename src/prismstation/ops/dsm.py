@@ -109,14 +109,15 @@ def _track_tiles(sol, transform, shape, wanted, size_m: float, overlap_m: float)
                 yield (tuple(origin), tuple(t), tuple(u)) + r, (j0, i0, j1 - j0, i1 - i0)
 
 
-def _level(sol, transform, shape, g, half_range, prior, prior_t, *, tile_px, overlap_m,
+def _level(plan, transform, shape, g, half_range, prior, prior_t, *, overlap_m,
            refine, scheduler, workers, progress, wanted=None):
     """One level: heights and quality on (transform, shape) from tiled matching; tiles are
     rectangles along the flight direction (their frames waste no corners), cross-faded over
     ``2·overlap_m``."""
     specs = []
+    sol = plan.sol
     reach = 2.5 * half_range + 32 * g      # the prior a frame needs beyond its cells
-    for rect, window in _track_tiles(sol, transform, shape, wanted, tile_px * g, overlap_m):
+    for rect, window in _track_tiles(sol, transform, shape, wanted, plan.tile_px * g, overlap_m):
         specs.append(TileSpec(sol, window, transform, g, half_range, *_crop(
             prior, prior_t, transform, window, reach), refine=refine, rect=rect, overlap_m=overlap_m))
     acc = np.zeros(shape, np.float32)
@@ -191,71 +192,124 @@ def _follow_line(sol: Solution, heights: np.ndarray, t, info: dict) -> None:
                                          "per_m_of_height": corr.coef[3]}
 
 
-def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dict | None = None,
-             orthometric_geoid=None, progress=None, reference=None,
-             height_uncertainty_m: float | None = None, fill: bool = False, refine: bool = True,
-             scheduler=None, workers: int | None = None, tile_px: int = 1024,
-             overlap_m: float | None = None, heights_model: str = "auto") -> Dsm:
+@dataclass(frozen=True)
+class DsmPlan:
+    """What every step of :func:`make_dsm` shares: the solution, the N-image ``window``, the
+    output ``posting_m``, the finest matching pixel ``g_fine`` (m), the a-priori ±``R`` (m)
+    of the prior, the levels in the order they run (``order``: exponents L of
+    ``g = g_fine·2^L``, coarsest first), the ground ``foot`` (n, 2) the window covers between
+    ``mean ± R``, and the tiling (``tile_px`` frame pixels a side, ``overlap_m``)."""
+
+    sol: Solution
+    window: tuple
+    posting_m: float
+    g_fine: float
+    R: float
+    order: tuple
+    foot: np.ndarray
+    tile_px: int
+    overlap_m: float
+
+    def g(self, L: int) -> float:
+        return self.g_fine * 2 ** L
+
+    def posting(self, L: int) -> float:
+        """The grid posting of level ``L``: the output's at the finest, 2·g above it."""
+        return self.posting_m if L == 0 else 2 * self.g(L)
+
+
+def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, orthometric_geoid=None,
+             progress=None, reference=None, height_uncertainty_m: float | None = None,
+             fill: bool = False, refine: bool = True, scheduler=None, workers: int | None = None,
+             tile_px: int = 1024, overlap_m: float | None = None, heights_model: str = "auto") -> Dsm:
     """DSM of the ground seen in the N-image ``window`` (col0, row0, cols, rows; default all).
 
     ``reference``: optional prior, a ``(heights, transform)`` north-up grid of ellipsoidal
     heights in the scene CRS (a reference DEM read onto a grid). ``height_uncertainty_m``: the
     a-priori ±R of the prior (default :func:`default_uncertainty`, or 40 m with a reference).
     ``fill``: fill voids by interpolation (mask 2). ``refine``: ZNCC subpixel refinement
-    after SGBM. ``scheduler``, ``workers``: see :mod:`prismstation.ops.dsm_tiles`. ``record`` is
-    accepted for compatibility and not needed (the solution holds the DEM orientation).
+    after SGBM. ``scheduler``, ``workers``: see :mod:`prismstation.ops.dsm_tiles`.
     ``progress(fraction, message)`` returning False cancels (:class:`Cancelled`).
     ``heights_model``: ``auto``, ``line`` or ``rays`` (:mod:`prismstation.core.dsm_heights`);
     the choice and its reason are in ``info["heights"]``.
+
+    The steps: :func:`plan_dsm`, :func:`starting_prior`, :func:`match_levels`,
+    :func:`finish_dsm`.
     """
+    if heights_model not in HEIGHT_MODELS:
+        raise InputError(f"unknown DSM height model {heights_model!r}; choose one of {', '.join(HEIGHT_MODELS)}")
+    plan = plan_dsm(sol, window, posting_m, reference is not None, height_uncertainty_m,
+                    tile_px=tile_px, overlap_m=overlap_m)
+    choice = choose_heights(sol, heights_model)
+    prior, prior_t = starting_prior(plan, reference)
+    heights, quality, t, info = match_levels(plan, prior, prior_t, refine=refine, scheduler=scheduler,
+                                             workers=workers, progress=progress)
+    checkpoint(progress, 0.96, "mask and fill")
+    info["heights"] = choice.record()
+    if choice.model == "line":
+        _follow_line(sol, heights, t, info)
+    return finish_dsm(plan, heights, quality, t, info, fill=fill, orthometric_geoid=orthometric_geoid,
+                      progress=progress)
+
+
+def plan_dsm(sol: Solution, window, posting_m: float, with_reference: bool,
+             height_uncertainty_m: float | None, *, tile_px: int = 1024,
+             overlap_m: float | None = None) -> DsmPlan:
+    """The levels and the footprint (module docstring): the coarsest level is the first whose
+    F–B search of ±R fits in ±24 px; the level at 2·g_fine is skipped."""
     sc = sol.scene
     if not sc.is_triplet or sol.parallax is None:
         raise InputError("a DSM needs an oriented N, F, B triplet")
     if not (posting_m > 0 and math.isfinite(posting_m)):
         raise InputError(f"the posting must be a positive number of metres, got {posting_m}")
-    if heights_model not in HEIGHT_MODELS:
-        raise InputError(f"unknown DSM height model {heights_model!r}; choose one of {', '.join(HEIGHT_MODELS)}")
-    choice = choose_heights(sol, heights_model)
     rows_n, cols_n = sc.views["N"].shape
     window = tuple(int(v) for v in (window or (0, 0, cols_n, rows_n)))
     gsd = sc.views["N"].pixel_size_m
     g_fine = max(gsd, posting_m / 2.0)
     k_fb = sc.views["F"].tan_theta + sc.views["B"].tan_theta
-    R = float(height_uncertainty_m or (REFERENCE_DEM_UNCERTAINTY_M if reference is not None
+    R = float(height_uncertainty_m or (REFERENCE_DEM_UNCERTAINTY_M if with_reference
                                        else default_uncertainty(sol)))
     levels = 0
     while k_fb * R / (g_fine * 2 ** levels) > 24:
         levels += 1
-    overlap_m = overlap_m or 10 * g_fine
     c0, r0, w, h = window
     corners = np.array([[c0, r0], [c0 + w, r0], [c0, r0 + h], [c0 + w, r0 + h]], float)
     foot = np.concatenate([sol.image_to_ground("N", corners, sol.mean_height + d) for d in (-R, R)])
-    # the starting prior on the coarsest grid
-    g = g_fine * 2 ** levels
-    prior_t, prior_shape = grid_over(foot, 2 * g)
-    if reference is not None:
-        prior = regrid(bridge(np.asarray(reference[0], np.float32), 3), reference[1], prior_t, prior_shape)
-    else:
-        prior = np.full(prior_shape, sol.mean_height, np.float32)
-    half = R
-    info = {"height_uncertainty_m": R, "levels": []}
     # steps of 2 down to 4·g_fine, then straight to g_fine: the level at 2·g_fine cost a
     # quarter of the finest and changed nothing measurable (2000 px, 5 m: NMAD 0.97 → 0.99 m,
     # RMSE 1.34 → 1.36 m, time −27 %)
-    order = [L for L in range(levels, -1, -1) if not (L == 1 and levels >= 2)]
+    order = tuple(L for L in range(levels, -1, -1) if not (L == 1 and levels >= 2))
+    return DsmPlan(sol, window, posting_m, g_fine, R, order, foot, tile_px, overlap_m or 10 * g_fine)
+
+
+def starting_prior(plan: DsmPlan, reference) -> tuple[np.ndarray, tuple]:
+    """The prior on the coarsest level's grid: the reference ``(heights, transform)`` (voids
+    bridged) resampled onto it, or the mean height of the fitted points."""
+    prior_t, prior_shape = grid_over(plan.foot, 2 * plan.g(plan.order[0]))
+    if reference is not None:
+        return regrid(bridge(np.asarray(reference[0], np.float32), 3), reference[1], prior_t, prior_shape), prior_t
+    return np.full(prior_shape, plan.sol.mean_height, np.float32), prior_t
+
+
+def match_levels(plan: DsmPlan, prior, prior_t, *, refine: bool, scheduler, workers, progress):
+    """Every level coarse to fine, each one's DSM (cells two or more pairs agree on, bridged)
+    the prior of the next. Returns the finest level's ``(heights, quality, transform, info)``."""
+    order = plan.order
+    half = plan.R
+    info = {"height_uncertainty_m": plan.R, "levels": []}
+    total = sum(4 ** -k for k in order)
     for L in order:
-        g = g_fine * 2 ** L
-        posting = posting_m if L == 0 else 2 * g
-        t, shape = grid_over(foot, posting)
+        g, posting = plan.g(L), plan.posting(L)
+        t, shape = grid_over(plan.foot, posting)
         frac0 = sum(4 ** -k for k in order if k > L)
-        total = sum(4 ** -k for k in order)
         part = scaled(progress, 0.95 * frac0 / total, 0.95 * (frac0 + 4 ** -L) / total)
         checkpoint(part, 0.0, f"level {order.index(L) + 1} of {len(order)}: {g:g} m pixels")
-        wanted = seen_by_all(sol, t, shape, regrid(prior, prior_t, t, shape), window)
+        wanted = seen_by_all(plan.sol, t, shape, regrid(prior, prior_t, t, shape), plan.window)
         wanted = cv2.dilate(wanted.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
-        heights, quality, n_tiles, z_nmad = _level(sol, t, shape, g, half, prior, prior_t, tile_px=tile_px, wanted=wanted,
-                                           overlap_m=max(overlap_m, 4 * posting), refine=refine and L == 0,
-                                           scheduler=scheduler, workers=workers, progress=part)
+        heights, quality, n_tiles, z_nmad = _level(plan, t, shape, g, half, prior, prior_t, wanted=wanted,
+                                                   overlap_m=max(plan.overlap_m, 4 * posting),
+                                                   refine=refine and L == 0, scheduler=scheduler,
+                                                   workers=workers, progress=part)
         info["levels"].append({"g_m": g, "posting_m": posting, "half_range_m": half,
                                "tiles": n_tiles, "filled": float(np.isfinite(heights).mean()),
                                "pair_scatter_in_sigma": z_nmad})
@@ -264,12 +318,17 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
             # can be off by the whole coarse search range)
             prior, prior_t = bridge(np.where(quality >= 2, heights, np.nan)), t
             half = (FINEST_SEARCH_IN_G if order[order.index(L) + 1] == 0 else NEXT_LEVEL_SEARCH_IN_G) * g
-    checkpoint(progress, 0.96, "mask and fill")
-    info["heights"] = choice.record()
-    if choice.model == "line":
-        _follow_line(sol, heights, t, info)
-    drop_unconfirmed(heights, quality, max(6.0, posting_m))
-    seen = seen_by_all(sol, t, shape, bridge(heights), window)
+    return heights, quality, t, info
+
+
+def finish_dsm(plan: DsmPlan, heights, quality, t, info, *, fill: bool, orthometric_geoid,
+               progress) -> Dsm:
+    """Cells only one or two pairs agree on kept near the three-pair surface, cells the three
+    images do not all see cleared, the mask, voids filled (``fill``), heights made orthometric
+    (``orthometric_geoid``); in place on ``heights`` and ``quality``."""
+    sol, sc, shape = plan.sol, plan.sol.scene, heights.shape
+    drop_unconfirmed(heights, quality, max(6.0, plan.posting_m))
+    seen = seen_by_all(sol, t, shape, bridge(heights), plan.window)
     heights[~seen] = np.nan
     quality[~seen] = 0
     mask = np.where(np.isfinite(heights), MASK_MATCHED, MASK_VOID).astype(np.uint8)
@@ -288,4 +347,4 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, record: dic
     n_seen = int(seen.sum())
     valid = float(np.isfinite(heights[seen]).sum() / n_seen) if n_seen else 0.0
     checkpoint(progress, 1.0, "done")
-    return Dsm(heights, t, sc.crs, kind, valid, mask, seen, quality, posting_m, geoid_name, info)
+    return Dsm(heights, t, sc.crs, kind, valid, mask, seen, quality, plan.posting_m, geoid_name, info)
