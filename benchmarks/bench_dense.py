@@ -37,6 +37,7 @@ import numpy as np
 import rasterio
 
 from prismstation.ops.project import create
+from prismstation.core.stats import nmad
 from prismstation.io.dem import read_dem
 from prismstation.io.project import load_project
 from prismstation.ops.fit import solve_project
@@ -143,8 +144,7 @@ def stats(e: np.ndarray) -> tuple[float, float, float, int]:
     e = e[np.isfinite(e)]
     if e.size == 0:
         return np.nan, np.nan, np.nan, 0
-    med = np.median(e)
-    return 1.4826 * float(np.median(np.abs(e - med))), float(np.sqrt(np.mean(e ** 2))), float(e.mean()), e.size
+    return nmad(e), float(np.sqrt(np.mean(e ** 2))), float(e.mean()), e.size
 
 
 def main() -> None:

@@ -22,6 +22,7 @@ sys.path.insert(0, str(ROOT / "src"))
 
 from prismstation.cli import main  # noqa: E402
 from prismstation.cli.demo import ensure_demo  # noqa: E402
+from prismstation.core.stats import nmad  # noqa: E402
 from prismstation.io.dem import read_dem  # noqa: E402
 
 
@@ -60,10 +61,9 @@ def main_demo(argv=None) -> int:
     seen = np.isfinite(mask)
     truth = read_dem(project.parent / "triplet" / "truth_dem.tif", crs, t, h.shape, resampling="bilinear").heights
     e = (h - truth)[seen & np.isfinite(h)]
-    med = np.median(e)
     fill = float((mask[seen] == 1).mean())
     print(f"demo DSM at {a.posting:g} m: {h.shape[1]} × {h.shape[0]} cells, {wall:.1f} s wall, {cpu:.1f} s CPU, "
-          f"fill {100 * fill:.2f} %, NMAD {1.4826 * np.median(np.abs(e - med)):.2f} m, "
+          f"fill {100 * fill:.2f} %, NMAD {nmad(e):.2f} m, "
           f"RMSE {np.sqrt(np.mean(e ** 2)):.2f} m, bias {e.mean():+.2f} m")
     if a.out:
         shade = hillshade(np.where(np.isfinite(h), h, np.nanmedian(h)), a.posting)

@@ -37,7 +37,8 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
-from prismstation.core.coreg import CoregResult, block_mean, coregister, correlation_area, nmad, shift_grid
+from prismstation.core.coreg import CoregResult, block_mean, coregister, correlation_area, shift_grid
+from prismstation.core.stats import nmad
 
 #: k of ``radius = k·σ_apriori / GSD``
 K_SIGMA = 3.0

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from prismstation.core.stats import nmad
+
 IDENTITY = (1.0, 0.0, 0.0, 0.0, -1.0, 0.0)
 #: σ (px) added in quadrature to the horizontal shift (and, half of it times the RMS slope in m
 #: per pixel, to dz): the bias of bilinear interpolation, measured on SRTM 3″ (≤ 0.005 px, 0.12 m)
@@ -84,14 +86,6 @@ class CoregResult:
         """False when no shift was found (``reason`` says why): the failure convention of
         :mod:`prismstation.core.estimate`."""
         return bool(self.converged)
-
-
-def nmad(values: np.ndarray) -> float:
-    """Normalised median absolute deviation (1.4826·median|v − median v|) of finite values."""
-    v = values[np.isfinite(values)]
-    if v.size == 0:
-        return float("nan")
-    return float(1.4826 * np.median(np.abs(v - np.median(v))))
 
 
 def shift_grid(a: np.ndarray, dcol: float, drow: float) -> np.ndarray:

@@ -9,11 +9,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from prismstation.core.stats import nmad
 from prismstation.errors import ModelError
 
 PERCENTILES = (5.0, 25.0, 50.0, 75.0, 95.0)
 ABS_PERCENTILES = (68.3, 95.0)
-NMAD_FACTOR = 1.4826
 
 
 @dataclass(frozen=True)
@@ -65,7 +65,7 @@ def sample_stats(d, percentiles=PERCENTILES, abs_percentiles=ABS_PERCENTILES) ->
         min=float(d.min()),
         max=float(d.max()),
         median=med,
-        nmad=float(NMAD_FACTOR * np.median(np.abs(d - med))),
+        nmad=nmad(d),
         percentiles={p: float(v) for p, v in zip(percentiles, np.percentile(d, percentiles))},
         abs_percentiles={p: float(v) for p, v in
                          zip(abs_percentiles, np.percentile(np.abs(d), abs_percentiles))},

@@ -45,6 +45,8 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
+from prismstation.core.stats import nmad
+
 OK, LOW_SCORE, FLAT, DIVERGED, BORDER, OUTSIDE = (
     "ok", "low_score", "flat", "diverged", "border", "outside")
 
@@ -387,6 +389,6 @@ def blunder_mask(results, predicted, direction, k: float = 3.0, min_abs: float =
     bad = ~ok
     if ok.sum() >= 3:
         med = np.median(across[ok])
-        spread = 1.4826 * np.median(np.abs(across[ok] - med))
+        spread = nmad(across[ok])
         bad |= ~(np.abs(across - med) <= max(k * spread, min_abs))
     return bad

@@ -26,6 +26,7 @@ import numpy as np
 
 from prismstation.core import prism, sgm
 from prismstation.core.solve import Solution
+from prismstation.core.stats import nmad
 
 PAIRS = (("F", "N"), ("N", "B"), ("F", "B"))
 
@@ -216,7 +217,7 @@ def tile_dsm(sol: Solution, images: dict, frame: Frame, h0: np.ndarray, transfor
     z = np.concatenate([v[q == 3] for v in z]) if z else np.zeros(0)
     z = z[np.isfinite(z)]
     # robust: NMAD of z (1.0 when the σ are right), from the cells all three pairs agree on
-    z_nmad = float(1.4826 * np.median(np.abs(z - np.median(z)))) if z.size else float("nan")
+    z_nmad = nmad(z)
     tol = tau * 2 * float(sig.max())
     h, q = sgm.resolve_single(h, q, vals, max(tol, 3 * frame.g))
     return TileResult(h, q, vals, counts.astype(np.int32), z_nmad, int(z.size))

@@ -17,6 +17,7 @@ from prismstation.core import prism
 from prismstation.core.coarse import search_radius_px
 from prismstation.core.matching import MatchResult, match_point
 from prismstation.core.solve import Solution
+from prismstation.core.stats import nmad
 from prismstation.io.windows import ImageWindows
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 from prismstation.ops.progress import ProgressFn, checkpoint
@@ -109,6 +110,6 @@ def auto_tie_points(sol: Solution, images: ImageWindows, *, grid: int = 8, margi
     for v in ("F", "B"):
         a = np.einsum("ij,ij->i", prism.to_nadir_space(sc, sc.views[v])(np.array([p[v] for p in found])) - xn, cross)
         med = np.median(a)
-        nmad = max(1.4826 * np.median(np.abs(a - med)), 1.0 / 3)
-        keep &= np.abs(a - med) <= 3 * nmad
+        spread = max(nmad(a), 1.0 / 3)
+        keep &= np.abs(a - med) <= 3 * spread
     return [p for p, k in zip(found, keep) if k]
