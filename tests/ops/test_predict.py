@@ -101,3 +101,32 @@ def test_vectorised_known_ground_predictions_equal_the_single_ones():
         for v, pr in one.items():
             assert np.allclose(allp[p.id][v].xy, pr.xy) and np.allclose(allp[p.id][v].cov, pr.cov)
             assert allp[p.id][v].source == "ground"
+
+
+@pytest.mark.parametrize("view", ["F", "B"])
+def test_a_point_measured_in_one_oblique_view_meets_a_steep_reference(view):
+    """Measured only in F (or B), placed by the reference DEM: on a 60° slope along track the
+    ray meets the surface where the old fixed five steps stopped metres short."""
+    from prismstation.core import prism
+    from prismstation.ops.predict import ground_estimate
+    scene = make_scene()
+    truth = make_points(scene, n_gcp=9, n_icp=1, noise_px=0.0, seed=1)
+    sol = solve(scene, [PointObs(p.id, p.kind, p.ground, dict(p.image)) for p in truth if p.kind == "GCP"])
+    icp = next(p for p in truth if p.kind == "ICP")
+    en0 = np.array(icp.ground[:2], float)
+    t = prism.along_track_unit(scene, en0)
+    s = math.tan(math.radians(60.0))
+    h0 = sol.mean_height + 400.0              # 400 m above the mean: the start is far off
+
+    def plane(en):
+        return h0 + s * ((np.asarray(en, float) - en0) @ t)
+    xy = sol.ground_to_image(view, en0[None], np.array([h0]))[0]
+    point = PointInput("p", "TIE", {view: (float(xy[0]), float(xy[1]), None)})
+    g, _, source = ground_estimate(sol, point, height_of=plane, sigma_dem=0.01, sigma_mean=100.0)
+    assert source == "reference"
+    assert abs(g[2] - h0) < 0.05 and np.hypot(*(g[:2] - en0)) < 0.05
+    # what five fixed-point steps from the mean height gave
+    h = sol.mean_height
+    for _ in range(5):
+        h = float(plane(sol.image_to_ground(view, xy, h)[None])[0])
+    assert abs(h - h0) > 5.0, h - h0

@@ -16,6 +16,7 @@ import numpy as np
 
 from prismstation.core import prism
 from prismstation.core.prism import BiasFit, ParallaxLine
+from prismstation.core.ray_dem import ray_meets_surface
 from prismstation.core.scene import Scene
 from prismstation.core.stats import ComponentStats, FitStatistics, ImageStats, VectorStats
 from prismstation.errors import ModelError
@@ -255,16 +256,17 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
         return en
 
     en = planimetry(h)
-    if height_of is not None:
-        need = any_m & ~use_py
-        for _ in range(3):
-            if not need.any():
-                break
-            hr = np.asarray(height_of(en[need]), float)
-            ok = np.isfinite(hr)
-            idx = np.flatnonzero(need)[ok]
-            h[idx], source[idx] = hr[ok], "reference"
-            en = planimetry(h)
+    need = np.flatnonzero(any_m & ~use_py) if height_of is not None else np.zeros(0, int)
+    if need.size:                   # the rays meet the DEM; those that do not keep their height
+
+        def ground_at(hn):
+            hh = h.copy()
+            hh[need] = hn
+            return planimetry(hh)[need]
+        hit = ray_meets_surface(ground_at, lambda e: np.asarray(height_of(e), float), h[need])
+        idx = need[hit.converged]
+        h[idx], source[idx] = hit.h[hit.converged], "reference"
+        en = planimetry(h)
 
     known = np.array([p.ground is not None for p in points], bool)
     G = np.array([p.ground if p.ground is not None else (np.nan,) * 3 for p in points], float).reshape(n, 3)

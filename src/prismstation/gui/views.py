@@ -22,6 +22,7 @@ import numpy as np
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import QSplitter, QVBoxLayout, QWidget
 
+from prismstation.core.ray_dem import ray_meets_surface
 from prismstation.core.scene import reference_view
 from prismstation.errors import PrismError
 from prismstation.gui import workers
@@ -323,11 +324,9 @@ class TripletViews(QWidget):
         h = float(sol.mean_height)
         if self.height_of is not None:
             xy = np.asarray(xy, float)
-            for _ in range(4):
-                hd = float(self.height_of(sol.image_to_ground(name, xy, h)[None])[0])
-                if not np.isfinite(hd):
-                    break
-                h = hd
+            hit = ray_meets_surface(lambda hh: sol.image_to_ground(name, xy, hh[0])[None],
+                                    lambda en: np.asarray(self.height_of(en), float), h)
+            h = float(hit.h[0]) if hit else h
         return h
 
     def linked(self, name: str, x: float, y: float, h: float | None = None):

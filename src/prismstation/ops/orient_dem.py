@@ -40,6 +40,7 @@ from prismstation.core.dem_orient import (PatchShift, affine_field, control_from
                                           judge_patches, orientation_sigma, patch_windows,
                                           relative_dem_points, reoffset_patches, smooth_like_reference)
 from prismstation.core.dense import parallax_map
+from prismstation.core.ray_dem import ray_meets_surface
 from prismstation.core.solve import Control
 from prismstation.core.sample import remap_points
 from prismstation.core.view_offsets import SIGMA_HEIGHT_M, offset_at
@@ -122,14 +123,12 @@ class ReferenceGrid:
         row = (self.hi[1] - en[..., 1]) / self.posting_m - 0.5
         return remap_points(grid, col, row).astype(float)
 
-    def ground(self, scene, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Where N's ancillary rays through image points ``xy`` (n, 2) meet the reference:
-        ``(en (n, 2), h (n,))``."""
-        h = np.full(len(xy), self.mean_h)
-        for _ in range(3):
-            en = prism.ancillary_to_ground(scene, scene.views["N"], xy, h)
-            h = self.at(self.filled, en)
-        return en, h
+    def ground(self, scene, xy: np.ndarray):
+        """Where N's ancillary rays through image points ``xy`` (n, 2) meet the reference
+        (:class:`~prismstation.core.ray_dem.RayHits`: ``en`` (n, 2), ``h`` (n,), NaN where a
+        ray did not meet it)."""
+        return ray_meets_surface(lambda h: prism.ancillary_to_ground(scene, scene.views["N"], xy, h),
+                                 lambda en: self.at(self.filled, en), self.mean_h)
 
 
 @dataclass
@@ -242,8 +241,10 @@ def match_patches(run: OrientRun, patch_m: float) -> list[PatchShift]:
     scene, N = run.scene, run.scene.views["N"]
     rows, cols = run.shape
     # the parallax's a-priori σ (px) from the offsets' along-track σ
-    d = N.map_to_image.apply_linear(prism.along_track_unit(scene, run.ref.ground(
-        scene, np.array([[cols / 2, rows / 2]]))[0][0]))
+    centre = np.array([[cols / 2, rows / 2]])
+    hit = run.ref.ground(scene, centre)
+    en0 = hit.en[0] if hit else prism.ancillary_to_ground(scene, N, centre, run.ref.mean_h)[0]
+    d = N.map_to_image.apply_linear(prism.along_track_unit(scene, en0))
     d = d / np.linalg.norm(d)
     sigma_py_off = float(np.hypot(*(np.hypot(*(d * run.coarse.sigma_px[v])) for v in "FB")))
     patch_px = max(int(round(patch_m / N.pixel_size_m)), 64)
@@ -320,7 +321,10 @@ def match_patch(run: OrientRun, images, win, sigma_py_off: float) -> PatchShift:
     step = 8
     gx, gy = np.meshgrid(np.arange(wd[0] + 0.5, wd[0] + wd[2], step) * f,
                          np.arange(wd[1] + 0.5, wd[1] + wd[3], step) * f)
-    en, hh = ref.ground(scene, np.column_stack([gx.ravel(), gy.ravel()]))
+    hit = ref.ground(scene, np.column_stack([gx.ravel(), gy.ravel()]))
+    if not hit:
+        return fail(f"N's rays did not meet the reference DEM: {hit.reason}")
+    en, hh = hit.en, hit.h
     rms_slope = float(np.sqrt(np.mean(ref.at(ref.slope, en) ** 2)))
     sigma_py = float(np.hypot(np.hypot(run.sigma_height_m, run.sigma_apriori_m * rms_slope) / c1, sigma_py_off))
     search_px = int(np.ceil(K_SIGMA * sigma_py / f)) + 1

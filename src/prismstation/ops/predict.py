@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from prismstation.core.ray_dem import ray_meets_surface
 from prismstation.core.solve import Solution
 
 CHI2_95_2D = 5.991464547107979
@@ -164,15 +165,11 @@ def ground_estimate(sol: Solution, point: PointInput, *, height_of=None, sigma_d
     first = next(iter(obs))
     h0, sigma_h, source = float(sol.mean_height), sigma_mean, "mean"
     xy_first = np.array(obs[first][:2], float)
-    if height_of is not None:
-        h, hd = h0, math.nan
-        for _ in range(5):  # the ray meets the DEM: fixed point
-            hd = float(np.asarray(height_of(sol.image_to_ground(first, xy_first, h)[None]))[0])
-            if not math.isfinite(hd):
-                break
-            h = hd
-        if math.isfinite(hd):
-            h0, sigma_h, source = h, sigma_dem, "reference"
+    if height_of is not None:       # the ray meets the DEM (else the mean height)
+        hit = ray_meets_surface(lambda h: sol.image_to_ground(first, xy_first, h[0])[None],
+                                lambda en: np.asarray(height_of(en), float), h0)
+        if hit:
+            h0, sigma_h, source = float(hit.h[0]), sigma_dem, "reference"
     if len(obs) >= 2:  # the DEM, when there, still weighs in (coarse pixels: it may be better)
         source = "intersection"
     g = np.array([*sol.image_to_ground(first, xy_first, h0), h0], float)
