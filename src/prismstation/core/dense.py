@@ -42,13 +42,21 @@ class ParallaxMap:
         The N-image window: cell ``[j, i]`` is N pixel ``(col0 + i, row0 + j)``, its centre at
         ``(col0 + i + 0.5, row0 + j + 0.5)``.
     cancelled : bool
-        True if ``progress`` returned False (the map is then incomplete, NaN elsewhere).
+        True if ``progress`` returned False (the map is then incomplete, NaN elsewhere); the
+        map is then falsy and ``reason`` says so (:mod:`prismstation.core.estimate`).
     """
 
     parallax: np.ndarray
     score: np.ndarray
     window: tuple
     cancelled: bool
+
+    def __bool__(self) -> bool:
+        return not self.cancelled
+
+    @property
+    def reason(self) -> str:
+        return "cancelled: the map is incomplete" if self.cancelled else ""
 
     @property
     def valid_fraction(self) -> float:

@@ -1,4 +1,31 @@
-"""The one protocol every fitted transform of :mod:`prismstation.core` follows.
+"""The one protocol every fitted transform of :mod:`prismstation.core` follows, and the one
+shape of a result that failed.
+
+Failure as a value
+------------------
+Every result that can fail — a fit, a co-registration, a resection, a parallax map, rays
+meeting a DEM — is **falsy when it failed** and has a **``reason``** (a sentence for the
+operator; ``""`` when it did not fail), after scikit-image's transforms::
+
+    fit = Affine2D.fit(src, dst)          # or BiasFit.fit, FittedTransform.fit, ShiftField.fit
+    if not fit:
+        status(fit.reason)                # never a try/except around a click
+
+The results: :class:`FailedFit` (what ``T.fit`` returns instead of a transform),
+:class:`~prismstation.core.coreg.CoregResult` (no shift found: ``converged`` False),
+:class:`~prismstation.core.resection.ResectionResult` (not converged),
+:class:`~prismstation.core.dense.ParallaxMap` (cancelled: incomplete),
+:class:`~prismstation.core.ray_dem.RayHits` (a ray did not meet the surface),
+:class:`~prismstation.ops.coregister.Coregistration`. A failed result may still carry what
+was computed (statistics, a partial map) for display; it must not be used as a success.
+Bad *input* (a file, a value out of range) is not a failed result: it raises
+:class:`~prismstation.errors.InputError`; a cancelled operation raises
+:class:`~prismstation.errors.Cancelled` (:mod:`prismstation.ops.progress`). A judgement on a
+result that did compute — the χ² verdict of an orientation's patches, a DSM's fill below the
+minimum — is a field of the result (``verdict``, ``low_fill``), not a failure.
+
+Fitted transforms
+-----------------
 
 After scikit-image's geometric transforms (``from_estimate`` returning the transform or a
 falsy failure), with the statistics a photogrammetrist reads added:

@@ -83,7 +83,8 @@ class ResectionResult:
     corrections : (k, 6) the Gauss–Newton correction applied at each iteration (Subaryono et al.'s
         Figures 4.1–4.2 plot these).
     history : (k + 1, 6) parameters after each iteration, starting values first.
-    converged : whether corrections fell below the tolerance within the iterations allowed.
+    converged : whether corrections fell below the tolerance within the iterations allowed;
+        the result is falsy when not, and ``reason`` says so (:mod:`prismstation.core.estimate`).
     note : the pushbroom caveat, to show with the result.
     """
 
@@ -98,6 +99,14 @@ class ResectionResult:
     converged: bool
     camera: FrameCamera
     note: str = PUSHBROOM_NOTE
+
+    def __bool__(self) -> bool:
+        return bool(self.converged)
+
+    @property
+    def reason(self) -> str:
+        return "" if self.converged else (f"did not converge in {len(self.corrections)} iterations "
+                                          f"(σ0 {self.sigma0_px:.3g} px)")
 
     @property
     def position(self) -> np.ndarray:

@@ -368,7 +368,7 @@ def match_patch(run: OrientRun, images, win, sigma_py_off: float) -> PatchShift:
     if np.isfinite(rel).sum() < 50:
         return fail("too few cells of the relative DEM")
     r = dem_offset(refp, rel, t, run.radius_m)
-    if not r.converged or not np.isfinite([r.dx, r.dy, r.dz]).all():
+    if not r or not np.isfinite([r.dx, r.dy, r.dz]).all():
         return fail(r.reason or "surface matching did not converge (flat terrain?)")
     return PatchShift(win, x, y, r.dx, r.dy, r.dz, r.sigma_dx, r.sigma_dy, r.sigma_dz, r.count,
                       pm.valid_fraction)
