@@ -38,8 +38,10 @@ def main(argv: list[str] | None = None) -> int:
         else:
             parser.print_help()
             return 2
+    from prismstation.io.raster import gdal_env
     try:
-        return int(args.func(args) or 0)
+        with gdal_env():
+            return int(args.func(args) or 0)
     except PrismError as exc:
         print(f"prismstation {args.command}: {exc}", file=sys.stderr)
         return 2

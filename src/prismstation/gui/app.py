@@ -119,6 +119,12 @@ def run(project_path=None, screenshot=None, reference_dem=None, demo_maker=None)
     if screenshot_path is not None:
         if "PRISMSTATION_SETTINGS_DIR" not in os.environ:  # never the user's layout in a picture
             os.environ["PRISMSTATION_SETTINGS_DIR"] = tempfile.mkdtemp(prefix="prismstation-settings-")
+    from prismstation.io.raster import gdal_env
+    with gdal_env():                 # the window's GDAL settings, for as long as it runs
+        return _run_window(project_path, screenshot_path, reference_dem, demo_maker)
+
+
+def _run_window(project_path, screenshot_path, reference_dem, demo_maker) -> int:
     app = make_app()
     from prismstation.gui.main_window import MainWindow
 

@@ -34,22 +34,20 @@ COARSE_MAX = 1024
 """Longest side, in pixels, of the coarse whole-image overview read for display and statistics."""
 
 GDAL_CACHE_MB = 32
-"""GDAL's block cache (process-wide) once a RasterSource or ImageWindows exists, unless
+"""GDAL's block cache (process-wide) while an entry point's :func:`gdal_env` is active, unless
 GDAL_CACHEMAX is set in the environment. GDAL's default (5 % of RAM, 1.2 GB here) duplicates the
 tile cache, fills with blocks a windowed reader reads once (a 14,000 px DSM: peak RSS 2.19 GB with
 it), and alone takes the workstation past its memory budget."""
 
-_gdal_cache_limited = False
 
-
-def limit_gdal_cache() -> None:
-    """Bound GDAL's block cache to :data:`GDAL_CACHE_MB` in this process (once)."""
-    global _gdal_cache_limited
-    if not _gdal_cache_limited and "GDAL_CACHEMAX" not in os.environ:
-        from rasterio.env import set_gdal_config
-
-        set_gdal_config("GDAL_CACHEMAX", GDAL_CACHE_MB * 1024 * 1024)
-    _gdal_cache_limited = True
+def gdal_env(**options) -> rasterio.Env:
+    """The GDAL configuration of an entry point, scoped (``with gdal_env(): ...``): the block
+    cache bounded to :data:`GDAL_CACHE_MB` unless ``GDAL_CACHEMAX`` is set in the environment,
+    and ``options``. Entered by the command line's ``main``, the window's ``run`` and each DSM
+    tile (a Dask worker may be another process); reading a raster changes no setting."""
+    if "GDAL_CACHEMAX" not in os.environ:
+        options.setdefault("GDAL_CACHEMAX", GDAL_CACHE_MB * 1024 * 1024)
+    return rasterio.Env(**options)
 
 
 @dataclass(frozen=True)
@@ -176,7 +174,6 @@ class RasterSource:
         local = "://" not in self._name and not self._name.startswith("/vsi")
         if local and not self.path.exists():
             raise RasterReadError(f"{self.path}: no such file")
-        limit_gdal_cache()
         self._local = threading.local()
         self._handles: list = []
         self._handles_lock = threading.Lock()

@@ -13,7 +13,6 @@ from rasterio.windows import Window
 
 from prismstation.core.affine import Affine2D
 from prismstation.errors import RasterReadError
-from prismstation.io.raster import limit_gdal_cache
 
 
 #: full-resolution rows read at a time by :meth:`ImageWindows.read_reduced`
@@ -27,7 +26,6 @@ class ImageWindows:
     """
 
     def __init__(self, scene):
-        limit_gdal_cache()   # windows are read once: GDAL's default cache only grows RSS
         self._ds = {}
         try:
             for v, view in scene.views.items():

@@ -26,7 +26,6 @@ from prismstation.core.coarse import K_SIGMA, search_radius_px
 from prismstation.core.scene import Scene
 from prismstation.errors import InputError
 from prismstation.io.dem import read_dem
-from prismstation.io.raster import limit_gdal_cache
 from prismstation.ops.progress import checkpoint
 
 SIGMA_APRIORI_M = 50.0
@@ -102,7 +101,6 @@ def coarse_view_offsets(scene: Scene, reference_path, geoid, *, sigma_apriori_m:
     margin = int(radius) + 24
     wins = vo.lattice((rows, cols), window_px, k=grid, margin_px=margin)
     found = []
-    limit_gdal_cache()
     ds = {v: rasterio.open(scene.views[v].image) for v in "NFB"}
     try:
         for i, win in enumerate(wins):

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from prismstation.io.raster import gdal_env
 from prismstation.io.windows import ImageWindows
 from prismstation.core.solve import Solution
 from prismstation.core.stereo_tile import frame_over, tile_dsm
@@ -117,8 +118,9 @@ def run_tile(spec: TileSpec):
     h0 = _prior_on_frame(spec.prior, spec.prior_transform, frame)
     pixel = sol.scene.views["N"].pixel_size_m
     factor = max(1, int(round(spec.g / pixel)))
-    images = _read_views(sol, frame, float(h0.min()) - spec.half_range_m,
-                         float(h0.max()) + spec.half_range_m, factor)
+    with gdal_env():         # a worker may be another process: its own bounded GDAL cache
+        images = _read_views(sol, frame, float(h0.min()) - spec.half_range_m,
+                             float(h0.max()) + spec.half_range_m, factor)
     res = tile_dsm(sol, images, frame, h0, tile_t, (rows, cols), spec.half_range_m,
                    refine=spec.refine)
     return res.heights, res.quality, feather(spec, tile_t, (rows, cols)), (res.z_nmad, res.z_count)

@@ -11,7 +11,7 @@ from rasterio.windows import Window
 from prismstation.errors import RasterReadError
 from prismstation.io.raster import TILE_SIZE, RasterSource
 
-from .conftest import H, W, pattern
+from tests.io.conftest import H, W, pattern
 
 
 def test_metadata(pattern_tif, pattern_tif16):
@@ -116,33 +116,70 @@ def test_build_overviews_external_with_progress_and_cancel(plain_tif):
     assert RasterSource(plain_tif).levels == (1, 2, 4, 8)
 
 
-def test_gdal_block_cache_is_bounded(pattern_tif, monkeypatch):
-    from rasterio.env import get_gdal_config
-
-    from prismstation.io import raster
-
-    monkeypatch.delenv("GDAL_CACHEMAX", raising=False)
-    monkeypatch.setattr(raster, "_gdal_cache_limited", False)
-    RasterSource(pattern_tif)
-    assert int(get_gdal_config("GDAL_CACHEMAX")) <= raster.GDAL_CACHE_MB * 1024 * 1024
-
-
-def test_gdal_block_cache_is_bounded_for_the_dsm_and_orientation_reads(pattern_tif, monkeypatch):
-    """The DSM's tiles read every image once through ImageWindows: GDAL's default cache (5 % of
-    RAM) would only add its size to the peak RSS."""
+def test_reading_a_raster_changes_no_gdal_setting(pattern_tif, monkeypatch):
+    """Readers set nothing process-wide (they did: GDAL_CACHEMAX, on creating one)."""
     from types import SimpleNamespace
 
-    from rasterio.env import get_gdal_config, set_gdal_config
+    from rasterio.env import get_gdal_config
 
-    from prismstation.io import raster
     from prismstation.io.windows import ImageWindows
 
     monkeypatch.delenv("GDAL_CACHEMAX", raising=False)
-    monkeypatch.setattr(raster, "_gdal_cache_limited", False)
-    set_gdal_config("GDAL_CACHEMAX", 2 ** 30)
+    before = get_gdal_config("GDAL_CACHEMAX")
+    RasterSource(pattern_tif).read((0, 0, 8, 8))
     with ImageWindows(SimpleNamespace(views={"N": SimpleNamespace(image=str(pattern_tif))})) as w:
         assert w.read("N", 0, 0, 8, 8)[0].shape == (8, 8)
-    assert int(get_gdal_config("GDAL_CACHEMAX")) <= raster.GDAL_CACHE_MB * 1024 * 1024
+    assert get_gdal_config("GDAL_CACHEMAX") == before
+
+
+@pytest.mark.parametrize("user", [None, "64"])
+def test_the_command_line_bounds_gdal_cache_while_it_runs(monkeypatch, user):
+    """The entry point scopes GDAL's configuration (a rasterio Env): GDAL's default cache (5 %
+    of RAM) would fill with blocks a windowed reader reads once; GDAL_CACHEMAX set by the
+    user is left as it is."""
+    from rasterio.env import get_gdal_config
+
+    import prismstation.cli.bh as bh
+    from prismstation.cli import main
+    from prismstation.io import raster
+
+    if user is None:
+        monkeypatch.delenv("GDAL_CACHEMAX", raising=False)
+    else:
+        monkeypatch.setenv("GDAL_CACHEMAX", user)
+    before = get_gdal_config("GDAL_CACHEMAX")
+    seen = []
+    monkeypatch.setattr(bh, "run", lambda args: seen.append(int(get_gdal_config("GDAL_CACHEMAX"))) or 0)
+    assert main(["bh", "--left", "0", "0", "0", "--right", "1", "1", "1"]) == 0
+    if user is None:
+        assert seen == [raster.GDAL_CACHE_MB * 1024 * 1024]
+    else:
+        assert seen == [int(before)]
+    assert get_gdal_config("GDAL_CACHEMAX") == before
+
+
+def test_each_dsm_tile_reads_under_the_bounded_cache(monkeypatch):
+    """A Dask worker may be another process, outside any entry point."""
+    from rasterio.env import get_gdal_config
+
+    from prismstation.io import raster
+    from prismstation.ops import dsm_tiles
+
+    monkeypatch.delenv("GDAL_CACHEMAX", raising=False)
+    seen = []
+
+    def read(*a, **k):
+        seen.append(int(get_gdal_config("GDAL_CACHEMAX")))
+        raise RuntimeError("enough")
+    monkeypatch.setattr(dsm_tiles, "_read_views", read)
+    monkeypatch.setattr(dsm_tiles, "frame_over", lambda *a, **k: None)
+    monkeypatch.setattr(dsm_tiles, "_prior_on_frame", lambda *a, **k: np.zeros((2, 2), np.float32))
+    from types import SimpleNamespace
+    sol = SimpleNamespace(scene=SimpleNamespace(views={"N": SimpleNamespace(pixel_size_m=2.5)}))
+    spec = dsm_tiles.TileSpec(sol, (0, 0, 2, 2), (5.0, 0, 0, 0, -5.0, 0), 5.0, 10.0, None, None)
+    with pytest.raises(RuntimeError, match="enough"):
+        dsm_tiles.run_tile(spec)
+    assert seen == [raster.GDAL_CACHE_MB * 1024 * 1024]
 
 
 @pytest.mark.parametrize("factor, window", [(1, (3, 5, 40, 30)), (3, (0, 0, 10000, 10000)),
@@ -208,17 +245,3 @@ def test_build_overviews_refuses_a_read_only_folder(plain_tif):
         assert not (folder / "plain.tif.ovr").exists()
     finally:
         folder.chmod(0o755)
-
-
-def test_tiles_for_rect_clips_and_orders_from_the_centre(pattern_tif):
-    pytest.importorskip("PySide6")
-    from prismstation.gui.tiles import tiles_for_rect
-
-    src = RasterSource(pattern_tif)  # 3000 x 2000: 6 x 4 tiles at level 1, 3 x 2 at level 2
-    keys = tiles_for_rect(src, 1, (-100, -100, 5000, 5000))
-    assert sorted(keys) == sorted((1, c, r) for c in range(6) for r in range(4))
-    keys = tiles_for_rect(src, 2, (1100, 300, 100, 100))
-    assert keys == [(2, 1, 0)]
-    keys = tiles_for_rect(src, 1, (900, 900, 700, 100))  # cols 1..3, row 1; centre in col 2
-    assert keys[0] == (1, 2, 1) and sorted(keys) == [(1, 1, 1), (1, 2, 1), (1, 3, 1)]
-    assert tiles_for_rect(src, 1, (4000, 0, 100, 100)) == []
