@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.core.matching.sigma_experiments import closure_rows, summary, truth_rows
+from benchmarks.sigma_experiments import closure_rows, summary, truth_rows
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "pleiades_triplet"
 

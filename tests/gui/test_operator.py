@@ -118,8 +118,12 @@ def test_click_in_create_mode_creates_a_tie_point_and_drag_moves_it(qtbot, windo
     assert len(win.project.points) == n0 + 1
     pid = win.current
     assert win.project.points[pid].kind == "TIE"
-    assert win.table_model.row_of(pid) >= 0 or True
     settle(qtbot, win)
+    # the new point has its own row in the table, and it is the row selected
+    row = win.table_model.row_of(pid)
+    assert row >= 0 and win.table_model.cell(pid, "ID") == pid
+    assert win.table_model.rowCount() == n0 + 1
+    assert [i.row() for i in win.table.selectionModel().selectedRows()] == [row]
     assert win.table_model.cell(pid, "Views") == "N · ·"
     assert win.table_model.cell(pid, "Kind") == "TIE"
 

@@ -8,7 +8,7 @@ import pytest
 
 from prismstation.core.matching import (SIGMA_FLOOR_ACROSS, SIGMA_FLOOR_ALONG, SIGMA_SCALE,
                                         calibrated_sigma)
-from tests.core.matching.sigma_experiments import closure_rows, summary, truth_rows
+from benchmarks.sigma_experiments import closure_rows, summary, truth_rows
 
 
 def test_calibrated_sigma_formula():

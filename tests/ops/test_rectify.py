@@ -1,46 +1,15 @@
-"""Rectified GeoTIFF export and the ``rectify`` command."""
-import json
+"""Single-image rectification into a GeoTIFF (ops.rectify): inverse mapping, GDAL agreement,
+output CRS, progress and cancel, the lattice inverse map, a real Pléiades crop."""
 import warnings
 
 import numpy as np
 import pytest
 import rasterio
 
-from prismstation.cli import main
 from prismstation.core.rectify import compare_transforms, fit_transform
-from prismstation.errors import InputError
 from prismstation.errors import Cancelled
-from prismstation.io.rectify_io import read_point_pairs
 from prismstation.ops.rectify import rectify_raster
-
-CRS = "EPSG:32631"
-
-
-def _image(path, rows=240, cols=320, seed=0):
-    rng = np.random.default_rng(seed)
-    img = (rng.random((rows, cols)) * 250 + 1).astype(np.uint8)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        with rasterio.open(path, "w", driver="GTiff", width=cols, height=rows, count=1,
-                           dtype="uint8") as ds:
-            ds.write(img, 1)
-    return img
-
-
-def _points(n=12, seed=1, rows=240, cols=320):
-    rng = np.random.default_rng(seed)
-    src = rng.uniform(0, 1, (n, 2)) * [cols, rows]
-    dst = src @ np.array([[10.0, 1.0], [1.5, -10.0]]).T + [500000.0, 4600000.0]
-    return src, dst
-
-
-def _apply(geo, col, row):
-    return geo.a * col + geo.b * row + geo.c, geo.d * col + geo.e * row + geo.f
-
-
-def _read(path):
-    with rasterio.open(path) as ds:
-        return ds.read(1), ds.transform, ds.crs
+from tests.rectify_data import CRS, _apply, _image, _points, _read
 
 
 @pytest.mark.parametrize("kind", ["affine", "projective", "poly2"])
@@ -134,82 +103,6 @@ def test_progress_reports_and_cancels(tmp_path):
         ["a.tif", "img.tif"]
 
 
-def _csvs(tmp_path, src, dst, icp=()):
-    pts = tmp_path / "pts.csv"
-    meas = tmp_path / "meas.csv"
-    pts.write_text("id,E,N,H,kind,note\n" + "".join(
-        f"G{i},{e:.4f},{n:.4f},10,{'ICP' if i in icp else 'GCP'},x\n" for i, (e, n) in enumerate(dst)))
-    meas.write_text("id,view,x,y\n" + "".join(f"G{i},N,{x:.4f},{y:.4f}\n" for i, (x, y) in enumerate(src))
-                    + "T1,N,3,4\n" + "".join(f"G{i},F,{x:.4f},{y:.4f}\n" for i, (x, y) in enumerate(src)))
-    return pts, meas
-
-
-def test_read_point_pairs_one_view_and_kinds(tmp_path):
-    src, dst = _points()
-    pts, meas = _csvs(tmp_path, src, dst, icp=(2, 5))
-    with pytest.raises(InputError, match="several views"):
-        read_point_pairs(pts, meas)
-    p = read_point_pairs(pts, meas, view="N")
-    assert p.ids[0] == "G0" and len(p.ids) == 12 and "T1" not in p.ids
-    assert np.allclose(p.xy, np.round(src, 4)) and list(np.nonzero(p.is_check)[0]) == [2, 5]
-
-
-def test_rectify_command_table_json_and_image(tmp_path, capsys):
-    _image(tmp_path / "img.tif")
-    rng = np.random.default_rng(4)
-    src, dst = _points(n=16)
-    dst = dst + rng.normal(0, 2.0, dst.shape)
-    pts, meas = _csvs(tmp_path, src, dst, icp=(0, 7, 11))
-    rc = main(["rectify", str(tmp_path / "img.tif"), str(pts), "--measurements", str(meas),
-               "--view", "N", "--transform", "projective", "-o", str(tmp_path / "o.tif"),
-               "--points-crs", CRS, "--resolution", "8", "--json", str(tmp_path / "r.json")])
-    assert rc == 0
-    text = capsys.readouterr().out
-    icp = np.zeros(16, bool)
-    icp[[0, 7, 11]] = True
-    reports = compare_transforms(np.round(src, 4), np.round(dst, 4), icp)
-    for r in reports:
-        assert r.kind in text and f"{r.rmse_gcp:.3f}" in text and f"{r.rmse_icp:.3f}" in text
-    d = json.loads((tmp_path / "r.json").read_text())
-    assert d["chosen"] == "projective"
-    assert [t["rmse_icp_m"] for t in d["transforms"]] == pytest.approx([r.rmse_icp for r in reports])
-    out, geo, crs = _read(tmp_path / "o.tif")
-    assert geo.a == 8.0 and crs.to_epsg() == 32631 and out.any()
-
-
-@pytest.mark.parametrize("content,where", [
-    ("id,E,N\nA,1,2\nB,1,oops\n", "line 3"),
-    ("id,E\nA,1\n", "line 1"),
-    ("id,E,N,kind\nA,1,2,TIE\n", "line 2"),
-    ("id,E,N\nA,1,2\nA,3,4\n", "line 3"),
-])
-def test_rectify_command_bad_points_exit_2(tmp_path, capsys, content, where):
-    _image(tmp_path / "img.tif")
-    pts = tmp_path / "bad.csv"
-    pts.write_text(content)
-    meas = tmp_path / "m.csv"
-    meas.write_text("id,view,x,y\nA,N,1,2\n")
-    rc = main(["rectify", str(tmp_path / "img.tif"), str(pts), "--measurements", str(meas),
-               "-o", str(tmp_path / "x.tif"), "--points-crs", CRS])
-    err = capsys.readouterr().err.strip()
-    assert rc == 2 and len(err.splitlines()) == 1
-    assert "bad.csv" in err and where in err
-
-
-def test_rectify_command_too_few_points_and_missing_image(tmp_path, capsys):
-    _image(tmp_path / "img.tif")
-    src, dst = _points(n=4)
-    pts, meas = _csvs(tmp_path, src, dst)
-    rc = main(["rectify", str(tmp_path / "img.tif"), str(pts), "--measurements", str(meas),
-               "--view", "N", "--transform", "poly2", "-o", str(tmp_path / "x.tif"),
-               "--points-crs", CRS])
-    cap = capsys.readouterr()
-    assert rc == 2 and "at least 6" in cap.err and len(cap.err.strip().splitlines()) == 1
-    rc = main(["rectify", str(tmp_path / "nope.tif"), str(pts), "--measurements", str(meas),
-               "-o", str(tmp_path / "x.tif")])
-    assert rc == 2 and "nope.tif" in capsys.readouterr().err
-
-
 @pytest.mark.parametrize("kind", ["projective", "poly3"])
 def test_lattice_inverse_map_matches_exact(kind):
     from prismstation.ops.rectify import _inverse_map
@@ -261,33 +154,3 @@ def test_real_pleiades_crop_against_gdal_rpc_warp(shared_data, tmp_path):
     spread = img.astype(float).std()
     assert abs(diff.mean()) < 0.01 * spread and np.abs(diff).mean() < 0.03 * spread
 
-
-def test_rectify_command_on_a_georeferenced_real_raster_reproduces_it(shared_data, tmp_path, capsys):
-    """GCPs from the SRTM UTM tile's own geotransform: the affine rectification at the same
-    resolution (CRS taken from the image) gives back the tile cell for cell."""
-    path = shared_data / "srtm" / "N44E005_UTM.tif"
-    with rasterio.open(path) as ds:
-        geo, data, shape = ds.transform, ds.read(1), ds.shape
-    rng = np.random.default_rng(7)
-    xy = rng.uniform(0, 1, (8, 2)) * [shape[1], shape[0]]
-    e, n = _apply(geo, xy[:, 0], xy[:, 1])
-    pts = tmp_path / "p.csv"
-    pts.write_text("id,E,N,x,y\n" + "".join(f"P{i},{float(a)!r},{float(b)!r},{float(x)!r},{float(y)!r}\n"
-                                            for i, (a, b, (x, y)) in enumerate(zip(e, n, xy))))
-    rc = main(["rectify", str(path), str(pts), "--transform", "affine", "-o", str(tmp_path / "o.tif"),
-               "--resolution", "90", "--resampling", "nearest"])
-    assert rc == 0 and "affine" in capsys.readouterr().out
-    out, ogeo, crs = _read(tmp_path / "o.tif")
-    assert crs.to_epsg() == 32631
-    # the output grid is snapped to multiples of 90 m: output cell centres fall at a fixed
-    # fraction of an input cell, and nearest resampling picks input cell (i + r0, j + c0)
-    dc, dr = (ogeo.c - geo.c) / 90.0, (geo.f - ogeo.f) / 90.0
-    assert ogeo.c % 90 == pytest.approx(0, abs=1e-6) or ogeo.c % 90 == pytest.approx(90)
-    c0, r0 = int(np.floor(dc + 0.5)), int(np.floor(dr + 0.5))
-    # output cell (i, j) is input cell (i + r0, j + c0)
-    h = min(out.shape[0], shape[0] - r0) - max(0, -r0)
-    w = min(out.shape[1], shape[1] - c0) - max(0, -c0)
-    a = out[max(0, -r0):max(0, -r0) + h, max(0, -c0):max(0, -c0) + w]
-    b = data[max(0, r0):max(0, r0) + h, max(0, c0):max(0, c0) + w]
-    valid = (a != 0) & (b != 0)
-    assert valid.mean() > 0.8 and np.array_equal(a[valid], b[valid])

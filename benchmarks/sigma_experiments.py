@@ -1,5 +1,6 @@
 """The two experiments that calibrate the matcher's σ (:mod:`prismstation.core.matching`),
-shared by ``tests/core/matching/test_match_sigma.py`` and ``benchmarks/match_sigma.py``.
+run by ``benchmarks/match_sigma.py`` and checked by ``tests/core/matching/test_match_sigma.py``
+(an experiment, not a test: it lives here and the test imports it).
 
 Each returns rows ``(err_x, err_y, formal_σx, formal_σy, claimed_σx, claimed_σy)`` in pixels;
 the search (parallax) direction is close to the image y axis in both.

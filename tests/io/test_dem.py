@@ -1,10 +1,9 @@
-"""Reading reference DEMs onto a grid, voids, geoid conversion, GeoTIFF writing."""
+"""Reading reference DEMs onto a grid, voids, geoid conversion, GeoTIFF writing (io.dem)."""
 import numpy as np
 import pytest
 import rasterio
 from rasterio.transform import from_origin
 
-from prismstation.cli import main
 from prismstation.io.dem import grid_coordinates, read_dem, write_dem
 from prismstation.io.geoid import to_ellipsoidal
 
@@ -76,12 +75,6 @@ def test_write_dem_round_trip_float32_nan(tmp_path):
     assert np.allclose(g.heights, h.astype(np.float32), equal_nan=True)
 
 
-def test_missing_file_is_one_clear_error(tmp_path, capsys):
-    assert main(["coregister", str(tmp_path / "nope.tif"), str(tmp_path / "b.tif")]) == 2
-    err = capsys.readouterr().err
-    assert "nope.tif" in err and "Traceback" not in err
-
-
 def test_fine_dem_is_averaged_onto_a_coarse_grid(tmp_path):
     # 10 m checkerboard of 0 / 100 m: averaged onto 90 m cells it is 50 m almost everywhere,
     # point-sampled (bilinear) it would be 0 or 100
@@ -91,3 +84,4 @@ def test_fine_dem_is_averaged_onto_a_coarse_grid(tmp_path):
     write_dem(p, h, "EPSG:32631", from_origin(600000, 5000000, 10, 10))
     g = read_dem(p, "EPSG:32631", from_origin(600000, 5000000, 90, 90), (3, 3))
     assert np.allclose(g.heights, 50.0, atol=1.0)
+
