@@ -272,3 +272,24 @@ def test_dsm_heights_follow_the_fitted_models_parallax_line(triplet):
     line = sol.parallax.height(py)
     assert np.abs(hh + corr(en, hh) - line).max() < 0.01
     assert np.abs(line - hh).max() > 0.05          # the two geometries do differ on this scene
+
+
+def test_export_cancelled_while_writing_leaves_the_old_file_and_no_other(triplet, tmp_path):
+    """The one DSM export (command and window): a cancel after the computation, during the
+    write, leaves an existing output as it was and no temporary beside it."""
+    from prismstation.ops.dsm_export import DsmRequest, export_dsm
+    out = tmp_path / "dsm.tif"
+    out.write_bytes(b"the previous DSM")
+    msgs = []
+
+    def progress(f, m=""):
+        msgs.append(m)
+        return m != "written"                  # stop once the file is written, before it is kept
+    with pytest.raises(Cancelled):
+        export_dsm(triplet[2], triplet[1], DsmRequest(str(out), posting_m=20.0), progress=progress)
+    assert "writing" in msgs and out.read_bytes() == b"the previous DSM"
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".") or p.suffix == ".part"]
+    res = export_dsm(triplet[2], triplet[1], DsmRequest(str(out), posting_m=20.0, min_fill_percent=101.0))
+    assert res.low_fill and res.dsm.posting_m == 20.0 and res.fill_percent == pytest.approx(100 * res.dsm.fill_fraction)
+    with rasterio.open(out) as ds:
+        assert ds.transform.a == 20.0
