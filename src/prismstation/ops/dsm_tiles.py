@@ -118,7 +118,9 @@ def run_tile(spec: TileSpec):
     h0 = _prior_on_frame(spec.prior, spec.prior_transform, frame)
     pixel = sol.scene.views["N"].pixel_size_m
     factor = max(1, int(round(spec.g / pixel)))
-    with gdal_env():         # a worker may be another process: its own bounded GDAL cache
+    # a worker may be another process: its own bounded GDAL cache (in this process the
+    # caller's, run_tiles', holds it while a thread leaves its own)
+    with gdal_env():
         images = _read_views(sol, frame, float(h0.min()) - spec.half_range_m,
                              float(h0.max()) + spec.half_range_m, factor)
     res = tile_dsm(sol, images, frame, h0, tile_t, (rows, cols), spec.half_range_m,
@@ -146,6 +148,11 @@ def run_tiles(specs: list, consume, scheduler=None, workers: int | None = None, 
     5 m has ~56 million cells: all its tiles' results together would be ~0.7 GB). See the
     module docstring for ``scheduler``. ``progress(fraction, message)`` after each tile; False
     cancels. Local schedulers run the tiles in batches of four per worker."""
+    with gdal_env():      # the bound for every local worker thread, entry point or not
+        _run_tiles(specs, consume, scheduler, workers, progress)
+
+
+def _run_tiles(specs, consume, scheduler, workers, progress) -> None:
     import dask
     done = 0
 
