@@ -39,6 +39,7 @@ import rasterio
 from prismstation.ops.project import create
 from prismstation.core.stats import nmad
 from prismstation.io.dem import read_dem
+from prismstation.io.raster import gdal_env
 from prismstation.io.project import load_project
 from prismstation.ops.fit import solve_project
 from prismstation.ops.dsm import make_dsm
@@ -210,4 +211,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with gdal_env():     # an entry point: GDAL's cache bounded as the command line bounds it
+        main()
