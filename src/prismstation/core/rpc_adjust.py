@@ -242,3 +242,34 @@ def _normal_solve(models, point, image, xy, w, D, lon, lat, h, n, gcp_point, gcp
     red = np.clip(1.0 - w * (Dq + Dp + Jq), 0.0, 1.0)
     out.update(Qbb=Qbb, Qpp=Qpp, red=red)
     return out
+
+
+def adjust_snooping(models, point, image, xy, sigma, *, t_max: float = 4.0, max_rounds: int = 100,
+                    height_point=(), height=None, height_sigma=None, **kw):
+    """:func:`adjust` with data snooping (Baarda): while the largest externally studentised
+    residual exceeds ``t_max``, drop that observation's point (all its rays and its height) and
+    fit again. Returns ``(result, kept)``: ``kept`` ``(n,)`` bool over the input's points; the
+    result's points are the kept ones, renumbered in order. GCPs are not supported here (pass
+    them to :func:`adjust`)."""
+    point = np.asarray(point, int)
+    n = int(point.max()) + 1
+    kept = np.ones(n, bool)
+    hp = np.asarray(height_point, int)
+    hv = None if height is None else np.asarray(height, float)
+    hs = None if height_sigma is None else np.broadcast_to(np.asarray(height_sigma, float), hp.shape)
+    sig = np.broadcast_to(np.asarray(sigma, float).reshape(-1, 1) if np.ndim(sigma) == 1
+                          else np.asarray(sigma, float), (len(point), 2))
+    for _ in range(max_rounds + 1):
+        new = np.cumsum(kept) - 1
+        obs = kept[point]
+        hsel = kept[hp] if hp.size else np.zeros(0, bool)
+        res = adjust(models, new[point[obs]], np.asarray(image)[obs], np.asarray(xy)[obs], sig[obs],
+                     n_points=int(kept.sum()), height_point=new[hp[hsel]] if hp.size else (),
+                     height=None if hv is None else hv[hsel],
+                     height_sigma=None if hs is None else hs[hsel], **kw)
+        t = np.abs(res.std_residuals).max(1)
+        if not np.any(t > t_max):
+            return res, kept
+        worst = np.flatnonzero(kept)[res.point[int(np.nanargmax(t))]]
+        kept[worst] = False
+    raise ModelError(f"data snooping: still a residual above {t_max} after {max_rounds} rounds")
