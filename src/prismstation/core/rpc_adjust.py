@@ -78,7 +78,8 @@ def adjust(models: Sequence[Rpc], point, image, xy, sigma, *, bias="shift", fixe
            max_iter: int = 20, tol: float = 1e-6) -> RpcAdjustment:
     """Fit each image's bias and every point's ground to the observations.
 
-    ``models`` ``Rpc`` per image; ``point``, ``image`` ``(m,)`` indices and ``xy`` ``(m, 2)`` px
+    ``models`` ``Rpc`` per image (of a :class:`BiasedRpc` only its RPC is used: the biases
+    start from zero); ``point``, ``image`` ``(m,)`` indices and ``xy`` ``(m, 2)`` px
     with ``sigma`` px (scalar, ``(m,)`` or ``(m, 2)``); ``bias`` one model name or one per
     image; ``fixed`` image indices held at zero bias (default: image 0 when there is no GCP,
     none otherwise). ``gcp_point`` ``(g,)`` with ``gcp_llh`` ``(g, 3)`` (lon°, lat°,
