@@ -32,7 +32,7 @@ class Block:
         for f in files:
             with rasterio.open(root / f) as ds:
                 images.append(ds.read(1))
-        self.tp = tp = match_tie_points(images)
+        self.tp = tp = match_tie_points(images, cell=48)   # ~half the points of the benchmark
         self.before = intersect_points(self.rpcs, tp.point, tp.image, tp.xy, tp.sigma, tp.n_points)
         rng = np.random.default_rng(0)
         self.href = self.before.h + rng.normal(0, H_SIGMA, tp.n_points)
@@ -64,7 +64,7 @@ def rms(a):
 def test_tie_points_and_residuals_before_and_after(block):
     name, b = block
     tp, fit = b.tp, b.fit
-    assert tp.n_points >= 150, tp.n_points
+    assert tp.n_points >= 100, tp.n_points
     assert b.kept.mean() > 0.95                       # data snooping rejects few points
     assert fit.fixed == (0,) and 0.3 < fit.sigma0 < 1.0  # the matcher's σ is not optimistic
     for k in range(len(b.rpcs)):
