@@ -123,6 +123,22 @@ def test_dem_terrain_reproduces_the_dem_where_it_has_posts(dem_scenes):
     assert stats["mean_slope_pct"] > 15 and stats["height_max_m"] - stats["height_min_m"] > 300
 
 
+def test_reference_of_a_dem_scene_is_a_degraded_copy_of_its_terrain(dem_scenes, tmp_path):
+    """The SRTM-like reference made from the DEM scene's truth: the same UTM zone, orthometric
+    (truth − geoid), the truth's 90 m means plus its 2 m noise."""
+    from rasterio.enums import Resampling
+    from prismstation.sim.reference import make_reference_dem
+    full, _, _ = dem_scenes
+    ref = make_reference_dem(full["truth_dem"], tmp_path / "ref.tif", seed=4)
+    with rasterio.open(ref) as r, rasterio.open(full["truth_dem"]) as t:
+        assert r.crs == t.crs and r.crs.to_epsg() == 32631
+        got = r.read(1, masked=True)
+        mean = t.read(1, out_shape=got.shape, resampling=Resampling.average).astype(float)
+    d = (got.astype(float) - (mean - GEOID))[~got.mask]
+    assert got.mask.mean() < 0.1
+    assert abs(np.mean(d)) < 0.3 and 1.7 < np.std(d) < 2.4
+
+
 def test_lowering_scales_heights_about_their_mean(dem_scenes):
     """--relief-scale 0.5: every post's height is m + 0.5 (H − m), m the mean over the ground
     N sees (stored in the truth); range and mean slope halve; same place, same images' grid."""
