@@ -14,7 +14,7 @@ def _scenario(ascending=False, north_up=False, seed=1):
 
 def _track_distance(orbit, en):
     """Independent: distance from points to the straight ground track and the unit vector u
-    from the track to the point (MODEL.md §2)."""
+    from the track to the point (docs/model.md §2)."""
     p0 = np.asarray(orbit.track_origin)
     t = np.array([np.sin(orbit.heading), np.cos(orbit.heading)])
     rel = en - p0
@@ -66,7 +66,7 @@ def test_nominal_projection_inverse_and_product_affine():
 @pytest.mark.parametrize("ascending", [False, True])
 @pytest.mark.parametrize("name", ["N", "F", "B"])
 def test_relief_displacement_agrees_with_empirical_formula(name, ascending):
-    """Without attitude errors the rigorous image position differs from MODEL.md's
+    """Without attitude errors the rigorous image position differs from docs/model.md's
     ``P + h·(d/Hs)·u ± h·tanθ·t`` only across track, by ``h·d·(1/(Hs−h) − 1/Hs)``."""
     sc = _scenario(ascending)
     orbit = sc.orbit

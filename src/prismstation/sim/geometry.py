@@ -13,7 +13,7 @@ vector in the body frame is ``(tanβ0 + (col − col0)·ifov, tanθ, 1)``. The t
 that one rotated by the view's attitude error ``R(τ) = Rz(yaw)·Rx(pitch)·Ry(roll)``.
 
 The 1B2 product: a raw pixel projected with the NOMINAL orientation onto h = 0 gives the map
-point ``G``; the product grid then maps ``G`` affinely to image ``(x, y)`` (MODEL.md §1).
+point ``G``; the product grid then maps ``G`` affinely to image ``(x, y)`` (docs/model.md §1).
 """
 from __future__ import annotations
 

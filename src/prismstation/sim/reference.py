@@ -1,6 +1,6 @@
 """An SRTM-like reference DEM of a simulated scene: the truth terrain averaged to 90 m,
 orthometric (truth minus the geoid undulation), with noise and voids, written as an int16
-GeoTIFF with SRTM's void value −32768 (issue 4 item 5)."""
+GeoTIFF with SRTM's void value −32768."""
 from __future__ import annotations
 
 from pathlib import Path
