@@ -35,7 +35,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import ndimage
+from scipy import ndimage, stats
 
 OK = "ok"
 NOT_CONVERGED, TEXTURE, SHAPE, MOVED, LOW_CORRELATION, OUTSIDE = (
@@ -44,10 +44,17 @@ NOT_CONVERGED, TEXTURE, SHAPE, MOVED, LOW_CORRELATION, OUTSIDE = (
 WANDER_ITER = 6
 """Iterations after which a patch still moving by 0.1 px per step is given up."""
 """Largest residual lag (px, each axis) in the covariance's autocorrelation term."""
-SIGMA_SCALE = 1.6
+SIGMA_SCALE = 1.5
 """Factor on the formal σ (calibrated: see the module doc)."""
-RELIEF_SCALE = 1.5
+RELIEF_SCALE = 2.0
 """Factor on the σ of the unmodelled relief displacement (calibrated: see the module doc)."""
+GRADIENT_NOISE = 2.18
+"""Variance of a gradient component of the cubic B-spline interpolating unit white noise, over
+all sub-pixel positions (numerically: 2.18; the interpolated values themselves 0.77)."""
+MAX_BEND = 1.0
+"""Largest bend (px) of the patch at the template's edge."""
+BEND_P = 0.99
+"""Confidence of the F test that keeps a bend."""
 
 
 @dataclass(frozen=True)
@@ -111,7 +118,8 @@ class Spline:
     takes image coordinates (continuous, docs/model.md §1)."""
 
     def __init__(self, img, c0: int = 0, r0: int = 0):
-        self.coef = ndimage.spline_filter(np.asarray(img, np.float64), order=3, mode="mirror")
+        self.raw = np.asarray(img, np.float64)
+        self.coef = ndimage.spline_filter(self.raw, order=3, mode="mirror")
         self.c0, self.r0 = c0, r0
         rows, cols = self.coef.shape
         self._flat, self._w = self.coef.ravel(), cols
@@ -119,6 +127,11 @@ class Spline:
         self._taps = (k[:, None] * cols + k[None, :]).ravel()
         self.lo = (c0 + 1.5, r0 + 1.5)                  # where the 4×4 support stays inside
         self.hi = (c0 + cols - 2.5, r0 + rows - 2.5)
+
+    def noise_near(self, x: float, y: float, half: int) -> float:
+        """:func:`noise_sigma` of the window's pixels within ``half`` px of ``(x, y)``."""
+        i, j = int(x - self.c0), int(y - self.r0)
+        return noise_sigma(self.raw[max(j - half, 0):j + half + 1, max(i - half, 0):i + half + 1])
 
     def inside(self, x, y) -> bool:
         return bool(x.min() >= self.lo[0] and y.min() >= self.lo[1]
@@ -138,6 +151,21 @@ class Spline:
         sy = np.einsum("nm,nm->n", gx, dy)
         sx = np.einsum("nm,nmk,nk->n", wy, g, dx, optimize=False)
         return s.reshape(np.shape(x)), sx.reshape(np.shape(x)), sy.reshape(np.shape(x))
+
+
+_LAPLACE = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
+
+
+def noise_sigma(a) -> float:
+    """σ of white noise in the image patch ``a`` (grey values): Immerkaer's (1996) difference
+    of Laplacians, which removes any locally planar signal, its median made robust to the
+    texture that leaks through (an upper bound on textured ground: 20 % high on the
+    simulator's images, right to 1 DN on Pléiades with 20 DN of added noise)."""
+    a = np.asarray(a, np.float64)
+    if min(a.shape) < 3:
+        return 0.0
+    L = ndimage.correlate(a, _LAPLACE, mode="nearest")[1:-1, 1:-1]
+    return 1.4826 * float(np.median(np.abs(L))) / 6.0
 
 
 def _weights(t):
@@ -186,6 +214,91 @@ def search_spline(search, t0, A0, half: int, margin: float, smooth: float = 0.0)
     return Spline(crop, c0, r0)
 
 
+class _Fit:
+    """The Gauss–Newton state of one patch: position ``t``, shape ``A``, bend ``c`` (3 or 0
+    terms), offset ``g0`` and gain ``g1``, on a fixed template and search spline."""
+
+    def __init__(self, T, u, v, spline, d, half):
+        self.T, self.u, self.v, self.spline, self.d, self.half = T.ravel(), u.ravel(), v.ravel(), spline, d, half
+        gv, gu = np.gradient(T)                            # template gradients (grey values per px)
+        self.Tu, self.Tv = gu.ravel(), gv.ravel()
+        self.Q = np.column_stack([self.u ** 2, self.u * self.v, self.v ** 2]) / half
+        self.c = np.zeros(3)
+        self.g0, self.g1 = 0.0, None
+
+    def sample(self):
+        bend = self.Q @ self.c
+        qx = self.t[0] + self.A[0, 0] * self.u + self.A[0, 1] * self.v + self.d[0] * bend
+        qy = self.t[1] + self.A[1, 0] * self.u + self.A[1, 1] * self.v + self.d[1] * bend
+        return self.spline.sample(qx, qy) if self.spline.inside(qx, qy) else None
+
+    def design(self, S, Sx, Sy, bend: bool, esm: bool):
+        """Rows ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)``; with ``esm`` the gradient is the mean
+        of the search image's and the template's carried into the search image (Benhimane and
+        Malis 2004: faster convergence); without, the search image's alone (the covariance)."""
+        gx, gy = self.g1 * Sx, self.g1 * Sy
+        if esm:
+            Ai = np.linalg.inv(self.A)
+            gx = 0.5 * (gx + Ai[0, 0] * self.Tu + Ai[1, 0] * self.Tv)
+            gy = 0.5 * (gy + Ai[0, 1] * self.Tu + Ai[1, 1] * self.Tv)
+        u, v = self.u, self.v
+        cols = [gx, gy, gx * u, gx * v, gy * u, gy * v]
+        if bend:
+            cols += list(((gx * self.d[0] + gy * self.d[1])[:, None] * self.Q).T)
+        return np.column_stack(cols + [np.ones_like(S), S])
+
+    def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float):
+        """Iterate to convergence: ``(status, reason, iterations)``, status ``OK`` or a failure."""
+        nb = 3 if bend else 0
+        for it in range(1, max_iter + 1):
+            smp = self.sample()
+            if smp is None:
+                return OUTSIDE, "patch left the search image", it
+            S, Sx, Sy = smp
+            if self.g1 is None:
+                self.g1 = self.T.std() / max(S.std(), 1e-12)
+                self.g0 = self.T.mean() - self.g1 * S.mean()
+            r = self.T - (self.g0 + self.g1 * S)
+            J = self.design(S, Sx, Sy, bend, esm=True)
+            try:
+                dp = np.linalg.solve(J.T @ J, J.T @ r)
+            except np.linalg.LinAlgError:
+                return TEXTURE, "singular normal matrix (no texture)", it
+            self.t += dp[0:2]
+            self.A += dp[2:6].reshape(2, 2)
+            if bend:
+                self.c += dp[6:9]
+            self.g0 += dp[6 + nb]
+            self.g1 += dp[7 + nb]
+            if np.hypot(*(self.t - t0)) > max_move:
+                return MOVED, f"the patch moved more than {max_move:g} px from its start", it
+            change = np.linalg.norm(A0inv @ self.A - np.eye(2))      # ≥ the largest singular value
+            if change > 2 * max_shape_change or self.g1 <= 0 or np.abs(self.c).max() * self.half > 2 * MAX_BEND:
+                return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else
+                               f"the shape degenerated (changed by {change:.0%})"), it
+            if np.abs(dp[0:2]).max() < 2e-3 and np.abs(dp[2:6 + nb]).max() * self.half < 5e-3:
+                return OK, "", it
+            if it >= WANDER_ITER and np.hypot(*dp[0:2]) > 0.1:
+                break   # still wandering
+        return NOT_CONVERGED, f"no convergence in {it} iterations", it
+
+    def copy(self):
+        other = object.__new__(_Fit)
+        other.__dict__.update(self.__dict__)
+        other.t, other.A, other.c = self.t.copy(), self.A.copy(), self.c.copy()
+        return other
+
+    def final(self, bend: bool):
+        """``(r, J, rho)`` at the current state: residuals, design (search-image gradients),
+        correlation of template and patch."""
+        smp = self.sample()
+        if smp is None:
+            return None, None, np.nan
+        S, Sx, Sy = smp
+        r = self.T - (self.g0 + self.g1 * S)
+        return r, self.design(S, Sx, Sy, bend, esm=False), float(np.corrcoef(self.T, S)[0, 1])
+
+
 def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half: int = 12,
            max_iter: int = 20, max_move: float = 3.0, max_shape_change: float = 0.25,
            min_rho: float = 0.6, max_sigma: float = 0.5, smooth: float = 0.0,
@@ -204,8 +317,11 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         x and y axes (e.g. from the sensor model and the terrain slope).
     parallax : (dx, dy) or None
         The direction in the search image along which relief displaces points. Given, the
-        patch may also bend along it: ``+ d·(c1·u² + c2·u·v + c3·v²)/half`` (the terrain's
-        curvature within the template, which an affine patch averages into its centre).
+        affine patch, once converged, may also bend along it: ``+ d·(c1·u² + c2·u·v +
+        c3·v²)/half`` (the terrain's curvature within the template, which an affine patch
+        averages into its centre); the bend is kept when it is significant (F test at
+        :data:`BEND_P`, on residuals scaled by :data:`SIGMA_SCALE`) and under
+        :data:`MAX_BEND` px at the template's edge.
     half : int
         Template half size: ``(2·half+1)²`` pixels.
     max_iter : int
@@ -224,119 +340,102 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     spline : Spline, optional
         A ready :class:`Spline` of ``search`` (for repeated calls); built here otherwise.
     """
-    tpl = template(reference, x, y, half)
     A0 = np.asarray(A0, float)
-    t = np.asarray(t0, float).copy()
+    t0 = np.asarray(t0, float)
+    m = int(np.ceil(3 * smooth)) if smooth > 0 else 0
+    tpl = template(reference, x, y, half + m)
     if tpl is None:
-        return failed(t[0], t[1], OUTSIDE, "template leaves the reference image", shape=A0)
+        return failed(t0[0], t0[1], OUTSIDE, "template leaves the reference image", shape=A0)
     T, u, v = tpl
-    if smooth > 0:
-        m = int(np.ceil(3 * smooth))
-        big = template(reference, x, y, half + m)
-        if big is None:
-            return failed(t[0], t[1], OUTSIDE, "template leaves the reference image", shape=A0)
-        T = ndimage.gaussian_filter(big[0], smooth, mode="nearest")[m:-m, m:-m]
+    if m:
+        T, u, v = ndimage.gaussian_filter(T, smooth, mode="nearest")[m:-m, m:-m], u[m:-m, m:-m], v[m:-m, m:-m]
     if float(T.std()) <= 1e-6 * (abs(float(T.mean())) + 1.0):
-        return failed(t[0], t[1], TEXTURE, "template has no contrast", shape=A0)
-    Tv_, Tu_ = np.gradient(T)          # template gradients (grey values per reference px)
-    Tu_, Tv_ = Tu_.ravel(), Tv_.ravel()
+        return failed(t0[0], t0[1], TEXTURE, "template has no contrast", shape=A0)
     if spline is None or smooth > 0:
-        spline = search_spline(search, t, A0, half, max_move + 1.0 + 3 * smooth, smooth)
+        spline = search_spline(search, t0, A0, half, max_move + 1.0 + 3 * smooth, smooth)
         if spline is None:
-            return failed(t[0], t[1], OUTSIDE, "patch leaves the search image", shape=A0)
-    u, v, Tf = u.ravel(), v.ravel(), T.ravel()
-    if parallax is None:
-        d, Q = np.zeros(2), np.zeros((u.size, 0))
-    else:
-        d = np.asarray(parallax, float) / np.hypot(*parallax)
-        Q = np.column_stack([u * u, u * v, v * v]) / half
-    nq = Q.shape[1]
-    c = np.zeros(nq)
-    A = A0.copy()
+            return failed(t0[0], t0[1], OUTSIDE, "patch leaves the search image", shape=A0)
+    d = np.zeros(2) if parallax is None else np.asarray(parallax, float) / np.hypot(*parallax)
+    fit = _Fit(T, u, v, spline, d, half)
+    fit.t, fit.A = t0.copy(), A0.copy()
     A0inv = np.linalg.inv(A0)
-    g0, g1 = 0.0, None
-    converged = False
-    it = 0
-
-    def state():
-        bend = Q @ c
-        qx = t[0] + A[0, 0] * u + A[0, 1] * v + d[0] * bend
-        qy = t[1] + A[1, 0] * u + A[1, 1] * v + d[1] * bend
-        if not spline.inside(qx, qy):
-            return None
-        return spline.sample(qx, qy)
-
-    def design(S, Sx, Sy, esm=False):
-        gx, gy = g1 * Sx, g1 * Sy
-        if esm:   # Benhimane & Malis 2004: the mean of the search and template gradients
-            Ai = np.linalg.inv(A)
-            gx = 0.5 * (gx + Ai[0, 0] * Tu_ + Ai[1, 0] * Tv_)
-            gy = 0.5 * (gy + Ai[0, 1] * Tu_ + Ai[1, 1] * Tv_)
-        gd = (gx * d[0] + gy * d[1])[:, None] * Q
-        return np.column_stack([gx, gy, gx * u, gx * v, gy * u, gy * v, gd, np.ones_like(S), S])
-
-    for it in range(1, max_iter + 1):
-        smp = state()
-        if smp is None:
-            return failed(t[0], t[1], OUTSIDE, "patch left the search image", shape=A, iterations=it)
-        S, Sx, Sy = smp
-        if g1 is None:
-            g1 = Tf.std() / max(S.std(), 1e-12)
-            g0 = Tf.mean() - g1 * S.mean()
-        r = Tf - (g0 + g1 * S)
-        J = design(S, Sx, Sy, esm=True)
-        try:
-            dp = np.linalg.solve(J.T @ J, J.T @ r)
-        except np.linalg.LinAlgError:
-            return failed(t[0], t[1], TEXTURE, "singular normal matrix (no texture)", shape=A, iterations=it)
-        t += dp[0:2]
-        A += dp[2:6].reshape(2, 2)
-        c += dp[6:6 + nq]
-        g0 += dp[6 + nq]
-        g1 += dp[7 + nq]
-        if np.hypot(*(t - t0)) > max_move:
-            return failed(t0[0], t0[1], MOVED, f"the patch moved more than {max_move:g} px from its start",
-                          shape=A, iterations=it)
-        change = np.linalg.norm(A0inv @ A - np.eye(2))      # ≥ the largest singular value
-        if change > 2 * max_shape_change or g1 <= 0 or np.abs(c).max(initial=0) * half > 2 * max_move:
-            return failed(t[0], t[1], SHAPE, "the patch's contrast inverted" if g1 <= 0 else
-                          f"the shape degenerated (changed by {change:.0%})", shape=A, iterations=it)
-        if np.abs(dp[0:2]).max() < 2e-3 and np.abs(dp[2:6 + nq]).max() * half < 5e-3:
-            converged = True
-            break
-        if it >= WANDER_ITER and np.hypot(*dp[0:2]) > 0.1:
-            break   # still wandering: no convergence
-    smp = state()
-    if smp is None:
-        return failed(t[0], t[1], OUTSIDE, "patch left the search image", shape=A, iterations=it)
-    S, Sx, Sy = smp
-    r = Tf - (g0 + g1 * S)
-    rho = float(np.corrcoef(Tf, S)[0, 1])
-    if not converged:
-        return failed(t[0], t[1], NOT_CONVERGED, f"no convergence in {max_iter} iterations",
-                      shape=A, rho=rho, iterations=it)
-    change = np.linalg.svd(A0inv @ A - np.eye(2), compute_uv=False)[0]
+    status, reason, it = fit.run(False, max_iter, t0, max_move, A0inv, max_shape_change)
+    if status != OK:
+        x_, y_ = (t0 if status == MOVED else fit.t)
+        rho = fit.final(False)[2] if status == NOT_CONVERGED else np.nan
+        return failed(x_, y_, status, reason, shape=fit.A, rho=rho, iterations=it)
+    bend = False
+    if parallax is not None:
+        curved = fit.copy()
+        status, _, it2 = curved.run(True, max_iter, t0, max_move, A0inv, max_shape_change)
+        it += it2
+        if status == OK and np.abs(curved.c).max() * half <= MAX_BEND and _significant(fit, curved):
+            fit, bend = curved, True
+    r, J, rho = fit.final(bend)
+    if r is None:
+        return failed(fit.t[0], fit.t[1], OUTSIDE, "patch left the search image", shape=fit.A, iterations=it)
+    change = np.linalg.svd(A0inv @ fit.A - np.eye(2), compute_uv=False)[0]
     if change > max_shape_change:
-        return failed(t[0], t[1], SHAPE, f"the shape changed by {change:.0%} from the start "
-                      f"(more than {max_shape_change:.0%})", shape=A, rho=rho, iterations=it)
-    J = design(S, Sx, Sy)
-    Ninv = np.linalg.inv(J.T @ J)
+        return failed(fit.t[0], fit.t[1], SHAPE, f"the shape changed by {change:.0%} from the start "
+                      f"(more than {max_shape_change:.0%})", shape=fit.A, rho=rho, iterations=it)
     n, k = 2 * half + 1, J.shape[1]
-    formal = float(r @ r) / max(r.size - k, 1) * Ninv[:2, :2]
+    s02 = float(r @ r) / max(r.size - k, 1)
+    noise = fit.g1 * spline.noise_near(fit.t[0], fit.t[1], half)     # in the template's grey values
+    N = J.T @ J - gradient_noise(fit, bend, noise ** 2)
+    try:
+        Ninv = np.linalg.inv(N)
+    except np.linalg.LinAlgError:
+        Ninv = np.full_like(N, np.nan)
+    formal = s02 * Ninv[:2, :2]
+    if not (np.all(np.isfinite(formal)) and np.all(np.linalg.eigvalsh(formal) > 0)):
+        return failed(fit.t[0], fit.t[1], TEXTURE, "too little texture: the image noise outweighs its gradients",
+                      shape=fit.A, rho=rho, iterations=it)
     cov = SIGMA_SCALE ** 2 * formal
     s_relief = 0.0
     if parallax is not None:
         G = (J[:, 0] * d[0] + J[:, 1] * d[1]).reshape(n, n)
         s_relief = unmodelled_sigma(G, r.reshape(n, n), k)
         cov = cov + (RELIEF_SCALE * s_relief) ** 2 * np.outer(d, d)
-    res = LsmResult(float(t[0]), float(t[1]), cov, formal, A, float(g1), float(g0), rho, it, OK, "",
-                    rho, {"bend": c.copy(), "sigma_relief": s_relief, "d": d})
+    res = LsmResult(float(fit.t[0]), float(fit.t[1]), cov, formal, fit.A.copy(), float(fit.g1), float(fit.g0),
+                    rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),
+                                           "sigma_relief": s_relief, "d": d})
     if rho < min_rho:
         return _as_failure(res, LOW_CORRELATION, f"correlation {rho:.2f} below {min_rho:.2f}")
     smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
     if not np.isfinite(smax) or smax > max_sigma:
         return _as_failure(res, TEXTURE, f"too little texture: σ {smax:.2f} px above {max_sigma:.2f}")
     return res
+
+
+def gradient_noise(fit: _Fit, bend: bool, var: float) -> np.ndarray:
+    """What the search image's noise (variance ``var``, in the template's grey values) adds to
+    the normal matrix ``JᵀJ`` (same parameter order, zero for the radiometric terms): the
+    gradients in ``J`` are noisy too, and their noise power, :data:`GRADIENT_NOISE` times the
+    variance, is no information about the position."""
+    u, v, d = fit.u, fit.v, fit.d
+    one, zero = np.ones_like(u), np.zeros_like(u)
+    px = [one, zero, u, v, zero, zero]
+    py = [zero, one, zero, zero, u, v]
+    if bend:
+        px += list(d[0] * fit.Q.T)
+        py += list(d[1] * fit.Q.T)
+    Px, Py = np.column_stack(px), np.column_stack(py)
+    k = Px.shape[1]
+    out = np.zeros((k + 2, k + 2))
+    out[:k, :k] = GRADIENT_NOISE * var * (Px.T @ Px + Py.T @ Py)
+    return out
+
+
+def _significant(flat: _Fit, curved: _Fit) -> bool:
+    """F test of the bend: does it lower the residuals more than noise would (at
+    :data:`BEND_P`, the residual variance scaled by :data:`SIGMA_SCALE`²)?"""
+    r0 = flat.final(False)[0]
+    r1 = curved.final(True)[0]
+    if r0 is None or r1 is None:
+        return False
+    dof = r1.size - 11
+    f = (float(r0 @ r0) - float(r1 @ r1)) / 3 / (SIGMA_SCALE ** 2 * float(r1 @ r1) / dof)
+    return bool(f > stats.f.ppf(BEND_P, 3, dof))
 
 
 def unmodelled_sigma(G, r, n_params: int, block: int = 4) -> float:

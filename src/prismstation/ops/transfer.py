@@ -247,9 +247,13 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
 
 
 def view_sigma_px(sol: Solution, view: str) -> float:
-    """σ (px) of ``view``'s model for the consistency test: the a-posteriori σ of a
+    """σ (px) of ``view``'s model for the consistency test: the a-priori geolocation σ
+    (:func:`model_sigma_m`) while its bias is not fitted, else the a-posteriori σ of a
     measurement in its bias fit, :data:`MODEL_SIGMA_PX` where the fit gives none."""
-    s0 = sol.bias[view].sigma0
+    fit = sol.bias[view]
+    if fit.model == "none":
+        return model_sigma_m(sol) / sol.scene.views[view].pixel_size_m
+    s0 = fit.sigma0
     return float(s0 * sol.settings.sigma_px) if s0 is not None and math.isfinite(s0) and s0 > 0 else MODEL_SIGMA_PX
 
 
