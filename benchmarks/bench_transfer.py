@@ -168,14 +168,16 @@ def print_rows(name, method, tallies, ms, cpu, views=("F", "B")):
 def scene(work: Path, terrain: str, seed: int, centre, size: int) -> Path:
     tag = f"{terrain}_s{seed}_{size}" + (f"_{centre[0]:g}_{centre[1]:g}" if centre else "")
     d = work / tag
-    if not (d / "p.prismproj").exists():
+    if not (d / "truth.json").exists():
         kw = dict(terrain=terrain)
         if terrain == "dem":
             kw.update(terrain_dem=str(SRTM), terrain_centre=centre)
         print(f"  simulating {tag} …", flush=True)
         simulate(d, size=size, seed=seed, **kw)
+    if not (d / "srtm.tif").exists():
         make_reference_dem(d / "truth_dem.tif", d / "srtm.tif", seed=seed)
-        create(d / "p.prismproj", d / "scene.json", d / "points.csv", d / "measurements.csv", force=True)
+    if not (d / "p.prismproj").exists():
+        create(d / "p.prismproj", d / "scene.json", d / "points.csv", d / "measurements.csv")
     return d
 
 
@@ -269,7 +271,7 @@ def pleiades(n_side: int = 12) -> None:
             along = abs(float(np.hypot(*dh))) * h_range
             t0, c0 = time.perf_counter(), time.process_time()
             r = match(ims[0], *xy, ims[k], pred, A, dh, along=along, across=across, half=HALF,
-                      max_shape_change=FREE_SHAPE_CHANGE, coarse=1.5, rival=0.3, parallax=dh,
+                      max_shape_change=FREE_SHAPE_CHANGE, coarse=1.5, rival=6.0, parallax=dh,
                       max_sigma=MAX_SIGMA_PX)
             spent["ours"][0] += time.perf_counter() - t0
             spent["ours"][1] += time.process_time() - c0

@@ -86,7 +86,7 @@ def test_a_shape_off_by_a_quarter_is_found_with_a_coarse_pass(texture):
         ref, pt, srch, truth = warp(texture, rng.uniform(150, 850, 2), A, rng.uniform(-0.5, 0.5, 2), 8.0, rng)
         d = np.array([0.0, 1.0])
         r = match(ref, *pt, srch, truth + [0, rng.uniform(-8, 8)], np.eye(2), d, along=15, across=2,
-                  max_shape_change=0.6, coarse=1.5, rival=0.3, parallax=d)
+                  max_shape_change=0.6, coarse=1.5, rival=6.0, parallax=d)
         if r.ok:
             found += 1
             e = np.array([r.x - truth[0], r.y - truth[1]])

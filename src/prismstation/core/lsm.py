@@ -55,6 +55,8 @@ MAX_BEND = 1.0
 """Largest bend (px) of the patch at the template's edge."""
 BEND_P = 0.99
 """Confidence of the F test that keeps a bend."""
+BEND_TRIGGER = 0.03
+"""A bend is tried when the affine patch leaves this much unmodelled relief (px)."""
 
 
 @dataclass(frozen=True)
@@ -103,6 +105,7 @@ class LsmResult:
 
 
 _NAN2 = np.full((2, 2), np.nan)
+_I2 = np.eye(2)
 
 
 def failed(x, y, status, reason, *, shape=None, rho=np.nan, iterations=0, score=np.nan) -> LsmResult:
@@ -144,13 +147,13 @@ class Spline:
         i, j = np.floor(col).astype(np.intp), np.floor(row).astype(np.intp)
         wx, dx = _weights(col - i)
         wy, dy = _weights(row - j)
-        g = np.take(self._flat, (j * self._w + i)[:, None] + self._taps)          # (n, 16)
-        g = g.reshape(-1, 4, 4)                                                   # [n, row, col]
-        gx = np.einsum("nmk,nk->nm", g, wx)
-        s = np.einsum("nm,nm->n", gx, wy)
-        sy = np.einsum("nm,nm->n", gx, dy)
-        sx = np.einsum("nm,nmk,nk->n", wy, g, dx, optimize=False)
-        return s.reshape(np.shape(x)), sx.reshape(np.shape(x)), sy.reshape(np.shape(x))
+        g = np.take(self._flat, (j * self._w + i)[:, None] + self._taps).reshape(-1, 4, 4)   # [n, row, col]
+        along = g @ np.stack([wx, dx], axis=2)                                            # (n, 4, 2)
+        s = np.einsum("nm,nm->n", along[:, :, 0], wy)
+        sx = np.einsum("nm,nm->n", along[:, :, 1], wy)
+        sy = np.einsum("nm,nm->n", along[:, :, 0], dy)
+        shape = np.shape(x)
+        return s.reshape(shape), sx.reshape(shape), sy.reshape(shape)
 
 
 _LAPLACE = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
@@ -168,21 +171,15 @@ def noise_sigma(a) -> float:
     return 1.4826 * float(np.median(np.abs(L))) / 6.0
 
 
+#: cubic B-spline weights of taps −1..2 as polynomials in the fraction t: [1, t, t², t³] @ _BW
+_BW = np.array([[1, 4, 1, 0], [-3, 0, 3, 0], [3, -6, 3, 0], [-1, 3, -3, 1]], float) / 6.0
+_BD = np.array([[-3, 0, 3, 0], [6, -12, 6, 0], [-3, 9, -9, 3]], float) / 6.0   # d/dt: [1, t, t²] @ _BD
+
+
 def _weights(t):
     """Cubic B-spline weights for taps −1..2 and their derivatives, ``(n, 4)`` each."""
-    w = np.empty((t.size, 4))
-    d = np.empty((t.size, 4))
-    s = 1.0 - t
-    t2 = t * t
-    w[:, 0] = s * s * s / 6.0
-    w[:, 3] = t2 * t / 6.0
-    w[:, 1] = 2.0 / 3.0 - t2 + 0.5 * t2 * t
-    w[:, 2] = 1.0 - w[:, 0] - w[:, 1] - w[:, 3]
-    d[:, 0] = -0.5 * s * s
-    d[:, 3] = 0.5 * t2
-    d[:, 1] = 1.5 * t2 - 2.0 * t
-    d[:, 2] = -d[:, 0] - d[:, 1] - d[:, 3]
-    return w, d
+    p = np.column_stack([np.ones_like(t), t, t * t, t * t * t])
+    return p @ _BW, p[:, :3] @ _BD
 
 
 def template(reference, x: float, y: float, half: int):
@@ -238,7 +235,8 @@ class _Fit:
         Malis 2004: faster convergence); without, the search image's alone (the covariance)."""
         gx, gy = self.g1 * Sx, self.g1 * Sy
         if esm:
-            Ai = np.linalg.inv(self.A)
+            a, b, c, d = self.A.ravel()
+            Ai = np.array([[d, -b], [-c, a]]) / (a * d - b * c)
             gx = 0.5 * (gx + Ai[0, 0] * self.Tu + Ai[1, 0] * self.Tv)
             gy = 0.5 * (gy + Ai[0, 1] * self.Tu + Ai[1, 1] * self.Tv)
         u, v = self.u, self.v
@@ -272,7 +270,7 @@ class _Fit:
             self.g1 += dp[7 + nb]
             if np.hypot(*(self.t - t0)) > max_move:
                 return MOVED, f"the patch moved more than {max_move:g} px from its start", it
-            change = np.linalg.norm(A0inv @ self.A - np.eye(2))      # ≥ the largest singular value
+            change = np.linalg.norm(A0inv @ self.A - _I2)      # ≥ the largest singular value
             if change > 2 * max_shape_change or self.g1 <= 0 or np.abs(self.c).max() * self.half > 2 * MAX_BEND:
                 return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else
                                f"the shape degenerated (changed by {change:.0%})"), it
@@ -364,37 +362,37 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         x_, y_ = (t0 if status == MOVED else fit.t)
         rho = fit.final(False)[2] if status == NOT_CONVERGED else np.nan
         return failed(x_, y_, status, reason, shape=fit.A, rho=rho, iterations=it)
+    r, J, rho = fit.final(False)
+    if r is None:
+        return failed(fit.t[0], fit.t[1], OUTSIDE, "patch left the search image", shape=fit.A, iterations=it)
+    n = 2 * half + 1
     bend = False
-    if parallax is not None:
+    if parallax is not None and unmodelled_sigma(_along(J, d, n), r.reshape(n, n), J.shape[1]) > BEND_TRIGGER:
         curved = fit.copy()
         status, _, it2 = curved.run(True, max_iter, t0, max_move, A0inv, max_shape_change)
         it += it2
-        if status == OK and np.abs(curved.c).max() * half <= MAX_BEND and _significant(fit, curved):
-            fit, bend = curved, True
-    r, J, rho = fit.final(bend)
-    if r is None:
-        return failed(fit.t[0], fit.t[1], OUTSIDE, "patch left the search image", shape=fit.A, iterations=it)
+        if status == OK and np.abs(curved.c).max() * half <= MAX_BEND:
+            r1, J1, rho1 = curved.final(True)
+            if r1 is not None and _significant(r, r1):
+                fit, bend, r, J, rho = curved, True, r1, J1, rho1
     change = np.linalg.svd(A0inv @ fit.A - np.eye(2), compute_uv=False)[0]
     if change > max_shape_change:
         return failed(fit.t[0], fit.t[1], SHAPE, f"the shape changed by {change:.0%} from the start "
                       f"(more than {max_shape_change:.0%})", shape=fit.A, rho=rho, iterations=it)
-    n, k = 2 * half + 1, J.shape[1]
+    k = J.shape[1]
     s02 = float(r @ r) / max(r.size - k, 1)
-    noise = fit.g1 * spline.noise_near(fit.t[0], fit.t[1], half)     # in the template's grey values
-    N = J.T @ J - gradient_noise(fit, bend, noise ** 2)
-    try:
-        Ninv = np.linalg.inv(N)
-    except np.linalg.LinAlgError:
-        Ninv = np.full_like(N, np.nan)
-    formal = s02 * Ninv[:2, :2]
-    if not (np.all(np.isfinite(formal)) and np.all(np.linalg.eigvalsh(formal) > 0)):
+    # the image noise, the lower of the two images' (in the template's grey values): textured
+    # ground makes the estimate high, never low
+    noise = min(noise_sigma(T), fit.g1 * spline.noise_near(fit.t[0], fit.t[1], half))
+    inflation = gradient_noise_inflation(J[:, 0], J[:, 1], noise ** 2)
+    if not np.isfinite(inflation):
         return failed(fit.t[0], fit.t[1], TEXTURE, "too little texture: the image noise outweighs its gradients",
                       shape=fit.A, rho=rho, iterations=it)
+    formal = s02 * np.linalg.inv(J.T @ J)[:2, :2] * inflation
     cov = SIGMA_SCALE ** 2 * formal
     s_relief = 0.0
     if parallax is not None:
-        G = (J[:, 0] * d[0] + J[:, 1] * d[1]).reshape(n, n)
-        s_relief = unmodelled_sigma(G, r.reshape(n, n), k)
+        s_relief = unmodelled_sigma(_along(J, d, n), r.reshape(n, n), k)
         cov = cov + (RELIEF_SCALE * s_relief) ** 2 * np.outer(d, d)
     res = LsmResult(float(fit.t[0]), float(fit.t[1]), cov, formal, fit.A.copy(), float(fit.g1), float(fit.g0),
                     rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),
@@ -407,32 +405,26 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     return res
 
 
-def gradient_noise(fit: _Fit, bend: bool, var: float) -> np.ndarray:
-    """What the search image's noise (variance ``var``, in the template's grey values) adds to
-    the normal matrix ``JᵀJ`` (same parameter order, zero for the radiometric terms): the
-    gradients in ``J`` are noisy too, and their noise power, :data:`GRADIENT_NOISE` times the
-    variance, is no information about the position."""
-    u, v, d = fit.u, fit.v, fit.d
-    one, zero = np.ones_like(u), np.zeros_like(u)
-    px = [one, zero, u, v, zero, zero]
-    py = [zero, one, zero, zero, u, v]
-    if bend:
-        px += list(d[0] * fit.Q.T)
-        py += list(d[1] * fit.Q.T)
-    Px, Py = np.column_stack(px), np.column_stack(py)
-    k = Px.shape[1]
-    out = np.zeros((k + 2, k + 2))
-    out[:k, :k] = GRADIENT_NOISE * var * (Px.T @ Px + Py.T @ Py)
-    return out
+def gradient_noise_inflation(gx, gy, var: float) -> float:
+    """Factor on the position's covariance for the noise in the gradients ``gx, gy`` (the
+    design's, grey values per px): their noise power, :data:`GRADIENT_NOISE` times the noise
+    variance ``var``, is no information about the position, so the structure tensor
+    ``G = Σ∇∇ᵀ`` overstates it; the factor is ``λ(G) / λ(G − n·GRADIENT_NOISE·var·I)`` in its
+    weakest direction; infinite when the noise has all of the gradients' power there."""
+    G = np.array([[gx @ gx, gx @ gy], [gx @ gy, gy @ gy]])
+    lam = float(np.linalg.eigvalsh(G)[0])
+    c = GRADIENT_NOISE * var * gx.size
+    return lam / (lam - c) if lam > c else float("inf")
 
 
-def _significant(flat: _Fit, curved: _Fit) -> bool:
-    """F test of the bend: does it lower the residuals more than noise would (at
-    :data:`BEND_P`, the residual variance scaled by :data:`SIGMA_SCALE`²)?"""
-    r0 = flat.final(False)[0]
-    r1 = curved.final(True)[0]
-    if r0 is None or r1 is None:
-        return False
+def _along(J, d, n: int):
+    """The design's gradient along ``d`` on the template grid ``(n, n)``."""
+    return (J[:, 0] * d[0] + J[:, 1] * d[1]).reshape(n, n)
+
+
+def _significant(r0, r1) -> bool:
+    """F test of the bend: do its residuals ``r1`` lower the affine patch's ``r0`` more than
+    noise would (at :data:`BEND_P`, the residual variance scaled by :data:`SIGMA_SCALE`²)?"""
     dof = r1.size - 11
     f = (float(r0 @ r0) - float(r1 @ r1)) / 3 / (SIGMA_SCALE ** 2 * float(r1 @ r1) / dof)
     return bool(f > stats.f.ppf(BEND_P, 3, dof))

@@ -11,8 +11,9 @@ height moves the point) and ``±across`` px across it, in search-image pixels.
 
 Each of the best correlation peaks (up to ``candidates``) starts a least-squares match; the
 one that converges with the highest correlation wins. A second converged match elsewhere
-nearly as good (within ``margin`` in correlation, more than 1 px away) makes the result
-``ambiguous``; a winner at the end of the search range is ``border``.
+(more than 1 px away) that fits nearly as well (residual variance within ``ambiguity`` times
+the best one's) makes the result ``ambiguous``; a winner at the end of the search range is
+``border``.
 """
 from __future__ import annotations
 
@@ -110,18 +111,21 @@ def peaks(ncc, allowed, n: int, min_score: float):
 
 def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0), *,
           along: float = 10.0, across: float = 1.5, half: int = 12, candidates: int = 3,
-          min_ncc: float = 0.3, margin: float = 0.03, max_shape_change: float = 0.25,
-          coarse: float = 0.0, rival: float = 0.15, **options) -> LsmResult:
+          min_ncc: float = 0.3, ambiguity: float = 1.5, max_shape_change: float = 0.25,
+          coarse: float = 0.0, rival: float = 3.0, **options) -> LsmResult:
     """Find the point ``(x, y)`` of ``reference`` in ``search``.
 
     ``pred``: predicted position (px), ``A0``: predicted shape (2×2), ``direction``: search
     direction in the search image; ``along``, ``across``: half-lengths (px) of the search
     region; ``half``: template half size; ``candidates``: correlation peaks tried (at least
-    ``min_ncc``); ``margin``: correlation margin of the ambiguity test;
+    ``min_ncc``); ``ambiguity``: a second match whose residual variance (``1 − ρ²``) is within
+    this factor of the best one's makes the result ambiguous (1.5: an F test at 99 % on the
+    template's pixels, their correlation allowed for);
     ``max_shape_change``: how far the shape may move from ``A0`` (:func:`lsm.refine`);
     ``coarse``: σ (px) of a smoothed first pass of the best peak's least-squares match when
-    the shape is known only roughly (0: none); ``rival``: a peak whose correlation is this
-    much below the best match's is not tried. Other ``options`` go to :func:`lsm.refine`.
+    the shape is known only roughly (0: none); ``rival``: once the best peak converged, a peak
+    whose misfit ``1 − NCC²`` exceeds this factor times the best peak's is not tried (the
+    matching improves both alike). Other ``options`` go to :func:`lsm.refine`.
     The result's ``score`` is the best peak's NCC, ``rho`` the fitted correlation.
     """
     pred = np.asarray(pred, float)
@@ -139,8 +143,8 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
     spline = lsm.search_spline(search, pred, A0, half, np.hypot(along, across) + options.get("max_move", 3.0) + 1)
     results = []
     for score, k, l in found:
-        if results and results[0].ok and score < results[0].rho - rival:
-            break   # a peak this much weaker than the converged best cannot rival it
+        if results and results[0].ok and 1 - score ** 2 > rival * (1 - found[0][0] ** 2):
+            break   # a peak this much weaker than a converged best cannot rival it
         t0 = pred + shifts(k, l)
         r = lsm.refine(reference, x, y, search, t0, A0, half=half, spline=spline,
                        max_shape_change=max_shape_change, **options)
@@ -166,7 +170,7 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
     if abs(off @ d) > along + 0.5 or abs(off @ c) > across + 0.5:
         return replace(best, status=BORDER, reason="the match lies at the end of the search range")
     for r in good[1:]:
-        if np.hypot(r.x - best.x, r.y - best.y) > 1.0 and r.rho >= best.rho - margin:
+        if np.hypot(r.x - best.x, r.y - best.y) > 1.0 and 1 - r.rho ** 2 <= ambiguity * (1 - best.rho ** 2):
             return replace(best, status=AMBIGUOUS, reason=f"two matches {np.hypot(r.x - best.x, r.y - best.y):.1f} px "
                            f"apart correlate alike ({best.rho:.3f}, {r.rho:.3f}): repetitive or flat texture")
     return best

@@ -164,17 +164,17 @@ def local_shape(sol: Solution, source: str, xy, views, *, h: float, height_of=No
         grad = terrain_gradient(height_of, en, radius)
     g = np.zeros(2) if grad is None else np.asarray(grad, float)
     step = float(half_window)
-    pix = xy + np.array([[step, 0], [-step, 0], [0, step], [0, -step]])
-    hs = np.full(4, h)
-    for _ in range(10):   # the four rays meet the terrain plane
+    # four rays ±step px about the point meet the terrain plane; a fifth, the point's own, 1 m up
+    pix = xy + np.array([[step, 0], [-step, 0], [0, step], [0, -step], [0, 0]])
+    hs = np.array([h, h, h, h, h + 1.0])
+    for _ in range(10):
         ground = sol.image_to_ground(source, pix, hs)
-        h_new = h + (ground - en) @ g
+        h_new = np.append(h + (ground[:4] - en) @ g, h + 1.0)
         if np.abs(h_new - hs).max() < 1e-3:
             break
         hs = h_new
-    en_up = sol.image_to_ground(source, xy, h + 1.0)
-    pts = np.vstack([ground, en, en_up])
-    hh = np.concatenate([hs, [h, h + 1.0]])
+    pts = np.vstack([ground[:4], en, ground[4]])
+    hh = np.concatenate([hs[:4], [h, h + 1.0]])
     out = {}
     for v in views:
         q = sol.ground_to_image(v, pts, hh)
@@ -238,7 +238,7 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
         m = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], s.A, d, along=along,
                   across=radius, half=half_window, max_sigma=MAX_SIGMA_PX,
                   max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
-                  coarse=1.5 if free else 0.0, rival=0.3 if free else 0.15, parallax=d)
+                  coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, parallax=d)
         m = replace(m, x=m.x + c0, y=m.y + r0)
         out[v] = Transfer(v, m.x, m.y, (float(s.pred[0]), float(s.pred[1])), m)
     if check and len([t for t in out.values() if t.ok]) >= 2:
@@ -259,24 +259,22 @@ def view_sigma_px(sol: Solution, view: str) -> float:
 
 def intersect(sol: Solution, obs: dict, h0: float) -> tuple[np.ndarray, dict, float, int]:
     """Least-squares ground point of image observations ``{view: ((x, y), cov 2×2 px²)}``
-    through the model (Gauss–Newton on ``(E, N, h)`` from height ``h0``).
+    through the model (Gauss–Newton on ``(E, N, h)`` from height ``h0``, the Jacobian of the
+    start kept).
 
     Returns ``(g, residuals {view: (2,) px, observed − predicted}, χ², redundancy)``."""
     first = next(iter(obs))
     g = np.array([*sol.image_to_ground(first, np.asarray(obs[first][0], float), h0), h0], float)
     W = {v: np.linalg.inv(c) for v, (_, c) in obs.items()}
+    J = {v: ground_jacobian(sol, v, g)[1] for v in obs}     # the model is near linear over metres:
+    N = sum(J[v].T @ W[v] @ J[v] for v in obs)              # its Jacobian at the start serves
     for _ in range(8):
-        N, b = np.zeros((3, 3)), np.zeros(3)
-        for v, (xy, _) in obs.items():
-            q, J = ground_jacobian(sol, v, g)
-            r = np.asarray(xy, float) - q
-            N += J.T @ W[v] @ J
-            b += J.T @ W[v] @ r
-        dg = np.linalg.solve(N, b)
+        res = {v: np.asarray(xy, float) - sol.ground_to_image(v, g[:2], g[2]) for v, (xy, _) in obs.items()}
+        dg = np.linalg.solve(N, sum(J[v].T @ W[v] @ res[v] for v in obs))
         g = g + dg
         if np.all(np.abs(dg) < 1e-3):
             break
-    res = {v: np.asarray(xy, float) - ground_jacobian(sol, v, g)[0] for v, (xy, _) in obs.items()}
+    res = {v: np.asarray(xy, float) - sol.ground_to_image(v, g[:2], g[2]) for v, (xy, _) in obs.items()}
     chi2 = float(sum(res[v] @ W[v] @ res[v] for v in obs))
     return g, res, chi2, 2 * len(obs) - 3
 
