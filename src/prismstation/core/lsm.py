@@ -390,13 +390,15 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
                       shape=fit.A, rho=rho, iterations=it)
     formal = s02 * np.linalg.inv(J.T @ J)[:2, :2] * inflation
     cov = SIGMA_SCALE ** 2 * formal
-    s_relief = 0.0
-    if parallax is not None:
-        s_relief = unmodelled_sigma(_along(J, d, n), r.reshape(n, n), k)
-        cov = cov + (RELIEF_SCALE * s_relief) ** 2 * np.outer(d, d)
+    # the displacement the patch's shape does not follow, along the parallax and across it
+    e1 = d if parallax is not None else np.array([1.0, 0.0])
+    e2 = np.array([-e1[1], e1[0]])
+    s_relief = unmodelled_sigma(_along(J, e1, n), r.reshape(n, n), k)
+    s_across = unmodelled_sigma(_along(J, e2, n), r.reshape(n, n), k)
+    cov = cov + (RELIEF_SCALE * s_relief) ** 2 * np.outer(e1, e1) + s_across ** 2 * np.outer(e2, e2)
     res = LsmResult(float(fit.t[0]), float(fit.t[1]), cov, formal, fit.A.copy(), float(fit.g1), float(fit.g0),
                     rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),
-                                           "sigma_relief": s_relief, "d": d})
+                                           "sigma_relief": s_relief, "sigma_across": s_across, "d": d})
     if rho < min_rho:
         return _as_failure(res, LOW_CORRELATION, f"correlation {rho:.2f} below {min_rho:.2f}")
     smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
