@@ -66,15 +66,19 @@ PLEIADES = DATA / "pleiades_triplet"
 HALF = 12
 PEER_MIN = 0.6
 
-#: the scenes the matcher was tuned on; a first judged set, after which the σ got its term
-#: across the parallax (its z across was 1.3-1.4 on the fractal relief, as on the tuning set);
-#: and scenes never looked at before the figures were taken
+#: the scenes the matcher was tuned on; two sets judged on first and then looked at (after
+#: "seen" the σ got its term across the parallax — z across 1.3–1.4 on the fractal relief, as
+#: on the tuning set; after "seen2" a single view's match over a wide band must be confirmed
+#: and a shape may not shear across the parallax — two wrong matches there without a DEM);
+#: and scenes never looked at before their figures were taken
 SETS = {
     "tuning": [("fractal", 3, None), ("smooth", 3, None), ("dem", 2, (5.214, 44.533))],
     "seen": [("fractal", 11, None), ("smooth", 11, None), ("dem", 1, (5.217, 44.233)),
              ("dem", 4, (5.696, 44.708))],
-    "judged": [("fractal", 12, None), ("smooth", 12, None), ("dem", 5, (5.88, 44.48)),
-               ("dem", 6, (5.28, 44.83))],
+    "seen2": [("fractal", 12, None), ("smooth", 12, None), ("dem", 5, (5.88, 44.48)),
+              ("dem", 6, (5.28, 44.83))],
+    "judged": [("fractal", 13, None), ("smooth", 13, None), ("dem", 7, (5.63, 44.48)),
+               ("dem", 8, (5.43, 44.43))],
 }
 
 
@@ -281,8 +285,11 @@ def orient_cells(d: Path, f: int = 2, half_cells: int = 24) -> None:
             for _ in range(4):
                 en = sol.image_to_ground("N", pts, h)
                 h = np.nan_to_num(dem(en), nan=sol.mean_height)
-            prior = ((h - sol.parallax.c0) / sol.parallax.c1 / f).reshape(gx.shape).astype(np.float32)
-            rms_slope = 0.5
+            # the prior: the reference DEM's parallax through the model, in the same frame
+            en = sol.image_to_ground("N", pts, h)
+            py_ref = ((to_n["F"](sol.ground_to_image("F", en, h)) - to_n["B"](sol.ground_to_image("B", en, h))) @ dd)
+            prior = (py_ref / f).reshape(gx.shape).astype(np.float32)
+            rms_slope = 0.5           # orient-dem: ±3 σ of the reference heights and N's error on the slope
             search = int(np.ceil(3 * np.hypot(10.0, 5.0 * rms_slope) / c1 / f)) + 1
             arrays, tn = {}, {}
             for v in "FB":

@@ -71,7 +71,8 @@ def test_search_finds_the_point_from_a_prediction_pixels_off_along_the_parallax(
         ref, pt, srch, truth = warp(texture, rng.uniform(150, 850, 2), A, rng.uniform(-0.5, 0.5, 2), 8.0, rng)
         d = np.array([np.cos(1.3), np.sin(1.3)])
         pred = truth + rng.uniform(-12, 12) * d + rng.uniform(-1, 1) * np.array([-d[1], d[0]])
-        A0 = A @ (np.eye(2) + rng.uniform(-0.05, 0.05, (2, 2)))
+        # the predicted shape off as a slope misjudged would leave it: along the parallax (±10 %)
+        A0 = A + np.outer(d, rng.uniform(-0.1, 0.1, 2)) + rng.uniform(-0.01, 0.01, (2, 2))
         r = match(ref, *pt, srch, pred, A0, d, along=20, across=2, parallax=d)
         assert r.ok, r.reason
         assert np.hypot(r.x - truth[0], r.y - truth[1]) < 0.05
@@ -94,6 +95,18 @@ def test_a_shape_off_by_a_quarter_is_found_with_a_coarse_pass(texture):
         else:
             assert r.reason
     assert found >= 8
+
+
+def test_a_shape_that_shears_across_the_parallax_is_refused(texture):
+    # relief moves points along the parallax only: a patch that found its fit by shearing
+    # across it has matched something else
+    rng = np.random.default_rng(2)
+    A = np.array([[1.0, 0.15], [0.0, 1.0]])                  # sheared across the parallax (x)
+    ref, pt, srch, truth = warp(texture, (480, 520), A, np.zeros(2), 5.0, rng)
+    r = refine(ref, *pt, srch, truth, np.eye(2), parallax=(0, 1), max_shape_change=0.6)
+    assert r.status == lsm.SHAPE and "across the parallax" in r.reason, r
+    r = refine(ref, *pt, srch, truth, np.eye(2), max_shape_change=0.6)   # no parallax: any shape
+    assert r.ok and np.hypot(r.x - truth[0], r.y - truth[1]) < 0.05
 
 
 def test_failures_say_why(texture):

@@ -156,9 +156,9 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
             if r0.ok:
                 r = lsm.refine(reference, x, y, search, (r0.x, r0.y), r0.shape, half=half, spline=spline,
                                max_shape_change=max_shape_change, **options)
-                change = np.linalg.svd(np.linalg.inv(A0) @ r.shape - np.eye(2), compute_uv=False)[0]
-                if r.ok and change > max_shape_change:   # the limit counts from the prediction
-                    r = replace(r, status=lsm.SHAPE, reason=f"the shape changed by {change:.0%} from the prediction")
+                why = lsm.shape_check(A0, r.shape, options.get("parallax"), max_shape_change)
+                if r.ok and why:   # the limits count from the prediction
+                    r = replace(r, status=lsm.SHAPE, reason=why + " from the prediction")
         results.append(replace(r, score=score))
     good = [r for r in results if r.ok]
     if not good:

@@ -60,6 +60,9 @@ MODEL_SIGMA_PX = 0.5
 enters the three-ray consistency test)."""
 CONSISTENCY_P = 0.999
 """The three rays of a transfer are rejected beyond this χ² quantile."""
+CONFIRM_ALONG_PX = 30.0
+"""A match found in one view only, over a search longer than this (px, ±) along the parallax,
+is ``unconfirmed`` (a failure): with no reference DEM the band spans hundreds of pixels."""
 MAX_SIGMA_PX = 0.5
 """A match stating a larger σ (px) is a failure (``texture``)."""
 
@@ -239,10 +242,53 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
                   across=radius, half=half_window, max_sigma=MAX_SIGMA_PX,
                   max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
                   coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, parallax=d)
-        m = replace(m, x=m.x + c0, y=m.y + r0)
+        m = replace(m, x=m.x + c0, y=m.y + r0, extra={**m.extra, "along": along})
         out[v] = Transfer(v, m.x, m.y, (float(s.pred[0]), float(s.pred[1])), m)
+    found = [v for v in targets if v in out and out[v].ok]
+    if check and len(targets) >= 2 and len(found) == 1:
+        out = _confirm(sol, images, source, xy, ref, (rc0, rr0), out, found[0], shapes, h_pt, radius,
+                       half_window, free)
     if check and len([t for t in out.values() if t.ok]) >= 2:
         out = consistency(sol, source, xy, out, h_pt)
+    return out
+
+
+def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, h, radius, half_window, free):
+    """One view found, the other not: search the other again at the height the found one
+    implies (±3 σ of it along the parallax); when that fails too, a match whose band was wider
+    than :data:`CONFIRM_ALONG_PX` (a wide height range: no reference DEM) is ``unconfirmed`` —
+    nothing checks it, and over hundreds of pixels a repeated texture can correlate as well."""
+    obs = {source: (np.asarray(xy, float), view_sigma_px(sol, source) ** 2 * np.eye(2)),
+           v1: ((out[v1].x, out[v1].y), out[v1].match.cov + view_sigma_px(sol, v1) ** 2 * np.eye(2))}
+    try:
+        g, _, _, _, C = intersect(sol, obs, h)
+    except np.linalg.LinAlgError:
+        return out
+    sigma_h = float(np.sqrt(max(C[2, 2], 0.0)))
+    for v, s in shapes.items():
+        if v in (source, v1) or (v in out and out[v].ok) or not np.all(np.isfinite(s.A)):
+            continue
+        pred = np.asarray(sol.ground_to_image(v, g[:2], g[2]), float)
+        along = 3 * sigma_h * float(np.hypot(*s.dh)) + 2.0
+        win, c0, r0 = images.around(v, pred[0], pred[1], int(along + 2 * half_window * np.abs(s.A).max() + 12))
+        if win is None:
+            continue
+        d = s.dh if np.hypot(*s.dh) > 1e-9 else np.array([0.0, 1.0])
+        m = match(ref, xy[0] - ref_origin[0], xy[1] - ref_origin[1], win, pred - [c0, r0], s.A, d,
+                  along=along, across=2.0, half=half_window, max_sigma=MAX_SIGMA_PX,
+                  max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
+                  coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, parallax=d)
+        if m.ok:
+            m = replace(m, x=m.x + c0, y=m.y + r0)
+            out = dict(out)
+            out[v] = Transfer(v, m.x, m.y, (float(pred[0]), float(pred[1])), m)
+    first = out[v1]
+    if sum(t.ok for t in out.values()) == 1 and first.match.extra.get("along", 0.0) > CONFIRM_ALONG_PX:
+        m = replace(first.match, status="unconfirmed",
+                    reason=f"found in {v1} only, over a search of ±{first.match.extra['along']:.0f} px "
+                           "along the parallax: no other view confirms it")
+        out = dict(out)
+        out[v1] = replace(first, match=m)
     return out
 
 
@@ -262,7 +308,8 @@ def intersect(sol: Solution, obs: dict, h0: float) -> tuple[np.ndarray, dict, fl
     through the model (Gauss–Newton on ``(E, N, h)`` from height ``h0``, the Jacobian of the
     start kept).
 
-    Returns ``(g, residuals {view: (2,) px, observed − predicted}, χ², redundancy)``."""
+    Returns ``(g, residuals {view: (2,) px, observed − predicted}, χ², redundancy, covariance
+    of g (3×3, m²))``."""
     first = next(iter(obs))
     g = np.array([*sol.image_to_ground(first, np.asarray(obs[first][0], float), h0), h0], float)
     W = {v: np.linalg.inv(c) for v, (_, c) in obs.items()}
@@ -276,7 +323,7 @@ def intersect(sol: Solution, obs: dict, h0: float) -> tuple[np.ndarray, dict, fl
             break
     res = {v: np.asarray(xy, float) - sol.ground_to_image(v, g[:2], g[2]) for v, (xy, _) in obs.items()}
     chi2 = float(sum(res[v] @ W[v] @ res[v] for v in obs))
-    return g, res, chi2, 2 * len(obs) - 3
+    return g, res, chi2, 2 * len(obs) - 3, np.linalg.inv(N)
 
 
 def consistency(sol: Solution, source: str, xy, found: dict[str, Transfer], h0: float | None = None
@@ -290,7 +337,7 @@ def consistency(sol: Solution, source: str, xy, found: dict[str, Transfer], h0: 
     for v, t in ok.items():
         obs[v] = ((t.x, t.y), t.match.cov + view_sigma_px(sol, v) ** 2 * np.eye(2))
     try:
-        _, res, chi2, dof = intersect(sol, obs, sol.mean_height if h0 is None else h0)
+        _, res, chi2, dof, _ = intersect(sol, obs, sol.mean_height if h0 is None else h0)
     except np.linalg.LinAlgError:
         return found
     limit = float(stats.chi2.ppf(CONSISTENCY_P, dof))
