@@ -292,8 +292,10 @@ def orient_cells(d: Path, f: int = 2, half_cells: int = 24) -> None:
             rms_slope = 0.5           # orient-dem: ±3 σ of the reference heights and N's error on the slope
             search = int(np.ceil(3 * np.hypot(10.0, 5.0 * rms_slope) / c1 / f)) + 1
             arrays, tn = {}, {}
+            reach = float(np.abs(prior).max()) * f + (search + 20) * f      # as orient-dem reads
             for v in "FB":
-                c = to_n[v].inverse()(np.array([[wd[0] * f - 200, wd[1] * f - 200], [(wd[0] + wd[2]) * f + 200, (wd[1] + wd[3]) * f + 200]], float))
+                c = to_n[v].inverse()(np.array([[wd[0] * f - reach, wd[1] * f - reach],
+                                                [(wd[0] + wd[2]) * f + reach, (wd[1] + wd[3]) * f + reach]], float))
                 (a0, b0), (a1, b1) = c.min(0), c.max(0)
                 arr, ac0, ar0 = im.read_reduced(v, a0, b0, a1 - a0, b1 - b0, f)
                 arrays[v] = arr
@@ -323,7 +325,7 @@ def orient_cells(d: Path, f: int = 2, half_cells: int = 24) -> None:
         unit = "ms per cell" if m == "dense" else "ms per point (F and B)"
         label = "dense NCC 9×9 at 1/2" if m == "dense" else "least squares (ours)"
         print(f"  {label:<22} valid {n_valid[m]:3d}/{n}  RMS {np.sqrt(np.mean(e ** 2)):.3f} px "
-              f"({c1 * np.sqrt(np.mean(e ** 2)):.2f} m)  median |e| {np.median(np.abs(e)):.3f} px  "
+              f"({c1 * np.sqrt(np.mean(e ** 2)):.2f} m)  mean {np.mean(e):+.3f} px  median |e| {np.median(np.abs(e)):.3f} px  "
               f"> 1 px: {int(np.sum(np.abs(e) > 1))}   CPU {per:.3f} {unit}")
 
 
