@@ -22,7 +22,10 @@ by shape-aware least-squares matching (:func:`prismstation.core.lsm_search.match
 Every match states its covariance; a match that fails says why (``status``, ``reason``).
 Transferred from N to both F and B, the three rays must meet: :func:`consistency` intersects
 them through the model (least squares on ``(E, N, h)``) and a χ² of the image residuals
-beyond :data:`CONSISTENCY_P` rejects both (``inconsistent``).
+beyond :data:`CONSISTENCY_P` rejects both (``inconsistent``). Found in one view only, the
+other is searched again at the height the found one implies; a match still alone after a
+search band longer than :data:`CONFIRM_ALONG_PX` is ``unconfirmed``. docs/matching.md has the
+method and its measured performance.
 """
 from __future__ import annotations
 
