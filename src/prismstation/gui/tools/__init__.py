@@ -5,9 +5,6 @@ called once when the main window is built, with a :class:`ToolContext`: the work
 views, a widget to parent dialogs, and ways to add actions, menus entries and docks. A tool
 registers itself in ``ctx.tools`` under its name. Modules are discovered, so adding a tool is
 adding a module; the main window stays wiring only.
-
-Each module says so with ``TOOL_CONTEXT = True``; one that does not yet still gets the main
-window itself (a tool written before the context, to be moved over).
 """
 from __future__ import annotations
 
@@ -97,7 +94,7 @@ def install_tools(window) -> ToolContext:
     for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
         if not info.name.startswith("_"):
             mod = importlib.import_module(f"{__name__}.{info.name}")
-            mod.install(ctx if getattr(mod, "TOOL_CONTEXT", False) else window)
+            mod.install(ctx)
     for k in window.docks:
         if k not in before:
             window.docks[k].hide()

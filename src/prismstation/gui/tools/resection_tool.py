@@ -50,9 +50,9 @@ def _spin(lo, hi, value, decimals, suffix="") -> QDoubleSpinBox:
 class ResectionDialog(QDialog):
     """Interior orientation in, exterior orientation (± σ) and iteration history out."""
 
-    def __init__(self, window):
-        super().__init__(window.widget)
-        self.window = window
+    def __init__(self, ctx):
+        super().__init__(ctx.widget)
+        self.ctx = ctx
         self.setWindowTitle("Space resection")
         self.results: dict = {}   # view -> ResectionResult
         lay = QHBoxLayout(self)
@@ -128,7 +128,7 @@ class ResectionDialog(QDialog):
         return box
 
     def refresh_views(self) -> None:
-        p = self.window.project
+        p = self.ctx.project
         if p is not None and p is not self._defaults_for:  # a new project: its camera defaults
             self._defaults_for = p
             focal, pitch = PRISM_CAMERA if is_prism(p) else GENERIC_CAMERA
@@ -149,7 +149,7 @@ class ResectionDialog(QDialog):
             self.centre_pp()
 
     def centre_pp(self) -> None:
-        iv = self.window.views.views.get(self.view.currentText())
+        iv = self.ctx.views.views.get(self.view.currentText())
         if iv is not None and iv.source is not None:
             self.cx.setValue(iv.source.width / 2.0)
             self.cy.setValue(iv.source.height / 2.0)
@@ -160,7 +160,7 @@ class ResectionDialog(QDialog):
 
     def resect_view(self, view: str):
         """Resect ``view`` on its GCPs with the dialog's camera (raises PrismError)."""
-        ids, xy, g, chk = view_points(self.window.project, view)
+        ids, xy, g, chk = view_points(self.ctx.project, view)
         res = resect(self.camera(), xy[~chk], g[~chk])
         self.results[view] = res
         return res
@@ -168,7 +168,7 @@ class ResectionDialog(QDialog):
     def run(self):
         """Resect the chosen view, show the result and plot the history; returns the result."""
         view = self.view.currentText()
-        if self.window.project is None or not view:
+        if self.ctx.project is None or not view:
             return None
         try:
             res = self.resect_view(view)
@@ -228,24 +228,21 @@ class ResectionDialog(QDialog):
 
 
 class ResectionTool:
-    def __init__(self, window):
-        self.window = window
+    def __init__(self, ctx):
+        self.ctx = ctx
         self.dialog: ResectionDialog | None = None
-        window.tools_menu.addAction("Space resection…", self.open)
+        ctx.tools_menu.addAction("Space resection…", self.open)
 
     def open(self) -> ResectionDialog | None:
-        if self.window.project is None:
+        if self.ctx.project is None:
             return None
         if self.dialog is None:
-            self.dialog = ResectionDialog(self.window)
+            self.dialog = ResectionDialog(self.ctx)
         else:
             self.dialog.refresh_views()
         self.dialog.show()
         self.dialog.raise_()
         return self.dialog
-
-
-TOOL_CONTEXT = True  # install() gets a ToolContext
 
 
 def install(ctx) -> None:
