@@ -57,13 +57,16 @@ class Project:
     ``dem_control``: the record of an orientation from a reference DEM (``None``: none), as
     :mod:`prismstation.ops.orient_dem` writes it. ``relocations``: view → image path used
     instead of the scene's. ``product``: the JAXA product folder the project was made from.
+    ``reference_dem``: the path of the reference DEM the project works with (heights for
+    points without parallax, the linked cursor, DSMs, the DEM orientation), or None.
     ``other``: top-level keys of the project file this version does not know, written back
     unchanged.
     """
 
     def __init__(self, scene: Scene, scene_path: str | None = None, *, settings: Settings = Settings(),
                  geoid: dict | None = None, points=(), measurements=(), dem_control: dict | None = None,
-                 relocations: dict | None = None, product: str | None = None, other: dict | None = None):
+                 relocations: dict | None = None, product: str | None = None, other: dict | None = None,
+                 reference_dem: str | None = None):
         self.scene = scene
         self.scene_path = scene_path
         self.settings = settings
@@ -74,6 +77,7 @@ class Project:
         self.dem_control = dem_control
         self.relocations: dict[str, str] = dict(relocations or {})
         self.product = product
+        self.reference_dem = reference_dem
         self.other: dict = dict(other or {})
         self._put_all(points, measurements)
         self.revision = 0
@@ -228,6 +232,12 @@ class Project:
     def set_relocations(self, relocations: dict) -> dict:
         """View → image path used instead of the scene's; returns the previous mapping."""
         old, self.relocations = self.relocations, dict(relocations)
+        self._touch(files=True)
+        return old
+
+    def set_reference_dem(self, path: str | None) -> str | None:
+        """The reference DEM's path (None: none); returns the previous one."""
+        old, self.reference_dem = self.reference_dem, path
         self._touch(files=True)
         return old
 
