@@ -87,7 +87,7 @@ class ToolContext:
         """The window is asked to close (X, Ctrl+Q): with a tool's job running, ask whether to
         cancel it and quit (a window that asks nothing — tests, screenshots — says yes)."""
         from prismstation.gui.tools._worker import running_jobs_of
-        jobs = running_jobs_of(self.widget)
+        jobs = [job for job in running_jobs_of(self.widget) if not job.is_cancelled()]  # (cancelled: ending)
         if not jobs or not self.interactive:
             return True
         what = "; ".join(job.describe() for job in jobs)
