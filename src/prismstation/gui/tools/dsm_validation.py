@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import os
 import tempfile
+from pathlib import Path
 
 import numpy as np
 import pyqtgraph as pg
@@ -22,7 +23,8 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpin
                                QSplitter, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
 
 from prismstation.core.dsmstats import hillshade, histogram, residual_sd_by_view
-from prismstation.gui.tools._rect_common import fmt
+from prismstation.gui.titles import fit_title
+from prismstation.gui.tools._rect_common import crs_name, fmt
 from prismstation.gui.tools._worker import Job, run_with_progress
 
 STAT_COLUMNS = ("count", "bias", "sd", "rmse", "min", "max", "median", "nmad")
@@ -148,10 +150,37 @@ def shaded_difference(diff, relief, limit=None) -> np.ndarray:
     return np.clip(rgb * 255, 0, 255).astype(np.uint8)
 
 
+def prefill(project, project_path, last: dict) -> dict:
+    """What the dialog starts from: the last run's choices, else the project's — its DSM
+    (``dsm.tif`` beside the project, the DSM tool's default), its reference DEM (SRTM-like:
+    orthometric) and its geoid (a grid's path, or the constant)."""
+    out = {"dsm_height": "ellipsoidal", "reference_height": "ellipsoidal", "geoid_constant": 0.0}
+    if project is not None:
+        folders = [Path(p).parent for p in (project_path, project.scene_path) if p]
+        for cand in (f / "dsm.tif" for f in folders):
+            if cand.is_file():
+                out["dsm"] = str(cand)
+                break
+        if project.reference_dem:
+            out.update(reference=project.reference_dem, reference_height="orthometric")
+        g = project.geoid or {}
+        if g.get("kind") == "grid":
+            grid = Path(g.get("path", ""))
+            out["geoid_grid"] = str(grid if grid.is_absolute() or not folders else folders[-1] / grid)
+        elif g.get("kind") == "auto":
+            from prismstation.io.geoid import find_grid
+            grid = find_grid()
+            out.update({"geoid_grid": str(grid)} if grid else {"geoid_constant": float(g.get("value") or 0.0)})
+        elif g.get("value") is not None:
+            out["geoid_constant"] = float(g["value"])
+    return {**out, **{k: v for k, v in last.items() if v not in ("", None)}}
+
+
 class DsmDialog(QDialog):
     def __init__(self, parent, last: dict):
         super().__init__(parent)
         self.setWindowTitle("Validate DSM")
+        fit_title(self)
         f = QFormLayout(self)
         self.paths = {}
         for key, label in (("dsm", "DSM"), ("reference", "Reference DSM"), ("mask", "Class mask (optional)"),
@@ -241,7 +270,7 @@ class DsmResultPanel(QWidget):
         self.validation, self.info, self.diff = val, info, diff
         self.title.setText(f"<b>{os.path.basename(info['dsm'])}</b> − <b>{os.path.basename(info['reference'])}</b>"
                            f" on the DSM grid ({info['grid']['width']} × {info['grid']['height']}, "
-                           f"{info['grid']['crs']}), heights {info['heights']['compared_as']}")
+                           f"{crs_name(info['grid']['crs'])}), heights {info['heights']['compared_as']}")
         pct = sorted(val.overall.percentiles)
         head = ["Cells"] + list(STAT_COLUMNS) + [f"P{p:g}" for p in pct]
         self.table.clear()
@@ -313,7 +342,7 @@ class DsmValidationTool:
         ctx.tools_menu.addAction(self.dock.toggleViewAction())
 
     def open_dialog(self) -> None:
-        d = DsmDialog(self.ctx.widget, self.last)
+        d = DsmDialog(self.ctx.widget, prefill(self.ctx.project, self.ctx.files.path, self.last))
         if d.exec() == QDialog.DialogCode.Accepted:
             self.start(**d.values())
 

@@ -18,7 +18,8 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpin
                                QPushButton, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
 
 from prismstation.core.rectify import KINDS, compare_transforms, min_points, n_params
-from prismstation.gui.tools._rect_common import fmt, view_points, watch_project
+from prismstation.gui.titles import fit_title
+from prismstation.gui.tools._rect_common import crs_name, fmt, view_points, watch_project
 from prismstation.gui.tools._worker import Job, run_with_progress
 
 
@@ -157,6 +158,7 @@ class RectifyDialog(QDialog):
     def __init__(self, ctx, panel: TransformsPanel):
         super().__init__(ctx.widget)
         self.setWindowTitle("Rectify")
+        fit_title(self)
         project = ctx.project
         f = QFormLayout(self)
         self.view = QComboBox()
@@ -200,6 +202,7 @@ class RectifyTool:
         self.dock = ctx.add_dock("transforms", "Transforms", self.panel,
                                  Qt.DockWidgetArea.RightDockWidgetArea)
         self.job: Job | None = None
+        self.summary = ""  # the last rectification's summary
         ctx.views.images_loaded.connect(self._show_for_single_view)
         ctx.tools_menu.addAction("Rectify…", self.open_dialog)
         ctx.tools_menu.addAction(self.dock.toggleViewAction())
@@ -244,17 +247,28 @@ class RectifyTool:
             return rectify_raster(image, r.transform, Path(out_path), points_crs=crs,
                                   out_crs=out_crs, resolution=resolution, progress=progress)
 
-        self.job = run_with_progress(w, f"Rectifying {view} through {kind}", work, self._done,
-                                     dialog=progress_dialog)
+        self.job = run_with_progress(w, f"Rectifying {view} through {kind}", work,
+                                     lambda res: self._done(res, view, r), dialog=progress_dialog)
         return self.job
 
-    def _done(self, result) -> None:
-        self._message(f"Wrote {result.path}: {result.width} × {result.height} cells of "
-                      f"{result.resolution:g} ({result.crs})")
+    def _done(self, result, view: str, report) -> None:
+        """The summary: what was written, on which grid, and how well the transform fits."""
+        self.summary = (
+            f"Rectified view {view} through the {report.kind} transform ({report.n_params} parameters, "
+            f"{report.n_gcp} GCPs; planimetric RMSE {fmt(report.rmse_gcp)} m on the GCPs, "
+            f"{fmt(report.rmse_icp)} m on {report.n_icp} ICPs).\n\n"
+            f"Wrote {result.path}: {result.width} × {result.height} cells of {result.resolution:g} "
+            f"in {crs_name(result.crs)}.")
+        self.ctx.status(" ".join(self.summary.split()), 30000)
+        if self.ctx.interactive:
+            box = QMessageBox(QMessageBox.Icon.Information, "Rectify", self.summary,
+                              QMessageBox.StandardButton.Ok, self.ctx.widget)
+            fit_title(box)
+            box.exec()
 
     def _message(self, text: str) -> None:
         self.ctx.status(text, 15000)
-        if getattr(self.ctx, "interactive", False) and "Cannot" in text:
+        if self.ctx.interactive and "Cannot" in text:
             QMessageBox.warning(self.ctx.widget, "Rectify", text)
 
 
