@@ -259,7 +259,9 @@ class RectifyTool:
             f"{fmt(report.rmse_icp)} m on {report.n_icp} ICPs).\n\n"
             f"Wrote {result.path}: {result.width} × {result.height} cells of {result.resolution:g} "
             f"in {crs_name(result.crs)}.")
-        self.ctx.status(" ".join(self.summary.split()), 30000)
+        self.ctx.status(f"Wrote {result.path}: {result.width} × {result.height} cells of {result.resolution:g} "
+                        f"in {crs_name(result.crs)} — {view} through {report.kind}, planimetric RMSE "
+                        f"{fmt(report.rmse_gcp)} m (GCPs), {fmt(report.rmse_icp)} m (ICPs)", 30000)
         if self.ctx.interactive:
             box = QMessageBox(QMessageBox.Icon.Information, "Rectify", self.summary,
                               QMessageBox.StandardButton.Ok, self.ctx.widget)
