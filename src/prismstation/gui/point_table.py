@@ -298,10 +298,11 @@ class _FastTable(QTableView):
             elif row[BLUNDER] or r % 2:
                 p.fillRect(0, y, right, h, _BLUNDER_BRUSH if row[BLUNDER] else _ODD_BRUSH)
             for c, x, w in cols:
-                if c == HEIGHT and row[ODD_HEIGHT] and not chosen:
+                odd = c == HEIGHT and row[ODD_HEIGHT]  # tinted, selected or not
+                if odd:
                     p.fillRect(x, y, w, h, _ODD_HEIGHT_BRUSH)
                 kind = _KIND_BRUSHES.get(row[1]) if c == 1 and not chosen else None
-                p.setPen(sel_pen if chosen else kind.color() if kind is not None else text_pen)
+                p.setPen(sel_pen if chosen and not odd else kind.color() if kind is not None else text_pen)
                 p.drawText(x + self.PAD, y, w - 2 * self.PAD, h, _LEFT if c in TEXT else _RIGHT, texts[c])
             rows.append(y + h - 1)
         if self.showGrid():
@@ -330,6 +331,7 @@ class _FrozenIds(_FastTable):
         self.setVerticalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
         self.setVerticalScrollMode(table.verticalScrollMode())
         self.setFrameShape(self.Shape.NoFrame)
+        self.horizontalHeader().setSortIndicator(-1, Qt.SortOrder.AscendingOrder)  # unsorted until the table is
         self.horizontalHeader().setSortIndicatorShown(True)
         self.horizontalHeader().setSectionsClickable(True)
         self.horizontalHeader().sectionClicked.connect(self._sort_clicked)

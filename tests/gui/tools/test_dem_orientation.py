@@ -145,7 +145,7 @@ def test_the_default_patch_size_follows_the_scene(window):
     dlg = OrientDialog(window, "", None, 50.0, sized(2000))
     assert dlg.patch.value() == 1.25 and "16 patches (4 × 4) on this 5.0 × 5.0 km scene" in dlg.patches.text()
     dlg.patch.setValue(4.0)
-    assert "1 patches (1 × 1)" in dlg.patches.text() and "too few to test" in dlg.patches.text()
+    assert "1 patch (1 × 1)" in dlg.patches.text() and "too few to test" in dlg.patches.text()
     dlg.deleteLater()
 
 

@@ -139,7 +139,8 @@ class OrientDialog(QDialog):
             return
         across, along = scene_km(self.scene)
         nx, ny = patch_count(self.scene, self.patch.value())
-        text = f"{nx * ny} patches ({nx} × {ny}) on this {across:.1f} × {along:.1f} km scene"
+        n = nx * ny
+        text = f"{n} patch{'es' if n != 1 else ''} ({nx} × {ny}) on this {across:.1f} × {along:.1f} km scene"
         if abs(self.patch.value() - self.auto_km) < 1e-9:
             text += " (the size chosen for it: a quarter of its side, 1–4 km)"
         if nx * ny < MIN_PATCHES:
