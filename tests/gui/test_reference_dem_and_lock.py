@@ -151,3 +151,35 @@ def test_a_second_window_does_not_recover_the_first_ones_journal(qtbot, sim, tmp
         win.files.interactive = False
         close_windows(qtbot, win)
     assert not (sim / "p.prismproj.lock").exists()          # released at close
+
+
+def test_a_second_window_leaves_the_first_ones_untitled_journal_alone(qtbot, sim, temp_settings):
+    """An untitled project's journal lives in the settings folder: another live window's is not
+    offered at start; once that window is gone (a crash), it is."""
+    win = new_window(qtbot)
+    try:
+        from prismstation.gui.project_io import autosave_path, untitled_path
+        base = untitled_path()
+        base.parent.mkdir(parents=True, exist_ok=True)
+        autosave_path(None).write_text((sim / "p.prismproj").read_text().replace(
+            '"scene": "scene.json"', f'"scene": "{sim / "scene.json"}"'))
+        other = subprocess.Popen([sys.executable, "-c", HOLD, str(base)], stdout=subprocess.PIPE, text=True,
+                                 env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
+        try:
+            assert other.stdout.readline().strip() == "held"
+            win.files.interactive = True
+            seen = []
+            answer_next_box(seen, QMessageBox.StandardButton.No, tries=10)
+            assert not win.files.recover_untitled()
+            qtbot.wait(700)
+            assert seen == []                                   # not even asked
+        finally:
+            other.kill()
+            other.wait()
+        seen = []
+        answer_next_box(seen, QMessageBox.StandardButton.Yes)
+        assert win.files.recover_untitled()
+        assert seen and seen[0][0] == "Recover" and win.project is not None
+    finally:
+        win.files.interactive = False
+        close_windows(qtbot, win)
