@@ -4,7 +4,7 @@ the workstation started as a user starts it and driven by keys and the window ma
 - a job started from the Tools menu, its progress dialog closed by the window manager (the
   title bar's X), then Ctrl+Q — once a crash at quit (``QObject: shared QObject was deleted
   directly``, ``malloc_consolidate(): unaligned fastbin chunk``);
-- Ctrl+Q while the job runs asks whether to cancel it and quit;
+- X or Ctrl+Q while the job runs asks whether to cancel it and quit;
 - a second instance opening the same project is refused with the reason, and never offers to
   "recover" the first one's journal."""
 from __future__ import annotations
@@ -89,12 +89,11 @@ def test_a_job_its_progress_dialog_closed_then_quit(desktop, project, tmp_path):
             app.kill()
 
 
-def test_ctrl_q_while_a_job_runs_asks_first(desktop, project, tmp_path):
+def test_x_and_ctrl_q_while_a_job_runs_ask_first(desktop, project, tmp_path):
     app = App(desktop, project, tmp_path / "s")
     try:
         start_orientation(desktop, app)
-        desktop.run("xdotool", "windowactivate", "--sync", app.wid)
-        desktop.run("xdotool", "key", "ctrl+q")
+        desktop.run("wmctrl", "-i", "-c", app.wid)                 # the main window's X
         box = window_named(desktop, app, "Quit", 10)
         desktop.run("xdotool", "windowactivate", "--sync", box)
         desktop.run("xdotool", "key", "Escape")                    # No: the job goes on
@@ -104,7 +103,7 @@ def test_ctrl_q_while_a_job_runs_asks_first(desktop, project, tmp_path):
         desktop.run("xdotool", "key", "ctrl+q")
         box = window_named(desktop, app, "Quit", 10)
         desktop.run("xdotool", "windowactivate", "--sync", box)
-        desktop.run("xdotool", "key", "alt+y")                     # Yes: cancel it and quit
+        desktop.run("xdotool", "key", "alt+y")                     # Yes (to Ctrl+Q): cancel it and quit
         app.proc.wait(60)
         out = app.proc.stdout.read()
         assert app.proc.returncode == 0 and not any(t in out for t in TROUBLE), out
