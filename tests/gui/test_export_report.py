@@ -62,16 +62,35 @@ def test_ctrl_e_writes_the_report(window, qtbot, answered, tmp_path):
     assert head[:3] == ["id", "kind", "view"]
 
 
-def test_the_operator_prompt_remembers_the_name_and_cancel_writes_nothing(window, qtbot, answered,
-                                                                         tmp_path):
+def test_the_export_proposes_a_file_in_the_project_folder_and_asks_the_operator_once(window, qtbot, answered,
+                                                                                     tmp_path, monkeypatch):
+    from PySide6.QtWidgets import QFileDialog
     win = window
+    offered = []
+    save = QFileDialog.getSaveFileName
+
+    def look(parent, title, directory="", *a, **k):
+        offered.append(directory)
+        return save(parent, title, directory, *a, **k)
+    monkeypatch.setattr(QFileDialog, "getSaveFileName", staticmethod(look))
     win.a_export.trigger()
     _written(win, qtbot, answered.path)
+    assert offered == [str(win.demo.path.parent / f"{win.demo.path.stem}_report.pdf")]
+    assert [k for k, _ in answered.asked] == ["file", "operator"]
     answered.asked.clear()
     answered.path = str(tmp_path / "second.json")
+    win.a_export.trigger()                                 # the operator is remembered: not asked
+    assert [k for k, _ in answered.asked] == ["file"]
+    rep = _written(win, qtbot, answered.path)
+    assert rep["header"]["operator"] == "A. Operator"
+    assert "operator A. Operator" in win.statusBar().currentMessage()
+    answered.name = "B. Other"                             # File ▸ Report operator… changes it
+    file_menu = next(a.menu() for a in win.menuBar().actions() if a.text().replace("&", "") == "File")
+    next(a for a in file_menu.actions() if a.text().replace("&", "") == "Report operator…").trigger()
+    assert answered.asked[-1] == ("operator", "A. Operator")
+    answered.path = str(tmp_path / "third.json")
     win.a_export.trigger()
-    assert ("operator", "A. Operator") in answered.asked  # offered the last name given
-    _written(win, qtbot, answered.path)
+    assert _written(win, qtbot, answered.path)["header"]["operator"] == "B. Other"
     answered.path = ""                                     # the save dialog cancelled
     win.statusBar().clearMessage()
     win.a_export.trigger()

@@ -76,7 +76,7 @@ class App:
         if self.proc.poll() is not None:
             raise AssertionError(f"the workstation exited with {self.proc.returncode} before its "
                                  f"window showed:\n{self.proc.stdout.read()}")
-        r = self.d.run("xdotool", "search", "--onlyvisible", "--pid", str(self.proc.pid),
+        r = self.d.run("xdotool", "search", "--all", "--onlyvisible", "--pid", str(self.proc.pid),
                        "--name", "prismstation", check=False)
         ids = r.stdout.split()
         return ids[0] if ids else None

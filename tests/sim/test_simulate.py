@@ -1,4 +1,4 @@
-"""simulate(): files in the docs/formats.md formats, truth consistent with them, determinism, CLI."""
+"""simulate(): files in the formats of docs/formats.md, truth consistent with them, determinism, CLI."""
 import csv
 import json
 

@@ -30,13 +30,29 @@ def ensure_demo(directory=None, *, rebuild: bool = False, progress=None) -> Path
     d = Path(directory or default_dir())
     project = d / "demo.prismproj"
     if project.exists() and not rebuild:
+        _record_reference_dem(project)
         return project
     data = d / "triplet"
     simulate(data, size=DEMO_SIZE, seed=DEMO_SEED, progress=progress)
     # an SRTM-like reference (90 m, orthometric, noise, voids) for the GCP-free workflow
     make_reference_dem(data / "truth_dem.tif", data / "srtm.tif", seed=DEMO_SEED)
     create(project, data / "scene.json", data / "points.csv", data / "measurements.csv", force=True)
+    _record_reference_dem(project)
     return project
+
+
+def _record_reference_dem(project: Path) -> None:
+    """The demo's SRTM-like DEM as its project's reference DEM (a demo made before projects
+    kept one gets it once, unless it has unsaved edits to recover)."""
+    from prismstation.io.project import load_project, save_project
+    from prismstation.io.recovery import recovery_for
+    dem = reference_dem(project)
+    if dem is None or recovery_for(project) is not None:
+        return
+    proj = load_project(project)
+    if proj.reference_dem is None:
+        proj.reference_dem = str(dem.resolve())
+        save_project(proj, project)
 
 
 def reference_dem(project) -> Path | None:
@@ -56,6 +72,12 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    made = Path(args.dir or default_dir()) / "demo.prismproj"
+    if not args.no_gui and not args.screenshot and (args.rebuild or not made.exists()):
+        # the first time: the window at once, the demo made behind a progress dialog
+        from prismstation.gui.app import run as run_gui
+        return run_gui(demo_maker=lambda progress=None: ensure_demo(args.dir, rebuild=args.rebuild, progress=progress),
+                       open_demo=True)
     project = ensure_demo(args.dir, rebuild=args.rebuild)
     if args.no_gui:
         from prismstation.io.project import load_project

@@ -5,6 +5,7 @@ Writes ``N.tif``, ``F.tif``, ``B.tif``, ``scene.json``, ``points.csv``, ``measur
 """
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -42,6 +43,18 @@ def register(sub) -> None:
     p.add_argument("--geolocation-error-m", type=float, default=50.0, metavar="MAX",
                    help="bound of each view's own geolocation error, metres: along- and across-track "
                         "components drawn independently, uniform in [-MAX, +MAX] (default 50; 0 = exact)")
+    p.add_argument("--terrain", choices=["fractal", "smooth", "dem"], default=None,
+                   help="fractal: ridges and valleys (default); smooth: rolling hills, 6 %% mean "
+                        "slope, nothing shorter than about 1 km; dem: from --terrain-dem")
+    p.add_argument("--terrain-dem", metavar="DEM",
+                   help="take the terrain from this DEM (SRTM .hgt, GeoTIFF; any CRS; heights "
+                        "orthometric), bicubic; the scene moves there, into the UTM zone")
+    p.add_argument("--terrain-centre", type=float, nargs=2, metavar=("X", "Y"),
+                   help="where in the DEM the scene's centre sits, in the DEM's CRS (longitude "
+                        "latitude for EPSG:4326; default the DEM's centre)")
+    p.add_argument("--relief-scale", type=float, default=1.0, metavar="F",
+                   help="scale the heights by F about their mean over the ground N sees, "
+                        "0 < F <= 1 (default 1)")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.error = _one_line_error("prismstation simulate")
     p.set_defaults(func=run)
@@ -68,11 +81,29 @@ def run(args) -> int:
                          survey_sigma_h=args.survey_sigma_h, north_up=args.north_up,
                          ascending=args.pass_direction == "ascending",
                          map_to_image_in_json=args.map_to_image_in_json,
-                         geolocation_error_m=args.geolocation_error_m, progress=progress)
+                         geolocation_error_m=args.geolocation_error_m,
+                         terrain=args.terrain or ("dem" if args.terrain_dem else "fractal"),
+                         terrain_dem=args.terrain_dem, terrain_centre=args.terrain_centre,
+                         relief_scale=args.relief_scale, progress=progress)
     except OSError as exc:
         raise InputError(f"cannot write: {exc.strerror or exc}", file=out) from None
     finally:
         if not args.quiet and shown[0] >= 0:
             print(file=sys.stderr)
     print(f"wrote {', '.join(sorted(p.name for p in paths.values()))} into {out}")
+    print(describe_terrain(json.loads(paths["truth"].read_text(encoding="utf-8"))["terrain"]))
     return 0
+
+
+def describe_terrain(terrain: dict) -> str:
+    """One line: the terrain's kind and statistics as ``truth.json`` stores them."""
+    s = terrain["statistics"]
+    where = ""
+    if terrain["kind"] == "dem":
+        where = (f" from {Path(terrain['file']).name} at {terrain['at'][0]:g} {terrain['at'][1]:g}"
+                 f" ({terrain['scene_crs']}; {terrain['void_filled_pct']:g} % voids filled)")
+    scaled = f", heights x{terrain['relief_scale']:g} about their mean" if terrain["relief_scale"] != 1 else ""
+    return (f"terrain {terrain['kind']}{where}{scaled}: heights {s['height_min_m']:.0f}-"
+            f"{s['height_max_m']:.0f} m orthometric (mean {s['height_mean_m']:.0f} m), mean slope "
+            f"{s['mean_slope_pct']:.1f} %, slopes over 30 %: {s['slope_over_30pct_share_pct']:.1f} % "
+            f"of the ground N sees ({s['slope_cell_m']:g} m cells)")

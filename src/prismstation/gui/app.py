@@ -99,11 +99,12 @@ def take_screenshot(window, path, size=(1680, 1050)) -> None:
         raise InputError("could not write the screenshot", path)
 
 
-def run(project_path=None, screenshot=None, reference_dem=None, demo_maker=None) -> int:
+def run(project_path=None, screenshot=None, reference_dem=None, demo_maker=None, open_demo=False) -> int:
     """Open the window (on ``project_path``, with ``reference_dem`` loaded when given) and run
     the event loop; with ``screenshot`` (a PNG path) write a picture of the loaded, fitted
     window instead and return 0. ``demo_maker``: ``demo_maker(progress=…)`` makes the demo
-    project and returns its path (the start page's "Open the demo project")."""
+    project and returns its path (the start page's "Open the demo project"); ``open_demo``:
+    the window, once shown, makes it (with a progress dialog) and opens it."""
     screenshot_path = screenshot
     if project_path is not None and not Path(project_path).exists():
         raise InputError("project not found", project_path)
@@ -138,6 +139,9 @@ def _run_window(project_path, screenshot_path, reference_dem, demo_maker) -> int
                 return 2
         elif reference_dem is not None:
             win.load_reference_dem(reference_dem, wait=not interactive)
+    elif open_demo:
+        from PySide6.QtCore import QTimer
+        QTimer.singleShot(0, win.open_demo)  # the window first, then the demo's progress
     elif interactive:
         win.files.recover_untitled()
     if screenshot_path is not None:

@@ -1,9 +1,11 @@
-"""File ▸ Import… and File ▸ Export report… of the main window.
+"""File ▸ Import…, File ▸ Export report… and File ▸ Report operator… of the main window.
 
 The import dialog (:mod:`prismstation.gui.import_dialog`) and the HTML/PDF writer
 (:mod:`prismstation.gui.report_writer`) are imported lazily; where a build lacks them the
 window says so instead of failing. An import is one undoable step; CSV and JSON reports go
-through :func:`prismstation.io.report.write_report`.
+through :func:`prismstation.io.report.write_report`. The export's file dialog opens in the
+project's folder with a name proposed (``<project>_report.pdf``); the operator named on reports
+is asked the first time only and remembered (File ▸ Report operator… changes it).
 """
 from __future__ import annotations
 
@@ -23,7 +25,8 @@ def import_points(window) -> None:
     if window.project is None:
         return
     from prismstation.gui.import_dialog import ImportDialog
-    dlg = ImportDialog(list(window.project.scene.views), window.project.scene.crs, window)
+    dlg = ImportDialog(list(window.project.scene.views), window.project.scene.crs, window,
+                       height_kind=window.project.height_kind())
     if dlg.exec():
         points, ms = dlg.result()
         push_import(window, points, ms)
@@ -38,18 +41,27 @@ def push_import(window, points, ms) -> None:
 
 
 def report_operator(window, ask: bool) -> str | None:
-    """The operator named on a report: the last name given (setting), else the login name;
+    """The operator named on a report: the name given once (remembered), else the login name;
     with ``ask``, offered for editing first (``None``: the operator cancelled)."""
     from prismstation.io.report import default_operator
     name = st.value(st.Key.REPORT_OPERATOR) or default_operator()
     if ask:
-        name, ok = QInputDialog.getText(window, "Export report", "Operator named on the report:",
+        name, ok = QInputDialog.getText(window, "Report operator", "Operator named on reports:",
                                         text=name)
         if not ok:
             return None
         name = name.strip() or default_operator()
         st.set_value(st.Key.REPORT_OPERATOR, name)
+        window.statusBar().showMessage(f"Reports will name {name} as the operator", 8000)
     return name
+
+
+def proposed_report_path(window) -> str:
+    """Where the export's file dialog starts: the project's folder (else the last export's)
+    and ``<project>_report.pdf``."""
+    path = window.files.path
+    folder = Path(path).parent if path else Path(st.value(st.Key.LAST_EXPORT_DIR) or Path.home())
+    return str(folder / f"{Path(path).stem if path else 'untitled'}_report.pdf")
 
 
 def export_report(window, path: str | None = None) -> bool:
@@ -64,11 +76,11 @@ def export_report(window, path: str | None = None) -> bool:
         return False
     ask = path is None
     if ask:
-        path, _ = QFileDialog.getSaveFileName(window, "Export report", st.value(st.Key.LAST_EXPORT_DIR),
-                                              REPORT_FILTER)
+        path, _ = QFileDialog.getSaveFileName(window, "Export report", proposed_report_path(window),
+                                              REPORT_FILTER, "PDF (*.pdf)")
         if not path:
             return False
-    operator = report_operator(window, ask)
+    operator = report_operator(window, ask and not st.value(st.Key.REPORT_OPERATOR))
     if operator is None:
         return False
     from prismstation.io.report import write_report
@@ -84,5 +96,6 @@ def export_report(window, path: str | None = None) -> bool:
         QMessageBox.warning(window, "Export report", str(exc))
         return False
     st.set_value(st.Key.LAST_EXPORT_DIR, str(Path(path).parent))
-    window.statusBar().showMessage(f"Report written to {path}", 8000)
+    window.statusBar().showMessage(f"Report written to {path} (operator {operator}: File ▸ Report "
+                                   "operator… changes it)", 8000)
     return True

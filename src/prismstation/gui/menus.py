@@ -7,6 +7,7 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QDockWidget, QStyle
 
+from prismstation.gui import io_actions
 from prismstation.gui import settings as st
 from prismstation.gui.palette import kind_icon
 
@@ -45,7 +46,11 @@ def build_actions(win) -> None:
                        tip="Ground points or image measurements from a CSV or another tool's file")
     win.a_export = act(win, "&Export report…", lambda: win.export_report(), "Ctrl+E",
                        tip="The fit's report as HTML, PDF, CSV or text")
-    win.a_quit = act(win, "&Quit", lambda: win.close(), K.Quit)
+    win.a_operator = act(win, "Report &operator…", lambda: io_actions.report_operator(win, True),
+                         tip="The operator named on exported reports (asked at the first export, then remembered)")
+    # Ctrl+Q where the platform has no Quit key (Windows, offscreen); also from a progress dialog
+    win.a_quit = act(win, "&Quit", lambda: win.close(), QKeySequence.keyBindings(K.Quit) or "Ctrl+Q")
+    win.a_quit.setShortcutContext(Qt.ShortcutContext.ApplicationShortcut)
     win.a_undo = win.undo_stack.createUndoAction(win, "&Undo")
     win.a_undo.setShortcuts(K.Undo)
     win.a_undo.setIcon(win.style().standardIcon(S.SP_ArrowBack))
@@ -98,7 +103,7 @@ def build_menus(win) -> None:
     m.addSeparator()
     m.addActions([win.a_save, win.a_save_as])
     m.addSeparator()
-    m.addActions([win.a_import, win.a_export])
+    m.addActions([win.a_import, win.a_export, win.a_operator])
     m.addSeparator()
     m.addAction(win.a_quit)
     m = win.edit_menu = mb.addMenu("&Edit")

@@ -208,7 +208,7 @@ def relate_views(run: OrientRun) -> None:
                                  progress=scaled(run.progress, 0.0, 0.25))
     bad = [v for v in "FB" if not coarse.ok(v)]
     if bad:
-        why = "; ".join(w.reason for w in coarse.windows if w.view in bad and w.reason)[:300]
+        why = "; ".join(dict.fromkeys(w.reason for w in coarse.windows if w.view in bad and w.reason))
         raise InputError(f"view {' and '.join(bad)} could not be found relative to N within "
                          f"{coarse.radius_px:.0f} px (a-priori σ {run.sigma_apriori_m:g} m per view): "
                          f"{why or 'no window matched'}", run.reference_path)
@@ -259,7 +259,7 @@ def match_patches(run: OrientRun, patch_m: float) -> list[PatchShift]:
         images.close()
     if not any(p.used for p in shifts):
         raise InputError("no patch could be matched to the reference DEM: "
-                         + "; ".join(sorted({p.reason for p in shifts}))[:300], run.reference_path)
+                         + "; ".join(sorted({p.reason for p in shifts})), run.reference_path)
     return shifts
 
 

@@ -1,30 +1,74 @@
 """Automatic point transfer and tie points on the project's images.
 
-A point placed in one view is searched in the others around the current model's prediction,
-along the parallax (flight) direction as far as the height is uncertain, by NCC then
-least-squares matching (:func:`prismstation.core.matching.match_point`). Both directions also
-cover the model's geolocation σ per view (:func:`model_sigma_m`): with the ancillary model
-alone the a-priori σ (50 m: ±85 px between two views), once the views' biases are fitted
-:data:`FITTED_SIGMA_M` (±9 px); the radius is ``search_radius_px(σ·√2, GSD)`` (3 σ).
+A point placed in one view is searched in the others around the current model's prediction
+by shape-aware least-squares matching (:func:`prismstation.core.lsm_search.match`, Gruen
+1985). What the search assumes, and where it comes from:
+
+* **height** (:func:`search_height`): the point's height from the reference DEM (else the
+  mean height) and ±3 σ of it, at least ±:data:`MIN_HEIGHT_RANGE_M` (a DEM's σ is measured
+  at the GCPs, not at every tree); ±:data:`FALLBACK_HEIGHT_RANGE_M` when nothing predicts it.
+  The height range is searched along the parallax direction (where a height error moves the
+  point).
+* **geolocation** (:func:`model_sigma_m`): the model's σ per view — the ancillary model's
+  a-priori σ (±85 px between two views) until every view's bias is fitted, then
+  :data:`FITTED_SIGMA_M` (±9 px) — searched both along and across.
+* **shape** (:func:`local_shape`): the 2×2 Jacobian of the source → target mapping at the
+  point through the model, on the terrain plane the reference DEM gives around the point
+  (its slope foreshortens F and B against N by ``tanθ × slope``: 15–30 % on mountains). With
+  no DEM the plane is level at the model's height and the matcher lets the shape move
+  further (:data:`FREE_SHAPE_CHANGE` instead of :data:`DEM_SHAPE_CHANGE`) after a smoothed
+  first pass.
+
+Every match states its covariance; a match that fails says why (``status``, ``reason``).
+Transferred from N to both F and B, the three rays must meet: :func:`consistency` intersects
+them through the model (least squares on ``(E, N, h)``) and a χ² of the image residuals
+beyond :data:`CONSISTENCY_P` rejects both (``inconsistent``). Found in one view only, the
+other is searched again at the height the found one implies; a match still alone after a
+search band longer than :data:`CONFIRM_ALONG_PX` is ``unconfirmed``. docs/matching.md has the
+method and its measured performance.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy import stats
 
 from prismstation.core import prism
 from prismstation.core.coarse import search_radius_px
-from prismstation.core.matching import MatchResult, match_point
+from prismstation.core.lsm import LsmResult
+from prismstation.core.lsm_search import match
 from prismstation.core.solve import Solution
 from prismstation.core.stats import nmad
 from prismstation.io.windows import ImageWindows
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
+from prismstation.ops.predict import DEFAULT_HEIGHT_SPREAD_M, dem_sigma, ground_jacobian, height_spread
 from prismstation.ops.progress import ProgressFn, checkpoint
 
-#: σ (m, per component) of a view's geolocation once its bias is fitted: the paper's
-#: check-point accuracy without and with GCPs (Gonçalves with SRTM as control: under 5 m planimetric)
+#: σ (m, per component) of a view's geolocation once its bias is fitted: the check-point
+#: accuracy of the empirical model without and with GCPs (Gonçalves 2008: under 5 m)
 FITTED_SIGMA_M = 5.0
+MIN_HEIGHT_RANGE_M = 50.0
+"""Smallest ± height range searched (m)."""
+FALLBACK_HEIGHT_RANGE_M = 600.0
+"""± height range (m) when nothing predicts the point's height."""
+DEM_SHAPE_CHANGE = 0.25
+"""How far (largest singular value of ``A0⁻¹A − I``) the matched shape may move from the
+one predicted on the reference DEM's slope (its 90 m cells smooth slopes of the template's
+60 m)."""
+FREE_SHAPE_CHANGE = 0.6
+"""The same with no DEM: the slope is unknown (60 % slope foreshortens by about 30 %)."""
+MODEL_SIGMA_PX = 0.5
+"""σ (px) of a view's model where its bias fit gives none (the views' relative orientation
+enters the three-ray consistency test)."""
+CONSISTENCY_P = 0.999
+"""The three rays of a transfer are rejected beyond this χ² quantile."""
+CONFIRM_ALONG_PX = 30.0
+"""A match found in one view only, over a search longer than this (px, ±) along the parallax,
+is ``unconfirmed`` (a failure): with no reference DEM the band spans hundreds of pixels."""
+MAX_SIGMA_PX = 0.5
+"""A match stating a larger σ (px) is a failure (``texture``)."""
 
 
 def model_sigma_m(sol: Solution) -> float:
@@ -35,61 +79,293 @@ def model_sigma_m(sol: Solution) -> float:
     return FITTED_SIGMA_M if fitted else SIGMA_APRIORI_M
 
 
+def known_ground(sol: Solution) -> dict:
+    """id → ``(E, N, h)`` of the solution's points with known ground (for the σ of the DEM and
+    of the mean height)."""
+    out = {p.id: tuple(p.ground) for p in sol.observations if p.ground is not None}
+    for p in sol.points:
+        if p.id not in out and p.ground_residual is not None and p.ground_est is not None:
+            out[p.id] = tuple(np.subtract(p.ground_est, p.ground_residual))
+    return out
+
+
+def ray_on_dem(sol: Solution, source: str, xy, h: float, height_of, iterations: int = 6):
+    """Where the ray of ``source`` pixel ``xy`` meets the reference heights ``height_of``:
+    ``(en, h, True)``; ``(en at h, h, False)`` where the DEM has no height."""
+    xy = np.asarray(xy, float)
+    en = sol.image_to_ground(source, xy, h)
+    if height_of is None:
+        return en, h, False
+    hit = False
+    for _ in range(iterations):
+        hd = float(np.asarray(height_of(en[None]))[0])
+        if not math.isfinite(hd):
+            break
+        hit, done, h = True, abs(hd - h) < 0.01, hd
+        en = sol.image_to_ground(source, xy, h)
+        if done:
+            break
+    return en, h, hit
+
+
+def search_height(sol: Solution, source: str, xy, *, height_of=None, sigma_dem: float | None = None,
+                  sigma_mean: float | None = None) -> tuple[float, float]:
+    """``(h, h_range)`` metres searched for a point at ``xy`` of ``source``: where its ray meets
+    the reference DEM ``height_of`` (σ ``sigma_dem``), else the mean height (σ ``sigma_mean``),
+    and ±3 σ of it, at least ±:data:`MIN_HEIGHT_RANGE_M`; the mean height and
+    ±:data:`FALLBACK_HEIGHT_RANGE_M` when the ray cannot be placed. ``sigma_dem``,
+    ``sigma_mean`` default to what the solution's known points measure
+    (:func:`prismstation.ops.predict.dem_sigma`, :func:`~prismstation.ops.predict.height_spread`).
+    This is the height :func:`prismstation.ops.predict.predict_point` gives a point measured in
+    one view, with its σ."""
+    ground = known_ground(sol) if sigma_dem is None or sigma_mean is None else {}
+    en, h, hit = ray_on_dem(sol, source, xy, float(sol.mean_height), height_of)
+    if not np.all(np.isfinite(en)):
+        return float(sol.mean_height), FALLBACK_HEIGHT_RANGE_M
+    if hit:
+        sigma = dem_sigma(height_of, ground) if sigma_dem is None else sigma_dem
+    else:
+        sigma = (height_spread(g[2] for g in ground.values()) if ground else DEFAULT_HEIGHT_SPREAD_M) \
+            if sigma_mean is None else sigma_mean
+    return float(h), max(3.0 * float(sigma), MIN_HEIGHT_RANGE_M)
+
+
+@dataclass(frozen=True)
+class LocalShape:
+    """The source → ``view`` mapping at a point: ``pred`` its image (px), ``A`` the 2×2
+    Jacobian (``view`` px per source px), ``dh`` the image motion per metre of height along
+    the source ray (px/m), ``slope`` the terrain gradient used (dh/dE, dh/dN; None: level)."""
+
+    view: str
+    pred: np.ndarray
+    A: np.ndarray
+    dh: np.ndarray
+    slope: tuple | None
+
+
+def terrain_gradient(height_of, en, radius_m: float):
+    """(dh/dE, dh/dN) of the reference heights by central differences over ``±radius_m``
+    (None where a height is missing)."""
+    pts = np.array([en + [radius_m, 0], en - [radius_m, 0], en + [0, radius_m], en - [0, radius_m]])
+    z = np.asarray(height_of(pts), float)
+    if not np.all(np.isfinite(z)):
+        return None
+    return ((z[0] - z[1]) / (2 * radius_m), (z[2] - z[3]) / (2 * radius_m))
+
+
+def local_shape(sol: Solution, source: str, xy, views, *, h: float, height_of=None,
+                half_window: int = 12) -> tuple[np.ndarray, float, dict[str, LocalShape]]:
+    """The predicted position, shape and parallax direction of the point ``xy`` of ``source``
+    in each of ``views``.
+
+    ``h``: the point's height (m, ellipsoidal). With ``height_of`` (a reference DEM: map
+    metres ``(n, 2)`` → ellipsoidal metres ``(n,)``) the point sits on the DEM and the terrain
+    is the plane of the DEM's gradient over the template's footprint (±``half_window`` px);
+    otherwise the level plane at ``h``. The shape is the central difference of the mapping
+    over ±``half_window`` px. Returns ``(en, h, {view: LocalShape})``, the ground point first."""
+    xy = np.asarray(xy, float)
+    en, h, hit = ray_on_dem(sol, source, xy, float(h), height_of)
+    grad = None
+    if hit:
+        radius = max(half_window * sol.scene.views[source].pixel_size_m, 15.0)
+        grad = terrain_gradient(height_of, en, radius)
+    g = np.zeros(2) if grad is None else np.asarray(grad, float)
+    step = float(half_window)
+    # four rays ±step px about the point meet the terrain plane; a fifth, the point's own, 1 m up
+    pix = xy + np.array([[step, 0], [-step, 0], [0, step], [0, -step], [0, 0]])
+    hs = np.array([h, h, h, h, h + 1.0])
+    for _ in range(10):
+        ground = sol.image_to_ground(source, pix, hs)
+        h_new = np.append(h + (ground[:4] - en) @ g, h + 1.0)
+        if np.abs(h_new - hs).max() < 1e-3:
+            break
+        hs = h_new
+    pts = np.vstack([ground[:4], en, ground[4]])
+    hh = np.concatenate([hs[:4], [h, h + 1.0]])
+    out = {}
+    for v in views:
+        q = sol.ground_to_image(v, pts, hh)
+        A = np.column_stack([(q[0] - q[1]) / (2 * step), (q[2] - q[3]) / (2 * step)])
+        out[v] = LocalShape(v, q[4], A, q[5] - q[4], grad)
+    return en, h, out
+
+
 @dataclass(frozen=True)
 class Transfer:
-    """Where a point of ``source`` view was found in ``view`` (image pixels) and how well."""
+    """Where a point of ``source`` view was found in ``view`` (image pixels) and how well:
+    ``match`` the :class:`~prismstation.core.lsm.LsmResult` (``cov`` its 2×2 covariance,
+    ``status``/``reason``), ``predicted`` the model's prediction."""
 
     view: str
     x: float
     y: float
     predicted: tuple
-    match: MatchResult
+    match: LsmResult
 
     @property
     def ok(self) -> bool:
         return self.match.ok
 
 
-def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_range: float = 600.0,
-             half_window: int = 12, min_score: float = 0.6) -> dict[str, Transfer]:
+def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_range=None,
+             height_of=None, sigma_dem: float | None = None, sigma_mean: float | None = None,
+             half_window: int = 12, check: bool = True) -> dict[str, Transfer]:
     """Find the point at ``xy`` of ``source`` in every other view.
 
-    ``h``: expected height (default the solution's mean height), ``h_range``: its ± uncertainty
-    (metres), which sets the search length along the parallax direction in each view.
+    ``h``, ``h_range``: the height searched and its ± range (m; default
+    :func:`search_height`); ``height_of``: the reference DEM (ellipsoidal heights at map
+    points), which also gives the terrain slope for the predicted shape; ``sigma_dem``,
+    ``sigma_mean``: passed to :func:`search_height`. ``check``: the three-ray consistency test
+    when the point is found in two other views (:func:`consistency`).
     """
     sc = sol.scene
-    h = sol.mean_height if h is None else float(h)
     xy = np.asarray(xy, float)
-    en = sol.image_to_ground(source, xy, h)
-    t = prism.scene_track_dir(sc, en)
-    ref, rc0, rr0 = images.around(source, xy[0], xy[1], half_window + 8)
+    if h is None or h_range is None:
+        h0, r0 = search_height(sol, source, xy, height_of=height_of, sigma_dem=sigma_dem,
+                               sigma_mean=sigma_mean)
+        h = h0 if h is None else float(h)
+        h_range = r0 if h_range is None else float(h_range)
+    targets = [v for v in sc.views if v != source]
+    _, h_pt, shapes = local_shape(sol, source, xy, targets, h=float(h), height_of=height_of,
+                                  half_window=half_window)
+    free = next(iter(shapes.values())).slope is None if shapes else True
     radius = search_radius_px(model_sigma_m(sol) * np.sqrt(2), sc.views[source].pixel_size_m)
+    ref, rc0, rr0 = images.around(source, xy[0], xy[1], half_window + 8)
     out = {}
-    for v, view in sc.views.items():
-        if v == source or ref is None:
+    for v in targets:
+        s = shapes[v]
+        if ref is None or not np.all(np.isfinite(s.A)):
             continue
-        pred = sol.ground_to_image(v, en, h)
-        d = view.map_to_image.apply_linear(t)
-        # pixels per metre of height along the search direction, relative to the source view
-        k = abs(view.look_sign * view.tan_theta - sc.views[source].look_sign * sc.views[source].tan_theta)
-        rng = radius + k * h_range * np.hypot(*d)
-        win, c0, r0 = images.around(v, pred[0], pred[1], int(rng) + half_window + 12)
+        along = radius + float(np.hypot(*s.dh)) * h_range
+        d = s.dh if np.hypot(*s.dh) > 1e-9 else np.array([0.0, 1.0])
+        reach = int(along + radius + 2 * half_window * np.abs(s.A).max() + 12)
+        win, c0, r0 = images.around(v, s.pred[0], s.pred[1], reach)
         if win is None:
             continue
-        m = match_point(ref, xy[0] - rc0, xy[1] - rr0, win, pred[0] - c0, pred[1] - r0, direction=d,
-                        search_range=rng, across_range=radius, half_window=half_window, min_score=min_score)
-        out[v] = Transfer(v, m.x + c0, m.y + r0, (float(pred[0]), float(pred[1])), m)
+        m = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], s.A, d, along=along,
+                  across=radius, half=half_window, max_sigma=MAX_SIGMA_PX,
+                  max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
+                  coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, parallax=d)
+        m = replace(m, x=m.x + c0, y=m.y + r0, extra={**m.extra, "along": along})
+        out[v] = Transfer(v, m.x, m.y, (float(s.pred[0]), float(s.pred[1])), m)
+    found = [v for v in targets if v in out and out[v].ok]
+    if check and len(targets) >= 2 and len(found) == 1:
+        out = _confirm(sol, images, source, xy, ref, (rc0, rr0), out, found[0], shapes, h_pt, radius,
+                       half_window, free)
+    if check and len([t for t in out.values() if t.ok]) >= 2:
+        out = consistency(sol, source, xy, out, h_pt)
+    return out
+
+
+def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, h, radius, half_window, free):
+    """One view found, the other not: search the other again at the height the found one
+    implies (±3 σ of it along the parallax); when that fails too, a match whose band was wider
+    than :data:`CONFIRM_ALONG_PX` (a wide height range: no reference DEM) is ``unconfirmed`` —
+    nothing checks it, and over hundreds of pixels a repeated texture can correlate as well."""
+    obs = {source: (np.asarray(xy, float), view_sigma_px(sol, source) ** 2 * np.eye(2)),
+           v1: ((out[v1].x, out[v1].y), out[v1].match.cov + view_sigma_px(sol, v1) ** 2 * np.eye(2))}
+    try:
+        g, _, _, _, C = intersect(sol, obs, h)
+    except np.linalg.LinAlgError:
+        return out
+    sigma_h = float(np.sqrt(max(C[2, 2], 0.0)))
+    for v, s in shapes.items():
+        if v in (source, v1) or (v in out and out[v].ok) or not np.all(np.isfinite(s.A)):
+            continue
+        pred = np.asarray(sol.ground_to_image(v, g[:2], g[2]), float)
+        along = 3 * sigma_h * float(np.hypot(*s.dh)) + 2.0
+        win, c0, r0 = images.around(v, pred[0], pred[1], int(along + 2 * half_window * np.abs(s.A).max() + 12))
+        if win is None:
+            continue
+        d = s.dh if np.hypot(*s.dh) > 1e-9 else np.array([0.0, 1.0])
+        m = match(ref, xy[0] - ref_origin[0], xy[1] - ref_origin[1], win, pred - [c0, r0], s.A, d,
+                  along=along, across=2.0, half=half_window, max_sigma=MAX_SIGMA_PX,
+                  max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
+                  coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, parallax=d)
+        if m.ok:
+            m = replace(m, x=m.x + c0, y=m.y + r0)
+            out = dict(out)
+            out[v] = Transfer(v, m.x, m.y, (float(pred[0]), float(pred[1])), m)
+    first = out[v1]
+    if sum(t.ok for t in out.values()) == 1 and first.match.extra.get("along", 0.0) > CONFIRM_ALONG_PX:
+        m = replace(first.match, status="unconfirmed",
+                    reason=f"found in {v1} only, over a search of ±{first.match.extra['along']:.0f} px "
+                           "along the parallax: no other view confirms it")
+        out = dict(out)
+        out[v1] = replace(first, match=m)
+    return out
+
+
+def view_sigma_px(sol: Solution, view: str) -> float:
+    """σ (px) of ``view``'s model for the consistency test: the a-priori geolocation σ
+    (:func:`model_sigma_m`) while its bias is not fitted, else the a-posteriori σ of a
+    measurement in its bias fit, :data:`MODEL_SIGMA_PX` where the fit gives none."""
+    fit = sol.bias[view]
+    if fit.model == "none":
+        return model_sigma_m(sol) / sol.scene.views[view].pixel_size_m
+    s0 = fit.sigma0
+    return float(s0 * sol.settings.sigma_px) if s0 is not None and math.isfinite(s0) and s0 > 0 else MODEL_SIGMA_PX
+
+
+def intersect(sol: Solution, obs: dict, h0: float) -> tuple[np.ndarray, dict, float, int]:
+    """Least-squares ground point of image observations ``{view: ((x, y), cov 2×2 px²)}``
+    through the model (Gauss–Newton on ``(E, N, h)`` from height ``h0``, the Jacobian of the
+    start kept).
+
+    Returns ``(g, residuals {view: (2,) px, observed − predicted}, χ², redundancy, covariance
+    of g (3×3, m²))``."""
+    first = next(iter(obs))
+    g = np.array([*sol.image_to_ground(first, np.asarray(obs[first][0], float), h0), h0], float)
+    W = {v: np.linalg.inv(c) for v, (_, c) in obs.items()}
+    J = {v: ground_jacobian(sol, v, g)[1] for v in obs}     # the model is near linear over metres:
+    N = sum(J[v].T @ W[v] @ J[v] for v in obs)              # its Jacobian at the start serves
+    for _ in range(8):
+        res = {v: np.asarray(xy, float) - sol.ground_to_image(v, g[:2], g[2]) for v, (xy, _) in obs.items()}
+        dg = np.linalg.solve(N, sum(J[v].T @ W[v] @ res[v] for v in obs))
+        g = g + dg
+        if np.all(np.abs(dg) < 1e-3):
+            break
+    res = {v: np.asarray(xy, float) - sol.ground_to_image(v, g[:2], g[2]) for v, (xy, _) in obs.items()}
+    chi2 = float(sum(res[v] @ W[v] @ res[v] for v in obs))
+    return g, res, chi2, 2 * len(obs) - 3, np.linalg.inv(N)
+
+
+def consistency(sol: Solution, source: str, xy, found: dict[str, Transfer], h0: float | None = None
+                ) -> dict[str, Transfer]:
+    """The three-ray test: the source point and its matches in the other views intersected
+    (:func:`intersect` from height ``h0``, default the mean height; each view weighted by its
+    match covariance plus its model σ², :func:`view_sigma_px`); a χ² beyond :data:`CONSISTENCY_P` marks every match
+    ``inconsistent`` with the residuals in its reason."""
+    ok = {v: t for v, t in found.items() if t.ok}
+    obs = {source: (np.asarray(xy, float), view_sigma_px(sol, source) ** 2 * np.eye(2))}
+    for v, t in ok.items():
+        obs[v] = ((t.x, t.y), t.match.cov + view_sigma_px(sol, v) ** 2 * np.eye(2))
+    try:
+        _, res, chi2, dof, _ = intersect(sol, obs, sol.mean_height if h0 is None else h0)
+    except np.linalg.LinAlgError:
+        return found
+    limit = float(stats.chi2.ppf(CONSISTENCY_P, dof))
+    if chi2 <= limit:
+        return found
+    words = ", ".join(f"{v} {np.hypot(*r):.2f} px" for v, r in res.items())
+    out = dict(found)
+    for v, t in ok.items():
+        m = replace(t.match, status="inconsistent",
+                    reason=f"the rays do not meet (χ² {chi2:.1f} > {limit:.1f}; residuals {words})")
+        out[v] = replace(t, match=m)
     return out
 
 
 def auto_tie_points(sol: Solution, images: ImageWindows, *, grid: int = 8, margin: float = 0.05,
-                    h_range: float = 600.0, progress: ProgressFn | None = None) -> list[dict]:
+                    height_of=None, progress: ProgressFn | None = None) -> list[dict]:
     """Tie points on a ``grid × grid`` lattice of the N image, transferred to F and B.
 
     Returns ``[{"N": (x, y), "F": (x, y), "B": (x, y), "score": s}]`` for the points found in
-    all three views and consistent with the others (``progress`` per
-    :mod:`prismstation.ops.progress`; a cancel raises :class:`~prismstation.errors.Cancelled`): a point whose across-track F−N or B−N
-    difference departs from the median by more than 3 NMAD (at least 1 px) is a blunder.
+    F and B whose rays meet (:func:`transfer`; ``score`` the lower fitted correlation;
+    ``progress`` per :mod:`prismstation.ops.progress`; a cancel raises
+    :class:`~prismstation.errors.Cancelled`) and consistent with the others: a point whose
+    across-track F−N or B−N difference departs from the median by more than 3 NMAD (at least
+    1 px) is a blunder.
     """
     sc = sol.scene
     rows, cols = sc.views["N"].shape
@@ -97,10 +373,10 @@ def auto_tie_points(sol: Solution, images: ImageWindows, *, grid: int = 8, margi
     found = []
     for k, (x, y) in enumerate((cx * cols, cy * rows) for cy in g for cx in g):
         checkpoint(progress, k / grid**2, f"point {k + 1} of {grid**2}")
-        tr = transfer(sol, images, "N", (x, y), h_range=h_range)
+        tr = transfer(sol, images, "N", (x, y), height_of=height_of)
         if all(v in tr and tr[v].ok for v in ("F", "B")):
             found.append({"N": (x, y), "F": (tr["F"].x, tr["F"].y), "B": (tr["B"].x, tr["B"].y),
-                          "score": min(tr["F"].match.score, tr["B"].match.score)})
+                          "score": min(tr["F"].match.rho, tr["B"].match.rho)})
     if len(found) < 4:
         return found
     keep = np.ones(len(found), bool)

@@ -20,7 +20,7 @@ def make_reference_dem(truth_dem, out, *, posting_m: float = 90.0, noise_m: floa
         f = posting_m / abs(ds.transform.a)
         shape = (max(int(ds.height / f), 2), max(int(ds.width / f), 2))
         h = ds.read(1, out_shape=shape, resampling=Resampling.average).astype(float)
-        t = ds.transform * Affine.scale(ds.width / shape[1], ds.height / shape[0])
+        t = ds.transform @ Affine.scale(ds.width / shape[1], ds.height / shape[0])
         crs = ds.crs
     H = h - geoid_m + rng.normal(0.0, noise_m, shape)
     if void_fraction > 0:  # blobs, like SRTM's radar shadow voids

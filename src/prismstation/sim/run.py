@@ -1,4 +1,4 @@
-"""``simulate()``: a synthetic PRISM 1B2 triplet with its truth, in the docs/formats.md formats."""
+"""``simulate()``: a synthetic PRISM 1B2 triplet with its truth, in the formats of docs/formats.md."""
 from __future__ import annotations
 
 from dataclasses import asdict
@@ -7,26 +7,21 @@ from pathlib import Path
 import numpy as np
 
 from prismstation.errors import InputError
-from prismstation.sim import geometry as geo
 from prismstation.sim import render, writer
+from prismstation.sim.dem_terrain import open_dem_terrain
 from prismstation.sim.points import choose_points
 from prismstation.sim.scenario import (ALTITUDE, ANGLES_DEG, CENTRE, CRS, GEOID, PIXEL,
                                        build_scenario, image_to_map_transform)
-from prismstation.sim.terrain import Grid, hillshade, synthesize_relief
+from prismstation.sim.scene_terrain import check_terrain, grid_over, make_terrain, scene_relief
+from prismstation.sim.terrain import Grid, hillshade
 from prismstation.sim.texture import make_texture
 
-RELIEF = 1400.0
+__all__ = ["simulate", "scene_relief"]
+
 TEXTURE_SPACING = 2.5
 PSF_SIGMA_PX = 0.6
 IMAGE_NOISE_DN = 1.2
 VIEWS = ("N", "F", "B")
-
-
-def scene_relief(size: int) -> float:
-    """Relief (m) of a ``size`` px scene: 1400 m on a full 14,000 px (35 km) scene like the
-    paper's; smaller scenes get less (∝ extent^0.35) so that slopes stay those of real hilly
-    terrain instead of 1400 m walls in 5 km, which no stereo pair at ±26° could match."""
-    return RELIEF * min(1.0, (size / 14000.0) ** 0.35)
 
 
 def _check(size, n_gcp, n_icp, n_tie, noise_px, survey_sigma_xy, survey_sigma_h):
@@ -43,37 +38,18 @@ def _check(size, n_gcp, n_icp, n_tie, noise_px, survey_sigma_xy, survey_sigma_h)
             raise InputError(f"{name} must be between 0 and 100, got {v}")
 
 
-def _ground_bbox(scenario, h_lo, h_hi, margin=250.0):
-    """Map bounding box of everything any view's pixels can see between two heights."""
-    s = scenario.size
-    corners = np.array([[0, 0], [s, 0], [0, s], [s, s]], dtype=float)
-    pts = []
-    for view in scenario.views.values():
-        o, d = geo.pixel_rays(scenario.orbit, view, corners)
-        pts += [geo.ray_at_height(o, d, h) for h in (h_lo, h_hi)]
-    pts = np.concatenate(pts)
-    return pts.min(axis=0) - margin, pts.max(axis=0) + margin
-
-
-def _grid_over(lo, hi, spacing):
-    cols = int(np.ceil((hi[0] - lo[0]) / spacing))
-    rows = int(np.ceil((hi[1] - lo[1]) / spacing))
-    e0 = np.floor(lo[0] / spacing) * spacing
-    n0 = np.ceil(hi[1] / spacing) * spacing
-    return e0, n0, (rows + 1, cols + 1)
-
-
 def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px=0.3,
              survey_sigma_xy=0.5, survey_sigma_h=1.0, north_up=False, ascending=False,
              map_to_image_in_json=False, geolocation_error_m=50.0, geolocation_errors=None,
+             terrain="fractal", terrain_dem=None, terrain_centre=None, relief_scale=1.0,
              progress=None) -> dict:
     """Write a synthetic ALOS-PRISM 1B2 triplet with known truth into ``outdir``.
 
     Parameters
     ----------
     outdir : str or Path, created if absent.
-    size : pixels per side of each image (2.5 m pixels). Relief spans 0–1400 m orthometric
-        from 2000 px up; smaller test scenes scale it by ``size / 2000``.
+    size : pixels per side of each image (2.5 m pixels). The fractal relief spans 0–1400 m
+        orthometric at 14,000 px, less on smaller scenes (``scene_relief``).
     seed : everything is deterministic given the arguments.
     n_gcp, n_icp, n_tie : numbers of points; ties appear only in ``measurements.csv``.
     noise_px : σ (px) of the Gaussian measurement noise per image coordinate.
@@ -86,6 +62,12 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
         across-track components each drawn uniform in ``[−bound, +bound]`` (0: exact
         ancillary geolocation at the scene centre). See :mod:`prismstation.sim.scenario`.
     geolocation_errors : optional ``{view: (along_m, across_m)}`` instead of drawing them.
+    terrain : ``"fractal"`` (ridges and valleys), ``"smooth"`` (rolling hills, 6 % mean slope)
+        or ``"dem"`` (``terrain_dem``, a real DEM of orthometric heights in any CRS: the scene
+        is centred on its point ``terrain_centre`` (x, y in the DEM's CRS; default its centre),
+        in the UTM zone there). See :mod:`prismstation.sim.scene_terrain`.
+    relief_scale : heights scaled by this factor (0 < f ≤ 1) about their mean over the
+        ground N sees.
     progress : optional ``callable(fraction)``.
 
     Returns
@@ -95,33 +77,36 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
     """
     _check(size, n_gcp, n_icp, n_tie, noise_px, survey_sigma_xy, survey_sigma_h)
     report = progress or (lambda f: None)
-    out = Path(outdir)
-    out.mkdir(parents=True, exist_ok=True)
+    if not (np.isfinite(geolocation_error_m) and 0 <= geolocation_error_m <= 1000):
+        raise InputError(f"--geolocation-error-m must be between 0 and 1000, got {geolocation_error_m}")
+    check_terrain(terrain, terrain_dem is not None, relief_scale)
+    placed, crs, centre = None, CRS, CENTRE
+    if terrain_dem is not None:
+        placed = open_dem_terrain(terrain_dem, terrain_centre)
+        crs, centre = placed.scene_crs, placed.centre
+    elif terrain_centre is not None:
+        raise InputError("--terrain-centre places the scene in a --terrain-dem; there is none")
     ss = np.random.SeedSequence(seed)
     r_att, r_terrain, r_texture, r_points, r_noise, r_render = (
         np.random.default_rng(s) for s in ss.spawn(6))
-
-    if not (np.isfinite(geolocation_error_m) and 0 <= geolocation_error_m <= 1000):
-        raise InputError(f"--geolocation-error-m must be between 0 and 1000, got {geolocation_error_m}")
     scenario = build_scenario(r_att, size, north_up, ascending, geolocation_error_m,
-                              geolocation_errors)
-    relief = scene_relief(size)
-    h_min, h_max = GEOID - 1.0, GEOID + relief + 1.0
-    lo, hi = _ground_bbox(scenario, h_min - 50.0, h_max + 50.0)
+                              geolocation_errors, centre)
 
-    # terrain (ellipsoidal heights) and its derived grids
-    dem_spacing = 5.0 if size <= 6000 else 10.0
-    e0, n0, shape = _grid_over(lo, hi, dem_spacing)
-    ortho = synthesize_relief(shape, dem_spacing, r_terrain, relief=relief)
+    # terrain (ellipsoidal heights) and its derived grids; nothing is written before it is made
+    land = make_terrain(scenario, terrain, r_terrain, placed, relief_scale)
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    lo, hi, h_min, h_max = land.lo, land.hi, land.h_min, land.h_max
+    ortho_grid = land.ortho
+    ortho, e0, n0, dem_spacing = ortho_grid.values, ortho_grid.e0, ortho_grid.n0, ortho_grid.spacing
     dem = Grid((ortho + GEOID).astype(np.float32), e0, n0, dem_spacing)
-    ortho_grid = Grid(ortho, e0, n0, dem_spacing)
     shade = Grid(hillshade(ortho, dem_spacing), e0, n0, dem_spacing)
     gy, gx = np.gradient(ortho, dem_spacing)
     slope = Grid(np.hypot(gx, gy).astype(np.float32), e0, n0, dem_spacing)
     del gx, gy
     report(0.03)
 
-    te0, tn0, tshape = _grid_over(lo, hi, TEXTURE_SPACING)
+    te0, tn0, tshape = grid_over(lo, hi, TEXTURE_SPACING)
     texture = make_texture(r_texture, te0, tn0, tshape, TEXTURE_SPACING, ortho_grid, shade,
                            slope, progress=lambda f: report(0.03 + 0.12 * f))
     del shade, slope
@@ -136,7 +121,7 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
         path = out / f"{name}.tif"
         gt = None if map_to_image_in_json else image_to_map_transform(scenario.published[name])
         rng = np.random.default_rng(r_render.integers(2 ** 63))
-        with writer.product_writer(path, size, gt, CRS) as write:
+        with writer.product_writer(path, size, gt, crs) as write:
             for r0 in range(0, size, block):
                 r1 = min(size, r0 + block)
                 rows = render.render_rows(scenario.orbit, view, size, r0, r1, dem, texture,
@@ -150,7 +135,7 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
     del texture
 
     points = choose_points(r_points, scenario, dem, n_gcp, n_icp, n_tie)
-    paths.update(_write_tables(out, scenario, dem, points, r_noise, noise_px,
+    paths.update(_write_tables(out, scenario, crs, dem, land.info, points, r_noise, noise_px,
                                survey_sigma_xy, survey_sigma_h, map_to_image_in_json,
                                dict(seed=seed, size=size, n_gcp=n_gcp, n_icp=n_icp,
                                     n_tie=n_tie, noise_px=noise_px,
@@ -158,7 +143,8 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
                                     survey_sigma_h=survey_sigma_h, north_up=north_up,
                                     ascending=ascending,
                                     map_to_image_in_json=map_to_image_in_json,
-                                    geolocation_error_m=geolocation_error_m)))
+                                    geolocation_error_m=geolocation_error_m,
+                                    terrain=terrain, relief_scale=relief_scale)))
     report(1.0)
     return paths
 
@@ -172,10 +158,11 @@ def _ground_track(scenario):
     return [[round(float(v), 3) for v in o.sub_satellite(t)] for t in (t0, 0.0, t1)]
 
 
-def _write_tables(out, scenario, dem, points, rng, noise_px, sxy, sh, m2i_json, args):
+def _write_tables(out, scenario, crs, dem, terrain, points, rng, noise_px, sxy, sh, m2i_json,
+                  args):
     paths = {}
     dem_path = out / "truth_dem.tif"
-    writer.write_grid(dem_path, dem, CRS)
+    writer.write_grid(dem_path, dem, crs)
     paths["truth_dem"] = dem_path
 
     views_json = {}
@@ -185,7 +172,7 @@ def _write_tables(out, scenario, dem, points, rng, noise_px, sxy, sh, m2i_json, 
         if m2i_json:
             v["map_to_image"] = list(scenario.published[name])
         views_json[name] = v
-    scene = {"format": "prismstation-scene/1", "crs": CRS, "satellite_altitude_m": ALTITUDE,
+    scene = {"format": "prismstation-scene/1", "crs": crs, "satellite_altitude_m": ALTITUDE,
              "ground_track": _ground_track(scenario), "views": views_json,
              "geoid_undulation_m": GEOID,
              "product_level": "1B2G" if scenario.north_up else "1B2R",
@@ -225,7 +212,7 @@ def _write_tables(out, scenario, dem, points, rng, noise_px, sxy, sh, m2i_json, 
             stats[f"across_{name}_minus_N_px"] = {"mean": float(d.mean()), "std": float(d.std())}
     truth = {
         "format": "prismstation-sim-truth/1", "arguments": args,
-        "constants": {"crs": CRS, "centre": list(CENTRE), "altitude_m": ALTITUDE,
+        "constants": {"crs": crs, "centre": list(scenario.centre), "altitude_m": ALTITUDE,
                       "speed_m_s": o.speed, "pixel_m": PIXEL, "geoid_undulation_m": GEOID,
                       "heading_deg": float(np.degrees(o.heading)),
                       "track_origin": list(o.track_origin), "tan_beta0": o.tan_beta0,
@@ -245,6 +232,7 @@ def _write_tables(out, scenario, dem, points, rng, noise_px, sxy, sh, m2i_json, 
                   for name, v in scenario.views.items()},
         "geolocation_error_bound_m": args["geolocation_error_m"],
         "dem": {"file": "truth_dem.tif", "heights": "ellipsoidal", "spacing_m": dem.spacing},
+        "terrain": terrain,
         "statistics": stats,
         "points": truth_points,
     }

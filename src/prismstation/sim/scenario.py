@@ -1,15 +1,17 @@
 """The simulated acquisition: orbit, the three views, their attitude errors and product grids.
 
-Numbers follow Gonçalves (2008): PRISM at Hs = 691 650 m, 2.5 m pixels, along-track
-angles 26.4° (F) and 26.8° (B), a scene in Portugal (UTM 29N around E 540 km, N 4560 km).
+Numbers follow Gonçalves (2008): PRISM at Hs = 691 650 m, 2.5 m pixels, along-track angles
+26.4° (F) and 26.8° (B), a scene in Portugal (UTM 29N around E 540 km, N 4560 km) unless the
+terrain comes from a real DEM, which puts the scene's centre where it sits in that DEM (in the
+UTM zone there; ``build_scenario(centre=...)``).
 
 Two grids per view. The *render grid* (``View.map_to_image``) is the product's true
 pixel ↔ nominal-ground relation: the image is rendered through it and the truth's image
 coordinates follow from it. The *published grid* (``Scenario.published``) is what the product's
 ancillary data claim (the GeoTIFF geotransform or scene.json ``map_to_image``): it is off by the
 view's geolocation error. The errors are drawn per view, independently (:func:`draw_geolocation_errors`):
-along- and across-track components each uniform in ``[−max, +max]`` metres (Gonçalves reports
-shifts of about 50 m with SRTM as control; Tadono et al. 2008 ±10 m after calibration, tens of metres before). They are
+along- and across-track components each uniform in ``[−max, +max]`` metres (orientation studies
+of PRISM triplets report shifts of about 50 m before calibration, ±10 m after). They are
 exact at the scene centre at h = 0; elsewhere the attitude drift and yaw of each view (drawn
 independently, :data:`DRIFT_SIGMA_RAD_S`) make them vary by metres across the scene.
 """
@@ -55,17 +57,20 @@ class Scenario:
     geolocation_error_m: dict[str, tuple[float, float]] = field(default_factory=dict)
     #: per view the published map_to_image (A1..A6): the render grid off by that error
     published: dict[str, tuple[float, ...]] = field(default_factory=dict)
+    #: map position (E, N) of the scene centre (metres, in the scene's CRS)
+    centre: tuple[float, float] = CENTRE
 
     def theta(self, name: str) -> float:
         return self.views[name].theta
 
 
-def product_affine(orbit: geo.Orbit, size: int, north_up: bool, shift=(0.0, 0.0)):
-    """``map_to_image`` (A1..A6) of a ``size``² product of 2.5 m pixels centred on CENTRE:
-    rows along the flight direction (1B2-R) or north-up (1B2-G); ``shift`` (px) moves the
-    image content by (dx, dy)."""
+def product_affine(orbit: geo.Orbit, size: int, north_up: bool, shift=(0.0, 0.0),
+                   centre=CENTRE):
+    """``map_to_image`` (A1..A6) of a ``size``² product of 2.5 m pixels centred on ``centre``
+    (E, N): rows along the flight direction (1B2-R) or north-up (1B2-G); ``shift`` (px) moves
+    the image content by (dx, dy)."""
     p = orbit.pixel
-    c = np.asarray(CENTRE)
+    c = np.asarray(centre, dtype=float)
     if north_up:
         oe, on = c[0] - size / 2 * p, c[1] + size / 2 * p
         coeffs = [1 / p, 0.0, 0.0, -1 / p, -oe / p, on / p]
@@ -124,14 +129,17 @@ def geolocation_error_at(orbit: geo.Orbit, view: geo.View, published, xy) -> np.
 
 
 def build_scenario(rng, size: int, north_up: bool = False, ascending: bool = False,
-                   geolocation_error_m: float = GEOLOCATION_ERROR_M, errors: dict | None = None) -> Scenario:
+                   geolocation_error_m: float = GEOLOCATION_ERROR_M, errors: dict | None = None,
+                   centre=CENTRE) -> Scenario:
     """Draw attitude errors (a common platform part plus each view's own alignment and drift),
     product grids, and each view's geolocation error (``errors`` {view: (along, across)} m if
-    given, else :func:`draw_geolocation_errors` with bound ``geolocation_error_m``)."""
+    given, else :func:`draw_geolocation_errors` with bound ``geolocation_error_m``). The scene
+    is centred on ``centre`` (E, N metres); the draws do not depend on it."""
+    centre = (float(centre[0]), float(centre[1]))
     pass_direction = "ascending" if ascending else "descending"
     heading = np.radians(HEADING_DEG[pass_direction])
     a = np.array([-np.cos(heading), np.sin(heading)])
-    orbit = geo.Orbit(track_origin=tuple(np.asarray(CENTRE) - TRACK_DISTANCE * a),
+    orbit = geo.Orbit(track_origin=tuple(np.asarray(centre) - TRACK_DISTANCE * a),
                       heading=float(heading), altitude=ALTITUDE, speed=SPEED, pixel=PIXEL,
                       tan_beta0=TRACK_DISTANCE / ALTITUDE, col0=size / 2)
     platform = geo.Attitude(roll=float(rng.normal(0, 3e-5)), pitch=float(rng.normal(0, 3e-5)),
@@ -157,20 +165,20 @@ def build_scenario(rng, size: int, north_up: bool = False, ascending: bool = Fal
                            pitch_rate=platform.pitch_rate + align["pitch_rate"])
         tau0 = -ALTITUDE * np.tan(theta) / SPEED - size / 2 * orbit.line_period
         return geo.View(name, float(theta), float(tau0), att,
-                        product_affine(orbit, size, north_up, shifts[name]))
+                        product_affine(orbit, size, north_up, shifts[name], centre))
 
     # frame F and B around the ground N sees: the roll alignment cancels the across-track
     # offset the yaw makes 345 km ahead/behind (a framing choice of the product; where the
     # product CLAIMS its pixels are is set below by the geolocation errors)
-    centre = np.array([[CENTRE[0], CENTRE[1], 0.0]])
+    centre_enh = np.array([[centre[0], centre[1], 0.0]])
     views = {"N": make_view("N", alignment["N"])}
     for name in ("F", "B"):
-        off0 = geo.across_offset_px(orbit, make_view(name, alignment[name]), views["N"], centre)
+        off0 = geo.across_offset_px(orbit, make_view(name, alignment[name]), views["N"], centre_enh)
         trial = dict(alignment[name], roll=alignment[name]["roll"] + 1e-5)
-        off1 = geo.across_offset_px(orbit, make_view(name, trial), views["N"], centre)
+        off1 = geo.across_offset_px(orbit, make_view(name, trial), views["N"], centre_enh)
         alignment[name]["roll"] += float(1e-5 * -off0[0] / (off1[0] - off0[0]))
         views[name] = make_view(name, alignment[name])
     errors = {v: (float(errors[v][0]), float(errors[v][1])) for v in VIEW_NAMES}
     published = {v: publish(orbit, views[v], size, *errors[v]) for v in VIEW_NAMES}
     return Scenario(orbit, views, size, north_up, pass_direction, platform, alignment, shifts,
-                    errors, published)
+                    errors, published, centre)

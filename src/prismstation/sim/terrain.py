@@ -1,7 +1,10 @@
-"""Synthetic terrain of the simulator: a north-up height grid with ridges and valleys.
+"""Synthetic terrain of the simulator: a north-up height grid, and its statistics.
 
-Heights are generated as orthometric metres from sea level (0) to ``relief`` (default 1400 m)
-and stored ellipsoidal (``+ geoid``). Grid convention: cell ``(row, col)`` covers
+Two relief kinds are made here: ``fractal`` (:func:`synthesize_relief`, ridges and valleys from
+sea level (0) to ``relief``, default 1400 m, with a few metres of fine detail) and ``smooth``
+(:func:`smooth_relief`, rolling hills of a stated mean slope and no relief shorter than about a
+kilometre); ``sim/dem_terrain.py`` takes it from a real DEM instead. Heights are generated as
+orthometric metres and stored ellipsoidal (``+ geoid``). Grid convention: cell ``(row, col)`` covers
 ``E ∈ [E0 + col·s, E0 + (col+1)·s)``, ``N ∈ (N0 − (row+1)·s, N0 − row·s]``; values are at
 cell centres.
 """
@@ -92,3 +95,73 @@ def hillshade(heights: np.ndarray, spacing: float, sun_azimuth_deg=135.0,
     norm = np.sqrt(dz_de ** 2 + dz_dn ** 2 + 1.0)
     cosi = (-dz_de * sun[0] - dz_dn * sun[1] + sun[2]) / norm
     return np.clip(0.25 + 0.75 * np.clip(cosi, 0, None) / sun[2], 0.25, 1.6).astype(np.float32)
+
+
+#: mean slope (rise over run) the smooth terrain is scaled to over the ground N sees
+SMOOTH_MEAN_SLOPE = 0.06
+#: shortest wavelength (m) of the smooth terrain: its spectrum is cut by exp(−(k·λ)²) below it
+SMOOTH_LAMBDA_MIN_M = 1200.0
+#: lowest height (m, orthometric) of the smooth terrain
+SMOOTH_BASE_M = 150.0
+#: cell (m) the terrain statistics are computed on: the posting of 1″ DEMs (GLO-30, SRTM 1″)
+STATS_CELL_M = 30.0
+
+
+def smooth_relief(shape, spacing, rng, inside, mean_slope=SMOOTH_MEAN_SLOPE,
+                  base=SMOOTH_BASE_M) -> np.ndarray:
+    """Rolling hills (orthometric m, float32, lowest ``base``): a Gaussian field with power
+    ``∝ k^−4.5`` between ``SMOOTH_LAMBDA_MIN_M`` and ``min(2 × extent, 30 km)``, scaled so
+    that its mean slope over the cells where ``inside`` ``(rows, cols)`` bool is True is
+    ``mean_slope``."""
+    extent = max(shape) * spacing
+    z = spectral_noise(shape, spacing, rng, 4.5, SMOOTH_LAMBDA_MIN_M, min(2.0 * extent, 30000.0))
+    gy, gx = np.gradient(z, spacing)
+    z *= mean_slope / float(np.hypot(gx, gy)[inside].mean())
+    return (base + z - z.min()).astype(np.float32)
+
+
+def scale_relief(ortho: np.ndarray, inside, factor: float) -> tuple[np.ndarray, float]:
+    """Heights scaled by ``factor`` about their mean over ``inside`` (bool, same shape):
+    ``m + factor·(H − m)``; returns (heights float32, m)."""
+    m = float(np.mean(ortho[inside], dtype=np.float64))
+    return (m + factor * (ortho.astype(np.float64) - m)).astype(np.float32), m
+
+
+def inside_polygon(poly, e, n) -> np.ndarray:
+    """True where map points ``(e, n)`` lie inside the convex polygon ``poly`` ``(k, 2)``
+    (E, N corners in order, either sense)."""
+    poly = np.asarray(poly, float)
+    e, n = np.asarray(e, float), np.asarray(n, float)
+    signs = []
+    for (e1, n1), (e2, n2) in zip(poly, np.roll(poly, -1, axis=0)):
+        signs.append((e2 - e1) * (n - n1) - (n2 - n1) * (e - e1) >= 0)
+    pos = np.logical_and.reduce(signs)
+    neg = np.logical_and.reduce([~s for s in signs])
+    return pos | neg
+
+
+def cell_centres(grid: Grid) -> tuple[np.ndarray, np.ndarray]:
+    """Map coordinates (E, N) of every cell centre, each ``(rows, cols)``."""
+    rows, cols = grid.values.shape
+    e = grid.e0 + (np.arange(cols) + 0.5) * grid.spacing
+    n = grid.n0 - (np.arange(rows) + 0.5) * grid.spacing
+    return np.meshgrid(e, n)
+
+
+def terrain_statistics(ortho: Grid, footprint) -> dict:
+    """Statistics of orthometric heights ``ortho`` over the convex polygon ``footprint`` (E, N
+    corners): mean slope and the share of slopes above 30 %, both on the heights averaged to
+    ``STATS_CELL_M`` cells (central differences), and the heights' range and mean at the grid's
+    own cells. Percentages and metres, JSON-ready."""
+    f = max(1, int(round(STATS_CELL_M / ortho.spacing)))
+    rows, cols = (d // f * f for d in ortho.values.shape)
+    block = ortho.values[:rows, :cols].astype(np.float64).reshape(rows // f, f, cols // f, f)
+    coarse = Grid(block.mean(axis=(1, 3)), ortho.e0, ortho.n0, f * ortho.spacing)
+    gy, gx = np.gradient(coarse.values, coarse.spacing)
+    slope = np.hypot(gx, gy)[inside_polygon(footprint, *cell_centres(coarse))]
+    h = ortho.values[inside_polygon(footprint, *cell_centres(ortho))]
+    return {"mean_slope_pct": round(100.0 * float(slope.mean()), 2),
+            "slope_over_30pct_share_pct": round(100.0 * float(np.mean(slope > 0.3)), 2),
+            "height_min_m": round(float(h.min()), 1), "height_max_m": round(float(h.max()), 1),
+            "height_mean_m": round(float(h.mean()), 1), "slope_cell_m": coarse.spacing,
+            "area": "the ground N sees"}

@@ -54,3 +54,23 @@ def job_outcome(qtbot):
         qtbot.waitUntil(lambda: bool(got), timeout=timeout)
         return got[0]
     return wait
+
+
+@pytest.fixture()
+def job_done(qtbot):
+    """``job_done(job, stall_s=60)`` waits until a tool :class:`Job` has ended and its outcome
+    is delivered; it fails when the job reports no progress for ``stall_s`` seconds (a stall),
+    not when a loaded machine makes it slow."""
+    import time
+
+    def wait(job, stall_s=60.0):
+        ended, last = [], [time.monotonic()]
+        job.result.connect(lambda v: ended.append(v))
+        job.failed.connect(lambda m: ended.append(m))
+        job.cancelled.connect(lambda: ended.append(None))
+        job.progress.connect(lambda *_: last.__setitem__(0, time.monotonic()))
+        while not ended:
+            assert time.monotonic() - last[0] < stall_s, f"{job.title}: no progress for {stall_s:.0f} s"
+            qtbot.wait(50)
+        return ended[0]
+    return wait

@@ -14,8 +14,8 @@ def _settle(qtbot, win):
     qtbot.wait(20)
 
 
-@pytest.mark.slow  # 18 s with its fixture (measured, -n 0)
-def test_orient_from_srtm_in_the_window(qtbot, window, sim, truth):
+@pytest.mark.slow  # 18 s with its fixture (measured, -n 0); 55 s with -n 2 on a busy machine
+def test_orient_from_srtm_in_the_window(qtbot, window, sim, truth, job_done):
     tool = window.tools["dem_orientation"]
     assert window.project.settings.orientation == "gcp"
     gcp_sol = window.solver.solution
@@ -24,7 +24,8 @@ def test_orient_from_srtm_in_the_window(qtbot, window, sim, truth):
     t0 = time.perf_counter()
     job = tool.start(sim / "srtm.tif", patch_m=1000.0)
     job.progress.connect(lambda f, m: seen.append(f))
-    qtbot.waitUntil(lambda: window.project.settings.orientation == "dem", timeout=60000)
+    job_done(job)
+    qtbot.waitUntil(lambda: window.project.settings.orientation == "dem", timeout=5000)
     print(f"orientation from the DEM in the window: {time.perf_counter() - t0:.1f} s")
     _settle(qtbot, window)
     assert seen and max(seen) > 0.5                       # progress was reported
@@ -104,29 +105,60 @@ def test_cancel_stops_the_worker(qtbot, window, sim):
     assert ended == ["cancelled"] and window.project.settings.orientation == "gcp"
 
 
-def test_menu_route_through_the_dialog(qtbot, window, sim, monkeypatch):
+def test_menu_route_through_the_dialog(qtbot, window, sim, monkeypatch, job_done):
+    """The dialog offers the project's reference DEM and a patch size chosen from the scene
+    (this 3 km scene: 1 km, 3 × 3 patches), and keeps a size of two decimals."""
     from PySide6.QtWidgets import QDialog
 
     from prismstation.gui.tools import dem_orientation as mod
+    window.load_reference_dem(sim / "srtm.tif", wait=True)     # the project's reference DEM now
+    offered = {}
 
     def fake_exec(dlg):
-        dlg.path.setText(str(sim / "srtm.tif"))
+        offered.update(path=dlg.path.text(), km=dlg.patch.value(), count=dlg.patches.text())
+        dlg.patch.setValue(1.25)
+        offered["typed"] = dlg.patch.value()
         dlg.patch.setValue(1.0)
         return QDialog.DialogCode.Accepted
 
     monkeypatch.setattr(mod.OrientDialog, "exec", fake_exec)
     window.tools["dem_orientation"].a_orient.trigger()
-    qtbot.waitUntil(lambda: window.project.settings.orientation == "dem", timeout=60000)
-    assert window.tools["dem_orientation"].patch_km == 1.0
+    assert offered["path"] == str((sim / "srtm.tif").resolve())
+    assert offered["km"] == 1.0 and offered["typed"] == 1.25
+    assert offered["count"].startswith("9 patches (3 × 3) on this 3.0 × 3.0 km scene (the size chosen for it")
+    job_done(window.tools["dem_orientation"].job)
+    qtbot.waitUntil(lambda: window.project.settings.orientation == "dem", timeout=5000)
     assert window.tools["dem_orientation"].panel.table.rowCount() == len(window.project.dem_control["patches"])
 
 
-def test_menu_route_with_too_few_patches_says_not_trusted(qtbot, window, sim, monkeypatch):
+def test_the_default_patch_size_follows_the_scene(window):
+    """The demo's 5 km scene: 1.25 km, 16 patches (4 km gave one patch and minutes for a verdict of
+    'too few'); a full 35 km PRISM scene: 4 km; the dialog says when a size gives too few."""
+    from dataclasses import replace
+
+    from prismstation.gui.tools.dem_orientation import OrientDialog, default_patch_km, patch_count
+    scene = window.project.scene
+
+    def sized(px):
+        return replace(scene, views={k: replace(v, shape=(px, px)) for k, v in scene.views.items()})
+    assert default_patch_km(sized(2000)) == 1.25 and patch_count(sized(2000), 1.25) == (4, 4)
+    assert patch_count(sized(2000), 4.0) == (1, 1)
+    assert default_patch_km(sized(14000)) == 4.0
+    dlg = OrientDialog(window, "", None, 50.0, sized(2000))
+    assert dlg.patch.value() == 1.25 and "16 patches (4 × 4) on this 5.0 × 5.0 km scene" in dlg.patches.text()
+    dlg.patch.setValue(4.0)
+    assert "1 patch (1 × 1)" in dlg.patches.text() and "too few to test" in dlg.patches.text()
+    dlg.deleteLater()
+
+
+def test_an_untrusted_orientation_is_applied_only_on_the_operators_yes(qtbot, window, sim, monkeypatch, job_done):
     """Through the menu: a-priori σ 60 m and 1.5 km patches on a 3 km scene → 4 patches, too few
-    to test the field: stored (undoable) but the panel and the status bar say it is not trusted."""
-    from PySide6.QtWidgets import QDialog
+    to test the field. The question states the verdict; No leaves the GCP orientation (the
+    result stays in the dock, not applied); the dock's button applies it after all."""
+    from PySide6.QtWidgets import QDialog, QMessageBox
 
     from prismstation.gui.tools import dem_orientation as mod
+    from tests.gui.boxes import answer_next_box
 
     def fake_exec(dlg):
         assert dlg.sigma.value() == 50.0                  # the default a-priori σ is shown
@@ -137,10 +169,26 @@ def test_menu_route_with_too_few_patches_says_not_trusted(qtbot, window, sim, mo
 
     monkeypatch.setattr(mod.OrientDialog, "exec", fake_exec)
     tool = window.tools["dem_orientation"]
-    tool.a_orient.trigger()
-    qtbot.waitUntil(lambda: window.project.settings.orientation == "dem", timeout=60000)
+    window.interactive = True
+    asked = []
+    try:
+        answer_next_box(asked, QMessageBox.StandardButton.No, tries=100000)
+        tool.a_orient.trigger()
+        job_done(tool.job)
+        qtbot.waitUntil(lambda: bool(asked), timeout=10000)
+    finally:
+        window.interactive = False
+    title, text = asked[0]
+    assert title == "Orientation from the reference DEM"
+    assert "NOT TRUSTED (too_few)" in text and "Apply it anyway?" in text
+    qtbot.waitUntil(lambda: tool.panel.apply_button.isVisible() or not tool.dock.isVisible(), timeout=5000)
+    assert window.project.settings.orientation == "gcp" and window.project.dem_control is None
+    assert "NOT APPLIED" in tool.panel.summary.text() and "σ 60 m per view" in tool.panel.summary.text()
+    assert "NOT TRUSTED (too_few)" in tool.panel.verdict.text()
+    assert window.statusBar().currentMessage().startswith("Not applied: Verdict: NOT TRUSTED")
+    qtbot.mouseClick(tool.panel.apply_button, __import__("PySide6.QtCore", fromlist=["Qt"]).Qt.MouseButton.LeftButton)
+    assert window.project.settings.orientation == "dem"
     record = window.project.dem_control
     assert record["sigma_apriori_m"] == 60.0 and record["verdict"]["status"] == "too_few"
-    assert "σ 60 m per view" in tool.panel.summary.text()
-    assert "NOT TRUSTED (too_few)" in tool.panel.verdict.text()
+    assert not tool.panel.apply_button.isVisible() and "in use" in tool.panel.summary.text()
     assert "NOT TRUSTED" in window.statusBar().currentMessage()

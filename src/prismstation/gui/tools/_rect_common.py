@@ -42,13 +42,27 @@ class Coalescer(QObject):
         self._t.start()
 
 
-def watch_project(window, fn) -> Coalescer:
-    """Call ``fn()`` after every edit, fit, and project (re)load of ``window``."""
-    c = Coalescer(fn, window.widget)
-    window.undo_stack.indexChanged.connect(c.poke)
-    window.solver.solution_changed.connect(c.poke)
-    window.views.images_loaded.connect(c.poke)
+def watch_project(ctx, fn) -> Coalescer:
+    """Call ``fn()`` after every edit, fit, and project (re)load of ``ctx``."""
+    c = Coalescer(fn, ctx.widget)
+    ctx.undo_stack.indexChanged.connect(c.poke)
+    ctx.solver.solution_changed.connect(c.poke)
+    ctx.views.images_loaded.connect(c.poke)
     return c
+
+
+def crs_name(text) -> str:
+    """A CRS as an operator reads it — ``WGS 84 / UTM zone 29N (EPSG:32629)`` — from any
+    definition (WKT, ``EPSG:…``, PROJ string); the text itself, shortened, when PROJ cannot read it."""
+    from pyproj import CRS
+    from pyproj.exceptions import CRSError
+    try:
+        crs = CRS.from_user_input(text)
+    except (CRSError, TypeError, ValueError):
+        t = " ".join(str(text).split())
+        return t if len(t) <= 60 else t[:57] + "…"
+    code = crs.to_epsg(min_confidence=70)
+    return f"{crs.name} (EPSG:{code})" if code else crs.name
 
 
 def fmt(v: float, digits: int = 3) -> str:

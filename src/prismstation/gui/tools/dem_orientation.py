@@ -10,6 +10,12 @@ a-priori σ, the view offsets, the consistency verdict of the patch field (in re
 message box and the status bar, when the patches do not agree with their σ or are too few) and
 the patch shifts, which are also drawn as exaggerated vectors on the N view. *Back to GCP
 orientation* is undoable too.
+
+An orientation whose verdict is not *trusted* is never applied without the operator's yes: a
+question states the verdict and why (a window that asks nothing — tests, scripts — does not
+apply it); declined, it stays in the dock, not in use, with a button to apply it after all.
+The dialog starts from the project's reference DEM and a patch size chosen from the scene's
+size (:func:`default_patch_km`), and says how many patches that gives.
 """
 from __future__ import annotations
 
@@ -24,7 +30,10 @@ from PySide6.QtWidgets import (QDialog, QDialogButtonBox, QDoubleSpinBox, QFileD
                                QHBoxLayout, QLabel, QLineEdit, QMessageBox, QPushButton, QTableWidget,
                                QTableWidgetItem, QVBoxLayout, QWidget)
 
+from prismstation.core.consistency import MIN_PATCHES
+from prismstation.core.dem_orient import patch_windows
 from prismstation.gui import settings as st
+from prismstation.gui.titles import fit_title
 from prismstation.gui.tools._worker import run_with_progress
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 
@@ -60,21 +69,52 @@ class SetDemOrientation(QUndoCommand):
         self._apply(self.old_record, self.old_settings)
 
 
-class OrientDialog(QDialog):
-    """Reference DEM file, patch size and the a-priori geolocation σ per view."""
+def scene_km(scene) -> tuple[float, float]:
+    """The N image's extent on the ground, (across, along) kilometres."""
+    n = scene.views[scene.reference_view]
+    rows, cols = n.shape
+    return cols * n.pixel_size_m / 1000.0, rows * n.pixel_size_m / 1000.0
 
-    def __init__(self, parent=None, path: str = "", patch_km: float = 4.0,
-                 sigma_m: float = SIGMA_APRIORI_M):
+
+def default_patch_km(scene) -> float:
+    """A quarter of the scene's shorter side, between 1 and 4 km, in 0.05 km steps: 4 × 4
+    patches on a small scene (the demo's 5 km: 1.25 km), 4 km patches on a full PRISM scene.
+    (4 km on the 5 km demo was one patch: minutes of matching for a verdict of "too few".)"""
+    side = min(scene_km(scene))
+    return float(min(4.0, max(1.0, np.floor(side / 4.0 / 0.05) * 0.05)))
+
+
+def patch_count(scene, patch_km: float) -> tuple[int, int]:
+    """``(columns, rows)`` of patches the engine cuts the N image into (its own rule)."""
+    n = scene.views[scene.reference_view]
+    px = max(int(round(patch_km * 1000.0 / n.pixel_size_m)), 64)
+    wins = patch_windows(n.shape, px, margin_px=32)
+    cols = len({w[0] for w in wins})
+    return cols, len(wins) // max(cols, 1)
+
+
+class OrientDialog(QDialog):
+    """Reference DEM file, patch size (km, chosen from the scene's size unless the operator
+    changed it) and the a-priori geolocation σ per view; says how many patches the size gives."""
+
+    def __init__(self, parent=None, path: str = "", patch_km: float | None = None,
+                 sigma_m: float = SIGMA_APRIORI_M, scene=None):
         super().__init__(parent)
         self.setWindowTitle("Orient from reference DEM")
+        fit_title(self)
+        self.scene = scene
         self.path = QLineEdit(path)
         browse = QPushButton("Browse…")
         browse.clicked.connect(self._browse)
         row = QHBoxLayout()
         row.addWidget(self.path, 1)
         row.addWidget(browse)
-        self.patch = QDoubleSpinBox(decimals=1, minimum=0.5, maximum=20.0, singleStep=0.5, suffix=" km")
-        self.patch.setValue(patch_km)
+        self.patch = QDoubleSpinBox(decimals=2, minimum=0.25, maximum=20.0, singleStep=0.25, suffix=" km")
+        self.auto_km = default_patch_km(scene) if scene is not None else 4.0
+        self.patch.setValue(self.auto_km if patch_km is None else patch_km)
+        self.patches = QLabel()
+        self.patches.setWordWrap(True)
+        self.patch.valueChanged.connect(self._count)
         self.sigma = QDoubleSpinBox(decimals=0, minimum=1.0, maximum=500.0, singleStep=5.0, suffix=" m")
         self.sigma.setValue(sigma_m)
         self.sigma.setToolTip("σ of each view's ancillary geolocation, per component: every search "
@@ -85,11 +125,28 @@ class OrientDialog(QDialog):
                            "(SRTM .hgt or GeoTIFF, orthometric heights) patch by patch."))
         form.addRow("Reference DEM", row)
         form.addRow("Patch size", self.patch)
+        form.addRow("", self.patches)
         form.addRow("Geolocation σ per view", self.sigma)
         bb = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel)
         bb.accepted.connect(self.accept)
         bb.rejected.connect(self.reject)
         form.addRow(bb)
+        self._count()
+
+    def _count(self, *_) -> None:
+        """Say how many patches the size gives on this scene, and when they are too few."""
+        if self.scene is None:
+            return
+        across, along = scene_km(self.scene)
+        nx, ny = patch_count(self.scene, self.patch.value())
+        n = nx * ny
+        text = f"{n} patch{'es' if n != 1 else ''} ({nx} × {ny}) on this {across:.1f} × {along:.1f} km scene"
+        if abs(self.patch.value() - self.auto_km) < 1e-9:
+            text += " (the size chosen for it: a quarter of its side, 1–4 km)"
+        if nx * ny < MIN_PATCHES:
+            text = (f"<span style='color:#c0392b'><b>{text}: fewer than {MIN_PATCHES}, too few to test "
+                    "the orientation</b> — it would not be trusted. Choose smaller patches.</span>")
+        self.patches.setText(text)
 
     def _browse(self) -> None:
         p, _ = QFileDialog.getOpenFileName(self, "Reference DEM", self.path.text() or st.value(st.Key.LAST_IMPORT_DIR),
@@ -111,6 +168,9 @@ class PatchTable(QWidget):
         self.summary.setWordWrap(True)
         self.verdict = QLabel("")
         self.verdict.setWordWrap(True)
+        self.apply_button = QPushButton("Apply this orientation anyway")
+        self.apply_button.setToolTip("Make this untrusted orientation the project's (undoable)")
+        self.apply_button.hide()
         self.table = QTableWidget(0, len(self.HEADERS))
         self.table.setHorizontalHeaderLabels(self.HEADERS)
         self.table.verticalHeader().setVisible(False)
@@ -118,9 +178,16 @@ class PatchTable(QWidget):
         self.table.setSortingEnabled(True)
         lay.addWidget(self.summary)
         lay.addWidget(self.verdict)
+        row = QHBoxLayout()
+        row.addWidget(self.apply_button)
+        row.addStretch(1)
+        lay.addLayout(row)
         lay.addWidget(self.table, 1)
 
-    def show_record(self, record, active: bool, scale: float | None = None) -> None:
+    def show_record(self, record, active: bool, scale: float | None = None, applied: bool = True) -> None:
+        """Show ``record``; ``active``: the project is oriented by it; ``applied`` False: a
+        result the operator declined (not the project's)."""
+        self.apply_button.setVisible(record is not None and not applied)
         self.table.setSortingEnabled(False)
         patches = (record or {}).get("patches", [])
         verdict = (record or {}).get("verdict") or {}
@@ -149,7 +216,8 @@ class PatchTable(QWidget):
             self.verdict.setText("")
             return
         used = sum(1 for p in patches if p.get("used"))
-        state = "in use" if active else "not in use (GCP orientation)"
+        state = ("NOT APPLIED (not trusted; the GCP orientation stays)" if not applied
+                 else "in use" if active else "not in use (GCP orientation)")
         off = {k: [_num(c) for c in v] for k, v in (record.get("offsets_px") or {}).items()}
         nan2 = [float("nan")] * 2
         vec = f"; vectors on N × {scale:.0f}" if scale else ""
@@ -181,42 +249,55 @@ def verdict_text(record) -> str:
 class DemOrientationTool:
     """The menu actions, the patch dock and the N-view vectors (one per window)."""
 
-    def __init__(self, window):
-        self.w = window
+    def __init__(self, ctx):
+        self.ctx = ctx
         self.job = None
         self.result = None
-        self.patch_km = 4.0
+        self.patch_km = None  # None: chosen from the scene's size
         self.sigma_m = SIGMA_APRIORI_M
+        self.declined = None  # (project, record) of an untrusted result the operator declined
+        self.last_path = ""
         self._items = []
         self.scale = None
         self.panel = PatchTable()
-        self.dock = window.add_dock("dem_patches", "Reference DEM patches", self.panel,
-                        Qt.DockWidgetArea.BottomDockWidgetArea, tabify_with="points")
-        self.a_orient = window.add_action("Orient from reference &DEM…", self.choose,
-                                    tip="Orientation with no GCP: match the image DSM to SRTM patch by patch")
-        self.a_gcp = window.add_action("Back to &GCP orientation", self.back_to_gcp,
-                                 tip="Orient from the GCPs again (undoable)")
-        window.tools_menu.addActions([self.a_orient, self.a_gcp])
-        window.undo_stack.indexChanged.connect(lambda *_: self.refresh())
-        window.files.project_opened.connect(lambda *_: self.refresh())
-        window.solver.solution_changed.connect(lambda *_: self._draw_vectors())
+        self.panel.apply_button.clicked.connect(self.apply_declined)
+        self.dock = ctx.add_dock("dem_patches", "Reference DEM patches", self.panel,
+                                 Qt.DockWidgetArea.BottomDockWidgetArea, tabify_with="points")
+        self.a_orient = ctx.add_action("Orient from reference &DEM…", self.choose,
+                                       tip="Orientation with no GCP: match the image DSM to SRTM patch by patch")
+        self.a_gcp = ctx.add_action("Back to &GCP orientation", self.back_to_gcp,
+                                    tip="Orient from the GCPs again (undoable)")
+        ctx.tools_menu.addActions([self.a_orient, self.a_gcp])
+        ctx.undo_stack.indexChanged.connect(lambda *_: self.refresh())
+        ctx.files.project_opened.connect(lambda *_: self.refresh())
+        ctx.solver.solution_changed.connect(lambda *_: self._draw_vectors())
         self.refresh()
 
     # ------------------------------------------------------------------ running
     def choose(self) -> None:
-        if self.w.project is None:
+        if self.ctx.project is None:
             return
-        dlg = OrientDialog(self.w.widget, st.value(st.Key.LAST_IMPORT_DIR) or "", self.patch_km, self.sigma_m)
+        dlg = OrientDialog(self.ctx.widget, self.reference_path(), self.patch_km, self.sigma_m,
+                           self.ctx.project.scene)
         if dlg.exec() == QDialog.DialogCode.Accepted and dlg.path.text():
-            self.patch_km, self.sigma_m = dlg.patch.value(), dlg.sigma.value()
-            self.start(dlg.path.text(), self.patch_km * 1000.0, sigma_m=self.sigma_m)
+            km = dlg.patch.value()
+            self.patch_km = None if abs(km - dlg.auto_km) < 1e-9 else km  # the operator's own size is kept
+            self.sigma_m, self.last_path = dlg.sigma.value(), dlg.path.text()
+            self.start(dlg.path.text(), km * 1000.0, sigma_m=self.sigma_m)
+
+    def reference_path(self) -> str:
+        """The DEM to offer: the project's reference DEM, else the one loaded, else the last used."""
+        p = self.ctx.project
+        loaded = getattr(self.ctx.solver, "height_of", None)
+        return (p.reference_dem if p is not None and p.reference_dem else
+                str(loaded.path) if loaded is not None and getattr(loaded, "path", None) else self.last_path)
 
     def start(self, reference_path, patch_m: float = 4000.0, posting_m: float = 30.0,
               sigma_m: float = SIGMA_APRIORI_M):
         """Orient the window's project from ``reference_path`` in a worker; returns the Job."""
         from prismstation.gui.solver import snapshot
         from prismstation.ops.orient_dem import orient_from_dem
-        project = self.w.project
+        project = self.ctx.project
         if project is None or (self.job is not None and self.job.isRunning()):
             return None
         snap = snapshot(project)
@@ -226,42 +307,74 @@ class DemOrientationTool:
             return orient_from_dem(snap, path, sigma_apriori_m=sigma_m, patch_m=patch_m,
                                    posting_m=posting_m, progress=lambda f, m="": progress(f, m))
 
-        self.job = run_with_progress(self.w, "Orientation from the reference DEM", work,
+        self.job = run_with_progress(self.ctx, "Orientation from the reference DEM", work,
                                      lambda res: self._apply(project, res))
         return self.job
 
     def _apply(self, project, result) -> None:
-        if project is not self.w.project:
+        if project is not self.ctx.project:
             return  # the project was closed meanwhile
         self.result = result
-        used = sum(1 for p in result.patches if p.used)
-        self.w.undo_stack.push(SetDemOrientation(project, result.to_dict(), "dem",
-                                                 f"Orient from DEM ({used} patches)"))
+        record = result.to_dict()
         self.dock.show()
         self.dock.raise_()
-        if not result.verdict.ok:
-            text = verdict_text(result.to_dict())
-            self.w.status(text)
-            if getattr(self.w, "interactive", False):
-                QMessageBox.warning(self.w.widget, "Orientation from the reference DEM", text)
+        if not result.verdict.ok and not self._operator_says_apply(record):
+            self.declined = (project, record)
+            self.ctx.status(f"Not applied: {verdict_text(record)}", 30000)
+            self._shown = None
+            self.refresh()
+            return
+        self._push(project, record)
+
+    def _push(self, project, record) -> None:
+        self.declined = None
+        self._shown = None
+        used = sum(1 for p in record["patches"] if p.get("used"))
+        self.ctx.undo_stack.push(SetDemOrientation(project, record, "dem", f"Orient from DEM ({used} patches)"))
+        if record.get("verdict", {}).get("status") != "ok":
+            self.ctx.status(f"Applied, not trusted: {verdict_text(record)}", 30000)
+
+    def _operator_says_apply(self, record) -> bool:
+        """The question for an untrusted orientation: its verdict and why; No by default."""
+        if not self.ctx.interactive:
+            return False
+        v = record.get("verdict") or {}
+        box = QMessageBox(QMessageBox.Icon.Warning, "Orientation from the reference DEM",
+                          f"The orientation from the reference DEM is NOT TRUSTED ({v.get('status')}): "
+                          f"{v.get('message', '')}.\n\nApply it anyway? It would replace the GCP "
+                          "orientation (Edit ▸ Undo or Tools ▸ Back to GCP orientation return to it).",
+                          QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, self.ctx.widget)
+        box.setDefaultButton(QMessageBox.StandardButton.No)
+        fit_title(box)
+        return box.exec() == QMessageBox.StandardButton.Yes
+
+    def apply_declined(self) -> None:
+        """The dock's button: the operator applies the declined result after all."""
+        if self.declined is not None and self.declined[0] is self.ctx.project:
+            self._push(*self.declined)
 
     def back_to_gcp(self) -> None:
-        p = self.w.project
+        p = self.ctx.project
         if p is not None and p.settings.orientation != "gcp":
-            self.w.undo_stack.push(SetDemOrientation(p, None, "gcp", "Back to GCP orientation"))
+            self.ctx.undo_stack.push(SetDemOrientation(p, None, "gcp", "Back to GCP orientation"))
 
     # ------------------------------------------------------------------ display
     def refresh(self) -> None:
-        p = self.w.project
+        p = self.ctx.project
         record = None if p is None else p.dem_control
         active = p is not None and p.settings.orientation == "dem"
+        applied = True
+        if self.declined is not None and (self.declined[0] is not p or active):
+            self.declined = None  # another project, or oriented since
+        if self.declined is not None:
+            record, applied = self.declined[1], False
         self.a_orient.setEnabled(p is not None and p.scene.is_triplet)
         self.a_gcp.setEnabled(active)
         self._draw_vectors()
-        shown = (record, active, self.scale)
+        shown = (record, active, self.scale, applied)
         if getattr(self, "_shown", None) is None or any(a is not b and a != b for a, b in zip(shown, self._shown)):
             self._shown = shown  # (an edit of a point leaves the record alone: no table rebuild)
-            self.panel.show_record(record, active, self.scale)
+            self.panel.show_record(record, active, self.scale, applied)
 
     def _clear_vectors(self) -> None:
         for vb, item in self._items:
@@ -272,8 +385,8 @@ class DemOrientationTool:
     def _draw_vectors(self) -> None:
         self._clear_vectors()
         self.scale = None
-        p = self.w.project
-        iv = self.w.views.views.get("N")
+        p = self.ctx.project
+        iv = self.ctx.views.views.get("N")
         if p is None or iv is None or p.settings.orientation != "dem" or not p.dem_control:
             return
         patches = p.dem_control["patches"]
@@ -298,9 +411,6 @@ class DemOrientationTool:
                 item.setZValue(500)
                 iv.vb.addItem(item)
                 self._items.append((iv.vb, item))
-
-
-TOOL_CONTEXT = True  # install() gets a ToolContext
 
 
 def install(ctx) -> None:

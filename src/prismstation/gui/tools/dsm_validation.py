@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import os
 import tempfile
+from pathlib import Path
 
 import numpy as np
 import pyqtgraph as pg
@@ -22,7 +23,8 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpin
                                QSplitter, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
 
 from prismstation.core.dsmstats import hillshade, histogram, residual_sd_by_view
-from prismstation.gui.tools._rect_common import fmt
+from prismstation.gui.titles import fit_title
+from prismstation.gui.tools._rect_common import crs_name, fmt
 from prismstation.gui.tools._worker import Job, run_with_progress
 
 STAT_COLUMNS = ("count", "bias", "sd", "rmse", "min", "max", "median", "nmad")
@@ -63,15 +65,15 @@ def residual_sd_rows(solution):
 class ResidualSDPanel(QWidget):
     HEAD = ("View", "GCP n", "GCP SD x", "GCP SD y", "ICP n", "ICP SD x", "ICP SD y")
 
-    def __init__(self, window):
-        super().__init__(window.widget)
+    def __init__(self, ctx):
+        super().__init__(ctx.widget)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(4, 4, 4, 4)
         lay.addWidget(QLabel("<b>SD of image residuals (px) — as Tadono et al. 2008, Table 1</b>"))
         self.table = _table(self.HEAD)
         lay.addWidget(self.table)
         self.solution = None
-        window.solver.solution_changed.connect(self.set_solution)
+        ctx.solver.solution_changed.connect(self.set_solution)
 
     def set_solution(self, sol) -> None:
         """Show ``sol``'s figures — only while visible (a hidden dock catches up when shown:
@@ -148,10 +150,37 @@ def shaded_difference(diff, relief, limit=None) -> np.ndarray:
     return np.clip(rgb * 255, 0, 255).astype(np.uint8)
 
 
+def prefill(project, project_path, last: dict) -> dict:
+    """What the dialog starts from: the last run's choices, else the project's — its DSM
+    (``dsm.tif`` beside the project, the DSM tool's default), its reference DEM (SRTM-like:
+    orthometric) and its geoid (a grid's path, or the constant)."""
+    out = {"dsm_height": "ellipsoidal", "reference_height": "ellipsoidal", "geoid_constant": 0.0}
+    if project is not None:
+        folders = [Path(p).parent for p in (project_path, project.scene_path) if p]
+        for cand in (f / "dsm.tif" for f in folders):
+            if cand.is_file():
+                out["dsm"] = str(cand)
+                break
+        if project.reference_dem:
+            out.update(reference=project.reference_dem, reference_height="orthometric")
+        g = project.geoid or {}
+        if g.get("kind") == "grid":
+            grid = Path(g.get("path", ""))
+            out["geoid_grid"] = str(grid if grid.is_absolute() or not folders else folders[-1] / grid)
+        elif g.get("kind") == "auto":
+            from prismstation.io.geoid import find_grid
+            grid = find_grid()
+            out.update({"geoid_grid": str(grid)} if grid else {"geoid_constant": float(g.get("value") or 0.0)})
+        elif g.get("value") is not None:
+            out["geoid_constant"] = float(g["value"])
+    return {**out, **{k: v for k, v in last.items() if v not in ("", None)}}
+
+
 class DsmDialog(QDialog):
-    def __init__(self, window, last: dict):
-        super().__init__(window)
+    def __init__(self, parent, last: dict):
+        super().__init__(parent)
         self.setWindowTitle("Validate DSM")
+        fit_title(self)
         f = QFormLayout(self)
         self.paths = {}
         for key, label in (("dsm", "DSM"), ("reference", "Reference DSM"), ("mask", "Class mask (optional)"),
@@ -241,7 +270,7 @@ class DsmResultPanel(QWidget):
         self.validation, self.info, self.diff = val, info, diff
         self.title.setText(f"<b>{os.path.basename(info['dsm'])}</b> − <b>{os.path.basename(info['reference'])}</b>"
                            f" on the DSM grid ({info['grid']['width']} × {info['grid']['height']}, "
-                           f"{info['grid']['crs']}), heights {info['heights']['compared_as']}")
+                           f"{crs_name(info['grid']['crs'])}), heights {info['heights']['compared_as']}")
         pct = sorted(val.overall.percentiles)
         head = ["Cells"] + list(STAT_COLUMNS) + [f"P{p:g}" for p in pct]
         self.table.clear()
@@ -297,23 +326,23 @@ class DsmResultPanel(QWidget):
 
 
 class DsmValidationTool:
-    def __init__(self, window):
-        self.window = window
-        self.sd_panel = ResidualSDPanel(window)
-        self.sd_dock = window.add_dock("residual_sd", "Residual SD", self.sd_panel,
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.sd_panel = ResidualSDPanel(ctx)
+        self.sd_dock = ctx.add_dock("residual_sd", "Residual SD", self.sd_panel,
                                     Qt.DockWidgetArea.RightDockWidgetArea)
-        self.panel = DsmResultPanel(window.widget)
-        self.dock = window.add_dock("dsm_validation", "DSM validation", self.panel,
+        self.panel = DsmResultPanel(ctx.widget)
+        self.dock = ctx.add_dock("dsm_validation", "DSM validation", self.panel,
                                  Qt.DockWidgetArea.BottomDockWidgetArea)
         self.dock.hide()
         self.job: Job | None = None
         self.last: dict = {}
-        window.tools_menu.addAction("Validate DSM…", self.open_dialog)
-        window.tools_menu.addAction(self.sd_dock.toggleViewAction())
-        window.tools_menu.addAction(self.dock.toggleViewAction())
+        ctx.tools_menu.addAction("Validate DSM…", self.open_dialog)
+        ctx.tools_menu.addAction(self.sd_dock.toggleViewAction())
+        ctx.tools_menu.addAction(self.dock.toggleViewAction())
 
     def open_dialog(self) -> None:
-        d = DsmDialog(self.window.widget, self.last)
+        d = DsmDialog(self.ctx.widget, prefill(self.ctx.project, self.ctx.files.path, self.last))
         if d.exec() == QDialog.DialogCode.Accepted:
             self.start(**d.values())
 
@@ -326,13 +355,13 @@ class DsmValidationTool:
                          reference_height=reference_height, mask=mask, geoid_grid=geoid_grid,
                          geoid_constant=geoid_constant)
         if not dsm or not reference:
-            self.window.status("Validate DSM: choose a DSM and a reference", 10000)
+            self.ctx.status("Validate DSM: choose a DSM and a reference", 10000)
             return None
         geoid = None
         if dsm_height != reference_height:
             geoid = GridGeoid(geoid_grid) if geoid_grid else ConstantGeoid(float(geoid_constant))
         self.job = run_with_progress(
-            self.window, "Validate DSM",
+            self.ctx, "Validate DSM",
             lambda progress: run_validation(dsm, reference, dsm_height=dsm_height,
                                             reference_height=reference_height, geoid=geoid,
                                             mask=mask or None),
@@ -348,12 +377,9 @@ class DsmValidationTool:
         self.dock.show()
         self.dock.raise_()
         o = result[0].overall
-        self.window.status(
+        self.ctx.status(
             f"DSM − reference: bias {o.bias:.2f} m, SD {o.sd:.2f} m, RMSE {o.rmse:.2f} m, "
             f"NMAD {o.nmad:.2f} m over {o.count} cells", 15000)
-
-
-TOOL_CONTEXT = True  # install() gets a ToolContext
 
 
 def install(ctx) -> None:

@@ -18,7 +18,8 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpin
                                QPushButton, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
 
 from prismstation.core.rectify import KINDS, compare_transforms, min_points, n_params
-from prismstation.gui.tools._rect_common import fmt, view_points, watch_project
+from prismstation.gui.titles import fit_title
+from prismstation.gui.tools._rect_common import crs_name, fmt, view_points, watch_project
 from prismstation.gui.tools._worker import Job, run_with_progress
 
 
@@ -32,9 +33,9 @@ def _item(text, align=Qt.AlignmentFlag.AlignRight) -> QTableWidgetItem:
 class TransformsPanel(QWidget):
     """RMSE table (transform × image) and residuals of the chosen transform for one view."""
 
-    def __init__(self, window):
-        super().__init__(window.widget)
-        self.window = window
+    def __init__(self, ctx):
+        super().__init__(ctx.widget)
+        self.ctx = ctx
         self.reports: dict = {}     # view -> tuple[TransformReport, ...]
         self.ids: dict = {}         # view -> (ids, is_check)
         lay = QVBoxLayout(self)
@@ -67,7 +68,7 @@ class TransformsPanel(QWidget):
         self.kind.currentTextChanged.connect(lambda *_: self._fill_residuals())
         self.view.currentTextChanged.connect(lambda *_: self._fill_residuals())
         self._key = None
-        watch_project(window, self.refresh)
+        watch_project(ctx, self.refresh)
 
     def showEvent(self, ev) -> None:  # a hidden or tabbed-away panel catches up when shown
         super().showEvent(ev)
@@ -79,7 +80,7 @@ class TransformsPanel(QWidget):
         when ``force``d (a rectification needs the fit whether the panel is open or not)."""
         if not (force or self.isVisible()):
             return
-        project = self.window.project
+        project = self.ctx.project
         key = None if project is None else (id(project), project.revision)
         if key == self._key:
             return
@@ -154,10 +155,11 @@ class TransformsPanel(QWidget):
 class RectifyDialog(QDialog):
     """Transform, view, output CRS, resolution and output file of a rectification."""
 
-    def __init__(self, window, panel: TransformsPanel):
-        super().__init__(window.widget)
+    def __init__(self, ctx, panel: TransformsPanel):
+        super().__init__(ctx.widget)
         self.setWindowTitle("Rectify")
-        project = window.project
+        fit_title(self)
+        project = ctx.project
         f = QFormLayout(self)
         self.view = QComboBox()
         self.view.addItems(list(project.scene.views))
@@ -194,26 +196,27 @@ class RectifyDialog(QDialog):
 
 
 class RectifyTool:
-    def __init__(self, window):
-        self.window = window
-        self.panel = TransformsPanel(window)
-        self.dock = window.add_dock("transforms", "Transforms", self.panel,
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.panel = TransformsPanel(ctx)
+        self.dock = ctx.add_dock("transforms", "Transforms", self.panel,
                                  Qt.DockWidgetArea.RightDockWidgetArea)
         self.job: Job | None = None
-        window.views.images_loaded.connect(self._show_for_single_view)
-        window.tools_menu.addAction("Rectify…", self.open_dialog)
-        window.tools_menu.addAction(self.dock.toggleViewAction())
+        self.summary = ""  # the last rectification's summary
+        ctx.views.images_loaded.connect(self._show_for_single_view)
+        ctx.tools_menu.addAction("Rectify…", self.open_dialog)
+        ctx.tools_menu.addAction(self.dock.toggleViewAction())
 
     def _show_for_single_view(self, *args) -> None:
         """A single-image project (the AVNIR rectification of Subaryono et al.) is about transforms: show their table."""
-        p = self.window.project
+        p = self.ctx.project
         if p is not None and len(p.scene.views) == 1:
             self.dock.show()
             self.dock.raise_()
             self.panel.refresh()
 
     def open_dialog(self) -> None:
-        w = self.window
+        w = self.ctx
         if w.project is None:
             return
         d = RectifyDialog(w, self.panel)
@@ -229,7 +232,7 @@ class RectifyTool:
         cannot be fitted."""
         from prismstation.ops.rectify import rectify_raster
 
-        w = self.window
+        w = self.ctx
         self.panel.refresh(force=True)
         r = self.panel.report(view, kind)
         v = w.project.scene.views.get(view)
@@ -244,21 +247,31 @@ class RectifyTool:
             return rectify_raster(image, r.transform, Path(out_path), points_crs=crs,
                                   out_crs=out_crs, resolution=resolution, progress=progress)
 
-        self.job = run_with_progress(w, f"Rectifying {view} through {kind}", work, self._done,
-                                     dialog=progress_dialog)
+        self.job = run_with_progress(w, f"Rectifying {view} through {kind}", work,
+                                     lambda res: self._done(res, view, r), dialog=progress_dialog)
         return self.job
 
-    def _done(self, result) -> None:
-        self._message(f"Wrote {result.path}: {result.width} × {result.height} cells of "
-                      f"{result.resolution:g} ({result.crs})")
+    def _done(self, result, view: str, report) -> None:
+        """The summary: what was written, on which grid, and how well the transform fits."""
+        self.summary = (
+            f"Rectified view {view} through the {report.kind} transform ({report.n_params} parameters, "
+            f"{report.n_gcp} GCPs; planimetric RMSE {fmt(report.rmse_gcp)} m on the GCPs, "
+            f"{fmt(report.rmse_icp)} m on {report.n_icp} ICPs).\n\n"
+            f"Wrote {result.path}: {result.width} × {result.height} cells of {result.resolution:g} "
+            f"in {crs_name(result.crs)}.")
+        self.ctx.status(f"Wrote {result.path}: {result.width} × {result.height} cells of {result.resolution:g} "
+                        f"in {crs_name(result.crs)} — {view} through {report.kind}, planimetric RMSE "
+                        f"{fmt(report.rmse_gcp)} m (GCPs), {fmt(report.rmse_icp)} m (ICPs)", 30000)
+        if self.ctx.interactive:
+            box = QMessageBox(QMessageBox.Icon.Information, "Rectify", self.summary,
+                              QMessageBox.StandardButton.Ok, self.ctx.widget)
+            fit_title(box)
+            box.exec()
 
     def _message(self, text: str) -> None:
-        self.window.status(text, 15000)
-        if getattr(self.window, "interactive", False) and "Cannot" in text:
-            QMessageBox.warning(self.window.widget, "Rectify", text)
-
-
-TOOL_CONTEXT = True  # install() gets a ToolContext
+        self.ctx.status(text, 15000)
+        if self.ctx.interactive and "Cannot" in text:
+            QMessageBox.warning(self.ctx.widget, "Rectify", text)
 
 
 def install(ctx) -> None:

@@ -3,26 +3,27 @@
 *Automatic transfer* (Tools, checkable, on by default): when a point is placed in one view and is
 measured in no other, it is searched in the other views in a worker
 (:func:`prismstation.ops.transfer.transfer`: along the parallax direction around the model's
-prediction, NCC then least-squares matching). The height searched is the best the
-prediction has (:mod:`prismstation.ops.predict`: the reference DEM, else the mean height) and
-the search covers ±3 σ of it. The candidates appear as green circles in those views — each view
-is driven to its candidate — and in the *Point transfer* dock with their NCC score and σ
-(pixels, calibrated against empirical scatter: :func:`prismstation.core.matching.calibrated_sigma`);
-the status bar says the same. Enter (or *Accept*) places them, one undoable step; a click in a
-view places the point there instead (that candidate is dropped); Esc (or *Reject*) drops them all.
+prediction, correlation in the predicted shape then least-squares matching; the height range
+searched and the shape come from the loaded reference DEM, else the mean height — the window
+only hands over what it has loaded). The candidates appear as green circles in those views —
+each view is driven to its candidate — and in the *Point transfer* dock with their NCC score, σ
+(pixels, from the adjustment, checked against empirical scatter) and status (a failed search
+says why, in red); the status bar says the same. Enter (or *Accept*) places the found ones, one
+undoable step; a click in a view places the point there instead (that candidate is dropped);
+Esc (or *Reject*) drops them all.
 
 *Transfer this point* (Tools, Ctrl+T): the same search for the current point from a view it is
 measured in (N first) to the views it is not — a point measured before automatic transfer was
 on, or whose transfer was rejected.
 
 *Automatic tie points…*: a grid over the N image transferred to F and B, blunders rejected
-(:func:`prismstation.ops.transfer.auto_tie_points`), added as new tie points in one undoable step.
+(:func:`prismstation.ops.transfer.auto_tie_points`, with the reference DEM when one is loaded),
+added as new tie points in one undoable step.
 """
 from __future__ import annotations
 
 import math
 
-import numpy as np
 import pyqtgraph as pg
 import shiboken6
 from PySide6.QtCore import Qt
@@ -79,7 +80,9 @@ class TransferPanel(QWidget):
             m = t.match
             vals = [v, f"{t.x:.2f}", f"{t.y:.2f}", f"{m.score:.3f}", f"{m.sigma_x:.3f}", f"{m.sigma_y:.3f}", m.status]
             for j, s in enumerate(vals):
-                self.table.setItem(i, j, QTableWidgetItem(s))
+                item = QTableWidgetItem(s)
+                item.setToolTip(m.reason)   # why a search failed
+                self.table.setItem(i, j, item)
         self.table.resizeColumnsToContents()
         ok = [v for v, t in cands.items() if t.ok]
         self.label.setText(f"{pid}: found in {', '.join(sorted(ok)) or 'no other view'}"
@@ -147,22 +150,13 @@ class TransferTool:
         return self.start(pid, source, m.x, m.y)
 
     def prior_height(self, sol, source: str, x: float, y: float) -> tuple[float, float]:
-        """``(h, h_range)`` metres searched for a point at ``(x, y)`` of ``source``: the height
-        of its prediction from that one view (the reference DEM, else the mean height) and
-        ±3 σ of it, at least ±50 m (the DEM's σ is measured at GCPs, not at every tree)."""
-        from prismstation.ops.predict import PointInput, predict_point
+        """``(h, h_range)`` metres searched for a point at ``(x, y)`` of ``source``
+        (:func:`prismstation.ops.transfer.search_height` with the loaded reference DEM and the
+        σ the predictions measured for it and for the mean height)."""
+        from prismstation.ops.transfer import search_height
         preds = self.w.views.predictions
-        others = [v for v in sol.scene.views if v != source]
-        try:
-            pr = predict_point(sol, PointInput("", "TIE", {source: (x, y, None)}), others[:1],
-                               height_of=self.w.views.height_of, sigma_dem=preds.sigma_dem,
-                               sigma_mean=preds.sigma_mean)
-        except (np.linalg.LinAlgError, ValueError):
-            pr = {}
-        if not pr:
-            return float(sol.mean_height), 600.0
-        p = next(iter(pr.values()))
-        return p.height, max(3.0 * p.sigma_h, 50.0)
+        return search_height(sol, source, (x, y), height_of=self.w.views.height_of,
+                             sigma_dem=preds.sigma_dem, sigma_mean=preds.sigma_mean)
 
     def start(self, pid: str, source: str, x: float, y: float):
         """Search ``pid`` at image ``(x, y)`` of ``source`` in the other views (worker); returns the Job."""
@@ -172,13 +166,15 @@ class TransferTool:
             return None
         self.reject()
         scene = self.w.project.scene
-        h, h_range = self.prior_height(sol, source, x, y)
+        height_of, preds = self.w.views.height_of, self.w.views.predictions
+        sigma_dem, sigma_mean = preds.sigma_dem, preds.sigma_mean
 
         def work(progress):
             from prismstation.io.windows import ImageWindows
             from prismstation.ops.transfer import transfer
             with ImageWindows(scene) as im:
-                return transfer(sol, im, source, (x, y), h=h, h_range=h_range)
+                return transfer(sol, im, source, (x, y), height_of=height_of, sigma_dem=sigma_dem,
+                                sigma_mean=sigma_mean)
 
         self.pid, self.source = pid, source
         job = self.job = Job(work, "Point transfer", self.w)
@@ -293,13 +289,13 @@ class TransferTool:
         if sol is None or project is None:
             self.w.status("Automatic tie points need a fitted model", 8000)
             return None
+        height_of = self.w.views.height_of
 
         def work(progress):
             from prismstation.io.windows import ImageWindows
             from prismstation.ops.transfer import auto_tie_points
             with ImageWindows(project.scene) as im:
-                return auto_tie_points(sol, im, grid=grid,
-                                       progress=progress)
+                return auto_tie_points(sol, im, grid=grid, height_of=height_of, progress=progress)
 
         self.job = run_with_progress(self.w, "Automatic tie points", work,
                                      lambda ties: self._add_ties(project, ties))

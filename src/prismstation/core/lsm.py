@@ -1,0 +1,488 @@
+"""Adaptive least-squares matching (Gruen 1985): a patch's position, shape and radiometry
+estimated together, with the covariance of the position.
+
+Coordinates (docs/model.md §1): image ``x`` = column, ``y`` = row, pixels, continuous, origin
+at the top-left corner of the top-left pixel, so array element ``[j, i]`` has its centre at
+``(i + 0.5, j + 0.5)``. Images are 2-D arrays of any numeric dtype.
+
+The template is the ``(2h+1)²`` pixels of the reference around the point; a template pixel at
+offset ``w = (u, v)`` from the point (pixel centre minus point) is modelled as
+
+    T(w) = g0 + g1 · S(t + A·w [+ d·(c1·u² + c2·u·v + c3·v²)/h])
+
+with ``S`` the search image (cubic B-spline interpolation, values and gradients exact), ``t``
+the point's position in the search image, ``A`` (2×2) the local shape (search pixels per
+reference pixel: the Jacobian of the reference → search mapping at the point), ``g0``, ``g1``
+offset and gain, and optionally a bend along the parallax direction ``d`` (the terrain's
+curvature within the template). Gauss–Newton from a start ``(t0, A0)``; the result is ``t``
+— the point itself, not a template corner — and its 2×2 covariance.
+
+Covariance (:func:`refine`): ``(SIGMA_SCALE·σ_formal)² + (RELIEF_SCALE·σ_relief)²·ddᵀ +
+σ_across²·d⊥d⊥ᵀ``. The formal ``σ0²·N⁻¹`` is inflated for the noise in the search image's
+gradients (:func:`gradient_noise_inflation`, the noise from :func:`noise_sigma`); ``σ_relief``
+and ``σ_across`` are the displacement the patch's shape does not follow, along and across ``d``
+(:func:`unmodelled_sigma`). The factors were calibrated on simulated PRISM triplets (the
+fractal relief, smooth hills, a real DEM's relief); ``tests/core/test_lsm.py`` and
+``benchmarks/bench_transfer.py`` check the σ against the scatter on other scenes, on warped
+real Pléiades texture and on the real Pléiades triplet (docs/matching.md).
+
+Failures come back as a status with a reason, never raised and never a silent position:
+``not_converged``, ``texture`` (too little texture: no contrast, noise outweighing the
+gradients, or σ above the limit), ``shape`` (the shape degenerate or moved beyond its
+allowance), ``moved`` (the patch ran away from its start), ``low_correlation``, ``outside``
+(the patch leaves an image).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import ndimage, stats
+
+OK = "ok"
+NOT_CONVERGED, TEXTURE, SHAPE, MOVED, LOW_CORRELATION, OUTSIDE = (
+    "not_converged", "texture", "shape", "moved", "low_correlation", "outside")
+
+WANDER_ITER = 6
+"""Iterations after which a patch still moving by 0.1 px per step is given up."""
+SIGMA_SCALE = 1.5
+"""Factor on the formal σ: the views differ by more than noise (point spread, resampling),
+calibrated on the simulated triplets (1.3 times too large on warped real texture)."""
+RELIEF_SCALE = 2.0
+"""Factor on the σ of the unmodelled relief along the parallax: the 4 px blocks smooth the
+finest relief (calibrated on the simulator's fractal relief)."""
+GRADIENT_NOISE = 2.18
+"""Variance of a gradient component of the cubic B-spline interpolating unit white noise, over
+all sub-pixel positions (numerically: 2.18; the interpolated values themselves 0.77)."""
+MAX_BEND = 1.0
+"""Largest bend (px) of the patch at the template's edge."""
+BEND_P = 0.99
+"""Confidence of the F test that keeps a bend."""
+MAX_ACROSS_CHANGE = 0.06
+"""Largest change of the shape across the parallax (relief changes it along the parallax; the
+model's views are right to 10⁻³ across)."""
+BEND_TRIGGER = 0.03
+"""A bend is tried when the affine patch leaves this much unmodelled relief (px)."""
+
+
+@dataclass(frozen=True)
+class LsmResult:
+    """Outcome of :func:`refine`.
+
+    ``x, y``: the point's position in the search image (pixels; on failure the best estimate,
+    check :attr:`ok`); ``cov``: its 2×2 covariance (px², x then y; NaN when it could not be
+    computed); ``formal_cov``: ``σ0²·N⁻¹`` with the gradient-noise inflation, before the
+    factors and the unmodelled displacement; ``shape``: ``A`` (2×2); ``gain``, ``offset``:
+    ``g1``, ``g0``; ``rho``: correlation of the template with the fitted patch;
+    ``iterations``; ``status`` / ``reason``; ``score``: the correlation peak the search started
+    from (:mod:`prismstation.core.lsm_search`); ``extra``: ``bend`` (c1, c2, c3), ``sigma_relief``,
+    ``sigma_across`` (px) and the parallax direction ``d``."""
+
+    x: float
+    y: float
+    cov: np.ndarray
+    formal_cov: np.ndarray
+    shape: np.ndarray
+    gain: float
+    offset: float
+    rho: float
+    iterations: int
+    status: str
+    reason: str = ""
+    score: float = float("nan")        # the correlation shown to the operator (set by callers)
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == OK
+
+    @property
+    def sigma_x(self) -> float:
+        return float(np.sqrt(self.cov[0, 0]))
+
+    @property
+    def sigma_y(self) -> float:
+        return float(np.sqrt(self.cov[1, 1]))
+
+    @property
+    def formal_sigma_x(self) -> float:
+        return float(np.sqrt(self.formal_cov[0, 0]))
+
+    @property
+    def formal_sigma_y(self) -> float:
+        return float(np.sqrt(self.formal_cov[1, 1]))
+
+
+_NAN2 = np.full((2, 2), np.nan)
+_I2 = np.eye(2)
+
+
+def failed(x, y, status, reason, *, shape=None, rho=np.nan, iterations=0, score=np.nan) -> LsmResult:
+    """A failed :class:`LsmResult` at the best estimate ``(x, y)``."""
+    return LsmResult(float(x), float(y), _NAN2, _NAN2, np.eye(2) if shape is None else np.asarray(shape, float),
+                     np.nan, np.nan, float(rho), iterations, status, reason, float(score))
+
+
+class Spline:
+    """Cubic B-spline interpolation of a window of an image, with analytic derivatives.
+
+    ``img`` is a window whose top-left corner is image pixel ``(c0, r0)``; :meth:`sample`
+    takes image coordinates (continuous, docs/model.md §1)."""
+
+    def __init__(self, img, c0: int = 0, r0: int = 0):
+        self.raw = np.asarray(img, np.float64)
+        self.coef = ndimage.spline_filter(self.raw, order=3, mode="mirror")
+        self.c0, self.r0 = c0, r0
+        rows, cols = self.coef.shape
+        self._flat, self._w = self.coef.ravel(), cols
+        k = np.arange(-1, 3)
+        self._taps = (k[:, None] * cols + k[None, :]).ravel()
+        self.lo = (c0 + 1.5, r0 + 1.5)                  # where the 4×4 support stays inside
+        self.hi = (c0 + cols - 2.5, r0 + rows - 2.5)
+
+    def noise_near(self, x: float, y: float, half: int) -> float:
+        """:func:`noise_sigma` of the window's pixels within ``half`` px of ``(x, y)``."""
+        i, j = int(x - self.c0), int(y - self.r0)
+        return noise_sigma(self.raw[max(j - half, 0):j + half + 1, max(i - half, 0):i + half + 1])
+
+    def inside(self, x, y) -> bool:
+        return bool(x.min() >= self.lo[0] and y.min() >= self.lo[1]
+                    and x.max() <= self.hi[0] and y.max() <= self.hi[1])
+
+    def sample(self, x, y):
+        """``(S, ∂S/∂x, ∂S/∂y)`` at image points ``x, y`` (same shape, inside)."""
+        col = np.ravel(x) - 0.5 - self.c0
+        row = np.ravel(y) - 0.5 - self.r0
+        i, j = np.floor(col).astype(np.intp), np.floor(row).astype(np.intp)
+        wx, dx = _weights(col - i)
+        wy, dy = _weights(row - j)
+        g = np.take(self._flat, (j * self._w + i)[:, None] + self._taps).reshape(-1, 4, 4)   # [n, row, col]
+        along = g @ np.stack([wx, dx], axis=2)                                            # (n, 4, 2)
+        s = np.einsum("nm,nm->n", along[:, :, 0], wy)
+        sx = np.einsum("nm,nm->n", along[:, :, 1], wy)
+        sy = np.einsum("nm,nm->n", along[:, :, 0], dy)
+        shape = np.shape(x)
+        return s.reshape(shape), sx.reshape(shape), sy.reshape(shape)
+
+
+_LAPLACE = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
+
+
+def noise_sigma(a) -> float:
+    """σ of white noise in the image patch ``a`` (grey values): Immerkaer's (1996) difference
+    of Laplacians, which removes any locally planar signal, its median made robust to the
+    texture that leaks through (an upper bound on textured ground: 20 % high on the
+    simulator's images, right to 1 DN on Pléiades with 20 DN of added noise)."""
+    a = np.asarray(a, np.float64)
+    if min(a.shape) < 3:
+        return 0.0
+    L = ndimage.correlate(a, _LAPLACE, mode="nearest")[1:-1, 1:-1]
+    return 1.4826 * float(np.median(np.abs(L))) / 6.0
+
+
+#: cubic B-spline weights of taps −1..2 as polynomials in the fraction t: [1, t, t², t³] @ _BW
+_BW = np.array([[1, 4, 1, 0], [-3, 0, 3, 0], [3, -6, 3, 0], [-1, 3, -3, 1]], float) / 6.0
+_BD = np.array([[-3, 0, 3, 0], [6, -12, 6, 0], [-3, 9, -9, 3]], float) / 6.0   # d/dt: [1, t, t²] @ _BD
+
+
+def _weights(t):
+    """Cubic B-spline weights for taps −1..2 and their derivatives, ``(n, 4)`` each."""
+    p = np.column_stack([np.ones_like(t), t, t * t, t * t * t])
+    return p @ _BW, p[:, :3] @ _BD
+
+
+def template(reference, x: float, y: float, half: int):
+    """``(T, u, v)``: the ``(2·half+1)²`` reference pixels around ``(x, y)`` (float64) and
+    their centres' offsets from the point (pixels), or None when the window leaves the image."""
+    i0, j0 = int(np.floor(x)), int(np.floor(y))
+    if not (half <= j0 < reference.shape[0] - half and half <= i0 < reference.shape[1] - half):
+        return None
+    t = np.asarray(reference[j0 - half:j0 + half + 1, i0 - half:i0 + half + 1], np.float64)
+    k = np.arange(-half, half + 1, dtype=float)
+    v, u = np.meshgrid(k + j0 + 0.5 - y, k + i0 + 0.5 - x, indexing="ij")
+    return t, u, v
+
+
+def search_spline(search, t0, A0, half: int, margin: float, smooth: float = 0.0) -> Spline | None:
+    """The :class:`Spline` of the part of ``search`` that a patch of ``A0``-shape at ``t0``
+    can reach within ``margin`` px (low-passed by a Gaussian of σ ``smooth`` px when > 0);
+    None when less than the patch remains."""
+    reach = half * np.abs(np.asarray(A0, float)).sum(axis=1) + margin + 4
+    c0 = max(int(np.floor(t0[0] - reach[0])), 0)
+    r0 = max(int(np.floor(t0[1] - reach[1])), 0)
+    c1 = min(int(np.ceil(t0[0] + reach[0])) + 1, search.shape[1])
+    r1 = min(int(np.ceil(t0[1] + reach[1])) + 1, search.shape[0])
+    if c1 - c0 < 8 or r1 - r0 < 8:
+        return None
+    crop = np.asarray(search[r0:r1, c0:c1], np.float64)
+    if smooth > 0:
+        crop = ndimage.gaussian_filter(crop, smooth, mode="nearest")
+    return Spline(crop, c0, r0)
+
+
+class _Fit:
+    """The Gauss–Newton state of one patch: position ``t``, shape ``A``, bend ``c`` (3 or 0
+    terms), offset ``g0`` and gain ``g1``, on a fixed template and search spline."""
+
+    def __init__(self, T, u, v, spline, d, half):
+        self.T, self.u, self.v, self.spline, self.d, self.half = T.ravel(), u.ravel(), v.ravel(), spline, d, half
+        gv, gu = np.gradient(T)                            # template gradients (grey values per px)
+        self.Tu, self.Tv = gu.ravel(), gv.ravel()
+        self.Q = np.column_stack([self.u ** 2, self.u * self.v, self.v ** 2]) / half
+        self.c = np.zeros(3)
+        self.g0, self.g1 = 0.0, None
+
+    def sample(self):
+        bend = self.Q @ self.c
+        qx = self.t[0] + self.A[0, 0] * self.u + self.A[0, 1] * self.v + self.d[0] * bend
+        qy = self.t[1] + self.A[1, 0] * self.u + self.A[1, 1] * self.v + self.d[1] * bend
+        return self.spline.sample(qx, qy) if self.spline.inside(qx, qy) else None
+
+    def design(self, S, Sx, Sy, bend: bool, esm: bool):
+        """Rows ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)``; with ``esm`` the gradient is the mean
+        of the search image's and the template's carried into the search image (Benhimane and
+        Malis 2004: faster convergence); without, the search image's alone (the covariance)."""
+        gx, gy = self.g1 * Sx, self.g1 * Sy
+        if esm:
+            a, b, c, d = self.A.ravel()
+            Ai = np.array([[d, -b], [-c, a]]) / (a * d - b * c)
+            gx = 0.5 * (gx + Ai[0, 0] * self.Tu + Ai[1, 0] * self.Tv)
+            gy = 0.5 * (gy + Ai[0, 1] * self.Tu + Ai[1, 1] * self.Tv)
+        u, v = self.u, self.v
+        cols = [gx, gy, gx * u, gx * v, gy * u, gy * v]
+        if bend:
+            cols += list(((gx * self.d[0] + gy * self.d[1])[:, None] * self.Q).T)
+        return np.column_stack(cols + [np.ones_like(S), S])
+
+    def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float):
+        """Iterate to convergence: ``(status, reason, iterations)``, status ``OK`` or a failure."""
+        nb = 3 if bend else 0
+        for it in range(1, max_iter + 1):
+            smp = self.sample()
+            if smp is None:
+                return OUTSIDE, "patch left the search image", it
+            S, Sx, Sy = smp
+            if self.g1 is None:
+                self.g1 = self.T.std() / max(S.std(), 1e-12)
+                self.g0 = self.T.mean() - self.g1 * S.mean()
+            r = self.T - (self.g0 + self.g1 * S)
+            J = self.design(S, Sx, Sy, bend, esm=True)
+            try:
+                dp = np.linalg.solve(J.T @ J, J.T @ r)
+            except np.linalg.LinAlgError:
+                return TEXTURE, "singular normal matrix (no texture)", it
+            self.t += dp[0:2]
+            self.A += dp[2:6].reshape(2, 2)
+            if bend:
+                self.c += dp[6:9]
+            self.g0 += dp[6 + nb]
+            self.g1 += dp[7 + nb]
+            if np.hypot(*(self.t - t0)) > max_move:
+                return MOVED, f"the patch moved more than {max_move:g} px from its start", it
+            change = np.linalg.norm(A0inv @ self.A - _I2)      # ≥ the largest singular value
+            if change > 2 * max_shape_change or self.g1 <= 0 or np.abs(self.c).max() * self.half > 2 * MAX_BEND:
+                return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else
+                               f"the shape degenerated (changed by {change:.0%})"), it
+            if np.abs(dp[0:2]).max() < 2e-3 and np.abs(dp[2:6 + nb]).max() * self.half < 5e-3:
+                return OK, "", it
+            if it >= WANDER_ITER and np.hypot(*dp[0:2]) > 0.1:
+                break   # still wandering
+        return NOT_CONVERGED, f"no convergence in {it} iterations", it
+
+    def copy(self):
+        other = object.__new__(_Fit)
+        other.__dict__.update(self.__dict__)
+        other.t, other.A, other.c = self.t.copy(), self.A.copy(), self.c.copy()
+        return other
+
+    def final(self, bend: bool):
+        """``(r, J, rho)`` at the current state: residuals, design (search-image gradients),
+        correlation of template and patch."""
+        smp = self.sample()
+        if smp is None:
+            return None, None, np.nan
+        S, Sx, Sy = smp
+        r = self.T - (self.g0 + self.g1 * S)
+        return r, self.design(S, Sx, Sy, bend, esm=False), float(np.corrcoef(self.T, S)[0, 1])
+
+
+def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half: int = 12,
+           max_iter: int = 20, max_move: float = 3.0, max_shape_change: float = 0.25,
+           min_rho: float = 0.6, max_sigma: float = 0.5, smooth: float = 0.0,
+           spline: Spline | None = None) -> LsmResult:
+    """Least-squares matching of the point ``(x, y)`` of ``reference`` in ``search``.
+
+    Parameters
+    ----------
+    reference, search : ndarray (rows, cols)
+    x, y : float
+        The point in the reference image (pixels).
+    t0 : (2,)
+        Start position of the point in the search image (pixels).
+    A0 : (2, 2)
+        Start shape: search pixels per reference pixel, columns the images of the reference
+        x and y axes (e.g. from the sensor model and the terrain slope).
+    parallax : (dx, dy) or None
+        The direction in the search image along which relief displaces points. Given, the
+        affine patch, once converged, may also bend along it: ``+ d·(c1·u² + c2·u·v +
+        c3·v²)/half`` (the terrain's curvature within the template, which an affine patch
+        averages into its centre); the bend is kept when it is significant (F test at
+        :data:`BEND_P`, on residuals scaled by :data:`SIGMA_SCALE`) and under
+        :data:`MAX_BEND` px at the template's edge.
+    half : int
+        Template half size: ``(2·half+1)²`` pixels.
+    max_iter : int
+        Gauss–Newton iterations before ``not_converged``.
+    max_move : float
+        Largest distance (px) of the result from ``t0`` (``moved`` beyond).
+    max_shape_change : float
+        Largest change of the shape from ``A0``, as the largest singular value of
+        ``A0⁻¹A − I`` (``shape`` beyond; 0.25: ±25 % scale or shear).
+    min_rho : float
+        Correlation of template and fitted patch below this: ``low_correlation``.
+    max_sigma : float
+        Stated σ (px, larger semi-axis) above this: ``texture``.
+    smooth : float
+        σ (px) of a Gaussian low-pass applied to both images first (a coarse pass; 0: none).
+    spline : Spline, optional
+        A ready :class:`Spline` of ``search`` (for repeated calls); built here otherwise.
+    """
+    A0 = np.asarray(A0, float)
+    t0 = np.asarray(t0, float)
+    m = int(np.ceil(3 * smooth)) if smooth > 0 else 0
+    tpl = template(reference, x, y, half + m)
+    if tpl is None:
+        return failed(t0[0], t0[1], OUTSIDE, "template leaves the reference image", shape=A0)
+    T, u, v = tpl
+    if m:
+        T, u, v = ndimage.gaussian_filter(T, smooth, mode="nearest")[m:-m, m:-m], u[m:-m, m:-m], v[m:-m, m:-m]
+    if float(T.std()) <= 1e-6 * (abs(float(T.mean())) + 1.0):
+        return failed(t0[0], t0[1], TEXTURE, "template has no contrast", shape=A0)
+    if spline is None or smooth > 0:
+        spline = search_spline(search, t0, A0, half, max_move + 1.0 + 3 * smooth, smooth)
+        if spline is None:
+            return failed(t0[0], t0[1], OUTSIDE, "patch leaves the search image", shape=A0)
+    d = np.zeros(2) if parallax is None else np.asarray(parallax, float) / np.hypot(*parallax)
+    fit = _Fit(T, u, v, spline, d, half)
+    fit.t, fit.A = t0.copy(), A0.copy()
+    A0inv = np.linalg.inv(A0)
+    status, reason, it = fit.run(False, max_iter, t0, max_move, A0inv, max_shape_change)
+    if status != OK:
+        x_, y_ = (t0 if status == MOVED else fit.t)
+        rho = fit.final(False)[2] if status == NOT_CONVERGED else np.nan
+        return failed(x_, y_, status, reason, shape=fit.A, rho=rho, iterations=it)
+    r, J, rho = fit.final(False)
+    if r is None:
+        return failed(fit.t[0], fit.t[1], OUTSIDE, "patch left the search image", shape=fit.A, iterations=it)
+    n = 2 * half + 1
+    bend = False
+    if parallax is not None and unmodelled_sigma(_along(J, d, n), r.reshape(n, n), J.shape[1]) > BEND_TRIGGER:
+        curved = fit.copy()
+        status, _, it2 = curved.run(True, max_iter, t0, max_move, A0inv, max_shape_change)
+        it += it2
+        if status == OK and np.abs(curved.c).max() * half <= MAX_BEND:
+            r1, J1, rho1 = curved.final(True)
+            if r1 is not None and _significant(r, r1):
+                fit, bend, r, J, rho = curved, True, r1, J1, rho1
+    why = shape_check(A0, fit.A, d if parallax is not None else None, max_shape_change)
+    if why:
+        return failed(fit.t[0], fit.t[1], SHAPE, why + " from the start", shape=fit.A, rho=rho, iterations=it)
+    k = J.shape[1]
+    s02 = float(r @ r) / max(r.size - k, 1)
+    # the image noise, the lower of the two images' (in the template's grey values): textured
+    # ground makes the estimate high, never low
+    noise = min(noise_sigma(T), fit.g1 * spline.noise_near(fit.t[0], fit.t[1], half))
+    inflation = gradient_noise_inflation(J[:, 0], J[:, 1], noise ** 2)
+    if not np.isfinite(inflation):
+        return failed(fit.t[0], fit.t[1], TEXTURE, "too little texture: the image noise outweighs its gradients",
+                      shape=fit.A, rho=rho, iterations=it)
+    formal = s02 * np.linalg.inv(J.T @ J)[:2, :2] * inflation
+    cov = SIGMA_SCALE ** 2 * formal
+    # the displacement the patch's shape does not follow, along the parallax and across it
+    e1 = d if parallax is not None else np.array([1.0, 0.0])
+    e2 = np.array([-e1[1], e1[0]])
+    s_relief = unmodelled_sigma(_along(J, e1, n), r.reshape(n, n), k)
+    s_across = unmodelled_sigma(_along(J, e2, n), r.reshape(n, n), k)
+    cov = cov + (RELIEF_SCALE * s_relief) ** 2 * np.outer(e1, e1) + s_across ** 2 * np.outer(e2, e2)
+    res = LsmResult(float(fit.t[0]), float(fit.t[1]), cov, formal, fit.A.copy(), float(fit.g1), float(fit.g0),
+                    rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),
+                                           "sigma_relief": s_relief, "sigma_across": s_across, "d": d})
+    if rho < min_rho:
+        return _as_failure(res, LOW_CORRELATION, f"correlation {rho:.2f} below {min_rho:.2f}")
+    smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
+    if not np.isfinite(smax) or smax > max_sigma:
+        return _as_failure(res, TEXTURE, f"too little texture: σ {smax:.2f} px above {max_sigma:.2f}")
+    return res
+
+
+def shape_check(A0, A, parallax, max_change: float, max_across: float = MAX_ACROSS_CHANGE) -> str:
+    """Why the shape ``A`` is too far from ``A0`` ("" when it is not): its change
+    (largest singular value of ``A0⁻¹A − I``) beyond ``max_change``, or — given the parallax
+    direction — its change across the parallax beyond ``max_across`` (relief moves points
+    along the parallax only: a slope changes the row of ``A`` along it, nothing across)."""
+    change = float(np.linalg.svd(np.linalg.solve(A0, A) - _I2, compute_uv=False)[0])
+    if change > max_change:
+        return f"the shape changed by {change:.0%} (more than {max_change:.0%})"
+    if parallax is not None:
+        d = np.asarray(parallax, float) / np.hypot(*parallax)
+        across = float(np.hypot(*(np.array([-d[1], d[0]]) @ (A - A0))))
+        if across > max_across:
+            return f"the shape changed by {across:.0%} across the parallax (more than {max_across:.0%})"
+    return ""
+
+
+def gradient_noise_inflation(gx, gy, var: float) -> float:
+    """Factor on the position's covariance for the noise in the gradients ``gx, gy`` (the
+    design's, grey values per px): their noise power, :data:`GRADIENT_NOISE` times the noise
+    variance ``var``, is no information about the position, so the structure tensor
+    ``G = Σ∇∇ᵀ`` overstates it; the factor is ``λ(G) / λ(G − n·GRADIENT_NOISE·var·I)`` in its
+    weakest direction; infinite when the noise has all of the gradients' power there."""
+    G = np.array([[gx @ gx, gx @ gy], [gx @ gy, gy @ gy]])
+    lam = float(np.linalg.eigvalsh(G)[0])
+    c = GRADIENT_NOISE * var * gx.size
+    return lam / (lam - c) if lam > c else float("inf")
+
+
+def _along(J, d, n: int):
+    """The design's gradient along ``d`` on the template grid ``(n, n)``."""
+    return (J[:, 0] * d[0] + J[:, 1] * d[1]).reshape(n, n)
+
+
+def _significant(r0, r1) -> bool:
+    """F test of the bend: do its residuals ``r1`` lower the affine patch's ``r0`` more than
+    noise would (at :data:`BEND_P`, the residual variance scaled by :data:`SIGMA_SCALE`²)?"""
+    dof = r1.size - 11
+    f = (float(r0 @ r0) - float(r1 @ r1)) / 3 / (SIGMA_SCALE ** 2 * float(r1 @ r1) / dof)
+    return bool(f > stats.f.ppf(BEND_P, 3, dof))
+
+
+def unmodelled_sigma(G, r, n_params: int, block: int = 4) -> float:
+    """σ (px) of the displacement in one direction that the patch's shape does not follow.
+
+    ``G``: the fitted patch's gradient in that direction (e.g. the parallax) on the template grid
+    ``(n, n)`` (grey values per px), ``r``: the residuals ``(n, n)``, ``n_params``: the
+    adjustment's parameter count. Each ``block × block`` part of the template gets its own
+    displacement ``δ = ΣGr / ΣG²`` (the residual a displacement leaves is ``G·δ``); what the
+    residuals hold beyond it is noise of variance ``σn²``; the σ is the ``ΣG²``-weighted RMS of
+    the ``δ`` less their noise ``σn²/ΣG²``. Along the parallax: the relief within the template
+    that no affine or quadratic patch follows — the error it leaves at the point is of that
+    size."""
+    n = r.shape[0]
+    m = n // block
+    if m < 2:
+        return 0.0
+    lo = (n - m * block) // 2
+    Gb = G[lo:lo + m * block, lo:lo + m * block].reshape(m, block, m, block).transpose(0, 2, 1, 3).reshape(m * m, -1)
+    rb = r[lo:lo + m * block, lo:lo + m * block].reshape(m, block, m, block).transpose(0, 2, 1, 3).reshape(m * m, -1)
+    g2 = np.sum(Gb * Gb, axis=1)
+    if np.any(g2 <= 0):
+        return 0.0
+    delta = np.sum(Gb * rb, axis=1) / g2
+    noise = float(np.sum((rb - Gb * delta[:, None]) ** 2)) / max(rb.size - m * m - n_params, 1)
+    excess = np.sum(g2 * delta ** 2 - noise) / np.sum(g2)
+    return float(np.sqrt(max(excess, 0.0)))
+
+
+def _as_failure(res: LsmResult, status: str, reason: str) -> LsmResult:
+    from dataclasses import replace
+    return replace(res, status=status, reason=reason)

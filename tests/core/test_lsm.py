@@ -1,0 +1,195 @@
+"""Least-squares matching (core/lsm.py, core/lsm_search.py) on real Pléiades texture warped by
+known affine transforms (truth = the warp), its stated σ against the scatter, and its failures."""
+import numpy as np
+import pytest
+import rasterio
+from scipy import ndimage
+
+from prismstation.core import lsm
+from prismstation.core.lsm import refine
+from prismstation.core.lsm_search import match
+
+HALF = 70   # half size of the crops
+
+
+@pytest.fixture(scope="module")
+def texture(shared_data):
+    with rasterio.open(shared_data / "pleiades_triplet" / "img_02.tif") as ds:
+        img = ds.read(1)
+    assert img.dtype == np.uint16
+    return img, ndimage.spline_filter(img.astype(float), order=3)
+
+
+def warp(texture, p, A, t, noise, rng):
+    """Reference crop around ``p``, the point in it, the search crop made by
+    ``q = A (p' − p) + p + t`` (continuous coordinates) and the true position in it."""
+    img, coef = texture
+    p = np.asarray(p, float)
+    r0 = (np.floor(p) - HALF).astype(int)
+    ref = img[r0[1]:r0[1] + 2 * HALF, r0[0]:r0[0] + 2 * HALF].astype(float)
+    s0 = np.floor(p + t) - HALF
+    oy, ox = np.mgrid[0:2 * HALF, 0:2 * HALF]
+    q = np.stack([ox + 0.5 + s0[0], oy + 0.5 + s0[1]], -1)
+    src = (q - p - t) @ np.linalg.inv(A).T + p
+    srch = ndimage.map_coordinates(coef, [src[..., 1] - 0.5, src[..., 0] - 0.5], order=3, prefilter=False)
+    u16 = lambda a: np.clip(np.rint(a + rng.normal(0, noise, a.shape)), 0, 65535).astype(np.uint16)  # noqa: E731
+    return u16(ref), p - r0, u16(srch), p + t - s0
+
+
+def random_shape(rng, k=0.3):
+    """Rotation, scale and shear each up to ±``k`` (±30 %: ±17° of rotation)."""
+    a = rng.uniform(-k, k)
+    R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    return R @ np.array([[1 + rng.uniform(-k, k), rng.uniform(-k, k)], [0, 1 + rng.uniform(-k, k)]])
+
+
+def test_affine_warps_of_real_texture_are_recovered_with_a_sigma_that_holds(texture):
+    rng = np.random.default_rng(27)
+    err, cov = [], []
+    for _ in range(40):
+        A = random_shape(rng)
+        ref, pt, srch, truth = warp(texture, rng.uniform(150, 850, 2), A, rng.uniform(-0.5, 0.5, 2), 8.0, rng)
+        A0 = A @ (np.eye(2) + rng.uniform(-0.08, 0.08, (2, 2)))     # the shape known to ~10 %
+        r = refine(ref, *pt, srch, truth + rng.uniform(-1.5, 1.5, 2), A0)
+        assert r.ok, r.reason
+        assert np.abs(r.shape - A).max() < 0.02 and r.rho > 0.95
+        err.append([r.x - truth[0], r.y - truth[1]])
+        cov.append(r.cov)
+    err = np.array(err)
+    rms = np.sqrt(np.mean(err ** 2))
+    assert rms < 0.03, rms                      # measured 0.01 px
+    z2 = np.array([e @ np.linalg.solve(c, e) for e, c in zip(err, cov)])
+    rms_z = np.sqrt(np.mean(z2 / 2))
+    assert 0.4 < rms_z < 1.5, rms_z             # the stated σ is the scatter's size
+    assert np.mean(z2 < 5.99) >= 0.85           # the 95 % ellipse holds the errors
+
+
+def test_search_finds_the_point_from_a_prediction_pixels_off_along_the_parallax(texture):
+    rng = np.random.default_rng(5)
+    for _ in range(10):
+        A = random_shape(rng, 0.25)
+        ref, pt, srch, truth = warp(texture, rng.uniform(150, 850, 2), A, rng.uniform(-0.5, 0.5, 2), 8.0, rng)
+        d = np.array([np.cos(1.3), np.sin(1.3)])
+        pred = truth + rng.uniform(-12, 12) * d + rng.uniform(-1, 1) * np.array([-d[1], d[0]])
+        # the predicted shape off as a slope misjudged would leave it: along the parallax (±10 %)
+        A0 = A + np.outer(d, rng.uniform(-0.1, 0.1, 2)) + rng.uniform(-0.01, 0.01, (2, 2))
+        r = match(ref, *pt, srch, pred, A0, d, along=20, across=2, parallax=d)
+        assert r.ok, r.reason
+        assert np.hypot(r.x - truth[0], r.y - truth[1]) < 0.05
+        assert 0.8 < r.score <= 1.0 and r.rho > 0.95
+
+
+def test_a_shape_off_by_a_quarter_is_found_with_a_coarse_pass(texture):
+    rng = np.random.default_rng(11)
+    found = 0
+    for _ in range(10):
+        A = np.array([[1.0, 0.0], [rng.choice([-1, 1]) * 0.3, 1 + rng.uniform(-0.25, 0.25)]])   # a slope seen from F
+        ref, pt, srch, truth = warp(texture, rng.uniform(150, 850, 2), A, rng.uniform(-0.5, 0.5, 2), 8.0, rng)
+        d = np.array([0.0, 1.0])
+        r = match(ref, *pt, srch, truth + [0, rng.uniform(-8, 8)], np.eye(2), d, along=15, across=2,
+                  max_shape_change=0.6, coarse=1.5, rival=6.0, parallax=d)
+        if r.ok:
+            found += 1
+            e = np.array([r.x - truth[0], r.y - truth[1]])
+            assert e @ np.linalg.solve(r.cov, e) < 13.8, (e, r.cov)    # inside the 99.9 % ellipse
+        else:
+            assert r.reason
+    assert found >= 8
+
+
+def test_a_shape_that_shears_across_the_parallax_is_refused(texture):
+    # relief moves points along the parallax only: a patch that found its fit by shearing
+    # across it has matched something else
+    rng = np.random.default_rng(2)
+    A = np.array([[1.0, 0.15], [0.0, 1.0]])                  # sheared across the parallax (x)
+    ref, pt, srch, truth = warp(texture, (480, 520), A, np.zeros(2), 5.0, rng)
+    r = refine(ref, *pt, srch, truth, np.eye(2), parallax=(0, 1), max_shape_change=0.6)
+    assert r.status == lsm.SHAPE and "across the parallax" in r.reason, r
+    r = refine(ref, *pt, srch, truth, np.eye(2), max_shape_change=0.6)   # no parallax: any shape
+    assert r.ok and np.hypot(r.x - truth[0], r.y - truth[1]) < 0.05
+
+
+def test_failures_say_why(texture):
+    img = texture[0]
+    rng = np.random.default_rng(0)
+    # no contrast
+    flat = np.full((200, 200), 1000, np.uint16)
+    r = refine(flat, 100.2, 100.7, img[:200, :200], (100, 100), np.eye(2))
+    assert r.status == lsm.TEXTURE and "contrast" in r.reason
+    # unrelated search image: no peak, or a patch that does not fit
+    noise = rng.integers(0, 4000, (200, 200)).astype(np.uint16)
+    r = match(img[300:500, 300:500], 100, 100, noise, (100, 100), np.eye(2), (0, 1), along=5)
+    assert not r.ok and r.status in ("low_score", "low_correlation", "not_converged", "moved", "shape")
+    # the template leaves the reference image
+    r = match(img, 3.0, 3.0, img, (3.0, 3.0), np.eye(2), (0, 1))
+    assert r.status == lsm.OUTSIDE
+    # a start shape 60 % off, allowed to move 25 %: the shape test stops it
+    ref, pt, srch, truth = warp(texture, (500, 500), np.diag([1.0, 1.6]), np.zeros(2), 5.0, rng)
+    r = refine(ref, *pt, srch, truth, np.eye(2), max_shape_change=0.25)
+    assert not r.ok and r.status in (lsm.SHAPE, lsm.NOT_CONVERGED, lsm.MOVED), r
+
+
+def test_the_true_position_beyond_the_search_range_is_not_returned(texture):
+    img = texture[0]
+    ref = img[200:400, 300:500]
+    srch = img[200:400, 290:490]                 # true shift +10 px in x
+    r = match(ref, 100.5, 100.5, srch, (100.5, 100.5), np.eye(2), (1, 0), along=4, across=1)
+    assert not r.ok and r.status in ("border", "low_score")
+
+
+def test_stripes_leave_a_direction_undetermined():
+    # texture constant along y: the position along y is unknown whatever the search
+    rng = np.random.default_rng(0)
+    stripes = 1000 + 300 * np.sin(np.arange(200) / 3.0) + 200 * np.sin(np.arange(200) / 7.3)
+    a = (stripes[None, :] + rng.normal(0, 5, (200, 200))).astype(np.uint16)
+    b = (stripes[None, :] + rng.normal(0, 5, (200, 200))).astype(np.uint16)
+    r = match(a, 100.5, 100.5, b, (100.5, 101.5), np.eye(2), (0, 1), along=5)
+    assert not r.ok and r.status in ("texture", "ambiguous", "not_converged", "shape"), r
+
+
+def test_repetitive_texture_is_ambiguous(texture):
+    # the same patch twice, 12 px apart along the search direction
+    img = texture[0].astype(float)
+    tile = img[400:440, 400:480]
+    search = np.tile(img[400:440, 400:412], (1, 10))[:, :120]
+    ref = np.tile(img[400:440, 400:412], (1, 10))[:, :120]
+    r = match(ref.astype(np.uint16), 40.5, 20.5, search.astype(np.uint16), (40.5, 20.5), np.eye(2), (1, 0),
+              along=20, across=1, half=8)
+    assert tile.size and not r.ok and r.status in ("ambiguous", "border"), r
+
+
+def test_bend_follows_the_curvature_of_the_parallax(texture):
+    # the search image bent along y by a quadratic of x (a ridge across the template)
+    img, coef = texture
+    rng = np.random.default_rng(3)
+    errs = {True: [], False: []}
+    for _ in range(8):
+        p = rng.uniform(150, 850, 2)
+        c = rng.choice([-1, 1]) * 0.006                 # 0.9 px of bend at the template's edge
+        r0 = (np.floor(p) - HALF).astype(int)
+        ref = img[r0[1]:r0[1] + 2 * HALF, r0[0]:r0[0] + 2 * HALF]
+        oy, ox = np.mgrid[0:2 * HALF, 0:2 * HALF]
+        xs, ys = ox + 0.5 + r0[0], oy + 0.5 + r0[1]
+        src_y = ys - c * (xs - p[0]) ** 2                   # search(q) = ref(q − bend)
+        srch = ndimage.map_coordinates(coef, [src_y - 0.5, xs - 0.5], order=3, prefilter=False)
+        srch = np.clip(np.rint(srch), 0, 65535).astype(np.uint16)
+        truth = p - r0
+        for bend in (True, False):
+            r = refine(ref, *truth, srch, truth + [0.3, -0.4], np.eye(2), parallax=(0, 1) if bend else None)
+            errs[bend].append(np.hypot(r.x - truth[0], r.y - truth[1]) if r.ok else np.inf)
+    assert np.max(errs[True]) < 0.05, errs[True]
+    assert np.median(errs[False]) > 3 * np.median(errs[True]), errs   # the affine patch averages the bend
+
+
+def test_a_bend_beyond_the_limit_is_flagged_not_returned(texture):
+    img, coef = texture
+    p = np.array([520.3, 610.8])
+    r0 = (np.floor(p) - HALF).astype(int)
+    ref = img[r0[1]:r0[1] + 2 * HALF, r0[0]:r0[0] + 2 * HALF]
+    oy, ox = np.mgrid[0:2 * HALF, 0:2 * HALF]
+    xs, ys = ox + 0.5 + r0[0], oy + 0.5 + r0[1]
+    srch = ndimage.map_coordinates(coef, [ys - 0.015 * (xs - p[0]) ** 2 - 0.5, xs - 0.5], order=3, prefilter=False)
+    r = refine(ref, *(p - r0), np.clip(np.rint(srch), 0, 65535).astype(np.uint16), p - r0, np.eye(2), parallax=(0, 1))
+    err = np.hypot(r.x - (p - r0)[0], r.y - (p - r0)[1])
+    # 2.2 px of bend at the edge: the affine patch is ~1 px off and its σ says so
+    assert not r.ok or err < 3 * r.sigma_y, (r.status, err, r.sigma_y)

@@ -1,0 +1,123 @@
+"""Point transfer through the fitted model (ops/transfer.py): the height searched, the shape the
+terrain slope predicts, transfers on a steep simulated project against the simulator's truth
+with a σ that holds, and the three-ray consistency test."""
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from prismstation.core.solve import solve
+from prismstation.ops.transfer import (FALLBACK_HEIGHT_RANGE_M, MIN_HEIGHT_RANGE_M, consistency,
+                                       local_shape, search_height, transfer)
+from tests.core.synth import make_points, make_scene
+
+
+@pytest.fixture(scope="module")
+def synth_sol():
+    sc = make_scene()
+    return solve(sc, make_points(sc, noise_px=0.2))
+
+
+def test_search_height_from_the_dem_else_the_mean(synth_sol):
+    sol = synth_sol
+    xy = (7000.0, 7000.0)
+    heights = [p.ground[2] for p in sol.observations if p.ground is not None]
+    h, r = search_height(sol, "N", xy)
+    assert h == pytest.approx(sol.mean_height) and r == pytest.approx(3 * np.std(heights, ddof=1))
+    plane = lambda en: 800.0 + 0.3 * (np.asarray(en)[:, 0] - 540000.0)  # noqa: E731
+    h, r = search_height(sol, "N", xy, height_of=plane, sigma_dem=5.0)
+    en = sol.image_to_ground("N", np.array(xy), h)
+    assert h == pytest.approx(plane(en[None])[0], abs=0.05) and r == MIN_HEIGHT_RANGE_M
+    h, r = search_height(sol, "N", xy, height_of=plane, sigma_dem=40.0)
+    assert r == pytest.approx(120.0)
+    void = lambda en: np.full(len(np.atleast_2d(en)), np.nan)  # noqa: E731
+    assert search_height(sol, "N", xy, height_of=void, sigma_mean=100.0) == (pytest.approx(sol.mean_height), 300.0)
+    assert search_height(sol, "N", (np.nan, 5.0)) == (sol.mean_height, FALLBACK_HEIGHT_RANGE_M)
+
+
+def test_a_slope_foreshortens_forward_and_backward_views_oppositely(synth_sol):
+    sol = synth_sol
+    xy = np.array([7000.0, 7000.0])
+    en = sol.image_to_ground("N", xy, 500.0)
+    t = sol.scene.track.foot(en)[1]                      # flight direction on the map
+    slope = 0.4                                          # rising 40 % along the flight
+    plane = lambda p: 500.0 + slope * ((np.asarray(p) - en) @ t)  # noqa: E731
+    _, _, level = local_shape(sol, "N", xy, "FB", h=500.0)
+    _, h, steep = local_shape(sol, "N", xy, "FB", h=500.0, height_of=plane)
+    assert h == pytest.approx(500.0, abs=0.01)
+    assert steep["F"].slope == pytest.approx(tuple(slope * t), abs=1e-6)
+    for v, sign in (("F", 1), ("B", -1)):
+        view = sol.scene.views[v]
+        d = level[v].A @ np.linalg.solve(sol.scene.views["N"].map_to_image.apply_linear(np.eye(2)), np.eye(2)) @ t
+        d = d / np.hypot(*d)                             # the flight direction in the view's image
+        # lengths along the flight stretch by 1 ± tanθ·slope (the view looks ahead / behind)
+        ratio = np.hypot(*(steep[v].A @ np.linalg.solve(level[v].A, d)))
+        assert ratio == pytest.approx(1 + sign * view.tan_theta * slope, abs=0.01), v
+        # the parallax direction: a metre of height moves the point along the flight by tanθ / GSD
+        assert np.hypot(*steep[v].dh) == pytest.approx(view.tan_theta / view.pixel_size_m, rel=0.02)
+
+
+@pytest.fixture(scope="module")
+def steep(tmp_path_factory, shared_data):
+    """A steep simulated project (a real DEM's relief, 42 % mean slope on 4,000 px), its fit on
+    the 9 GCPs and an SRTM-like reference of its truth."""
+    from prismstation.ops.project import create
+    from prismstation.io.project import load_project
+    from prismstation.ops.fit import solve_project
+    from prismstation.ops.reference_heights import load_for_scene
+    from prismstation.sim import simulate
+    from prismstation.sim.reference import make_reference_dem
+    d = tmp_path_factory.mktemp("steep")
+    simulate(d, size=1000, seed=4, terrain="dem", terrain_dem=shared_data / "srtm" / "N44E005.hgt",
+             terrain_centre=(5.696, 44.708))
+    make_reference_dem(d / "truth_dem.tif", d / "srtm.tif", seed=4)
+    create(d / "p.prismproj", d / "scene.json", d / "points.csv", d / "measurements.csv")
+    project = load_project(d / "p.prismproj")
+    truth = json.loads((d / "truth.json").read_text())
+    assert truth["terrain"]["statistics"]["mean_slope_pct"] > 30
+    return project, solve_project(project), load_for_scene(d / "srtm.tif", project), truth["points"]
+
+
+@pytest.mark.parametrize("with_dem", [True, False])
+def test_transfer_on_steep_relief_finds_the_points_and_says_how_well(steep, with_dem):
+    from prismstation.io.windows import ImageWindows
+    project, sol, dem, points = steep
+    found, errors, z = {"F": 0, "B": 0}, [], []
+    with ImageWindows(project.scene) as im:
+        for p in points:
+            tr = transfer(sol, im, "N", p["image"]["N"], height_of=dem if with_dem else None)
+            for v in "FB":
+                t = tr[v]
+                if not t.ok:
+                    assert t.match.reason                 # a failure says why
+                    continue
+                found[v] += 1
+                e = np.subtract((t.x, t.y), p["image"][v])
+                assert np.hypot(*e) < 1.0, (p["id"], v, e)  # never pixels wrong without a flag
+                errors.append(e)
+                z.append(e @ np.linalg.solve(t.match.cov, e))
+    n = len(points)
+    assert found["F"] >= 0.9 * n and found["B"] >= 0.9 * n, found
+    rms = np.sqrt(np.mean(np.sum(np.square(errors), axis=1)))
+    assert rms < 0.2, rms                                 # measured 0.07 px
+    assert 0.85 <= np.mean(np.array(z) < 5.991) <= 1.0    # the 95 % ellipse holds the errors
+
+
+def test_rays_that_do_not_meet_are_rejected(steep):
+    from prismstation.io.windows import ImageWindows
+    project, sol, dem, points = steep
+    p = points[3]
+    with ImageWindows(project.scene) as im:
+        tr = transfer(sol, im, "N", p["image"]["N"], height_of=dem)
+    assert tr["F"].ok and tr["B"].ok
+    h = p["h"]
+    assert all(t.ok for t in consistency(sol, "N", p["image"]["N"], tr, h).values())
+    # F off by 3 px along its parallax: the height it implies is not B's
+    d = tr["F"].match.extra["d"]
+    moved = dict(tr, F=replace(tr["F"], x=tr["F"].x + 3 * d[0], y=tr["F"].y + 3 * d[1]))
+    out = consistency(sol, "N", p["image"]["N"], moved, h)
+    assert out["F"].match.status == out["B"].match.status == "inconsistent"
+    assert "do not meet" in out["F"].match.reason
