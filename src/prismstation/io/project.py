@@ -61,7 +61,7 @@ def project_to_dict(project: Project, path) -> dict:
         "format": f"{FORMAT_NAME}/{VERSION}",
         "saved_by": f"prismstation {__version__}",
         "scene": scene,
-        "settings": asdict(project.settings),
+        "settings": settings_dict(project.settings),
         "geoid": geoid,
         "points": [
             {"id": p.id, "kind": p.kind, "E": _num(p.E), "N": _num(p.N), "H": _num(p.H),
@@ -78,6 +78,15 @@ def project_to_dict(project: Project, path) -> dict:
         **({REFERENCE_DEM: _relative(project.reference_dem, base)} if project.reference_dem else {}),
         **{k: v for k, v in project.other.items() if k not in _KNOWN},
     }
+
+
+def settings_dict(settings: Settings) -> dict:
+    """The settings as the project file and the report write them: ``fixed_view`` only when
+    set (files of models that hold no view fixed stay as they were)."""
+    d = asdict(settings)
+    if d.get("fixed_view") is None:
+        d.pop("fixed_view", None)
+    return d
 
 
 def save_project(project: Project, path) -> None:

@@ -90,6 +90,14 @@ def report_header(scene, *, scene_path=None, project_path=None, operator: str | 
             "orientation": "reference DEM" if orientation == "dem" else "GCP"}
 
 
+def _settings(settings) -> dict:
+    """The fit's settings (``fixed_view`` only when a view was held fixed)."""
+    d = dict(settings.__dict__)
+    if d.get("fixed_view") is None:
+        d.pop("fixed_view", None)
+    return d
+
+
 def _bias_dict(fit) -> dict:
     d = {"model": fit.model, "M": fit.M, "b": fit.b,
          "parameters": {n: {"value": float(v), "std": float(s)} for n, v, s in zip(fit.names, fit.params, fit.std)}}
@@ -156,7 +164,7 @@ def report_dict(sol: Solution, *, project_path=None, geoid: str | None = None,
         header = report_header(sol.scene, project_path=project_path, orientation=sol.settings.orientation)
     out = {"format": REPORT_FORMAT, "program": header["software"], "header": header,
            "project": None if project_path is None else str(project_path),
-           "crs": sol.scene.crs, "geoid": geoid, "settings": sol.settings.__dict__,
+           "crs": sol.scene.crs, "geoid": geoid, "settings": _settings(sol.settings),
            "mean_height_m": sol.mean_height, "model": model, "statistics": stats,
            "points": points, "messages": list(sol.messages)}
     return plain(out)
