@@ -22,6 +22,8 @@ class PrismModel:
     parallax_models = prism.PARALLAX_MODELS
     height_source = "parallax"
     holds_view_fixed = False
+    description = "ALOS-PRISM 1B2 views"
+    workflows = frozenset({"fit", "report", "orient-dem", "dsm"})
 
     def __init__(self, scene, bias: dict | None = None):
         self.scene = scene

@@ -123,6 +123,11 @@ class RpcBias:
     def dof(self) -> int:
         return 0 if self.lsq is None else self.lsq.dof
 
+    @property
+    def reference_px(self) -> tuple[float, float]:
+        """``(x0, y0)`` px: the image point the parameters ``a0, b0`` are the bias at."""
+        return float(self.x0), float(self.y0)
+
     def biased(self, rpc: Rpc) -> BiasedRpc:
         return BiasedRpc(rpc, self.model, self.params, self.x0, self.y0)
 
@@ -148,6 +153,8 @@ class RpcModel:
     parallax_models = ()
     height_source = "intersection"
     holds_view_fixed = True
+    description = "images with RPCs"
+    workflows = frozenset({"fit", "report"})
 
     def __init__(self, scene, bias: dict | None = None):
         self.scene = scene

@@ -30,7 +30,7 @@ from prismstation.core.estimate import FailedFit
 from prismstation.core.lsq import LsqResult
 from prismstation.core.ray_dem import ray_meets_surface
 from prismstation.core.rpc_adjust import adjust
-from prismstation.core.rpc_bias import BIAS_MODELS, intersect_points
+from prismstation.core.rpc_bias import BIAS_MODELS, BIAS_NAMES, intersect_points
 from prismstation.core.rpc_model import RpcBias, RpcModel
 from prismstation.core.solve import PointResult, Settings, Solution, critical_value, statistics
 from prismstation.errors import DegenerateGeometry, ModelError
@@ -39,6 +39,23 @@ from prismstation.errors import DegenerateGeometry, ModelError
 GCP_EXACT_SIGMA_M = 1e-3
 #: the bias models tried, most parameters first, when the requested one is not determined
 LADDER = ("affine", "shift_drift", "shift")
+#: a-priori σ of the bias parameters (Grodecki & Dial 2003's a-priori covariance of the
+#: adjustment parameters): the constant terms ``a0``, ``b0`` in pixels — the RPCs of current
+#: pushbroom products locate within about 10 m (Pléiades 8.5 m CE90, WorldView-3 3.5 m CE90)
+#: — and the linear terms in pixels per 1,000 pixels. Where the data determine a parameter
+#: (σ of tenths of a pixel) the prior moves it by ~(σ/10)² of its value; where they do not (a
+#: shift along the lines with tie points only) it holds the parameter near zero with this σ.
+APRIORI_SHIFT_PX = 10.0
+APRIORI_LINEAR_PX = 2.0
+#: a parameter whose σ is more than this fraction of its a-priori σ is reported as not
+#: determined by the data
+UNDETERMINED = 0.5
+
+
+def apriori_sigma(kind: str) -> np.ndarray:
+    """``(p,)`` a-priori σ of the ``kind`` bias's parameters (:data:`APRIORI_SHIFT_PX`,
+    :data:`APRIORI_LINEAR_PX`)."""
+    return np.array([APRIORI_SHIFT_PX if n.endswith("0") else APRIORI_LINEAR_PX for n in BIAS_NAMES[kind]])
 
 
 def dem_needed(n_gcp: int, kind: str) -> bool:
@@ -69,7 +86,7 @@ def solve_rpc(scene, points, settings: Settings = Settings(), *, height_of=None,
     messages: list[str] = []
     failures: dict = {}
     ref = scene.reference_view
-    fixed_name = settings.fixed_view or (ref if not run.gcps else None)
+    fixed_name = settings.fixed_view or (ref if not run.gcps and kind != "none" else None)
     fixed = () if fixed_name is None else (names.index(fixed_name),)
     if not run.gcps and settings.fixed_view is None and kind != "none" and run.block:
         messages.append(f"no GCP: view {ref} held fixed; the other views' biases are relative to its RPC")
@@ -105,6 +122,7 @@ def solve_rpc(scene, points, settings: Settings = Settings(), *, height_of=None,
             failures[ref] = FailedFit(DegenerateGeometry(reason) if "determined" in reason else ModelError(reason))
         else:
             bias = run.biases(result, m, fixed)
+            messages += _undetermined(bias, result, bool(run.gcps) or bool(held.any()))
             if held.any():
                 messages.append(f"{int(held.sum())} tie points held to the reference DEM's heights "
                                 f"(σ {height_sigma_m:.1f} m): fewer GCPs than the {m} bias needs")
@@ -149,7 +167,7 @@ class _Block:
         n, g = len(self.block), len(self.gcps)
         rpcs = [self.scene.views[v].rpc for v in self.names]
         common = dict(bias=kind, fixed=fixed, n_points=n, gcp_point=np.arange(g), gcp_llh=self.gcp_llh,
-                      gcp_sigma=self.gcp_sigma)
+                      gcp_sigma=self.gcp_sigma, bias_sigma=apriori_sigma)
         held = np.zeros(n, bool)
         if height_of is None:
             return adjust(rpcs, self.point, self.image, self.xy, self.sigma, **common), held
@@ -302,6 +320,24 @@ class _Block:
                                    source[i] if e else None, gres, s if math.isfinite(s) else None, red,
                                    p.id == worst, note, sg))
         return out
+
+
+def _undetermined(bias: dict, res, controlled: bool) -> list[str]:
+    """Messages naming the parameters the data leave at their a-priori σ (:data:`UNDETERMINED`):
+    their value is the prior's zero, not a measurement."""
+    s0 = res.sigma0 if res.dof > 0 and math.isfinite(res.sigma0) and res.sigma0 > 0 else 1.0
+    out = []
+    for v, b in bias.items():
+        if b.fixed or not b.names:
+            continue
+        ratio = b.std / s0 / apriori_sigma(b.model)
+        weak = [n for n, r in zip(b.names, ratio) if r > UNDETERMINED]
+        if weak:
+            hint = ("" if controlled else ": tie points alone cannot tell a shift along the lines from a "
+                    "height; add GCPs or a reference DEM")
+            out.append(f"view {v}: {', '.join(weak)} not determined by the data (held near 0 by the "
+                       f"a-priori σ){hint}")
+    return out
 
 
 def _ground_sigma(s) -> tuple:

@@ -31,6 +31,10 @@ transfer and reports call it and never ask which model it is.
     whose height residuals the statistics count;
 ``holds_view_fixed``
     whether one view may be held fixed as the datum of a fit without ground control;
+``description``, ``workflows``
+    what the images are, in words (``"images with RPCs"``), and the commands that work on a
+    project of this model (``"fit"``, ``"report"``, ``"orient-dem"``, ``"dsm"``): the others
+    refuse it in one place (:func:`prismstation.ops.project.require_workflow`);
 ``fit(scene, points, settings, *, height_of, height_sigma_m, revision, control)``
     the model fitted to :class:`~prismstation.core.solve.PointObs` → a
     :class:`~prismstation.core.solve.Solution`: each view's bias with its covariance, every
@@ -102,6 +106,8 @@ class SensorModel(Protocol):
     parallax_models: ClassVar[tuple]
     height_source: ClassVar[str]
     holds_view_fixed: ClassVar[bool]
+    description: ClassVar[str]
+    workflows: ClassVar[frozenset]
 
     scene: object
     bias: Mapping[str, BiasParameters]

@@ -16,7 +16,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from prismstation import __version__
-from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
+from prismstation.core.prism import PARALLAX_MODELS
 from prismstation.core.solve import Settings
 from prismstation.errors import InputError
 from prismstation.io import geoid as geoid_mod
@@ -125,7 +125,7 @@ def load_project(path, *, scene_override=None) -> Project:
         raise InputError(f"scene file not found: {scene_path} (moved? open it with the scene relocated)",
                          path, line_of(text, "scene"))
     scene = read_scene(scene_path)
-    settings = _settings(data.get("settings", {}), path, text)
+    settings = _settings(data.get("settings", {}), path, text, scene)
     geoid = _geoid(data.get("geoid"), path, text)
     points, measurements = [], []
     for i, d in enumerate(_list(data, "points", path, text)):
@@ -189,8 +189,9 @@ def _number(v, minimum=None, strict=False) -> bool:
     return minimum is None or (v > minimum if strict else v >= minimum)
 
 
-def _settings(raw, path, text) -> Settings:
-    """The model settings of a project, each checked (a wrong type would fail in the fit)."""
+def _settings(raw, path, text, scene) -> Settings:
+    """The model settings of a project, each checked against what the scene's sensor model
+    offers (a wrong type would fail in the fit)."""
     line = line_of(text, "settings")
     if not isinstance(raw, dict):
         raise InputError('"settings": expected an object', path, line)
@@ -198,10 +199,14 @@ def _settings(raw, path, text) -> Settings:
         s = Settings(**raw)
     except TypeError as exc:
         raise InputError(f'"settings": {exc}', path, line) from None
-    checks = {"bias_model": (isinstance(s.bias_model, str) and s.bias_model in BIAS_MODELS,
-                             f"one of {', '.join(BIAS_MODELS)}"),
-              "parallax_model": (isinstance(s.parallax_model, str) and s.parallax_model in PARALLAX_MODELS,
-                                 f"one of {', '.join(PARALLAX_MODELS)}"),
+    sensor = scene.sensor
+    parallax = sensor.parallax_models or PARALLAX_MODELS  # kept as written where the model has none
+    checks = {"bias_model": (isinstance(s.bias_model, str) and s.bias_model in sensor.bias_models,
+                             f"one of {', '.join(sensor.bias_models)}"),
+              "parallax_model": (isinstance(s.parallax_model, str) and s.parallax_model in parallax,
+                                 f"one of {', '.join(parallax)}"),
+              "fixed_view": (s.fixed_view is None or (sensor.holds_view_fixed and s.fixed_view in scene.views),
+                             f"null or one of {', '.join(scene.views)}" if sensor.holds_view_fixed else "null"),
               "sigma_px": (_number(s.sigma_px, 0.0, strict=True), "a positive number"),
               "blunder_threshold": (_number(s.blunder_threshold, 0.0, strict=True), "a positive number"),
               "mean_height": (s.mean_height is None or _number(s.mean_height), "a number or null"),
