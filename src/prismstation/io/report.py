@@ -170,6 +170,8 @@ def report_dict(sol: Solution, *, project_path=None, geoid: str | None = None,
         if p.ground_est is not None:
             d.update(E_est=p.ground_est[0], N_est=p.ground_est[1], h_est=p.ground_est[2],
                      height_source=p.height_source, lat_est=ll[1], lon_est=ll[0])
+        if getattr(p, "ground_sigma", None) is not None:
+            d.update(sigma_E=p.ground_sigma[0], sigma_N=p.ground_sigma[1], sigma_h=p.ground_sigma[2])
         if p.ground_residual is not None:
             d.update(dE=p.ground_residual[0], dN=p.ground_residual[1], dh=p.ground_residual[2])
         d.update(std_residual=p.std_residual, redundancy=p.redundancy, blunder=p.blunder)

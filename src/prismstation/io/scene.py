@@ -23,7 +23,7 @@ from prismstation.errors import InputError
 from prismstation.io import rpc_scene
 from prismstation.io.jsonfile import line_of, read_json
 
-FORMAT = "prismstation-scene/2"
+FORMAT = rpc_scene.SCENE_FORMAT  # "prismstation-scene/2"
 #: the versions read: 1 (PRISM views only), 2 (a view may be an image with RPCs)
 FORMATS = ("prismstation-scene/1", FORMAT)
 #: the sensor models a view may name (``"model"``), the PRISM one when it names none
