@@ -1,12 +1,13 @@
-"""A project of images with RPCs through the command line, on the real Pléiades triplet (Aubagne).
+"""A project of images with RPCs through the command line, on the real Pléiades triplet (Aubagne)
+and the Réunion pair.
 
-Tie points are matched automatically between the three images (SIFT, then NCC and
+Tie points are matched automatically between the images (SIFT, then NCC and
 least-squares matching: :func:`prismstation.core.rpc_tiepoints.match_tie_points`) and given to
 ``new --images`` as a measurements file. ``fit`` then runs with the first image held fixed and
 the tie points held to a reference DEM. No DEM covering these crops is among the samples, so
 the reference is made from the products' own RPCs: the heights their unbiased intersection
 gives the tie points (``fit --bias none``), gridded at 5 m with 2 m of noise per node — a DEM
-whose common offset to the RPCs is zero. Known answer: the third image's RPC line offset moved
+whose common offset to the RPCs is zero. Known answer: the last image's RPC line offset moved
 by +30 px and its sample offset by −45 px in the scene file; the fit finds the moves back.
 """
 from __future__ import annotations
@@ -23,17 +24,18 @@ from scipy.interpolate import griddata
 from prismstation.cli import main
 from prismstation.core.rpc_tiepoints import match_tie_points
 
-pytestmark = pytest.mark.slow   # the matching: ~40 s on a busy 2-core machine
-FILES = [f"pleiades_triplet/img_0{i}.tif" for i in (1, 2, 3)]
+pytestmark = pytest.mark.slow   # the matching: ~40 s per block on a busy 2-core machine
+SETS = {"triplet": [f"pleiades_triplet/img_0{i}.tif" for i in (1, 2, 3)],
+        "reunion": ["pleiades_pair_reunion/img_01.tif", "pleiades_pair_reunion/img_02.tif"]}
 H_SIGMA = 2.0
 LINE_MOVE, SAMPLE_MOVE = 30.0, -45.0
 
 
-@pytest.fixture(scope="module")
-def block(shared_data, tmp_path_factory):
+@pytest.fixture(scope="module", params=list(SETS))
+def block(request, shared_data, tmp_path_factory):
     """The project's folder: the tie points' measurements, the project, the reference DEM."""
-    d = tmp_path_factory.mktemp("rpcproject")
-    images = [shared_data / f for f in FILES]
+    d = tmp_path_factory.mktemp(request.param)
+    images = [shared_data / f for f in SETS[request.param]]
     arrays = []
     for f in images:
         with rasterio.open(f) as ds:
@@ -44,9 +46,9 @@ def block(shared_data, tmp_path_factory):
         w.writerow(["id", "view", "x", "y", "sigma_px"])
         for j, i, xy, s in zip(tp.point, tp.image, tp.xy, tp.sigma):
             w.writerow([f"T{j:04d}", images[i].stem, float(xy[0]), float(xy[1]), float(s[0])])
-    assert main(["new", str(d / "aubagne.prismproj"), "--images", *map(str, images),
+    assert main(["new", str(d / "block.prismproj"), "--images", *map(str, images),
                  "--measurements", str(d / "ties.csv")]) == 0
-    assert main(["fit", str(d / "aubagne.prismproj"), "--bias", "none", "--json", str(d / "before.json")]) == 0
+    assert main(["fit", str(d / "block.prismproj"), "--bias", "none", "--json", str(d / "before.json")]) == 0
     before = json.loads((d / "before.json").read_text())
     _reference_dem(before, d / "dem.tif")
     return d, images, tp
@@ -80,12 +82,12 @@ def _tie_rms(report, view):
 
 def test_new_writes_a_versioned_rpc_scene(block):
     d, images, tp = block
-    scene = json.loads((d / "aubagne.scene.json").read_text())
+    scene = json.loads((d / "block.scene.json").read_text())
     assert scene["format"] == "prismstation-scene/2"
-    assert list(scene["views"]) == ["img_01", "img_02", "img_03"]
+    assert list(scene["views"]) == [f.stem for f in images]
     for v in scene["views"].values():
         assert v["model"] == "rpc" and len(v["rpc"]["line_num"]) == 20
-    project = json.loads((d / "aubagne.prismproj").read_text())
+    project = json.loads((d / "block.prismproj").read_text())
     assert project["settings"]["bias_model"] == "shift"
     assert len(project["measurements"]) == len(tp.point)
 
@@ -93,12 +95,12 @@ def test_new_writes_a_versioned_rpc_scene(block):
 def test_fit_with_one_image_fixed_removes_the_residuals(block, capsys):
     d, images, tp = block
     before = json.loads((d / "before.json").read_text())
-    after = _fit(d, "aubagne.prismproj", "after.json")
+    after = _fit(d, "block.prismproj", "after.json")
     bias = after["model"]["bias"]
     assert bias["img_01"]["fixed"] and bias["img_01"]["parameters"] == {}
     assert after["model"]["sensor"] == "rpc"
     assert 0.25 < bias["img_02"]["sigma0"] < 1.0          # the matcher's σ is not optimistic
-    for v in ("img_01", "img_02", "img_03"):
+    for v in (f.stem for f in images):
         b, a = _tie_rms(before, v), _tie_rms(after, v)
         assert a["x"]["n"] == b["x"]["n"] > 150
         print(f"{v}: tie RMS x/y before {b['x']['rms']:.3f}/{b['y']['rms']:.3f} px, "
@@ -110,48 +112,49 @@ def test_fit_with_one_image_fixed_removes_the_residuals(block, capsys):
     assert all(p["height_source"] == "intersection" for p in ties if "h_est" in p)
     assert sum(p["blunder"] for p in after["points"]) <= 1
     # the text report: a column per image
-    assert main(["fit", str(d / "aubagne.prismproj"), "--fixed-view", "img_01"]) == 0
+    assert main(["fit", str(d / "block.prismproj"), "--fixed-view", "img_01"]) == 0
     out = capsys.readouterr().out
-    assert "Image residuals per view (px)" in out and "img_03" in out
+    assert "Image residuals per view (px)" in out and images[-1].stem in out
     assert "b0 not determined by the data" in out   # no GCP and no DEM: honest about the line bias
 
 
 def test_known_offsets_found_back(block):
-    """img_03's RPC moved by +30 px along the lines and −45 px across them in the scene file:
-    its fitted bias moves by −30 and +45 px, to within its σ."""
+    """The last image's RPC moved by +30 px along the lines and −45 px across them in the scene
+    file: its fitted bias moves by −30 and +45 px, to within its σ."""
     d, images, tp = block
-    ref = _fit(d, "aubagne.prismproj", "after.json")
-    scene = json.loads((d / "aubagne.scene.json").read_text())
-    scene["views"]["img_03"]["rpc"]["line_off"] += LINE_MOVE
-    scene["views"]["img_03"]["rpc"]["samp_off"] += SAMPLE_MOVE
+    last = images[-1].stem
+    ref = _fit(d, "block.prismproj", "after.json")
+    scene = json.loads((d / "block.scene.json").read_text())
+    scene["views"][last]["rpc"]["line_off"] += LINE_MOVE
+    scene["views"][last]["rpc"]["samp_off"] += SAMPLE_MOVE
     (d / "moved.scene.json").write_text(json.dumps(scene))
-    project = json.loads((d / "aubagne.prismproj").read_text())
+    project = json.loads((d / "block.prismproj").read_text())
     project["scene"] = "moved.scene.json"
     (d / "moved.prismproj").write_text(json.dumps(project))
     moved = _fit(d, "moved.prismproj", "moved.json")
-    b0, b1 = ref["model"]["bias"]["img_03"]["parameters"], moved["model"]["bias"]["img_03"]["parameters"]
+    b0, b1 = ref["model"]["bias"][last]["parameters"], moved["model"]["bias"][last]["parameters"]
     for name, move in (("a0", SAMPLE_MOVE), ("b0", LINE_MOVE)):
         found = b1[name]["value"] - b0[name]["value"]
         print(f"{name}: moved {move:+.1f} px, found {-found:+.3f} ± {b1[name]['std']:.3f} px")
         assert abs(found + move) < b1[name]["std"], (name, found, b1[name]["std"])
     # the other images' biases and the residuals do not notice
-    for v in ("img_01", "img_02"):
+    for v in (f.stem for f in images):
         for c in "xy":
             assert abs(_tie_rms(moved, v)[c]["rms"] - _tie_rms(ref, v)[c]["rms"]) < 0.01
 
 
 def test_report_and_refusals(block, capsys):
     d, images, tp = block
-    assert main(["report", str(d / "aubagne.prismproj"), "--fixed-view", "img_01", "--dem", str(d / "dem.tif"),
+    assert main(["report", str(d / "block.prismproj"), "--fixed-view", "img_01", "--dem", str(d / "dem.tif"),
                  "--dem-sigma", "2", "-o", str(d / "report.csv")]) == 0
     rows = list(csv.DictReader(open(d / "report.csv")))
-    assert {r["view"] for r in rows} == {"img_01", "img_02", "img_03"}
+    assert {r["view"] for r in rows} == {f.stem for f in images}
     assert all(r["vx_px"] != "" for r in rows)
     capsys.readouterr()
-    assert main(["orient-dem", str(d / "aubagne.prismproj"), str(d / "dem.tif")]) == 2
-    assert main(["dsm", str(d / "aubagne.prismproj"), "-o", str(d / "dsm.tif")]) == 2
+    assert main(["orient-dem", str(d / "block.prismproj"), str(d / "dem.tif")]) == 2
+    assert main(["dsm", str(d / "block.prismproj"), "-o", str(d / "dsm.tif")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and all("not available yet for images with RPCs" in e for e in err), err
-    assert main(["fit", str(d / "aubagne.prismproj"), "--bias", "similarity"]) == 2
-    assert main(["fit", str(d / "aubagne.prismproj"), "--fixed-view", "N"]) == 2
+    assert main(["fit", str(d / "block.prismproj"), "--bias", "similarity"]) == 2
+    assert main(["fit", str(d / "block.prismproj"), "--fixed-view", "N"]) == 2
     assert main(["new", str(d / "one.prismproj"), "--images", str(images[0])]) == 2

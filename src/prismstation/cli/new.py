@@ -48,4 +48,7 @@ def run(args) -> int:
     kinds = [p.kind for p in project.points.values()]
     print(f"{args.project}: {kinds.count('GCP')} GCP, {kinds.count('ICP')} ICP, "
           f"{kinds.count('TIE')} tie points, {n_ms} measurements")
+    if args.images:
+        print(f"{scene_path}: {len(project.scene.views)} {project.scene.sensor.description} "
+              f"({', '.join(project.scene.views)}), CRS {project.scene.crs}")
     return 0
