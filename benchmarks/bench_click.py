@@ -78,6 +78,7 @@ def main(argv=None) -> int:
     win.show()
     t0 = time.perf_counter()
     win.open_project(str(demo.path), recover=False)
+    win.default_layout()  # the docks sized for this window, not for the (offscreen) screen
     wait_settled(win)
     t_open = time.perf_counter() - t0
     # warm up (imports, caches), then the current point: a GCP shown at 1 image px per screen px

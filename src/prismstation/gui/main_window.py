@@ -136,7 +136,7 @@ class MainWindow(QMainWindow):
         self.files.message.connect(lambda m: self.statusBar().showMessage(m, 8000))
         self.files.recent_changed.connect(self._fill_recent)
         self.undo_stack.cleanChanged.connect(self._on_clean_changed)
-        self.undo_stack.indexChanged.connect(lambda *_: self._update_actions())
+        self.undo_stack.indexChanged.connect(self._on_edit)
         self.solver.solution_changed.connect(self.on_solution)
         self.solver.failed.connect(lambda m: self.statusBar().showMessage(m, 10000))
         self.views.place_requested.connect(self.place)
@@ -180,6 +180,7 @@ class MainWindow(QMainWindow):
         project.changed.connect(self._on_project_changed)
         self.views.height_of = None
         self.views.set_project(project)
+        self._clear_status()
         split = st.value(st.Key.SPLITTER)
         if split is not None and not split.isEmpty():
             self.views.splitter.restoreState(split)
@@ -216,6 +217,12 @@ class MainWindow(QMainWindow):
         self._measured_timer.start()
         if self.current is not None and self.current not in self.project.points:
             self.set_current(None)  # undone or deleted: no current point that does not exist
+
+    def _on_edit(self, *_) -> None:
+        """An edit (or its undo, redo) went through: a message about an earlier one (a refused
+        value, a failed fit) no longer holds."""
+        self.statusBar().clearMessage()
+        self._update_actions()
 
     def _on_clean_changed(self, clean: bool) -> None:
         self.setWindowModified(not clean)
@@ -366,6 +373,14 @@ class MainWindow(QMainWindow):
             a.setEnabled(bool(has_c))
 
     # ------------------------------------------------------------------ cursor and status
+    def _clear_status(self) -> None:
+        """No figure of the previous project: cursor positions, ground, fit time, message."""
+        for v, lab in self.status_xy.items():
+            lab.setText(f"{v}  —")
+        self.status_ground.setText("E —  N —  h —")
+        self.status_fit.setText("")
+        self.statusBar().clearMessage()
+
     def on_cursor(self, view, x, y, linked, ground) -> None:
         pos = dict(linked)
         pos[view] = (x, y)

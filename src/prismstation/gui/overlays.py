@@ -100,8 +100,23 @@ class LabelLayer(pg.GraphicsObject):
         self._xy = np.array([(x, y) for x, y, _, _ in self.labels], float).reshape(-1, 2)
         self.update()
 
-    def boundingRect(self) -> QRectF:  # everywhere: labels extend in screen pixels
-        return QRectF(-1e9, -1e9, 2e9, 2e9)
+    def boundingRect(self) -> QRectF:
+        """The visible area of the view (image pixels): labels extend in screen pixels from
+        points anywhere, and whatever is seen lies in it. Not "everywhere": Qt maps the rect of
+        an update to the screen in integers, and a rect of ±1e9 image pixels overflowed them
+        when zoomed in past ~2×, so a label's own repaint was dropped (an undone label stayed
+        on screen, a new one showed where other items happened to repaint)."""
+        return QRectF(self._view_rect)
+
+    _view_rect = QRectF()
+
+    def viewRangeChanged(self) -> None:  # pyqtgraph: the view box moved or zoomed
+        vb = self.getViewBox()
+        rect = vb.viewRect() if vb is not None else QRectF()
+        if rect != self._view_rect:
+            self.prepareGeometryChange()
+            self._view_rect = QRectF(rect)
+        super().viewRangeChanged()
 
     def paint(self, p, option, *args) -> None:
         if not self.labels:

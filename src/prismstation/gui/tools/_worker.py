@@ -132,11 +132,13 @@ def run_with_progress(window, title: str, fn, on_result, *, on_failed=None, dial
         dlg.setAutoClose(False)
         dlg.setAutoReset(False)
         dlg.canceled.connect(job.cancel)
+        dlg.canceled.connect(lambda: window.statusBar().showMessage(
+            f"{title}: cancelling (the step running now ends first)"))
         dlg.show()
 
     def progressed(f, m):  # a report sent before the window closed may arrive after
-        if not shiboken6.isValid(window):
-            return
+        if not shiboken6.isValid(window) or job.is_cancelled():
+            return  # after Cancel: no percentage that then stays on the status bar
         if dlg is not None and shiboken6.isValid(dlg):
             dlg.setMaximum(1000)
             dlg.setValue(int(round(1000 * min(max(f, 0.0), 1.0))))
