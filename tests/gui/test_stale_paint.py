@@ -80,15 +80,17 @@ def test_a_good_edit_takes_an_old_error_off_the_status_bar(qtbot, window):
 
 def test_opening_another_project_shows_none_of_the_previous_ones_figures(qtbot, window, demo_master):
     from PySide6.QtCore import QPoint
+
+    from prismstation.gui.app import wait_settled
     win = window
     other = str(demo_master.path)
     assert win.open_project(other, recover=False)             # now a recent file
     assert win.open_project(win.demo.path, recover=False)
-    qtbot.waitUntil(lambda: not win.views.loading(), timeout=5000)
+    assert wait_settled(win)
     vp = win.views.views["N"].graphics.viewport()
     qtbot.mouseMove(vp, QPoint(vp.width() // 2, vp.height() // 2))   # the cursor over N
-    qtbot.waitUntil(lambda: win.status_xy["N"].text().startswith("N  x "), timeout=3000)
-    assert win.status_ground.text().startswith("E ") and "—" not in win.status_ground.text()
+    qtbot.waitUntil(lambda: win.status_xy["N"].text().startswith("N  x ")
+                    and "—" not in win.status_ground.text(), timeout=3000)
     action = next(a for a in win.recent_menu.actions() if a.text() == other)
     action.trigger()                                          # File ▸ Recent ▸ the other one
     qtbot.waitUntil(lambda: str(win.files.path) == other, timeout=5000)

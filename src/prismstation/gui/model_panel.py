@@ -15,6 +15,7 @@ from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QHBoxLayo
                                QPushButton, QScrollArea, QSizePolicy, QVBoxLayout, QWidget)
 
 from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
+from prismstation.gui.fit_checks import blunder_test, parallax_check
 
 SECTION_COLOR = QColor("#1d3c6e")
 HEAD_BG = QColor("#dde4ee")
@@ -35,7 +36,8 @@ def _stat_rows(cols, stats=("n", "min", "max", "mean", "rms")) -> list[list[str]
 
 def solution_sections(sol) -> tuple[list, list]:
     """What the panel shows: ``([(title, head, rows), ...], [(text, severity), ...])`` with
-    ``rows`` lists of strings; severity ``"bad"`` (blunder) or ``"warn"`` (engine message)."""
+    ``rows`` lists of strings; severity ``"bad"`` (a blunder, a parallax model that does not fit
+    the GCPs), ``"warn"`` (engine message) or ``"info"``."""
     if sol is None:
         return [], [("No fit yet.", "warn")]
     sections = []
@@ -46,9 +48,11 @@ def solution_sections(sol) -> tuple[list, list]:
         rows = [[n, f"{p:+.6g}", f"{sd:.2g}" if sd == sd else "—"] for n, p, sd in zip(fit.names, fit.params, fit.std)]
         sections.append((title, ["", "value", "σ"], rows or [["not fitted", "", ""]]))
     par = sol.parallax
+    check = parallax_check(sol)
     if par is not None:
         s0 = par.sigma0
-        sections.append((f"Parallax line h = c0 + c1·py ({par.used})" + (f" — σ0 = {_f(s0)} m" if s0 is not None else ""),
+        sections.append((f"Parallax line h = c0 + c1·py ({par.used})" + (f" — σ0 = {_f(s0)} m" if s0 is not None else "")
+                         + (" — does not fit the GCPs" if check is not None and not check.fits else ""),
                          ["", "value", "σ", "theory"],
                          [["c0 (m)", _f(par.c0, 2, True), _f(par.std_c0), "0"],
                           ["c1 (m/px)", _f(par.c1, 4), _f(par.std_c1, 4), _f(par.c1_theory, 4)]]
@@ -75,9 +79,19 @@ def solution_sections(sol) -> tuple[list, list]:
         rows.append(["plan. RMS", "", _f(g.planimetric_rms), "", _f(i.planimetric_rms)])
         sections.append(("Ground residuals, estimated − known (m)",
                          ["", "GCP dE", "GCP dN", "ICP dE", "ICP dN"], rows))
-    notes = [(f"Possible blunder: {r.id} (standardised residual {_f(r.std_residual)}, threshold "
-              f"{_f(sol.settings.blunder_threshold, 2)})", "bad") for r in sol.points if r.blunder]
+    test = blunder_test(sol)
+    thr = _f(test.threshold, 2)
+    if test.fits:
+        sections.append((f"Blunder test — threshold {thr} (α = {test.alpha:.2g}) for every fit",
+                         ["fit", "redundancy", "blunder at |w| >"],
+                         [[label, str(dof), _f(c, 2)] for label, dof, c in test.fits]))
+    notes = [(f"Blunder: {r.id} — standardised residual {_f(r.std_residual)} > {thr}", "bad")
+             for r in sol.points if r.blunder]
+    if check is not None:
+        notes.append((check.text(), "info" if check.fits else "bad"))
     notes += [(m, "warn") for m in sol.messages]
+    if test.fits:
+        notes.append((test.reason(), "info"))
     return sections, notes
 
 
@@ -139,7 +153,7 @@ class _Sections(QWidget):
     def _update_hint(self) -> None:
         rh = self._row_height()
         h = 4 + sum(self.TITLE_GAP + rh * (2 + len(rows)) for _, _, rows in self._sections)
-        h += sum(self._note_rect(t, sev == "bad").height() + 2 for t, sev in self._notes)
+        h += sum(self._note_rect(t, sev == "bad").height() + 2 for t, sev in self._notes) + self.TITLE_GAP
         # the height only grows while the layout keeps its shape: a note that comes and goes
         # with every click (a blunder) must not relayout the scroll area each time
         if self._shape == self._hint_shape:
@@ -171,6 +185,8 @@ class _Sections(QWidget):
         right = int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
         text_color = self.palette().color(QPalette.ColorRole.WindowText)
         y = 2
+        first = [n for n in self._notes if n[1] == "bad"]   # what is wrong: above the tables
+        y = self._paint_notes(p, first, x0, y)
         for title, head, rows in self._sections:
             y += self.TITLE_GAP
             if top <= y <= bottom:
@@ -190,14 +206,22 @@ class _Sections(QWidget):
                         p.drawText(QRect(x + pad, y, w - 2 * pad, rh), left if c == 0 else right, t)
                         x += w
                 y += rh
-        for text, sev in self._notes:
+        if first:
+            y += self.TITLE_GAP
+        self._paint_notes(p, [n for n in self._notes if n[1] != "bad"], x0, y)
+        p.end()
+
+    def _paint_notes(self, p, notes, x0, y) -> int:
+        """Draw ``notes`` wrapped from ``y`` down; the y below them."""
+        text_color = self.palette().color(QPalette.ColorRole.WindowText)
+        for text, sev in notes:
             bold = sev == "bad"
             p.setFont(self._bold if bold else self.font())
-            p.setPen(BAD_COLOR if bold else WARN_COLOR)
-            rect = self._note_rect(text, bold).translated(x0 + pad, y)
+            p.setPen(BAD_COLOR if bold else WARN_COLOR if sev == "warn" else text_color)
+            rect = self._note_rect(text, bold).translated(x0 + self.PAD, y)
             p.drawText(rect, int(Qt.TextFlag.TextWordWrap), text)
             y += rect.height() + 2
-        p.end()
+        return y
 
     def plain_text(self) -> str:
         lines = []
@@ -241,7 +265,10 @@ class ModelPanel(QWidget):
                              "scales the standardised residuals; σ0 near 1× this means the "
                              "measurements are as good as assumed"),
                 (self.threshold, "A GCP whose standardised residual exceeds this is flagged as a "
-                                 "possible blunder (about 3 for 99.7 % under normal errors)")):
+                                 "blunder: 3.29 tests at α = 0.001. Residuals are shown on the "
+                                 "normal scale, so this one figure holds for every fit; the "
+                                 "critical |w| it means for each fit's redundancy (Student's t) "
+                                 "is listed under Blunder test")):
             w.setToolTip(tip)
         form = QFormLayout()
         form.addRow("Bias model", self.bias)

@@ -34,11 +34,10 @@ class PlotData:
     view : str, the view of the residual vectors (the reference view, N for a triplet).
     vec_gcp_xy, vec_gcp_v, vec_icp_xy, vec_icp_v : (n, 2) arrays
         Measured image position (x column, y row, pixels) and residual (measured − predicted).
-    std_ids : tuple of str, GCPs with a standardised residual; ``std_values`` (n,) their values.
-    blunder : str or None, the id of the flagged GCP. ``threshold``: the rejection threshold.
+    std_ids : tuple of str, GCPs with a standardised residual; ``std_values`` (n,) their values
+        (on the normal scale: one threshold for every fit, :mod:`prismstation.gui.fit_checks`).
+    blunders : tuple of str, the ids of the flagged GCPs. ``threshold``: the blunder threshold.
     image_shape : (rows, cols) of the view, or None.
-    critical : tuple of (label, value)
-        The critical values the threshold becomes for each fit's redundancy (Student's t).
     """
 
     gcp_py: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -59,19 +58,18 @@ class PlotData:
     vec_icp_ids: tuple = ()
     std_ids: tuple = ()
     std_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    blunder: str | None = None
-    threshold: float = 3.0
+    blunders: tuple = ()
+    threshold: float = 3.29
     image_shape: tuple | None = None
-    critical: tuple = ()
 
     @classmethod
-    def from_records(cls, records, *, parallax=None, view="N", threshold=3.0,
-                     image_shape=None, dofs=()) -> "PlotData":
+    def from_records(cls, records, *, parallax=None, view="N", threshold=3.29,
+                     image_shape=None) -> "PlotData":
         """From per-point tuples ``(id, kind, py, h_known, xy, v, std_residual, blunder)``
         (``py``, ``h_known``, ``xy``, ``v``, ``std_residual`` may be None)."""
         h_rows = {"GCP": ([], [], []), "ICP": ([], [], [])}
         v_rows = {"GCP": ([], [], []), "ICP": ([], [], [])}
-        std_ids, std_vals, blunder = [], [], None
+        std_ids, std_vals, blunders = [], [], []
         for pid, kind, py, h, xy, v, s, bl in records:
             if kind not in h_rows:
                 continue
@@ -85,14 +83,14 @@ class PlotData:
                 std_ids.append(pid)
                 std_vals.append(s)
             if bl:
-                blunder = pid
+                blunders.append(pid)
         c0, c1, c1t = (None, None, None) if parallax is None else parallax
         return cls(_arr(h_rows["GCP"][1]), _arr(h_rows["GCP"][2]), _arr(h_rows["ICP"][1]),
                    _arr(h_rows["ICP"][2]), tuple(h_rows["GCP"][0]), tuple(h_rows["ICP"][0]),
                    c0, c1, c1t, view, _xy(v_rows["GCP"][1]), _xy(v_rows["GCP"][2]),
                    _xy(v_rows["ICP"][1]), _xy(v_rows["ICP"][2]), tuple(v_rows["GCP"][0]),
-                   tuple(v_rows["ICP"][0]), tuple(std_ids), _arr(std_vals), blunder,
-                   float(threshold), image_shape, _critical(threshold, dofs))
+                   tuple(v_rows["ICP"][0]), tuple(std_ids), _arr(std_vals), tuple(blunders),
+                   float(threshold), image_shape)
 
     @classmethod
     def from_solution(cls, sol) -> "PlotData":
@@ -110,12 +108,9 @@ class PlotData:
         par = sol.parallax
         line = None if par is None else (par.c0, par.c1, par.c1_theory)
         v = sol.scene.views[view]
-        lsq_n = getattr(sol.bias.get(view), "lsq", None)
-        dofs = [(f"{view} bias", None if lsq_n is None else lsq_n.dof),
-                ("parallax", None if par is None or par.lsq is None else par.lsq.dof)]
         return cls.from_records(recs, parallax=line, view=view,
                                 threshold=sol.settings.blunder_threshold,
-                                image_shape=getattr(v, "shape", None), dofs=dofs)
+                                image_shape=getattr(v, "shape", None))
 
     @classmethod
     def from_report(cls, report: dict) -> "PlotData":
@@ -133,25 +128,8 @@ class PlotData:
                          p.get("blunder")))
         par = report.get("model", {}).get("parallax")
         line = None if not par else (par.get("c0"), par.get("c1"), par.get("c1_theoretical"))
-        thr = (report.get("settings") or {}).get("blunder_threshold", 3.0)
-        dofs = [(f"{view} bias", (bias.get(view) or {}).get("dof")),
-                ("parallax", (par or {}).get("dof"))]
-        return cls.from_records(recs, parallax=line, view=view, threshold=thr, dofs=dofs)
-
-
-def _critical(threshold, dofs) -> tuple:
-    """``((label, critical value), ...)`` for the fits with a redundancy (see core.solve)."""
-    try:
-        from prismstation.core.solve import critical_value
-    except ImportError:  # an engine without the t-based critical value
-        return ()
-    out = []
-    for label, dof in dofs:
-        if dof:
-            c = critical_value(threshold, int(dof))
-            if np.isfinite(c) and abs(c - threshold) > 1e-3:
-                out.append((f"{label} (dof {int(dof)})", float(c)))
-    return tuple(out)
+        thr = (report.get("settings") or {}).get("blunder_threshold", 3.29)
+        return cls.from_records(recs, parallax=line, view=view, threshold=thr)
 
 
 def auto_exaggeration(data: PlotData) -> float:

@@ -85,7 +85,7 @@ def test_standardised_residuals_threshold_and_blunder(widget, fitted):
     d = PlotData.from_report(report_dict(sol))
     np.testing.assert_allclose(d.std_values, y)
     np.testing.assert_allclose(d.gcp_h, _xy(widget.h_gcp)[1])
-    assert d.blunder == BLUNDER_ID
+    assert d.blunders == (BLUNDER_ID,)
 
 
 def test_update_reuses_items_and_is_fast(widget, qtbot):
