@@ -3,6 +3,7 @@ location (the user's own settings are never touched)."""
 from __future__ import annotations
 
 import fcntl
+import os
 import shutil
 
 import pytest
@@ -46,7 +47,10 @@ def real_demo_master(tmp_path_factory):
     20 tie points, SRTM-like reference): made once per test session (a minute), shared by
     the xdist workers through a lock."""
     from prismstation.cli.demo import ensure_demo
-    base = tmp_path_factory.getbasetemp().parent / "real_demo"
+    base = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):  # the workers' base folders share this session's
+        base = base.parent
+    base = base / "real_demo"
     base.mkdir(exist_ok=True)
     with open(base / ".lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
