@@ -70,6 +70,7 @@ class MainWindow(QMainWindow):
         self.loupe_box = QWidget()
         QHBoxLayout(self.loupe_box).setContentsMargins(2, 2, 2, 2)
         self.contrast_tabs = QTabWidget()
+        self.contrast_tabs.setDocumentMode(True)  # a slim tab bar: the dock is short
         self.plots = PlotsWidget(own_exaggeration=False)
         self.docks = {}
         self._dock("points", "Points", self.table, Qt.DockWidgetArea.BottomDockWidgetArea)
@@ -95,6 +96,7 @@ class MainWindow(QMainWindow):
         for k, d in self.docks.items():  # a panel opened never makes the window grow
             if k not in own_docks:
                 d.setWidget(window_layout.scrolled(d.widget()))
+                window_layout.tab_when_shown(self, d)  # ... nor squeeze the model panel
         menus.fill_panels_menu(self)
         self._work_state = None  # the docks' state while the start page is up
         if interactive:
