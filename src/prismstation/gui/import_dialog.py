@@ -25,7 +25,7 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QDialog, QDialogButtonBox, 
 
 from prismstation.errors import InputError
 from prismstation.io import pointfiles
-from prismstation.io.csvtable import guess_delimiter
+from prismstation.io.csvtable import guess_delimiter, read_text
 from prismstation.gui.import_csv import (DELIMITERS, GROUND_FIELDS, MEASUREMENT_FIELDS, NONE,
                                          PREVIEW_ROWS, guess_mapping, guess_view, shared_columns,
                                          has_decimal_comma, is_point_file, read_mapped,
@@ -95,9 +95,12 @@ class ImportDialog(QDialog):
     crs : str
         The project CRS; ground points are converted into it from the source CRS.
     parent : QWidget, optional
+    height_kind : str
+        The kind of the heights of rows and files that do not say (the project's,
+        :meth:`Project.height_kind`, unless the operator chooses the other).
     """
 
-    def __init__(self, scene_views, crs, parent=None):
+    def __init__(self, scene_views, crs, parent=None, height_kind: str = "ellipsoidal"):
         super().__init__(parent)
         self.setWindowTitle("Import points or measurements")
         self.views = list(scene_views)
@@ -133,6 +136,9 @@ class ImportDialog(QDialog):
         self.crs_status = QLabel()
         self.height_kind = QComboBox()
         self.height_kind.addItems(list(HEIGHT_KINDS))
+        self.height_kind.setCurrentText(height_kind)
+        self.height_kind.setToolTip(f"The project's points are {height_kind} (most of them): rows "
+                                    "without a height kind are read as this")
         self.columns_box = QGroupBox("Columns")
         self.columns_form = QFormLayout(self.columns_box)
         self.combos: dict[str, QComboBox] = {}
@@ -213,10 +219,14 @@ class ImportDialog(QDialog):
         self.path_edit.setText(str(path))
         self._pf = None
         try:
-            self._text = path.read_text(encoding="utf-8-sig")
-        except (OSError, UnicodeDecodeError) as exc:
+            self._text = read_text(path)
+        except InputError as exc:  # nothing of the previous file stays on show
             self._text = ""
-            self._show_errors([InputError(f"cannot read: {exc}", path)])
+            self._clear_form()
+            self.format_label.setText("")
+            self.preview_model.set_content([], [])
+            self._show_errors([InputError(f"{exc.problem}: a point or measurement file is text "
+                                          "(CSV, QGIS .points, ODM gcp_list.txt or ASP .gcp)", path)])
             return
         point_file = is_point_file(path)
         self.delimiter.setEnabled(not point_file)

@@ -23,7 +23,8 @@ def import_points(window) -> None:
     if window.project is None:
         return
     from prismstation.gui.import_dialog import ImportDialog
-    dlg = ImportDialog(list(window.project.scene.views), window.project.scene.crs, window)
+    dlg = ImportDialog(list(window.project.scene.views), window.project.scene.crs, window,
+                       height_kind=window.project.height_kind())
     if dlg.exec():
         points, ms = dlg.result()
         push_import(window, points, ms)

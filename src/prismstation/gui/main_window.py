@@ -452,7 +452,7 @@ class MainWindow(QMainWindow):
         st.set_value(st.Key.SHOW_LABELS, self.a_labels.isChecked())
 
     def closeEvent(self, ev) -> None:
-        if not self.files.maybe_save():
+        if not self.tool_context.may_close() or not self.files.maybe_save():
             ev.ignore()
             return
         self.save_layout()

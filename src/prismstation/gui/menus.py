@@ -46,6 +46,7 @@ def build_actions(win) -> None:
     win.a_export = act(win, "&Export report…", lambda: win.export_report(), "Ctrl+E",
                        tip="The fit's report as HTML, PDF, CSV or text")
     win.a_quit = act(win, "&Quit", lambda: win.close(), K.Quit)
+    win.a_quit.setShortcutContext(Qt.ShortcutContext.ApplicationShortcut)  # also from a progress dialog
     win.a_undo = win.undo_stack.createUndoAction(win, "&Undo")
     win.a_undo.setShortcuts(K.Undo)
     win.a_undo.setIcon(win.style().standardIcon(S.SP_ArrowBack))

@@ -1,7 +1,8 @@
 """Editing points' ground data in the point table, by paste, and by coordinates.
 
-The table's ID, Kind, E, N, H, σ plan and σ h cells are typed into (double-click or F2, type,
-Enter); each edit is one undoable :class:`~prismstation.gui.commands.EditPoint`. Ctrl+V on the
+The table's ID, Kind, E, N, H, Height (its kind), σ plan and σ h cells are typed into
+(double-click or F2, type, Enter); each edit is one undoable
+:class:`~prismstation.gui.commands.EditPoint`. Ctrl+V on the
 table pastes text copied from a spreadsheet or a text file (tabs, commas, semicolons or
 spaces between fields), as one undoable step:
 
@@ -11,14 +12,17 @@ spaces between fields), as one undoable step:
   per row downwards.
 
 *New point from coordinates…* adds a GCP or ICP by its known E, N, H first; it is then the
-current point, to be measured in each view. Units: metres of the project CRS; H of the kind
-the point's height kind names (new points: the kind most points of the project have).
+current point, to be measured in each view; the views are driven to where the model puts it.
+
+Units: metres of the project CRS; H of the kind the point's height kind names. One rule for
+every height entered without a kind — typed into a point that had none, pasted, by
+coordinates, imported — :meth:`Project.height_kind` (the kind most points of the project have),
+unless the operator says otherwise (the Height cell, the dialogs' height-kind choice).
 """
 from __future__ import annotations
 
 import math
 import re
-from collections import Counter
 from dataclasses import replace
 
 from PySide6.QtCore import QEvent, Qt, QTimer
@@ -29,6 +33,7 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QFormLayout
 from prismstation.errors import InputError, PrismError
 from prismstation.gui import commands as cmd
 from prismstation.gui.point_table import COLUMNS, EDITABLE
+from prismstation.gui.titles import fit_title
 from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint
 
 _FIELD = {"E (m)": "E", "N (m)": "N", "H (m)": "H", "σ plan (m)": "sigma_xy_m", "σ h (m)": "sigma_h_m"}
@@ -53,8 +58,18 @@ def parse_number(text: str, what: str, *, sigma: bool = False) -> float | None:
     return v
 
 
-def edited_point(point: GroundPoint, column: str, text: str) -> GroundPoint:
-    """``point`` with ``column`` (a name of :data:`EDITABLE`) set from typed ``text``."""
+def height_kind_of(text: str) -> str:
+    """A typed height kind: ``ellipsoidal`` or ``orthometric`` (any prefix, any case)."""
+    t = text.strip().lower()
+    hits = [k for k in HEIGHT_KINDS if t and k.startswith(t)]
+    if len(hits) != 1:
+        raise InputError(f"height kind {text.strip()!r} is not one of {', '.join(HEIGHT_KINDS)}")
+    return hits[0]
+
+
+def edited_point(point: GroundPoint, column: str, text: str, height_kind: str = "ellipsoidal") -> GroundPoint:
+    """``point`` with ``column`` (a name of :data:`EDITABLE`) set from typed ``text``.
+    ``height_kind``: the kind an H typed into a point that had none takes (the project's)."""
     if column == "ID":
         return replace(point, id=text.strip())
     if column == "Kind":
@@ -62,7 +77,14 @@ def edited_point(point: GroundPoint, column: str, text: str) -> GroundPoint:
         if kind not in KINDS:
             raise InputError(f"kind {text.strip()!r} is not one of {', '.join(KINDS)}")
         return replace(point, kind=kind)
+    if column == "Height":
+        if math.isnan(point.H):
+            raise InputError(f"{point.id} has no height yet: type H first (it takes the project's "
+                             f"kind, {height_kind}; change it here afterwards)")
+        return replace(point, height_kind=height_kind_of(text))
     field = _FIELD[column]
+    if field == "H" and math.isnan(point.H):  # a first height: of the project's kind
+        point = replace(point, height_kind=height_kind)
     return replace(point, **{field: parse_number(text, f"{point.id} {column}", sigma=field.startswith("sigma"))})
 
 
@@ -96,11 +118,15 @@ class PointEditor:
         self.w = window
         window.table_model.edit_handler = self.edit
         table = window.table
-        table.setEditTriggers(table.EditTrigger.DoubleClicked | table.EditTrigger.EditKeyPressed)
-        self.cell_delegate = CellDelegate(table)
-        table.setItemDelegate(self.cell_delegate)
-        self.kind_delegate = KindDelegate(table)
-        table.setItemDelegateForColumn(COLUMNS.index("Kind"), self.kind_delegate)
+        self.delegates = []  # the table's and its frozen ID column's (a delegate serves one view)
+        for view in (table, table.frozen):
+            view.setEditTriggers(table.EditTrigger.DoubleClicked | table.EditTrigger.EditKeyPressed)
+            cell, kind, height = CellDelegate(view), ChoiceDelegate(KINDS, view), ChoiceDelegate(HEIGHT_KINDS, view)
+            view.setItemDelegate(cell)
+            view.setItemDelegateForColumn(COLUMNS.index("Kind"), kind)
+            view.setItemDelegateForColumn(COLUMNS.index("Height"), height)
+            self.delegates += [cell, kind, height]
+        self.cell_delegate = self.delegates[0]
         self.a_paste = QAction("&Paste points", table)
         self.a_paste.setShortcuts(QKeySequence.StandardKey.Paste)
         self.a_paste.setShortcutContext(Qt.ShortcutContext.WidgetWithChildrenShortcut)
@@ -130,7 +156,7 @@ class PointEditor:
         if p is None or pid not in p.points:
             return False
         try:
-            new = edited_point(p.points[pid], column, text)
+            new = edited_point(p.points[pid], column, text, p.height_kind())
             if _same(new, p.points[pid]):
                 return False
             what = f"Rename {pid} → {new.id}" if new.id != pid else f"{pid}: {column.split(' (')[0]}"
@@ -189,7 +215,7 @@ class PointEditor:
                               sigma_h_m=sig[1] if len(f) > 5 else old.sigma_h_m)
                 out.append(cmd.EditPoint(p, pid, new, f"Paste {pid}"))
             else:
-                out.append(cmd.AddPoint(p, GroundPoint(pid, *vals, height_kind=self.default_height_kind(),
+                out.append(cmd.AddPoint(p, GroundPoint(pid, *vals, height_kind=p.height_kind(),
                                                        kind="GCP", sigma_xy_m=sig[0], sigma_h_m=sig[1])))
         return out
 
@@ -213,34 +239,46 @@ class PointEditor:
             pid = ids[r]
             new = p.points[pid]
             for text, col in zip(f, cols):
-                new = edited_point(new, col, text)
+                new = edited_point(new, col, text, p.height_kind())
             out.append(cmd.EditPoint(p, pid, new, f"Paste {pid}"))
         return out
 
     # ------------------------------------------------------------------ new point by coordinates
-    def default_height_kind(self) -> str:
-        """The height kind most points of the project have (ellipsoidal when none has one)."""
-        p = self.w.project
-        kinds = Counter(pt.height_kind for pt in p.points.values() if math.isfinite(pt.H)) if p else None
-        return kinds.most_common(1)[0][0] if kinds else "ellipsoidal"
-
     def new_point_dialog(self) -> GroundPoint | None:
         """Ask for a point's id, kind, E, N, H, height kind and σ; add it (one undo step), make it
         current and switch to measuring it. Returns the point added (None: cancelled)."""
         p = self.w.project
         if p is None:
             return None
-        dlg = NewPointDialog(self.w, p.new_point_id("G"), self.default_height_kind(), taken=p.points)
+        dlg = NewPointDialog(self.w, {k: p.new_point_id(k[0]) for k in ("GCP", "ICP")}, p.height_kind(),
+                             taken=p.points)
         if dlg.exec() != QDialog.DialogCode.Accepted or dlg.accepted_point is None:
             return None
         point = dlg.accepted_point
         self.w.undo_stack.push(cmd.AddPoint(p, point))
-        self.w.set_current(point.id, drive=True)
+        self.w.set_current(point.id, drive=False)
+        self._drive_when_predicted(point.id)
         mode = getattr(self.w, "measure_mode", None)
         if mode is not None:
             mode.set_mode("measure")
         self._message(f"{point.id}: click it in each view (the hollow marker is where the model puts it)")
         return point
+
+
+    def _drive_when_predicted(self, pid: str) -> None:
+        """Centre the views on ``pid``'s predictions once the fit that includes it is out (a
+        point added now has none until then)."""
+        solver, views = self.w.solver, self.w.views
+
+        def drive(*_):
+            sol = solver.solution
+            if sol is None or sol.revision < self.w.project.revision:
+                return  # an older fit: wait for the next one
+            solver.solution_changed.disconnect(drive)
+            if self.w.current == pid:
+                views.drive_to(pid)
+        solver.solution_changed.connect(drive)
+        drive()
 
 
 class CellDelegate(QStyledItemDelegate):
@@ -257,12 +295,17 @@ class CellDelegate(QStyledItemDelegate):
         return super().eventFilter(editor, event)
 
 
-class KindDelegate(CellDelegate):
-    """The Kind cell's editor: a list of GCP, ICP, TIE (the letter keys choose, Enter sets)."""
+class ChoiceDelegate(CellDelegate):
+    """A cell chosen from a list (Kind: GCP, ICP, TIE; Height: ellipsoidal, orthometric); the
+    letter keys choose, Enter sets."""
+
+    def __init__(self, items, parent=None):
+        super().__init__(parent)
+        self.items = list(items)
 
     def createEditor(self, parent, option, index):
         box = QComboBox(parent)
-        box.addItems(list(KINDS))
+        box.addItems(self.items)
         return box
 
     def setEditorData(self, editor, index):
@@ -273,15 +316,22 @@ class KindDelegate(CellDelegate):
 
 
 class NewPointDialog(QDialog):
-    """Id, kind (GCP, ICP), E, N, H (metres), height kind, σ plan and σ h (metres, optional)."""
+    """Id, kind (GCP, ICP), E, N, H (metres), height kind, σ plan and σ h (metres, optional).
 
-    def __init__(self, parent, pid: str, height_kind: str, taken=()):
+    ``ids``: the id proposed for each kind (the next free one, :meth:`Project.new_point_id`);
+    switching the kind switches the proposal until the operator types an id of their own.
+    ``height_kind``: the one preselected (the project's)."""
+
+    def __init__(self, parent, ids: dict, height_kind: str, taken=()):
         super().__init__(parent)
         self.setWindowTitle("New point from coordinates")
+        fit_title(self)
         form = QFormLayout(self)
-        self.id_edit = QLineEdit(pid)
+        self.ids = dict(ids)
+        self.id_edit = QLineEdit(self.ids["GCP"])
         self.kind = QComboBox()
         self.kind.addItems(["GCP", "ICP"])
+        self.kind.currentTextChanged.connect(self._propose_id)
         self.e, self.n, self.h = QLineEdit(), QLineEdit(), QLineEdit()
         self.height_kind = QComboBox()
         self.height_kind.addItems(list(HEIGHT_KINDS))
@@ -303,6 +353,10 @@ class NewPointDialog(QDialog):
         self.e.setFocus()
         self.taken = taken  # ids already in the project
         self.accepted_point: GroundPoint | None = None
+
+    def _propose_id(self, kind: str) -> None:
+        if self.id_edit.text().strip() in self.ids.values():  # not typed by the operator
+            self.id_edit.setText(self.ids.get(kind, self.id_edit.text()))
 
     def accept(self) -> None:
         """Close only on a valid, new point; otherwise say what is wrong and stay open."""

@@ -14,21 +14,26 @@ import math
 
 from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt
 from PySide6.QtGui import QBrush, QColor, QPainter, QPalette
-from PySide6.QtWidgets import QAbstractItemView, QHeaderView, QTableView
+from PySide6.QtWidgets import QAbstractItemView, QHeaderView, QMenu, QTableView
 
 from prismstation.core.scene import reference_view
 from prismstation.gui.overlays import KIND_COLORS
 
 COLUMNS = ("ID", "Kind", "Views", "vx (px)", "vy (px)", "|v| max (px)", "E est (m)", "N est (m)",
-           "h est (m)", "dh (m)", "std. res.", "E (m)", "N (m)", "H (m)", "σ plan (m)", "σ h (m)")
-EDITABLE = ("ID", "Kind", "E (m)", "N (m)", "H (m)", "σ plan (m)", "σ h (m)")
+           "h est (m)", "dh (m)", "std. res.", "E (m)", "N (m)", "H (m)", "Height", "σ plan (m)",
+           "σ h (m)")
+EDITABLE = ("ID", "Kind", "E (m)", "N (m)", "H (m)", "Height", "σ plan (m)", "σ h (m)")
 """Columns the operator types into (the known ground data of the point)."""
+HEIGHT = COLUMNS.index("Height")  # the kind of H: ellipsoidal or orthometric (empty without H)
+TEXT = (0, 1, 2, HEIGHT)  # columns of text (left-aligned, sorted as text)
 BLUNDER = len(COLUMNS)  # index of the blunder flag in a row, after the columns' values
+ODD_HEIGHT = BLUNDER + 1  # the flag of an H of another kind than the project's
 BLUNDER_BG = QColor(255, 190, 190)
 TOLERANCE_BG = QColor(255, 235, 180)
 
 
 _BLUNDER_BRUSH = QBrush(BLUNDER_BG)
+_ODD_HEIGHT_BRUSH = QBrush(TOLERANCE_BG)
 _ODD_BRUSH = QBrush(QColor(245, 245, 245))  # alternate rows (the view's own costs 3 ms a repaint)
 _KIND_BRUSHES = {k: QBrush(c.darker(140)) for k, c in KIND_COLORS.items()}
 _RIGHT = int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
@@ -38,7 +43,7 @@ _DISPLAY, _BACKGROUND, _FOREGROUND, _ALIGN, _TOOLTIP, _SORT, _EDIT = (
                      Qt.ItemDataRole.ForegroundRole, Qt.ItemDataRole.TextAlignmentRole,
                      Qt.ItemDataRole.ToolTipRole, Qt.ItemDataRole.UserRole,
                      Qt.ItemDataRole.EditRole))
-_DIGITS = (None, None, None, 3, 3, 3, 2, 2, 2, 2, 2, 3, 3, 3, 3, 3)
+_DIGITS = (None, None, None, 3, 3, 3, 2, 2, 2, 2, 2, 3, 3, 3, None, 3, 3)
 
 
 _SPECS = tuple(None if d is None else f".{d}f" for d in _DIGITS)
@@ -48,13 +53,19 @@ def _texts(row) -> list:
     return [row[c] if spec is None else _fmt(row[c], spec) for c, spec in enumerate(_SPECS)]
 
 
+def odd_height_text(pid: str, kind: str, usual: str) -> str:
+    """Why a height-kind cell is tinted: the point's H is of another kind than most."""
+    return (f"{pid}: H is {kind} while most points of the project are {usual} — check it "
+            "(double-click to change the kind)")
+
+
 def _fmt(v, spec=".2f"):
     return "" if v is None or v != v or v in (math.inf, -math.inf) else format(v, spec)
 
 
 def _sort_key(row, column):
     v = row[column]
-    return (-math.inf if v is None else v) if column > 2 else v
+    return v if column in TEXT else -math.inf if v is None else v
 
 
 class PointTableModel(QAbstractTableModel):
@@ -141,6 +152,7 @@ class PointTableModel(QAbstractTableModel):
             measured.setdefault(pid, set()).add(v)
         shown: dict[frozenset, str] = {}  # views measured -> "N · B" (a handful of kinds)
         results = {r.id: r for r in sol.points} if sol is not None else {}
+        usual = p.height_kind()
         rows = []
         hypot = math.hypot
         for pid, pt in p.points.items():
@@ -162,8 +174,10 @@ class PointTableModel(QAbstractTableModel):
                 if r.ground_residual is not None:
                     dh = r.ground_residual[2]
                 sr, blunder = r.std_residual, r.blunder
+            hk = pt.height_kind if pt.H == pt.H else ""  # (NaN: no height, no kind)
             rows.append((pid, pt.kind, vs, vx, vy, vmax, e, n, h, dh, sr,
-                         pt.E, pt.N, pt.H, pt.sigma_xy_m, pt.sigma_h_m, blunder))
+                         pt.E, pt.N, pt.H, hk, pt.sigma_xy_m, pt.sigma_h_m, blunder,
+                         bool(hk) and hk != usual))
         return rows
 
     # ------------------------------------------------------------------ Qt model
@@ -190,11 +204,15 @@ class PointTableModel(QAbstractTableModel):
         if role == _EDIT:
             return self._text[r][c] if COLUMNS[c] in EDITABLE else None
         if role == _BACKGROUND:
+            if c == HEIGHT and row[ODD_HEIGHT]:
+                return _ODD_HEIGHT_BRUSH
             return _BLUNDER_BRUSH if row[BLUNDER] else _ODD_BRUSH if r % 2 else None
         if role == _FOREGROUND and c == 1:
             return _KIND_BRUSHES.get(row[1])
-        if role == _ALIGN and c > 2:
+        if role == _ALIGN and c not in TEXT:
             return _RIGHT
+        if role == _TOOLTIP and c == HEIGHT and row[ODD_HEIGHT]:
+            return odd_height_text(row[0], row[HEIGHT], self.project.height_kind())
         if role == _TOOLTIP and row[BLUNDER]:
             return f"{row[0]}: standardised residual {_fmt(row[10])} above the blunder threshold"
         return None
@@ -227,31 +245,28 @@ class PointTableModel(QAbstractTableModel):
         return r >= 0 and bool(self._rows[r][BLUNDER])
 
 
-class PointTableView(QTableView):
-    """Sortable table view of a :class:`PointTableModel` with single-row selection."""
+class _FastTable(QTableView):
+    """A table view of a :class:`PointTableModel` that paints its visible cells in one pass."""
+
+    PAD = 4  # text inset in a cell, px
 
     def __init__(self, model: PointTableModel, parent=None):
         super().__init__(parent)
         self.source_model = model
         self.setModel(model)
-        self.horizontalHeader().setSortIndicator(-1, Qt.SortOrder.AscendingOrder)
-        self.setSortingEnabled(True)
         self.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
         self.setSelectionMode(QAbstractItemView.SelectionMode.SingleSelection)
         self.verticalHeader().setVisible(False)
         self.verticalHeader().setDefaultSectionSize(20)
         # sized once per project (ResizeToContents would measure every cell at every change)
         self.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.Interactive)
-        self.horizontalHeader().setStretchLastSection(True)
-        model.modelReset.connect(self._size_columns)
-
-    PAD = 4  # text inset in a cell, px
 
     def paintEvent(self, event) -> None:
         """The visible cells in one pass, from the model's preformatted strings: background
-        (selection, blunder, alternate rows), text in the kind colour or aligned right for
-        numbers, grid. A refit repaints the table at every click; the item-view machinery
-        (an item delegate called per cell) cost 3–5 ms of that, this ~1 ms."""
+        (selection, blunder, alternate rows, a height of an unusual kind), text in the kind
+        colour or aligned right for numbers, grid. A refit repaints the table at every click;
+        the item-view machinery (an item delegate called per cell) cost 3–5 ms of that, this
+        ~1 ms."""
         m = self.source_model
         if not m._rows:
             return super().paintEvent(event)
@@ -283,9 +298,11 @@ class PointTableView(QTableView):
             elif row[BLUNDER] or r % 2:
                 p.fillRect(0, y, right, h, _BLUNDER_BRUSH if row[BLUNDER] else _ODD_BRUSH)
             for c, x, w in cols:
+                if c == HEIGHT and row[ODD_HEIGHT] and not chosen:
+                    p.fillRect(x, y, w, h, _ODD_HEIGHT_BRUSH)
                 kind = _KIND_BRUSHES.get(row[1]) if c == 1 and not chosen else None
                 p.setPen(sel_pen if chosen else kind.color() if kind is not None else text_pen)
-                p.drawText(x + self.PAD, y, w - 2 * self.PAD, h, _RIGHT if c > 2 else _LEFT, texts[c])
+                p.drawText(x + self.PAD, y, w - 2 * self.PAD, h, _LEFT if c in TEXT else _RIGHT, texts[c])
             rows.append(y + h - 1)
         if self.showGrid():
             p.setPen(pal.color(QPalette.ColorRole.Mid))
@@ -296,11 +313,102 @@ class PointTableView(QTableView):
                 p.drawLine(x + w - 1, area.top(), x + w - 1, bottom)
         p.end()
 
+
+class _FrozenIds(_FastTable):
+    """The ID column kept in view over the left edge of the table while it scrolls sideways
+    (Qt's frozen-column pattern: a second view of the same model and selection, showing
+    column 0 only, scrolled with the table's rows)."""
+
+    def __init__(self, table: "PointTableView"):
+        super().__init__(table.source_model, table)
+        self.table = table
+        own = self.selectionModel()
+        self.setSelectionModel(table.selectionModel())
+        own.deleteLater()
+        self.setFocusPolicy(Qt.FocusPolicy.NoFocus)  # keys go to the table
+        self.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        self.setVerticalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        self.setVerticalScrollMode(table.verticalScrollMode())
+        self.setFrameShape(self.Shape.NoFrame)
+        self.horizontalHeader().setSortIndicatorShown(True)
+        self.horizontalHeader().setSectionsClickable(True)
+        self.horizontalHeader().sectionClicked.connect(self._sort_clicked)
+        self.setStyleSheet("QTableView { border-right: 1px solid palette(mid); }")
+        self._hide_other_columns()
+        table.source_model.modelReset.connect(self._hide_other_columns)
+        table.verticalScrollBar().valueChanged.connect(self.verticalScrollBar().setValue)
+        self.verticalScrollBar().valueChanged.connect(table.verticalScrollBar().setValue)
+
+    def _hide_other_columns(self) -> None:
+        for c in range(1, len(COLUMNS)):
+            self.setColumnHidden(c, True)
+
+    def _sort_clicked(self, column: int) -> None:
+        """The header's ID sorts the table as the table's own ID header does."""
+        hh = self.table.horizontalHeader()
+        order = (Qt.SortOrder.DescendingOrder if hh.sortIndicatorSection() == 0
+                 and hh.sortIndicatorOrder() == Qt.SortOrder.AscendingOrder else Qt.SortOrder.AscendingOrder)
+        hh.setSortIndicator(0, order)
+
+    def contextMenuEvent(self, event) -> None:
+        """The table's own context menu (go to, kind, delete) for the row clicked."""
+        if self.table.contextMenuPolicy() == Qt.ContextMenuPolicy.ActionsContextMenu and self.table.actions():
+            QMenu.exec(self.table.actions(), event.globalPos(), None, self)
+
+
+class PointTableView(_FastTable):
+    """Sortable table view of a :class:`PointTableModel` with single-row selection; its ID
+    column stays in view when the table scrolls sideways (:attr:`frozen`)."""
+
+    def __init__(self, model: PointTableModel, parent=None):
+        super().__init__(model, parent)
+        self.horizontalHeader().setSortIndicator(-1, Qt.SortOrder.AscendingOrder)
+        self.setSortingEnabled(True)
+        self.horizontalHeader().setStretchLastSection(True)
+        self.setHorizontalScrollMode(QAbstractItemView.ScrollMode.ScrollPerPixel)
+        model.modelReset.connect(self._size_columns)
+        self.frozen = _FrozenIds(self)
+        self.horizontalHeader().sectionResized.connect(self._frozen_width)
+        self.horizontalHeader().sortIndicatorChanged.connect(
+            lambda c, o: self.frozen.horizontalHeader().setSortIndicator(c if c == 0 else -1, o))
+        self._frozen_width(0, 0, self.columnWidth(0))
+
+    def _frozen_width(self, column: int, _old: int, width: int) -> None:
+        if column == 0:
+            self.frozen.setColumnWidth(0, width)
+            self._place_frozen()
+
+    def _place_frozen(self) -> None:
+        f = self.frameWidth()
+        self.frozen.setGeometry(f, f, self.columnWidth(0),
+                                self.viewport().height() + self.horizontalHeader().height())
+        self.frozen.horizontalHeader().setFixedHeight(self.horizontalHeader().height())
+
+    def resizeEvent(self, event) -> None:
+        super().resizeEvent(event)
+        if hasattr(self, "frozen"):
+            self._place_frozen()
+
+    def updateGeometries(self) -> None:
+        super().updateGeometries()
+        if hasattr(self, "frozen"):
+            self._place_frozen()
+
+    def scrollTo(self, index, hint=QAbstractItemView.ScrollHint.EnsureVisible) -> None:
+        """As QTableView, but a cell scrolled into view is never left under the frozen IDs."""
+        super().scrollTo(index, hint)
+        if index.isValid() and index.column() > 0:
+            left = self.visualRect(index).left()
+            under = self.columnWidth(0) - left
+            if under > 0:
+                sb = self.horizontalScrollBar()
+                sb.setValue(sb.value() - under)
+
     def _size_columns(self) -> None:
         fm = self.fontMetrics()
         for c, name in enumerate(COLUMNS):
             sample = {"ID": "W0000", "Kind": "GCP", "Views": "N F B", "E (m)": "000000.000",
-                      "N (m)": "0000000.000", "H (m)": "0000.000"}.get(name, "-000000.00")
+                      "N (m)": "0000000.000", "H (m)": "0000.000", "Height": "orthometric"}.get(name, "-000000.00")
             self.setColumnWidth(c, max(fm.horizontalAdvance(name), fm.horizontalAdvance(sample)) + 14)
 
     def current_id(self) -> str | None:

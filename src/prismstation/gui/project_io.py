@@ -4,12 +4,18 @@ prompt (driven by ``QUndoStack.isClean``), crash recovery, relocating missing fi
 Crash recovery is the edit journal (:class:`prismstation.io.recovery.Journal`): every edit of
 the project is journaled atomically to ``<project>.recovery`` as it happens (for a project never
 saved, ``untitled.prismproj.recovery`` in the settings directory). The project is serialised
-when the window is idle again (:attr:`_WindowJournal.IDLE_MS` after the edit) and the disk write
+when the window is idle again (:attr:`.journal.WindowJournal.IDLE_MS` after the edit) and the disk write
 (fsync) runs on the journal's writer thread, so a crash or ``kill -9`` loses at most the edits
 of the last 40 ms and of the write in flight, never an earlier one.
 Saving, discarding or undoing back to the saved state clears the journal (cancelling what is
 pending first); closing, saving as and opening a project flush it. Opening a project with a
-journal (or starting with an untitled one) offers to recover it. Write errors of the thread
+journal (or starting with an untitled one) offers to recover it — unless another window holds
+the project (:class:`~prismstation.io.recovery.ProjectLock`, ``<project>.lock``: that journal
+is the other window's, not a crash's). A second window on this host does not open a project
+another one has open; a lock from another host (a shared folder) is asked about. An untitled
+project whose usual journal another window writes gets a journal of its own
+(``untitled-<pid>.prismproj.recovery``); the next start offers the newest one no live window
+holds. Write errors of the thread
 reach the status bar through a queued signal (:attr:`ProjectFiles.message` in the GUI thread).
 
 Dialogs go through small methods (:meth:`ProjectFiles.ask`, :meth:`ProjectFiles.choose_open`, ...)
@@ -21,87 +27,20 @@ import dataclasses
 import os
 from pathlib import Path
 
-from PySide6.QtCore import QObject, QTimer, Signal, Slot
+from PySide6.QtCore import QObject, Signal, Slot
 from PySide6.QtWidgets import QFileDialog, QMessageBox
 
 from prismstation.errors import InputError, PrismError
 from prismstation.gui import settings as st
 from prismstation.gui import workers
+from prismstation.gui.journal import (WindowJournal, autosave_path, untitled_journals,  # noqa: F401
+                                      untitled_path)
 from prismstation.io.project import SUFFIX, load_project, save_project
-from prismstation.io.recovery import Journal, recovery_path
+from prismstation.io.recovery import Journal, ProjectLock, describe_holder
 from prismstation.io.scene import read_scene
 from prismstation.model.project import Project
 
 FILTER = f"prismstation projects (*{SUFFIX});;All files (*)"
-
-
-def untitled_path() -> Path:
-    """Where the journal of a never-saved project lives (its name plus ``.recovery``)."""
-    name = st._settings().fileName()
-    base = Path(name).parent if name else Path.home()
-    return base / "untitled.prismproj"
-
-
-def autosave_path(path) -> Path:
-    """The journal (recovery file) of the project at ``path`` (None: the untitled project's)."""
-    return recovery_path(untitled_path() if path is None else path)
-
-
-class _WindowJournal(Journal):
-    """A journal whose write failure is a status message, never an exception in an edit.
-
-    An edit only arms a short timer (:attr:`IDLE_MS`): the project is serialised (2–3 ms for
-    a few hundred points) once the window is idle again — not between a click and its repaint
-    — and handed to the writer thread; edits within that time make one document. A crash thus
-    loses at most the edits of the last :attr:`IDLE_MS` and of the write in flight.
-    ``report(str)`` is called from the writer thread for write errors (and from the GUI
-    thread when the project cannot be serialised), so it must be safe to call from any thread
-    (:class:`ProjectFiles` posts it to the GUI thread).
-    """
-
-    IDLE_MS = 40
-
-    def __init__(self, project, path, report, background: bool = True):
-        self.report = report
-        self._timer = QTimer()
-        self._timer.setSingleShot(True)
-        self._timer.setInterval(self.IDLE_MS)
-        self._timer.timeout.connect(self.write)
-        super().__init__(project, path, background=background, on_error=self._failed)
-
-    def _failed(self, exc: Exception) -> None:
-        self.report(f"Recovery journal not written: {exc}")
-
-    def _on_changed(self, change) -> None:
-        if not self._timer.isActive():  # the first edit since the last document sets the pace
-            self._timer.start()
-
-    @property
-    def armed(self) -> bool:
-        """An edit waits for the timer to be journaled."""
-        return self._timer.isActive()
-
-    def write(self) -> None:
-        """Journal the project now."""
-        self._timer.stop()
-        try:
-            self.journal(self.project.revision)
-        except (OSError, PrismError, TypeError, ValueError) as exc:
-            self._failed(exc)
-
-    def flush(self, timeout: float | None = None) -> bool:
-        if self._timer.isActive():
-            self.write()
-        return super().flush(timeout)
-
-    def discard(self) -> None:
-        self._timer.stop()
-        super().discard()
-
-    def close(self, timeout: float | None = None) -> None:
-        if self._timer.isActive():
-            self.write()
-        super().close(timeout)
 
 
 def missing_images(project) -> list[str]:
@@ -146,6 +85,8 @@ class ProjectFiles(QObject):
         self.project: Project | None = None
         self.path: Path | None = None
         self.journal: Journal | None = None
+        self.lock: ProjectLock | None = None
+        self.untitled = untitled_path()  # where an untitled project's journal goes (see module doc)
         self.interactive = True  # False: every question is answered "No" (screenshots, scripts)
         undo_stack.cleanChanged.connect(self._on_clean_changed)
         workers.relay()  # the journal's writer thread reports through it
@@ -182,12 +123,27 @@ class ProjectFiles(QObject):
         return QFileDialog.getExistingDirectory(self.widget, title, st.value(st.Key.LAST_PROJECT_DIR))
 
     # ------------------------------------------------------------------ life cycle
+    def _target(self) -> Path:
+        """The project file the journal and the lock are named after."""
+        return self.path or self.untitled
+
+    def _take_lock(self) -> None:
+        if self.lock is not None:
+            self.lock.release()
+        self.lock = ProjectLock(self._target())
+        self.lock.acquire()
+
     def _install(self, project: Project, path) -> None:
         if self.journal is not None:
             self.journal.close()
         self.project = project
         self.path = None if path is None else Path(path).resolve()
-        self.journal = _WindowJournal(project, self.path or untitled_path(), self._journal_report)
+        if self.path is None:  # another window's untitled journal is not this one's
+            base = untitled_path()
+            self.untitled = base if ProjectLock(base).holder() is None else \
+                base.with_name(f"untitled-{os.getpid()}{SUFFIX}")
+        self._take_lock()
+        self.journal = WindowJournal(project, self._target(), self._journal_report)
         self.stack.clear()
         self.stack.setClean()
         self.project_opened.emit(project)
@@ -218,6 +174,8 @@ class ProjectFiles(QObject):
         if not path:
             return False
         path = Path(path)
+        if not self._may_open(path):
+            return False
         self.flush_journal()  # reopening this project: its journal must be complete on disk
         side = autosave_path(path)
         source = path
@@ -241,6 +199,24 @@ class ProjectFiles(QObject):
         st.set_value(st.Key.LAST_PROJECT_DIR, str(path.parent))
         self.recent_changed.emit(st.value(st.Key.RECENT_FILES))
         return True
+
+    def _may_open(self, path: Path) -> bool:
+        """False when another window has ``path`` open (said in a message); a lock of another
+        host, which cannot be checked, is asked about."""
+        holder = ProjectLock(path).holder()
+        if holder is None:
+            return True
+        import socket
+        who = describe_holder(holder)
+        if holder.get("host") == socket.gethostname():
+            self.warn("Open project", f"{path.name} is open in another prismstation window ({who}). "
+                      "Work on it there, or close it there first: two windows would overwrite "
+                      "each other's edits.")
+            return False
+        b = QMessageBox.StandardButton
+        return self.ask("Open project", f"{path.name} is marked as open by prismstation on another "
+                        f"computer ({who}). Open it here anyway? Only if that program no longer "
+                        "runs: two windows would overwrite each other's edits.", b.Yes | b.No, b.No) == b.Yes
 
     def _load(self, path: Path, title: str) -> Project | None:
         """Load, offering to relocate a missing scene or missing images; None when the operator
@@ -270,9 +246,10 @@ class ProjectFiles(QObject):
     def recover_untitled(self, recover: bool | None = None) -> bool:
         """Offer the journal of a never-saved project left by a crash; True when recovered."""
         self.flush_journal()
-        side = autosave_path(None)
-        if not side.is_file():
+        found = untitled_journals()
+        if not found:
             return False
+        side = found[0]
         if recover is None:
             b = QMessageBox.StandardButton
             recover = self.ask("Recover", "An unsaved, untitled project was being edited when the "
@@ -284,6 +261,8 @@ class ProjectFiles(QObject):
             return False
         self._install(project, None)
         self._recovered()
+        if side != autosave_path(self.untitled):  # journaled again under this window's name
+            side.unlink(missing_ok=True)
         self.message.emit("Recovered the untitled project; save it to keep it")
         return True
 
@@ -337,11 +316,15 @@ class ProjectFiles(QObject):
         if not path:
             return False
         self.flush_journal()  # nothing pending may land on the old name after it is removed
-        old_path, old_side = self.path, autosave_path(self.path)
+        old_path, old_side = self.path, autosave_path(self._target())
         self.path = Path(path).resolve()
+        if not self._may_open(self.path):
+            self.path = old_path
+            return False
         self._scene_beside(self.path)
         self.journal.path = self.path
         if self.save():
+            self._take_lock()
             if old_side.exists():
                 old_side.unlink()
             st.add_recent(str(self.path))
@@ -350,7 +333,7 @@ class ProjectFiles(QObject):
             self.path_changed.emit(str(self.path))
             return True
         self.path = old_path
-        self.journal.path = old_path or untitled_path()
+        self.journal.path = self._target()
         return False
 
     def _scene_beside(self, path: Path) -> None:
@@ -414,6 +397,9 @@ class ProjectFiles(QObject):
         if self.journal is not None:
             self.journal.close()
             self.journal = None
+        if self.lock is not None:
+            self.lock.release()
+            self.lock = None
 
     # ------------------------------------------------------------------ journal
     def autosave(self) -> bool:
@@ -423,7 +409,7 @@ class ProjectFiles(QObject):
             return False
         self.journal.write()
         self.journal.flush()
-        return autosave_path(self.path).is_file()
+        return autosave_path(self._target()).is_file()
 
     def flush_journal(self, timeout: float | None = None) -> bool:
         """Wait until every edit journaled so far is on disk (False: ``timeout`` s ran out)."""
@@ -444,9 +430,9 @@ class ProjectFiles(QObject):
     def _remove_autosave(self) -> None:
         # through the journal: a pending write is dropped and the one in flight (a few ms) is
         # waited for, so that no late write brings the file back
-        if self.journal is not None and self.journal.path == (self.path or untitled_path()):
+        if self.journal is not None and self.journal.path == self._target():
             self.journal.discard()  # drops a pending write, waits for the one in flight
-        side = autosave_path(self.path)
+        side = autosave_path(self._target())
         for f in (side, Path(str(side) + ".bak")):
             if f.exists():
                 try:

@@ -41,6 +41,10 @@ class DemLoader(QObject):
         else:
             self.loaded.emit(heights)
 
+    def forget(self) -> None:
+        """Drop the outcome of the load under way (another project is open)."""
+        self._request += 1
+
     def wait(self, ms: int = 30000) -> None:
         """Wait for the load and deliver its outcome (scripts and tests)."""
         self._jobs.wait(ms / 1000.0)

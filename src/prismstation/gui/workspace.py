@@ -4,8 +4,15 @@ One :class:`Workspace` owns the project, the current point, the undo stack, the 
 (saves and the recovery journal), the solver and the reference-DEM loader. The main window
 shows it; tools reach it through their :class:`~prismstation.gui.tools.ToolContext`.
 :meth:`Workspace.close` ends every job that reads the project before the files let it go.
+
+The reference DEM belongs to the project (:attr:`Project.reference_dem`, kept in its file): a
+project that names one has it loaded when it opens; a DEM loaded for a project becomes its
+reference (an unsaved change); one that cannot be read is a message box, not only a status
+line.
 """
 from __future__ import annotations
+
+from pathlib import Path
 
 from PySide6.QtCore import QObject, Signal
 from PySide6.QtGui import QUndoStack
@@ -37,6 +44,8 @@ class Workspace(QObject):
         self.files = ProjectFiles(self.undo_stack, parent_widget)
         self.solver = Solver(self, threaded=threaded_fit)
         self.dem_loader = DemLoader(self)
+        self.dem_loader.loaded.connect(self._on_dem_loaded)
+        self.dem_loader.failed.connect(lambda m: self.files.warn("Reference DEM", m))
 
     @property
     def journal(self):
@@ -47,8 +56,19 @@ class Workspace(QObject):
         """Make ``project`` the one worked on (no current point); the solver refits it."""
         self.project, self.current = project, None
         self.solver.height_of = None
+        self.dem_loader.forget()  # a DEM being read for the previous project is not this one's
         self.project_changed.emit(project)
         self.solver.set_project(project)
+        if project.reference_dem:
+            self.dem_loader.start(project.reference_dem, project)
+
+    def _on_dem_loaded(self, heights) -> None:
+        """A DEM loaded for the project is its reference DEM (saved with it)."""
+        p = self.project
+        path = str(Path(str(heights.path)).resolve())
+        if p is not None and (p.reference_dem is None or str(Path(p.reference_dem).resolve()) != path):
+            p.set_reference_dem(path)
+            self.undo_stack.resetClean()  # to be saved
 
     def set_current(self, pid: str | None) -> bool:
         """Make ``pid`` current (None, or a point not in the project: none); True if it changed."""

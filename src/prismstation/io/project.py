@@ -2,8 +2,10 @@
 geoid object of a project's geoid setting (:func:`project_geoid`).
 
 Top-level keys beside the points: ``dem_control`` (:attr:`Project.dem_control`),
-``relocated_images`` (:attr:`Project.relocations`), ``product`` (:attr:`Project.product`); keys
-this version does not know are kept in :attr:`Project.other` and written back.
+``relocated_images`` (:attr:`Project.relocations`), ``product`` (:attr:`Project.product`),
+``reference_dem`` (:attr:`Project.reference_dem`, relative to the project file; since format
+version 2); keys this version does not know are kept in :attr:`Project.other` and written back.
+Version 1 files (no reference DEM) are read as they are.
 """
 from __future__ import annotations
 
@@ -24,23 +26,33 @@ from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint, Measurem
 from prismstation.model.project import Project, has_ground
 
 FORMAT_NAME = "prismstation-project"
-VERSION = 1
+VERSION = 2  # 2: "reference_dem"
 SUFFIX = ".prismproj"
-DEM_CONTROL, RELOCATED, PRODUCT = "dem_control", "relocated_images", "product"
+DEM_CONTROL, RELOCATED, PRODUCT, REFERENCE_DEM = "dem_control", "relocated_images", "product", "reference_dem"
 _KNOWN = {"format", "saved_by", "scene", "settings", "geoid", "points", "measurements",
-          DEM_CONTROL, RELOCATED, PRODUCT, "recovery"}  # "recovery": the journal's own note
+          DEM_CONTROL, RELOCATED, PRODUCT, REFERENCE_DEM, "recovery"}  # "recovery": the journal's own note
 
 
 def _num(v):
     return None if v is None or (isinstance(v, float) and not math.isfinite(v)) else v
 
 
+def _relative(path, base: Path) -> str:
+    """``path`` relative to the folder ``base`` (absolute where there is no relative path:
+    another drive)."""
+    try:
+        return os.path.relpath(Path(path).resolve(), base)
+    except ValueError:
+        return str(Path(path).resolve())
+
+
 def project_to_dict(project: Project, path) -> dict:
-    """The JSON document of ``project`` saved at ``path`` (scene path made relative to it)."""
+    """The JSON document of ``project`` saved at ``path`` (scene and reference DEM paths made
+    relative to it)."""
     base = Path(path).resolve().parent
     scene = project.scene_path
     if scene is not None:
-        scene = os.path.relpath(Path(scene).resolve(), base)
+        scene = _relative(scene, base)
     geoid = dict(project.geoid)
     if geoid.get("kind") == "grid" and geoid.get("path"):
         g = Path(geoid["path"])
@@ -63,6 +75,7 @@ def project_to_dict(project: Project, path) -> dict:
         **({DEM_CONTROL: project.dem_control} if project.dem_control is not None else {}),
         **({RELOCATED: dict(project.relocations)} if project.relocations else {}),
         **({PRODUCT: project.product} if project.product is not None else {}),
+        **({REFERENCE_DEM: _relative(project.reference_dem, base)} if project.reference_dem else {}),
         **{k: v for k, v in project.other.items() if k not in _KNOWN},
     }
 
@@ -140,6 +153,9 @@ def load_project(path, *, scene_override=None) -> Project:
                              _line_of_id(text, d)) from None
         measurements.append(m)
     control, reloc, product = data.get(DEM_CONTROL), data.get(RELOCATED), data.get(PRODUCT)
+    dem = data.get(REFERENCE_DEM) if version >= 2 else None
+    if dem is not None and not (isinstance(dem, str) and dem and "\0" not in dem):
+        raise InputError(f'"{REFERENCE_DEM}": expected the path of a DEM file', path, line_of(text, REFERENCE_DEM))
     if control is not None and not (isinstance(control, dict) and isinstance(control.get("patches"), list)):
         raise InputError(f'"{DEM_CONTROL}": expected an object with "patches"', path, line_of(text, DEM_CONTROL))
     if reloc is not None and not (isinstance(reloc, dict) and all(isinstance(v, str) for v in reloc.values())):
@@ -149,7 +165,8 @@ def load_project(path, *, scene_override=None) -> Project:
     try:
         return Project(scene, str(scene_path), settings=settings, geoid=geoid, points=points,
                        measurements=measurements, dem_control=control, relocations=reloc, product=product,
-                       other={k: v for k, v in data.items() if k not in _KNOWN})
+                       other={k: v for k, v in data.items() if k not in _KNOWN},
+                       reference_dem=None if dem is None else str((path.parent / dem).resolve()))
     except InputError as exc:
         raise InputError(exc.problem, path) from None
 

@@ -10,7 +10,8 @@ changes its revision. Solving is separate (:meth:`point_obs` feeds
 from __future__ import annotations
 
 import math
-from collections import defaultdict
+import re
+from collections import Counter, defaultdict
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
@@ -19,6 +20,8 @@ from prismstation.core.solve import PointObs, Settings
 from prismstation.errors import InputError
 from prismstation.model.points import KINDS, GroundPoint, Measurement
 from prismstation.model.signal import Signal
+
+_NUMBERED = re.compile(r"^(.*?)(\d+)$")  # an id's prefix and its number
 
 
 @dataclass(frozen=True)
@@ -54,13 +57,16 @@ class Project:
     ``dem_control``: the record of an orientation from a reference DEM (``None``: none), as
     :mod:`prismstation.ops.orient_dem` writes it. ``relocations``: view → image path used
     instead of the scene's. ``product``: the JAXA product folder the project was made from.
+    ``reference_dem``: the path of the reference DEM the project works with (heights for
+    points without parallax, the linked cursor, DSMs, the DEM orientation), or None.
     ``other``: top-level keys of the project file this version does not know, written back
     unchanged.
     """
 
     def __init__(self, scene: Scene, scene_path: str | None = None, *, settings: Settings = Settings(),
                  geoid: dict | None = None, points=(), measurements=(), dem_control: dict | None = None,
-                 relocations: dict | None = None, product: str | None = None, other: dict | None = None):
+                 relocations: dict | None = None, product: str | None = None, other: dict | None = None,
+                 reference_dem: str | None = None):
         self.scene = scene
         self.scene_path = scene_path
         self.settings = settings
@@ -71,6 +77,7 @@ class Project:
         self.dem_control = dem_control
         self.relocations: dict[str, str] = dict(relocations or {})
         self.product = product
+        self.reference_dem = reference_dem
         self.other: dict = dict(other or {})
         self._put_all(points, measurements)
         self.revision = 0
@@ -116,10 +123,24 @@ class Project:
         self._touch([point.id])
 
     def new_point_id(self, prefix: str = "P") -> str:
-        i = len(self.points) + 1
-        while f"{prefix}{i}" in self.points:
+        """The next free id with ``prefix``: one more than the highest number after it (T21
+        after T01…T20, whatever the other points are), zero-padded as those ids are (as the
+        project's other numbered ids are when none has the prefix yet)."""
+        numbered = [m for m in map(_NUMBERED.match, self.points) if m is not None]
+        mine = [m for m in numbered if m.group(1) == prefix]
+        widths = Counter(len(m.group(2)) for m in (mine or numbered) if m.group(2).startswith("0"))
+        width = widths.most_common(1)[0][0] if widths else 0
+        i = max((int(m.group(2)) for m in mine), default=0) + 1
+        while f"{prefix}{i:0{width}d}" in self.points:
             i += 1
-        return f"{prefix}{i}"
+        return f"{prefix}{i:0{width}d}"
+
+    def height_kind(self) -> str:
+        """The project's height kind, the one rule for every point entered without one (typed,
+        pasted, imported, by coordinates): the kind most of its points with a height have;
+        ellipsoidal when none has a height."""
+        kinds = Counter(p.height_kind for p in self.points.values() if math.isfinite(p.H))
+        return kinds.most_common(1)[0][0] if kinds else "ellipsoidal"
 
     def add_tie(self, pid: str | None = None) -> str:
         pid = pid or self.new_point_id("T")
@@ -211,6 +232,12 @@ class Project:
     def set_relocations(self, relocations: dict) -> dict:
         """View → image path used instead of the scene's; returns the previous mapping."""
         old, self.relocations = self.relocations, dict(relocations)
+        self._touch(files=True)
+        return old
+
+    def set_reference_dem(self, path: str | None) -> str | None:
+        """The reference DEM's path (None: none); returns the previous one."""
+        old, self.reference_dem = self.reference_dem, path
         self._touch(files=True)
         return old
 

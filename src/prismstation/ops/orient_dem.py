@@ -126,7 +126,7 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
                                  progress=scaled(progress, 0.0, 0.25))
     bad = [v for v in "FB" if not coarse.ok(v)]
     if bad:
-        why = "; ".join(w.reason for w in coarse.windows if w.view in bad and w.reason)[:300]
+        why = "; ".join(dict.fromkeys(w.reason for w in coarse.windows if w.view in bad and w.reason))
         raise InputError(f"view {' and '.join(bad)} could not be found relative to N within "
                          f"{coarse.radius_px:.0f} px (a-priori σ {sigma_apriori_m:g} m per view): "
                          f"{why or 'no window matched'}", reference_path)
@@ -185,7 +185,7 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
         images.close()
     if not any(p.used for p in shifts):
         raise InputError("no patch could be matched to the reference DEM: "
-                         + "; ".join(sorted({p.reason for p in shifts}))[:300], reference_path)
+                         + "; ".join(sorted({p.reason for p in shifts})), reference_path)
     # 4. the field against its σ
     patches, verdict = judge_patches(shifts)
     # 5. N's own error is now known to metres: step 1 again with the reference heights taken

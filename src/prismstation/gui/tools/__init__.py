@@ -5,9 +5,6 @@ called once when the main window is built, with a :class:`ToolContext`: the work
 views, a widget to parent dialogs, and ways to add actions, menus entries and docks. A tool
 registers itself in ``ctx.tools`` under its name. Modules are discovered, so adding a tool is
 adding a module; the main window stays wiring only.
-
-Each module says so with ``TOOL_CONTEXT = True``; one that does not yet still gets the main
-window itself (a tool written before the context, to be moved over).
 """
 from __future__ import annotations
 
@@ -17,7 +14,7 @@ import weakref
 
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction
-from PySide6.QtWidgets import QDockWidget
+from PySide6.QtWidgets import QDockWidget, QMessageBox
 
 
 class ToolContext:
@@ -44,13 +41,17 @@ class ToolContext:
         self.file_menu = window.menuBar().actions()[0].menu()
         self.open_action = window.a_open
         self.model_panel = window.panel
-        self.interactive = window.interactive
         self.tools: dict = {}
         self._docks = window.docks
 
     @property
     def widget(self):
         return self._window()
+
+    @property
+    def interactive(self) -> bool:
+        """The window asks questions (False: tests, screenshots)."""
+        return bool(getattr(self.widget, "interactive", False))
 
     # the workspace's parts, for brevity
     project = property(lambda self: self.workspace.project)
@@ -82,6 +83,18 @@ class ToolContext:
             self._docks[tabify_with].raise_()
         return d
 
+    def may_close(self) -> bool:
+        """The window is asked to close (X, Ctrl+Q): with a tool's job running, ask whether to
+        cancel it and quit (a window that asks nothing — tests, screenshots — says yes)."""
+        from prismstation.gui.tools._worker import running_jobs_of
+        jobs = running_jobs_of(self.widget)
+        if not jobs or not self.interactive:
+            return True
+        what = "; ".join(job.describe() for job in jobs)
+        b = QMessageBox.StandardButton
+        return QMessageBox.question(self.widget, "Quit", f"A job is running — {what}.\n\nCancel it and quit?",
+                                    b.Yes | b.No, b.No) == b.Yes
+
     def shutdown(self) -> None:
         """Cancel and join the tools' running jobs (the window is closing)."""
         from prismstation.gui.tools._worker import stop_jobs_of
@@ -97,7 +110,7 @@ def install_tools(window) -> ToolContext:
     for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
         if not info.name.startswith("_"):
             mod = importlib.import_module(f"{__name__}.{info.name}")
-            mod.install(ctx if getattr(mod, "TOOL_CONTEXT", False) else window)
+            mod.install(ctx)
     for k in window.docks:
         if k not in before:
             window.docks[k].hide()

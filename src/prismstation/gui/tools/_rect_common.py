@@ -42,12 +42,12 @@ class Coalescer(QObject):
         self._t.start()
 
 
-def watch_project(window, fn) -> Coalescer:
-    """Call ``fn()`` after every edit, fit, and project (re)load of ``window``."""
-    c = Coalescer(fn, window.widget)
-    window.undo_stack.indexChanged.connect(c.poke)
-    window.solver.solution_changed.connect(c.poke)
-    window.views.images_loaded.connect(c.poke)
+def watch_project(ctx, fn) -> Coalescer:
+    """Call ``fn()`` after every edit, fit, and project (re)load of ``ctx``."""
+    c = Coalescer(fn, ctx.widget)
+    ctx.undo_stack.indexChanged.connect(c.poke)
+    ctx.solver.solution_changed.connect(c.poke)
+    ctx.views.images_loaded.connect(c.poke)
     return c
 
 

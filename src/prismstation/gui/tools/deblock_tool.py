@@ -6,8 +6,6 @@ each displayed array as it is shown). The choice is kept per view name across pr
 """
 from __future__ import annotations
 
-TOOL_CONTEXT = True  # install() gets a ToolContext
-
 from prismstation.core.deblock import deblock
 from prismstation.errors import ModelError
 
@@ -23,17 +21,17 @@ def deblock_display(arr):
 
 
 class DeblockTool:
-    def __init__(self, window):
-        self.window = window
+    def __init__(self, ctx):
+        self.ctx = ctx
         self.on: set[str] = set()
-        self.menu = window.tools_menu.addMenu("JPEG block-noise reduction")
+        self.menu = ctx.tools_menu.addMenu("JPEG block-noise reduction")
         self.actions: dict = {}
-        window.views.images_loaded.connect(self._rebuild)
+        ctx.views.images_loaded.connect(self._rebuild)
 
     def _rebuild(self) -> None:
         self.menu.clear()
         self.actions = {}
-        for name, iv in self.window.views.views.items():
+        for name, iv in self.ctx.views.views.items():
             a = self.menu.addAction(f"View {name}")
             a.setCheckable(True)
             a.setChecked(name in self.on)
@@ -45,7 +43,7 @@ class DeblockTool:
     def set_enabled(self, view: str, on: bool) -> None:
         """Show ``view`` deblocked (``on``) or as read."""
         (self.on.add if on else self.on.discard)(view)
-        iv = self.window.views.views.get(view)
+        iv = self.ctx.views.views.get(view)
         if iv is not None:
             iv.set_display_filter(deblock_display if on else None)
         a = self.actions.get(view)

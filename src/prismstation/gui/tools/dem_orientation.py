@@ -181,8 +181,8 @@ def verdict_text(record) -> str:
 class DemOrientationTool:
     """The menu actions, the patch dock and the N-view vectors (one per window)."""
 
-    def __init__(self, window):
-        self.w = window
+    def __init__(self, ctx):
+        self.ctx = ctx
         self.job = None
         self.result = None
         self.patch_km = 4.0
@@ -190,23 +190,23 @@ class DemOrientationTool:
         self._items = []
         self.scale = None
         self.panel = PatchTable()
-        self.dock = window.add_dock("dem_patches", "Reference DEM patches", self.panel,
-                        Qt.DockWidgetArea.BottomDockWidgetArea, tabify_with="points")
-        self.a_orient = window.add_action("Orient from reference &DEM…", self.choose,
-                                    tip="Orientation with no GCP: match the image DSM to SRTM patch by patch")
-        self.a_gcp = window.add_action("Back to &GCP orientation", self.back_to_gcp,
-                                 tip="Orient from the GCPs again (undoable)")
-        window.tools_menu.addActions([self.a_orient, self.a_gcp])
-        window.undo_stack.indexChanged.connect(lambda *_: self.refresh())
-        window.files.project_opened.connect(lambda *_: self.refresh())
-        window.solver.solution_changed.connect(lambda *_: self._draw_vectors())
+        self.dock = ctx.add_dock("dem_patches", "Reference DEM patches", self.panel,
+                                 Qt.DockWidgetArea.BottomDockWidgetArea, tabify_with="points")
+        self.a_orient = ctx.add_action("Orient from reference &DEM…", self.choose,
+                                       tip="Orientation with no GCP: match the image DSM to SRTM patch by patch")
+        self.a_gcp = ctx.add_action("Back to &GCP orientation", self.back_to_gcp,
+                                    tip="Orient from the GCPs again (undoable)")
+        ctx.tools_menu.addActions([self.a_orient, self.a_gcp])
+        ctx.undo_stack.indexChanged.connect(lambda *_: self.refresh())
+        ctx.files.project_opened.connect(lambda *_: self.refresh())
+        ctx.solver.solution_changed.connect(lambda *_: self._draw_vectors())
         self.refresh()
 
     # ------------------------------------------------------------------ running
     def choose(self) -> None:
-        if self.w.project is None:
+        if self.ctx.project is None:
             return
-        dlg = OrientDialog(self.w.widget, st.value(st.Key.LAST_IMPORT_DIR) or "", self.patch_km, self.sigma_m)
+        dlg = OrientDialog(self.ctx.widget, st.value(st.Key.LAST_IMPORT_DIR) or "", self.patch_km, self.sigma_m)
         if dlg.exec() == QDialog.DialogCode.Accepted and dlg.path.text():
             self.patch_km, self.sigma_m = dlg.patch.value(), dlg.sigma.value()
             self.start(dlg.path.text(), self.patch_km * 1000.0, sigma_m=self.sigma_m)
@@ -216,7 +216,7 @@ class DemOrientationTool:
         """Orient the window's project from ``reference_path`` in a worker; returns the Job."""
         from prismstation.gui.solver import snapshot
         from prismstation.ops.orient_dem import orient_from_dem
-        project = self.w.project
+        project = self.ctx.project
         if project is None or (self.job is not None and self.job.isRunning()):
             return None
         snap = snapshot(project)
@@ -226,33 +226,33 @@ class DemOrientationTool:
             return orient_from_dem(snap, path, sigma_apriori_m=sigma_m, patch_m=patch_m,
                                    posting_m=posting_m, progress=lambda f, m="": progress(f, m))
 
-        self.job = run_with_progress(self.w, "Orientation from the reference DEM", work,
+        self.job = run_with_progress(self.ctx, "Orientation from the reference DEM", work,
                                      lambda res: self._apply(project, res))
         return self.job
 
     def _apply(self, project, result) -> None:
-        if project is not self.w.project:
+        if project is not self.ctx.project:
             return  # the project was closed meanwhile
         self.result = result
         used = sum(1 for p in result.patches if p.used)
-        self.w.undo_stack.push(SetDemOrientation(project, result.to_dict(), "dem",
+        self.ctx.undo_stack.push(SetDemOrientation(project, result.to_dict(), "dem",
                                                  f"Orient from DEM ({used} patches)"))
         self.dock.show()
         self.dock.raise_()
         if not result.verdict.ok:
             text = verdict_text(result.to_dict())
-            self.w.status(text)
-            if getattr(self.w, "interactive", False):
-                QMessageBox.warning(self.w.widget, "Orientation from the reference DEM", text)
+            self.ctx.status(text)
+            if getattr(self.ctx, "interactive", False):
+                QMessageBox.warning(self.ctx.widget, "Orientation from the reference DEM", text)
 
     def back_to_gcp(self) -> None:
-        p = self.w.project
+        p = self.ctx.project
         if p is not None and p.settings.orientation != "gcp":
-            self.w.undo_stack.push(SetDemOrientation(p, None, "gcp", "Back to GCP orientation"))
+            self.ctx.undo_stack.push(SetDemOrientation(p, None, "gcp", "Back to GCP orientation"))
 
     # ------------------------------------------------------------------ display
     def refresh(self) -> None:
-        p = self.w.project
+        p = self.ctx.project
         record = None if p is None else p.dem_control
         active = p is not None and p.settings.orientation == "dem"
         self.a_orient.setEnabled(p is not None and p.scene.is_triplet)
@@ -272,8 +272,8 @@ class DemOrientationTool:
     def _draw_vectors(self) -> None:
         self._clear_vectors()
         self.scale = None
-        p = self.w.project
-        iv = self.w.views.views.get("N")
+        p = self.ctx.project
+        iv = self.ctx.views.views.get("N")
         if p is None or iv is None or p.settings.orientation != "dem" or not p.dem_control:
             return
         patches = p.dem_control["patches"]
@@ -298,9 +298,6 @@ class DemOrientationTool:
                 item.setZValue(500)
                 iv.vb.addItem(item)
                 self._items.append((iv.vb, item))
-
-
-TOOL_CONTEXT = True  # install() gets a ToolContext
 
 
 def install(ctx) -> None:

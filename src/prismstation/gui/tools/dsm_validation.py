@@ -63,15 +63,15 @@ def residual_sd_rows(solution):
 class ResidualSDPanel(QWidget):
     HEAD = ("View", "GCP n", "GCP SD x", "GCP SD y", "ICP n", "ICP SD x", "ICP SD y")
 
-    def __init__(self, window):
-        super().__init__(window.widget)
+    def __init__(self, ctx):
+        super().__init__(ctx.widget)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(4, 4, 4, 4)
         lay.addWidget(QLabel("<b>SD of image residuals (px) — as Tadono et al. 2008, Table 1</b>"))
         self.table = _table(self.HEAD)
         lay.addWidget(self.table)
         self.solution = None
-        window.solver.solution_changed.connect(self.set_solution)
+        ctx.solver.solution_changed.connect(self.set_solution)
 
     def set_solution(self, sol) -> None:
         """Show ``sol``'s figures — only while visible (a hidden dock catches up when shown:
@@ -149,8 +149,8 @@ def shaded_difference(diff, relief, limit=None) -> np.ndarray:
 
 
 class DsmDialog(QDialog):
-    def __init__(self, window, last: dict):
-        super().__init__(window)
+    def __init__(self, parent, last: dict):
+        super().__init__(parent)
         self.setWindowTitle("Validate DSM")
         f = QFormLayout(self)
         self.paths = {}
@@ -297,23 +297,23 @@ class DsmResultPanel(QWidget):
 
 
 class DsmValidationTool:
-    def __init__(self, window):
-        self.window = window
-        self.sd_panel = ResidualSDPanel(window)
-        self.sd_dock = window.add_dock("residual_sd", "Residual SD", self.sd_panel,
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.sd_panel = ResidualSDPanel(ctx)
+        self.sd_dock = ctx.add_dock("residual_sd", "Residual SD", self.sd_panel,
                                     Qt.DockWidgetArea.RightDockWidgetArea)
-        self.panel = DsmResultPanel(window.widget)
-        self.dock = window.add_dock("dsm_validation", "DSM validation", self.panel,
+        self.panel = DsmResultPanel(ctx.widget)
+        self.dock = ctx.add_dock("dsm_validation", "DSM validation", self.panel,
                                  Qt.DockWidgetArea.BottomDockWidgetArea)
         self.dock.hide()
         self.job: Job | None = None
         self.last: dict = {}
-        window.tools_menu.addAction("Validate DSM…", self.open_dialog)
-        window.tools_menu.addAction(self.sd_dock.toggleViewAction())
-        window.tools_menu.addAction(self.dock.toggleViewAction())
+        ctx.tools_menu.addAction("Validate DSM…", self.open_dialog)
+        ctx.tools_menu.addAction(self.sd_dock.toggleViewAction())
+        ctx.tools_menu.addAction(self.dock.toggleViewAction())
 
     def open_dialog(self) -> None:
-        d = DsmDialog(self.window.widget, self.last)
+        d = DsmDialog(self.ctx.widget, self.last)
         if d.exec() == QDialog.DialogCode.Accepted:
             self.start(**d.values())
 
@@ -326,13 +326,13 @@ class DsmValidationTool:
                          reference_height=reference_height, mask=mask, geoid_grid=geoid_grid,
                          geoid_constant=geoid_constant)
         if not dsm or not reference:
-            self.window.status("Validate DSM: choose a DSM and a reference", 10000)
+            self.ctx.status("Validate DSM: choose a DSM and a reference", 10000)
             return None
         geoid = None
         if dsm_height != reference_height:
             geoid = GridGeoid(geoid_grid) if geoid_grid else ConstantGeoid(float(geoid_constant))
         self.job = run_with_progress(
-            self.window, "Validate DSM",
+            self.ctx, "Validate DSM",
             lambda progress: run_validation(dsm, reference, dsm_height=dsm_height,
                                             reference_height=reference_height, geoid=geoid,
                                             mask=mask or None),
@@ -348,12 +348,9 @@ class DsmValidationTool:
         self.dock.show()
         self.dock.raise_()
         o = result[0].overall
-        self.window.status(
+        self.ctx.status(
             f"DSM − reference: bias {o.bias:.2f} m, SD {o.sd:.2f} m, RMSE {o.rmse:.2f} m, "
             f"NMAD {o.nmad:.2f} m over {o.count} cells", 15000)
-
-
-TOOL_CONTEXT = True  # install() gets a ToolContext
 
 
 def install(ctx) -> None:

@@ -179,48 +179,45 @@ class GeoidDialog(QDialog):
         return {"kind": "constant", "value": float(self.value.value())}
 
 
-def apply_geoid(window, setting: dict) -> bool:
+def apply_geoid(ctx, setting: dict) -> bool:
     """Check ``setting`` and make it the project's geoid as one undo step; an unusable grid is
     a message (the project is not changed). True when the project now uses ``setting``."""
-    if window.project is None:
+    if ctx.project is None:
         return False
     problem = check_setting(setting)
     if problem:
-        window.files.warn("Geoid", problem)
+        ctx.files.warn("Geoid", problem)
         return False
-    if dict(setting) != dict(window.project.geoid or {}):
-        window.undo_stack.push(SetGeoid(window.project, setting))
+    if dict(setting) != dict(ctx.project.geoid or {}):
+        ctx.undo_stack.push(SetGeoid(ctx.project, setting))
     return True
 
 
-def choose_geoid(window, dialog_cls=GeoidDialog) -> bool:
+def choose_geoid(ctx, dialog_cls=GeoidDialog) -> bool:
     """The dialog, then :func:`apply_geoid` of the choice; True when the project uses it."""
-    if window.project is None:
+    if ctx.project is None:
         return False
-    dlg = dialog_cls(window.project.geoid, found_grids(), window.widget)
+    dlg = dialog_cls(ctx.project.geoid, found_grids(), ctx.widget)
     if dlg.exec() != QDialog.DialogCode.Accepted:
         return False
-    return apply_geoid(window, dlg.setting())
+    return apply_geoid(ctx, dlg.setting())
 
 
-def refresh(window) -> None:
-    panel = window.model_panel  # the undo stack can outlive the window's widgets at close
+def refresh(ctx) -> None:
+    panel = ctx.model_panel  # the undo stack can outlive the window's widgets at close
     if panel is None or not shiboken6.isValid(panel):
         return
-    text, bad = describe(window.project)
+    text, bad = describe(ctx.project)
     panel.set_geoid(text, bad)
 
 
-TOOL_CONTEXT = True  # install() gets a ToolContext
-
-
-def install(window) -> None:
-    a = window.add_action("&Geoid…", lambda: choose_geoid(window),
-                          tip="The geoid for orthometric heights: a constant, a grid found, or a grid file")
-    window.tools_menu.addAction(a)
-    window.tools["geoid"] = a
-    window.model_panel.geoid_requested.connect(lambda: choose_geoid(window))
+def install(ctx) -> None:
+    a = ctx.add_action("&Geoid…", lambda: choose_geoid(ctx),
+                       tip="The geoid for orthometric heights: a constant, a grid found, or a grid file")
+    ctx.tools_menu.addAction(a)
+    ctx.tools["geoid"] = a
+    ctx.model_panel.geoid_requested.connect(lambda: choose_geoid(ctx))
     # after the window's own slot has bound the project
-    window.files.project_opened.connect(lambda _p: refresh(window))
-    window.solver.solution_changed.connect(lambda _s: refresh(window))
-    window.undo_stack.indexChanged.connect(lambda _i: refresh(window))
+    ctx.files.project_opened.connect(lambda _p: refresh(ctx))
+    ctx.solver.solution_changed.connect(lambda _s: refresh(ctx))
+    ctx.undo_stack.indexChanged.connect(lambda _i: refresh(ctx))

@@ -10,9 +10,6 @@ missing.
 from __future__ import annotations
 
 
-TOOL_CONTEXT = True  # install() gets a ToolContext
-
-
 def install(ctx) -> None:
     a = ctx.add_action("New project from &product…", lambda: ctx.files.new_project_from_product(),
                        tip="A new project on a JAXA PRISM 1B2 product folder (CEOS or GeoTIFF)")

@@ -32,9 +32,9 @@ def _item(text, align=Qt.AlignmentFlag.AlignRight) -> QTableWidgetItem:
 class TransformsPanel(QWidget):
     """RMSE table (transform × image) and residuals of the chosen transform for one view."""
 
-    def __init__(self, window):
-        super().__init__(window.widget)
-        self.window = window
+    def __init__(self, ctx):
+        super().__init__(ctx.widget)
+        self.ctx = ctx
         self.reports: dict = {}     # view -> tuple[TransformReport, ...]
         self.ids: dict = {}         # view -> (ids, is_check)
         lay = QVBoxLayout(self)
@@ -67,7 +67,7 @@ class TransformsPanel(QWidget):
         self.kind.currentTextChanged.connect(lambda *_: self._fill_residuals())
         self.view.currentTextChanged.connect(lambda *_: self._fill_residuals())
         self._key = None
-        watch_project(window, self.refresh)
+        watch_project(ctx, self.refresh)
 
     def showEvent(self, ev) -> None:  # a hidden or tabbed-away panel catches up when shown
         super().showEvent(ev)
@@ -79,7 +79,7 @@ class TransformsPanel(QWidget):
         when ``force``d (a rectification needs the fit whether the panel is open or not)."""
         if not (force or self.isVisible()):
             return
-        project = self.window.project
+        project = self.ctx.project
         key = None if project is None else (id(project), project.revision)
         if key == self._key:
             return
@@ -154,10 +154,10 @@ class TransformsPanel(QWidget):
 class RectifyDialog(QDialog):
     """Transform, view, output CRS, resolution and output file of a rectification."""
 
-    def __init__(self, window, panel: TransformsPanel):
-        super().__init__(window.widget)
+    def __init__(self, ctx, panel: TransformsPanel):
+        super().__init__(ctx.widget)
         self.setWindowTitle("Rectify")
-        project = window.project
+        project = ctx.project
         f = QFormLayout(self)
         self.view = QComboBox()
         self.view.addItems(list(project.scene.views))
@@ -194,26 +194,26 @@ class RectifyDialog(QDialog):
 
 
 class RectifyTool:
-    def __init__(self, window):
-        self.window = window
-        self.panel = TransformsPanel(window)
-        self.dock = window.add_dock("transforms", "Transforms", self.panel,
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.panel = TransformsPanel(ctx)
+        self.dock = ctx.add_dock("transforms", "Transforms", self.panel,
                                  Qt.DockWidgetArea.RightDockWidgetArea)
         self.job: Job | None = None
-        window.views.images_loaded.connect(self._show_for_single_view)
-        window.tools_menu.addAction("Rectify…", self.open_dialog)
-        window.tools_menu.addAction(self.dock.toggleViewAction())
+        ctx.views.images_loaded.connect(self._show_for_single_view)
+        ctx.tools_menu.addAction("Rectify…", self.open_dialog)
+        ctx.tools_menu.addAction(self.dock.toggleViewAction())
 
     def _show_for_single_view(self, *args) -> None:
         """A single-image project (the AVNIR rectification of Subaryono et al.) is about transforms: show their table."""
-        p = self.window.project
+        p = self.ctx.project
         if p is not None and len(p.scene.views) == 1:
             self.dock.show()
             self.dock.raise_()
             self.panel.refresh()
 
     def open_dialog(self) -> None:
-        w = self.window
+        w = self.ctx
         if w.project is None:
             return
         d = RectifyDialog(w, self.panel)
@@ -229,7 +229,7 @@ class RectifyTool:
         cannot be fitted."""
         from prismstation.ops.rectify import rectify_raster
 
-        w = self.window
+        w = self.ctx
         self.panel.refresh(force=True)
         r = self.panel.report(view, kind)
         v = w.project.scene.views.get(view)
@@ -253,12 +253,9 @@ class RectifyTool:
                       f"{result.resolution:g} ({result.crs})")
 
     def _message(self, text: str) -> None:
-        self.window.status(text, 15000)
-        if getattr(self.window, "interactive", False) and "Cannot" in text:
-            QMessageBox.warning(self.window.widget, "Rectify", text)
-
-
-TOOL_CONTEXT = True  # install() gets a ToolContext
+        self.ctx.status(text, 15000)
+        if getattr(self.ctx, "interactive", False) and "Cannot" in text:
+            QMessageBox.warning(self.ctx.widget, "Rectify", text)
 
 
 def install(ctx) -> None:
