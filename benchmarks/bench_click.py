@@ -39,6 +39,8 @@ def main(argv=None) -> int:
     ap.add_argument("--trace", action="store_true", help="also print the time of each stage")
     ap.add_argument("--cpu", type=int, default=None,
                     help="run on this CPU only (this VM's two vCPUs differ by up to 1.4× at times)")
+    ap.add_argument("--profile", metavar="FILE",
+                    help="cProfile the counted rounds into FILE (pstats; the top lines printed)")
     args = ap.parse_args(argv)
     if args.cpu is not None:
         os.sched_setaffinity(0, {args.cpu})
@@ -108,18 +110,26 @@ def main(argv=None) -> int:
     must_paint = {"point table": win.table.viewport(), "model panel": win.panel.sections,
                   **{f"plot {n}": win.plots.plots[n].viewport() for n in ("vectors", "std_residuals")},
                   "N view": vp}
-    total, fit = [], []
+    total, fit, cpu = [], [], []
+    prof = None
+    if args.profile:
+        import cProfile
+        prof = cProfile.Profile()
     for i in range(-args.warmup, args.rounds):
+        if i == 0 and prof is not None:
+            prof.enable()
         dx = (i % 4) - 1.5
         pos = iv.map_to_viewport(x0 + dx, y0 + 0.5 * dx).toPoint()
         # the operator's cursor is already there (its linked crosshairs drawn) when they click
         QTest.mouseMove(vp, pos)
         wait_settled(win)
         done["t"] = None
+        c0 = time.process_time()
         t0 = time.perf_counter()
         QTest.mouseClick(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, pos)
         t_click = time.perf_counter()
         t_end = _until_painted(watch, done)
+        c_end = time.process_time()
         missing = [n for n, w in must_paint.items() if w not in watch.painted]
         assert not missing, f"not repainted after the fit: {missing}"
         if i < 0:  # warm-up
@@ -127,6 +137,7 @@ def main(argv=None) -> int:
                 stages.now = {}
             continue
         total.append((t_end - t0) * 1000)
+        cpu.append((c_end - c0) * 1000)
         gui_ms.append((t_end - t_gui_start["t"]) * 1000)
         if stages is not None:
             stages.now["mouse click handled (incl. command)"] = (t_click - t0) * 1000
@@ -148,10 +159,16 @@ def main(argv=None) -> int:
     line("whole round (target ≤ 30 ms)", total)
     line("  fit (core.solve)", fit)
     line("  fit published → last paint", gui_ms)
+    line("CPU time of the process per round", cpu)
     print(f"  open to settled images and first fit      {t_open * 1000:7.0f} ms")
     print(f"  machine speed: the same fit outside the window {ref_ms:.1f} ms before, "
           f"{speed():.1f} ms after (this VM: ~4 usually)")
     print("target met" if np.median(total) <= 30.0 else "TARGET MISSED: median above 30 ms")
+    if prof is not None:
+        prof.disable()
+        import pstats
+        prof.dump_stats(args.profile)
+        pstats.Stats(prof).sort_stats("cumulative").print_stats(45)
     if stages is not None:
         print("stages (median ms per round, summed over the calls of a round):")
         for name, v in stages.rounds.items():

@@ -112,6 +112,8 @@ class _Sections(QWidget):
         self._hint = QSize(0, 0)
         self._hint_shape = None
         self._advances: dict = {}
+        self._note_rects: dict = {}
+        self._line_cache = None
         self._bold = QFont(self.font())
         self._bold.setWeight(QFont.Weight.DemiBold)
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Fixed)
@@ -128,9 +130,40 @@ class _Sections(QWidget):
             for r in rows:
                 for c, t in enumerate(r):
                     widths[c] = max(widths[c], self._advance(t, False) + 2 * self.PAD)
+        before = self._line_cache if widths == self._widths else None
         self._sections, self._notes, self._widths, self._shape = sections, notes, widths, shape
         self._update_hint()
-        self.update()
+        after = self._line_cache = self._lines()
+        if before is None or [(y, h) for y, h, _ in before] != [(y, h) for y, h, _ in after]:
+            self.update()  # the layout moved: everything
+            return
+        # the same layout: repaint the lines whose text changed (a click in N changes the N
+        # bias and the statistics, not the F and B fits)
+        for (y, h, old), (_, _, new) in zip(before, after):
+            if old != new:
+                self.update(QRect(0, y, self.width(), h))
+
+    def _lines(self) -> list:
+        """``[(y, height, content), ...]`` of every line as :meth:`paintEvent` lays them out."""
+        rh, out, y = self._row_height(), [], 2
+        first = [n for n in self._notes if n[1] == "bad"]
+
+        def notes(ns, y):
+            for text, sev in ns:
+                h = self._note_rect(text, sev == "bad").height() + 2
+                out.append((y, h, (text, sev)))
+                y += h
+            return y
+        y = notes(first, y)
+        for title, head, rows in self._sections:
+            y += self.TITLE_GAP
+            for line in (title, head, *rows):
+                out.append((y, rh, line))
+                y += rh
+        if first:
+            y += self.TITLE_GAP
+        notes([n for n in self._notes if n[1] != "bad"], y)
+        return out
 
     def _advance(self, text: str, bold: bool) -> int:
         """Width of ``text`` in pixels (remembered: most texts come back at every refit)."""
@@ -146,9 +179,18 @@ class _Sections(QWidget):
         return self.fontMetrics().height() + 2
 
     def _note_rect(self, text, bold) -> QRect:
-        fm = QFontMetrics(self._bold) if bold else self.fontMetrics()
-        width = max(self.width(), sum(self._widths)) - 2 * self.PAD
-        return fm.boundingRect(QRect(0, 0, max(width, 50), 10000), int(Qt.TextFlag.TextWordWrap), text)
+        """The wrapped rectangle of a note (remembered per text and width: a refit asks for
+        the same notes several times)."""
+        width = max(max(self.width(), sum(self._widths)) - 2 * self.PAD, 50)
+        key = (text, bold, width)
+        r = self._note_rects.get(key)
+        if r is None:
+            if len(self._note_rects) > 500:
+                self._note_rects.clear()
+            fm = QFontMetrics(self._bold) if bold else self.fontMetrics()
+            r = self._note_rects[key] = fm.boundingRect(QRect(0, 0, width, 10000),
+                                                        int(Qt.TextFlag.TextWordWrap), text)
+        return QRect(r)
 
     def _update_hint(self) -> None:
         rh = self._row_height()
@@ -171,34 +213,39 @@ class _Sections(QWidget):
         return self._hint
 
     def resizeEvent(self, event) -> None:
+        self._line_cache = None  # (laid out for the old width)
         if self._notes:  # wrapped notes change height with the width
             self._update_hint()
         super().resizeEvent(event)
 
     def paintEvent(self, event) -> None:
-        """Only the rows inside the exposed rectangle (the scroll area shows a part)."""
+        """Only the lines inside the exposed region (the scroll area shows a part; a refit
+        repaints the lines that changed)."""
         p = QPainter(self)
         rh, pad, x0 = self._row_height(), self.PAD, 4
-        top, bottom = event.rect().top() - rh, event.rect().bottom()
+        region, width = event.region(), self.width()
+
+        def shown(y):
+            return region.intersects(QRect(0, y, width, rh))
         total = sum(self._widths)
         left = int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter)
         right = int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
         text_color = self.palette().color(QPalette.ColorRole.WindowText)
         y = 2
         first = [n for n in self._notes if n[1] == "bad"]   # what is wrong: above the tables
-        y = self._paint_notes(p, first, x0, y)
+        y = self._paint_notes(p, first, x0, y, region)
         for title, head, rows in self._sections:
             y += self.TITLE_GAP
-            if top <= y <= bottom:
+            if shown(y):
                 p.setFont(self._bold)
                 p.setPen(SECTION_COLOR)
                 p.drawText(QRect(x0, y, max(total, self.width()), rh), left, title)
             y += rh
-            if top <= y <= bottom:
+            if shown(y):
                 p.fillRect(QRect(x0, y, total, rh), HEAD_BG)
             p.setPen(text_color)
             for r, font in ((head, self._bold), *((row, self.font()) for row in rows)):
-                if top <= y <= bottom:
+                if shown(y):
                     p.setFont(font)
                     x = x0
                     for c, t in enumerate(r):
@@ -208,18 +255,19 @@ class _Sections(QWidget):
                 y += rh
         if first:
             y += self.TITLE_GAP
-        self._paint_notes(p, [n for n in self._notes if n[1] != "bad"], x0, y)
+        self._paint_notes(p, [n for n in self._notes if n[1] != "bad"], x0, y, region)
         p.end()
 
-    def _paint_notes(self, p, notes, x0, y) -> int:
-        """Draw ``notes`` wrapped from ``y`` down; the y below them."""
+    def _paint_notes(self, p, notes, x0, y, region) -> int:
+        """Draw ``notes`` wrapped from ``y`` down (those in ``region``); the y below them."""
         text_color = self.palette().color(QPalette.ColorRole.WindowText)
         for text, sev in notes:
             bold = sev == "bad"
-            p.setFont(self._bold if bold else self.font())
-            p.setPen(BAD_COLOR if bold else WARN_COLOR if sev == "warn" else text_color)
             rect = self._note_rect(text, bold).translated(x0 + self.PAD, y)
-            p.drawText(rect, int(Qt.TextFlag.TextWordWrap), text)
+            if region.intersects(rect.adjusted(-x0 - self.PAD, 0, 0, 2)):
+                p.setFont(self._bold if bold else self.font())
+                p.setPen(BAD_COLOR if bold else WARN_COLOR if sev == "warn" else text_color)
+                p.drawText(rect, int(Qt.TextFlag.TextWordWrap), text)
             y += rect.height() + 2
         return y
 

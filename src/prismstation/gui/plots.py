@@ -174,13 +174,21 @@ class PlotsWidget(QWidget):
             pw.setVisible(not compact or pw is self.tabs.currentWidget())
 
     # ------------------------------------------------------------------ construction
+    # Plain pyqtgraph items, not PlotDataItems (``PlotWidget.plot``): a PlotDataItem wraps a
+    # curve and a scatter and re-processes both at every setData, several times the cost.
     def _scatter(self, pw, color, symbol, name, size=8, filled=True):
         brush = pg.mkBrush(*color) if filled else pg.mkBrush(255, 255, 255, 0)
-        item = pw.plot([], [], pen=None, symbol=symbol, symbolSize=size, symbolBrush=brush,
-                       symbolPen=pg.mkPen(color, width=1.5), name=name)
-        item.sigPointsClicked.connect(self._on_clicked)
-        item.scatter.opts["hoverable"] = True  # tool tip: the point's id and values
-        item.scatter.opts["tip"] = lambda x, y, data: f"{data}: {x:.2f}, {y:.2f}"
+        item = pg.ScatterPlotItem(pen=pg.mkPen(color, width=1.5), brush=brush, symbol=symbol,
+                                  size=size, name=name, hoverable=True,  # tool tip: id, values
+                                  tip=lambda x, y, data: f"{data}: {x:.2f}, {y:.2f}")
+        item.sigClicked.connect(self._on_clicked)
+        pw.addItem(item)
+        return item
+
+    @staticmethod
+    def _curve(pw, pen, name=None, connect="all"):
+        item = pg.PlotCurveItem(pen=pen, name=name, connect=connect)
+        pw.addItem(item)
         return item
 
     def _build_items(self) -> None:
@@ -194,13 +202,13 @@ class PlotsWidget(QWidget):
         p["height"].setLabel("left", "h (ellipsoidal)", units="m")
         p["height_minus_theory"].setLabel("left", "h − c1ₜₕ·py", units="m")
         dash = Qt.PenStyle.DashLine
-        self.fit_line = p["height"].plot([], [], pen=pg.mkPen(FIT_COLOR, width=1.5), name="fitted line")
-        self.theory_line = p["height"].plot([], [], pen=pg.mkPen(THEORY_COLOR, width=1.5, style=dash),
-                                            name="theoretical (eq. 4)")
+        self.fit_line = self._curve(p["height"], pg.mkPen(FIT_COLOR, width=1.5), "fitted line")
+        self.theory_line = self._curve(p["height"], pg.mkPen(THEORY_COLOR, width=1.5, style=dash),
+                                       "theoretical (eq. 4)")
         self.h_gcp = self._scatter(p["height"], GCP_COLOR, "o", "GCP")
         self.h_icp = self._scatter(p["height"], ICP_COLOR, "t", "ICP", filled=False)
-        self.d_fit_line = p["height_minus_theory"].plot([], [], pen=pg.mkPen(FIT_COLOR, width=1.5),
-                                                        name="fitted − theoretical")
+        self.d_fit_line = self._curve(p["height_minus_theory"], pg.mkPen(FIT_COLOR, width=1.5),
+                                      "fitted − theoretical")
         zero = pg.InfiniteLine(0.0, angle=0, pen=pg.mkPen(THEORY_COLOR, width=1, style=dash))
         p["height_minus_theory"].addItem(zero)
         self.d_gcp = self._scatter(p["height_minus_theory"], GCP_COLOR, "o", "GCP")
@@ -214,16 +222,16 @@ class PlotsWidget(QWidget):
         if self._legends:
             pv.addLegend(offset=(8, 8), labelTextSize="8pt", labelTextColor=(30, 30, 30),
                          brush=(255, 255, 255, 210))
-        self.v_gcp_seg = pv.plot([], [], pen=pg.mkPen(GCP_COLOR, width=2), connect="pairs")
-        self.v_icp_seg = pv.plot([], [], pen=pg.mkPen(ICP_COLOR, width=2), connect="pairs")
+        self.v_gcp_seg = self._curve(pv, pg.mkPen(GCP_COLOR, width=2), connect="pairs")
+        self.v_icp_seg = self._curve(pv, pg.mkPen(ICP_COLOR, width=2), connect="pairs")
         self.v_gcp = self._scatter(p["vectors"], GCP_COLOR, "o", "GCP", size=6)
         self.v_icp = self._scatter(p["vectors"], ICP_COLOR, "t", "ICP", size=7, filled=False)
-        self.frame = pv.plot([], [], pen=pg.mkPen((150, 150, 150), width=1, style=dash))
+        self.frame = self._curve(pv, pg.mkPen((150, 150, 150), width=1, style=dash))
 
         ps = p["std_residuals"].getPlotItem()
         ps.setLabel("left", "|standardised residual|")
         ps.setLabel("bottom", "GCP")
-        self.stems = ps.plot([], [], pen=pg.mkPen(GCP_COLOR, width=3), connect="pairs")
+        self.stems = self._curve(ps, pg.mkPen(GCP_COLOR, width=3), connect="pairs")
         self.std_pts = self._scatter(p["std_residuals"], GCP_COLOR, "o", "GCP", size=7)
         self.blunder_pt = self._scatter(p["std_residuals"], BLUNDER_COLOR, "s", "blunder", size=12)
         # the one blunder threshold of every fit (the values are on the normal scale)
@@ -247,9 +255,6 @@ class PlotsWidget(QWidget):
             # fixed axis sizes: tick labels that change width would relayout and repaint again
             pw.getPlotItem().getAxis("left").setWidth(58)
             pw.getPlotItem().getAxis("bottom").setHeight(38)
-        for pw in p.values():  # our values are small: no re-plot on every range change
-            for item in pw.getPlotItem().listDataItems():
-                item.setDynamicRangeLimit(None)
         self._titles: dict = {}
         self._set_titles()
 
@@ -340,6 +345,7 @@ class PlotsWidget(QWidget):
             item.setData(x, y)
         else:
             item.setData(x, y, data=data)
+        item.setVisible(len(x) > 0)  # an empty item hidden costs a repaint nothing
 
     def _once(self, key: str, value, apply) -> None:
         """``apply(value)`` unless ``value`` is what ``key`` was last set to (no repaint)."""

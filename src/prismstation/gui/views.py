@@ -26,7 +26,7 @@ from prismstation.core.scene import reference_view
 from prismstation.errors import PrismError
 from prismstation.gui import workers
 from prismstation.gui.image_view import ImageView
-from prismstation.gui.overlays import ViewOverlay
+from prismstation.gui.overlays import ViewOverlay, by_view
 from prismstation.gui.prediction import Predictions
 from prismstation.gui.text_label import TextLabel
 from prismstation.io.raster import RasterSource
@@ -103,6 +103,7 @@ class TripletViews(QWidget):
         self.offer_overviews = None  # callable(source) set by the window when interactive
         self.height_of = None  # reference DEM heights: (n, 2) map metres -> (n,) metres
         self.predictions = Predictions()  # of the points in the views they are not measured in
+        self._by_view_key, self._by_view_cache = None, {}
         self.editable = True  # False (navigate mode): clicks and drags never place nor move
         self.view_cursor = Qt.CursorShape.CrossCursor  # over the images (the measuring mode's)
 
@@ -213,17 +214,26 @@ class TripletViews(QWidget):
         """Redraw the measured markers from the project (no fit needed)."""
         if self.project is None:
             return
+        mine = self._by_view()
         for ov in self.overlays.values():
-            ov.update_measured(self.project, self.solution)
+            ov.update_measured(self.project, self.solution, self.current, mine.get(ov.name, ((), ())))
         self._update_current()
+
+    def _by_view(self) -> dict:
+        """The project's measurements and kinds per view (once per revision)."""
+        key = (id(self.project), self.project.revision)
+        if key != self._by_view_key:
+            self._by_view_key, self._by_view_cache = key, by_view(self.project)
+        return self._by_view_cache
 
     def set_solution(self, solution) -> None:
         self.solution = solution
         if self.project is None:
             return
         preds = self.predictions.update(self.project, solution, self.height_of)
+        mine = self._by_view()
         for ov in self.overlays.values():
-            ov.update_measured(self.project, solution)
+            ov.update_measured(self.project, solution, self.current, mine.get(ov.name, ((), ())))
             ov.update_solution(self.project, solution, preds)
         self._update_current()
 
@@ -245,6 +255,10 @@ class TripletViews(QWidget):
 
     def set_current(self, pid: str | None) -> None:
         self.current = pid
+        if self.project is not None:
+            mine = self._by_view()
+            for ov in self.overlays.values():
+                ov.update_measured(self.project, self.solution, pid, mine.get(ov.name, ((), ())))
         self._update_current()
 
     def _update_current(self) -> None:
