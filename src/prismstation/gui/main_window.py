@@ -24,6 +24,7 @@ from prismstation.gui.contrast import ContrastPanel
 from prismstation.gui.linked_nav import LinkedNavigation
 from prismstation.gui.loupe import Loupe
 from prismstation.gui.measure_mode import MeasureMode
+from prismstation.gui.memory import MemoryKeeper, one_dask_pool
 from prismstation.gui.model_panel import ModelPanel
 from prismstation.gui.plots import PlotsWidget
 from prismstation.gui.point_editor import PointEditor
@@ -44,6 +45,9 @@ class MainWindow(QMainWindow):
         self.setObjectName("MainWindow")
         self.setWindowTitle("prismstation")
         self.interactive = interactive
+        from prismstation.gui.tools._worker import running_jobs_of
+        # first: its heap setting holds for threads made from now on
+        self.memory = MemoryKeeper(self, busy=lambda: bool(running_jobs_of(self)))
         self.workspace = ws = Workspace(self, threaded_fit)
         self.undo_stack, self.files, self.solver, self.dem_loader = (
             ws.undo_stack, ws.files, ws.solver, ws.dem_loader)
@@ -179,6 +183,7 @@ class MainWindow(QMainWindow):
         if self.project is not None:
             self.project.changed.disconnect(self._on_project_changed)
         self.workspace.set_project(project)
+        one_dask_pool()
         project.changed.connect(self._on_project_changed)
         self.views.height_of = None
         self.views.set_project(project)

@@ -34,13 +34,14 @@ from prismstation.io.raster import RasterSource
 VIEW_TITLES = {"N": "N — nadir", "F": "F — forward", "B": "B — backward"}
 PICK_TOLERANCE_SCREEN_PX = 8.0
 DRIVE_TO_MAX_SCALE = 1.0  # image px per screen px at most after a drive-to (zooms in to detail)
+TILE_CACHE_MB = 32  # read tiles kept per view: 128 tiles, a 5,800 px square at full resolution
 
 
 def _load(on_loaded, view: str, path: str, generation: int) -> None:
     """Open a raster, read its coarse overview and statistics (worker thread); the handle this
     thread opened is closed here, the GUI thread opens its own."""
     try:
-        src = RasterSource(path)
+        src = RasterSource(path, cache_mb=TILE_CACHE_MB)
         try:
             src.coarse()
             st = src.statistics((0.5, 99.5))
