@@ -169,3 +169,39 @@ def line_x(data: PlotData) -> np.ndarray:
     lo, hi = float(py.min()), float(py.max())
     pad = 0.05 * max(hi - lo, 1.0)
     return np.array([min(lo - pad, 0.0) if lo >= 0 else lo - pad, hi + pad])
+
+
+def data_ranges(d: PlotData, vector_segments=(), std_range=((0, 1), (0, 4))) -> dict:
+    """``{plot: ((x0, x1), (y0, y1))}`` framing what each plot draws of ``d`` (plots with data
+    only): the points and lines of the height plots (5 % margin), the image of the vectors
+    (or the points and ``vector_segments``, ``(n, 2)`` arrays, when its shape is unknown) and
+    ``std_range`` for the standardised residuals."""
+    out = {}
+    x = line_x(d)
+    if x.size:
+        ys, ys5 = [d.gcp_h, d.icp_h], [np.zeros(1)]
+        if d.c0 is not None and d.c1 is not None:
+            ys.append(d.c0 + d.c1 * x)
+            if d.c1_theory is not None:
+                ys5.append(d.c0 + (d.c1 - d.c1_theory) * x)
+        if d.c1_theory is not None:
+            ys.append(d.c1_theory * x)
+            ys5 += [d.gcp_h - d.c1_theory * d.gcp_py, d.icp_h - d.c1_theory * d.icp_py]
+        for name, acc in (("height", ys), ("height_minus_theory", ys5)):
+            y = np.concatenate(acc)
+            y = y[np.isfinite(y)]
+            if y.size:
+                pad = 0.05 * max(np.ptp(y), 1.0)
+                out[name] = ((x[0], x[1]), (y.min() - pad, y.max() + pad))
+    if d.image_shape:
+        r, c = d.image_shape[:2]
+        out["vectors"] = ((-0.03 * c, 1.03 * c), (-0.03 * r, 1.03 * r))
+    else:
+        pts = [a for a in (d.vec_gcp_xy, d.vec_icp_xy, *vector_segments) if len(a)]
+        if pts:
+            a = np.vstack(pts)
+            lo, hi = a.min(axis=0), a.max(axis=0)
+            pad = 0.05 * max(float(np.max(hi - lo)), 1.0)
+            out["vectors"] = ((lo[0] - pad, hi[0] + pad), (lo[1] - pad, hi[1] + pad))
+    out["std_residuals"] = std_range
+    return out

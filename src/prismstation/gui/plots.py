@@ -30,7 +30,7 @@ from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QGridLayout, QHBoxLayo
 
 from prismstation.gui.fit_checks import alpha_of
 from prismstation.gui.palette import BLUNDER_RGB, FIT_RGB, KIND_RGB, THEORY_RGB, qcolor
-from prismstation.gui.plot_data import PlotData, auto_exaggeration, line_x, segments
+from prismstation.gui.plot_data import PlotData, auto_exaggeration, data_ranges, line_x, segments
 from prismstation.gui.text_label import TextLabel
 
 __all__ = ["PlotsWidget", "PlotData", "PLOT_NAMES", "auto_exaggeration"]
@@ -420,38 +420,9 @@ class PlotsWidget(QWidget):
 
     def _ranges(self) -> dict:
         """``{plot: ((x0, x1), (y0, y1))}`` covering the data (plots with data only)."""
-        d, out = self._data, {}
-        x = line_x(d)
-        if x.size:
-            ys = [d.gcp_h, d.icp_h]
-            ys5 = [np.zeros(1)]
-            for item, acc in ((self.fit_line, ys), (self.theory_line, ys), (self.d_fit_line, ys5),
-                              (self.d_gcp, ys5), (self.d_icp, ys5)):
-                yi = item.getData()[1]
-                if yi is not None:
-                    acc.append(np.asarray(yi, float))
-            for name, acc in (("height", ys), ("height_minus_theory", ys5)):
-                y = np.concatenate(acc)
-                y = y[np.isfinite(y)]
-                if y.size:
-                    pad = 0.05 * max(np.ptp(y), 1.0)
-                    out[name] = ((x[0], x[1]), (y.min() - pad, y.max() + pad))
-        if d.image_shape:
-            r, c = d.image_shape[:2]
-            out["vectors"] = ((-0.03 * c, 1.03 * c), (-0.03 * r, 1.03 * r))
-        else:
-            pts = [a for a in (d.vec_gcp_xy, d.vec_icp_xy) if len(a)]
-            for item in (self.v_gcp_seg, self.v_icp_seg):
-                sx, sy = item.getData()
-                if sx is not None and len(sx):
-                    pts.append(np.column_stack([sx, sy]))
-            if pts:
-                a = np.vstack(pts)
-                lo, hi = a.min(axis=0), a.max(axis=0)
-                pad = 0.05 * max(float(np.max(hi - lo)), 1.0)
-                out["vectors"] = ((lo[0] - pad, hi[0] + pad), (lo[1] - pad, hi[1] + pad))
-        out["std_residuals"] = getattr(self, "_std_range", ((0, 1), (0, 4)))
-        return out
+        segs = [np.column_stack(item.getData()) for item in (self.v_gcp_seg, self.v_icp_seg)
+                if item.getData()[0] is not None and len(item.getData()[0])]
+        return data_ranges(self._data, segs, getattr(self, "_std_range", ((0, 1), (0, 4))))
 
     def _apply_ranges(self, only=None) -> None:
         """Frame each followed plot's data. A range that still frames the data well (holds it,
