@@ -8,11 +8,14 @@ loop has painted everything it had to (the last pass that painted; the table, th
 the plots and the N view must be among what was painted, else the round fails). Printed: median and spread of the
 whole round, and its parts (the fit, the GUI update); ``--trace`` adds the stages.
 
+Each click starts from an idle window: the recovery journal of the previous edit (written
+40 ms after it) has been written, as it has between an operator's clicks.
+
 The first ``--warmup`` clicks are not counted: the first dozen clicks of a session run ~1.5×
 slower (the interpreter specialises, caches fill), which an operator meets once, not per click.
 
-Run: ``.venv/bin/python benchmarks/bench_click.py [--rounds 40] [--points 200]``. Target: median
-≤ 30 ms.
+Run: ``.venv/bin/python benchmarks/bench_click.py [--rounds 40] [--points 200]``. Targets: median
+≤ 16 ms at 200 points (one frame at 60 Hz), ≤ 30 ms at 1,000 points.
 """
 from __future__ import annotations
 
@@ -123,6 +126,7 @@ def main(argv=None) -> int:
         # the operator's cursor is already there (its linked crosshairs drawn) when they click
         QTest.mouseMove(vp, pos)
         wait_settled(win)
+        _until_journaled(win)
         done["t"] = None
         c0 = time.process_time()
         t0 = time.perf_counter()
@@ -156,14 +160,15 @@ def main(argv=None) -> int:
     where = f"CPU {args.cpu}" if args.cpu is not None else f"CPUs {sorted(os.sched_getaffinity(0))}"
     print(f"click → refit → repaint ({where}), {len(win.project.points)} points "
           f"({n_gcp} GCP), {args.rounds} clicks after {args.warmup} not counted, images {args.size} px")
-    line("whole round (target ≤ 30 ms)", total)
+    target = 16.0 if args.points <= 200 else 30.0
+    line(f"whole round (target ≤ {target:g} ms)", total)
     line("  fit (core.solve)", fit)
     line("  fit published → last paint", gui_ms)
     line("CPU time of the process per round", cpu)
     print(f"  open to settled images and first fit      {t_open * 1000:7.0f} ms")
     print(f"  machine speed: the same fit outside the window {ref_ms:.1f} ms before, "
           f"{speed():.1f} ms after (this VM: ~4 usually)")
-    print("target met" if np.median(total) <= 30.0 else "TARGET MISSED: median above 30 ms")
+    print("target met" if np.median(total) <= target else f"TARGET MISSED: median above {target:g} ms")
     if prof is not None:
         prof.disable()
         import pstats
@@ -195,6 +200,18 @@ class _PaintWatch(QObject):
         elif t == QEvent.Type.UpdateRequest:
             self.active = True
         return False
+
+
+def _until_journaled(win, timeout: float = 2.0) -> None:
+    """Let the window write its recovery journal (40 ms after an edit, on the GUI thread)
+    before the next click: an operator's clicks are further apart than that, and clicking at
+    once put the journal of the previous edit into the next round (in half of them, 4-5 ms)."""
+    journal = getattr(win.files, "journal", None)
+    end = time.perf_counter() + timeout
+    while journal is not None and getattr(journal, "armed", False) and time.perf_counter() < end:
+        QCoreApplication.processEvents()
+        time.sleep(0.002)
+    QCoreApplication.processEvents()
 
 
 def _until_painted(watch: _PaintWatch, done: dict, quiet_passes: int = 3) -> float:

@@ -46,6 +46,21 @@ def _pen(color: QColor, width: float = 2.0, dashed: bool = False):
     return pen
 
 
+_NO_SHAPE = QPainterPath()
+
+
+class Curve(pg.PlotCurveItem):
+    """A line item that is not a mouse target: the views pick markers themselves, and Qt's
+    search of the items under a click asked this curve for its outline, which pyqtgraph strokes
+    anew whenever the data changed (the residual vectors: at every click)."""
+
+    def shape(self) -> QPainterPath:
+        return _NO_SHAPE
+
+    def mouseClickEvent(self, ev) -> None:
+        ev.ignore()
+
+
 class Markers(pg.ScatterPlotItem):
     """pyqtgraph's scatter item with its bounding rectangle remembered.
 
@@ -74,6 +89,9 @@ class Markers(pg.ScatterPlotItem):
         """Not a click target: the views pick markers themselves (:meth:`ViewOverlay.nearest`),
         and pyqtgraph's search of the spots under the click cost every click a millisecond."""
         ev.ignore()
+
+    def shape(self) -> QPainterPath:  # (nor for Qt's search of the items under the mouse)
+        return _NO_SHAPE
 
     def boundingRect(self) -> QRectF:
         key = self._br_key
@@ -111,6 +129,9 @@ class LabelLayer(pg.GraphicsObject):
         self.labels = list(labels)
         self._xy = np.array([(x, y) for x, y, _, _ in self.labels], float).reshape(-1, 2)
         self.update()
+
+    def shape(self) -> QPainterPath:  # not a mouse target
+        return _NO_SHAPE
 
     def boundingRect(self) -> QRectF:
         """The visible area of the view (image pixels): labels extend in screen pixels from
@@ -207,9 +228,9 @@ class ViewOverlay:
         self.predicted = Markers(symbol="o", size=15, pxMode=True, brush=None)
         self.current = Markers(symbol="s", size=27, pxMode=True, brush=None,
                                           pen=pg.mkPen(CURRENT_COLOR, width=1.5))
-        self.vectors = pg.PlotCurveItem(connect="pairs", pen=pg.mkPen(255, 120, 0, width=2))
+        self.vectors = Curve(connect="pairs", pen=pg.mkPen(255, 120, 0, width=2))
         # one curve per kind: the ellipses of its predictions, separated by NaN
-        self.ellipses = {k: pg.PlotCurveItem(connect="finite", pen=_pen(c, 1.2, True))
+        self.ellipses = {k: Curve(connect="finite", pen=_pen(c, 1.2, True))
                          for k, c in KIND_COLORS.items()}
         for item in self.ellipses.values():
             item.setZValue(20.5)

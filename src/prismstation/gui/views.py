@@ -105,6 +105,7 @@ class TripletViews(QWidget):
         self.height_of = None  # reference DEM heights: (n, 2) map metres -> (n,) metres
         self.predictions = Predictions()  # of the points in the views they are not measured in
         self._by_view_key, self._by_view_cache = None, {}
+        self._drawn: dict = {}  # view -> the inputs its overlay last drew (see _view_inputs)
         self.editable = True  # False (navigate mode): clicks and drags never place nor move
         self.view_cursor = Qt.CursorShape.CrossCursor  # over the images (the measuring mode's)
 
@@ -116,6 +117,7 @@ class TripletViews(QWidget):
             pane.setParent(None)
             pane.deleteLater()
         self.views, self.overlays, self.headers, self.panes = {}, {}, {}, {}
+        self._drawn = {}
         self.project, self.solution, self.current = project, None, None
         self._generation += 1
         if project is None:
@@ -233,10 +235,27 @@ class TripletViews(QWidget):
             return
         preds = self.predictions.update(self.project, solution, self.height_of)
         mine = self._by_view()
-        for ov in self.overlays.values():
-            ov.update_measured(self.project, solution, self.current, mine.get(ov.name, ((), ())))
-            ov.update_solution(self.project, solution, preds)
+        for name, ov in self.overlays.items():
+            ov.update_measured(self.project, solution, self.current, mine.get(name, ((), ())))
+            key = self._view_inputs(name, solution, preds)
+            if key is None or key != self._drawn.get(name):
+                ov.update_solution(self.project, solution, preds)
+                self._drawn[name] = key
         self._update_current()
+
+    def _view_inputs(self, name, solution, preds):
+        """What view ``name`` draws from the solution depends on, or None (always redraw):
+        its measurements and their kinds, its bias (the residuals of its known points), the
+        known ground, the predictions in it and the labels' switch. A click in N changes none
+        of F's or B's when every point there is measured: their overlays are left alone."""
+        fit = solution.bias.get(name) if solution is not None else None
+        ov = self.overlays[name]
+        if fit is None or ov._measured_key is None:
+            return None
+        predicted = tuple((pid, p.xy, p.cov.tobytes()) for pid, d in preds.items()
+                          for v, p in d.items() if v == name)
+        return (id(ov._measured_key), fit.model, np.asarray(fit.params).tobytes(),
+                id(self.predictions._ground), predicted, ov.show_labels, id(self.project))
 
     def set_height_of(self, height_of) -> None:
         """The reference DEM's heights (None: none): predictions are made again with them."""
