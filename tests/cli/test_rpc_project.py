@@ -110,7 +110,9 @@ def test_fit_with_one_image_fixed_removes_the_residuals(block, capsys):
         assert a["x"]["rms"] < 0.5 * b["x"]["rms"], (v, b, a)
     ties = [p for p in after["points"] if p["kind"] == "TIE"]
     assert all(p["height_source"] == "intersection" for p in ties if "h_est" in p)
-    assert sum(p["blunder"] for p in after["points"]) <= 1
+    # blunders: points whose largest studentised residual passes 3.29 (normal scale); matched
+    # points over relief have a few
+    assert sum(p["blunder"] for p in after["points"]) <= 0.05 * len(after["points"])
     # the text report: a column per image
     assert main(["fit", str(d / "block.prismproj"), "--fixed-view", "img_01"]) == 0
     out = capsys.readouterr().out

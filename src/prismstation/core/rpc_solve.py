@@ -17,8 +17,9 @@ its ground residual checks the model; a tie point of the adjustment its adjusted
 σ of an intersection: each ray's a-priori σ scaled by the adjustment's σ0, with the fitted
 bias's σ at that point added. Residuals (measured − predicted, px) are taken against the known
 ground of GCPs and check points and the estimated ground of tie points; every observation of
-the adjustment has its redundancy number and externally studentised residual, and the worst
-point beyond :func:`~prismstation.core.solve.critical_value` is the one blunder flagged.
+the adjustment has its redundancy number and externally studentised residual; a point's largest,
+on the normal scale (:func:`~prismstation.core.solve.normal_equivalent`), beyond
+``settings.blunder_threshold`` flags it as a blunder, as in the PRISM fit.
 """
 from __future__ import annotations
 
@@ -32,7 +33,7 @@ from prismstation.core.ray_dem import ray_meets_surface
 from prismstation.core.rpc_adjust import adjust
 from prismstation.core.rpc_bias import BIAS_MODELS, BIAS_NAMES, intersect_points
 from prismstation.core.rpc_model import RpcBias, RpcModel
-from prismstation.core.solve import PointResult, Settings, Solution, critical_value, statistics
+from prismstation.core.solve import PointResult, Settings, Solution, normal_equivalent, statistics
 from prismstation.errors import DegenerateGeometry, ModelError
 
 #: σ (m) of a GCP's ground when its survey gives none: taken as exact
@@ -287,19 +288,17 @@ class _Block:
         for v in names:
             if ok.any():
                 pred[v][ok] = model.ground_to_image(v, g[ok, :2], g[ok, 2])
-        # the adjustment's tests, per point of the block
+        # the adjustment's tests, per point of the block: the largest externally studentised
+        # residual of its observations on the normal scale; every point beyond the threshold
+        # is a blunder, as in the PRISM fit
         tests = {}
         if res is not None:
-            crit = critical_value(settings.blunder_threshold, res.dof)
-            w = np.abs(res.std_residuals)
+            z = normal_equivalent(res.std_residuals, res.dof)
             for j, p in enumerate(self.block):
                 sel = self.point == j
-                ws = w[sel]
-                s = float(np.nanmax(ws)) if np.isfinite(ws).any() else math.nan
-                tests[p.id] = (s, float(res.redundancy[sel].min()), s / crit if math.isfinite(s) else 0.0)
-        worst = max(tests, key=lambda k: tests[k][2]) if tests else None
-        if worst is not None and tests[worst][2] <= 1.0:
-            worst = None
+                zs = z[sel]
+                s = float(np.nanmax(zs)) if np.isfinite(zs).any() else math.nan
+                tests[p.id] = (s, float(res.redundancy[sel].min()))
         out = []
         for i, p in enumerate(pts):
             seen = self.seen[p.id]
@@ -311,14 +310,14 @@ class _Block:
                             for v in seen if v in predicted}
             e = tuple(map(float, est[i])) if np.all(np.isfinite(est[i])) else None
             gres = tuple(float(a - b) for a, b in zip(e, known[i])) if e and has_known[i] else None
-            s, red, _ = tests.get(p.id, (math.nan, None, 0.0))
+            s, red = tests.get(p.id, (math.nan, None))
             note = ("not measured in any view" if not seen else
                     f"measured in one image: height from the {'reference DEM' if source[i] == 'reference' else 'mean height'}"
                     if len(seen) == 1 else "")
             sg = tuple(map(float, sig[i])) if e and np.all(np.isfinite(sig[i])) else None
             out.append(PointResult(p.id, p.kind, measured, predicted, residual, None, {}, e,
                                    source[i] if e else None, gres, s if math.isfinite(s) else None, red,
-                                   p.id == worst, note, sg))
+                                   math.isfinite(s) and s > settings.blunder_threshold, note, sg))
         return out
 
 
