@@ -275,7 +275,8 @@ def triangulate(rect: PairRectification, lattice: RayLattice, disparity: np.ndar
         q0, q1, q2 = _quadratic(v)
         # large map coordinates: interpolate relative to the lattice's first node
         ref = float(q0.flat[0])
-        en.append((ref + up(q0 - ref) + t * up(q1) + t * t * up(q2)).astype(np.float64))
+        # (float64 before the large offset is added: float32 holds 4,900 km to 0.5 m only)
+        en.append(ref + (up(q0 - ref) + t * up(q1) + t * t * up(q2)).astype(np.float64))
     e, n = (np.where(ok, v, np.nan) for v in en)
     return Triangulated(h, e, n, np.where(ok, m_per_px, np.nan).astype(np.float32))
 

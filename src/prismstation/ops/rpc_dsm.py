@@ -282,9 +282,12 @@ def pair_dsm(paths, models, grid: Grid, *, pair=(0, 1), height_range, points=Non
     i, j = pair
     rows, cols = grid.shape
     specs = []
-    for r0 in range(0, rows, tile_cells):
-        for c0 in range(0, cols, tile_cells):
-            win = (r0, c0, min(tile_cells, rows - r0), min(tile_cells, cols - c0))
+    # tiles of equal size, none larger than tile_cells (no thin strips at the edges)
+    rb = np.linspace(0, rows, -(-rows // tile_cells) + 1).round().astype(int)
+    cb = np.linspace(0, cols, -(-cols // tile_cells) + 1).round().astype(int)
+    for r0, r1 in zip(rb[:-1], rb[1:]):
+        for c0, c1 in zip(cb[:-1], cb[1:]):
+            win = (int(r0), int(c0), int(r1 - r0), int(c1 - c0))
             specs.append(PairTile((str(paths[i]), str(paths[j])), (models[i], models[j]), grid, win,
                                   tile_height_range(grid, win, height_range, points),
                                   margin_px=margin_px, refine=refine))
