@@ -9,8 +9,11 @@ about ``(lon0, lat0)`` (exact enough over a few kilometres for a self-consistent
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import rasterio
+import rasterio.errors
 from scipy import ndimage
 
 from prismstation.core.rpc import Rpc
@@ -54,10 +57,11 @@ def dem_terrain(path):
     """Bilinear heights of a geographic DEM file (e.g. an SRTM ``.hgt``)."""
     with rasterio.open(path) as ds:
         z = ds.read(1).astype(float)
-        inv = ~ds.transform
+        a, _, c0, _, e, f0 = tuple(ds.transform)[:6]
 
     def height(lon, lat):
-        c, r = inv * (np.asarray(lon, float), np.asarray(lat, float))
+        c = (np.asarray(lon, float) - c0) / a
+        r = (np.asarray(lat, float) - f0) / e
         return ndimage.map_coordinates(z, [np.ravel(r) - 0.5, np.ravel(c) - 0.5], order=1,
                                        mode="nearest").reshape(np.shape(lon))
     return height
@@ -89,26 +93,33 @@ def make_rpc(lon0, lat0, *, gsd=2.0, size=500, tan_along=0.2, tan_across=0.05, h
                samp_den=den.copy(), source="synthetic")
 
 
-def render(rpc: Rpc, world: World, size: int, iterations: int = 12) -> np.ndarray:
+def render(rpc: Rpc, world: World, size: int, iterations: int = 12, step: int = 6) -> np.ndarray:
     """The image (float32, ``size`` × ``size``): each pixel centre's ray meets the terrain.
 
-    The ray is lifted exactly at three heights over the RPC's domain and taken as quadratic in
-    height between them for the fixed-point iteration; the final point is lifted exactly."""
-    x, y = np.meshgrid(np.arange(size) + 0.5, np.arange(size) + 0.5)
+    Rays are lifted exactly (:meth:`Rpc.localize`) at three heights over the RPC's domain on a
+    lattice every ``step`` pixels, interpolated bilinearly between the nodes and taken as
+    quadratic in height (millimetres from the exact ray for these smooth RPCs); the height
+    where the ray meets the terrain by fixed-point iteration."""
+    n = size // step + 2
+    gx, gy = np.meshgrid(np.arange(n) * step + 0.5, np.arange(n) * step + 0.5)
     hs = rpc.h_off + rpc.h_scale * np.array([-1.0, 0.0, 1.0])
-    ray = [rpc.localize(x, y, np.full(x.shape, h)) for h in hs]
+    nodes = [rpc.localize(gx, gy, np.full(gx.shape, h)) for h in hs]
+    idx = np.meshgrid(np.arange(size) / step, np.arange(size) / step)
+    up = lambda v: ndimage.map_coordinates(v, [idx[1], idx[0]], order=1)  # noqa: E731
+    ray = [[up(v) for v in node] for node in nodes]          # [height][lon, lat]
     q = [(v[1], 0.5 * (v[2] - v[0]), 0.5 * (v[2] + v[0]) - v[1]) for v in zip(*ray)]
-    h = np.full(x.shape, rpc.h_off)
+    h = np.full((size, size), rpc.h_off)
     for _ in range(iterations):
         t = (h - hs[1]) / rpc.h_scale
         lon, lat = (c0 + c1 * t + c2 * t * t for c0, c1, c2 in q)
         h = world.height(lon, lat)
-    lon, lat = rpc.localize(x, y, h)
     return (100.0 + 20.0 * world.texture(lon, lat)).astype(np.float32)
 
 
 def write_image(path, image) -> None:
     """A plain GeoTIFF of the image (its RPC is given to the DSM as a model, not a tag)."""
-    with rasterio.open(path, "w", driver="GTiff", width=image.shape[1], height=image.shape[0],
-                       count=1, dtype="float32", transform=rasterio.Affine.identity()) as ds:
-        ds.write(image, 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(path, "w", driver="GTiff", width=image.shape[1], height=image.shape[0],
+                           count=1, dtype="float32") as ds:
+            ds.write(image, 1)

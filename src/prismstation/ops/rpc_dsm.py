@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import itertools
 import time
+import warnings
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -30,6 +31,7 @@ import cv2
 import numpy as np
 import pyproj
 import rasterio
+from rasterio.errors import NotGeoreferencedWarning
 from rasterio.windows import Window
 
 from prismstation.core import sgm
@@ -73,9 +75,17 @@ def utm_crs(lon: float, lat: float) -> str:
     return f"EPSG:{(32600 if lat >= 0 else 32700) + zone}"
 
 
+def _open(path):
+    """rasterio's dataset of an image; an image whose RPCs are in a side file is not
+    georeferenced in GDAL's sense, which is no reason for a warning."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NotGeoreferencedWarning)
+        return rasterio.open(path)
+
+
 def image_shape(path) -> tuple[int, int]:
     try:
-        with rasterio.open(path) as ds:
+        with _open(path) as ds:
             return ds.height, ds.width
     except rasterio.errors.RasterioError as exc:
         raise InputError(f"cannot open the image ({exc})", path) from None
@@ -159,7 +169,7 @@ def _read(path, win) -> np.ndarray:
     """Window (x0, y0, w, h) of band 1 as float32, NaN outside the image."""
     x0, y0, w, h = win
     out = np.full((h, w), np.nan, np.float32)
-    with rasterio.open(path) as ds:
+    with _open(path) as ds:
         c0, r0 = max(x0, 0), max(y0, 0)
         c1, r1 = min(x0 + w, ds.width), min(y0 + h, ds.height)
         if c1 > c0 and r1 > r0:
