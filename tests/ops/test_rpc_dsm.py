@@ -13,7 +13,8 @@ from prismstation.core.rpc_bias import BiasedRpc, metres_per_degree
 from prismstation.core.stats import nmad
 from prismstation.errors import InputError
 from prismstation.ops.rpc_dsm import rpc_dsm, to_lonlat
-from prismstation.ops.rpc_orient import orient_from_reference
+from prismstation.io.dsm import read_dsm_info, write_dsm
+from prismstation.ops.rpc_orient import orient_from_reference, orient_rpc_from_dem
 from tests.ops.rpc_synth import World, analytic_terrain, dem_terrain, make_rpc, render, write_image
 
 LON0, LAT0 = 5.27, 44.17
@@ -138,6 +139,24 @@ def test_orientation_from_a_reference_dem(synthetic, tmp_path):
     world, rpcs, paths = synthetic
     write_reference(tmp_path / "ref.tif", world)
     check_orientation(world, rpcs, paths, tmp_path / "ref.tif", 8.0)
+
+
+def test_one_call_orientation_and_the_dsm_file(synthetic, tmp_path):
+    """What the command line calls: the DSM at 8 pixels and the orientation in one; the DSM
+    written as the PRISM DSM's GeoTIFF, its heights ellipsoidal."""
+    world, rpcs, paths = synthetic
+    write_reference(tmp_path / "ref.tif", world)
+    moved = shifted_block(rpcs, LAT0)
+    o, dsm = orient_rpc_from_dem(paths, moved, tmp_path / "ref.tif", pairs=[(0, 2)],
+                                 height_range=(200.0, 700.0))
+    assert dsm.posting_m == pytest.approx(8 * GSD, rel=0.02)
+    assert o and np.all(np.abs(np.array(o.shift_m) - SHIFT) < [2.0, 2.0, 1.0])
+    write_dsm(tmp_path / "dsm.tif", dsm)
+    info = read_dsm_info(tmp_path / "dsm.tif")
+    with rasterio.open(tmp_path / "dsm.tif") as ds:
+        assert "ellipsoidal" in ds.crs.to_wkt() and ds.count == 3
+        h = ds.read(1)
+    assert np.allclose(h, dsm.heights, equal_nan=True) and info
 
 
 def test_orientation_refuses_a_reference_elsewhere(synthetic, tmp_path):

@@ -25,10 +25,10 @@ import numpy as np
 
 from prismstation.core.coarse import dem_offset
 from prismstation.core.coreg import CoregResult, block_mean
-from prismstation.core.rpc_bias import BIAS_MODELS, BiasedRpc, as_biased, bias_design
+from prismstation.core.rpc_bias import BIAS_MODELS, BiasedRpc, as_biased, bias_design, metres_per_degree
 from prismstation.errors import InputError
 from prismstation.io.dem import read_dem
-from prismstation.ops.rpc_dsm import to_lonlat
+from prismstation.ops.rpc_dsm import rpc_dsm, to_lonlat
 
 #: default bound of the horizontal shift (metres)
 DEFAULT_MAX_SHIFT_M = 100.0
@@ -143,3 +143,29 @@ def _refit(m: BiasedRpc, kind: str, E, N, H, s, inv):
     p = fit(s)
     G = np.column_stack([(fit(s + 0.5 * e) - fit(s - 0.5 * e)) for e in np.eye(3)])
     return BiasedRpc(m.rpc, kind, p, x0, y0), G
+
+
+def ground_sample_distance(model) -> float:
+    """Metres on the ground of one pixel along the columns at the RPC's centre and height
+    offset (the smaller of the two axes)."""
+    r = as_biased(model).rpc
+    x0, y0 = r.samp_off + 0.5, r.line_off + 0.5
+    lon, lat = r.localize(np.array([x0, x0 + 1.0, x0]), np.array([y0, y0, y0 + 1.0]), np.full(3, r.h_off))
+    ke, kn = metres_per_degree(lat[0])
+    d = np.hypot((lon[1:] - lon[0]) * ke, (lat[1:] - lat[0]) * kn)
+    return float(d.min())
+
+
+def orient_rpc_from_dem(paths, models, reference, *, bias: str = "shift", geoid=None,
+                        posting: float | None = None, pairs=None, points=None, height_range=None,
+                        max_shift_m: float = DEFAULT_MAX_SHIFT_M, workers=None, progress=None):
+    """The relative DSM of the images (:func:`prismstation.ops.rpc_dsm.rpc_dsm`, ``pairs``
+    default every pair) at ``posting`` (default 8 pixels: it need only resolve the
+    reference's relief) laid on ``reference``: ``(RpcDemOrientation, dsm)``. ``points``,
+    ``height_range``: the DSM's a-priori heights; ``geoid``: for an orthometric reference."""
+    if posting is None:
+        posting = 8.0 * ground_sample_distance(models[0])
+    dsm, _ = rpc_dsm(paths, models, posting=posting, pairs=pairs, points=points,
+                     height_range=height_range, workers=workers, progress=progress)
+    return orient_from_reference(models, dsm.heights, dsm.transform, dsm.crs, reference, bias=bias,
+                                 geoid=geoid, max_shift_m=max_shift_m), dsm
