@@ -11,9 +11,9 @@ import rasterio
 
 from prismstation.core.rpc_bias import BiasedRpc, metres_per_degree
 from prismstation.core.stats import nmad
-from prismstation.errors import InputError
-from prismstation.ops.rpc_dsm import rpc_dsm, to_lonlat
+from prismstation.errors import Cancelled, InputError
 from prismstation.io.dsm import read_dsm_info, write_dsm
+from prismstation.ops.rpc_dsm import rpc_dsm, to_lonlat
 from prismstation.ops.rpc_orient import orient_from_reference, orient_rpc_from_dem
 from tests.ops.rpc_synth import World, analytic_terrain, dem_terrain, make_rpc, render, write_image
 
@@ -182,3 +182,14 @@ def test_orientation_on_srtm_relief(ventoux):
     the same SRTM tile as the reference: the block's 17 m ground error is found."""
     world, rpcs, paths, srtm = ventoux
     check_orientation(world, rpcs, paths, srtm, 8.0)
+
+
+def test_bad_input_and_cancel(synthetic, tmp_path):
+    world, rpcs, paths = synthetic
+    with pytest.raises(InputError, match="two or more"):
+        rpc_dsm(paths[:1], rpcs[:1])
+    with pytest.raises(InputError, match="cannot open"):
+        rpc_dsm([paths[0], tmp_path / "missing.tif"], rpcs[:2])
+    with pytest.raises(Cancelled):
+        rpc_dsm(paths, rpcs, pairs=[(0, 2)], posting=8.0, height_range=(200.0, 700.0),
+                progress=lambda fraction, message="": False)
