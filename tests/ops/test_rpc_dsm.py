@@ -76,6 +76,19 @@ def test_pair_dsm_finds_the_terrain(synthetic):
     assert 0.2 < nmad(z) < 1.3
 
 
+def test_a_reference_dem_narrows_the_search(synthetic, tmp_path):
+    """Without tie points, a reference DEM's heights ± 40 m set each tile's range (the
+    terrain spans 250–600 m; the RPCs' domain −100–900 m)."""
+    world, rpcs, paths = synthetic
+    write_reference(tmp_path / "ref.tif", world)
+    dsm, pairs = rpc_dsm(paths, rpcs, pairs=[(0, 2)], posting=8.0, reference=tmp_path / "ref.tif")
+    for t in pairs[0].tiles:
+        lo, hi = t["height_range"]
+        assert lo > 150 and hi < 700 and hi - lo < 400
+    d = truth_diff(dsm, world)
+    assert dsm.valid_fraction > 0.85 and abs(np.nanmedian(d)) < 0.4
+
+
 def test_the_fitted_bias_is_applied(synthetic):
     """An image whose RPC is 2 px off along its lines: the raw RPC puts the DSM metres too
     high or low; the same RPC with the bias that undoes it finds the terrain."""
@@ -179,7 +192,8 @@ def ventoux(tmp_path_factory, shared_data):
 
 def test_orientation_on_srtm_relief(ventoux):
     """Real relief (SRTM 3″ on the slopes of Mont Ventoux, 1,500–1,900 m), the images rendered on it and
-    the same SRTM tile as the reference: the block's 17 m ground error is found."""
+    the same SRTM tile as the reference: the block's 17 m ground error is found. (The
+    world's heights are the tile's numbers, so no geoid enters.)"""
     world, rpcs, paths, srtm = ventoux
     check_orientation(world, rpcs, paths, srtm, 8.0)
 

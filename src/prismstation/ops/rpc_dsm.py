@@ -12,8 +12,9 @@ A-priori knowledge, stated by the caller and turned into search ranges:
 
 - ``height_range`` (lo, hi) ellipsoidal metres for the whole DSM; per tile it is narrowed to
   the heights of ``points`` (tie points intersected by the bias fit, ground ``(E, N, h)``)
-  within and around the tile, widened by ``max(POINT_MARGIN_M, 25 %)`` of their spread. Without
-  either, the RPCs' own height domain (``h_off ± h_scale``): correct but a wide search.
+  within and around the tile, widened by ``max(POINT_MARGIN_M, 25 %)`` of their spread, and
+  to a reference DEM's heights there ± :data:`PRIOR_MARGIN_M` (the union of the two). Without
+  any, the RPCs' own height domain (``h_off ± h_scale``): correct but a wide search.
 - ``bias_margin_px``: what is left of the images' relative bias (after the bias fit, a few
   tenths of a pixel; raw Pléiades RPCs within one pass, about a pixel): the disparity range is
   widened by it. A relative error across the epipolar lines larger than about half a pixel
@@ -40,6 +41,7 @@ from prismstation.core.rpc_epipolar import (grid_heights, ray_lattice, rectify_p
                                             triangulate, warp)
 from prismstation.core.stats import nmad
 from prismstation.errors import InputError, ModelError
+from prismstation.io.dem import read_dem
 from prismstation.io.raster import gdal_env
 from prismstation.ops.dsm import MASK_MATCHED, Dsm
 from prismstation.ops.dsm_tiles import return_freed_memory, run_tiles
@@ -48,6 +50,10 @@ from prismstation.ops.dsm_tiles import return_freed_memory, run_tiles
 POINT_MARGIN_M = 20.0
 #: tie points a tile needs around it to narrow its height range
 MIN_TILE_POINTS = 5
+#: widening (m) of a reference DEM's heights over a tile: its own error (SRTM, Copernicus DEM:
+#: a few metres to ~15 m in relief) and the block's vertical error before it is oriented
+#: (RPCs without GCPs: 10–20 m)
+PRIOR_MARGIN_M = 40.0
 #: output cells per tile side
 TILE_CELLS = 256
 
@@ -249,25 +255,37 @@ def run_pair_tile(spec: PairTile):
     return h, cnt, sigma, stats
 
 
-def tile_height_range(grid: Grid, window, height_range, points) -> tuple[float, float]:
-    """The tile's a-priori height range: the heights of ``points`` (E, N, h arrays) within
-    the tile widened by half its size on every side, widened by
-    ``max(POINT_MARGIN_M, 25 % of their spread)``, inside ``height_range``; the whole
-    ``height_range`` where fewer than :data:`MIN_TILE_POINTS` are near."""
-    lo, hi = height_range
-    if points is None:
-        return float(lo), float(hi)
-    e, n, h = points
+def tile_height_range(grid: Grid, window, height_range, points, prior=None,
+                      prior_margin_m: float = PRIOR_MARGIN_M) -> tuple[float, float]:
+    """The tile's a-priori height range, inside ``height_range``: the union of
+
+    - the heights of ``points`` (E, N, h arrays) within the tile widened by half its size on
+      every side, widened by ``max(POINT_MARGIN_M, 25 % of their spread)`` (when
+      :data:`MIN_TILE_POINTS` or more are near);
+    - the reference DEM ``prior`` (an array on ``grid``, NaN void) over the same cells,
+      widened by ``prior_margin_m``;
+
+    the whole ``height_range`` where neither says anything."""
+    lo, hi = (float(v) for v in height_range)
     r0, c0, rows, cols = window
-    a, _, c, _, ee, f = grid.transform
-    x0, x1 = c + a * (c0 - cols / 2), c + a * (c0 + 1.5 * cols)
-    y1, y0 = f + ee * (r0 - rows / 2), f + ee * (r0 + 1.5 * rows)
-    near = (e >= x0) & (e <= x1) & (n >= y0) & (n <= y1) & np.isfinite(h)
-    if near.sum() < MIN_TILE_POINTS:
-        return float(lo), float(hi)
-    hmin, hmax = float(h[near].min()), float(h[near].max())
-    m = max(POINT_MARGIN_M, 0.25 * (hmax - hmin))
-    return max(float(lo), hmin - m), min(float(hi), hmax + m)
+    ranges = []
+    if points is not None:
+        e, n, h = points
+        a, _, c, _, ee, f = grid.transform
+        x0, x1 = c + a * (c0 - cols / 2), c + a * (c0 + 1.5 * cols)
+        y1, y0 = f + ee * (r0 - rows / 2), f + ee * (r0 + 1.5 * rows)
+        near = (e >= x0) & (e <= x1) & (n >= y0) & (n <= y1) & np.isfinite(h)
+        if near.sum() >= MIN_TILE_POINTS:
+            hmin, hmax = float(h[near].min()), float(h[near].max())
+            m = max(POINT_MARGIN_M, 0.25 * (hmax - hmin))
+            ranges.append((hmin - m, hmax + m))
+    if prior is not None:
+        sub = prior[max(0, r0 - rows // 2):r0 + rows + rows // 2, max(0, c0 - cols // 2):c0 + cols + cols // 2]
+        if np.isfinite(sub).any():
+            ranges.append((float(np.nanmin(sub)) - prior_margin_m, float(np.nanmax(sub)) + prior_margin_m))
+    if not ranges:
+        return lo, hi
+    return max(lo, min(r[0] for r in ranges)), min(hi, max(r[1] for r in ranges))
 
 
 @dataclass
@@ -283,12 +301,13 @@ class PairDsm:
     seconds: float = 0.0
 
 
-def pair_dsm(paths, models, grid: Grid, *, pair=(0, 1), height_range, points=None,
+def pair_dsm(paths, models, grid: Grid, *, pair=(0, 1), height_range, points=None, prior=None,
              margin_px: float = 2.0, tile_cells: int = TILE_CELLS, refine: bool = True,
              scheduler=None, workers=None, progress=None) -> PairDsm:
     """The DSM of the pair ``paths[i], paths[j]`` (``pair = (i, j)``; ``models`` the images'
     :class:`Rpc` or :class:`BiasedRpc`, biases applied) on ``grid``: see the module docstring
-    for ``height_range``, ``points`` (E, N, h arrays on the grid's CRS) and ``margin_px``."""
+    for ``height_range``, ``points`` (E, N, h arrays on the grid's CRS), ``prior`` (reference
+    heights on ``grid``) and ``margin_px``."""
     i, j = pair
     rows, cols = grid.shape
     specs = []
@@ -299,7 +318,7 @@ def pair_dsm(paths, models, grid: Grid, *, pair=(0, 1), height_range, points=Non
         for c0, c1 in zip(cb[:-1], cb[1:]):
             win = (int(r0), int(c0), int(r1 - r0), int(c1 - c0))
             specs.append(PairTile((str(paths[i]), str(paths[j])), (models[i], models[j]), grid, win,
-                                  tile_height_range(grid, win, height_range, points),
+                                  tile_height_range(grid, win, height_range, points, prior),
                                   margin_px=margin_px, refine=refine))
     out = PairDsm(tuple(pair), np.full(grid.shape, np.nan, np.float32), np.zeros(grid.shape, np.int32),
                   np.full(grid.shape, np.nan, np.float32))
@@ -344,7 +363,7 @@ def pair_agreement(pairs: list) -> dict:
 
 
 def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=None, points=None,
-            grid: Grid | None = None, crs: str | None = None, margin_px: float = 2.0,
+            reference=None, geoid=None, grid: Grid | None = None, crs: str | None = None, margin_px: float = 2.0,
             tile_cells: int = TILE_CELLS, refine: bool = True, tau: float = 3.0,
             scheduler=None, workers=None, progress=None) -> tuple[Dsm, list]:
     """The fused DSM of two or more images with RPCs, and the pair DSMs it came from.
@@ -352,7 +371,8 @@ def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=Non
     ``paths`` image files; ``models`` their :class:`Rpc` / :class:`BiasedRpc` (fitted
     biases applied); ``pairs`` index pairs (default every pair); ``posting`` metres;
     ``grid`` (default: the images' common footprint in the UTM zone of its centre, or
-    ``crs``). ``height_range``, ``points``, ``margin_px``: the module docstring. Fusion per
+    ``crs``). ``height_range``, ``points``, ``margin_px``, ``reference`` (a reference DEM
+    file; ``geoid`` makes an orthometric one ellipsoidal): the module docstring. Fusion per
     cell as in the PRISM DSM (:func:`prismstation.core.sgm.fuse`): the pair heights within
     ``tau`` σ of their median, σ-weighted; a cell with one height (or two that disagree) keeps
     the one nearest its neighbours' fused surface within 3σ or three postings. The
@@ -366,12 +386,17 @@ def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=Non
     if grid is None:
         grid = footprint_grid(models, shapes, posting, 0.5 * sum(height_range), crs)
     pairs = list(pairs) if pairs is not None else list(itertools.combinations(range(len(paths)), 2))
+    prior = None
+    if reference is not None:
+        prior = read_dem(reference, grid.crs, grid.transform, grid.shape, geoid=geoid,
+                         what="reference DEM").heights.astype(np.float32)
     t0 = time.perf_counter()
     results = []
     for k, pr in enumerate(pairs):
         sub = None if progress is None else (
             lambda f, msg="", k=k: progress((k + f) / len(pairs), f"pair {k + 1} of {len(pairs)}: {msg}"))
         results.append(pair_dsm(paths, models, grid, pair=pr, height_range=height_range, points=points,
+                                prior=prior,
                                 margin_px=margin_px, tile_cells=tile_cells, refine=refine,
                                 scheduler=scheduler, workers=workers, progress=sub))
         return_freed_memory()

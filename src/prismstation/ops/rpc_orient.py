@@ -165,7 +165,9 @@ def orient_rpc_from_dem(paths, models, reference, *, bias: str = "shift", geoid=
     ``height_range``: the DSM's a-priori heights; ``geoid``: for an orthometric reference."""
     if posting is None:
         posting = 8.0 * ground_sample_distance(models[0])
-    dsm, _ = rpc_dsm(paths, models, posting=posting, pairs=pairs, points=points,
-                     height_range=height_range, workers=workers, progress=progress)
+    # the search: the tie points' heights and the reference's ± 40 m (the block's vertical
+    # error before its orientation, and the reference's own)
+    dsm, _ = rpc_dsm(paths, models, posting=posting, pairs=pairs, points=points, reference=reference,
+                     geoid=geoid, height_range=height_range, workers=workers, progress=progress)
     return orient_from_reference(models, dsm.heights, dsm.transform, dsm.crs, reference, bias=bias,
                                  geoid=geoid, max_shift_m=max_shift_m), dsm
