@@ -110,6 +110,12 @@ def test_three_pairs_fused(synthetic):
     assert len(agree) == 3
     for v in agree.values():
         assert abs(v["median_m"]) < 0.5 and v["nmad_m"] < 2.5 and v["cells"] > 1000
+    # without the pair grids kept, the agreement from samples of each tile's differences
+    lean, none = rpc_dsm(paths, rpcs, posting=8.0, height_range=(200.0, 700.0), keep_pairs=False)
+    assert none == [] and lean.info["agreement_sampled"]
+    assert np.array_equal(lean.heights, dsm.heights, equal_nan=True)
+    for key, v in lean.info["pair_agreement"].items():
+        assert v["nmad_m"] == pytest.approx(agree[key]["nmad_m"], rel=0.1)
     d = truth_diff(dsm, world)
     single = truth_diff(replace(dsm, heights=pairs[1].heights), world)
     # fused: no worse than the widest pair alone, and most cells agreed on by 2 or 3 pairs

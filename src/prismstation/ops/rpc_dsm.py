@@ -44,7 +44,7 @@ from prismstation.errors import InputError, ModelError
 from prismstation.io.dem import read_dem
 from prismstation.io.raster import gdal_env
 from prismstation.ops.dsm import MASK_MATCHED, Dsm
-from prismstation.ops.dsm_tiles import return_freed_memory, run_tiles
+from prismstation.ops.dsm_tiles import run_tiles
 
 #: smallest widening (m) of a tile's height range beyond its tie points' heights
 POINT_MARGIN_M = 20.0
@@ -301,125 +301,191 @@ class PairDsm:
     seconds: float = 0.0
 
 
-def pair_dsm(paths, models, grid: Grid, *, pair=(0, 1), height_range, points=None, prior=None,
-             margin_px: float = 2.0, tile_cells: int = TILE_CELLS, refine: bool = True,
-             scheduler=None, workers=None, progress=None) -> PairDsm:
-    """The DSM of the pair ``paths[i], paths[j]`` (``pair = (i, j)``; ``models`` the images'
-    :class:`Rpc` or :class:`BiasedRpc`, biases applied) on ``grid``: see the module docstring
-    for ``height_range``, ``points`` (E, N, h arrays on the grid's CRS), ``prior`` (reference
-    heights on ``grid``) and ``margin_px``."""
-    i, j = pair
-    rows, cols = grid.shape
-    specs = []
-    # tiles of equal size, none larger than tile_cells (no thin strips at the edges)
-    rb = np.linspace(0, rows, -(-rows // tile_cells) + 1).round().astype(int)
-    cb = np.linspace(0, cols, -(-cols // tile_cells) + 1).round().astype(int)
-    for r0, r1 in zip(rb[:-1], rb[1:]):
-        for c0, c1 in zip(cb[:-1], cb[1:]):
-            win = (int(r0), int(c0), int(r1 - r0), int(c1 - c0))
-            specs.append(PairTile((str(paths[i]), str(paths[j])), (models[i], models[j]), grid, win,
-                                  tile_height_range(grid, win, height_range, points, prior),
-                                  margin_px=margin_px, refine=refine))
-    out = PairDsm(tuple(pair), np.full(grid.shape, np.nan, np.float32), np.zeros(grid.shape, np.int32),
-                  np.full(grid.shape, np.nan, np.float32))
-    t0 = time.perf_counter()
-
-    def consume(k, result):
-        h, cnt, sig, stats = result
-        r0, c0, nr, nc = specs[k].window
-        out.heights[r0:r0 + nr, c0:c0 + nc] = h
-        out.counts[r0:r0 + nr, c0:c0 + nc] = cnt
-        out.sigma[r0:r0 + nr, c0:c0 + nc] = sig
-        out.tiles.append(dict(stats, window=specs[k].window))
-
-    run_tiles(specs, consume, scheduler=scheduler, workers=workers, progress=progress, fn=run_pair_tile)
-    out.seconds = time.perf_counter() - t0
-    return out
-
-
-def seen_by_all(models, shapes, grid: Grid, heights) -> np.ndarray:
-    """Cells whose centre, at ``heights`` (NaN → the median), falls inside every image."""
-    E, N = grid.cell_centres()
+def seen_by_all(models, shapes, grid: Grid, heights, window=None) -> np.ndarray:
+    """Cells (of ``window`` = (row0, col0, rows, cols), default the grid) whose centre at
+    ``heights`` (NaN → their median) falls inside every image."""
+    E, N = grid.cell_centres(window)
     lon, lat = to_lonlat(grid.crs)(E, N)
     h = np.where(np.isfinite(heights), heights, np.nanmedian(heights) if np.isfinite(heights).any() else 0.0)
-    seen = np.ones(grid.shape, bool)
+    seen = np.ones(E.shape, bool)
     for model, (rows, cols) in zip(models, shapes):
         x, y = as_biased(model).project(lon, lat, h)
         seen &= (x >= 0) & (x < cols) & (y >= 0) & (y < rows)
     return seen
 
 
+def _differences(hp, hq, sp, sq):
+    """Differences of two pair DSMs where both hold a height, and the same in their σ."""
+    d = hp - hq
+    ok = np.isfinite(d)
+    return d[ok], d[ok] / np.sqrt(sp[ok] ** 2 + sq[ok] ** 2)
+
+
+def _agreement(d, z) -> dict:
+    return {"nmad_m": nmad(d), "median_m": float(np.median(d)) if d.size else float("nan"),
+            "cells": int(d.size), "nmad_in_sigma": nmad(z)}
+
+
 def pair_agreement(pairs: list) -> dict:
     """NMAD (m) of the differences between every two pair DSMs, over the cells both hold,
-    and the NMAD of those differences in units of their formal σ (1 when the σ are right)."""
-    out = {}
-    for p, q in itertools.combinations(pairs, 2):
-        d = p.heights - q.heights
-        z = d / np.sqrt(p.sigma ** 2 + q.sigma ** 2)
-        ok = np.isfinite(d)
-        out[f"{p.pair}-{q.pair}"] = {"nmad_m": nmad(d[ok]), "median_m": float(np.median(d[ok])) if ok.any() else np.nan,
-                                     "cells": int(ok.sum()), "nmad_in_sigma": nmad(z[ok])}
-    return out
+    their median, and the NMAD of those differences in units of their formal σ (1 when the
+    σ are right); keys ``"(i, j)-(k, l)"``."""
+    return {f"{p.pair}-{q.pair}": _agreement(*_differences(p.heights, q.heights, p.sigma, q.sigma))
+            for p, q in itertools.combinations(pairs, 2)}
+
+
+def fuse_pairs(vals, sig, tau: float, posting: float):
+    """Fused heights and quality (pairs agreeing) of pair heights ``vals`` (P, rows, cols)
+    with σ ``sig`` (module docstring of :func:`rpc_dsm`)."""
+    if len(vals) == 1:
+        h = vals[0].copy()
+        return h, np.where(np.isfinite(h), 1, 0).astype(np.uint8)
+    h, q = sgm.fuse(vals, sig, tau)
+    finite = np.isfinite(sig)
+    tol = max(tau * 2 * float(np.median(sig[finite])) if finite.any() else 0.0, 3 * posting)
+    return sgm.resolve_single(h, q, vals, tol)
+
+
+@dataclass(frozen=True)
+class BlockTile:
+    """One output tile of every pair (what a worker needs): the images' ``paths``,
+    ``models`` and ``shapes``, the index ``pairs``, the cells ``window`` of ``grid``, the
+    tile's height range (m), the disparity margin (px), the refinement and the fusion's τ."""
+
+    paths: tuple
+    models: tuple
+    shapes: tuple
+    pairs: tuple
+    grid: Grid
+    window: tuple
+    height_range: tuple
+    margin_px: float = 2.0
+    refine: bool = True
+    tau: float = 3.0
+
+
+def run_block_tile(spec: BlockTile):
+    """Every pair of one tile, fused: ``(heights, quality, seen, pair heights, pair σ,
+    pair counts, pair stats)`` on the tile's cells (pair arrays (P, rows, cols))."""
+    outs = [run_pair_tile(PairTile((spec.paths[i], spec.paths[j]), (spec.models[i], spec.models[j]),
+                                   spec.grid, spec.window, spec.height_range, margin_px=spec.margin_px,
+                                   refine=spec.refine))
+            for i, j in spec.pairs]
+    vals = np.stack([o[0] for o in outs])
+    counts = np.stack([o[1] for o in outs])
+    sig = np.stack([o[2] for o in outs])
+    h, q = fuse_pairs(vals, sig, spec.tau, spec.grid.posting)
+    seen = seen_by_all(spec.models, spec.shapes, spec.grid, h, spec.window)
+    h[~seen] = np.nan
+    q[~seen] = 0
+    return h, q, seen, vals, sig, counts, [o[3] for o in outs]
+
+
+def tile_windows(grid: Grid, tile_cells: int = TILE_CELLS) -> list:
+    """Windows (row0, col0, rows, cols) of equal tiles of at most ``tile_cells`` a side (no
+    thin strips at the edges)."""
+    rows, cols = grid.shape
+    rb = np.linspace(0, rows, -(-rows // tile_cells) + 1).round().astype(int)
+    cb = np.linspace(0, cols, -(-cols // tile_cells) + 1).round().astype(int)
+    return [(int(r0), int(c0), int(r1 - r0), int(c1 - c0))
+            for r0, r1 in zip(rb[:-1], rb[1:]) for c0, c1 in zip(cb[:-1], cb[1:])]
+
+
+#: pair grids are kept (and their agreement is exact) up to this many cells × pairs; beyond,
+#: the agreement comes from up to :data:`AGREEMENT_SAMPLES` differences per tile
+KEEP_PAIRS_CELLS = 30_000_000
+AGREEMENT_SAMPLES = 4096
 
 
 def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=None, points=None,
-            reference=None, geoid=None, grid: Grid | None = None, crs: str | None = None, margin_px: float = 2.0,
-            tile_cells: int = TILE_CELLS, refine: bool = True, tau: float = 3.0,
-            scheduler=None, workers=None, progress=None) -> tuple[Dsm, list]:
+            reference=None, geoid=None, grid: Grid | None = None, crs: str | None = None,
+            margin_px: float = 2.0, tile_cells: int = TILE_CELLS, refine: bool = True, tau: float = 3.0,
+            keep_pairs: bool | None = None, scheduler=None, workers=None, progress=None) -> tuple[Dsm, list]:
     """The fused DSM of two or more images with RPCs, and the pair DSMs it came from.
 
     ``paths`` image files; ``models`` their :class:`Rpc` / :class:`BiasedRpc` (fitted
     biases applied); ``pairs`` index pairs (default every pair); ``posting`` metres;
     ``grid`` (default: the images' common footprint in the UTM zone of its centre, or
     ``crs``). ``height_range``, ``points``, ``margin_px``, ``reference`` (a reference DEM
-    file; ``geoid`` makes an orthometric one ellipsoidal): the module docstring. Fusion per
-    cell as in the PRISM DSM (:func:`prismstation.core.sgm.fuse`): the pair heights within
-    ``tau`` σ of their median, σ-weighted; a cell with one height (or two that disagree) keeps
-    the one nearest its neighbours' fused surface within 3σ or three postings. The
-    :class:`~prismstation.ops.dsm.Dsm` holds ellipsoidal heights on ``grid``, ``quality`` the
-    pairs agreeing, and ``info["pair_agreement"]`` (:func:`pair_agreement`).
+    file; ``geoid`` makes an orthometric one ellipsoidal): the module docstring.
+
+    Each tile matches every pair and fuses them as the PRISM DSM does
+    (:func:`prismstation.core.sgm.fuse`): the pair heights within ``tau`` σ of their median,
+    σ-weighted; a cell with one height (or two that disagree) keeps the one nearest its
+    neighbours' fused surface within 3σ or three postings. The
+    :class:`~prismstation.ops.dsm.Dsm` holds ellipsoidal heights on ``grid``, ``quality``
+    the pairs agreeing, ``seen`` the cells all images see, ``info["pair_agreement"]``
+    (:func:`pair_agreement`), ``info["pair_fill"]`` and the tiles' largest epipolar error.
+    The pair DSMs (:class:`PairDsm`) are returned when kept (``keep_pairs``, default: up to
+    :data:`KEEP_PAIRS_CELLS`), else an empty list.
     """
     if len(paths) != len(models) or len(paths) < 2:
         raise InputError("a DSM needs two or more images, each with its RPC model")
-    shapes = [image_shape(p) for p in paths]
+    shapes = tuple(image_shape(p) for p in paths)
     height_range = tuple(height_range) if height_range is not None else rpc_height_domain(models)
     if grid is None:
         grid = footprint_grid(models, shapes, posting, 0.5 * sum(height_range), crs)
-    pairs = list(pairs) if pairs is not None else list(itertools.combinations(range(len(paths)), 2))
+    pairs = tuple(tuple(map(int, p)) for p in pairs) if pairs is not None else \
+        tuple(itertools.combinations(range(len(paths)), 2))
     prior = None
     if reference is not None:
         prior = read_dem(reference, grid.crs, grid.transform, grid.shape, geoid=geoid,
                          what="reference DEM").heights.astype(np.float32)
+    cells = grid.shape[0] * grid.shape[1]
+    keep = keep_pairs if keep_pairs is not None else cells * len(pairs) <= KEEP_PAIRS_CELLS
+    specs = [BlockTile(tuple(str(p) for p in paths), tuple(models), shapes, pairs, grid, win,
+                       tile_height_range(grid, win, height_range, points, prior),
+                       margin_px=margin_px, refine=refine, tau=tau)
+             for win in tile_windows(grid, tile_cells)]
+    del prior
+    h = np.full(grid.shape, np.nan, np.float32)
+    q = np.zeros(grid.shape, np.uint8)
+    seen = np.zeros(grid.shape, bool)
+    results = [PairDsm(pr, np.full(grid.shape, np.nan, np.float32), np.zeros(grid.shape, np.int32),
+                       np.full(grid.shape, np.nan, np.float32)) for pr in pairs] if keep else []
+    combos = list(itertools.combinations(range(len(pairs)), 2))
+    samples = {c: ([], []) for c in combos}
+    filled = np.zeros(len(pairs), np.int64)
+    epipolar = [0.0]
+    rng = np.random.default_rng(0)
     t0 = time.perf_counter()
-    results = []
-    for k, pr in enumerate(pairs):
-        sub = None if progress is None else (
-            lambda f, msg="", k=k: progress((k + f) / len(pairs), f"pair {k + 1} of {len(pairs)}: {msg}"))
-        results.append(pair_dsm(paths, models, grid, pair=pr, height_range=height_range, points=points,
-                                prior=prior,
-                                margin_px=margin_px, tile_cells=tile_cells, refine=refine,
-                                scheduler=scheduler, workers=workers, progress=sub))
-        return_freed_memory()
-    vals = np.stack([r.heights for r in results])
-    sig = np.stack([r.sigma for r in results])
-    if len(results) == 1:
-        h = vals[0].copy()
-        q = np.where(np.isfinite(h), 1, 0).astype(np.uint8)
+
+    def consume(k, res):
+        th, tq, ts, vals, sig, cnt, stats = res
+        r0, c0, nr, nc = specs[k].window
+        sl = (slice(r0, r0 + nr), slice(c0, c0 + nc))
+        h[sl], q[sl], seen[sl] = th, tq, ts
+        filled[:] += np.isfinite(vals[:, ts]).sum(axis=1)
+        epipolar[0] = max([epipolar[0]] + [st.get("epipolar_error_px", 0.0) for st in stats])
+        for p, r in enumerate(results):
+            r.heights[sl], r.counts[sl], r.sigma[sl] = vals[p], cnt[p], sig[p]
+            r.tiles.append(dict(stats[p], window=specs[k].window))
+        if not keep:
+            for a, b in combos:
+                d, z = _differences(vals[a], vals[b], sig[a], sig[b])
+                if d.size > AGREEMENT_SAMPLES:
+                    pick = rng.choice(d.size, AGREEMENT_SAMPLES, replace=False)
+                    d, z = d[pick], z[pick]
+                samples[(a, b)][0].append(d.astype(np.float32))
+                samples[(a, b)][1].append(z.astype(np.float32))
+
+    run_tiles(specs, consume, scheduler=scheduler, workers=workers, progress=progress, fn=run_block_tile)
+    seconds = time.perf_counter() - t0
+    for r in results:
+        r.seconds = seconds
+    if keep:
+        agreement = pair_agreement(results)
     else:
-        h, q = sgm.fuse(vals, sig, tau)
-        with np.errstate(invalid="ignore"):
-            tol = max(tau * 2 * float(np.nanmedian(sig)) if np.isfinite(sig).any() else 0.0, 3 * grid.posting)
-        h, q = sgm.resolve_single(h, q, vals, tol)
-    seen = seen_by_all(models, shapes, grid, h)
-    h[~seen] = np.nan
-    mask = (np.isfinite(h) & seen).astype(np.uint8) * MASK_MATCHED
+        agreement = {f"{pairs[a]}-{pairs[b]}": _agreement(np.concatenate(samples[(a, b)][0] or [np.zeros(0)]),
+                                                          np.concatenate(samples[(a, b)][1] or [np.zeros(0)]))
+                     for a, b in combos}
     n_seen = int(seen.sum())
-    info = {"pairs": [list(map(int, r.pair)) for r in results],
-            "pair_agreement": pair_agreement(results),
-            "pair_fill": [float(np.isfinite(r.heights[seen]).mean()) if n_seen else 0.0 for r in results],
-            "seconds": time.perf_counter() - t0,
-            "epipolar_error_px": max((t.get("epipolar_error_px", 0.0) for r in results for t in r.tiles), default=0.0),
-            "height_range": list(height_range)}
+    info = {"pairs": [list(p) for p in pairs], "pair_agreement": agreement,
+            "agreement_sampled": not keep,
+            "pair_fill": [float(f) / n_seen if n_seen else 0.0 for f in filled],
+            "seconds": seconds, "epipolar_error_px": epipolar[0], "height_range": list(height_range),
+            "tiles": len(specs)}
+    mask = (np.isfinite(h) & seen).astype(np.uint8) * MASK_MATCHED
     dsm = Dsm(h, grid.transform, grid.crs, "ellipsoidal",
               float(np.isfinite(h[seen]).mean()) if n_seen else 0.0,
               mask=mask, seen=seen, quality=q, posting_m=grid.posting, info=info)
