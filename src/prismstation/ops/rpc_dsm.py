@@ -15,10 +15,12 @@ A-priori knowledge, stated by the caller and turned into search ranges:
   within and around the tile, widened by ``max(POINT_MARGIN_M, 25 %)`` of their spread, and
   to a reference DEM's heights there ± :data:`PRIOR_MARGIN_M` (the union of the two). Without
   any, the RPCs' own height domain (``h_off ± h_scale``): correct but a wide search.
-- ``bias_margin_px``: what is left of the images' relative bias (after the bias fit, a few
-  tenths of a pixel; raw Pléiades RPCs within one pass, about a pixel): the disparity range is
-  widened by it. A relative error across the epipolar lines larger than about half a pixel
-  ruins SGBM's matching: fit the biases first.
+- ``margin_px`` (2 px): what is left of the images' relative bias along the epipolar lines
+  (after the bias fit, a tenth of a pixel; the Pléiades triplet's raw RPCs, a few tenths):
+  the disparity range is widened by it. Across the lines nothing absorbs a bias (the raw
+  triplet's 0.7–1.2 px there still matched 96–99 % of the cells), and along them it is a
+  height error (the raw triplet's pairs lie 2.4–4.8 m apart: docs/benchmarks.md): fit the
+  biases first.
 """
 from __future__ import annotations
 
