@@ -157,8 +157,8 @@ def orientation(fit, dsm, paths, points, h_range):
         ref = Path(d) / "reference.tif"
         write_dem(ref, dsm.heights, dsm.crs, dsm.transform)
         t0 = time.perf_counter()
-        e, n, h = points
-        moved_pts = (e - shift[0], n - shift[1], h - shift[2])
+        lon, lat = to_lonlat(CRS)(points[0] - shift[0], points[1] - shift[1])
+        moved_pts = (lon, lat, points[2] - shift[2])
         mdsm, _ = rpc_dsm(paths, moved, posting=dsm.posting_m, pairs=[(0, 2)], points=moved_pts,
                           height_range=h_range, crs=CRS)
         o = orient_from_reference(moved, mdsm.heights, mdsm.transform, mdsm.crs, ref, cell_m=4.0)
@@ -247,7 +247,8 @@ def main() -> int:
     for posting in args.postings:
         for label, models in (("fitted", fit.models), ("raw RPCs", rpcs)):
             t0, c0 = time.perf_counter(), time.process_time()
-            dsm, pairs = rpc_dsm(FILES, models, posting=posting, points=points, height_range=h_range,
+            dsm, pairs = rpc_dsm(FILES, models, posting=posting, points=(fit.lon, fit.lat, fit.h),
+                                 height_range=h_range,
                                  crs=CRS, workers=args.workers)
             dt, cpu = time.perf_counter() - t0, time.process_time() - c0
             print(f"   {posting:g} m, {label}: {dsm.heights.shape[1]} × {dsm.heights.shape[0]} cells, "

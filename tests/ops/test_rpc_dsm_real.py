@@ -47,10 +47,9 @@ def crops(tmp_path_factory, shared_data):
 def test_real_triplet_dsm(crops):
     paths, rpcs, fit, kept = crops
     crs = "EPSG:32631"
-    e, n = to_map(crs)(fit.lon, fit.lat)          # the points kept by the fit
-    points = (np.asarray(e), np.asarray(n), fit.h)
+    ground = (fit.lon, fit.lat, fit.h)             # the points kept by the fit
     # a-priori: the RPCs' own height domain, narrowed per tile by the tie points' heights
-    dsm, pairs = rpc_dsm(paths, fit.models, posting=1.0, points=points, crs=crs)
+    dsm, pairs = rpc_dsm(paths, fit.models, posting=1.0, points=ground, crs=crs)
     assert dsm.valid_fraction > 0.9
     agree = dsm.info["pair_agreement"]
     for v in agree.values():
@@ -58,6 +57,8 @@ def test_real_triplet_dsm(crops):
         assert 0.5 < v["nmad_in_sigma"] < 1.6, agree
     assert dsm.info["epipolar_error_px"] < 0.01
     # the tie points' heights lie on the DSM (urban relief: a metre or two of scatter)
+    e, n = to_map(crs)(fit.lon, fit.lat)
+    points = (np.asarray(e), np.asarray(n), fit.h)
     a, _, c, _, ee, f = dsm.transform
     col = ((points[0] - c) / a).astype(int)
     row = ((points[1] - f) / ee).astype(int)
@@ -65,5 +66,5 @@ def test_real_triplet_dsm(crops):
     dh = dsm.heights[row[inside], col[inside]] - points[2][inside]
     assert abs(np.nanmedian(dh)) < 1.0 and nmad(dh) < 2.0
     # the raw RPCs: the widest pair against a narrow one, metres apart
-    raw, _ = rpc_dsm(paths, rpcs, pairs=[(0, 1), (1, 2)], posting=1.0, points=points, crs=crs)
+    raw, _ = rpc_dsm(paths, rpcs, pairs=[(0, 1), (1, 2)], posting=1.0, points=ground, crs=crs)
     assert abs(raw.info["pair_agreement"]["(0, 1)-(1, 2)"]["median_m"]) > 2.0

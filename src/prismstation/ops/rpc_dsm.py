@@ -11,7 +11,7 @@ own windows, so a tile runs in a thread, a process or on a ``dask.distributed`` 
 A-priori knowledge, stated by the caller and turned into search ranges:
 
 - ``height_range`` (lo, hi) ellipsoidal metres for the whole DSM; per tile it is narrowed to
-  the heights of ``points`` (tie points intersected by the bias fit, ground ``(E, N, h)``)
+  the heights of ``points`` (tie points intersected by the bias fit: ``(lon°, lat°, h m)``)
   within and around the tile, widened by ``max(POINT_MARGIN_M, 25 %)`` of their spread, and
   to a reference DEM's heights there ± :data:`PRIOR_MARGIN_M` (the union of the two). Without
   any, the RPCs' own height domain (``h_off ± h_scale``): correct but a wide search.
@@ -408,7 +408,8 @@ def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=Non
     ``paths`` image files; ``models`` their :class:`Rpc` / :class:`BiasedRpc` (fitted
     biases applied); ``pairs`` index pairs (default every pair); ``posting`` metres;
     ``grid`` (default: the images' common footprint in the UTM zone of its centre, or
-    ``crs``). ``height_range``, ``points``, ``margin_px``, ``reference`` (a reference DEM
+    ``crs``). ``height_range``, ``points`` (lon°, lat°, ellipsoidal h m arrays: the bias fit's
+    tie points), ``margin_px``, ``reference`` (a reference DEM
     file; ``geoid`` makes an orthometric one ellipsoidal): the module docstring.
 
     Each tile matches every pair and fuses them as the PRISM DSM does
@@ -433,6 +434,9 @@ def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=Non
     if reference is not None:
         prior = read_dem(reference, grid.crs, grid.transform, grid.shape, geoid=geoid,
                          what="reference DEM").heights.astype(np.float32)
+    if points is not None:
+        lon, lat, hp = (np.asarray(v, float).ravel() for v in points)
+        points = (*(np.asarray(v) for v in to_map(grid.crs)(lon, lat)), hp)
     cells = grid.shape[0] * grid.shape[1]
     keep = keep_pairs if keep_pairs is not None else cells * len(pairs) <= KEEP_PAIRS_CELLS
     specs = [BlockTile(tuple(str(p) for p in paths), tuple(models), shapes, pairs, grid, win,

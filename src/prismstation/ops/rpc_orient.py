@@ -161,8 +161,9 @@ def orient_rpc_from_dem(paths, models, reference, *, bias: str = "shift", geoid=
                         max_shift_m: float = DEFAULT_MAX_SHIFT_M, workers=None, progress=None):
     """The relative DSM of the images (:func:`prismstation.ops.rpc_dsm.rpc_dsm`, ``pairs``
     default every pair) at ``posting`` (default 8 pixels: it need only resolve the
-    reference's relief) laid on ``reference``: ``(RpcDemOrientation, dsm)``. ``points``,
-    ``height_range``: the DSM's a-priori heights; ``geoid``: for an orthometric reference."""
+    reference's relief) laid on ``reference``: ``(RpcDemOrientation, dsm)``. ``points``
+    (lon°, lat°, h m of the tie points), ``height_range``: the DSM's a-priori heights;
+    ``geoid``: for an orthometric reference."""
     if posting is None:
         posting = 8.0 * ground_sample_distance(models[0])
     # the search: the tie points' heights and the reference's ± 40 m (the block's vertical
