@@ -13,7 +13,7 @@ from prismstation.core.rpc_bias import BiasedRpc, metres_per_degree
 from prismstation.core.stats import nmad
 from prismstation.errors import Cancelled, InputError
 from prismstation.io.dsm import read_dsm_info, write_dsm
-from prismstation.ops.rpc_dsm import rpc_dsm, to_lonlat
+from prismstation.ops.rpc_dsm import Grid, rpc_dsm, tile_height_range, to_lonlat
 from prismstation.ops.rpc_orient import orient_from_reference, orient_rpc_from_dem
 from tests.ops.rpc_synth import World, analytic_terrain, dem_terrain, make_rpc, render, write_image
 
@@ -213,3 +213,20 @@ def test_bad_input_and_cancel(synthetic, tmp_path):
     with pytest.raises(Cancelled):
         rpc_dsm(paths, rpcs, pairs=[(0, 2)], posting=8.0, height_range=(200.0, 700.0),
                 progress=lambda fraction, message="": False)
+
+
+def test_tile_height_range_from_points_and_reference():
+    grid = Grid("EPSG:32631", (2.0, 0.0, 1000.0, 0.0, -2.0, 5000.0), (100, 100))
+    window = (0, 0, 50, 50)                     # E 1000–1100, N 4900–5000
+    e = np.array([1010.0, 1020.0, 1030.0, 1040.0, 1050.0, 1500.0])
+    n = np.full(6, 4950.0)
+    h = np.array([300.0, 310.0, 320.0, 330.0, 340.0, 900.0])   # the far point is not near
+    assert tile_height_range(grid, window, (0.0, 1000.0), None) == (0.0, 1000.0)
+    assert tile_height_range(grid, window, (0.0, 1000.0), (e, n, h)) == (280.0, 360.0)
+    # too few points near: the stated range
+    assert tile_height_range(grid, window, (0.0, 1000.0), (e[:4], n[:4], h[:4])) == (0.0, 1000.0)
+    prior = np.full(grid.shape, np.nan, np.float32)
+    prior[:40, :40] = 500.0
+    assert tile_height_range(grid, window, (0.0, 1000.0), None, prior) == (460.0, 540.0)
+    # the union of both, inside the stated range
+    assert tile_height_range(grid, window, (0.0, 520.0), (e, n, h), prior) == (280.0, 520.0)
