@@ -142,17 +142,18 @@ def feather(spec: TileSpec, transform, shape) -> np.ndarray:
     return np.clip(d / max(2 * spec.overlap_m, 1e-9), 0.0, 1.0).astype(np.float32)
 
 
-def run_tiles(specs: list, consume, scheduler=None, workers: int | None = None, progress=None) -> None:
-    """Run :func:`run_tile` on ``specs`` and hand each result to ``consume(index, result)`` as
+def run_tiles(specs: list, consume, scheduler=None, workers: int | None = None, progress=None,
+              fn=None) -> None:
+    """Run ``fn`` (default :func:`run_tile`) on ``specs`` and hand each result to ``consume(index, result)`` as
     it arrives, so that no more than a few tiles' arrays are held at once (a 14,000 px scene at
     5 m has ~56 million cells: all its tiles' results together would be ~0.7 GB). See the
     module docstring for ``scheduler``. ``progress(fraction, message)`` after each tile; False
     cancels. Local schedulers run the tiles in batches of four per worker."""
     with gdal_env():      # the bound for every local worker thread, entry point or not
-        _run_tiles(specs, consume, scheduler, workers, progress)
+        _run_tiles(specs, consume, scheduler, workers, progress, fn or run_tile)
 
 
-def _run_tiles(specs, consume, scheduler, workers, progress) -> None:
+def _run_tiles(specs, consume, scheduler, workers, progress, fn) -> None:
     import dask
     done = 0
 
@@ -167,7 +168,7 @@ def _run_tiles(specs, consume, scheduler, workers, progress) -> None:
         batch = 4 * max(1, workers or CPU_COUNT)
         for b0 in range(0, len(specs), batch):
             # named, untraversed specs: dask neither hashes nor walks the solution's points
-            tasks = [dask.delayed(run_tile)(dask.delayed(specs[i], traverse=False, name=f"tile-spec-{i}"),
+            tasks = [dask.delayed(fn)(dask.delayed(specs[i], traverse=False, name=f"tile-spec-{i}"),
                                             dask_key_name=f"run_tile-{i}")
                      for i in range(b0, min(b0 + batch, len(specs)))]
             results = list(dask.compute(*tasks, scheduler=scheduler or "threads", num_workers=workers))
@@ -180,7 +181,7 @@ def _run_tiles(specs, consume, scheduler, workers, progress) -> None:
     from distributed import Client, as_completed
     client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
     try:
-        futures = client.map(run_tile, specs, pure=True)
+        futures = client.map(fn, specs, pure=True)
         index = {f.key: i for i, f in enumerate(futures)}
         try:
             for future in as_completed(futures):
