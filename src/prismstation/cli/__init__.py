@@ -3,13 +3,16 @@
 Each module of this package (other than ones starting with ``_``) defines
 ``register(subparsers)``, which adds one or more sub-commands and sets ``func`` on them:
 ``func(args) -> int`` (the exit status). Modules are discovered, so adding a command is
-adding a module. Bad input raises :class:`prismstation.errors.PrismError`; :func:`main`
-prints it as one line on stderr and exits 2 — never a traceback.
+adding a module. Bad input, a raster that cannot be read and a file that cannot be written
+raise :class:`prismstation.errors.PrismError` naming the file; :func:`main` prints it as one
+line on stderr and exits 2 — never a traceback. An ``OSError`` no reader or writer named (none
+is known) is still one line and exit 2.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import logging
 import pkgutil
 import sys
 
@@ -27,8 +30,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -39,10 +40,15 @@ def main(argv: list[str] | None = None) -> int:
             parser.print_help()
             return 2
     from prismstation.io.raster import gdal_env
+    # GDAL's own lines on stderr (a failed write prints one per block): the error's one line
+    # below names the file and carries GDAL's message
+    logging.getLogger("rasterio._env").setLevel(logging.CRITICAL)
     try:
         with gdal_env():
             return int(args.func(args) or 0)
-    except PrismError as exc:
+    except (PrismError, OSError) as exc:
+        from prismstation.cli._common import end_progress
+        end_progress()
         print(f"prismstation {args.command}: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
