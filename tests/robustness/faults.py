@@ -1,0 +1,199 @@
+"""Fault injection shared by the fault suite: broken tiled GeoTIFFs, a full or read-only file
+system, a writer limited to N bytes, and the command-line contract on a fault.
+
+The contract (every command, every fault): exit status 2 and exactly one line on stderr,
+``prismstation COMMAND: FILE: what failed``, naming the file at fault; no traceback; no
+"wrote" for a file that is not there; no file — partial, temporary or corrupt — left beside
+the target; the project file byte for byte as it was.
+
+A full file system is a small tmpfs mounted for the test (root on Linux), filled so that
+``free`` bytes are left. Where no tmpfs can be mounted, the same commands run in a child
+process whose files may not grow past ``free`` bytes (``RLIMIT_FSIZE``, ``SIGXFSZ``
+ignored: a write past it fails with EFBIG), which needs no privilege.
+"""
+from __future__ import annotations
+
+import errno
+import fcntl
+import hashlib
+import os
+import resource
+import shutil
+import signal
+import subprocess
+import sys
+from contextlib import contextmanager
+from pathlib import Path
+
+import rasterio
+
+import prismstation
+
+SIM_SIZE = 800          # pixels a side: 2 × 2 tiles of 512 per image
+
+
+# ----------------------------------------------------------------------- the simulated triplet
+def shared_sim(tmp_path_factory) -> Path:
+    """A simulated triplet project (``tests/gui/sim_project.make_sim``) made once per test run,
+    shared by the xdist workers (a lock on the run's common folder), with a tiled, deflated
+    copy of its reference DEM (``srtm_tiled.tif``: a bit flip in it is a decoding error)."""
+    base = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        base = base.parent              # the run's folder, common to its workers
+    d = base / "faults_sim"
+    with open(base / "faults_sim.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (d / "done").exists():
+            from tests.gui.sim_project import make_sim
+            shutil.rmtree(d, ignore_errors=True)
+            make_sim(d, size=SIM_SIZE, seed=7)
+            with rasterio.open(d / "srtm.tif") as src:
+                profile = dict(src.profile, tiled=True, blockxsize=16, blockysize=16,
+                               compress="deflate")
+                with rasterio.open(d / "srtm_tiled.tif", "w", **profile) as dst:
+                    dst.write(src.read())
+            (d / "done").touch()
+    return d
+
+
+def copy_sim(master: Path, target: Path) -> Path:
+    shutil.copytree(master, target, ignore=shutil.ignore_patterns("done"))
+    return target
+
+
+# ----------------------------------------------------------------------- broken rasters
+def tile_spans(path) -> list[tuple[int, int]]:
+    """``(offset, bytes)`` of every full-resolution tile of band 1 (GDAL's TIFF metadata)."""
+    with rasterio.open(path) as ds:
+        bh, bw = ds.block_shapes[0]
+        spans = []
+        for r in range(-(-ds.height // bh)):
+            for c in range(-(-ds.width // bw)):
+                spans.append((int(ds.get_tag_item(f"BLOCK_OFFSET_{c}_{r}", "TIFF", bidx=1)),
+                              int(ds.get_tag_item(f"BLOCK_SIZE_{c}_{r}", "TIFF", bidx=1))))
+    return spans
+
+
+def truncate(path, keep: float = 0.5) -> None:
+    """Keep the first ``keep`` of the file (a copy cut short; the directory at its head
+    stays, the tiles at its end are gone)."""
+    path = Path(path)
+    os.truncate(path, int(path.stat().st_size * keep))
+
+
+def bitflip(path, tiles=None) -> None:
+    """Flip one bit in the middle of the compressed data of each tile (or of the tiles whose
+    indexes, in row order, are in ``tiles``): each is a deflate error when read."""
+    path = Path(path)
+    data = bytearray(path.read_bytes())
+    for i, (off, size) in enumerate(tile_spans(path)):
+        if tiles is None or i in tiles:
+            data[off + size // 2] ^= 0x10
+    path.write_bytes(bytes(data))
+
+
+BREAKS = {"truncated": truncate, "bitflip": bitflip}
+
+
+# ----------------------------------------------------------------------- file systems
+_MOUNT: list = []
+
+
+def can_mount() -> bool:
+    """A tmpfs can be mounted here (root on Linux, mount allowed): tried once."""
+    if not _MOUNT:
+        ok = False
+        if sys.platform.startswith("linux") and os.geteuid() == 0 and shutil.which("mount"):
+            probe = Path(os.environ.get("TMPDIR", "/tmp")) / f"prism_mount_probe_{os.getpid()}"
+            probe.mkdir(exist_ok=True)
+            try:
+                ok = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(probe)],
+                                    capture_output=True).returncode == 0
+                if ok:
+                    subprocess.run(["umount", str(probe)], check=True)
+            finally:
+                probe.rmdir()
+        _MOUNT.append(ok)
+    return _MOUNT[0]
+
+
+@contextmanager
+def tmpfs(directory: Path, size_kb: int = 2048, read_only: bool = False):
+    """Mount a tmpfs of ``size_kb`` on ``directory`` for the block (read-only: nothing can be
+    created in it)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    opts = f"size={size_kb}k" + (",ro" if read_only else "")
+    subprocess.run(["mount", "-t", "tmpfs", "-o", opts, "tmpfs", str(directory)], check=True)
+    try:
+        yield directory
+    finally:
+        if subprocess.run(["umount", str(directory)], capture_output=True).returncode:
+            subprocess.run(["umount", "-l", str(directory)], capture_output=True)
+
+
+def fill(directory: Path, free: int) -> None:
+    """Fill ``directory``'s file system with ``.filler`` until ``free`` bytes (whole pages) are
+    left."""
+    fd = os.open(directory / ".filler", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
+    try:
+        chunk = b"\0" * 65536
+        while True:
+            try:
+                if os.write(fd, chunk) == 0:
+                    break
+            except OSError as exc:
+                if exc.errno != errno.ENOSPC:
+                    raise
+                break
+        os.ftruncate(fd, max(0, os.fstat(fd).st_size - free))
+    finally:
+        os.close(fd)
+    st = os.statvfs(directory)
+    assert abs(st.f_bavail * st.f_frsize - free) <= 2 * st.f_frsize, (st.f_bavail * st.f_frsize, free)
+
+
+def listing(directory: Path) -> list[str]:
+    return sorted(os.listdir(directory))
+
+
+def digest(path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+# ----------------------------------------------------------------------- running the commands
+def run_cli(capsys, argv) -> tuple[int, str, str]:
+    """``prismstation.cli.main(argv)`` in this process: ``(status, stdout, stderr)``."""
+    from prismstation.cli import main
+    capsys.readouterr()
+    rc = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def run_limited(argv, limit: int, tmp: Path) -> tuple[int, str, str]:
+    """The command in a child process whose files may not grow past ``limit`` bytes."""
+    def limit_files():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    src = str(Path(prismstation.__file__).resolve().parents[1])
+    env = dict(os.environ, QT_QPA_PLATFORM="offscreen", PYTHONDONTWRITEBYTECODE="1",
+               XDG_CACHE_HOME=str(tmp / "cache"), TMPDIR=str(tmp),
+               PYTHONPATH=os.pathsep.join([src] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
+    code = "import sys; from prismstation.cli import main; sys.exit(main(sys.argv[1:]))"
+    r = subprocess.run([sys.executable, "-c", code] + [str(a) for a in argv], capture_output=True,
+                       text=True, timeout=300, env=env, preexec_fn=limit_files)
+    return r.returncode, r.stdout, r.stderr
+
+
+def assert_clean_failure(result, command: str, names: str) -> str:
+    """Exit 2, one line ``prismstation COMMAND: …`` naming ``names``, no traceback, no
+    "wrote"; returns the line."""
+    rc, out, err = result
+    assert "Traceback" not in err, err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert rc == 2 and len(lines) == 1, (rc, out, err)
+    assert lines[0].startswith(f"prismstation {command}: "), lines[0]
+    assert names in lines[0], f"{names!r} not named: {lines[0]}"
+    assert "wrote" not in out.lower(), out
+    return lines[0]
