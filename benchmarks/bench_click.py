@@ -8,11 +8,14 @@ loop has painted everything it had to (the last pass that painted; the table, th
 the plots and the N view must be among what was painted, else the round fails). Printed: median and spread of the
 whole round, and its parts (the fit, the GUI update); ``--trace`` adds the stages.
 
+Each click starts from an idle window: the recovery journal of the previous edit (written
+40 ms after it) has been written, as it has between an operator's clicks.
+
 The first ``--warmup`` clicks are not counted: the first dozen clicks of a session run ~1.5×
 slower (the interpreter specialises, caches fill), which an operator meets once, not per click.
 
-Run: ``.venv/bin/python benchmarks/bench_click.py [--rounds 40] [--points 200]``. Target: median
-≤ 30 ms.
+Run: ``.venv/bin/python benchmarks/bench_click.py [--rounds 40] [--points 200]``. Targets: median
+≤ 16 ms at 200 points (one frame at 60 Hz), ≤ 30 ms at 1,000 points.
 """
 from __future__ import annotations
 
@@ -39,6 +42,8 @@ def main(argv=None) -> int:
     ap.add_argument("--trace", action="store_true", help="also print the time of each stage")
     ap.add_argument("--cpu", type=int, default=None,
                     help="run on this CPU only (this VM's two vCPUs differ by up to 1.4× at times)")
+    ap.add_argument("--profile", metavar="FILE",
+                    help="cProfile the counted rounds into FILE (pstats; the top lines printed)")
     args = ap.parse_args(argv)
     if args.cpu is not None:
         os.sched_setaffinity(0, {args.cpu})
@@ -78,6 +83,7 @@ def main(argv=None) -> int:
     win.show()
     t0 = time.perf_counter()
     win.open_project(str(demo.path), recover=False)
+    win.default_layout()  # the docks sized for this window, not for the (offscreen) screen
     wait_settled(win)
     t_open = time.perf_counter() - t0
     # warm up (imports, caches), then the current point: a GCP shown at 1 image px per screen px
@@ -107,18 +113,27 @@ def main(argv=None) -> int:
     must_paint = {"point table": win.table.viewport(), "model panel": win.panel.sections,
                   **{f"plot {n}": win.plots.plots[n].viewport() for n in ("vectors", "std_residuals")},
                   "N view": vp}
-    total, fit = [], []
+    total, fit, cpu = [], [], []
+    prof = None
+    if args.profile:
+        import cProfile
+        prof = cProfile.Profile()
     for i in range(-args.warmup, args.rounds):
+        if i == 0 and prof is not None:
+            prof.enable()
         dx = (i % 4) - 1.5
         pos = iv.map_to_viewport(x0 + dx, y0 + 0.5 * dx).toPoint()
         # the operator's cursor is already there (its linked crosshairs drawn) when they click
         QTest.mouseMove(vp, pos)
         wait_settled(win)
+        _until_journaled(win)
         done["t"] = None
+        c0 = time.process_time()
         t0 = time.perf_counter()
         QTest.mouseClick(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, pos)
         t_click = time.perf_counter()
         t_end = _until_painted(watch, done)
+        c_end = time.process_time()
         missing = [n for n, w in must_paint.items() if w not in watch.painted]
         assert not missing, f"not repainted after the fit: {missing}"
         if i < 0:  # warm-up
@@ -126,6 +141,7 @@ def main(argv=None) -> int:
                 stages.now = {}
             continue
         total.append((t_end - t0) * 1000)
+        cpu.append((c_end - c0) * 1000)
         gui_ms.append((t_end - t_gui_start["t"]) * 1000)
         if stages is not None:
             stages.now["mouse click handled (incl. command)"] = (t_click - t0) * 1000
@@ -144,13 +160,20 @@ def main(argv=None) -> int:
     where = f"CPU {args.cpu}" if args.cpu is not None else f"CPUs {sorted(os.sched_getaffinity(0))}"
     print(f"click → refit → repaint ({where}), {len(win.project.points)} points "
           f"({n_gcp} GCP), {args.rounds} clicks after {args.warmup} not counted, images {args.size} px")
-    line("whole round (target ≤ 30 ms)", total)
+    target = 16.0 if args.points <= 200 else 30.0
+    line(f"whole round (target ≤ {target:g} ms)", total)
     line("  fit (core.solve)", fit)
     line("  fit published → last paint", gui_ms)
+    line("CPU time of the process per round", cpu)
     print(f"  open to settled images and first fit      {t_open * 1000:7.0f} ms")
     print(f"  machine speed: the same fit outside the window {ref_ms:.1f} ms before, "
           f"{speed():.1f} ms after (this VM: ~4 usually)")
-    print("target met" if np.median(total) <= 30.0 else "TARGET MISSED: median above 30 ms")
+    print("target met" if np.median(total) <= target else f"TARGET MISSED: median above {target:g} ms")
+    if prof is not None:
+        prof.disable()
+        import pstats
+        prof.dump_stats(args.profile)
+        pstats.Stats(prof).sort_stats("cumulative").print_stats(45)
     if stages is not None:
         print("stages (median ms per round, summed over the calls of a round):")
         for name, v in stages.rounds.items():
@@ -177,6 +200,18 @@ class _PaintWatch(QObject):
         elif t == QEvent.Type.UpdateRequest:
             self.active = True
         return False
+
+
+def _until_journaled(win, timeout: float = 2.0) -> None:
+    """Let the window write its recovery journal (40 ms after an edit, on the GUI thread)
+    before the next click: an operator's clicks are further apart than that, and clicking at
+    once put the journal of the previous edit into the next round (in half of them, 4-5 ms)."""
+    journal = getattr(win.files, "journal", None)
+    end = time.perf_counter() + timeout
+    while journal is not None and getattr(journal, "armed", False) and time.perf_counter() < end:
+        QCoreApplication.processEvents()
+        time.sleep(0.002)
+    QCoreApplication.processEvents()
 
 
 def _until_painted(watch: _PaintWatch, done: dict, quiet_passes: int = 3) -> float:

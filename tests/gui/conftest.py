@@ -2,6 +2,8 @@
 location (the user's own settings are never touched)."""
 from __future__ import annotations
 
+import fcntl
+import os
 import shutil
 
 import pytest
@@ -37,3 +39,32 @@ def window(qtbot, demo):
     win.demo = demo
     yield win
     close_windows(qtbot, win)
+
+
+@pytest.fixture(scope="session")
+def real_demo_master(tmp_path_factory):
+    """The demo project as ``prismstation demo`` makes it (2000 px triplet, 9 GCPs, 41 ICPs,
+    20 tie points, SRTM-like reference): made once per test session (a minute), shared by
+    the xdist workers through a lock."""
+    from prismstation.cli.demo import ensure_demo
+    base = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):  # the workers' base folders share this session's
+        base = base.parent
+    base = base / "real_demo"
+    base.mkdir(exist_ok=True)
+    with open(base / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            if not (base / "done").exists():
+                ensure_demo(base / "demo", rebuild=True)
+                (base / "done").write_text("")
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+    return base / "demo" / "demo.prismproj"
+
+
+@pytest.fixture()
+def real_demo(real_demo_master, tmp_path):
+    """A private copy of the real demo project."""
+    shutil.copytree(real_demo_master.parent, tmp_path / "demo")
+    return tmp_path / "demo" / "demo.prismproj"

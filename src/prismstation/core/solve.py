@@ -27,7 +27,8 @@ HeightFn = Callable[[np.ndarray], np.ndarray]  # (n, 2) map metres -> (n,) ellip
 @dataclass(frozen=True)
 class Settings:
     """Model choices. ``sigma_px``: a-priori σ of a measurement without its own (σ0 then
-    reads in pixels). ``blunder_threshold``: |standardised residual| that marks a blunder."""
+    reads in pixels). ``blunder_threshold``: |standardised residual| that marks a blunder, on
+    the normal scale (3.29: α = 0.001 per test; :func:`normal_equivalent`)."""
 
     bias_model: str = "affine"
     parallax_model: str = "line"
@@ -64,7 +65,7 @@ class PointResult:
     ground_est: tuple[float, float, float] | None
     height_source: str | None     # 'parallax', 'reference', 'mean'
     ground_residual: tuple[float, float, float] | None
-    std_residual: float | None    # largest |standardised residual| of this GCP
+    std_residual: float | None    # largest |standardised residual| of this GCP, normal scale
     redundancy: float | None      # smallest redundancy number of its N observations
     blunder: bool = False
     note: str = ""
@@ -339,39 +340,53 @@ def critical_value(threshold: float, dof: int) -> float:
     return float(-special.stdtrit(max(dof - 1, 1), alpha / 2))
 
 
-def _adjustment_stats(gcps, bias, parallax, scene, settings) -> dict:
-    """Standardised residual and redundancy of each GCP from the N bias and parallax fits:
-    ``{id: (largest |standardised residual| or None, smallest redundancy, blunder)}``."""
-    ref = scene.reference_view
-    w: dict[str, list] = {}  # id -> [max |w|, min redundancy, max |w| / critical]
+def normal_equivalent(w, dof: int) -> np.ndarray:
+    """|w| of externally studentised residuals of a fit with redundancy ``dof``, on the normal
+    scale: the normal quantile of the same two-sided tail probability as |w| under Student's t
+    with ``dof − 1`` degrees of freedom. It exceeds a threshold exactly when |w| exceeds
+    :func:`critical_value` (threshold, dof), so one threshold holds for every fit whatever its
+    redundancy (``w`` array-like; NaN stays NaN)."""
+    from scipy import special
+    w = np.abs(np.asarray(w, float))
+    tail = special.stdtr(max(dof - 1, 1), -w)
+    with np.errstate(divide="ignore"):
+        z = -special.ndtri(tail)
+    # beyond double precision (|w| of hundreds): the tail underflows; |w| itself is then far
+    # beyond any threshold
+    return np.where(np.isfinite(z) | np.isnan(w), z, w)
 
-    def add(pid, s, r, crit):
-        cur = w.setdefault(pid, [math.nan, r, 0.0])
+
+def _adjustment_stats(gcps, bias, parallax, scene, settings) -> dict:
+    """Standardised residual (on the normal scale, :func:`normal_equivalent`) and redundancy of
+    each GCP from the N bias and parallax fits: ``{id: (largest standardised residual or None,
+    smallest redundancy, blunder)}``. Every GCP beyond ``settings.blunder_threshold`` is a
+    blunder."""
+    ref = scene.reference_view
+    w: dict[str, list] = {}  # id -> [max standardised residual, min redundancy]
+
+    def add(pid, s, r):
+        cur = w.setdefault(pid, [math.nan, r])
         if math.isfinite(s):
             cur[0] = s if not math.isfinite(cur[0]) else max(cur[0], s)
-            cur[2] = max(cur[2], s / crit)
         cur[1] = min(cur[1], r)
 
     fit = bias[ref]
     if fit.lsq is not None:
-        crit = critical_value(settings.blunder_threshold, fit.lsq.dof)
         ids = [p.id for p in gcps if ref in p.image]
-        std_res, red = np.abs(fit.lsq.std_residuals).tolist(), fit.lsq.redundancy.tolist()
+        std_res = normal_equivalent(fit.lsq.std_residuals, fit.lsq.dof).tolist()
+        red = fit.lsq.redundancy.tolist()
         for i, pid in enumerate(ids):  # x and y of one GCP: the larger one ignoring NaN
             s = [v for v in std_res[2 * i:2 * i + 2] if not math.isnan(v)]
-            add(pid, max(s) if any(map(math.isfinite, s)) else math.nan, min(red[2 * i:2 * i + 2]), crit)
+            add(pid, max(s) if any(map(math.isfinite, s)) else math.nan, min(red[2 * i:2 * i + 2]))
     if parallax is not None and parallax.lsq is not None:
-        crit = critical_value(settings.blunder_threshold, parallax.lsq.dof)
         ids = [p.id for p in gcps if "F" in p.image and "B" in p.image]
-        std_res, red = np.abs(parallax.lsq.std_residuals).tolist(), parallax.lsq.redundancy.tolist()
+        std_res = normal_equivalent(parallax.lsq.std_residuals, parallax.lsq.dof).tolist()
+        red = parallax.lsq.redundancy.tolist()
         for i, pid in enumerate(ids):
-            add(pid, std_res[i], red[i], crit)
-    # data snooping: one blunder at a time — the largest exceedance of the critical value
-    # (a blunder distorts the fit and drags its neighbours' residuals up too)
-    worst = max(w, key=lambda k: w[k][2]) if w else None
-    if worst is not None and w[worst][2] <= 1.0:
-        worst = None
-    return {pid: (s if math.isfinite(s) else None, red, pid == worst) for pid, (s, red, _) in w.items()}
+            add(pid, std_res[i], red[i])
+    thr = settings.blunder_threshold
+    return {pid: (s if math.isfinite(s) else None, red, math.isfinite(s) and s > thr)
+            for pid, (s, red) in w.items()}
 
 
 def _statistics(scene: Scene, results) -> FitStatistics:

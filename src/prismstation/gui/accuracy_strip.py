@@ -13,6 +13,7 @@ import math
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QDoubleSpinBox, QFrame, QHBoxLayout, QLabel
 
+from prismstation.gui.fit_checks import parallax_check
 from prismstation.gui.palette import html
 from prismstation.gui.text_label import TextLabel
 
@@ -22,6 +23,9 @@ FIELDS = (("E", "ICP RMSE of easting, estimated − known ground position (m)"),
           ("h", "ICP RMSE of the ellipsoidal height from the F−B parallax (m)"),
           ("σ0", "a-posteriori σ0 of the reference view's bias fit (px): about the a-priori σ "
                  "when the measurements are as good as assumed"))
+
+
+WARN_COLOR = "#c00000"
 
 
 def _m(v) -> str:
@@ -46,6 +50,16 @@ def accuracy_values(sol) -> dict:
     n = {k: sum(1 for r in sol.points if r.kind == k and r.measured) for k in ("GCP", "ICP")}
     out["count"] = f"{n['GCP']} GCP · {n['ICP']} ICP"
     return out
+
+
+def accuracy_warning(sol) -> tuple[str, str]:
+    """``(short text, full text)`` of what the strip's figures stand on that does not hold
+    (the parallax model does not fit the GCPs); empty strings when nothing."""
+    check = parallax_check(sol)
+    if check is None or check.fits:
+        return "", ""
+    return (f"⚠ h from the '{check.model}' parallax model, which does not fit the GCPs "
+            f"({check.rms_model:.3g} m RMS)", check.text())
 
 
 class AccuracyStrip(QFrame):
@@ -85,7 +99,11 @@ class AccuracyStrip(QFrame):
         self.count = TextLabel("no fit", "000 GCP · 000 ICP")
         self.count.setToolTip("Measured GCPs (in the fit) and ICPs (checks only)")
         lay.addWidget(self.count)
-        lay.addStretch(1)
+        lay.addSpacing(8)
+        # what the figures stand on that does not hold (elided when narrow; whole in its tip)
+        self.warning = TextLabel("", "⚠ h from the parallax model", color=WARN_COLOR, bold=True,
+                                 stretch=True)
+        lay.addWidget(self.warning, 1)
         lab = QLabel("Residuals ×")
         self.exaggeration = QDoubleSpinBox(decimals=0, minimum=1, maximum=5000, singleStep=10)
         tip = ("Residual vectors drawn this many times their length: on the images (screen pixels "
@@ -102,7 +120,13 @@ class AccuracyStrip(QFrame):
             unit = "" if vals[f] == "—" else (" px" if f == "σ0" else " m")
             lab.setText(vals[f] + unit)
         self.count.setText(vals["count"])
+        short, full = accuracy_warning(sol)
+        self.warning.setText(short)
+        if self.warning.toolTip() != full:
+            self.warning.setToolTip(full)
+        self.values["h"].set_color(WARN_COLOR if short else None)
 
     def text(self) -> str:
         """What the strip shows, one line (tests)."""
-        return "  ".join(f"{f} {lab.text()}" for f, lab in self.values.items()) + "  " + self.count.text()
+        return ("  ".join(f"{f} {lab.text()}" for f, lab in self.values.items()) + "  " + self.count.text()
+                + (f"  {self.warning.text()}" if self.warning.text() else ""))

@@ -122,10 +122,10 @@ def run(project_path=None, screenshot=None, reference_dem=None, demo_maker=None,
             os.environ["PRISMSTATION_SETTINGS_DIR"] = tempfile.mkdtemp(prefix="prismstation-settings-")
     from prismstation.io.raster import gdal_env
     with gdal_env():                 # the window's GDAL settings, for as long as it runs
-        return _run_window(project_path, screenshot_path, reference_dem, demo_maker)
+        return _run_window(project_path, screenshot_path, reference_dem, demo_maker, open_demo)
 
 
-def _run_window(project_path, screenshot_path, reference_dem, demo_maker) -> int:
+def _run_window(project_path, screenshot_path, reference_dem, demo_maker, open_demo) -> int:
     app = make_app()
     from prismstation.gui.main_window import MainWindow
 

@@ -42,7 +42,7 @@ class ContrastPanel(QWidget):
         self.presets.activated.connect(self._on_preset)
         self.label = QLabel()
         self.plot = pg.PlotWidget(background="w")
-        self.plot.setMinimumHeight(90)
+        self.plot.setMinimumHeight(40)  # the dock shares the loupes' height: 60-100 px
         self.plot.hideAxis("left")
         self.plot.setMouseEnabled(x=False, y=False)
         self.plot.setMenuEnabled(False)
@@ -52,14 +52,20 @@ class ContrastPanel(QWidget):
         self.region.setZValue(10)
         self.plot.addItem(self.region)
         self.region.sigRegionChanged.connect(self._on_region)
-        top = QHBoxLayout()
-        top.addWidget(QLabel("Stretch"))
-        top.addWidget(self.presets, 1)
-        top.addWidget(self.label)
-        layout = QVBoxLayout(self)
+        # the controls beside the histogram, not above it: the dock shares the loupes' height
+        # (60-100 px), and a row on top left the histogram cut off
+        self.presets.setToolTip("Stretch: the levels at two percentiles of the image, or drag "
+                                "the region on the histogram")
+        side = QVBoxLayout()
+        side.setSpacing(2)
+        side.addWidget(self.presets)
+        side.addWidget(self.label)
+        side.addStretch(1)
+        layout = QHBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
-        layout.addLayout(top)
+        layout.setSpacing(4)
         layout.addWidget(self.plot, 1)
+        layout.addLayout(side)
         self._syncing = False
         view.levels_changed.connect(self._on_view_levels)
         view.source_ready.connect(self.refresh)

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from PySide6.QtCore import QUrl
-from PySide6.QtGui import QTextCursor, QTextDocument
+from PySide6.QtGui import QTextCursor, QTextLength, QTextTable
 from PySide6.QtWidgets import QDialog, QTextBrowser, QVBoxLayout
 
 
@@ -33,19 +33,21 @@ class GuideViewer(QDialog):
         self.browser.setOpenLinks(True)
         self.browser.setOpenExternalLinks(False)
         self.browser.setSearchPaths([str(path.parent)])
-        self.browser.sourceChanged.connect(lambda *_: self.fit_images())
+        self.browser.sourceChanged.connect(lambda *_: self.fit_page())
         self.browser.setSource(QUrl.fromLocalFile(str(path)))
         QVBoxLayout(self).addWidget(self.browser)
         self.resize(900, 700)
 
-    def resizeEvent(self, ev) -> None:
-        super().resizeEvent(ev)
-        self.fit_images()
-
-    def fit_images(self) -> None:
-        """Pictures at most as wide as the page (screenshots are wider than the viewer)."""
+    def fit_page(self) -> None:
+        """Pictures and tables at most as wide as the page, whatever its width (a list's indent
+        and the scroll bar included): as a share of it, which Qt applies at every layout.
+        Screenshots are wider than the viewer; Markdown tables came out a few pixels wider."""
         doc = self.browser.document()
-        width = max(100, self.browser.viewport().width() - 40)
+        for frame in doc.rootFrame().childFrames():
+            if isinstance(frame, QTextTable):
+                fmt = frame.format()
+                fmt.setWidth(QTextLength(QTextLength.Type.PercentageLength, 98))
+                frame.setFormat(fmt)
         block = doc.begin()
         while block.isValid():
             it = block.begin()
@@ -54,15 +56,13 @@ class GuideViewer(QDialog):
                 fmt = frag.charFormat()
                 if fmt.isImageFormat():
                     img = fmt.toImageFormat()
-                    pic = doc.resource(QTextDocument.ResourceType.ImageResource, QUrl(img.name()))
-                    natural = pic.width() if pic is not None and hasattr(pic, "width") else width
-                    if img.width() != min(natural, width):
-                        img.setWidth(min(natural, width))
-                        img.setHeight(0)  # keep the aspect ratio
-                        cur = QTextCursor(doc)
-                        cur.setPosition(frag.position())
-                        cur.setPosition(frag.position() + frag.length(), QTextCursor.MoveMode.KeepAnchor)
-                        cur.setCharFormat(img)
+                    # (of the page, not of the block: a picture in a list item leaves the indent)
+                    share = 100 if block.textList() is None and not block.blockFormat().indent() else 90
+                    img.setMaximumWidth(QTextLength(QTextLength.Type.PercentageLength, share))
+                    cur = QTextCursor(doc)
+                    cur.setPosition(frag.position())
+                    cur.setPosition(frag.position() + frag.length(), QTextCursor.MoveMode.KeepAnchor)
+                    cur.setCharFormat(img)
                 it += 1
             block = block.next()
 
@@ -80,4 +80,3 @@ def show_guide(parent) -> QDialog | None:
     viewer.show()
     viewer.raise_()
     return viewer
-

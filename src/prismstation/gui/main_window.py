@@ -24,6 +24,7 @@ from prismstation.gui.contrast import ContrastPanel
 from prismstation.gui.linked_nav import LinkedNavigation
 from prismstation.gui.loupe import Loupe
 from prismstation.gui.measure_mode import MeasureMode
+from prismstation.gui.memory import MemoryKeeper, one_dask_pool
 from prismstation.gui.model_panel import ModelPanel
 from prismstation.gui.plots import PlotsWidget
 from prismstation.gui.point_editor import PointEditor
@@ -44,6 +45,9 @@ class MainWindow(QMainWindow):
         self.setObjectName("MainWindow")
         self.setWindowTitle("prismstation")
         self.interactive = interactive
+        from prismstation.gui.tools._worker import running_jobs_of
+        # first: its heap setting holds for threads made from now on
+        self.memory = MemoryKeeper(self, busy=lambda: bool(running_jobs_of(self)))
         self.workspace = ws = Workspace(self, threaded_fit)
         self.undo_stack, self.files, self.solver, self.dem_loader = (
             ws.undo_stack, ws.files, ws.solver, ws.dem_loader)
@@ -70,6 +74,7 @@ class MainWindow(QMainWindow):
         self.loupe_box = QWidget()
         QHBoxLayout(self.loupe_box).setContentsMargins(2, 2, 2, 2)
         self.contrast_tabs = QTabWidget()
+        self.contrast_tabs.setDocumentMode(True)  # a slim tab bar: the dock is short
         self.plots = PlotsWidget(own_exaggeration=False)
         self.docks = {}
         self._dock("points", "Points", self.table, Qt.DockWidgetArea.BottomDockWidgetArea)
@@ -95,6 +100,7 @@ class MainWindow(QMainWindow):
         for k, d in self.docks.items():  # a panel opened never makes the window grow
             if k not in own_docks:
                 d.setWidget(window_layout.scrolled(d.widget()))
+                window_layout.tab_when_shown(self, d)  # ... nor squeeze the model panel
         menus.fill_panels_menu(self)
         self._work_state = None  # the docks' state while the start page is up
         if interactive:
@@ -136,7 +142,7 @@ class MainWindow(QMainWindow):
         self.files.message.connect(lambda m: self.statusBar().showMessage(m, 8000))
         self.files.recent_changed.connect(self._fill_recent)
         self.undo_stack.cleanChanged.connect(self._on_clean_changed)
-        self.undo_stack.indexChanged.connect(lambda *_: self._update_actions())
+        self.undo_stack.indexChanged.connect(self._on_edit)
         self.solver.solution_changed.connect(self.on_solution)
         self.solver.failed.connect(lambda m: self.statusBar().showMessage(m, 10000))
         self.views.place_requested.connect(self.place)
@@ -177,9 +183,11 @@ class MainWindow(QMainWindow):
         if self.project is not None:
             self.project.changed.disconnect(self._on_project_changed)
         self.workspace.set_project(project)
+        one_dask_pool()
         project.changed.connect(self._on_project_changed)
         self.views.height_of = None
         self.views.set_project(project)
+        self._clear_status()
         split = st.value(st.Key.SPLITTER)
         if split is not None and not split.isEmpty():
             self.views.splitter.restoreState(split)
@@ -216,6 +224,12 @@ class MainWindow(QMainWindow):
         self._measured_timer.start()
         if self.current is not None and self.current not in self.project.points:
             self.set_current(None)  # undone or deleted: no current point that does not exist
+
+    def _on_edit(self, *_) -> None:
+        """An edit (or its undo, redo) went through: a message about an earlier one (a refused
+        value, a failed fit) no longer holds."""
+        self.statusBar().clearMessage()
+        self._update_actions()
 
     def _on_clean_changed(self, clean: bool) -> None:
         self.setWindowModified(not clean)
@@ -366,6 +380,14 @@ class MainWindow(QMainWindow):
             a.setEnabled(bool(has_c))
 
     # ------------------------------------------------------------------ cursor and status
+    def _clear_status(self) -> None:
+        """No figure of the previous project: cursor positions, ground, fit time, message."""
+        for v, lab in self.status_xy.items():
+            lab.setText(f"{v}  —")
+        self.status_ground.setText("E —  N —  h —")
+        self.status_fit.setText("")
+        self.statusBar().clearMessage()
+
     def on_cursor(self, view, x, y, linked, ground) -> None:
         pos = dict(linked)
         pos[view] = (x, y)

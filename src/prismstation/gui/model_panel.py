@@ -15,6 +15,7 @@ from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QHBoxLayo
                                QPushButton, QScrollArea, QSizePolicy, QVBoxLayout, QWidget)
 
 from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
+from prismstation.gui.fit_checks import blunder_test, parallax_check
 
 SECTION_COLOR = QColor("#1d3c6e")
 HEAD_BG = QColor("#dde4ee")
@@ -35,7 +36,8 @@ def _stat_rows(cols, stats=("n", "min", "max", "mean", "rms")) -> list[list[str]
 
 def solution_sections(sol) -> tuple[list, list]:
     """What the panel shows: ``([(title, head, rows), ...], [(text, severity), ...])`` with
-    ``rows`` lists of strings; severity ``"bad"`` (blunder) or ``"warn"`` (engine message)."""
+    ``rows`` lists of strings; severity ``"bad"`` (a blunder, a parallax model that does not fit
+    the GCPs), ``"warn"`` (engine message) or ``"info"``."""
     if sol is None:
         return [], [("No fit yet.", "warn")]
     sections = []
@@ -46,9 +48,11 @@ def solution_sections(sol) -> tuple[list, list]:
         rows = [[n, f"{p:+.6g}", f"{sd:.2g}" if sd == sd else "—"] for n, p, sd in zip(fit.names, fit.params, fit.std)]
         sections.append((title, ["", "value", "σ"], rows or [["not fitted", "", ""]]))
     par = sol.parallax
+    check = parallax_check(sol)
     if par is not None:
         s0 = par.sigma0
-        sections.append((f"Parallax line h = c0 + c1·py ({par.used})" + (f" — σ0 = {_f(s0)} m" if s0 is not None else ""),
+        sections.append((f"Parallax line h = c0 + c1·py ({par.used})" + (f" — σ0 = {_f(s0)} m" if s0 is not None else "")
+                         + (" — does not fit the GCPs" if check is not None and not check.fits else ""),
                          ["", "value", "σ", "theory"],
                          [["c0 (m)", _f(par.c0, 2, True), _f(par.std_c0), "0"],
                           ["c1 (m/px)", _f(par.c1, 4), _f(par.std_c1, 4), _f(par.c1_theory, 4)]]
@@ -75,9 +79,19 @@ def solution_sections(sol) -> tuple[list, list]:
         rows.append(["plan. RMS", "", _f(g.planimetric_rms), "", _f(i.planimetric_rms)])
         sections.append(("Ground residuals, estimated − known (m)",
                          ["", "GCP dE", "GCP dN", "ICP dE", "ICP dN"], rows))
-    notes = [(f"Possible blunder: {r.id} (standardised residual {_f(r.std_residual)}, threshold "
-              f"{_f(sol.settings.blunder_threshold, 2)})", "bad") for r in sol.points if r.blunder]
+    test = blunder_test(sol)
+    thr = _f(test.threshold, 2)
+    if test.fits:
+        sections.append((f"Blunder test — threshold {thr} (α = {test.alpha:.2g}) for every fit",
+                         ["fit", "redundancy", "blunder at |w| >"],
+                         [[label, str(dof), _f(c, 2)] for label, dof, c in test.fits]))
+    notes = [(f"Blunder: {r.id} — standardised residual {_f(r.std_residual)} > {thr}", "bad")
+             for r in sol.points if r.blunder]
+    if check is not None:
+        notes.append((check.text(), "info" if check.fits else "bad"))
     notes += [(m, "warn") for m in sol.messages]
+    if test.fits:
+        notes.append((test.reason(), "info"))
     return sections, notes
 
 
@@ -98,6 +112,8 @@ class _Sections(QWidget):
         self._hint = QSize(0, 0)
         self._hint_shape = None
         self._advances: dict = {}
+        self._note_rects: dict = {}
+        self._line_cache = None
         self._bold = QFont(self.font())
         self._bold.setWeight(QFont.Weight.DemiBold)
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Fixed)
@@ -114,9 +130,40 @@ class _Sections(QWidget):
             for r in rows:
                 for c, t in enumerate(r):
                     widths[c] = max(widths[c], self._advance(t, False) + 2 * self.PAD)
+        before = self._line_cache if widths == self._widths else None
         self._sections, self._notes, self._widths, self._shape = sections, notes, widths, shape
         self._update_hint()
-        self.update()
+        after = self._line_cache = self._lines()
+        if before is None or [(y, h) for y, h, _ in before] != [(y, h) for y, h, _ in after]:
+            self.update()  # the layout moved: everything
+            return
+        # the same layout: repaint the lines whose text changed (a click in N changes the N
+        # bias and the statistics, not the F and B fits)
+        for (y, h, old), (_, _, new) in zip(before, after):
+            if old != new:
+                self.update(QRect(0, y, self.width(), h))
+
+    def _lines(self) -> list:
+        """``[(y, height, content), ...]`` of every line as :meth:`paintEvent` lays them out."""
+        rh, out, y = self._row_height(), [], 2
+        first = [n for n in self._notes if n[1] == "bad"]
+
+        def notes(ns, y):
+            for text, sev in ns:
+                h = self._note_rect(text, sev == "bad").height() + 2
+                out.append((y, h, (text, sev)))
+                y += h
+            return y
+        y = notes(first, y)
+        for title, head, rows in self._sections:
+            y += self.TITLE_GAP
+            for line in (title, head, *rows):
+                out.append((y, rh, line))
+                y += rh
+        if first:
+            y += self.TITLE_GAP
+        notes([n for n in self._notes if n[1] != "bad"], y)
+        return out
 
     def _advance(self, text: str, bold: bool) -> int:
         """Width of ``text`` in pixels (remembered: most texts come back at every refit)."""
@@ -132,14 +179,23 @@ class _Sections(QWidget):
         return self.fontMetrics().height() + 2
 
     def _note_rect(self, text, bold) -> QRect:
-        fm = QFontMetrics(self._bold) if bold else self.fontMetrics()
-        width = max(self.width(), sum(self._widths)) - 2 * self.PAD
-        return fm.boundingRect(QRect(0, 0, max(width, 50), 10000), int(Qt.TextFlag.TextWordWrap), text)
+        """The wrapped rectangle of a note (remembered per text and width: a refit asks for
+        the same notes several times)."""
+        width = max(max(self.width(), sum(self._widths)) - 2 * self.PAD, 50)
+        key = (text, bold, width)
+        r = self._note_rects.get(key)
+        if r is None:
+            if len(self._note_rects) > 500:
+                self._note_rects.clear()
+            fm = QFontMetrics(self._bold) if bold else self.fontMetrics()
+            r = self._note_rects[key] = fm.boundingRect(QRect(0, 0, width, 10000),
+                                                        int(Qt.TextFlag.TextWordWrap), text)
+        return QRect(r)
 
     def _update_hint(self) -> None:
         rh = self._row_height()
         h = 4 + sum(self.TITLE_GAP + rh * (2 + len(rows)) for _, _, rows in self._sections)
-        h += sum(self._note_rect(t, sev == "bad").height() + 2 for t, sev in self._notes)
+        h += sum(self._note_rect(t, sev == "bad").height() + 2 for t, sev in self._notes) + self.TITLE_GAP
         # the height only grows while the layout keeps its shape: a note that comes and goes
         # with every click (a blunder) must not relayout the scroll area each time
         if self._shape == self._hint_shape:
@@ -157,32 +213,39 @@ class _Sections(QWidget):
         return self._hint
 
     def resizeEvent(self, event) -> None:
+        self._line_cache = None  # (laid out for the old width)
         if self._notes:  # wrapped notes change height with the width
             self._update_hint()
         super().resizeEvent(event)
 
     def paintEvent(self, event) -> None:
-        """Only the rows inside the exposed rectangle (the scroll area shows a part)."""
+        """Only the lines inside the exposed region (the scroll area shows a part; a refit
+        repaints the lines that changed)."""
         p = QPainter(self)
         rh, pad, x0 = self._row_height(), self.PAD, 4
-        top, bottom = event.rect().top() - rh, event.rect().bottom()
+        region, width = event.region(), self.width()
+
+        def shown(y):
+            return region.intersects(QRect(0, y, width, rh))
         total = sum(self._widths)
         left = int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter)
         right = int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
         text_color = self.palette().color(QPalette.ColorRole.WindowText)
         y = 2
+        first = [n for n in self._notes if n[1] == "bad"]   # what is wrong: above the tables
+        y = self._paint_notes(p, first, x0, y, region)
         for title, head, rows in self._sections:
             y += self.TITLE_GAP
-            if top <= y <= bottom:
+            if shown(y):
                 p.setFont(self._bold)
                 p.setPen(SECTION_COLOR)
                 p.drawText(QRect(x0, y, max(total, self.width()), rh), left, title)
             y += rh
-            if top <= y <= bottom:
+            if shown(y):
                 p.fillRect(QRect(x0, y, total, rh), HEAD_BG)
             p.setPen(text_color)
             for r, font in ((head, self._bold), *((row, self.font()) for row in rows)):
-                if top <= y <= bottom:
+                if shown(y):
                     p.setFont(font)
                     x = x0
                     for c, t in enumerate(r):
@@ -190,14 +253,23 @@ class _Sections(QWidget):
                         p.drawText(QRect(x + pad, y, w - 2 * pad, rh), left if c == 0 else right, t)
                         x += w
                 y += rh
-        for text, sev in self._notes:
-            bold = sev == "bad"
-            p.setFont(self._bold if bold else self.font())
-            p.setPen(BAD_COLOR if bold else WARN_COLOR)
-            rect = self._note_rect(text, bold).translated(x0 + pad, y)
-            p.drawText(rect, int(Qt.TextFlag.TextWordWrap), text)
-            y += rect.height() + 2
+        if first:
+            y += self.TITLE_GAP
+        self._paint_notes(p, [n for n in self._notes if n[1] != "bad"], x0, y, region)
         p.end()
+
+    def _paint_notes(self, p, notes, x0, y, region) -> int:
+        """Draw ``notes`` wrapped from ``y`` down (those in ``region``); the y below them."""
+        text_color = self.palette().color(QPalette.ColorRole.WindowText)
+        for text, sev in notes:
+            bold = sev == "bad"
+            rect = self._note_rect(text, bold).translated(x0 + self.PAD, y)
+            if region.intersects(rect.adjusted(-x0 - self.PAD, 0, 0, 2)):
+                p.setFont(self._bold if bold else self.font())
+                p.setPen(BAD_COLOR if bold else WARN_COLOR if sev == "warn" else text_color)
+                p.drawText(rect, int(Qt.TextFlag.TextWordWrap), text)
+            y += rect.height() + 2
+        return y
 
     def plain_text(self) -> str:
         lines = []
@@ -241,7 +313,10 @@ class ModelPanel(QWidget):
                              "scales the standardised residuals; σ0 near 1× this means the "
                              "measurements are as good as assumed"),
                 (self.threshold, "A GCP whose standardised residual exceeds this is flagged as a "
-                                 "possible blunder (about 3 for 99.7 % under normal errors)")):
+                                 "blunder: 3.29 tests at α = 0.001. Residuals are shown on the "
+                                 "normal scale, so this one figure holds for every fit; the "
+                                 "critical |w| it means for each fit's redundancy (Student's t) "
+                                 "is listed under Blunder test")):
             w.setToolTip(tip)
         form = QFormLayout()
         form.addRow("Bias model", self.bias)

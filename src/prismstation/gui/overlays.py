@@ -46,6 +46,21 @@ def _pen(color: QColor, width: float = 2.0, dashed: bool = False):
     return pen
 
 
+_NO_SHAPE = QPainterPath()
+
+
+class Curve(pg.PlotCurveItem):
+    """A line item that is not a mouse target: the views pick markers themselves, and Qt's
+    search of the items under a click asked this curve for its outline, which pyqtgraph strokes
+    anew whenever the data changed (the residual vectors: at every click)."""
+
+    def shape(self) -> QPainterPath:
+        return _NO_SHAPE
+
+    def mouseClickEvent(self, ev) -> None:
+        ev.ignore()
+
+
 class Markers(pg.ScatterPlotItem):
     """pyqtgraph's scatter item with its bounding rectangle remembered.
 
@@ -59,9 +74,24 @@ class Markers(pg.ScatterPlotItem):
 
     def clear(self) -> None:
         """Remove every spot, and repaint where they were: pyqtgraph's ``clear`` only repaints
-        the new (empty) bounds, which left ghost markers on screen until the view moved."""
+        the new (empty) bounds, which left ghost markers on screen until the view moved. An
+        empty item is hidden: the view's repaints then skip it (pyqtgraph's paint of an empty
+        scatter still costs its Python call)."""
         self.prepareGeometryChange()
         super().clear()
+        self.setVisible(False)
+
+    def addPoints(self, *args, **kwargs) -> None:
+        super().addPoints(*args, **kwargs)
+        self.setVisible(len(self.data) > 0)
+
+    def mouseClickEvent(self, ev) -> None:
+        """Not a click target: the views pick markers themselves (:meth:`ViewOverlay.nearest`),
+        and pyqtgraph's search of the spots under the click cost every click a millisecond."""
+        ev.ignore()
+
+    def shape(self) -> QPainterPath:  # (nor for Qt's search of the items under the mouse)
+        return _NO_SHAPE
 
     def boundingRect(self) -> QRectF:
         key = self._br_key
@@ -100,8 +130,26 @@ class LabelLayer(pg.GraphicsObject):
         self._xy = np.array([(x, y) for x, y, _, _ in self.labels], float).reshape(-1, 2)
         self.update()
 
-    def boundingRect(self) -> QRectF:  # everywhere: labels extend in screen pixels
-        return QRectF(-1e9, -1e9, 2e9, 2e9)
+    def shape(self) -> QPainterPath:  # not a mouse target
+        return _NO_SHAPE
+
+    def boundingRect(self) -> QRectF:
+        """The visible area of the view (image pixels): labels extend in screen pixels from
+        points anywhere, and whatever is seen lies in it. Not "everywhere": Qt maps the rect of
+        an update to the screen in integers, and a rect of ±1e9 image pixels overflowed them
+        when zoomed in past ~2×, so a label's own repaint was dropped (an undone label stayed
+        on screen, a new one showed where other items happened to repaint)."""
+        return QRectF(self._view_rect)
+
+    _view_rect = QRectF()
+
+    def viewRangeChanged(self) -> None:  # pyqtgraph: the view box moved or zoomed
+        vb = self.getViewBox()
+        rect = vb.viewRect() if vb is not None else QRectF()
+        if rect != self._view_rect:
+            self.prepareGeometryChange()
+            self._view_rect = QRectF(rect)
+        super().viewRangeChanged()
 
     def paint(self, p, option, *args) -> None:
         if not self.labels:
@@ -134,6 +182,15 @@ class LabelLayer(pg.GraphicsObject):
         p.setTransform(t)
 
 
+def by_view(project) -> dict:
+    """``{view: (measurements, kinds)}`` (tuples, in the project's order) of ``project``."""
+    ms: dict = {}
+    points = project.points
+    for (pid, v), m in project.measurements.items():
+        ms.setdefault(v, []).append(m)
+    return {v: (tuple(lst), tuple(points[m.id].kind for m in lst)) for v, lst in ms.items()}
+
+
 def ellipse_polylines(preds, n: int = 40) -> np.ndarray:
     """``(len(preds) · (n + 2), 2)``: the closed 95 % ellipse of each prediction (image pixels),
     a NaN row after each (vectorised over predictions)."""
@@ -160,6 +217,10 @@ class ViewOverlay:
         self._residuals = np.zeros((0, 4))  # x, y, vx, vy (image pixels)
         self.show_labels = True
         self.measured = Markers(symbol=MEASURED_SYMBOL, size=19, pxMode=True, brush=None)
+        # the current point's marker in an item of its own: a click moves that point, and
+        # re-setting one spot costs nothing where re-setting hundreds (each with its pen) cost
+        # milliseconds at every click
+        self.measured_current = Markers(symbol=MEASURED_SYMBOL, size=19, pxMode=True, brush=None)
         # blunders drawn over their markers by an item of their own: a point that becomes (or
         # stops being) a blunder repaints its marker, not the whole view
         self.blunders = Markers(symbol=MEASURED_SYMBOL, size=19, pxMode=True, brush=None,
@@ -167,9 +228,9 @@ class ViewOverlay:
         self.predicted = Markers(symbol="o", size=15, pxMode=True, brush=None)
         self.current = Markers(symbol="s", size=27, pxMode=True, brush=None,
                                           pen=pg.mkPen(CURRENT_COLOR, width=1.5))
-        self.vectors = pg.PlotCurveItem(connect="pairs", pen=pg.mkPen(255, 120, 0, width=2))
+        self.vectors = Curve(connect="pairs", pen=pg.mkPen(255, 120, 0, width=2))
         # one curve per kind: the ellipses of its predictions, separated by NaN
-        self.ellipses = {k: pg.PlotCurveItem(connect="finite", pen=_pen(c, 1.2, True))
+        self.ellipses = {k: Curve(connect="finite", pen=_pen(c, 1.2, True))
                          for k, c in KIND_COLORS.items()}
         for item in self.ellipses.values():
             item.setZValue(20.5)
@@ -178,7 +239,8 @@ class ViewOverlay:
         self.crosshair = Markers(symbol=CROSSHAIR_SYMBOL, size=46, pxMode=True, brush=None,
                                             pen=pg.mkPen(CURSOR_COLOR, width=1.5))
         for z, item in ((20, self.vectors), (21, self.predicted), (22, self.measured),
-                        (22.5, self.blunders), (23, self.current), (30, self.crosshair)):
+                        (22.2, self.measured_current), (22.5, self.blunders), (23, self.current),
+                        (30, self.crosshair)):
             item.setZValue(z)
             vb.addItem(item)
         self.crosshair.setVisible(False)
@@ -189,6 +251,9 @@ class ViewOverlay:
         self.ids = np.zeros(0, dtype=object)      # ids of measured markers, in order
         self.xy = np.zeros((0, 2))                 # their image positions
         self._measured_key = None
+        self._others_key = None
+        self._current_key = None
+        self._split = None
         self._measured_state = None
         self._vectors_key = None
         self._current_xy = None
@@ -196,20 +261,31 @@ class ViewOverlay:
         self._predicted_key = None
 
     # ------------------------------------------------------------------ measured (project)
-    def update_measured(self, project, solution=None) -> None:
-        """Markers at the project's measurements in this view (immediately, without the fit)."""
-        state = (id(project), project.revision)
-        if state != self._measured_state:  # the project changed since the last call
+    def update_measured(self, project, solution=None, current=None, mine=None) -> None:
+        """Markers at the project's measurements in this view (immediately, without the fit);
+        the ``current`` point's in an item of its own. ``mine``: ``(measurements, kinds)`` of
+        this view, when the caller has them (:func:`by_view`)."""
+        state = (id(project), project.revision, current)
+        if state != self._measured_state:  # the project or the current point changed
             self._measured_state = state
-            ms = [m for (pid, v), m in project.measurements.items() if v == self.name]
-            kinds = [project.points[m.id].kind for m in ms]
-            key = (tuple(ms), tuple(kinds))  # measurements are frozen: equal means unchanged
-            if key != self._measured_key:  # (another view's edit: no work here)
-                self._measured_key = key
-                self.ids = np.array([m.id for m in ms], dtype=object)
-                self.xy = np.array([(m.x, m.y) for m in ms], float).reshape(-1, 2)
-                pens = [_pen(KIND_COLORS.get(k, CURRENT_COLOR)) for k in kinds]
-                self.measured.setData(pos=self.xy, data=self.ids, pen=pens) if ms else self.measured.clear()
+            ms, kinds = mine if mine is not None else by_view(project).get(self.name, ((), ()))
+            key = (ms, kinds)  # measurements are frozen: equal means unchanged
+            if key != self._measured_key or current != self._split:  # (else: another view's edit)
+                if key != self._measured_key:
+                    self._measured_key = key
+                    self.ids = np.array([m.id for m in ms], dtype=object)
+                    self.xy = np.array([(m.x, m.y) for m in ms], float).reshape(-1, 2)
+                self._split = current
+                for item, mine, attr in ((self.measured, False, "_others_key"),
+                                         (self.measured_current, True, "_current_key")):
+                    sel = tuple((m, k) for m, k in zip(ms, kinds) if (m.id == current) is mine)
+                    if sel != getattr(self, attr):
+                        setattr(self, attr, sel)
+                        if sel:
+                            item.setData(pos=[(m.x, m.y) for m, _ in sel], data=[m.id for m, _ in sel],
+                                         pen=[_pen(KIND_COLORS.get(k, CURRENT_COLOR)) for _, k in sel])
+                        else:
+                            item.clear()
         flagged = {r.id for r in solution.points if r.blunder} if solution is not None else set()
         xy = ()
         if flagged and len(self.ids):

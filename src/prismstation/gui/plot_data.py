@@ -34,11 +34,10 @@ class PlotData:
     view : str, the view of the residual vectors (the reference view, N for a triplet).
     vec_gcp_xy, vec_gcp_v, vec_icp_xy, vec_icp_v : (n, 2) arrays
         Measured image position (x column, y row, pixels) and residual (measured − predicted).
-    std_ids : tuple of str, GCPs with a standardised residual; ``std_values`` (n,) their values.
-    blunder : str or None, the id of the flagged GCP. ``threshold``: the rejection threshold.
+    std_ids : tuple of str, GCPs with a standardised residual; ``std_values`` (n,) their values
+        (on the normal scale: one threshold for every fit, :mod:`prismstation.gui.fit_checks`).
+    blunders : tuple of str, the ids of the flagged GCPs. ``threshold``: the blunder threshold.
     image_shape : (rows, cols) of the view, or None.
-    critical : tuple of (label, value)
-        The critical values the threshold becomes for each fit's redundancy (Student's t).
     """
 
     gcp_py: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -59,19 +58,18 @@ class PlotData:
     vec_icp_ids: tuple = ()
     std_ids: tuple = ()
     std_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    blunder: str | None = None
-    threshold: float = 3.0
+    blunders: tuple = ()
+    threshold: float = 3.29
     image_shape: tuple | None = None
-    critical: tuple = ()
 
     @classmethod
-    def from_records(cls, records, *, parallax=None, view="N", threshold=3.0,
-                     image_shape=None, dofs=()) -> "PlotData":
+    def from_records(cls, records, *, parallax=None, view="N", threshold=3.29,
+                     image_shape=None) -> "PlotData":
         """From per-point tuples ``(id, kind, py, h_known, xy, v, std_residual, blunder)``
         (``py``, ``h_known``, ``xy``, ``v``, ``std_residual`` may be None)."""
         h_rows = {"GCP": ([], [], []), "ICP": ([], [], [])}
         v_rows = {"GCP": ([], [], []), "ICP": ([], [], [])}
-        std_ids, std_vals, blunder = [], [], None
+        std_ids, std_vals, blunders = [], [], []
         for pid, kind, py, h, xy, v, s, bl in records:
             if kind not in h_rows:
                 continue
@@ -85,14 +83,14 @@ class PlotData:
                 std_ids.append(pid)
                 std_vals.append(s)
             if bl:
-                blunder = pid
+                blunders.append(pid)
         c0, c1, c1t = (None, None, None) if parallax is None else parallax
         return cls(_arr(h_rows["GCP"][1]), _arr(h_rows["GCP"][2]), _arr(h_rows["ICP"][1]),
                    _arr(h_rows["ICP"][2]), tuple(h_rows["GCP"][0]), tuple(h_rows["ICP"][0]),
                    c0, c1, c1t, view, _xy(v_rows["GCP"][1]), _xy(v_rows["GCP"][2]),
                    _xy(v_rows["ICP"][1]), _xy(v_rows["ICP"][2]), tuple(v_rows["GCP"][0]),
-                   tuple(v_rows["ICP"][0]), tuple(std_ids), _arr(std_vals), blunder,
-                   float(threshold), image_shape, _critical(threshold, dofs))
+                   tuple(v_rows["ICP"][0]), tuple(std_ids), _arr(std_vals), tuple(blunders),
+                   float(threshold), image_shape)
 
     @classmethod
     def from_solution(cls, sol) -> "PlotData":
@@ -110,12 +108,9 @@ class PlotData:
         par = sol.parallax
         line = None if par is None else (par.c0, par.c1, par.c1_theory)
         v = sol.scene.views[view]
-        lsq_n = getattr(sol.bias.get(view), "lsq", None)
-        dofs = [(f"{view} bias", None if lsq_n is None else lsq_n.dof),
-                ("parallax", None if par is None or par.lsq is None else par.lsq.dof)]
         return cls.from_records(recs, parallax=line, view=view,
                                 threshold=sol.settings.blunder_threshold,
-                                image_shape=getattr(v, "shape", None), dofs=dofs)
+                                image_shape=getattr(v, "shape", None))
 
     @classmethod
     def from_report(cls, report: dict) -> "PlotData":
@@ -133,25 +128,8 @@ class PlotData:
                          p.get("blunder")))
         par = report.get("model", {}).get("parallax")
         line = None if not par else (par.get("c0"), par.get("c1"), par.get("c1_theoretical"))
-        thr = (report.get("settings") or {}).get("blunder_threshold", 3.0)
-        dofs = [(f"{view} bias", (bias.get(view) or {}).get("dof")),
-                ("parallax", (par or {}).get("dof"))]
-        return cls.from_records(recs, parallax=line, view=view, threshold=thr, dofs=dofs)
-
-
-def _critical(threshold, dofs) -> tuple:
-    """``((label, critical value), ...)`` for the fits with a redundancy (see core.solve)."""
-    try:
-        from prismstation.core.solve import critical_value
-    except ImportError:  # an engine without the t-based critical value
-        return ()
-    out = []
-    for label, dof in dofs:
-        if dof:
-            c = critical_value(threshold, int(dof))
-            if np.isfinite(c) and abs(c - threshold) > 1e-3:
-                out.append((f"{label} (dof {int(dof)})", float(c)))
-    return tuple(out)
+        thr = (report.get("settings") or {}).get("blunder_threshold", 3.29)
+        return cls.from_records(recs, parallax=line, view=view, threshold=thr)
 
 
 def auto_exaggeration(data: PlotData) -> float:
@@ -191,3 +169,39 @@ def line_x(data: PlotData) -> np.ndarray:
     lo, hi = float(py.min()), float(py.max())
     pad = 0.05 * max(hi - lo, 1.0)
     return np.array([min(lo - pad, 0.0) if lo >= 0 else lo - pad, hi + pad])
+
+
+def data_ranges(d: PlotData, vector_segments=(), std_range=((0, 1), (0, 4))) -> dict:
+    """``{plot: ((x0, x1), (y0, y1))}`` framing what each plot draws of ``d`` (plots with data
+    only): the points and lines of the height plots (5 % margin), the image of the vectors
+    (or the points and ``vector_segments``, ``(n, 2)`` arrays, when its shape is unknown) and
+    ``std_range`` for the standardised residuals."""
+    out = {}
+    x = line_x(d)
+    if x.size:
+        ys, ys5 = [d.gcp_h, d.icp_h], [np.zeros(1)]
+        if d.c0 is not None and d.c1 is not None:
+            ys.append(d.c0 + d.c1 * x)
+            if d.c1_theory is not None:
+                ys5.append(d.c0 + (d.c1 - d.c1_theory) * x)
+        if d.c1_theory is not None:
+            ys.append(d.c1_theory * x)
+            ys5 += [d.gcp_h - d.c1_theory * d.gcp_py, d.icp_h - d.c1_theory * d.icp_py]
+        for name, acc in (("height", ys), ("height_minus_theory", ys5)):
+            y = np.concatenate(acc)
+            y = y[np.isfinite(y)]
+            if y.size:
+                pad = 0.05 * max(np.ptp(y), 1.0)
+                out[name] = ((x[0], x[1]), (y.min() - pad, y.max() + pad))
+    if d.image_shape:
+        r, c = d.image_shape[:2]
+        out["vectors"] = ((-0.03 * c, 1.03 * c), (-0.03 * r, 1.03 * r))
+    else:
+        pts = [a for a in (d.vec_gcp_xy, d.vec_icp_xy, *vector_segments) if len(a)]
+        if pts:
+            a = np.vstack(pts)
+            lo, hi = a.min(axis=0), a.max(axis=0)
+            pad = 0.05 * max(float(np.max(hi - lo)), 1.0)
+            out["vectors"] = ((lo[0] - pad, hi[0] + pad), (lo[1] - pad, hi[1] + pad))
+    out["std_residuals"] = std_range
+    return out

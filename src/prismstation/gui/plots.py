@@ -9,7 +9,12 @@ only get new data on :meth:`PlotsWidget.set_solution` (no rebuilding):
     in the same form (Fig. 5);
 (c) residual vectors (measured − predicted) in the image space of the reference view (N),
     exaggerated, drawn from the measured position (x = column, y = row, pixels, y down);
-(d) standardised residual of each GCP against ``Settings.blunder_threshold``, the blunder red.
+(d) standardised residual of each GCP (on the normal scale) against the one blunder threshold
+    ``Settings.blunder_threshold``; the blunders magenta.
+
+The live widget lays them out with the residual vectors (square: x and y at one scale) at the
+right, two rows tall, and names the symbols once, in the bar below the plots: legends inside
+the plots covered their data.
 
 The same drawing serves the report writer: :class:`PlotData` is built from a Solution or from
 the report dict of :func:`prismstation.io.report.report_dict`.
@@ -23,8 +28,9 @@ from PySide6.QtGui import QFont, QImage
 from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QGridLayout, QHBoxLayout, QLabel,
                                QStackedWidget, QTabWidget, QVBoxLayout, QWidget)
 
-from prismstation.gui.palette import BLUNDER_RGB, FIT_RGB, KIND_RGB, THEORY_RGB
-from prismstation.gui.plot_data import PlotData, auto_exaggeration, line_x, segments
+from prismstation.gui.fit_checks import alpha_of
+from prismstation.gui.palette import BLUNDER_RGB, FIT_RGB, KIND_RGB, THEORY_RGB, qcolor
+from prismstation.gui.plot_data import PlotData, auto_exaggeration, data_ranges, line_x, segments
 from prismstation.gui.text_label import TextLabel
 
 __all__ = ["PlotsWidget", "PlotData", "PLOT_NAMES", "auto_exaggeration"]
@@ -34,10 +40,18 @@ FIT_COLOR, THEORY_COLOR, BLUNDER_COLOR = FIT_RGB, THEORY_RGB, BLUNDER_RGB
 PLOT_NAMES = ("height", "height_minus_theory", "vectors", "std_residuals")
 PLOT_TITLES = {
     "height": "Height vs F−B parallax",
-    "height_minus_theory": "Height − theoretical prediction vs parallax",
+    "height_minus_theory": "Height − theory vs parallax",
     "vectors": "Residual vectors, view {view}",
     "std_residuals": "Standardised residuals of the GCPs",
 }
+GRID_CELLS = {"height": (0, 0), "height_minus_theory": (0, 1), "std_residuals": (1, 0, 1, 2),
+              "vectors": (0, 2, 2, 1)}
+"""(row, column[, rows, columns]) of each plot in the live widget's grid."""
+_LEGEND_HTML = (f"<span style='color:{qcolor(KIND_RGB['GCP']).name()}'>●</span> GCP&nbsp;&nbsp; "
+                f"<span style='color:{qcolor(KIND_RGB['ICP']).name()}'>▽</span> ICP&nbsp;&nbsp; "
+                f"<span style='color:{qcolor(FIT_RGB).name()}'>━</span> fitted line&nbsp;&nbsp; "
+                f"<span style='color:{qcolor(THEORY_RGB).name()}'>╍</span> theoretical (eq. 4)&nbsp;&nbsp; "
+                f"<span style='color:{qcolor(BLUNDER_RGB).name()}'>■ ◯</span> blunder")
 TAB_NAMES = {"height": "h vs parallax", "height_minus_theory": "h − theory",
              "vectors": "Residual vectors", "std_residuals": "Std. residuals"}
 
@@ -50,13 +64,18 @@ class PlotsWidget(QWidget):
     parent : QWidget, optional
     grid : bool
         Draw grid lines (off by default: they dominate the repaint time).
+    legends : bool
+        A legend inside each plot (report figures); the live widget has one line of legend
+        below the plots instead.
     tabs : bool
         One tab per plot instead of a 2 × 2 grid (only the visible plot repaints). Without it
         the grid turns into tabs while the widget is shorter than :data:`COMPACT_HEIGHT`
         (a laptop screen: four plots 80 px tall say nothing).
     own_exaggeration : bool
-        Show the plot's own exaggeration control (the window has one control for the images
-        and the plots, and calls :meth:`set_exaggeration`).
+        Show the plot's own exaggeration control, in image pixels drawn per pixel of residual.
+        Without it the window's one control for the images and the plots sets it
+        (:meth:`set_exaggeration`) in screen pixels per pixel of residual, as on the images:
+        a vector has the same length on screen in the plot and over the image.
 
     Signals
     -------
@@ -67,10 +86,11 @@ class PlotsWidget(QWidget):
     COMPACT_HEIGHT = 340  # px
 
     def __init__(self, parent=None, *, grid: bool = False, tabs: bool = False,
-                 own_exaggeration: bool = True):
+                 own_exaggeration: bool = True, legends: bool = False):
         super().__init__(parent)
         self._data = PlotData()
         self._exaggeration = 100.0
+        self._screen_k = not own_exaggeration  # exaggeration in screen px per px of residual
         self._shown: dict = {}  # id(item) -> what it shows (see _set)
         self._framed: dict = {}  # plot -> the range last set from the data (see _apply_ranges)
         self.plots: dict[str, pg.PlotWidget] = {}
@@ -81,7 +101,7 @@ class PlotsWidget(QWidget):
         self.tabs = QTabWidget()
         self._fixed_tabs = tabs
         self._compact = tabs
-        for i, name in enumerate(PLOT_NAMES):
+        for name in PLOT_NAMES:
             pw = pg.PlotWidget(background="w")
             if grid:  # pyqtgraph's grid costs ~10 ms a repaint per axis: reports only
                 pw.getPlotItem().showGrid(x=True, y=True, alpha=0.25)
@@ -90,15 +110,21 @@ class PlotsWidget(QWidget):
             if tabs:
                 self.tabs.addTab(pw, TAB_NAMES[name])
             else:
-                cells.addWidget(pw, i // 2, i % 2)
+                cells.addWidget(pw, *GRID_CELLS[name])
             # ranges are set from the data in one step (auto-range would paint twice); a
             # plot the operator zoomed keeps its range until the "A" button is clicked
             vb = pw.getPlotItem().getViewBox()
             vb.disableAutoRange()
             vb.sigRangeChangedManually.connect(lambda *_, n=name: self._follow.__setitem__(n, False))
             pw.getPlotItem().autoBtn.clicked.connect(lambda *_, n=name: self._refollow(n))
+        for c in range(3):
+            cells.setColumnStretch(c, 1)
         self._follow = dict.fromkeys(PLOT_NAMES, True)
+        self._legends = legends
         self._build_items()
+        if self._screen_k:  # the vectors keep their screen length as the plot resizes or zooms
+            self.plots["vectors"].getPlotItem().getViewBox().sigTransformChanged.connect(
+                lambda *_: self._update_vectors())
         self.auto_box = QCheckBox("auto")
         self.auto_box.setChecked(True)
         self.spin = QDoubleSpinBox()
@@ -114,6 +140,9 @@ class PlotsWidget(QWidget):
         for w in (label, self.spin, self.auto_box):
             bar.addWidget(w)
             w.setVisible(own_exaggeration)
+        self.legend = QLabel(_LEGEND_HTML)
+        self.legend.setVisible(not legends)
+        bar.addWidget(self.legend)
         self.summary = TextLabel(stretch=True, align=Qt.AlignmentFlag.AlignRight)  # no relayout
         bar.addWidget(self.summary, 1)
         lay = QVBoxLayout(self)
@@ -131,46 +160,55 @@ class PlotsWidget(QWidget):
             QTimer.singleShot(0, lambda: self._arrange(self.height() < self.COMPACT_HEIGHT))
 
     def _arrange(self, compact: bool) -> None:
-        """The four plots in tabs (``compact``) or in the 2 × 2 grid."""
+        """The four plots in tabs (``compact``) or in the grid (:data:`GRID_CELLS`)."""
         if compact == self._compact:
             return
         self._compact = compact
-        for i, name in enumerate(PLOT_NAMES):
+        for name in PLOT_NAMES:
             if compact:
                 self.tabs.addTab(self.plots[name], TAB_NAMES[name])
             else:
-                self._cells.addWidget(self.plots[name], i // 2, i % 2)
+                self._cells.addWidget(self.plots[name], *GRID_CELLS[name])
         self._stack.setCurrentWidget(self.tabs if compact else self._grid_box)
         for pw in self.plots.values():
             pw.setVisible(not compact or pw is self.tabs.currentWidget())
 
     # ------------------------------------------------------------------ construction
+    # Plain pyqtgraph items, not PlotDataItems (``PlotWidget.plot``): a PlotDataItem wraps a
+    # curve and a scatter and re-processes both at every setData, several times the cost.
     def _scatter(self, pw, color, symbol, name, size=8, filled=True):
         brush = pg.mkBrush(*color) if filled else pg.mkBrush(255, 255, 255, 0)
-        item = pw.plot([], [], pen=None, symbol=symbol, symbolSize=size, symbolBrush=brush,
-                       symbolPen=pg.mkPen(color, width=1.5), name=name)
-        item.sigPointsClicked.connect(self._on_clicked)
-        item.scatter.opts["hoverable"] = True  # tool tip: the point's id and values
-        item.scatter.opts["tip"] = lambda x, y, data: f"{data}: {x:.2f}, {y:.2f}"
+        item = pg.ScatterPlotItem(pen=pg.mkPen(color, width=1.5), brush=brush, symbol=symbol,
+                                  size=size, name=name, hoverable=True,  # tool tip: id, values
+                                  tip=lambda x, y, data: f"{data}: {x:.2f}, {y:.2f}")
+        item.sigClicked.connect(self._on_clicked)
+        pw.addItem(item)
+        return item
+
+    @staticmethod
+    def _curve(pw, pen, name=None, connect="all"):
+        item = pg.PlotCurveItem(pen=pen, name=name, connect=connect)
+        pw.addItem(item)
         return item
 
     def _build_items(self) -> None:
         p = self.plots
         for name in ("height", "height_minus_theory"):
             pi = p[name].getPlotItem()
-            pi.addLegend(offset=(8, 8), labelTextSize="8pt", labelTextColor=(30, 30, 30),
-                         brush=(255, 255, 255, 210))
+            if self._legends:
+                pi.addLegend(offset=(8, 8), labelTextSize="8pt", labelTextColor=(30, 30, 30),
+                             brush=(255, 255, 255, 210))
             pi.setLabel("bottom", "F−B parallax", units="px")
         p["height"].setLabel("left", "h (ellipsoidal)", units="m")
         p["height_minus_theory"].setLabel("left", "h − c1ₜₕ·py", units="m")
         dash = Qt.PenStyle.DashLine
-        self.fit_line = p["height"].plot([], [], pen=pg.mkPen(FIT_COLOR, width=1.5), name="fitted line")
-        self.theory_line = p["height"].plot([], [], pen=pg.mkPen(THEORY_COLOR, width=1.5, style=dash),
-                                            name="theoretical (eq. 4)")
+        self.fit_line = self._curve(p["height"], pg.mkPen(FIT_COLOR, width=1.5), "fitted line")
+        self.theory_line = self._curve(p["height"], pg.mkPen(THEORY_COLOR, width=1.5, style=dash),
+                                       "theoretical (eq. 4)")
         self.h_gcp = self._scatter(p["height"], GCP_COLOR, "o", "GCP")
         self.h_icp = self._scatter(p["height"], ICP_COLOR, "t", "ICP", filled=False)
-        self.d_fit_line = p["height_minus_theory"].plot([], [], pen=pg.mkPen(FIT_COLOR, width=1.5),
-                                                        name="fitted − theoretical")
+        self.d_fit_line = self._curve(p["height_minus_theory"], pg.mkPen(FIT_COLOR, width=1.5),
+                                      "fitted − theoretical")
         zero = pg.InfiniteLine(0.0, angle=0, pen=pg.mkPen(THEORY_COLOR, width=1, style=dash))
         p["height_minus_theory"].addItem(zero)
         self.d_gcp = self._scatter(p["height_minus_theory"], GCP_COLOR, "o", "GCP")
@@ -181,35 +219,30 @@ class PlotsWidget(QWidget):
         pv.setAspectLocked(True)
         pv.setLabel("bottom", "x (column)", units="px")
         pv.setLabel("left", "y (row)", units="px")
-        pv.addLegend(offset=(8, 8), labelTextSize="8pt", labelTextColor=(30, 30, 30),
+        if self._legends:
+            pv.addLegend(offset=(8, 8), labelTextSize="8pt", labelTextColor=(30, 30, 30),
                          brush=(255, 255, 255, 210))
-        self.v_gcp_seg = pv.plot([], [], pen=pg.mkPen(GCP_COLOR, width=2), connect="pairs")
-        self.v_icp_seg = pv.plot([], [], pen=pg.mkPen(ICP_COLOR, width=2), connect="pairs")
+        self.v_gcp_seg = self._curve(pv, pg.mkPen(GCP_COLOR, width=2), connect="pairs")
+        self.v_icp_seg = self._curve(pv, pg.mkPen(ICP_COLOR, width=2), connect="pairs")
         self.v_gcp = self._scatter(p["vectors"], GCP_COLOR, "o", "GCP", size=6)
         self.v_icp = self._scatter(p["vectors"], ICP_COLOR, "t", "ICP", size=7, filled=False)
-        self.frame = pv.plot([], [], pen=pg.mkPen((150, 150, 150), width=1, style=dash))
+        self.frame = self._curve(pv, pg.mkPen((150, 150, 150), width=1, style=dash))
 
         ps = p["std_residuals"].getPlotItem()
         ps.setLabel("left", "|standardised residual|")
         ps.setLabel("bottom", "GCP")
-        self.stems = ps.plot([], [], pen=pg.mkPen(GCP_COLOR, width=3), connect="pairs")
+        self.stems = self._curve(ps, pg.mkPen(GCP_COLOR, width=3), connect="pairs")
         self.std_pts = self._scatter(p["std_residuals"], GCP_COLOR, "o", "GCP", size=7)
         self.blunder_pt = self._scatter(p["std_residuals"], BLUNDER_COLOR, "s", "blunder", size=12)
-        self.threshold_line = pg.InfiniteLine(3.0, angle=0, pen=pg.mkPen(BLUNDER_COLOR, width=1.5, style=dash),
-                                              label="threshold {value:.2f}",
-                                              labelOpts={"position": 0.9, "color": BLUNDER_COLOR})
+        # the one blunder threshold of every fit (the values are on the normal scale)
+        self.threshold_line = pg.InfiniteLine(3.29, angle=0, pen=pg.mkPen(BLUNDER_COLOR, width=1.5, style=dash),
+                                              label="blunder threshold {value:.2f}",
+                                              labelOpts={"position": 0.99, "color": BLUNDER_COLOR,
+                                                         "anchors": [(1, 0), (1, 0)]})  # under it
         ps.addItem(self.threshold_line)
         self.blunder_label = pg.TextItem("", color=BLUNDER_COLOR, anchor=(0.5, 1.2))
         ps.addItem(self.blunder_label)
-        self.critical_lines = []
-        for pos in (0.22, 0.62):  # labels apart: the two values are often close
-            line = pg.InfiniteLine(0.0, angle=0, pen=pg.mkPen((120, 120, 120), width=1,
-                                                             style=Qt.PenStyle.DotLine),
-                                   label="", labelOpts={"position": pos, "color": (90, 90, 90)})
-            line.setVisible(False)
-            ps.addItem(line)
-            self.critical_lines.append(line)
-        # the blunder (if any) ringed in the other plots too
+        # the blunders (if any) ringed in the other plots too
         self.blunder_rings = {name: self._scatter(p[name], BLUNDER_COLOR, "o", None, size=16,
                                                   filled=False)
                               for name in ("height", "height_minus_theory", "vectors")}
@@ -222,9 +255,6 @@ class PlotsWidget(QWidget):
             # fixed axis sizes: tick labels that change width would relayout and repaint again
             pw.getPlotItem().getAxis("left").setWidth(58)
             pw.getPlotItem().getAxis("bottom").setHeight(38)
-        for pw in p.values():  # our values are small: no re-plot on every range change
-            for item in pw.getPlotItem().listDataItems():
-                item.setDynamicRangeLimit(None)
         self._titles: dict = {}
         self._set_titles()
 
@@ -281,28 +311,26 @@ class PlotsWidget(QWidget):
         self._set(self.stems, stem_x, stem_y)
         self._set(self.std_pts, xs, d.std_values, data=list(d.std_ids))
         self._once("threshold", d.threshold, self.threshold_line.setValue)
-        for k, (line, crit) in enumerate(zip(self.critical_lines, list(d.critical) + [None] * 2)):
-            self._once(f"critical {k} shown", crit is not None and n > 0, line.setVisible)
-            if crit is not None:
-                self._once(f"critical {k}", crit[1], line.setValue)
-                self._once(f"critical {k} text", f"critical {crit[0]}: {{value:.2f}}", line.label.setFormat)
-        if d.blunder in d.std_ids:
-            i = d.std_ids.index(d.blunder)
-            self._set(self.blunder_pt, [xs[i]], [d.std_values[i]], data=[d.blunder])
-            self._once("blunder", (d.blunder, xs[i], d.std_values[i]), lambda v: (
-                self.blunder_label.setText(v[0]), self.blunder_label.setPos(v[1], v[2])))
+        self._once("threshold text", f"blunder threshold {{value:.2f}} (α = {alpha_of(d.threshold):.2g})",
+                   self.threshold_line.label.setFormat)
+        flagged = [i for i, pid in enumerate(d.std_ids) if pid in d.blunders]
+        if flagged:
+            top_i = max(flagged, key=lambda i: d.std_values[i])
+            self._set(self.blunder_pt, xs[flagged], d.std_values[flagged],
+                      data=[d.std_ids[i] for i in flagged])
+            self._once("blunder", (", ".join(d.std_ids[i] for i in flagged), xs[top_i], d.std_values[top_i]),
+                       lambda v: (self.blunder_label.setText(v[0]), self.blunder_label.setPos(v[1], v[2])))
         else:
             self._set(self.blunder_pt, [], [])
             self._once("blunder", None, lambda v: self.blunder_label.setText(""))
         ax = self.plots["std_residuals"].getPlotItem().getAxis("bottom")
         self._once("std ticks", [list(zip(xs, d.std_ids))] if 0 < n <= 25 else None, ax.setTicks)
-        top = max([d.threshold * 1.15, float(np.max(d.std_values)) * 1.1 if n else 0.0]
-                  + [c[1] * 1.1 for c in d.critical])
+        top = max(d.threshold * 1.25, float(np.max(d.std_values)) * 1.15 if n else 0.0)
         self._update_rings()
         self._std_range = ((0.3, n + 0.7), (0.0, top))
         self._apply_ranges()
         self.summary.setText(f"{len(d.gcp_ids)} GCP, {len(d.icp_ids)} ICP with parallax"
-                             + (f"; blunder: {d.blunder}" if d.blunder else ""))
+                             + (f"; blunder: {', '.join(d.blunders)}" if d.blunders else ""))
         self._set_titles()
 
     def _set(self, item, x, y, data=None) -> None:
@@ -317,6 +345,7 @@ class PlotsWidget(QWidget):
             item.setData(x, y)
         else:
             item.setData(x, y, data=data)
+        item.setVisible(len(x) > 0)  # an empty item hidden costs a repaint nothing
 
     def _once(self, key: str, value, apply) -> None:
         """``apply(value)`` unless ``value`` is what ``key`` was last set to (no repaint)."""
@@ -345,12 +374,12 @@ class PlotsWidget(QWidget):
         smooth = pg.getConfigOption("antialias")
         pg.setConfigOptions(antialias=True)  # items read it when created
         try:
-            tmp = PlotsWidget(grid=True)
+            tmp = PlotsWidget(grid=True, legends=True)
         finally:
             pg.setConfigOptions(antialias=smooth)
         try:
             tmp.setAttribute(Qt.WidgetAttribute.WA_DontShowOnScreen, True)
-            if not self.auto_box.isChecked():
+            if not self.auto_box.isChecked() and not self._screen_k:
                 tmp.set_exaggeration(self._exaggeration)
             tmp.set_plot_data(self._data)
             for name in tmp._titles:
@@ -376,6 +405,9 @@ class PlotsWidget(QWidget):
     # ------------------------------------------------------------------ internals
     def _update_vectors(self) -> None:
         d, k = self._data, self._exaggeration
+        if self._screen_k:  # screen px per px: times the image px per screen px of the plot
+            px = self.plots["vectors"].getPlotItem().getViewBox().viewPixelSize()[0]
+            k *= px if np.isfinite(px) and px > 0 else 1.0
         self._set(self.v_gcp_seg, *segments(d.vec_gcp_xy, d.vec_gcp_v, k))
         self._set(self.v_icp_seg, *segments(d.vec_icp_xy, d.vec_icp_v, k))
         self._set(self.v_gcp, d.vec_gcp_xy[:, 0], d.vec_gcp_xy[:, 1], data=list(d.vec_gcp_ids))
@@ -388,38 +420,9 @@ class PlotsWidget(QWidget):
 
     def _ranges(self) -> dict:
         """``{plot: ((x0, x1), (y0, y1))}`` covering the data (plots with data only)."""
-        d, out = self._data, {}
-        x = line_x(d)
-        if x.size:
-            ys = [d.gcp_h, d.icp_h]
-            ys5 = [np.zeros(1)]
-            for item, acc in ((self.fit_line, ys), (self.theory_line, ys), (self.d_fit_line, ys5),
-                              (self.d_gcp, ys5), (self.d_icp, ys5)):
-                yi = item.getData()[1]
-                if yi is not None:
-                    acc.append(np.asarray(yi, float))
-            for name, acc in (("height", ys), ("height_minus_theory", ys5)):
-                y = np.concatenate(acc)
-                y = y[np.isfinite(y)]
-                if y.size:
-                    pad = 0.05 * max(np.ptp(y), 1.0)
-                    out[name] = ((x[0], x[1]), (y.min() - pad, y.max() + pad))
-        if d.image_shape:
-            r, c = d.image_shape[:2]
-            out["vectors"] = ((-0.03 * c, 1.03 * c), (-0.03 * r, 1.03 * r))
-        else:
-            pts = [a for a in (d.vec_gcp_xy, d.vec_icp_xy) if len(a)]
-            for item in (self.v_gcp_seg, self.v_icp_seg):
-                sx, sy = item.getData()
-                if sx is not None and len(sx):
-                    pts.append(np.column_stack([sx, sy]))
-            if pts:
-                a = np.vstack(pts)
-                lo, hi = a.min(axis=0), a.max(axis=0)
-                pad = 0.05 * max(float(np.max(hi - lo)), 1.0)
-                out["vectors"] = ((lo[0] - pad, hi[0] + pad), (lo[1] - pad, hi[1] + pad))
-        out["std_residuals"] = getattr(self, "_std_range", ((0, 1), (0, 4)))
-        return out
+        segs = [np.column_stack(item.getData()) for item in (self.v_gcp_seg, self.v_icp_seg)
+                if item.getData()[0] is not None and len(item.getData()[0])]
+        return data_ranges(self._data, segs, getattr(self, "_std_range", ((0, 1), (0, 4))))
 
     def _apply_ranges(self, only=None) -> None:
         """Frame each followed plot's data. A range that still frames the data well (holds it,
@@ -445,18 +448,15 @@ class PlotsWidget(QWidget):
         self._apply_ranges(name)
 
     def _update_rings(self) -> None:
-        d, b = self._data, self._data.blunder
+        d, b = self._data, self._data.blunders
         pos = {"height": (d.gcp_ids, d.gcp_py, d.gcp_h),
                "height_minus_theory": (d.gcp_ids, d.gcp_py,
                                        d.gcp_h - (d.c1_theory or 0.0) * d.gcp_py),
                "vectors": (d.vec_gcp_ids, d.vec_gcp_xy[:, 0], d.vec_gcp_xy[:, 1])}
         for name, (ids, x, y) in pos.items():
-            ring = self.blunder_rings[name]
-            if b is not None and b in ids and not (name == "height_minus_theory" and d.c1_theory is None):
-                i = ids.index(b)
-                self._set(ring, [x[i]], [y[i]], data=[b])
-            else:
-                self._set(ring, [], [])
+            idx = [] if name == "height_minus_theory" and d.c1_theory is None else \
+                [i for i, pid in enumerate(ids) if pid in b]
+            self._set(self.blunder_rings[name], x[idx], y[idx], data=[ids[i] for i in idx])
 
     def _on_spin(self, value: float) -> None:
         self.auto_box.blockSignals(True)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 
-from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt
+from PySide6.QtCore import QAbstractTableModel, QModelIndex, QRect, Qt
 from PySide6.QtGui import QBrush, QColor, QPainter, QPalette
 from PySide6.QtWidgets import QAbstractItemView, QHeaderView, QMenu, QTableView
 
@@ -98,13 +98,26 @@ class PointTableModel(QAbstractTableModel):
         rows = self._sorted(self._build()) if self.project is not None else []
         ids = [r[0] for r in rows]
         if ids == self.ids and rows:
-            changed = [i for i, (a, b) in enumerate(zip(self._rows, rows)) if a != b]
+            old = self._rows
+            changed = [i for i, (a, b) in enumerate(zip(old, rows)) if a != b]
+            if not changed:
+                return
+            # the cells that changed: the rows between the first and the last, the columns
+            # between the leftmost and the rightmost (a refit changes the residual columns of
+            # every row, never the ids: the frozen id column is not repainted); texts are
+            # formatted when a row is shown (a refit changes hundreds, a view shows a dozen)
+            n = len(COLUMNS)
+            was, now = [old[i][:n] for i in changed], [rows[i][:n] for i in changed]
+            cols = [c for c, (a, b) in enumerate(zip(zip(*was), zip(*now))) if a != b]
             for i in changed:
-                self._text[i] = _texts(rows[i])
+                self._text[i] = None
             self._rows = rows
-            if changed:
-                self.dataChanged.emit(self.index(min(changed), 0),
-                                      self.index(max(changed), len(COLUMNS) - 1))
+            if cols:
+                self.dataChanged.emit(self.index(min(changed), cols[0]),
+                                      self.index(max(changed), cols[-1]))
+            for i in changed:  # a flag changed (the row's colour, a blunder): that whole row
+                if old[i][n:] != rows[i][n:]:
+                    self.dataChanged.emit(self.index(i, 0), self.index(i, n - 1))
             return
         if rows and len(ids) == len(self.ids) and set(ids) == set(self.ids):
             self._relayout(rows)  # re-sorted by new values
@@ -116,7 +129,14 @@ class PointTableModel(QAbstractTableModel):
     def _set_rows(self, rows) -> None:
         self._rows, self.ids = rows, [r[0] for r in rows]
         self._row_of = {pid: i for i, pid in enumerate(self.ids)}
-        self._text = [_texts(r) for r in rows]
+        self._text = [None] * len(rows)
+
+    def texts(self, r: int) -> list:
+        """The display texts of row ``r`` (formatted when first shown after a change)."""
+        t = self._text[r]
+        if t is None:
+            t = self._text[r] = _texts(self._rows[r])
+        return t
 
     def _sorted(self, rows: list[tuple]) -> list[tuple]:
         column, order = self._sort
@@ -197,12 +217,12 @@ class PointTableModel(QAbstractTableModel):
             return None
         r, c = index.row(), index.column()
         if role == _DISPLAY:
-            return self._text[r][c]
+            return self.texts(r)[c]
         row = self._rows[r]
         if role == _SORT:
             return _sort_key(row, c)
         if role == _EDIT:
-            return self._text[r][c] if COLUMNS[c] in EDITABLE else None
+            return self.texts(r)[c] if COLUMNS[c] in EDITABLE else None
         if role == _BACKGROUND:
             if c == HEIGHT and row[ODD_HEIGHT]:
                 return _ODD_HEIGHT_BRUSH
@@ -261,6 +281,23 @@ class _FastTable(QTableView):
         # sized once per project (ResizeToContents would measure every cell at every change)
         self.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.Interactive)
 
+    def dataChanged(self, top_left, bottom_right, roles=()) -> None:
+        """Repaint the changed cells only (Qt repaints the whole table for a range): a refit
+        changes the residual columns, and neither the ids nor the known coordinates."""
+        if not top_left.isValid() or not bottom_right.isValid() or self.state() == self.State.EditingState:
+            return super().dataChanged(top_left, bottom_right, roles)
+        vh, hh = self.verticalHeader(), self.horizontalHeader()
+        cols = [c for c in range(top_left.column(), bottom_right.column() + 1) if not hh.isSectionHidden(c)]
+        if not cols:
+            return
+        x0 = min(hh.sectionViewportPosition(c) for c in cols)
+        x1 = max(hh.sectionViewportPosition(c) + hh.sectionSize(c) for c in cols)
+        y0 = vh.sectionViewportPosition(top_left.row())
+        y1 = vh.sectionViewportPosition(bottom_right.row()) + vh.sectionSize(bottom_right.row())
+        rect = QRect(x0, y0, x1 - x0, y1 - y0).intersected(self.viewport().rect())
+        if not rect.isEmpty():
+            self.viewport().update(rect)
+
     def paintEvent(self, event) -> None:
         """The visible cells in one pass, from the model's preformatted strings: background
         (selection, blunder, alternate rows, a height of an unusual kind), text in the kind
@@ -292,7 +329,7 @@ class _FastTable(QTableView):
         for vis in range(first, last + 1):
             r = vh.logicalIndex(vis)
             y, h = vh.sectionViewportPosition(r), vh.sectionSize(r)
-            row, texts, chosen = m._rows[r], m._text[r], r in selected
+            row, texts, chosen = m._rows[r], m.texts(r), r in selected
             if chosen:
                 p.fillRect(0, y, right, h, pal.highlight())
             elif row[BLUNDER] or r % 2:

@@ -31,8 +31,8 @@ FIGURE_CAPTIONS = {
                            "the fitted line in the same form.",
     "vectors": "Residual vectors (measured − predicted) in view {view}, exaggerated as the title "
                "says; y (rows) downwards.",
-    "std_residuals": "Largest |standardised residual| of each GCP against the rejection "
-                     "threshold and its critical values; a flagged blunder in red.",
+    "std_residuals": "Largest |standardised residual| of each GCP, on the normal scale, "
+                     "against the one blunder threshold of every fit; blunders in magenta.",
 }
 
 _SOURCE = {"parallax": "py", "reference": "DEM", "mean": "mean"}

@@ -68,6 +68,13 @@ class TextLabel(QWidget):
             self._text = text
             self.update()
 
+    def set_color(self, color) -> None:
+        """The text colour (None: the palette's)."""
+        color = QColor(color) if color is not None else None
+        if color != self._color:
+            self._color = color
+            self.update()
+
     def sizeHint(self) -> QSize:
         return self._hint
 

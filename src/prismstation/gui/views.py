@@ -27,7 +27,7 @@ from prismstation.core.scene import reference_view
 from prismstation.errors import PrismError
 from prismstation.gui import workers
 from prismstation.gui.image_view import ImageView
-from prismstation.gui.overlays import ViewOverlay
+from prismstation.gui.overlays import ViewOverlay, by_view
 from prismstation.gui.prediction import Predictions
 from prismstation.gui.text_label import TextLabel
 from prismstation.io.raster import RasterSource
@@ -35,13 +35,14 @@ from prismstation.io.raster import RasterSource
 VIEW_TITLES = {"N": "N — nadir", "F": "F — forward", "B": "B — backward"}
 PICK_TOLERANCE_SCREEN_PX = 8.0
 DRIVE_TO_MAX_SCALE = 1.0  # image px per screen px at most after a drive-to (zooms in to detail)
+TILE_CACHE_MB = 32  # read tiles kept per view: 128 tiles, a 5,800 px square at full resolution
 
 
 def _load(on_loaded, view: str, path: str, generation: int) -> None:
     """Open a raster, read its coarse overview and statistics (worker thread); the handle this
     thread opened is closed here, the GUI thread opens its own."""
     try:
-        src = RasterSource(path)
+        src = RasterSource(path, cache_mb=TILE_CACHE_MB)
         try:
             src.coarse()
             st = src.statistics((0.5, 99.5))
@@ -104,6 +105,8 @@ class TripletViews(QWidget):
         self.offer_overviews = None  # callable(source) set by the window when interactive
         self.height_of = None  # reference DEM heights: (n, 2) map metres -> (n,) metres
         self.predictions = Predictions()  # of the points in the views they are not measured in
+        self._by_view_key, self._by_view_cache = None, {}
+        self._drawn: dict = {}  # view -> the inputs its overlay last drew (see _view_inputs)
         self.editable = True  # False (navigate mode): clicks and drags never place nor move
         self.view_cursor = Qt.CursorShape.CrossCursor  # over the images (the measuring mode's)
 
@@ -115,6 +118,7 @@ class TripletViews(QWidget):
             pane.setParent(None)
             pane.deleteLater()
         self.views, self.overlays, self.headers, self.panes = {}, {}, {}, {}
+        self._drawn = {}
         self.project, self.solution, self.current = project, None, None
         self._generation += 1
         if project is None:
@@ -215,19 +219,45 @@ class TripletViews(QWidget):
         """Redraw the measured markers from the project (no fit needed)."""
         if self.project is None:
             return
+        mine = self._by_view()
         for ov in self.overlays.values():
-            ov.update_measured(self.project, self.solution)
+            ov.update_measured(self.project, self.solution, self.current, mine.get(ov.name, ((), ())))
         self._update_current()
+
+    def _by_view(self) -> dict:
+        """The project's measurements and kinds per view (once per revision)."""
+        key = (id(self.project), self.project.revision)
+        if key != self._by_view_key:
+            self._by_view_key, self._by_view_cache = key, by_view(self.project)
+        return self._by_view_cache
 
     def set_solution(self, solution) -> None:
         self.solution = solution
         if self.project is None:
             return
         preds = self.predictions.update(self.project, solution, self.height_of)
-        for ov in self.overlays.values():
-            ov.update_measured(self.project, solution)
-            ov.update_solution(self.project, solution, preds)
+        mine = self._by_view()
+        for name, ov in self.overlays.items():
+            ov.update_measured(self.project, solution, self.current, mine.get(name, ((), ())))
+            key = self._view_inputs(name, solution, preds)
+            if key is None or key != self._drawn.get(name):
+                ov.update_solution(self.project, solution, preds)
+                self._drawn[name] = key
         self._update_current()
+
+    def _view_inputs(self, name, solution, preds):
+        """What view ``name`` draws from the solution depends on, or None (always redraw):
+        its measurements and their kinds, its bias (the residuals of its known points), the
+        known ground, the predictions in it and the labels' switch. A click in N changes none
+        of F's or B's when every point there is measured: their overlays are left alone."""
+        fit = solution.bias.get(name) if solution is not None else None
+        ov = self.overlays[name]
+        if fit is None or ov._measured_key is None:
+            return None
+        predicted = tuple((pid, p.xy, p.cov.tobytes()) for pid, d in preds.items()
+                          for v, p in d.items() if v == name)
+        return (id(ov._measured_key), fit.model, np.asarray(fit.params).tobytes(),
+                id(self.predictions._ground), predicted, ov.show_labels, id(self.project))
 
     def set_height_of(self, height_of) -> None:
         """The reference DEM's heights (None: none): predictions are made again with them."""
@@ -247,6 +277,10 @@ class TripletViews(QWidget):
 
     def set_current(self, pid: str | None) -> None:
         self.current = pid
+        if self.project is not None:
+            mine = self._by_view()
+            for ov in self.overlays.values():
+                ov.update_measured(self.project, self.solution, pid, mine.get(ov.name, ((), ())))
         self._update_current()
 
     def _update_current(self) -> None:

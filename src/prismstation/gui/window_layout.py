@@ -88,6 +88,27 @@ def default_layout(win) -> None:
     win.resizeDocks([d["points"]], [bottom], Qt.Orientation.Vertical)
 
 
+# a tool's panel opened alone in an area joins the window's own group there
+TAB_GROUPS = {Qt.DockWidgetArea.RightDockWidgetArea: "loupe",
+              Qt.DockWidgetArea.BottomDockWidgetArea: "points"}
+
+
+def tab_when_shown(win, dock) -> None:
+    """When ``dock`` (a tool's panel) is shown alone in the right or bottom area, tab it with
+    the loupes or the point table there: opened as a split of its own it took the model
+    panel's height (down to one line at 1600 × 1000). A dock the operator placed elsewhere, or
+    already tabbed, stays where it is."""
+    def shown(visible: bool) -> None:
+        area = win.dockWidgetArea(dock)
+        group = win.docks.get(TAB_GROUPS.get(area, ""))
+        if (not visible or dock.isFloating() or group is None or group is dock
+                or win.tabifiedDockWidgets(dock) or win._work_state is not None):
+            return
+        win.tabifyDockWidget(group, dock)
+        QTimer.singleShot(0, win, dock.raise_)  # in front, once the tab exists
+    dock.visibilityChanged.connect(shown)
+
+
 def show_start(win, on: bool) -> None:
     """The start page (no project: panels and toolbar away, their layout kept) or the
     work area. Docks are taken out of the layout, not hidden: a hidden tab group leaves a

@@ -85,7 +85,7 @@ def test_standardised_residuals_threshold_and_blunder(widget, fitted):
     d = PlotData.from_report(report_dict(sol))
     np.testing.assert_allclose(d.std_values, y)
     np.testing.assert_allclose(d.gcp_h, _xy(widget.h_gcp)[1])
-    assert d.blunder == BLUNDER_ID
+    assert d.blunders == (BLUNDER_ID,)
 
 
 def test_update_reuses_items_and_is_fast(widget, qtbot):
@@ -116,9 +116,9 @@ def test_empty_solution_clears(widget, fitted):
 
 def test_point_clicked_signal(widget, fitted, qtbot):
     widget.set_solution(fitted[2])
-    spots = widget.std_pts.scatter.points()
+    spots = widget.std_pts.points()
     with qtbot.waitSignal(widget.point_clicked, timeout=1000) as sig:
-        widget.std_pts.scatter.sigClicked.emit(widget.std_pts.scatter, [spots[2]], None)
+        widget.std_pts.sigClicked.emit(widget.std_pts, [spots[2]], None)
     assert sig.args == [spots[2].data()]
 
 
@@ -150,9 +150,9 @@ def test_live_lines_plain_report_lines_antialiased(qtbot, fitted, monkeypatch):
     w = plots.PlotsWidget()
     qtbot.addWidget(w)
     w.set_solution(fitted[2])
-    assert not w.fit_line.curve.opts["antialias"]
+    assert not w.fit_line.opts["antialias"]
     assert sorted(w.render_images((300, 200))) == sorted(plots.PLOT_NAMES)
-    assert made[-1] is not w and made[-1].fit_line.curve.opts["antialias"]
+    assert made[-1] is not w and made[-1].fit_line.opts["antialias"]
     assert pg.getConfigOption("antialias") is False
 
 

@@ -1,0 +1,213 @@
+"""Resident memory of the workstation window through the demo's tools.
+
+The real main window (offscreen unless a display is set, 1600 × 1000) on the demo project as
+``prismstation demo`` makes it (2000 px triplet, or ``--project``), its reference DEM loaded,
+then each tool as the Tools menu runs it, one after the other: automatic tie points,
+orientation from the reference DEM, the DSM of the whole image (twice), its validation against
+the demo's true DEM, an affine rectification of N, the space resection. Printed: the resident
+memory (VmRSS) after each step, and at the end what a garbage collection and glibc's
+``malloc_trim`` would still give back (memory the window holds for nothing), beside the
+target: ≤ 500 MB for the window after the demo's tools.
+
+Run: ``.venv/bin/python benchmarks/bench_memory.py [--project P] [--dsm-runs 2] [--trace]``
+(``--trace``: tracemalloc's largest Python allocations still held at the end).
+"""
+from __future__ import annotations
+
+import argparse
+import gc
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+TARGET_MB = 500.0
+
+
+def rss_mb() -> float:
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
+def smaps_summary() -> list:
+    """``[(kind, MB)]`` of the resident memory: anonymous (heaps, arenas, Python and numpy
+    data) and each large file mapping (shared libraries' pages), largest first."""
+    out: dict = {}
+    name = None
+    with open("/proc/self/smaps") as f:
+        for line in f:
+            parts = line.split()
+            if "-" in parts[0] and len(parts) >= 5 and ":" not in parts[0]:
+                path = parts[5] if len(parts) > 5 else ""
+                name = ("anonymous (heaps, arenas, Python and numpy data)" if not path or path.startswith("[")
+                        else Path(path).name)
+            elif parts[0] == "Rss:" and name is not None:
+                out[name] = out.get(name, 0.0) + int(parts[1]) / 1024.0
+    top = sorted(out.items(), key=lambda kv: -kv[1])
+    rest = sum(mb for _, mb in top[8:])
+    return top[:8] + [("other mappings", rest)]
+
+
+def gdal_cache_mb() -> tuple[float, float]:
+    """GDAL's block cache: ``(used, maximum)`` MB (NaN when libgdal cannot be asked)."""
+    import ctypes
+    try:
+        path = next(line.split()[-1] for line in open("/proc/self/maps") if "libgdal" in line)
+        lib = ctypes.CDLL(path)
+        lib.GDALGetCacheUsed64.restype = lib.GDALGetCacheMax64.restype = ctypes.c_int64
+        return lib.GDALGetCacheUsed64() / 2**20, lib.GDALGetCacheMax64() / 2**20
+    except (StopIteration, OSError, AttributeError):
+        return float("nan"), float("nan")
+
+
+def trim() -> None:
+    """glibc: give the heaps' free memory back to the system."""
+    import ctypes
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
+
+
+def _referrers_of_large_objects() -> None:
+    """The objects holding numpy arrays of 1 MB or more, alive now (what the window keeps)."""
+    import numpy as np
+    gc.collect()
+    seen = 0
+    for o in gc.get_objects():
+        if type(o).__name__ in ("Dsm", "DsmResult", "ValidationResult", "OrientationResult", "Solution"):
+            refs = [type(r).__name__ for r in gc.get_referrers(o)][:6]
+            print(f"  alive: {type(o).__name__} held by {refs}")
+        if isinstance(o, dict):
+            big = [k for k, v in o.items() if isinstance(v, np.ndarray) and v.nbytes >= 2**20]
+            if big and seen < 15:
+                seen += 1
+                holders = [type(r).__name__ for r in gc.get_referrers(o)][:4]
+                print(f"  dict with arrays {big[:4]} ({sum(o[k].nbytes for k in big) / 2**20:.0f} MB) held by {holders}")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--project", help="a project (default: the demo, made in a temporary folder)")
+    ap.add_argument("--dsm-runs", type=int, default=2)
+    ap.add_argument("--posting", type=float, default=5.0, help="DSM posting, metres")
+    ap.add_argument("--trace", action="store_true", help="tracemalloc: the largest Python allocations held")
+    args = ap.parse_args(argv)
+    if args.trace:
+        import tracemalloc
+        tracemalloc.start(12)
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench-memory-"))
+    os.environ["PRISMSTATION_SETTINGS_DIR"] = str(tmp / "settings")
+    if args.project:
+        project = Path(args.project)
+    else:
+        from prismstation.cli.demo import ensure_demo
+        print("making the demo project…", flush=True)
+        project = ensure_demo(tmp / "demo")
+    triplet = project.parent / "triplet"
+
+    from prismstation.gui.app import make_app, wait_settled
+    from prismstation.gui.main_window import MainWindow
+    from PySide6.QtCore import QCoreApplication
+
+    make_app()
+    rows = [("start (Python, Qt, numpy, GDAL loaded)", rss_mb())]
+    win = MainWindow(interactive=False)
+    win.files.interactive = False
+    win.resize(1600, 1000)
+    win.show()
+    assert win.open_project(str(project), recover=False)
+    win.default_layout()
+    if (triplet / "srtm.tif").is_file():
+        win.load_reference_dem(triplet / "srtm.tif", wait=True)
+    wait_settled(win)
+    rows.append(("project open, images shown, fitted", rss_mb()))
+
+    def run(job, timeout=1800.0):
+        if job is None:
+            raise SystemExit("a tool did not start (see the status bar): "
+                             f"{win.statusBar().currentMessage()}")
+        outcome = []
+        job.failed.connect(lambda m: outcome.append(m))
+        job.cancelled.connect(lambda: outcome.append("cancelled"))
+        t0 = time.perf_counter()
+        while job.isRunning():
+            QCoreApplication.processEvents()
+            time.sleep(0.01)
+            if time.perf_counter() - t0 > timeout:
+                raise SystemExit("a tool took too long")
+        for _ in range(20):
+            QCoreApplication.processEvents()
+            time.sleep(0.005)
+        wait_settled(win)
+        if outcome:
+            raise SystemExit(f"a tool failed: {outcome[0]}")
+
+    tools = win.tools
+    run(tools["transfer"].start_ties(grid=6))
+    rows.append(("automatic tie points (6 × 6)", rss_mb()))
+    if (triplet / "srtm.tif").is_file():
+        run(tools["dem_orientation"].start(triplet / "srtm.tif", patch_m=1250.0))
+        rows.append(("orientation from the reference DEM", rss_mb()))
+        win.undo_stack.undo()  # back to the GCP orientation
+        wait_settled(win)
+    from prismstation.gui.tools.dsm_tool import DsmRequest
+    dsm = tmp / "dsm.tif"
+    for k in range(args.dsm_runs):
+        run(tools["dsm"].start(DsmRequest(str(dsm), None, args.posting, False)))
+        rows.append((f"DSM of the whole image at {args.posting:g} m, run {k + 1}", rss_mb()))
+    if (triplet / "truth_dem.tif").is_file():
+        run(tools["dsm_validation"].start(str(dsm), str(triplet / "truth_dem.tif"), progress_dialog=False))
+        rows.append(("DSM validated against the true DEM", rss_mb()))
+    run(tools["rectify"].start("N", "affine", tmp / "n_rect.tif", progress_dialog=False))
+    rows.append(("N rectified (affine)", rss_mb()))
+    dlg = tools["resection"].open()
+    dlg.run()
+    dlg.close()
+    wait_settled(win)
+    rows.append(("space resection", rss_mb()))
+    rows.append(("right after the last tool", rss_mb()))
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < 6.0:  # the window idle: what a system monitor shows
+        QCoreApplication.processEvents()
+        time.sleep(0.02)
+    held = rss_mb()
+    rows.append(("the window idle for 6 s after the tools", held))
+    if args.trace:
+        _referrers_of_large_objects()
+    gc.collect()
+    QCoreApplication.processEvents()
+    trim()
+    rows.append(("after a garbage collection and malloc_trim", rss_mb()))
+
+    print(f"resident memory of the window (VmRSS), {project.name}, 1600 × 1000")
+    for name, mb in rows:
+        print(f"  {name:52s} {mb:7.0f} MB")
+    print(f"  {'the window after the demo tools (target ≤ %d MB)' % TARGET_MB:52s} {held:7.0f} MB   "
+          + ("target met" if held <= TARGET_MB else "TARGET MISSED"))
+    used, most = gdal_cache_mb()
+    print(f"  GDAL block cache: {used:.0f} MB used of {most:.0f} MB")
+    print("where the resident memory is (/proc/self/smaps):")
+    for kind, mb in smaps_summary():
+        print(f"  {kind:52s} {mb:7.0f} MB")
+    if args.trace:
+        import tracemalloc
+        snap = tracemalloc.take_snapshot()
+        print("largest Python allocations still held:")
+        for stat in snap.statistics("traceback")[:12]:
+            print(f"  {stat.size / 2**20:7.1f} MB  {stat.count:7d} blocks  {stat.traceback.format()[-1].strip()}")
+    win.undo_stack.setClean()
+    win.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
