@@ -40,7 +40,7 @@ def _writers():
                              "--points", s / "points.csv", "--measurements", s / "measurements.csv"],
         "points": lambda s, o: ["points", s / "points.csv", "-o", o / "p.csv", "--crs", "EPSG:32629",
                                 "--to-crs", "EPSG:4326"],
-        "points --measurements": lambda s, o: ["points", s / "points.csv", "-o", s / "p2.txt",
+        "points --measurements": lambda s, o: ["points", s / "points.csv", "-o", o / "p2.csv",
                                                "--crs", "EPSG:32629", "--measurements", o / "m.csv"],
         "dsm": lambda s, o: ["dsm", p(s), "-o", o / "d.tif", "--window", "300", "300", "200", "200",
                              "--posting", "10", "--min-fill", "0"],
@@ -54,17 +54,21 @@ def _writers():
                                     "--json", o / "c.json"],
         "bh": lambda s, o: ["bh", "--left", "0", "0", "691000", "--right", "1000", "0", "691000",
                             "--json", o / "bh.json"],
-        "simulate": lambda s, o: ["simulate", o / "s", "--size", "256", "--quiet"],
+        "simulate": lambda s, o: ["simulate", o / "s", "--size", "256", "--gcp", "4", "--icp", "4",
+                                  "--ties", "4", "--quiet"],
     }
 
 
 WRITERS = _writers()
-#: a few, in a child process limited to N bytes a file (no privilege needed)
-LIMITED = ["report.pdf", "report.html", "new", "dsm", "points", "simulate"]
 
 
 def _target(argv, out: Path) -> Path:
     return next(Path(a) for a in reversed(argv) if str(a).startswith(str(out)))
+
+
+def _names(argv, out: Path) -> tuple:
+    """The names of the files under ``out`` the command writes (the first may be what fails)."""
+    return tuple(Path(a).name for a in argv if str(a).startswith(str(out)))
 
 
 def _check_write_fault(result, argv, sim, out, before, project_digest, allow_success=False):
@@ -74,7 +78,7 @@ def _check_write_fault(result, argv, sim, out, before, project_digest, allow_suc
         if target.suffix == ".json":
             json.loads(target.read_text())
         return
-    ft.assert_clean_failure(result, argv[0], target.name)
+    ft.assert_clean_failure(result, argv[0], _names(argv, out))
     assert ft.listing(out) == before, "a partial or temporary file was left"
     assert ft.digest(sim / "p.prismproj") == project_digest
 
@@ -84,28 +88,31 @@ needs_tmpfs = pytest.mark.skipif(not ft.can_mount(), reason="no tmpfs can be mou
 
 
 @needs_tmpfs
-@pytest.mark.parametrize("free", [0, 16384], ids=["full", "16kB-free"])
-@pytest.mark.parametrize("case", list(WRITERS))
-def test_full_file_system(capsys, sim, tmp_path, case, free):
+@pytest.mark.parametrize("case, free", [(c, 0) for c in WRITERS]
+                         + [(c, 16384) for c in ("report.pdf", "new", "dsm", "rectify")],
+                         ids=lambda v: v if isinstance(v, str) else f"{v}B-free")
+def test_full_file_system(sim, tmp_path, case, free):
     argv = WRITERS[case](sim, tmp_path / "full")
     h = ft.digest(sim / "p.prismproj")
     with ft.tmpfs(tmp_path / "full", 1024) as out:
         ft.fill(out, free)
         before = ft.listing(out)
-        result = ft.run_cli(capsys, argv)
+        result = ft.run_cli(argv)
         _check_write_fault(result, argv, sim, out, before, h, allow_success=free > 0)
 
 
-@pytest.mark.parametrize("case", LIMITED)
+@pytest.mark.parametrize("case", list(WRITERS))
 def test_writer_limited_to_n_bytes(sim, tmp_path, case):
+    """No file may grow past 64 bytes (every output is larger): the write fails in the
+    kernel, mid-file, as on a full disk."""
     out = tmp_path / "out"
     out.mkdir()
     argv = WRITERS[case](sim, out)
     h = ft.digest(sim / "p.prismproj")
-    result = ft.run_limited(argv, 16384, tmp_path)
-    target = _target(argv, out)
-    line = ft.assert_clean_failure(result, argv[0], target.name)
-    assert "File too large" in line or "full" in line or "bytes" in line, line
+    with ft.file_size_limit(64):
+        result = ft.run_cli(argv)
+    line = ft.assert_clean_failure(result, argv[0], _names(argv, out))
+    assert "File too large" in line or "not written" in line, line
     assert ft.listing(out) == [], "a partial or temporary file was left"
     assert ft.digest(sim / "p.prismproj") == h
 
@@ -127,33 +134,33 @@ def read_only(tmp_path):
 
 
 @pytest.mark.parametrize("case", list(WRITERS))
-def test_output_folder_cannot_be_written(capsys, sim, read_only, case):
+def test_output_folder_cannot_be_written(sim, read_only, case):
     argv = WRITERS[case](sim, read_only)
     h = ft.digest(sim / "p.prismproj")
-    result = ft.run_cli(capsys, argv)
+    result = ft.run_cli(argv)
     _check_write_fault(result, argv, sim, read_only, [], h)
 
 
 @pytest.mark.parametrize("case", ["report.json", "fit --json", "new", "points", "bh"])
-def test_output_folder_is_a_file(capsys, sim, tmp_path, case):
+def test_output_folder_is_a_file(sim, tmp_path, case):
     blocker = tmp_path / "blocker"
     blocker.write_text("a file, not a folder\n")
     argv = WRITERS[case](sim, blocker)
     h = ft.digest(sim / "p.prismproj")
-    ft.assert_clean_failure(ft.run_cli(capsys, argv), argv[0], _target(argv, blocker).name)
+    ft.assert_clean_failure(ft.run_cli(argv), argv[0], _target(argv, blocker).name)
     assert blocker.read_text() == "a file, not a folder\n"
     assert ft.digest(sim / "p.prismproj") == h
 
 
 @needs_tmpfs
-def test_a_file_written_over_is_kept_on_a_fault(capsys, sim, tmp_path):
+def test_a_file_written_over_is_kept_on_a_fault(sim, tmp_path):
     """A failed write over an existing file leaves the old one, byte for byte."""
     with ft.tmpfs(tmp_path / "full", 1024) as out:
         old = out / "r.json"
         old.write_text('{"old": true}\n')
         ft.fill(out, 0)
         argv = ["report", sim / "p.prismproj", "-o", old]
-        ft.assert_clean_failure(ft.run_cli(capsys, argv), "report", "r.json")
+        ft.assert_clean_failure(ft.run_cli(argv), "report", "r.json")
         assert old.read_text() == '{"old": true}\n' and ft.listing(out) == [".filler", "r.json"]
 
 
@@ -179,34 +186,35 @@ READERS = {
 
 @pytest.mark.parametrize("how", list(ft.BREAKS))
 @pytest.mark.parametrize("case", list(READERS))
-def test_broken_tiled_geotiff(capsys, sim, tmp_path, case, how):
+def test_broken_tiled_geotiff(sim, tmp_path, case, how):
     make_argv, broken = READERS[case]
     out = tmp_path / "out"
     out.mkdir()
     ft.BREAKS[how](sim / broken)
     h = ft.digest(sim / "p.prismproj")
-    line = ft.assert_clean_failure(ft.run_cli(capsys, make_argv(sim, out)), make_argv(sim, out)[0],
+    line = ft.assert_clean_failure(ft.run_cli(make_argv(sim, out)), make_argv(sim, out)[0],
                                    broken)
     assert "cannot read" in line or "cannot open" in line or "cannot resample" in line, line
     assert ft.listing(out) == []
     assert ft.digest(sim / "p.prismproj") == h
 
 
-def test_broken_image_in_a_dask_process_pool(capsys, sim, tmp_path):
+def test_broken_image_in_a_dask_process_pool(sim, tmp_path):
     """Through Dask's process pool the tile's error is still the project's, naming the file."""
     ft.truncate(sim / "F.tif")
     argv = ["dsm", sim / "p.prismproj", "-o", tmp_path / "d.tif", "--scheduler", "processes",
             "--workers", "1"]
-    line = ft.assert_clean_failure(ft.run_cli(capsys, argv), "dsm", "F.tif")
+    line = ft.assert_clean_failure(ft.run_cli(argv), "dsm", "F.tif")
     assert "view F" in line and "DSM tile" in line
     assert not (tmp_path / "d.tif").exists()
 
 
-@pytest.mark.parametrize("what", ["removed", "cut short"])
-@pytest.mark.parametrize("command", ["dsm", "orient-dem"])
-def test_image_gone_after_the_command_started(capsys, monkeypatch, sim, tmp_path, command, what):
+@pytest.mark.parametrize("command, what", [("dsm", "removed"), ("dsm", "cut short"),
+                                           ("orient-dem", "cut short")])
+def test_image_gone_after_the_command_started(monkeypatch, sim, tmp_path, command, what):
     """N.tif removed, or cut short in place, once the project is read and the work has begun
-    (at the command's first progress report)."""
+    (at the command's first progress report). (orient-dem with N.tif removed fails the same
+    way, but only after ~25 s of work on the images it holds open: left out for time.)"""
     from prismstation.cli import _common
     real = _common.progress_printer
 
@@ -232,5 +240,5 @@ def test_image_gone_after_the_command_started(capsys, monkeypatch, sim, tmp_path
     argv = ([command, sim / "p.prismproj", "-o", out / "d.tif"] if command == "dsm"
             else [command, sim / "p.prismproj", sim / "srtm.tif", "--save"])
     h = ft.digest(sim / "p.prismproj")
-    ft.assert_clean_failure(ft.run_cli(capsys, argv), command, "N.tif")
+    ft.assert_clean_failure(ft.run_cli(argv), command, "N.tif")
     assert first and ft.listing(out) == [] and ft.digest(sim / "p.prismproj") == h

@@ -39,17 +39,22 @@ def main(argv: list[str] | None = None) -> int:
         else:
             parser.print_help()
             return 2
+    from prismstation.cli._gdal_lines import GdalLines
     from prismstation.io.raster import gdal_env
-    # GDAL's own lines on stderr (a failed write prints one per block): the error's one line
-    # below names the file and carries GDAL's message
+    # GDAL's own lines on stderr (a failed write prints one per block, from Python's logging
+    # and from libtiff in C): the error's one line below names the file and carries them
     logging.getLogger("rasterio._env").setLevel(logging.CRITICAL)
+    gdal_lines = GdalLines()
     try:
-        with gdal_env():
+        with gdal_lines, gdal_env():
             return int(args.func(args) or 0)
     except (PrismError, OSError) as exc:
         from prismstation.cli._common import end_progress
         end_progress()
-        print(f"prismstation {args.command}: {exc}", file=sys.stderr)
+        text, cause = str(exc), gdal_lines.cause()
+        if cause and cause not in text:
+            text = f"{text} (GDAL: {cause})"
+        print(f"prismstation {args.command}: {text}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130

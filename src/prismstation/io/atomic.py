@@ -179,10 +179,31 @@ def write_atomic(path, data: str | bytes, keep_backup: bool = True) -> None:
             fh.write(raw)
 
 
+def missing_block(ds) -> str | None:
+    """The first block of a GeoTIFF ``ds`` (open rasterio dataset) that is not in its file (no
+    offset, or data past the file's end) as ``band b, block (column, row)``, else None. GDAL
+    reports a block it failed to write (a full disk, a file size limit) on stderr only, and
+    reads a block never written as nodata: a file so written opens and reads, wrong."""
+    if ds.driver != "GTiff":
+        return None
+    size = os.path.getsize(ds.name)
+    bh, bw = ds.block_shapes[0]
+    bands = range(1, ds.count + 1) if ds.profile.get("interleave") == "band" else (1,)
+    for b in bands:
+        for r in range(-(-ds.height // bh)):
+            for c in range(-(-ds.width // bw)):
+                off = ds.get_tag_item(f"BLOCK_OFFSET_{c}_{r}", "TIFF", bidx=b)
+                n = ds.get_tag_item(f"BLOCK_SIZE_{c}_{r}", "TIFF", bidx=b)
+                if not off or not n or int(off) + int(n) > size:
+                    return f"band {b}, block ({c}, {r})"
+    return None
+
+
 def raster_check(width: int, height: int, count: int) -> Callable[[Path], None]:
-    """A ``check`` for a raster just written: it opens, has this size and band count, and
-    its first and last blocks of every band read back (GDAL reports a failed write of its
-    last blocks or of its directory only as the file is closed, if at all)."""
+    """A ``check`` for a raster just written: it opens, has this size and band count, every
+    block is in the file (:func:`missing_block`), and its first and last blocks of every band
+    read back (GDAL reports a failed write of its last blocks or of its directory only as the
+    file is closed, if at all)."""
     def check(tmp: Path) -> None:
         import rasterio
         from rasterio.windows import Window
@@ -191,6 +212,9 @@ def raster_check(width: int, height: int, count: int) -> Callable[[Path], None]:
                 if (ds.width, ds.height, ds.count) != (width, height, count):
                     raise WriteError(f"cannot write: the file written is {ds.width} × {ds.height} "
                                      f"× {ds.count}, not {width} × {height} × {count}")
+                missing = missing_block(ds)
+                if missing:
+                    raise WriteError(f"cannot write: {missing} of the file was not written")
                 bh, bw = ds.block_shapes[0]
                 for b in range(1, count + 1):
                     ds.read(b, window=Window(0, 0, min(bw, width), min(bh, height)))

@@ -33,6 +33,7 @@ from rasterio.shutil import copy as rio_copy
 from rasterio.transform import Affine
 from rasterio.windows import Window
 
+from prismstation.errors import WriteError
 from prismstation.io.atomic import atomic_path, free_bytes, raster_check, write_error
 
 NODATA = float("nan")   # what a plain read of band 1 shows as no height
@@ -96,6 +97,10 @@ def write_dsm(path, dsm) -> None:
                 fd, plain = tempfile.mkstemp(prefix="prismstation-dsm-", suffix=".tif")
                 os.close(fd)
                 _write_plain(plain, profile, h, seen, dsm, tags)
+                raster_check(cols, rows, 3)(Path(plain))
+            except WriteError as exc:  # the scratch copy is not whole
+                raise WriteError(f"cannot write the scratch copy of {path.name}: "
+                                 f"{exc.problem.removeprefix('cannot write: ')}", plain) from None
             except (RasterioError, CPLE_BaseError, OSError) as exc:
                 scratch = plain or tempfile.gettempdir()
                 raise write_error(scratch, exc, f"cannot write the scratch copy of {path.name}",
