@@ -196,15 +196,31 @@ class _Pipe:
         return b"".join(self.chunks).decode("utf-8", "replace")
 
 
-def run_cli(argv) -> tuple[int, str, str]:
-    """``prismstation.cli.main(argv)`` in this process: ``(status, stdout, stderr)``, Python's
-    output and what reaches file descriptors 1 and 2 (GDAL's and libtiff's own lines, printed
-    from C, included)."""
-    from prismstation.cli import main
+class Output:
+    """What the block printed: ``out``, ``err`` (text), once it ended."""
+    out = err = ""
+
+
+@contextmanager
+def captured():
+    """Python's and the file descriptors' output of the block, into pipes (read by threads):
+    GDAL's and libtiff's lines printed from C are seen, and no write of the block's output
+    lands in a file (pytest's own capture is one), which a file size limit or a full disk
+    would fail."""
+    got = Output()
     so, se = io.StringIO(), io.StringIO()
     with _Pipe(1) as fd1, _Pipe(2) as fd2, redirect_stdout(so), redirect_stderr(se):
+        yield got
+    got.out, got.err = so.getvalue() + fd1.text(), se.getvalue() + fd2.text()
+
+
+def run_cli(argv) -> tuple[int, str, str]:
+    """``prismstation.cli.main(argv)`` in this process: ``(status, stdout, stderr)``
+    (:func:`captured`)."""
+    from prismstation.cli import main
+    with captured() as got:
         rc = main([str(a) for a in argv])
-    return rc, so.getvalue() + fd1.text(), se.getvalue() + fd2.text()
+    return rc, got.out, got.err
 
 
 @contextmanager
@@ -213,6 +229,7 @@ def file_size_limit(limit: int):
     ``SIGXFSZ`` ignored): a write past it fails in the kernel with EFBIG, through the very
     calls a full disk fails in (Python's, GDAL's, libtiff's, Qt's). Needs no privilege."""
     soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    limit = min(limit, hard) if hard != resource.RLIM_INFINITY else limit
     handler = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     resource.setrlimit(resource.RLIMIT_FSIZE, (limit, hard))
     try:
