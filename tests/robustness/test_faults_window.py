@@ -155,3 +155,25 @@ def test_dsm_tool_output_on_a_full_disk(qtbot, monkeypatch, window, sim, tmp_pat
     assert "not written" in msg or "does not read back" in msg, msg
     assert ft.listing(out) == [] and ft.digest(sim / "p.prismproj") == h
     _alive(qtbot, window)
+
+
+def test_recovery_journal_on_a_full_disk(qtbot, window, sim):
+    """An edit whose recovery journal cannot be written (no file past 64 bytes): the status bar
+    says so with the cause, no journal or temporary file is left beside the project, the project
+    file is unchanged; once the disk has room, Ctrl+S saves the edit."""
+    from prismstation.gui.commands import PlaceMeasurement
+    from prismstation.gui.project_io import autosave_path
+    p = sim / "p.prismproj"
+    h, before = ft.digest(p), ft.listing(sim)
+    messages = []
+    window.statusBar().messageChanged.connect(messages.append)
+    with ft.captured(), ft.file_size_limit(64):
+        window.undo_stack.push(PlaceMeasurement(window.project, "G1", "N", 101.0, 202.0))
+        assert window.files.flush_journal(timeout=10)
+        qtbot.waitUntil(lambda: any("journal" in m for m in messages), timeout=5000)
+    line = next(m for m in messages if "journal" in m)
+    assert "File too large" in line and "Traceback" not in line, line
+    assert not autosave_path(p).exists() and ft.listing(sim) == before and ft.digest(p) == h
+    qtbot.keyClick(window, Qt.Key.Key_S, Qt.KeyboardModifier.ControlModifier)
+    assert window.undo_stack.isClean() and ft.digest(p) != h
+    _alive(qtbot, window)
