@@ -109,6 +109,32 @@ def test_window_opens_a_project_whose_image_is_cut_short(qtbot, opened_cut_short
     _alive(qtbot, win)
 
 
+@pytest.fixture()
+def empty_window(qtbot):
+    from tests.qt_windows import new_window
+    win = new_window(qtbot)
+    yield win
+    close_windows(qtbot, win)
+
+
+def test_window_refuses_a_project_whose_image_cannot_be_opened(qtbot, empty_window, sim):
+    """N.tif cut inside its header: the project is not opened, the message says which view,
+    the window stays up with no project, the project file unchanged. (GDAL opens such a file
+    with its georeferencing tags ignored, so the scene's reader says the view's image has no
+    geotransform rather than that it is cut short.)"""
+    win = empty_window
+    ft.truncate(sim / "N.tif", 0.0005)
+    h = ft.digest(sim / "p.prismproj")
+    messages = []
+    win.statusBar().messageChanged.connect(messages.append)
+    with ft.captured():
+        assert not win.open_project(sim / "p.prismproj", recover=False)
+    qtbot.wait(50)
+    line = next((m for m in messages if "views.N" in m), messages)
+    assert "views.N" in line and "Traceback" not in line, line
+    assert win.isVisible() and win.project is None and ft.digest(sim / "p.prismproj") == h
+
+
 def test_save_on_a_full_disk(qtbot, window, sim):
     """Ctrl+S with no file allowed past 64 bytes: said on the status bar with the cause; the
     project file as it was, no temporary file, the edits still unsaved."""

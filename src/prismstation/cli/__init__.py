@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
         end_progress()
         text, cause = str(exc), gdal_lines.cause()
         if cause and cause not in text:
-            text = f"{text} (GDAL: {cause})"
+            text = f"{text} (printed by GDAL: {cause})"
         print(f"prismstation {args.command}: {text}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
