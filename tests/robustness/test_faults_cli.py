@@ -242,3 +242,16 @@ def test_image_gone_after_the_command_started(monkeypatch, sim, tmp_path, comman
     h = ft.digest(sim / "p.prismproj")
     ft.assert_clean_failure(ft.run_cli(argv), command, "N.tif")
     assert first and ft.listing(out) == [] and ft.digest(sim / "p.prismproj") == h
+
+
+def test_gdal_lines_are_kept_and_the_rest_passed_on():
+    """libtiff prints a line in three writes from C: it is kept whole; a progress line (no end
+    of line) and any other line pass on to stderr."""
+    from prismstation.cli._gdal_lines import GdalLines
+    with ft.captured() as got:
+        with GdalLines() as lines:
+            for chunk in (b"\r 42 % matching", b"\n_tiffWriteProc: ", b"File too large", b".\n",
+                          b"ERROR 1: TIFFAppendToStrip: Write error\n", b"a line of its own\n"):
+                os.write(2, chunk)
+    assert lines.kept == ["_tiffWriteProc: File too large", "ERROR 1: TIFFAppendToStrip: Write error"]
+    assert got.err == "\r 42 % matching\na line of its own\n", got.err

@@ -20,6 +20,10 @@ from prismstation import __version__
 from prismstation.errors import PrismError
 
 
+#: commands that open the window: their stderr is left alone (a crash's dump must reach it)
+WINDOW_COMMANDS = ("gui", "demo")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="prismstation", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"prismstation {__version__}")
@@ -44,10 +48,13 @@ def main(argv: list[str] | None = None) -> int:
     # GDAL's own lines on stderr (a failed write prints one per block, from Python's logging
     # and from libtiff in C): the error's one line below names the file and carries them
     logging.getLogger("rasterio._env").setLevel(logging.CRITICAL)
-    gdal_lines = GdalLines()
+    gdal_lines = GdalLines(active=args.command not in WINDOW_COMMANDS)
     try:
         with gdal_lines, gdal_env():
-            return int(args.func(args) or 0)
+            status = int(args.func(args) or 0)
+        for line in gdal_lines.kept:  # no error to carry them: as GDAL printed them
+            print(line, file=sys.stderr)
+        return status
     except (PrismError, OSError) as exc:
         from prismstation.cli._common import end_progress
         end_progress()

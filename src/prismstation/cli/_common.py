@@ -30,7 +30,8 @@ _open_line = False  # a progress line is on stderr, not ended yet
 def progress_printer(what: str = ""):
     """A progress callable (:mod:`prismstation.ops.progress`) printing ``what``, the percentage
     and the message on one line of stderr when it is a terminal; it never asks to stop."""
-    show = sys.stderr.isatty()
+    from prismstation.cli._gdal_lines import stderr_is_terminal
+    show = stderr_is_terminal()
 
     def progress(fraction, message=""):
         global _open_line

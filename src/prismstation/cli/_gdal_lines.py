@@ -20,17 +20,31 @@ GDAL_LINE = re.compile(rb"^(ERROR \d+: |Warning \d+: |_?TIFF\w*: |_tiff\w+: )")
 _MAYBE = re.compile(rb"^(E|ER|ERR|ERRO|ERROR|ERROR \d*|W\w*|W\w* \d*|_|_?T\w*|_tiff\w*)$")
 
 
+_terminal = False  # fd 2 was a terminal before it was pointed at the pipe
+
+
+def stderr_is_terminal() -> bool:
+    """Whether stderr is a terminal (a progress line is shown): as it was before
+    :class:`GdalLines` pointed it at its pipe."""
+    return _terminal or sys.stderr.isatty()
+
+
 class GdalLines:
     """``with GdalLines() as lines:`` — fd 2 through a filter for the block; ``lines.kept``:
     GDAL's and libtiff's lines, decoded, in order, once each. Does nothing where fd 2 cannot
-    be redirected."""
+    be redirected, or when not ``active``."""
 
-    def __init__(self):
+    def __init__(self, active: bool = True):
         self.kept: list[str] = []
         self._saved = None
+        self._active = active
 
     def __enter__(self):
+        global _terminal
+        if not self._active:
+            return self
         try:
+            _terminal = os.isatty(2)
             sys.stderr.flush()
             self._saved = os.dup(2)
             r, w = os.pipe()
@@ -45,6 +59,8 @@ class GdalLines:
         return self
 
     def __exit__(self, *exc):
+        global _terminal
+        _terminal = False
         if self._saved is None:
             return
         try:
