@@ -134,6 +134,25 @@ def tmpfs(directory: Path, size_kb: int = 2048, read_only: bool = False):
             subprocess.run(["umount", "-l", str(directory)], capture_output=True)
 
 
+@contextmanager
+def read_only_folder(directory: Path):
+    """A folder nothing can be created in, for the block: a read-only tmpfs where one can be
+    mounted, else mode 0555 (skips as root, whom a folder's mode does not stop)."""
+    import pytest
+    if can_mount():
+        with tmpfs(directory, 64, read_only=True):
+            yield directory
+        return
+    if os.geteuid() == 0:
+        pytest.skip("root ignores a folder's mode and no tmpfs can be mounted")
+    directory.mkdir(parents=True, exist_ok=True)
+    directory.chmod(0o555)
+    try:
+        yield directory
+    finally:
+        directory.chmod(0o755)
+
+
 def fill(directory: Path, free: int) -> None:
     """Fill ``directory``'s file system with ``.filler`` until ``free`` bytes (whole pages) are
     left."""

@@ -119,18 +119,8 @@ def test_writer_limited_to_n_bytes(sim, tmp_path, case):
 
 @pytest.fixture()
 def read_only(tmp_path):
-    """A folder nothing can be created in: a read-only tmpfs (root), else mode 0555."""
-    d = tmp_path / "ro"
-    if ft.can_mount():
-        with ft.tmpfs(d, 64, read_only=True):
-            yield d
-    elif os.geteuid() == 0:
-        pytest.skip("root ignores a folder's mode and no tmpfs can be mounted")
-    else:
-        d.mkdir()
-        d.chmod(0o555)
+    with ft.read_only_folder(tmp_path / "ro") as d:
         yield d
-        d.chmod(0o755)
 
 
 @pytest.mark.parametrize("case", list(WRITERS))

@@ -203,3 +203,23 @@ def test_recovery_journal_on_a_full_disk(qtbot, window, sim):
     qtbot.keyClick(window, Qt.Key.Key_S, Qt.KeyboardModifier.ControlModifier)
     assert window.undo_stack.isClean() and ft.digest(p) != h
     _alive(qtbot, window)
+
+
+def test_save_as_into_a_folder_that_cannot_be_written(qtbot, monkeypatch, window, sim, tmp_path):
+    """File ▸ Save as… into a read-only folder: said with the cause, the window still on its
+    own project file (title, path, lock), nothing written anywhere."""
+    from PySide6.QtWidgets import QFileDialog
+    ro = tmp_path / "ro"
+    target = ro / "copy.prismproj"
+    monkeypatch.setattr(QFileDialog, "getSaveFileName", staticmethod(lambda *a, **k: (str(target), "")))
+    p = sim / "p.prismproj"
+    h, before, title = ft.digest(p), ft.listing(sim), window.windowTitle()
+    with ft.read_only_folder(ro), ft.captured():
+        window.a_save_as.trigger()
+        qtbot.wait(20)
+        assert ft.listing(ro) == []
+    msg = window.statusBar().currentMessage()
+    assert "copy.prismproj" in msg and ("Read-only" in msg or "Permission denied" in msg), msg
+    assert window.files.path == p.resolve() and window.windowTitle() == title
+    assert ft.digest(p) == h and ft.listing(sim) == before
+    _alive(qtbot, window)
