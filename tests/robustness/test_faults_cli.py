@@ -89,7 +89,7 @@ needs_tmpfs = pytest.mark.skipif(not ft.can_mount(), reason="no tmpfs can be mou
 
 @needs_tmpfs
 @pytest.mark.parametrize("case, free", [(c, 0) for c in WRITERS]
-                         + [(c, 16384) for c in ("report.pdf", "new", "dsm", "rectify")],
+                         + [(c, 16384) for c in ("new", "dsm")],
                          ids=lambda v: v if isinstance(v, str) else f"{v}B-free")
 def test_full_file_system(sim, tmp_path, case, free):
     argv = WRITERS[case](sim, tmp_path / "full")

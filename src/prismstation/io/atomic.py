@@ -214,7 +214,10 @@ def raster_check(width: int, height: int, count: int) -> Callable[[Path], None]:
                                      f"× {ds.count}, not {width} × {height} × {count}")
                 missing = missing_block(ds)
                 if missing:
-                    raise WriteError(f"cannot write: {missing} of the file was not written")
+                    free = free_bytes(tmp.parent)
+                    full = (f" (the disk is full: {free} bytes free)"
+                            if free is not None and free < FULL_DISK_BYTES else "")
+                    raise WriteError(f"cannot write: {missing} of the file was not written{full}")
                 bh, bw = ds.block_shapes[0]
                 for b in range(1, count + 1):
                     ds.read(b, window=Window(0, 0, min(bw, width), min(bh, height)))
