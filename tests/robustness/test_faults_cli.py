@@ -137,7 +137,8 @@ def test_output_folder_is_a_file(sim, tmp_path, case):
     blocker.write_text("a file, not a folder\n")
     argv = WRITERS[case](sim, blocker)
     h = ft.digest(sim / "p.prismproj")
-    ft.assert_clean_failure(ft.run_cli(argv), argv[0], _target(argv, blocker).name)
+    line = ft.assert_clean_failure(ft.run_cli(argv), argv[0], _target(argv, blocker).name)
+    assert f"{blocker} is a file, not a folder" in line, line
     assert blocker.read_text() == "a file, not a folder\n"
     assert ft.digest(sim / "p.prismproj") == h
 

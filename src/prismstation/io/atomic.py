@@ -133,6 +133,10 @@ def atomic_path(path, *, keep_backup: bool = False,
                                     dir=target.parent)
         os.close(fd)
     except OSError as exc:
+        blocker = next((p for p in (target.parent, *target.parent.parents)
+                        if p.exists() and not p.is_dir()), None)
+        if blocker is not None:  # mkdir says only "File exists" or "Not a directory"
+            raise WriteError(f"cannot write: {blocker} is a file, not a folder", target) from None
         raise write_error(target, exc) from None
     tmp = Path(name)
     try:
