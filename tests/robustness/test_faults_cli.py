@@ -246,3 +246,15 @@ def test_gdal_lines_are_kept_and_the_rest_passed_on():
                 os.write(2, chunk)
     assert lines.kept == ["_tiffWriteProc: File too large", "ERROR 1: TIFFAppendToStrip: Write error"]
     assert got.err == "\r 42 % matching\na line of its own\n", got.err
+
+
+def test_dsm_refuses_a_folder_it_cannot_write_before_the_work(monkeypatch, sim, read_only):
+    """No DSM is computed for a folder that cannot be written: the error comes first."""
+    import prismstation.ops.dsm as engine
+
+    def compute(*a, **k):
+        raise AssertionError("the DSM was computed")
+    monkeypatch.setattr(engine, "make_dsm", compute)
+    argv = WRITERS["dsm"](sim, read_only)
+    ft.assert_clean_failure(ft.run_cli(argv), "dsm", "d.tif")
+    assert ft.listing(read_only) == []

@@ -119,14 +119,9 @@ def _fsync(path: Path, directory: bool = False) -> None:
         os.close(fd)
 
 
-@contextmanager
-def atomic_path(path, *, keep_backup: bool = False,
-                check: Callable[[Path], None] | None = None) -> Iterator[Path]:
-    """Yield a temporary path beside ``path`` to write to; when the block ends normally,
-    ``check(tmp)`` (it raises when the file is not what was meant), fsync, rename onto
-    ``path``. On any error: the temporary file is removed and OS and GDAL errors become a
-    :class:`WriteError` naming ``path``. See the module docstring."""
-    target = Path(path)
+def _temporary_beside(target: Path) -> Path:
+    """A new empty temporary file beside ``target`` (its folder made if absent); a
+    :class:`WriteError` naming ``target`` when the folder cannot be written."""
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{target.suffix}",
@@ -138,7 +133,25 @@ def atomic_path(path, *, keep_backup: bool = False,
         if blocker is not None:  # mkdir says only "File exists" or "Not a directory"
             raise WriteError(f"cannot write: {blocker} is a file, not a folder", target) from None
         raise write_error(target, exc) from None
-    tmp = Path(name)
+    return Path(name)
+
+
+def check_writable(path) -> None:
+    """Raise the :class:`WriteError` :func:`atomic_path` would raise at once for ``path`` (its
+    folder cannot be made or written): called before long work, so that it does not end on a
+    folder that was never writable. A full disk can only be met when writing."""
+    os.unlink(_temporary_beside(Path(path)))
+
+
+@contextmanager
+def atomic_path(path, *, keep_backup: bool = False,
+                check: Callable[[Path], None] | None = None) -> Iterator[Path]:
+    """Yield a temporary path beside ``path`` to write to; when the block ends normally,
+    ``check(tmp)`` (it raises when the file is not what was meant), fsync, rename onto
+    ``path``. On any error: the temporary file is removed and OS and GDAL errors become a
+    :class:`WriteError` naming ``path``. See the module docstring."""
+    target = Path(path)
+    tmp = _temporary_beside(target)
     try:
         yield tmp
         if check is not None:

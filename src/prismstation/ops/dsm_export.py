@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from prismstation.errors import ModelError
+from prismstation.io.atomic import check_writable
 from prismstation.io.dsm import write_dsm
 from prismstation.io.project import project_geoid
 from prismstation.ops import dsm as engine
@@ -95,6 +96,7 @@ def export_dsm(sol, project, request: DsmRequest, *, reference=None, progress=No
     (and is not oriented from a reference DEM) is a :class:`ModelError`."""
     if not sol.ok and project.settings.orientation != "dem":
         raise ModelError("; ".join(sol.messages) or "the model could not be fitted")
+    check_writable(request.output)   # a folder that cannot be written: now, not after the work
     geoid = project_geoid(project) if request.orthometric else None
     prior = None if reference is None else (reference.grid.heights, tuple(reference.grid.transform)[:6])
     dsm = engine.make_dsm(sol, request.window, posting_m=request.posting_m, orthometric_geoid=geoid,
