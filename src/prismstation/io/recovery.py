@@ -31,8 +31,9 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from prismstation.io import jsonfile
-from prismstation.io.jsonfile import dumps, write_atomic
+from prismstation.io import atomic
+from prismstation.io.atomic import write_atomic
+from prismstation.io.jsonfile import dumps
 from prismstation.io.project import load_project, project_to_dict, save_project
 from prismstation.model.project import Change, Project
 
@@ -275,7 +276,7 @@ class ProjectLock:
         """Write this process's lock (atomically); a failure to write is not an error (a
         read-only folder): the project then opens unlocked."""
         try:
-            jsonfile.write_atomic(self.path, dumps({**self._me(), "since": time.time()}), keep_backup=False)
+            atomic.write_atomic(self.path, dumps({**self._me(), "since": time.time()}), keep_backup=False)
             self.held = True
         except OSError as exc:
             _log.warning("project lock %s not written: %s", self.path, exc)

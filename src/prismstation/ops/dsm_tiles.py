@@ -5,6 +5,10 @@ its crop of the prior surface, the level's parameters); :func:`run_tile` reads t
 images' windows itself, so a tile runs anywhere the image files can be read (a thread, a
 process, a ``dask.distributed`` worker on a shared file system).
 
+A read that fails inside a task (a truncated or corrupt image, a file gone) is a
+:class:`~prismstation.errors.RasterReadError` naming the file, the view, the window and the
+tile; Dask hands it to the caller as it is (it pickles, errno and all, from another process).
+
 Schedulers: ``"threads"`` (default) or ``"processes"`` on this machine, or the address of an
 existing ``dask.distributed`` scheduler (``"tcp://host:8786"``), or a ``distributed.Client``.
 """
@@ -17,6 +21,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from prismstation.errors import RasterReadError
 from prismstation.io.raster import gdal_env
 from prismstation.io.windows import ImageWindows
 from prismstation.core.solve import Solution
@@ -120,9 +125,14 @@ def run_tile(spec: TileSpec):
     factor = max(1, int(round(spec.g / pixel)))
     # a worker may be another process: its own bounded GDAL cache (in this process the
     # caller's, run_tiles', holds it while a thread leaves its own)
-    with gdal_env():
-        images = _read_views(sol, frame, float(h0.min()) - spec.half_range_m,
-                             float(h0.max()) + spec.half_range_m, factor)
+    try:
+        with gdal_env():
+            images = _read_views(sol, frame, float(h0.min()) - spec.half_range_m,
+                                 float(h0.max()) + spec.half_range_m, factor)
+    except RasterReadError as exc:  # which tile, beside the file and the window
+        r0, c0 = spec.window[0], spec.window[1]
+        raise RasterReadError(f"{exc}, for the DSM tile of cells rows {r0}–{r0 + rows}, columns "
+                              f"{c0}–{c0 + cols} at {spec.g:g} m") from None
     res = tile_dsm(sol, images, frame, h0, tile_t, (rows, cols), spec.half_range_m,
                    refine=spec.refine)
     return res.heights, res.quality, feather(spec, tile_t, (rows, cols)), (res.z_nmad, res.z_count)
