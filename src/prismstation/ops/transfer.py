@@ -67,6 +67,11 @@ CONSISTENCY_P = 0.999
 CONFIRM_ALONG_PX = 30.0
 """A match found in one view only, over a search longer than this (px, ±) along the parallax,
 is ``unconfirmed`` (a failure): with no reference DEM the band spans hundreds of pixels."""
+SLOPE_HYPOTHESIS = 0.4
+"""With no reference DEM, a match that fails from the level plane's shape is tried again from
+the shapes of slopes this steep (rising along and across the track, both ways)."""
+RETRY_STATUSES = ("not_converged", "shape", "texture", "low_correlation", "low_score", "moved")
+"""The failures a different start shape may cure."""
 MAX_SIGMA_PX = 0.5
 """A match stating a larger σ (px) is a failure (``texture``)."""
 
@@ -231,8 +236,10 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     free = next(iter(shapes.values())).slope is None if shapes else True
     radius = search_radius_px(model_sigma_m(sol) * np.sqrt(2), sc.views[source].pixel_size_m)
     ref, rc0, rr0 = images.around(source, xy[0], xy[1], half_window + 8)
-    out = {}
+    out, guided = {}, set()
     for v in targets:
+        if v in out and out[v].ok:
+            continue            # found already, guided by another view
         s = shapes[v]
         if ref is None or not np.all(np.isfinite(s.A)):
             continue
@@ -246,22 +253,78 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
                   across=radius, half=half_window, max_sigma=MAX_SIGMA_PX,
                   max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
                   coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, parallax=d)
+        if free and not m.ok and m.status in RETRY_STATUSES:
+            # the level start may be too far from a steep slope's shape: start from slopes
+            for A in _slope_shapes(sol, source, xy, v, h_pt, half_window):
+                m2 = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], A, d, along=along,
+                           across=radius, half=half_window, max_sigma=MAX_SIGMA_PX,
+                           max_shape_change=DEM_SHAPE_CHANGE, rival=6.0, parallax=d)
+                if m2.ok and (not m.ok or m2.rho > m.rho):
+                    m = m2
         m = replace(m, x=m.x + c0, y=m.y + r0, extra={**m.extra, "along": along})
         out[v] = Transfer(v, m.x, m.y, (float(s.pred[0]), float(s.pred[1])), m)
+        if check and free and m.ok and len(targets) >= 2:
+            # no reference DEM: the found view gives the height and the slope the others are
+            # searched at (a short band, the shape predicted)
+            out = _confirm(sol, images, source, xy, ref, (rc0, rr0), out, v, shapes, h_pt, half_window,
+                           free, mark=False)
+            guided.add(v)
     found = [v for v in targets if v in out and out[v].ok]
     if check and len(targets) >= 2 and len(found) == 1:
-        out = _confirm(sol, images, source, xy, ref, (rc0, rr0), out, found[0], shapes, h_pt, radius,
-                       half_window, free)
+        out = _confirm(sol, images, source, xy, ref, (rc0, rr0), out, found[0], shapes, h_pt, half_window, free,
+                       search=found[0] not in guided)
     if check and len([t for t in out.values() if t.ok]) >= 2:
         out = consistency(sol, source, xy, out, h_pt)
     return out
 
 
-def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, h, radius, half_window, free):
-    """One view found, the other not: search the other again at the height the found one
-    implies (±3 σ of it along the parallax); when that fails too, a match whose band was wider
-    than :data:`CONFIRM_ALONG_PX` (a wide height range: no reference DEM) is ``unconfirmed`` —
-    nothing checks it, and over hundreds of pixels a repeated texture can correlate as well."""
+def _slope_shapes(sol: Solution, source: str, xy, view: str, h: float, half_window: int):
+    """``view``'s predicted shapes of the point on planes of :data:`SLOPE_HYPOTHESIS` rising
+    along and across the track (the source image's rows and columns on the ground), both ways."""
+    xy = np.asarray(xy, float)
+    g = sol.image_to_ground(source, np.array([xy, xy + [0.0, 10.0], xy + [10.0, 0.0]]), np.full(3, h))
+    out = []
+    for axis in (g[1] - g[0], g[2] - g[0]):
+        e = axis / np.hypot(*axis)
+        for sign in (1.0, -1.0):
+            A = local_shape(sol, source, xy, [view], h=h, height_of=_plane(g[0], h, sign * SLOPE_HYPOTHESIS * e),
+                            half_window=half_window)[2][view].A
+            if np.all(np.isfinite(A)):
+                out.append(A)
+    return out
+
+
+def _plane(en0, h0: float, grad):
+    """Heights ``(n,)`` of the plane through ``(en0, h0)`` with gradient ``grad`` (dh/dE, dh/dN)
+    at map points ``(n, 2)``: a reference-height function for :func:`local_shape`."""
+    en0, g = np.asarray(en0, float), np.asarray(grad, float)
+    return lambda en: h0 + (np.atleast_2d(en) - en0) @ g
+
+
+def fitted_slope(sol: Solution, source: str, xy, view: str, A, en, h: float, step: float = 0.2):
+    """The terrain gradient (dh/dE, dh/dN) under the point ``xy`` of ``source`` that makes the
+    model's shape in ``view`` equal the matched shape ``A`` (2×2): Gauss–Newton on the
+    shape of planes through ``(en, h)`` (two steps; the shape is near linear in the gradient)."""
+    g = np.zeros(2)
+    A = np.asarray(A, float)
+    for _ in range(2):
+        shape = [local_shape(sol, source, xy, [view], h=h, height_of=_plane(en, h, g + dg))[2][view].A
+                 for dg in ((0.0, 0.0), (step, 0.0), (0.0, step))]
+        J = np.column_stack([(shape[1] - shape[0]).ravel() / step, (shape[2] - shape[0]).ravel() / step])
+        g = g + np.linalg.lstsq(J, (A - shape[0]).ravel(), rcond=None)[0]
+    return g if np.all(np.isfinite(g)) and np.hypot(*g) < 3.0 else None
+
+
+def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, h, half_window, free, mark=True,
+             search=True):
+    """One view found (``v1``), another not: search the other at the height the found one
+    implies (±3 σ of it along the parallax) and — with no reference DEM (``free``) — in the
+    shape the slope fitted to ``v1``'s matched shape predicts. With ``mark``, when that fails
+    too, a match whose band was wider than :data:`CONFIRM_ALONG_PX` (a wide height range: no
+    reference DEM) is ``unconfirmed`` — nothing checks it, and over hundreds of pixels a
+    repeated texture can correlate as well. ``search=False``: the marking only."""
+    if not search:
+        return _mark_unconfirmed(out, v1) if mark else out
     obs = {source: (np.asarray(xy, float), view_sigma_px(sol, source) ** 2 * np.eye(2)),
            v1: ((out[v1].x, out[v1].y), out[v1].match.cov + view_sigma_px(sol, v1) ** 2 * np.eye(2))}
     try:
@@ -269,23 +332,36 @@ def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, h, radiu
     except np.linalg.LinAlgError:
         return out
     sigma_h = float(np.sqrt(max(C[2, 2], 0.0)))
+    slope = fitted_slope(sol, source, xy, v1, out[v1].match.shape, g[:2], g[2]) if free else None
     for v, s in shapes.items():
         if v in (source, v1) or (v in out and out[v].ok) or not np.all(np.isfinite(s.A)):
             continue
-        pred = np.asarray(sol.ground_to_image(v, g[:2], g[2]), float)
+        pred, A = np.asarray(sol.ground_to_image(v, g[:2], g[2]), float), s.A
+        if slope is not None:
+            ls = local_shape(sol, source, xy, [v], h=g[2], height_of=_plane(g[:2], g[2], slope),
+                             half_window=half_window)[2][v]
+            if np.all(np.isfinite(ls.A)):
+                pred, A = ls.pred, ls.A
         along = 3 * sigma_h * float(np.hypot(*s.dh)) + 2.0
-        win, c0, r0 = images.around(v, pred[0], pred[1], int(along + 2 * half_window * np.abs(s.A).max() + 12))
+        win, c0, r0 = images.around(v, pred[0], pred[1], int(along + 2 * half_window * np.abs(A).max() + 12))
         if win is None:
             continue
         d = s.dh if np.hypot(*s.dh) > 1e-9 else np.array([0.0, 1.0])
-        m = match(ref, xy[0] - ref_origin[0], xy[1] - ref_origin[1], win, pred - [c0, r0], s.A, d,
+        guided = slope is not None or not free
+        m = match(ref, xy[0] - ref_origin[0], xy[1] - ref_origin[1], win, pred - [c0, r0], A, d,
                   along=along, across=2.0, half=half_window, max_sigma=MAX_SIGMA_PX,
-                  max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
-                  coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, parallax=d)
+                  max_shape_change=DEM_SHAPE_CHANGE if guided else FREE_SHAPE_CHANGE,
+                  coarse=0.0 if guided else 1.5, rival=3.0 if guided else 6.0, parallax=d)
         if m.ok:
-            m = replace(m, x=m.x + c0, y=m.y + r0)
+            m = replace(m, x=m.x + c0, y=m.y + r0, extra={**m.extra, "along": along})
             out = dict(out)
             out[v] = Transfer(v, m.x, m.y, (float(pred[0]), float(pred[1])), m)
+    return _mark_unconfirmed(out, v1) if mark else out
+
+
+def _mark_unconfirmed(out, v1):
+    """``out`` with ``v1``'s match ``unconfirmed`` when it is the only one found and its band
+    was wider than :data:`CONFIRM_ALONG_PX`."""
     first = out[v1]
     if sum(t.ok for t in out.values()) == 1 and first.match.extra.get("along", 0.0) > CONFIRM_ALONG_PX:
         m = replace(first.match, status="unconfirmed",
