@@ -44,6 +44,9 @@ OK = "ok"
 NOT_CONVERGED, TEXTURE, SHAPE, MOVED, LOW_CORRELATION, OUTSIDE = (
     "not_converged", "texture", "shape", "moved", "low_correlation", "outside")
 
+STEP_TOL = 1e-2
+"""Converged when the position moves less than this (px) in an iteration, and the shape less
+than 2.5 times this at the template's edge."""
 WANDER_ITER = 6
 """Iterations after which a patch still moving by 0.1 px per step is given up."""
 SIGMA_SCALE = 1.5
@@ -67,6 +70,10 @@ TAPER = 3.0
 parallax: relief finer than the template moves the point by its own height, which an average
 over the whole template misses (on the fractal relief 0.22 px along the parallax with the whole
 template, 0.11 px with this weight; on smooth hills 0.04 and 0.07 px)."""
+NEAR_GAIN = 2.0
+"""The weighted fit's formal σ is about this many times the whole template's (its Gaussian
+holds a fifth of the template's weight): it is tried only where the unmodelled relief makes
+the whole template's σ larger than that."""
 BEND_TRIGGER = 0.03
 """A bend is tried when the affine patch leaves this much unmodelled relief (px)."""
 
@@ -294,7 +301,7 @@ class _Fit:
             if change > 2 * max_shape_change or self.g1 <= 0 or np.abs(self.c).max() * self.half > 2 * MAX_BEND:
                 return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else
                                f"the shape degenerated (changed by {change:.0%})"), it
-            if np.abs(dp[0:2]).max() < 2e-3 and np.abs(dp[2:6 + nb]).max() * self.half < 5e-3:
+            if np.abs(dp[0:2]).max() < STEP_TOL and (self.w is not None or np.abs(dp[2:6 + nb]).max() * self.half < 2.5 * STEP_TOL):
                 return OK, "", it
             if it >= WANDER_ITER and np.hypot(*dp[0:2]) > 0.1:
                 break   # still wandering
@@ -411,7 +418,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     cov, formal, s_relief, s_across = stated
     t = fit.t.copy()
     local = 0.0
-    if taper > 0 and parallax is not None:
+    if taper > 0 and parallax is not None and e1 @ cov @ e1 > NEAR_GAIN ** 2 * SIGMA_SCALE ** 2 * (e1 @ formal @ e1):
         # the relief the patch leaves moves the point along the parallax: a fit weighted to the
         # point's surroundings follows it closer; it gives the position along the parallax when
         # it states the smaller σ there (across, where relief moves nothing, the whole template)

@@ -106,11 +106,21 @@ def ray_on_dem(sol: Solution, source: str, xy, h: float, height_of, iterations: 
         hd = float(np.asarray(height_of(en[None]))[0])
         if not math.isfinite(hd):
             break
-        hit, done, h = True, abs(hd - h) < 0.01, hd
-        en = sol.image_to_ground(source, xy, h)
-        if done:
+        hit = True
+        if abs(hd - h) < 0.01:      # the ground point moves by less than a millimetre
             break
+        h = hd
+        en = sol.image_to_ground(source, xy, h)
     return en, h, hit
+
+
+def search_sigmas(sol: Solution, height_of=None) -> tuple[float, float]:
+    """``(sigma_dem, sigma_mean)`` (m) that :func:`search_height` assumes for ``sol``: the
+    reference DEM's σ and the spread of the heights, measured at the solution's known points
+    (compute once for many transfers)."""
+    ground = known_ground(sol)
+    spread = height_spread(g[2] for g in ground.values()) if ground else DEFAULT_HEIGHT_SPREAD_M
+    return dem_sigma(height_of, ground), spread
 
 
 def search_height(sol: Solution, source: str, xy, *, height_of=None, sigma_dem: float | None = None,
@@ -446,10 +456,11 @@ def auto_tie_points(sol: Solution, images: ImageWindows, *, grid: int = 8, margi
     sc = sol.scene
     rows, cols = sc.views["N"].shape
     g = margin + (1 - 2 * margin) * (np.arange(grid) + 0.5) / grid
+    sigma_dem, sigma_mean = search_sigmas(sol, height_of)
     found = []
     for k, (x, y) in enumerate((cx * cols, cy * rows) for cy in g for cx in g):
         checkpoint(progress, k / grid**2, f"point {k + 1} of {grid**2}")
-        tr = transfer(sol, images, "N", (x, y), height_of=height_of)
+        tr = transfer(sol, images, "N", (x, y), height_of=height_of, sigma_dem=sigma_dem, sigma_mean=sigma_mean)
         if all(v in tr and tr[v].ok for v in ("F", "B")):
             found.append({"N": (x, y), "F": (tr["F"].x, tr["F"].y), "B": (tr["B"].x, tr["B"].y),
                           "score": min(tr["F"].match.rho, tr["B"].match.rho)})
