@@ -203,7 +203,11 @@ _BD = np.array([[-3, 0, 3, 0], [6, -12, 6, 0], [-3, 9, -9, 3]], float) / 6.0   #
 
 def _weights(t):
     """Cubic B-spline weights for taps −1..2 and their derivatives, ``(n, 4)`` each."""
-    p = np.column_stack([np.ones_like(t), t, t * t, t * t * t])
+    p = np.empty((t.size, 4))
+    p[:, 0] = 1.0
+    p[:, 1] = t
+    np.multiply(t, t, out=p[:, 2])
+    np.multiply(p[:, 2], t, out=p[:, 3])
     return p @ _BW, p[:, :3] @ _BD
 
 

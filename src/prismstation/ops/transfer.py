@@ -96,12 +96,15 @@ def known_ground(sol: Solution) -> dict:
 
 def ray_on_dem(sol: Solution, source: str, xy, h: float, height_of, iterations: int = 6):
     """Where the ray of ``source`` pixel ``xy`` meets the reference heights ``height_of``:
-    ``(en, h, True)``; ``(en at h, h, False)`` where the DEM has no height."""
+    ``(en, h, True)``; ``(en at h, h, False)`` where the DEM has no height. The ray is iterated
+    as the straight line through its points at ``h`` and ``h + 100`` m, the ground point at the
+    height found taken from the model."""
     xy = np.asarray(xy, float)
-    en = sol.image_to_ground(source, xy, h)
     if height_of is None:
-        return en, h, False
-    hit = False
+        return sol.image_to_ground(source, xy, h), h, False
+    ends = sol.image_to_ground(source, np.array([xy, xy]), np.array([h, h + 100.0]))
+    step = (ends[1] - ends[0]) / 100.0
+    h0, en, hit = h, ends[0], False
     for _ in range(iterations):
         hd = float(np.asarray(height_of(en[None]))[0])
         if not math.isfinite(hd):
@@ -110,6 +113,8 @@ def ray_on_dem(sol: Solution, source: str, xy, h: float, height_of, iterations: 
         if abs(hd - h) < 0.01:      # the ground point moves by less than a millimetre
             break
         h = hd
+        en = ends[0] + step * (h - h0)
+    if hit and h != h0:
         en = sol.image_to_ground(source, xy, h)
     return en, h, hit
 
