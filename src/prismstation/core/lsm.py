@@ -474,7 +474,7 @@ def _stated(fit: _Fit, r, J, noise: float, e1, e2, n: int):
     # the displacement the patch's shape does not follow, along the parallax and across it
     wn = w.reshape(n, n)
     s_relief = unmodelled_sigma(_along(J, e1, n), r.reshape(n, n), k, w=wn)
-    s_across = unmodelled_sigma(_along(J, e2, n), r.reshape(n, n), k, w=wn)
+    s_across = unmodelled_sigma(_along(J, e2, n), r.reshape(n, n), k, w=wn, other=_along(J, e1, n))
     cov = (SIGMA_SCALE ** 2 * formal + (RELIEF_SCALE * s_relief) ** 2 * np.outer(e1, e1)
            + s_across ** 2 * np.outer(e2, e2))
     return cov, formal, s_relief, s_across
@@ -526,7 +526,7 @@ def _f_quantile(dof: int) -> float:
     return float(stats.f.ppf(BEND_P, 3, dof))
 
 
-def unmodelled_sigma(G, r, n_params: int, block: int = 4, w=None) -> float:
+def unmodelled_sigma(G, r, n_params: int, block: int = 4, w=None, other=None) -> float:
     """σ (px) of the displacement in one direction that the patch's shape does not follow.
 
     ``G``: the fitted patch's gradient in that direction (e.g. the parallax) on the template grid
@@ -536,7 +536,11 @@ def unmodelled_sigma(G, r, n_params: int, block: int = 4, w=None) -> float:
     residuals hold beyond it is noise of variance ``σn²``; the σ is the ``ΣG²``-weighted RMS of
     the ``δ`` less their noise ``σn²/ΣG²``. Along the parallax: the relief within the template
     that no affine or quadratic patch follows — the error it leaves at the point is of that
-    size."""
+    size. ``w`` (``(n, n)``): weights of the pixels (a block counts by its mean weight).
+    ``other``: the gradient in the perpendicular direction; given, each block's displacement
+    is solved in both directions together, so that displacement along ``other`` (relief, when
+    ``G`` is across the parallax) is not read into ``G``'s where the texture's gradients
+    correlate."""
     n = r.shape[0]
     m = n // block
     if m < 2:
@@ -547,8 +551,20 @@ def unmodelled_sigma(G, r, n_params: int, block: int = 4, w=None) -> float:
     g2 = np.sum(Gb * Gb, axis=1)
     if np.any(g2 <= 0):
         return 0.0
-    delta = np.sum(Gb * rb, axis=1) / g2
-    noise = float(np.sum((rb - Gb * delta[:, None]) ** 2)) / max(rb.size - m * m - n_params, 1)
+    if other is None:
+        delta = np.sum(Gb * rb, axis=1) / g2
+        fit, unknowns = Gb * delta[:, None], m * m
+    else:
+        Ob = other[lo:lo + m * block, lo:lo + m * block].reshape(m, block, m, block).transpose(0, 2, 1, 3).reshape(m * m, -1)
+        go, gc = np.sum(Ob * Ob, axis=1), np.sum(Gb * Ob, axis=1)
+        det = g2 * go - gc ** 2
+        if np.any(det <= 1e-9 * g2 * go):
+            return 0.0
+        p, q = np.sum(Gb * rb, axis=1), np.sum(Ob * rb, axis=1)
+        delta, delta_o = (go * p - gc * q) / det, (g2 * q - gc * p) / det
+        fit, unknowns = Gb * delta[:, None] + Ob * delta_o[:, None], 2 * m * m
+        g2 = det / go                                   # the information on δ left by the other
+    noise = float(np.sum((rb - fit) ** 2)) / max(rb.size - unknowns - n_params, 1)
     wb = 1.0 if w is None else w[lo:lo + m * block, lo:lo + m * block].reshape(m, block, m, block).mean(axis=(1, 3)).ravel()
     excess = np.sum(wb * (g2 * delta ** 2 - noise)) / np.sum(wb * g2)
     return float(np.sqrt(max(excess, 0.0)))
