@@ -191,15 +191,16 @@ def local_shape(sol: Solution, source: str, xy, views, *, h: float, height_of=No
         grad = terrain_gradient(height_of, en, radius)
     g = np.zeros(2) if grad is None else np.asarray(grad, float)
     step = float(half_window)
-    # four rays ±step px about the point meet the terrain plane; a fifth, the point's own, 1 m up
-    pix = xy + np.array([[step, 0], [-step, 0], [0, step], [0, -step], [0, 0]])
-    hs = np.array([h, h, h, h, h + 1.0])
-    for _ in range(10):
-        ground = sol.image_to_ground(source, pix, hs)
-        h_new = np.append(h + (ground[:4] - en) @ g, h + 1.0)
-        if np.abs(h_new - hs).max() < 1e-3:
-            break
-        hs = h_new
+    # four rays ±step px about the point meet the terrain plane (each ray the straight line
+    # through its points at h and h + 100 m); a fifth, the point's own, 1 m up
+    pix = xy + np.array([[step, 0], [-step, 0], [0, step], [0, -step]])
+    ground = sol.image_to_ground(source, np.vstack([pix, pix, xy]), np.r_[np.full(4, h), np.full(4, h + 100.0), h + 1.0])
+    hs = np.r_[np.full(4, h), h + 1.0]
+    if np.any(g != 0):
+        k = (ground[4:8] - ground[:4]) / 100.0                 # ground metres per metre of height
+        hs[:4] = h + ((ground[:4] - en) @ g) / (1.0 - k @ g)
+        ground[:4] = sol.image_to_ground(source, pix, hs[:4])
+    ground = np.vstack([ground[:4], ground[8]])
     pts = np.vstack([ground[:4], en, ground[4]])
     hh = np.concatenate([hs[:4], [h, h + 1.0]])
     out = {}
@@ -408,15 +409,18 @@ def intersect(sol: Solution, obs: dict, h0: float) -> tuple[np.ndarray, dict, fl
     first = next(iter(obs))
     g = np.array([*sol.image_to_ground(first, np.asarray(obs[first][0], float), h0), h0], float)
     W = {v: np.linalg.inv(c) for v, (_, c) in obs.items()}
-    J = {v: ground_jacobian(sol, v, g)[1] for v in obs}     # the model is near linear over metres:
-    N = sum(J[v].T @ W[v] @ J[v] for v in obs)              # its Jacobian at the start serves
+    start = {v: ground_jacobian(sol, v, g) for v in obs}   # the model is near linear over metres:
+    J = {v: j for v, (_, j) in start.items()}              # its Jacobian at the start serves
+    N = sum(J[v].T @ W[v] @ J[v] for v in obs)
+    pred = {v: q for v, (q, _) in start.items()}
     for _ in range(8):
-        res = {v: np.asarray(xy, float) - sol.ground_to_image(v, g[:2], g[2]) for v, (xy, _) in obs.items()}
+        res = {v: np.asarray(xy, float) - pred[v] for v, (xy, _) in obs.items()}
         dg = np.linalg.solve(N, sum(J[v].T @ W[v] @ res[v] for v in obs))
         g = g + dg
+        pred = {v: sol.ground_to_image(v, g[:2], g[2]) for v in obs}
         if np.all(np.abs(dg) < 1e-3):
             break
-    res = {v: np.asarray(xy, float) - sol.ground_to_image(v, g[:2], g[2]) for v, (xy, _) in obs.items()}
+    res = {v: np.asarray(xy, float) - pred[v] for v, (xy, _) in obs.items()}
     chi2 = float(sum(res[v] @ W[v] @ res[v] for v in obs))
     return g, res, chi2, 2 * len(obs) - 3, np.linalg.inv(N)
 
