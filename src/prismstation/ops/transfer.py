@@ -317,17 +317,29 @@ def _plane(en0, h0: float, grad):
     return lambda en: h0 + (np.atleast_2d(en) - en0) @ g
 
 
-def fitted_slope(sol: Solution, source: str, xy, view: str, A, en, h: float, step: float = 0.2):
+def fitted_slope(sol: Solution, source: str, xy, view: str, A, en, h: float, step: float = 0.2,
+                 half_window: int = 12):
     """The terrain gradient (dh/dE, dh/dN) under the point ``xy`` of ``source`` that makes the
-    model's shape in ``view`` equal the matched shape ``A`` (2×2): Gauss–Newton on the
-    shape of planes through ``(en, h)`` (two steps; the shape is near linear in the gradient)."""
+    model's shape in ``view`` (as :func:`local_shape` makes it, over ±``half_window`` px) equal
+    the matched shape ``A`` (2×2): Gauss–Newton on the shapes of planes through ``(en, h)``,
+    two steps (the shape is near linear in the gradient); the rays as straight lines."""
+    xy, A, en = np.asarray(xy, float), np.asarray(A, float), np.asarray(en, float)
+    w = float(half_window)
+    pix = xy + np.array([[w, 0], [-w, 0], [0, w], [0, -w]])
+    ends = sol.image_to_ground(source, np.vstack([pix, pix]), np.r_[np.full(4, h), np.full(4, h + 100.0)])
+    base, k = ends[:4], (ends[4:] - ends[:4]) / 100.0
+
+    def shapes(grads):
+        dh = [((base - en) @ g) / (1.0 - k @ g) for g in grads]
+        q = sol.ground_to_image(view, np.vstack([base + k * d[:, None] for d in dh]),
+                                np.concatenate([h + d for d in dh])).reshape(len(grads), 4, 2)
+        return [np.column_stack([(c[0] - c[1]) / (2 * w), (c[2] - c[3]) / (2 * w)]) for c in q]
+
     g = np.zeros(2)
-    A = np.asarray(A, float)
     for _ in range(2):
-        shape = [local_shape(sol, source, xy, [view], h=h, height_of=_plane(en, h, g + dg))[2][view].A
-                 for dg in ((0.0, 0.0), (step, 0.0), (0.0, step))]
-        J = np.column_stack([(shape[1] - shape[0]).ravel() / step, (shape[2] - shape[0]).ravel() / step])
-        g = g + np.linalg.lstsq(J, (A - shape[0]).ravel(), rcond=None)[0]
+        s0, sE, sN = shapes([g, g + [step, 0.0], g + [0.0, step]])
+        J = np.column_stack([(sE - s0).ravel() / step, (sN - s0).ravel() / step])
+        g = g + np.linalg.lstsq(J, (A - s0).ravel(), rcond=None)[0]
     return g if np.all(np.isfinite(g)) and np.hypot(*g) < 3.0 else None
 
 
@@ -348,7 +360,8 @@ def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, h, half_
     except np.linalg.LinAlgError:
         return out
     sigma_h = float(np.sqrt(max(C[2, 2], 0.0)))
-    slope = fitted_slope(sol, source, xy, v1, out[v1].match.shape, g[:2], g[2]) if free else None
+    slope = fitted_slope(sol, source, xy, v1, out[v1].match.shape, g[:2], g[2], half_window=half_window) \
+        if free else None
     for v, s in shapes.items():
         if v in (source, v1) or (v in out and out[v].ok) or not np.all(np.isfinite(s.A)):
             continue
