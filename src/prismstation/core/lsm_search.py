@@ -140,7 +140,10 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
         return failed(pred[0], pred[1], LOW_SCORE, f"no correlation peak above {min_ncc:.2f} "
                       f"(best {best:.2f})", shape=A0, score=best)
     d, c = _frame(direction)
-    spline = lsm.search_spline(search, pred, A0, half, np.hypot(along, across) + options.get("max_move", 3.0) + 1)
+    # one spline of the whole band when it is short; over a long band each peak's own
+    # (prefiltering hundreds of pixels for three patches costs more than three small ones)
+    spline = (lsm.search_spline(search, pred, A0, half, np.hypot(along, across) + options.get("max_move", 3.0) + 1)
+              if along <= 2 * half else None)
     results = []
     for score, k, l in found:
         if results and results[0].ok and 1 - score ** 2 > rival * (1 - found[0][0] ** 2):
