@@ -371,7 +371,9 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     if float(T.std()) <= 1e-6 * (abs(float(T.mean())) + 1.0):
         return failed(t0[0], t0[1], TEXTURE, "template has no contrast", shape=A0)
     if spline is None or smooth > 0:
-        spline = search_spline(search, t0, A0, half, max_move + 1.0 + 3 * smooth, smooth)
+        # room for the patch to move by max_move and its shape to change by max_shape_change
+        spline = search_spline(search, t0, A0, half, max_move + 1.0 + 3 * smooth + 1.5 * max_shape_change * half,
+                               smooth)
         if spline is None:
             return failed(t0[0], t0[1], OUTSIDE, "patch leaves the search image", shape=A0)
     d = np.zeros(2) if parallax is None else np.asarray(parallax, float) / np.hypot(*parallax)
