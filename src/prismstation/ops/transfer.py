@@ -17,7 +17,9 @@ by shape-aware least-squares matching (:func:`prismstation.core.lsm_search.match
   (its slope foreshortens F and B against N by ``tanθ × slope``: 15–30 % on mountains). With
   no DEM the plane is level at the model's height and the matcher lets the shape move
   further (:data:`FREE_SHAPE_CHANGE` instead of :data:`DEM_SHAPE_CHANGE`) after a smoothed
-  first pass.
+  first pass; a view that still fails is tried from slopes of :data:`SLOPE_HYPOTHESIS`; the
+  first view found gives the height and, from its matched shape (:func:`fitted_slope`), the
+  slope the other view is then searched at, over a short band.
 
 Every match states its covariance; a match that fails says why (``status``, ``reason``).
 Transferred from N to both F and B, the three rays must meet: :func:`consistency` intersects
