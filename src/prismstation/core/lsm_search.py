@@ -71,7 +71,9 @@ def correlate(reference, x: float, y: float, search, pred, A0, direction, along:
     valid = np.isfinite(R)
     R = np.where(valid, R, 0.0).astype(np.float32)
     ncc = cv2.matchTemplate(R, tpl, cv2.TM_CCOEFF_NORMED)
-    full = cv2.matchTemplate(valid.astype(np.float32), np.ones_like(tpl), cv2.TM_CCORR)
+    # cells whose window holds a pixel from outside the search image are not allowed
+    full = (np.full(ncc.shape, tpl.size, np.float32) if valid.all() else
+            cv2.matchTemplate(valid.astype(np.float32), np.ones_like(tpl), cv2.TM_CCORR))
     sk, sl = np.meshgrid(np.arange(ncc.shape[1]) + k0, np.arange(ncc.shape[0]) + l0)
     off_x = A0[0, 0] * sk + A0[0, 1] * sl
     off_y = A0[1, 0] * sk + A0[1, 1] * sl
