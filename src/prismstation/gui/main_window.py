@@ -121,9 +121,6 @@ class MainWindow(QMainWindow):
         self.docks[key] = d
         return d
 
-    def _act(self, *args, **kw):  # for tools still given the window (dsm_tool)
-        return menus.act(self, *args, **kw)
-
     def _status_widgets(self) -> None:
         sb = self.statusBar()
         self.status_xy = {}
