@@ -70,7 +70,12 @@ def _sort_key(row, column):
 
 class PointTableModel(QAbstractTableModel):
     """Rows: the project's points, in creation order or sorted by a column (:meth:`sort`).
-    :meth:`refresh` after every change. ``ids`` are in the order shown."""
+    :meth:`refresh` after every change. ``ids`` are in the order shown.
+
+    In creation order a refresh builds only the rows on screen (:attr:`shown_rows`, set by the
+    view) and compares them with what they showed; the others are built when first read (a
+    refit changes every row's residuals, a view shows a few dozen of a thousand). Sorted, every
+    row is built (the order depends on them all)."""
 
     def __init__(self, parent=None):
         super().__init__(parent)
@@ -78,10 +83,12 @@ class PointTableModel(QAbstractTableModel):
         self.solution = None
         self.ids: list[str] = []
         self._row_of: dict[str, int] = {}
-        self._rows: list[tuple] = []
+        self._rows: list = []  # row tuples; None: not built since the last refresh
         self._text: list[list] = []
+        self._make = None  # pid -> row tuple, for the project and solution of the last refresh
         self._sort = (-1, Qt.SortOrder.AscendingOrder)
         self.edit_handler = None  # callable(pid, column, text): set by the point editor
+        self.shown_rows = None  # callable() -> (first, last) rows on screen; None: all
 
     def set_project(self, project) -> None:
         self.project, self.solution = project, None
@@ -92,50 +99,92 @@ class PointTableModel(QAbstractTableModel):
         self.refresh()
 
     def refresh(self) -> None:
-        """Rebuild the rows from the project and the solution: one ``dataChanged`` when the
-        rows are the same points in the same order, a layout change when only the order
-        changed (selection and scroll stay in both), else one reset."""
-        rows = self._sorted(self._build()) if self.project is not None else []
+        """Rebuild the rows from the project and the solution: ``dataChanged`` for the cells
+        that changed when the rows are the same points in the same order, a layout change when
+        only the order changed (selection and scroll stay in both), else one reset."""
+        if self.project is None:
+            self._reset([], None)
+            return
+        make = self._row_builder()
+        if self._sort[0] < 0:  # creation order: the ids say it all, rows are built when read
+            ids = list(self.project.points)
+            if ids == self.ids and ids:
+                self._refresh_shown(make)
+            else:
+                self._reset(ids, make)
+            return
+        rows = self._sorted([make(pid) for pid in self.project.points])
         ids = [r[0] for r in rows]
         if ids == self.ids and rows:
-            old = self._rows
-            changed = [i for i, (a, b) in enumerate(zip(old, rows)) if a != b]
-            if not changed:
-                return
-            # the cells that changed: the rows between the first and the last, the columns
-            # between the leftmost and the rightmost (a refit changes the residual columns of
-            # every row, never the ids: the frozen id column is not repainted); texts are
-            # formatted when a row is shown (a refit changes hundreds, a view shows a dozen)
-            n = len(COLUMNS)
-            was, now = [old[i][:n] for i in changed], [rows[i][:n] for i in changed]
-            cols = [c for c, (a, b) in enumerate(zip(zip(*was), zip(*now))) if a != b]
-            for i in changed:
-                self._text[i] = None
-            self._rows = rows
-            if cols:
-                self.dataChanged.emit(self.index(min(changed), cols[0]),
-                                      self.index(max(changed), cols[-1]))
-            for i in changed:  # a flag changed (the row's colour, a blunder): that whole row
-                if old[i][n:] != rows[i][n:]:
-                    self.dataChanged.emit(self.index(i, 0), self.index(i, n - 1))
+            old, self._make = self._rows, make
+            self._rows, self._text = rows, [None] * len(rows)
+            self._emit_changed(old, rows, range(len(rows)))
             return
         if rows and len(ids) == len(self.ids) and set(ids) == set(self.ids):
             self._relayout(rows)  # re-sorted by new values
             return
+        self._reset(ids, make, rows)
+
+    def _refresh_shown(self, make) -> None:
+        """The same points in creation order: build the rows on screen, repaint what changed
+        in them; the rest are built when read."""
+        n = len(self.ids)
+        try:
+            first, last = self.shown_rows() if self.shown_rows is not None else (0, n - 1)
+        except RuntimeError:  # the view is being deleted: every row
+            first, last = 0, n - 1
+        first, last = max(first, 0), min(last, n - 1)
+        old, rows = self._rows, [None] * n
+        for i in range(first, last + 1):
+            rows[i] = make(self.ids[i])
+        self._rows, self._text, self._make = rows, [None] * n, make
+        self._emit_changed(old, rows, range(first, last + 1))
+
+    def _emit_changed(self, old, rows, where) -> None:
+        """``dataChanged`` for the rows of ``where`` that differ between ``old`` and ``rows``:
+        the columns between the leftmost and the rightmost that changed (a refit changes the
+        residual columns, never the ids: the frozen id column is not repainted), and the whole
+        row where a flag changed (its colour, a blunder). A row not built before counts as
+        changed everywhere."""
+        n = len(COLUMNS)
+        changed = [i for i in where if old[i] != rows[i]]
+        if not changed:
+            return
+        if any(old[i] is None for i in changed):
+            cols = list(range(n))
+        else:
+            was, now = [old[i][:n] for i in changed], [rows[i][:n] for i in changed]
+            cols = [c for c, (a, b) in enumerate(zip(zip(*was), zip(*now))) if a != b]
+        if cols:
+            self.dataChanged.emit(self.index(min(changed), cols[0]), self.index(max(changed), cols[-1]))
+        for i in changed:
+            if old[i] is not None and old[i][n:] != rows[i][n:]:
+                self.dataChanged.emit(self.index(i, 0), self.index(i, n - 1))
+
+    def _reset(self, ids, make, rows=None) -> None:
         self.beginResetModel()
-        self._set_rows(rows)
+        self._make = make
+        self._set_rows(rows if rows is not None else [None] * len(ids), ids)
         self.endResetModel()
 
-    def _set_rows(self, rows) -> None:
-        self._rows, self.ids = rows, [r[0] for r in rows]
+    def _set_rows(self, rows, ids=None) -> None:
+        self._rows = rows
+        self.ids = [r[0] for r in rows] if ids is None else list(ids)
         self._row_of = {pid: i for i, pid in enumerate(self.ids)}
         self._text = [None] * len(rows)
+
+    def row(self, r: int) -> tuple:
+        """Row ``r``'s values (built when first read after a refresh)."""
+        x = self._rows[r]
+        if x is None:
+            x = self._rows[r] = self._make(self.ids[r])
+        return x
 
     def texts(self, r: int) -> list:
         """The display texts of row ``r`` (formatted when first shown after a change)."""
         t = self._text[r]
         if t is None:
-            t = self._text[r] = _texts(self._rows[r])
+            t = self._text[r] = _texts(self.row(r))
         return t
 
     def _sorted(self, rows: list[tuple]) -> list[tuple]:
@@ -150,7 +199,8 @@ class PointTableModel(QAbstractTableModel):
         cells first."""
         self._sort = (column, order)
         if self.project is not None:
-            self._relayout(self._sorted(self._build()))
+            self._make = self._row_builder()
+            self._relayout(self._sorted([self._make(pid) for pid in self.project.points]))
 
     def _relayout(self, rows) -> None:
         """The same points in a new order: selection and scroll follow their rows."""
@@ -163,21 +213,23 @@ class PointTableModel(QAbstractTableModel):
             [self.index(i, c) for i in range(len(self.ids)) for c in range(n)])
         self.layoutChanged.emit()
 
-    def _build(self) -> list[tuple]:
-        p, sol = self.project, self.solution
+    def _row_builder(self):
+        """``make(pid) -> row``: a row's values (the columns, then the blunder flag and the
+        unusual-height flag) from the project and the solution as they are now — a snapshot
+        of the project: a row built later shows the same state as the others, not an edit
+        made since (whose refit refreshes the table)."""
+        p, sol = self.project.snapshot(), self.solution
         views = list(p.scene.views)
         ref = reference_view(views)
-        measured: dict[str, set] = {}
-        for pid, v in p.measurements:
-            measured.setdefault(pid, set()).add(v)
-        shown: dict[frozenset, str] = {}  # views measured -> "N · B" (a handful of kinds)
+        measurements, points = p.measurements, p.points
+        shown: dict[tuple, str] = {}  # views measured -> "N · B" (a handful of kinds)
         results = {r.id: r for r in sol.points} if sol is not None else {}
         usual = p.height_kind()
-        rows = []
         hypot = math.hypot
-        for pid, pt in p.points.items():
-            r = results.get(pid)
-            have = frozenset(measured.get(pid, ()))
+
+        def make(pid: str) -> tuple:
+            pt, r = points[pid], results.get(pid)
+            have = tuple(v for v in views if (pid, v) in measurements)
             vs = shown.get(have)
             if vs is None:
                 vs = shown[have] = " ".join(v if v in have else "·" for v in views)
@@ -195,10 +247,10 @@ class PointTableModel(QAbstractTableModel):
                     dh = r.ground_residual[2]
                 sr, blunder = r.std_residual, r.blunder
             hk = pt.height_kind if pt.H == pt.H else ""  # (NaN: no height, no kind)
-            rows.append((pid, pt.kind, vs, vx, vy, vmax, e, n, h, dh, sr,
-                         pt.E, pt.N, pt.H, hk, pt.sigma_xy_m, pt.sigma_h_m, blunder,
-                         bool(hk) and hk != usual))
-        return rows
+            return (pid, pt.kind, vs, vx, vy, vmax, e, n, h, dh, sr,
+                    pt.E, pt.N, pt.H, hk, pt.sigma_xy_m, pt.sigma_h_m, blunder,
+                    bool(hk) and hk != usual)
+        return make
 
     # ------------------------------------------------------------------ Qt model
     def rowCount(self, parent=QModelIndex()) -> int:
@@ -218,7 +270,7 @@ class PointTableModel(QAbstractTableModel):
         r, c = index.row(), index.column()
         if role == _DISPLAY:
             return self.texts(r)[c]
-        row = self._rows[r]
+        row = self.row(r)
         if role == _SORT:
             return _sort_key(row, c)
         if role == _EDIT:
@@ -262,7 +314,7 @@ class PointTableModel(QAbstractTableModel):
 
     def is_blunder(self, pid: str) -> bool:
         r = self.row_of(pid)
-        return r >= 0 and bool(self._rows[r][BLUNDER])
+        return r >= 0 and bool(self.row(r)[BLUNDER])
 
 
 class _FastTable(QTableView):
@@ -329,7 +381,7 @@ class _FastTable(QTableView):
         for vis in range(first, last + 1):
             r = vh.logicalIndex(vis)
             y, h = vh.sectionViewportPosition(r), vh.sectionSize(r)
-            row, texts, chosen = m._rows[r], m.texts(r), r in selected
+            row, texts, chosen = m.row(r), m.texts(r), r in selected
             if chosen:
                 p.fillRect(0, y, right, h, pal.highlight())
             elif row[BLUNDER] or r % 2:
@@ -406,6 +458,7 @@ class PointTableView(_FastTable):
         self.horizontalHeader().setStretchLastSection(True)
         self.setHorizontalScrollMode(QAbstractItemView.ScrollMode.ScrollPerPixel)
         model.modelReset.connect(self._size_columns)
+        model.shown_rows = self.rows_on_screen
         self.frozen = _FrozenIds(self)
         self.horizontalHeader().sectionResized.connect(self._frozen_width)
         self.horizontalHeader().sortIndicatorChanged.connect(
@@ -449,6 +502,12 @@ class PointTableView(_FastTable):
             sample = {"ID": "W0000", "Kind": "GCP", "Views": "N F B", "E (m)": "000000.000",
                       "N (m)": "0000000.000", "H (m)": "0000.000", "Height": "orthometric"}.get(name, "-000000.00")
             self.setColumnWidth(c, max(fm.horizontalAdvance(name), fm.horizontalAdvance(sample)) + 14)
+
+    def rows_on_screen(self) -> tuple[int, int]:
+        """``(first, last)`` rows in the viewport (all rows when it shows none)."""
+        vh, n = self.verticalHeader(), self.source_model.rowCount()
+        first, last = vh.logicalIndexAt(0), vh.logicalIndexAt(self.viewport().height() - 1)
+        return (0 if first < 0 else first), (n - 1 if last < 0 else last)
 
     def current_id(self) -> str | None:
         rows = self.selectionModel().selectedRows()
