@@ -228,6 +228,8 @@ class TransferTool:
         views = self.ctx.views.views
         src = views.get(self.source)
         scale = min(src.scale(), DRIVE_TO_MAX_SCALE) if src is not None else DRIVE_TO_MAX_SCALE
+        if not scale > 0:  # (a view without its image: no scale of its own)
+            scale = DRIVE_TO_MAX_SCALE
         for v, t in self.candidates.items():
             iv = views.get(v)
             if iv is not None and math.isfinite(t.x) and math.isfinite(t.y):
