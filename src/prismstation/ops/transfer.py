@@ -467,7 +467,8 @@ def consistency(sol: Solution, source: str, xy, found: dict[str, Transfer], h0: 
 
 
 def auto_tie_points(sol: Solution, images: ImageWindows, *, grid: int = 8, margin: float = 0.05,
-                    height_of=None, progress: ProgressFn | None = None) -> list[dict]:
+                    height_of=None, progress: ProgressFn | None = None,
+                    summary: dict | None = None) -> list[dict]:
     """Tie points on a ``grid × grid`` lattice of the N image, transferred to F and B.
 
     Returns ``[{"N": (x, y), "F": (x, y), "B": (x, y), "score": s}]`` for the points found in
@@ -475,28 +476,42 @@ def auto_tie_points(sol: Solution, images: ImageWindows, *, grid: int = 8, margi
     ``progress`` per :mod:`prismstation.ops.progress`; a cancel raises
     :class:`~prismstation.errors.Cancelled`) and consistent with the others: a point whose
     across-track F−N or B−N difference departs from the median by more than 3 NMAD (at least
-    1 px) is a blunder.
+    1 px) is a blunder. ``summary``, when given, is filled with ``tried`` (grid points),
+    ``failed`` (``{status: count}``: the first failed view's status, F before B; ``outside``
+    when a view could not be searched), ``blunders`` (rejected by the across-track test) and
+    ``rms_px`` (RMS of the kept points' across-track differences about the median, F and B
+    together, N pixels; NaN with fewer than 4 found).
     """
     sc = sol.scene
     rows, cols = sc.views["N"].shape
     g = margin + (1 - 2 * margin) * (np.arange(grid) + 0.5) / grid
     sigma_dem, sigma_mean = search_sigmas(sol, height_of)
-    found = []
+    found, failed = [], {}
     for k, (x, y) in enumerate((cx * cols, cy * rows) for cy in g for cx in g):
         checkpoint(progress, k / grid**2, f"point {k + 1} of {grid**2}")
         tr = transfer(sol, images, "N", (x, y), height_of=height_of, sigma_dem=sigma_dem, sigma_mean=sigma_mean)
-        if all(v in tr and tr[v].ok for v in ("F", "B")):
+        bad = [tr[v].match.status if v in tr else "outside" for v in ("F", "B") if v not in tr or not tr[v].ok]
+        if not bad:
             found.append({"N": (x, y), "F": (tr["F"].x, tr["F"].y), "B": (tr["B"].x, tr["B"].y),
                           "score": min(tr["F"].match.rho, tr["B"].match.rho)})
+        else:
+            failed[bad[0]] = failed.get(bad[0], 0) + 1
+    if summary is not None:
+        summary.update(tried=grid**2, failed=failed, blunders=0, rms_px=math.nan)
     if len(found) < 4:
         return found
     keep = np.ones(len(found), bool)
     xn = np.array([p["N"] for p in found])
     d = prism.along_track_unit(sc, sc.views["N"].map_to_image.inverse()(xn))
     cross = np.column_stack([d[:, 1], -d[:, 0]])
+    dev = []
     for v in ("F", "B"):
         a = np.einsum("ij,ij->i", prism.to_nadir_space(sc, sc.views[v])(np.array([p[v] for p in found])) - xn, cross)
         med = np.median(a)
         spread = max(nmad(a), 1.0 / 3)
         keep &= np.abs(a - med) <= 3 * spread
+        dev.append(a - med)
+    if summary is not None:
+        summary.update(blunders=int((~keep).sum()),
+                       rms_px=float(np.sqrt(np.mean(np.concatenate([e[keep] for e in dev]) ** 2))))
     return [p for p, k in zip(found, keep) if k]
