@@ -210,3 +210,11 @@ def test_unknown_settings_are_model_errors(scene):
         solve(scene, [], Settings(bias_model="shift", fixed_view="N"))
     sol = solve(scene, [], Settings(bias_model="shift"))
     assert not sol.ok and "nothing to fit" in sol.messages[0]
+
+
+def test_reference_heights_without_their_sigma_are_not_used_for_tie_points(scene):
+    en, h = ground_grid(scene)
+    pts = observations(scene, en, h, seed=6)
+    sol = solve(scene, pts, Settings(bias_model="shift", sigma_px=SIGMA, fixed_view="img_01"), height_of=terrain)
+    assert sol.ok and any("without their σ" in m for m in sol.messages)
+    assert not any("held to the reference DEM" in m for m in sol.messages)

@@ -69,8 +69,8 @@ def solve_rpc(scene, points, settings: Settings = Settings(), *, height_of=None,
               height_sigma_m: float | None = None, revision: int = 0, control=None) -> Solution:
     """Fit every view's bias to ``points`` (:class:`~prismstation.core.solve.PointObs`) and
     evaluate every point (module docstring). ``height_of``: the reference DEM's ellipsoidal
-    heights at map points ``(n, 2)`` → ``(n,)``, ``height_sigma_m`` their σ (needed when the
-    tie points are held to them). Raises :class:`ModelError` only for settings this model does
+    heights at map points ``(n, 2)`` → ``(n,)``, ``height_sigma_m`` their σ (without it tie
+    points are not held to them, and a message says so). Raises :class:`ModelError` only for settings this model does
     not have (an unknown bias model or view, a DEM control); data the operator can fix are
     messages."""
     if control is not None:
@@ -92,8 +92,10 @@ def solve_rpc(scene, points, settings: Settings = Settings(), *, height_of=None,
     if not run.gcps and settings.fixed_view is None and kind != "none" and run.block:
         messages.append(f"no GCP: view {ref} held fixed; the other views' biases are relative to its RPC")
     use_dem = height_of is not None and dem_needed(len(run.gcps), kind)
-    if use_dem and height_sigma_m is None:
-        raise ModelError("the reference DEM's heights need their σ (height_sigma_m)")
+    if use_dem and not (height_sigma_m is not None and height_sigma_m > 0):
+        use_dem = False
+        messages.append("the reference DEM's heights come without their σ: tie points are not held to "
+                        "them (the DEM places only points seen in one image)")
 
     bias = {v: RpcBias(fixed=names.index(v) in fixed) for v in names}
     result, held = None, np.zeros(0, bool)
