@@ -6,22 +6,59 @@ from pathlib import Path
 
 from prismstation.errors import InputError
 from prismstation.ops.fit import BIAS_MODELS, PARALLAX_MODELS
+from prismstation.ops.predict import DEFAULT_DEM_SIGMA_M
 
 
 def add_model_options(p) -> None:
-    p.add_argument("--bias", choices=list(BIAS_MODELS), help="bias compensation model (default: the project's)")
+    p.add_argument("--bias", choices=list(BIAS_MODELS),
+                   help="bias compensation model (default: the project's; PRISM: shift, similarity, affine; "
+                        "RPC: none, shift, shift_drift, affine)")
     p.add_argument("--parallax", choices=list(PARALLAX_MODELS), help="height–parallax relation (default: the project's)")
+    p.add_argument("--fixed-view", metavar="VIEW",
+                   help="RPC images: the view held fixed (zero bias) as the datum when there is no GCP")
+    p.add_argument("--dem", metavar="DEM",
+                   help="reference DEM (GeoTIFF or SRTM .hgt, orthometric through the project's geoid): heights of "
+                        "points seen in one view; for RPC images also the heights tie points are held to "
+                        "when GCPs are too few")
+    p.add_argument("--dem-sigma", type=float, default=DEFAULT_DEM_SIGMA_M, metavar="M",
+                   help=f"σ of the reference DEM's heights, metres (default {DEFAULT_DEM_SIGMA_M:g})")
 
 
 def apply_model_options(project, args) -> None:
+    """The options' model choices into the project's settings, each checked against what the
+    project's sensor model offers."""
     from dataclasses import replace
+    sensor = project.scene.sensor
     kw = {}
     if getattr(args, "bias", None):
+        if args.bias not in sensor.bias_models:
+            raise InputError(f"--bias {args.bias}: {sensor.description} offer {', '.join(sensor.bias_models)}")
         kw["bias_model"] = args.bias
     if getattr(args, "parallax", None):
+        if args.parallax not in sensor.parallax_models:
+            raise InputError(f"--parallax: {sensor.description} have no height–parallax relation"
+                             if not sensor.parallax_models else
+                             f"--parallax {args.parallax}: {sensor.description} offer {', '.join(sensor.parallax_models)}")
         kw["parallax_model"] = args.parallax
+    if getattr(args, "fixed_view", None):
+        if not sensor.holds_view_fixed:
+            raise InputError(f"--fixed-view: {sensor.description} hold no view fixed (their biases are fitted to GCPs)")
+        if args.fixed_view not in project.scene.views:
+            raise InputError(f"--fixed-view {args.fixed_view}: not a view of the project "
+                             f"({', '.join(project.scene.views)})")
+        kw["fixed_view"] = args.fixed_view
     if kw:
         project.set_settings(replace(project.settings, **kw))
+
+
+def reference_heights(project, args):
+    """``(height_of, σ m)`` of the option ``--dem`` (None, None without it)."""
+    if not getattr(args, "dem", None):
+        return None, None
+    if not args.dem_sigma > 0:
+        raise InputError(f"--dem-sigma {args.dem_sigma:g}: expected a positive number of metres")
+    from prismstation.ops.reference_heights import load_for_scene
+    return load_for_scene(existing(args.dem, "reference DEM"), project), float(args.dem_sigma)
 
 
 _open_line = False  # a progress line is on stderr, not ended yet

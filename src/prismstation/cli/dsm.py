@@ -13,6 +13,7 @@ from prismstation.cli._common import end_progress, existing, progress_printer
 from prismstation.io.project import load_project
 from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest, export_dsm
 from prismstation.ops.fit import solve_project
+from prismstation.ops.project import require_workflow
 from prismstation.ops.reference_heights import load_for_scene
 
 LOW_FILL_STATUS = 3
@@ -43,6 +44,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     project = load_project(existing(args.project, "project"))
+    require_workflow(project, "dsm", args.project)
     sol = solve_project(project)
     reference = None
     if args.reference:

@@ -1,7 +1,8 @@
-"""``prismstation fit PROJECT [--json OUT] [--bias ...] [--parallax ...]``."""
+"""``prismstation fit PROJECT [--json OUT] [--bias ...] [--parallax ...] [--fixed-view VIEW]
+[--dem DEM [--dem-sigma M]]``."""
 from __future__ import annotations
 
-from prismstation.cli._common import add_model_options, apply_model_options, existing
+from prismstation.cli._common import add_model_options, apply_model_options, existing, reference_heights
 from prismstation.io.project import load_project
 from prismstation.io.report import write_report
 from prismstation.io.text_report import format_report
@@ -19,7 +20,8 @@ def register(sub) -> None:
 def fitted_report(args):
     project = load_project(existing(args.project, "project"))
     apply_model_options(project, args)
-    return fit_report(project, args.project)
+    height_of, sigma = reference_heights(project, args)
+    return fit_report(project, args.project, height_of=height_of, height_sigma_m=sigma)
 
 
 def run(args) -> int:

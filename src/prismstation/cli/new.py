@@ -1,9 +1,14 @@
-"""``prismstation new PROJECT --scene scene.json [--points P.csv] [--measurements M.csv]``
-(:func:`prismstation.ops.project.create`)."""
+"""``prismstation new PROJECT (--scene scene.json | --product DIR | --images IMG IMG [IMG …])
+[--points P.csv] [--measurements M.csv]`` (:func:`prismstation.ops.project.create`).
+
+``--images``: two or more images with RPCs (any names; the RPCs from wherever
+:func:`prismstation.io.rpc.read_rpc` finds them), one view per image named by its file's stem;
+the scene file is written beside the project as ``<project>.scene.json``."""
 from __future__ import annotations
 
 from pathlib import Path
 
+from prismstation.errors import InputError
 from prismstation.io.project import SUFFIX
 from prismstation.model.points import HEIGHT_KINDS
 from prismstation.ops.project import create
@@ -15,6 +20,8 @@ def register(sub) -> None:
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--scene", help="scene.json (docs/formats.md)")
     src.add_argument("--product", help="a JAXA product folder (CEOS or GeoTIFF 1B2)")
+    src.add_argument("--images", nargs="+", metavar="IMG",
+                     help="two or more images with RPCs (GeoTIFF tags, .RPB, _RPC.TXT, DIMAP, .geom, NITF)")
     p.add_argument("--points", help="ground points CSV (id,E,N,H[,kind,height,...])")
     p.add_argument("--measurements", help="image measurements CSV (id,view,x,y)")
     p.add_argument("--crs", help="CRS of the ground points if not the scene's (e.g. EPSG:4326)")
@@ -29,10 +36,19 @@ def run(args) -> int:
     if args.product:
         from prismstation.io.products import write_scene_for_product
         scene_path = write_scene_for_product(args.product, Path(args.project).parent)
+    elif args.images:
+        from prismstation.io.rpc_scene import write_scene_for_images
+        scene_path = Path(args.project).with_suffix(".scene.json")
+        if Path(args.project).exists() and not args.force:
+            raise InputError("already exists (use --force to overwrite)", args.project)
+        write_scene_for_images(args.images, scene_path)
     project = create(args.project, scene_path, args.points, args.measurements, crs=args.crs,
                      height=args.height, geoid=args.geoid, force=args.force)
     n_ms = len(project.measurements)
     kinds = [p.kind for p in project.points.values()]
     print(f"{args.project}: {kinds.count('GCP')} GCP, {kinds.count('ICP')} ICP, "
           f"{kinds.count('TIE')} tie points, {n_ms} measurements")
+    if args.images:
+        print(f"{scene_path}: {len(project.scene.views)} {project.scene.sensor.description} "
+              f"({', '.join(project.scene.views)}), CRS {project.scene.crs}")
     return 0

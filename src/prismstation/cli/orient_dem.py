@@ -15,6 +15,7 @@ from prismstation.io.text_report import format_report
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 from prismstation.ops.fit import fit_report
 from prismstation.ops.orient_dem import apply_orientation, orient_from_dem
+from prismstation.ops.project import require_workflow
 
 
 def register(sub) -> None:
@@ -34,6 +35,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     project = load_project(existing(args.project, "project"))
+    require_workflow(project, "orient-dem", args.project)
     existing(args.reference, "reference DEM")
     result = orient_from_dem(project, args.reference, sigma_apriori_m=args.geolocation_sigma_m,
                              patch_m=args.patch_km * 1000, posting_m=args.posting,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prismstation.cli._common import add_model_options, apply_model_options, existing
+from prismstation.cli._common import add_model_options, apply_model_options, existing, reference_heights
 from prismstation.io.project import load_project
 from prismstation.io.report import default_operator, write_report
 from prismstation.ops.fit import fit_report
@@ -22,7 +22,9 @@ def register(sub) -> None:
 def run(args) -> int:
     project = load_project(existing(args.project, "project"))
     apply_model_options(project, args)
-    sol, report = fit_report(project, args.project, operator=args.operator)
+    height_of, sigma = reference_heights(project, args)
+    sol, report = fit_report(project, args.project, height_of=height_of, height_sigma_m=sigma,
+                             operator=args.operator)
     ext = Path(args.output).suffix.lower()
     if ext in (".html", ".htm", ".pdf"):
         from prismstation.gui.report_writer import write_document  # Qt's own PDF writer

@@ -74,7 +74,7 @@ class RpcAdjustment:
 
 def adjust(models: Sequence[Rpc], point, image, xy, sigma, *, bias="shift", fixed=None,
            gcp_point=(), gcp_llh=None, gcp_sigma=None, height_point=(), height=None,
-           height_sigma=None, centres=None, n_points: int | None = None,
+           height_sigma=None, centres=None, n_points: int | None = None, bias_sigma=None,
            max_iter: int = 20, tol: float = 1e-6) -> RpcAdjustment:
     """Fit each image's bias and every point's ground to the observations.
 
@@ -86,6 +86,9 @@ def adjust(models: Sequence[Rpc], point, image, xy, sigma, *, bias="shift", fixe
     ellipsoidal h m) and ``gcp_sigma`` ``(g, 3)`` m (east, north, up); ``height_point`` ``(k,)``
     with ``height`` and ``height_sigma`` ``(k,)`` m. ``centres`` ``(n_images, 2)``: each
     bias's reference point, px (default: the mean of the image's observations).
+    ``bias_sigma``: the a-priori σ of the bias parameters (Grodecki & Dial 2003's a-priori
+    covariance of the adjustment parameters): a function ``kind → (p,)`` σ in the parameters'
+    units, each parameter then observed as 0 with that σ; None: no a-priori weight.
 
     Raises :class:`~prismstation.errors.DegenerateGeometry` when the biases are not
     determined (say no GCP and no fixed image) and :class:`ModelError` when a point is
@@ -132,6 +135,11 @@ def adjust(models: Sequence[Rpc], point, image, xy, sigma, *, bias="shift", fixe
             D[sel, :, cols[k]] = bias_design(kinds[k], xy[sel, 0], xy[sel, 1], *centres[k])
     w = 1.0 / sig ** 2
     params = np.zeros(nb)
+    prior_w = np.zeros(nb)                 # 1/σ² of each parameter's a-priori observation (0: none)
+    if bias_sigma is not None:
+        for k in range(ni):
+            if cols[k].stop > cols[k].start:
+                prior_w[cols[k]] = 1.0 / np.asarray(bias_sigma(kinds[k]), float) ** 2
 
     def biased():
         return [BiasedRpc(rpcs[k], "none" if k in fixed else kinds[k],
@@ -152,7 +160,7 @@ def adjust(models: Sequence[Rpc], point, image, xy, sigma, *, bias="shift", fixe
 
     for it in range(1, max_iter + 1):
         sol = _normal_solve(biased(), point, image, xy, w, D, lon, lat, h, n, gcp_point, gcp_llh,
-                            gcp_sig, height_point, hval, hsig, need_cov=False)
+                            gcp_sig, height_point, hval, hsig, need_cov=False, prior=(prior_w, params))
         db, dp = sol["db"], sol["dp"]
         params = params + db
         ke, kn = metres_per_degree(lat, h)
@@ -162,12 +170,12 @@ def adjust(models: Sequence[Rpc], point, image, xy, sigma, *, bias="shift", fixe
     else:
         raise ModelError(f"RPC bias adjustment did not converge in {max_iter} iterations")
     fin = _normal_solve(biased(), point, image, xy, w, D, lon, lat, h, n, gcp_point, gcp_llh,
-                        gcp_sig, height_point, hval, hsig, need_cov=True)
-    n_obs = 2 * m + 3 * g + hk
+                        gcp_sig, height_point, hval, hsig, need_cov=True, prior=(prior_w, params))
+    n_obs = 2 * m + 3 * g + hk + int(np.count_nonzero(prior_w))
     dof = n_obs - nb - 3 * n
     if dof < 0:
         raise degenerate(f"RPC bias adjustment: {nb + 3 * n} unknowns, {n_obs} observations")
-    wv = [fin["v"] * np.sqrt(w), fin["vg"] / gcp_sig, fin["vh"] / hsig]
+    wv = [fin["v"] * np.sqrt(w), fin["vg"] / gcp_sig, fin["vh"] / hsig, params * np.sqrt(prior_w)]
     ssr = float(sum(np.sum(a * a) for a in wv))
     sigma0 = float(np.sqrt(ssr / dof)) if dof > 0 else float("nan")
     s2 = sigma0 ** 2 if dof > 0 else 1.0
@@ -184,12 +192,16 @@ def adjust(models: Sequence[Rpc], point, image, xy, sigma, *, bias="shift", fixe
 
 
 def _normal_solve(models, point, image, xy, w, D, lon, lat, h, n, gcp_point, gcp_llh, gcp_sig,
-                  height_point, hval, hsig, need_cov):
-    """One Gauss–Newton step on the reduced normal equations (points eliminated)."""
+                  height_point, hval, hsig, need_cov, prior=None):
+    """One Gauss–Newton step on the reduced normal equations (points eliminated); ``prior``
+    ``(weights (nb,), current parameters (nb,))`` of the parameters' a-priori observations."""
     v, J = _rays(models, point, image, xy, lon, lat, h)        # (m, 2), (m, 2, 3) px/m
     nb = D.shape[2]
     Nbb = np.einsum("mai,ma,maj->ij", D, w, D)
     rb = np.einsum("mai,ma,ma->i", D, w, v)
+    if prior is not None and nb:
+        Nbb = Nbb + np.diag(prior[0])
+        rb = rb - prior[0] * prior[1]
     Nbp = np.zeros((n, nb, 3))
     np.add.at(Nbp, point, np.einsum("mai,ma,maj->mij", D, w, J))
     Npp = np.zeros((n, 3, 3))

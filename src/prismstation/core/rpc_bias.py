@@ -30,6 +30,9 @@ from prismstation.errors import ModelError
 
 #: bias models and their parameter counts
 BIAS_MODELS = {"none": 0, "shift": 2, "shift_drift": 3, "affine": 6}
+#: the parameters' names, in their order
+BIAS_NAMES = {"none": (), "shift": ("a0", "b0"), "shift_drift": ("a0", "b0", "b2"),
+              "affine": ("a0", "a1", "a2", "b0", "b1", "b2")}
 #: image-space unit of the bias's linear terms (pixels)
 BIAS_UNIT_PX = 1000.0
 
@@ -64,6 +67,17 @@ def bias_design(kind: str, x, y, x0: float = 0.0, y0: float = 0.0) -> np.ndarray
     return np.stack([np.stack(c, axis=-1) for c in cols], axis=-1)
 
 
+def bias_linear(kind: str, params, x0: float = 0.0, y0: float = 0.0):
+    """The bias as ``Δ(xy) = c + M·(xy − xy0)``: constant ``c`` (2,) px and matrix ``M``
+    (2, 2) px per px."""
+    params = np.asarray(params, float)
+    c = bias_design(kind, x0, y0, x0, y0) @ params
+    M = np.zeros((2, 2))
+    for k, (dx, dy) in enumerate(((BIAS_UNIT_PX, 0.0), (0.0, BIAS_UNIT_PX))):
+        M[:, k] = (bias_design(kind, x0 + dx, y0 + dy, x0, y0) @ params - c) / BIAS_UNIT_PX
+    return c, M
+
+
 @dataclass(frozen=True, eq=False)
 class BiasedRpc:
     """An RPC with an image-space bias: ``xy = rpc(ground) + Δ(xy)`` (module docstring)."""
@@ -83,13 +97,7 @@ class BiasedRpc:
 
     def _linear(self):
         """Δ(xy) = c + M·(xy − xy0): constant ``c`` (2,) and matrix ``M`` (2, 2)."""
-        D0 = bias_design(self.kind, self.x0, self.y0, self.x0, self.y0)
-        c = D0 @ self.params
-        M = np.zeros((2, 2))
-        for k, (dx, dy) in enumerate(((BIAS_UNIT_PX, 0.0), (0.0, BIAS_UNIT_PX))):
-            M[:, k] = (bias_design(self.kind, self.x0 + dx, self.y0 + dy, self.x0, self.y0)
-                       @ self.params - c) / BIAS_UNIT_PX
-        return c, M
+        return bias_linear(self.kind, self.params, self.x0, self.y0)
 
     def bias_at(self, x, y) -> np.ndarray:
         """Δ at image points (the bias evaluated at the observed point): ``(n, 2)``."""

@@ -1,4 +1,5 @@
-"""A product as the model sees it: views with their ancillary affine, and the ground track."""
+"""A product as the model sees it: its views (for the PRISM model each with its ancillary
+affine, beside the ground track and the satellite altitude) and the sensor model they follow."""
 from __future__ import annotations
 
 import math
@@ -92,15 +93,34 @@ class View:
     def tan_theta(self) -> float:
         return math.tan(math.radians(self.along_track_angle_deg))
 
+    def footprint(self) -> np.ndarray:
+        """Map ``(E, N)`` ``(4, 2)`` of the image corners at the ellipsoid, relief ignored (an
+        unknown shape counts as 20,000 px square)."""
+        rows, cols = self.shape if self.shape else (20000, 20000)
+        px = np.array([[0, 0], [cols, 0], [0, rows], [cols, rows]], float)
+        return self.map_to_image.inverse()(px)
+
 
 @dataclass(frozen=True, eq=False)
 class Scene:
+    """A product: ``views`` (name → view, of one sensor model), the map ``crs`` (a string for
+    pyproj, projected, metres) and, for the PRISM model, the ``track`` and the
+    ``satellite_altitude_m`` (None for a model that needs neither). ``sensor`` is the class of
+    the views' sensor model (:mod:`prismstation.core.sensor`; the reader of the scene file
+    chooses it): the PRISM model unless given."""
+
     crs: str
-    satellite_altitude_m: float
-    track: GroundTrack
-    views: dict[str, View]
+    satellite_altitude_m: float | None
+    track: GroundTrack | None
+    views: dict
     geoid_undulation_m: float | None = None
     extra: dict = field(default_factory=dict)
+    sensor: type | None = None
+
+    def __post_init__(self):
+        if self.sensor is None:
+            from prismstation.core.prism_model import PrismModel  # core.prism imports this module
+            object.__setattr__(self, "sensor", PrismModel)
 
     @property
     def reference_view(self) -> str:
@@ -109,4 +129,5 @@ class Scene:
 
     @property
     def is_triplet(self) -> bool:
-        return all(v in self.views for v in "NFB")
+        """A PRISM N, F, B triplet (views of that name along a ground track)."""
+        return self.track is not None and all(v in self.views for v in "NFB")

@@ -1,8 +1,10 @@
-"""Fit the empirical model to a project's points and compute everything the operator reads.
+"""Fit a scene's sensor model to a project's points and compute everything the operator reads.
 
-:func:`solve` never raises for data the operator can fix (too few GCPs, collinear GCPs, a
-point seen in too few views): such parts are left out of the :class:`Solution` and
-:attr:`Solution.messages` says why.
+:func:`solve` fits the scene's sensor model (:mod:`prismstation.core.sensor`); the
+:class:`Solution` is the same for every model. :func:`solve_prism` is the empirical PRISM
+model's fit (Gonçalves 2008). Neither raises for data the operator can fix (too few GCPs,
+collinear GCPs, a point seen in too few views): such parts are left out of the
+:class:`Solution` and :attr:`Solution.messages` says why.
 """
 from __future__ import annotations
 
@@ -36,24 +38,29 @@ class Settings:
     blunder_threshold: float = 3.29
     mean_height: float | None = None
     orientation: str = "gcp"      # "gcp": fitted to GCPs; "dem": from reference-DEM control
+    fixed_view: str | None = None  # the view held fixed as the datum (models that hold one)
 
 
 @dataclass(frozen=True)
 class PointObs:
     """A point as the solver sees it: ``ground`` = (E, N, h ellipsoidal) or None (tie);
-    ``image`` maps view name → (x, y) pixels; ``sigma_px`` view → σ (optional)."""
+    ``image`` maps view name → (x, y) pixels; ``sigma_px`` view → σ (optional);
+    ``sigma_ground`` the survey's ``(σ plan, σ h)`` metres, None or an item None where not
+    given (a model that weighs ground control takes such a point as exact)."""
 
     id: str
     kind: str
     ground: tuple[float, float, float] | None
     image: Mapping[str, tuple[float, float]]
     sigma_px: Mapping[str, float] = field(default_factory=dict)
+    sigma_ground: tuple | None = None
 
 
 @dataclass(frozen=True)
 class PointResult:
     """Everything computed for one point. Residuals are measured − predicted (pixels);
-    ``ground_residual`` is estimated − known (E, N, h metres)."""
+    ``ground_residual`` is estimated − known (E, N, h metres); ``ground_sigma`` the
+    estimate's σ (E, N, h metres) where the model states one."""
 
     id: str
     kind: str
@@ -69,14 +76,17 @@ class PointResult:
     redundancy: float | None      # smallest redundancy number of its N observations
     blunder: bool = False
     note: str = ""
+    ground_sigma: tuple | None = None
 
 
 @dataclass(frozen=True, eq=False)
 class Solution:
-    """An immutable fit: bias per view, parallax line, per-point results and statistics.
-    ``failures`` holds the typed reason (a falsy
+    """An immutable fit: bias per view, parallax line (the PRISM model's; None otherwise),
+    per-point results and statistics. ``failures`` holds the typed reason (a falsy
     :class:`~prismstation.core.estimate.FailedFit`: ``degenerate``, ``condition``) when the
-    reference view's bias could not be fitted; ``messages`` says it in words."""
+    reference view's bias could not be fitted; ``messages`` says it in words. ``model`` is
+    the fitted sensor model (:mod:`prismstation.core.sensor`) the geometry goes through,
+    made from ``scene.sensor`` and ``bias``."""
 
     scene: Scene
     settings: Settings
@@ -89,15 +99,17 @@ class Solution:
     revision: int = 0
     failures: dict = field(default_factory=dict)  # view -> FailedFit of its bias (reference view)
     observations: tuple = ()      # the PointObs of a GCP fit (to refit it without some of them)
+    model: object = field(init=False, repr=False)  # the fitted sensor model (core/sensor.py)
+
+    def __post_init__(self):
+        object.__setattr__(self, "model", self.scene.sensor(self.scene, self.bias))
 
     # ---- geometry through the current model (linked cursors, predictions)
     def ground_to_image(self, view: str, en, h) -> np.ndarray:
-        v = self.scene.views[view]
-        return self.bias[view].apply(prism.ground_to_ancillary(self.scene, v, en, h))
+        return self.model.ground_to_image(view, en, h)
 
     def image_to_ground(self, view: str, xy, h) -> np.ndarray:
-        v = self.scene.views[view]
-        return prism.ancillary_to_ground(self.scene, v, self.bias[view].invert(xy), h)
+        return self.model.image_to_ground(view, xy, h)
 
     def transfer(self, view: str, xy, h=None) -> dict:
         """Where the ground point under ``xy`` in ``view`` (at height ``h``, default the mean
@@ -111,7 +123,9 @@ class Solution:
 
     @property
     def ok(self) -> bool:
-        return self.bias.get(self.reference_view, BiasFit.identity()).model != "none"
+        """The fit succeeded: nothing failed and the model has what it needs (for the PRISM
+        model, the reference view's bias)."""
+        return not self.failures and self.model.ok
 
     @property
     def reference_view(self) -> str:
@@ -130,8 +144,19 @@ class Control:
 
 
 def solve(scene: Scene, points, settings: Settings = Settings(), *,
-          height_of: HeightFn | None = None, revision: int = 0,
+          height_of: HeightFn | None = None, height_sigma_m: float | None = None, revision: int = 0,
           control: Control | None = None) -> Solution:
+    """Fit the scene's sensor model (``scene.sensor.fit``) to ``points`` (iterable of
+    :class:`PointObs`). ``height_of``: the reference DEM's ellipsoidal heights at map points
+    (heights of points no ray pair places; a model may also hold tie points to it, with
+    ``height_sigma_m``, its σ in metres); ``control``: an orientation made elsewhere."""
+    return scene.sensor.fit(scene, points, settings, height_of=height_of, height_sigma_m=height_sigma_m,
+                            revision=revision, control=control)
+
+
+def solve_prism(scene: Scene, points, settings: Settings = Settings(), *,
+                height_of: HeightFn | None = None, revision: int = 0,
+                control: Control | None = None) -> Solution:
     """Fit the model of docs/model.md §2 to ``points`` (iterable of :class:`PointObs`).
 
     With ``control`` the model is taken as given and every point with ground coordinates is
@@ -149,7 +174,7 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
         messages.append(f"oriented by {control.source}: no GCP used in the fit; every ground point checks it")
         results = _point_results(scene, points, control.bias, control.parallax, mean_h, height_of, settings)
         return Solution(scene, settings, dict(control.bias), control.parallax, tuple(results),
-                        _statistics(scene, results), tuple(messages), mean_h, revision)
+                        statistics(scene, results), tuple(messages), mean_h, revision)
 
     # 1. bias per view, fitted on the GCPs measured in it
     bias: dict[str, BiasFit] = {}
@@ -195,7 +220,7 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
     # 3. per point
     adjustment = _adjustment_stats(gcps, bias, parallax, scene, settings)
     results = _point_results(scene, points, bias, parallax, mean_h, height_of, settings, adjustment)
-    stats = _statistics(scene, results)
+    stats = statistics(scene, results)
     return Solution(scene, settings, bias, parallax, tuple(results), stats, tuple(messages),
                     mean_h, revision, failures, tuple(points))
 
@@ -389,20 +414,24 @@ def _adjustment_stats(gcps, bias, parallax, scene, settings) -> dict:
             for pid, (s, red) in w.items()}
 
 
-def _statistics(scene: Scene, results) -> FitStatistics:
-    """Tables 1–3 of the paper and their extensions, for GCPs and ICPs."""
-    by_kind = {kind: [r for r in results if r.kind == kind] for kind in ("GCP", "ICP")}
+def statistics(scene: Scene, results) -> FitStatistics:
+    """Tables 1–3 of the paper and their extensions, for GCPs and ICPs (and tie points, in
+    the image, where a model gives them residuals); height residuals of the points whose
+    height comes from the model's own rays (``scene.sensor.height_source``)."""
+    kinds = ("GCP", "ICP") + (("TIE",) if any(r.kind == "TIE" and r.residual_px for r in results) else ())
+    by_kind = {kind: [r for r in results if r.kind == kind] for kind in kinds}
     image, ground, height = {}, {}, {}
     for v, view in scene.views.items():
         image[v] = {}
         for kind, rs in by_kind.items():
             px = VectorStats.of(_rows([r.residual_px[v] for r in rs if v in r.residual_px], 2))
             image[v][kind] = ImageStats(px, px.scaled(view.pixel_size_m))
-    for kind, rs in by_kind.items():
-        known = [r for r in rs if r.ground_residual is not None]
+    source = scene.sensor.height_source
+    for kind in ("GCP", "ICP"):
+        known = [r for r in by_kind[kind] if r.ground_residual is not None]
         ground[kind] = VectorStats.of(_rows([r.ground_residual for r in known], 3)[:, :2])
         height[kind] = ComponentStats.of([r.ground_residual[2] for r in known
-                                          if r.height_source == "parallax"])
+                                          if r.height_source == source])
     across = ({v: ComponentStats.of([r.across_px[v] for r in results if v in r.across_px])
                for v in ("F", "B")} if scene.is_triplet else {})
     return FitStatistics(image, ground, height, across, scene.reference_view)

@@ -35,7 +35,15 @@ FIGURE_CAPTIONS = {
                      "against the one blunder threshold of every fit; blunders in magenta.",
 }
 
-_SOURCE = {"parallax": "py", "reference": "DEM", "mean": "mean"}
+_SOURCE = {"parallax": "py", "intersection": "rays", "reference": "DEM", "mean": "mean"}
+#: the figures of a model whose heights come from the F−B parallax line (the PRISM model)
+PARALLAX_FIGURES = ("height", "height_minus_theory")
+
+
+def _from_parallax(r: dict) -> bool:
+    """Whether the report's heights come from the parallax line (the PRISM model) rather than
+    from intersecting rays (``model.height_source``)."""
+    return (r.get("model") or {}).get("height_source", "parallax") == "parallax"
 _TABLE_MARK = "\x00table\x00"  # numbered in document order by report_html
 _NEW_PAGE = ' style="page-break-before:always"'
 _NUMBER = re.compile(r"[+\-]?\d|—$")  # cells aligned right: numbers and the "no value" dash
@@ -143,7 +151,9 @@ def _header_rows(r: dict) -> list:
         [("CRS", r.get("crs") or "—"),
          ("Heights", "ellipsoidal h" + (f"; geoid {geoid}" if geoid else ""))],
         [("Bias model", settings.get("bias_model", "—")),
-         ("Height–parallax model", settings.get("parallax_model", "—"))],
+         ("Height–parallax model", settings.get("parallax_model", "—")) if _from_parallax(r) else
+         ("View held fixed", settings.get("fixed_view") or next(
+             (v for v, b in (r.get("model") or {}).get("bias", {}).items() if b.get("fixed")), "—"))],
         [("A-priori σ of a measurement", f"{_num(settings.get('sigma_px'))} px"),
          ("Blunder threshold |w|", _num(settings.get("blunder_threshold")))],
         [("Mean scene height", f"{_num(r.get('mean_height_m'))} m")],
@@ -206,8 +216,11 @@ def _model(r: dict) -> list:
     rows.append(["σ0 (px)"] + [_num(bias[v].get("sigma0"), 3) for v in views])
     rows.append(["redundancy (dof)"] + [_num(bias[v].get("dof")) for v in views])
     rows.append(["observations"] + [_num(bias[v].get("n_observations")) for v in views])
-    parts = [_table("bias", "Bias compensation per view, x = x′ + M·x′ + b (x′: image position from the "
-                            "product's ancillary data; M 2×2, b in pixels): parameter ± σ",
+    caption = ("Bias compensation per view, x = x′ + M·x′ + b (x′: image position from the "
+               "product's ancillary data; M 2×2, b in pixels): parameter ± σ" if _from_parallax(r) else
+               "Bias compensation per view, x = RPC(ground) + Δ(x) (Δ at the image point: a0, b0 in pixels "
+               "at the view's reference point, the other terms in pixels per 1,000 pixels): parameter ± σ")
+    parts = [_table("bias", caption,
                     ["Parameter"] + [f"view {v}" for v in views], rows)]
     par = model.get("parallax")
     if par:
@@ -236,20 +249,22 @@ def _statistics(r: dict, ref: str) -> list:
         parts.append(_table("table1", f"Image residuals of GCPs and ICPs in view {ref}, scaled to metres "
                                       "by the pixel size (m)",
                             ["", "GCP Rx", "GCP Ry", "ICP Rx", "ICP Ry"], rows))
-    rows = [[v] + [x for k in ("GCP", "ICP") for x in
+    kinds = [k for k in ("GCP", "ICP", "TIE") if all(k in d for d in img.values())]
+    rows = [[v] + [x for k in kinds for x in
                    (str(d[k]["px"]["x"]["n"]), _num(d[k]["px"]["x"]["rms"]),
                     _num(d[k]["px"]["y"]["rms"]), _num(d[k]["px"]["planimetric_rms"]))]
             for v, d in img.items()]
     if rows:
         parts.append(_table("table1b", "Image residuals per view (px)",
-                            ["View", "GCP n", "GCP RMS x", "GCP RMS y", "GCP RMS xy",
-                             "ICP n", "ICP RMS x", "ICP RMS y", "ICP RMS xy"], rows))
+                            ["View"] + [f"{k} {c}" for k in kinds for c in ("n", "RMS x", "RMS y", "RMS xy")],
+                            rows))
     if "F-N" in st and "B-N" in st:
         parts.append(_table("table2", "Across-track differences of image coordinates F − N and B − N (px)",
                             ["", "Δx F−N", "Δx B−N"],
                             _stat_rows([st["F-N"], st["B-N"]], ("n", "min", "max", "mean", "std"))))
     if "height" in st:
-        parts.append(_table("table3", "Height residuals, height from parallax − known (m)",
+        parts.append(_table("table3", "Height residuals, height from "
+                            f"{'parallax' if _from_parallax(r) else 'intersection'} − known (m)",
                             ["", "Rh GCP", "Rh ICP"],
                             _stat_rows([st["height"].get("GCP"), st["height"].get("ICP")])))
     if "ground" in st:
@@ -285,21 +300,24 @@ def _points(r: dict, ref: str, views: list) -> list:
                              "|w|: largest standardised residual of a GCP; a flagged blunder shaded",
                     head, rows, small=True, highlight=flagged)]
     rows, flagged = [], []
+    py = _from_parallax(r)
     for i, p in enumerate(pts):
         res = p.get("residual_px") or {}
         rows.append([p["id"], p["kind"]] + [_num(x, signed=True) for v in views
                                              for x in (res.get(v) or (None, None))]
-                    + [_num(p.get("parallax_px"))])
+                    + ([_num(p.get("parallax_px"))] if py else []))
         if p.get("blunder"):
             flagged.append(i)
-    parts.append(_table("residuals", "Image residuals, measured − predicted (px), and F−B parallax py (px)",
-                        ["id", "kind"] + [f"{c} {v}" for v in views for c in ("vx", "vy")] + ["py"],
+    parts.append(_table("residuals", "Image residuals, measured − predicted (px)"
+                        + (", and F−B parallax py (px)" if py else ""),
+                        ["id", "kind"] + [f"{c} {v}" for v in views for c in ("vx", "vy")] + (["py"] if py else []),
                         rows, small=True, highlight=flagged))
     rows = [[p["id"], p["kind"], _num(p.get("E_est"), 2), _num(p.get("N_est"), 2), _num(p.get("h_est"), 2),
              _SOURCE.get(p.get("height_source"), p.get("height_source") or ""),
              _num(p.get("lat_est"), 7), _num(p.get("lon_est"), 7)] for p in pts]
-    parts.append(_table("estimates", "Estimated ground coordinates (E, N m; h ellipsoidal m, from py: "
-                                     "parallax, DEM: reference DEM, mean: mean height; latitude and "
+    parts.append(_table("estimates", "Estimated ground coordinates (E, N m; h ellipsoidal m, from "
+                                     + ("py: parallax" if py else "rays: intersection of the rays")
+                                     + ", DEM: reference DEM, mean: mean height; latitude and "
                                      "longitude WGS 84, degrees)",
                         ["id", "kind", "E est", "N est", "h est", "h from", "lat", "lon"],
                         rows, small=True))
@@ -319,6 +337,8 @@ def report_html(report: dict, images: dict | None = None) -> str:
              "<h2>1. Accuracy</h2>", _summary(r, ref),
              "<h2>2. Model</h2>", *_model(r),
              "<h2>3. Residual statistics</h2>", *_statistics(r, ref)]
+    if images and not _from_parallax(r):
+        images = {k: v for k, v in images.items() if k not in PARALLAX_FIGURES}
     if images:
         parts.append(f"<h2{_NEW_PAGE}>4. Figures</h2>")
         for k, (name, src) in enumerate(images.items(), 1):

@@ -16,7 +16,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from prismstation import __version__
-from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
+from prismstation.core.prism import PARALLAX_MODELS
 from prismstation.core.solve import Settings
 from prismstation.errors import InputError
 from prismstation.io import geoid as geoid_mod
@@ -62,7 +62,7 @@ def project_to_dict(project: Project, path) -> dict:
         "format": f"{FORMAT_NAME}/{VERSION}",
         "saved_by": f"prismstation {__version__}",
         "scene": scene,
-        "settings": asdict(project.settings),
+        "settings": settings_dict(project.settings),
         "geoid": geoid,
         "points": [
             {"id": p.id, "kind": p.kind, "E": _num(p.E), "N": _num(p.N), "H": _num(p.H),
@@ -79,6 +79,15 @@ def project_to_dict(project: Project, path) -> dict:
         **({REFERENCE_DEM: _relative(project.reference_dem, base)} if project.reference_dem else {}),
         **{k: v for k, v in project.other.items() if k not in _KNOWN},
     }
+
+
+def settings_dict(settings: Settings) -> dict:
+    """The settings as the project file and the report write them: ``fixed_view`` only when
+    set (files of models that hold no view fixed stay as they were)."""
+    d = asdict(settings)
+    if d.get("fixed_view") is None:
+        d.pop("fixed_view", None)
+    return d
 
 
 def save_project(project: Project, path) -> None:
@@ -118,7 +127,7 @@ def load_project(path, *, scene_override=None) -> Project:
         raise InputError(f"scene file not found: {scene_path} (moved? open it with the scene relocated)",
                          path, line_of(text, "scene"))
     scene = read_scene(scene_path)
-    settings = _settings(data.get("settings", {}), path, text)
+    settings = _settings(data.get("settings", {}), path, text, scene)
     geoid = _geoid(data.get("geoid"), path, text)
     points, measurements = [], []
     for i, d in enumerate(_list(data, "points", path, text)):
@@ -182,8 +191,9 @@ def _number(v, minimum=None, strict=False) -> bool:
     return minimum is None or (v > minimum if strict else v >= minimum)
 
 
-def _settings(raw, path, text) -> Settings:
-    """The model settings of a project, each checked (a wrong type would fail in the fit)."""
+def _settings(raw, path, text, scene) -> Settings:
+    """The model settings of a project, each checked against what the scene's sensor model
+    offers (a wrong type would fail in the fit)."""
     line = line_of(text, "settings")
     if not isinstance(raw, dict):
         raise InputError('"settings": expected an object', path, line)
@@ -191,10 +201,14 @@ def _settings(raw, path, text) -> Settings:
         s = Settings(**raw)
     except TypeError as exc:
         raise InputError(f'"settings": {exc}', path, line) from None
-    checks = {"bias_model": (isinstance(s.bias_model, str) and s.bias_model in BIAS_MODELS,
-                             f"one of {', '.join(BIAS_MODELS)}"),
-              "parallax_model": (isinstance(s.parallax_model, str) and s.parallax_model in PARALLAX_MODELS,
-                                 f"one of {', '.join(PARALLAX_MODELS)}"),
+    sensor = scene.sensor
+    parallax = sensor.parallax_models or PARALLAX_MODELS  # kept as written where the model has none
+    checks = {"bias_model": (isinstance(s.bias_model, str) and s.bias_model in sensor.bias_models,
+                             f"one of {', '.join(sensor.bias_models)}"),
+              "parallax_model": (isinstance(s.parallax_model, str) and s.parallax_model in parallax,
+                                 f"one of {', '.join(parallax)}"),
+              "fixed_view": (s.fixed_view is None or (sensor.holds_view_fixed and s.fixed_view in scene.views),
+                             f"null or one of {', '.join(scene.views)}" if sensor.holds_view_fixed else "null"),
               "sigma_px": (_number(s.sigma_px, 0.0, strict=True), "a positive number"),
               "blunder_threshold": (_number(s.blunder_threshold, 0.0, strict=True), "a positive number"),
               "mean_height": (s.mean_height is None or _number(s.mean_height), "a number or null"),

@@ -77,12 +77,22 @@ def scene_identity(scene, scene_path=None) -> dict:
             "source": None if source is None else str(source)}
 
 
+def report_title(scene) -> str:
+    """The PRISM triplet's title, a single PRISM view's, or ``n`` images of another sensor
+    model (``scene.sensor.description``)."""
+    if scene.is_triplet:
+        return TITLE
+    if scene.track is not None:
+        return "ALOS-PRISM single-view orientation report"
+    return f"Orientation report: {len(scene.views)} {scene.sensor.description}"
+
+
 def report_header(scene, *, scene_path=None, project_path=None, operator: str | None = None,
                   created: datetime | None = None, orientation: str = "gcp") -> dict:
     """Who made the report, when (``created``: UTC, ISO 8601), with which program, of which
     project and scene (:func:`scene_identity`); ``operator`` defaults to the login name."""
     created = (created or datetime.now(timezone.utc)).astimezone(timezone.utc)
-    return {"title": TITLE if scene.is_triplet else "ALOS-PRISM single-view orientation report",
+    return {"title": report_title(scene),
             "created": created.replace(microsecond=0).isoformat().replace("+00:00", "Z"),
             "operator": (operator or "").strip() or default_operator(),
             "software": f"prismstation {__version__}", "version": __version__,
@@ -91,11 +101,23 @@ def report_header(scene, *, scene_path=None, project_path=None, operator: str | 
             "orientation": "reference DEM" if orientation == "dem" else "GCP"}
 
 
+def _settings(settings) -> dict:
+    """The fit's settings (``fixed_view`` only when a view was held fixed)."""
+    d = dict(settings.__dict__)
+    if d.get("fixed_view") is None:
+        d.pop("fixed_view", None)
+    return d
+
+
 def _bias_dict(fit) -> dict:
     d = {"model": fit.model, "M": fit.M, "b": fit.b,
          "parameters": {n: {"value": float(v), "std": float(s)} for n, v, s in zip(fit.names, fit.params, fit.std)}}
     if fit.lsq is not None:
         d.update(sigma0=fit.lsq.sigma0, dof=fit.lsq.dof, n_observations=len(fit.lsq.residuals))
+    if getattr(fit, "fixed", False):
+        d["fixed"] = True             # the datum of a fit without GCPs (zero bias)
+    if getattr(fit, "reference_px", None) is not None:
+        d["reference_px"] = list(fit.reference_px)  # where the parameters' constant terms apply
     return d
 
 
@@ -121,7 +143,9 @@ def report_dict(sol: Solution, *, project_path=None, geoid: str | None = None,
     ground residual (ellipsoidal only).
     """
     par = sol.parallax
-    model = {"bias": {v: _bias_dict(f) for v, f in sol.bias.items()}}
+    sensor = sol.scene.sensor
+    model = {"sensor": sensor.name, "height_source": sensor.height_source,
+             "bias": {v: _bias_dict(f) for v, f in sol.bias.items()}}
     if par is not None:
         model["parallax"] = {"requested": par.requested, "used": par.used, "c0": par.c0, "c1": par.c1,
                              "std_c0": par.std_c0, "std_c1": par.std_c1, "c1_theoretical": par.c1_theory,
@@ -147,6 +171,8 @@ def report_dict(sol: Solution, *, project_path=None, geoid: str | None = None,
         if p.ground_est is not None:
             d.update(E_est=p.ground_est[0], N_est=p.ground_est[1], h_est=p.ground_est[2],
                      height_source=p.height_source, lat_est=ll[1], lon_est=ll[0])
+        if getattr(p, "ground_sigma", None) is not None:
+            d.update(sigma_E=p.ground_sigma[0], sigma_N=p.ground_sigma[1], sigma_h=p.ground_sigma[2])
         if p.ground_residual is not None:
             d.update(dE=p.ground_residual[0], dN=p.ground_residual[1], dh=p.ground_residual[2])
         d.update(std_residual=p.std_residual, redundancy=p.redundancy, blunder=p.blunder)
@@ -157,7 +183,7 @@ def report_dict(sol: Solution, *, project_path=None, geoid: str | None = None,
         header = report_header(sol.scene, project_path=project_path, orientation=sol.settings.orientation)
     out = {"format": REPORT_FORMAT, "program": header["software"], "header": header,
            "project": None if project_path is None else str(project_path),
-           "crs": sol.scene.crs, "geoid": geoid, "settings": sol.settings.__dict__,
+           "crs": sol.scene.crs, "geoid": geoid, "settings": _settings(sol.settings),
            "mean_height_m": sol.mean_height, "model": model, "statistics": stats,
            "points": points, "messages": list(sol.messages)}
     return plain(out)

@@ -1,7 +1,10 @@
 """``scene.json`` (docs/formats.md) → :class:`prismstation.core.scene.Scene`.
 
-Each view's ``map_to_image`` comes from its ``map_to_image`` key when present, else from the
-inverse of the image's geotransform (rotated ones included), read through rasterio.
+Here, and only here, a scene's sensor model is chosen: views of the PRISM model (format 1, or 2
+without a ``"model"``) or images with RPCs (format 2, ``"model": "rpc"``,
+:mod:`prismstation.io.rpc_scene`). A PRISM view's ``map_to_image`` comes from its
+``map_to_image`` key when present, else from the inverse of the image's geotransform (rotated
+ones included), read through rasterio.
 """
 from __future__ import annotations
 
@@ -14,11 +17,17 @@ from pyproj import CRS
 from pyproj.exceptions import CRSError
 
 from prismstation.core.affine import Affine2D
+from prismstation.core.rpc_model import RpcModel
 from prismstation.core.scene import GroundTrack, Scene, View
 from prismstation.errors import InputError
+from prismstation.io import rpc_scene
 from prismstation.io.jsonfile import line_of, read_json
 
-FORMAT = "prismstation-scene/1"
+FORMAT = rpc_scene.SCENE_FORMAT  # "prismstation-scene/2"
+#: the versions read: 1 (PRISM views only), 2 (a view may be an image with RPCs)
+FORMATS = ("prismstation-scene/1", FORMAT)
+#: the sensor models a view may name (``"model"``), the PRISM one when it names none
+MODELS = ("prism", RpcModel.name)
 
 
 def read_scene(path) -> Scene:
@@ -36,7 +45,7 @@ def scene_from_dict(data: dict, base_dir, source: str = "scene", text: str = "")
         raise InputError(problem, source, line_of(text, key) if key and text else None)
 
     fmt = data.get("format")
-    if fmt != FORMAT:
+    if fmt not in FORMATS:
         if isinstance(fmt, str) and fmt.startswith("prismstation-scene/"):
             fail(f"scene format {fmt!r} is newer than this program reads ({FORMAT}); upgrade prismstation", "format")
         fail(f'"format" must be "{FORMAT}", found {fmt!r}', "format")
@@ -46,7 +55,10 @@ def scene_from_dict(data: dict, base_dir, source: str = "scene", text: str = "")
     except (CRSError, TypeError):
         fail(f'"crs": {crs!r} is not a coordinate reference system pyproj knows', "crs")
     if crs_obj.is_geographic:
-        fail(f'"crs": {crs} is geographic; a 1B2 scene needs a projected CRS in metres (UTM)', "crs")
+        fail(f'"crs": {crs} is geographic; a scene needs a projected CRS in metres (UTM)', "crs")
+    model = _sensor_model(data, fmt, fail)
+    if model == RpcModel.name:
+        return _rpc_scene(data, crs_obj.to_string(), base_dir, fail)
     hs = _number(data.get("satellite_altitude_m"), "satellite_altitude_m", fail, positive=True)
     track = data.get("ground_track")
     try:
@@ -71,6 +83,55 @@ def scene_from_dict(data: dict, base_dir, source: str = "scene", text: str = "")
     known = {"format", "crs", "satellite_altitude_m", "ground_track", "views", "geoid_undulation_m"}
     extra = {k: v for k, v in data.items() if k not in known}
     return Scene(crs_obj.to_string(), hs, GroundTrack(tr), views, geoid, extra)
+
+
+def _sensor_model(data: dict, fmt: str, fail) -> str:
+    """The one sensor model the scene's views name (``"prism"`` when none does)."""
+    views = data.get("views")
+    if not isinstance(views, dict) or not views:
+        fail('"views": expected an object of views, e.g. {"N": {...}, "F": {...}, "B": {...}}', "views")
+    named = {n: v.get("model", "prism") if isinstance(v, dict) else "prism" for n, v in views.items()}
+    for name, m in named.items():
+        if m not in MODELS:
+            fail(f'"views.{name}.model": {m!r} is not a sensor model this program knows ({", ".join(MODELS)})', "model")
+        if m != "prism" and fmt != FORMAT:
+            fail(f'"views.{name}.model": a view with RPCs needs "format": "{FORMAT}"', "format")
+    if len(set(named.values())) > 1:
+        fail(f'"views": every view of a scene follows one sensor model; found {", ".join(sorted(set(named.values())))}',
+             "views")
+    return next(iter(named.values()))
+
+
+def _rpc_scene(data: dict, crs: str, base_dir: Path, fail) -> Scene:
+    """The scene of images with RPCs (format 2): each view ``{"model": "rpc", "image", "rpc",
+    ["pixel_size_m"]}``."""
+    projection = rpc_scene.LonLatProjection(crs)
+    views = {}
+    for name, v in data["views"].items():
+        key = f"views.{name}"
+        if not isinstance(v, dict):
+            fail(f'"{key}": expected an object with "image" and "rpc"', name)
+        image = v.get("image")
+        if image is not None and not (isinstance(image, str) and image):
+            fail(f'"{key}.image": expected the path of the image file', "image")
+        img_path = None
+        if image:
+            try:
+                img_path = str((base_dir / image).resolve())
+            except (OSError, ValueError) as exc:
+                fail(f'"{key}.image": {image[:60]!r} is not a usable file path ({exc.__class__.__name__})', "image")
+        rpc = rpc_scene.rpc_from_dict(v.get("rpc"), str(v.get("rpc_source") or f"{key}.rpc"),
+                                      lambda problem: fail(f'"{key}": {problem}', "rpc"))
+        gsd = v.get("pixel_size_m")
+        if gsd is not None:
+            gsd = _number(gsd, f"{key}.pixel_size_m", fail, positive=True)
+        views[name] = rpc_scene.rpc_view(name, rpc, projection, img_path, gsd)
+    known = {"format", "crs", "views", "geoid_undulation_m"}
+    geoid = data.get("geoid_undulation_m")
+    if geoid is not None:
+        geoid = _number(geoid, "geoid_undulation_m", fail)
+    extra = {k: v for k, v in data.items() if k not in known}
+    return Scene(crs, None, None, views, geoid, extra, RpcModel)
 
 
 def _finite(value) -> bool:

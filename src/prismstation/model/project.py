@@ -275,7 +275,8 @@ class Project:
             h = ellipsoidal_heights.get(pid)
             if h is not None and p.kind != "TIE":
                 ground = (p.E, p.N, h)
-            out.append(PointObs(pid, p.kind, ground, images.get(pid, {}), sigmas.get(pid, {})))
+            out.append(PointObs(pid, p.kind, ground, images.get(pid, {}), sigmas.get(pid, {}),
+                                None if ground is None else (p.sigma_xy_m, p.sigma_h_m)))
         return out
 
 

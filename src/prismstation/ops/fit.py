@@ -1,11 +1,13 @@
 """Fitting a project: its heights made ellipsoidal through its geoid setting, its DEM control
-(when the project is oriented from a reference DEM) rebuilt, then the model fitted
-(:func:`prismstation.core.solve.solve`)."""
+(when the project is oriented from a reference DEM) rebuilt, then the scene's sensor model
+fitted (:func:`prismstation.core.solve.solve`)."""
 from __future__ import annotations
 
 import numpy as np
 
-from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
+from prismstation.core.prism import PARALLAX_MODELS
+from prismstation.core.prism_model import PrismModel
+from prismstation.core.rpc_model import RpcModel
 from prismstation.core.solve import Solution, solve
 from prismstation.errors import InputError, ModelError
 from prismstation.io.geoid import to_ellipsoidal
@@ -14,7 +16,9 @@ from prismstation.io.report import report_dict, report_header
 from prismstation.model.project import Project, has_ground
 from prismstation.ops.orient_dem import control_from_record
 
-#: the bias and parallax models a fit can use (their names: the front ends' choices)
+#: the bias and parallax models a fit can use, of every sensor model (their names: the front
+#: ends' choices; a project's own are ``project.scene.sensor.bias_models``)
+BIAS_MODELS = {**PrismModel.bias_models, **RpcModel.bias_models}
 __all__ = ["BIAS_MODELS", "PARALLAX_MODELS", "ellipsoidal_heights", "fit_report", "project_report",
            "solve_project"]
 
@@ -34,11 +38,13 @@ def ellipsoidal_heights(project: Project) -> dict[str, float]:
     return {p.id: float(v) for p, v in zip(ground, h)}
 
 
-def solve_project(project: Project, *, height_of=None) -> Solution:
+def solve_project(project: Project, *, height_of=None, height_sigma_m: float | None = None) -> Solution:
     """Fit the model to the project (heights made ellipsoidal through its geoid).
 
     ``height_of``: optional ``(n, 2)`` map metres → ``(n,)`` ellipsoidal metres, the height of
-    points without parallax (a reference DEM); default the mean height.
+    points no pair of rays places (a reference DEM; default the mean height), and, for a model
+    that holds tie points to it (RPC images with too few GCPs), their height with σ
+    ``height_sigma_m`` metres.
     """
     h = ellipsoidal_heights(project)
     control = None
@@ -51,8 +57,8 @@ def solve_project(project: Project, *, height_of=None) -> Solution:
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f'the project\'s "dem_control" record is malformed ({exc!r}): run '
                              "orient-dem again") from None
-    return solve(project.scene, project.point_obs(h), project.settings,
-                 height_of=height_of, revision=project.revision, control=control)
+    return solve(project.scene, project.point_obs(h), project.settings, height_of=height_of,
+                 height_sigma_m=height_sigma_m, revision=project.revision, control=control)
 
 
 def project_report(project: Project, sol: Solution, project_path=None, *, operator: str | None = None,
@@ -70,12 +76,12 @@ def project_report(project: Project, sol: Solution, project_path=None, *, operat
     return report_dict(sol, project_path=project_path, geoid=geoid, header=header, known=known)
 
 
-def fit_report(project: Project, project_path=None, *, height_of=None,
+def fit_report(project: Project, project_path=None, *, height_of=None, height_sigma_m: float | None = None,
                operator: str | None = None) -> tuple[Solution, dict]:
     """Fit ``project`` and build its report (:func:`project_report`); a model that could not be
     fitted → :class:`ModelError` with the solver's messages. A project oriented from a DEM is
     reported even when its GCP fit is not ok (it may have no GCP)."""
-    sol = solve_project(project, height_of=height_of)
+    sol = solve_project(project, height_of=height_of, height_sigma_m=height_sigma_m)
     if not sol.ok and project.settings.orientation != "dem":
         raise ModelError("; ".join(sol.messages) or "the model could not be fitted")
     return sol, project_report(project, sol, project_path, operator=operator)

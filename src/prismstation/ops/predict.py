@@ -7,7 +7,7 @@ A prediction takes the best ground position available for the point:
     given: exact);
 ``intersection``
     measured in two or more views: the least-squares intersection of those image rays through
-    the fitted model (docs/model.md §2), with the reference DEM's height (or the mean height) as
+    the fitted sensor model, with the reference DEM's height (or the mean height) as
     one more observation with its σ — where the pixels are coarse and the DEM good, the DEM
     may know the height better than the rays;
 ``reference``
@@ -20,7 +20,8 @@ A prediction takes the best ground position available for the point:
 Uncertainty (the error ellipse): the covariance of the predicted image position (px², x
 column, y row) propagates, to first order,
 
-* the bias-fit parameter covariance of the predicted view (``BiasFit.cov``, a-posteriori);
+* the bias-fit parameter covariance of the predicted view (a-posteriori; the sensor model's
+  ``bias_cov``, :mod:`prismstation.core.sensor`);
 * the covariance of the ground position, from the measurements used (each with its σ — its own
   ``sigma_px`` or the settings' a-priori σ — scaled by the a-posteriori σ0 of that view's bias
   fit, plus that view's bias-parameter covariance) and the height's σ.
@@ -38,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from prismstation.core.ray_dem import ray_meets_surface
+from prismstation.core.sensor import STEP_M
 from prismstation.core.solve import Solution
 
 CHI2_95_2D = 5.991464547107979
@@ -47,7 +49,6 @@ DEFAULT_DEM_SIGMA_M = 10.0
 16 m LE90 absolute, i.e. about 10 m σ)."""
 DEFAULT_HEIGHT_SPREAD_M = 500.0
 """σ of an unknown height when the project holds fewer than two known heights (metres)."""
-_STEP_M = 1.0  # finite-difference step of the ground → image Jacobian (metres)
 
 
 @dataclass(frozen=True)
@@ -106,40 +107,19 @@ def dem_sigma(height_of, ground: dict) -> float:
 
 
 # ---------------------------------------------------------------------- model derivatives
-def bias_jacobian(fit, xy0) -> np.ndarray:
-    """``(..., 2, u)`` derivative of the bias-corrected position at ancillary ``xy0`` ``(..., 2)``
-    with respect to the fit's published parameters (``fit.names``)."""
-    xy0 = np.asarray(xy0, float)
-    x, y = xy0[..., 0], xy0[..., 1]
-    one, zero = np.ones_like(x), np.zeros_like(x)
-    if fit.model == "shift":
-        rows = [[one, zero], [zero, one]]
-    elif fit.model == "similarity":   # x += a x − c y + b1 ; y += c x + a y + b2
-        rows = [[x, -y, one, zero], [y, x, zero, one]]
-    elif fit.model == "affine":       # x += B1 x + B2 y + B5 ; y += B3 x + B4 y + B6
-        rows = [[x, y, zero, zero, one, zero], [zero, zero, x, y, zero, one]]
-    else:
-        return np.zeros(xy0.shape[:-1] + (2, 0))
-    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
-
-
-def bias_cov(sol: Solution, view: str, xy0) -> np.ndarray:
-    """``(2, 2)`` px²: what the bias fit's parameter covariance adds at ancillary ``xy0``."""
-    fit = sol.bias[view]
-    if fit.cov is None or fit.cov.size == 0:
-        return np.zeros((2, 2))
-    J = bias_jacobian(fit, xy0)
-    return J @ fit.cov @ J.T
+def bias_cov(sol: Solution, view: str, xy) -> np.ndarray:
+    """``(..., 2, 2)`` px²: what the bias fit's parameter covariance adds at image ``xy``
+    (the sensor model's :meth:`~prismstation.core.sensor.SensorModel.bias_cov`)."""
+    return sol.model.bias_cov(view, xy)
 
 
 def ground_jacobian(sol: Solution, view: str, g) -> tuple[np.ndarray, np.ndarray]:
     """``(xy, J)``: image position of ground ``g = (E, N, h)`` in ``view`` and ``J`` ``(2, 3)``,
-    its derivative in pixels per metre (central differences of :data:`_STEP_M`)."""
+    its derivative in pixels per metre (the sensor model's
+    :meth:`~prismstation.core.sensor.SensorModel.partials`)."""
     g = np.asarray(g, float)
-    steps = np.vstack([g, g + _STEP_M * np.eye(3), g - _STEP_M * np.eye(3)])
-    xy = sol.ground_to_image(view, steps[:, :2], steps[:, 2])
-    J = (xy[1:4] - xy[4:7]).T / (2 * _STEP_M)
-    return xy[0], J
+    xy, J = sol.model.partials(view, g[None, :2], g[None, 2])
+    return xy[0], J[0]
 
 
 def measurement_sigma(sol: Solution, view: str, sigma_px) -> float:
@@ -177,8 +157,7 @@ def ground_estimate(sol: Solution, point: PointInput, *, height_of=None, sigma_d
         rows, res, W = [], [], []
         for v, (x, y, s) in obs.items():
             xy, J = ground_jacobian(sol, v, g)
-            x0 = sol.bias[v].invert(xy)
-            R = measurement_sigma(sol, v, s) ** 2 * np.eye(2) + bias_cov(sol, v, x0)
+            R = measurement_sigma(sol, v, s) ** 2 * np.eye(2) + bias_cov(sol, v, xy)
             rows.append(J)
             res.append(np.array([x, y]) - xy)
             W.append(np.linalg.inv(R))
@@ -223,7 +202,7 @@ def predict_point(sol: Solution, point: PointInput, views=None, *, height_of=Non
         xy, J = ground_jacobian(sol, v, g)
         if not np.all(np.isfinite(xy)):
             continue
-        cov = J @ C @ J.T + bias_cov(sol, v, sol.bias[v].invert(xy))
+        cov = J @ C @ J.T + bias_cov(sol, v, xy)
         out[v] = Prediction(v, (float(xy[0]), float(xy[1])), cov, source, float(g[2]),
                             float(math.sqrt(max(C[2, 2], 0.0))))
     return out
@@ -247,17 +226,16 @@ def _known_ground_predictions(sol: Solution, points) -> dict:
         gv, Cv = g[want], C[want]
         xy = sol.ground_to_image(v, gv[:, :2], gv[:, 2])
         J = np.empty((len(gv), 2, 3))
-        for k in range(3):
+        for k in range(3):  # (central differences point by point, as partials: the same numbers)
             step = np.zeros(3)
-            step[k] = _STEP_M
+            step[k] = STEP_M
             hi, lo = gv + step, gv - step
             J[:, :, k] = (sol.ground_to_image(v, hi[:, :2], hi[:, 2]) -
-                          sol.ground_to_image(v, lo[:, :2], lo[:, 2])) / (2 * _STEP_M)
+                          sol.ground_to_image(v, lo[:, :2], lo[:, 2])) / (2 * STEP_M)
         cov = J @ Cv @ J.transpose(0, 2, 1)
         fit = sol.bias[v]
         if fit.cov is not None and fit.cov.size:
-            Jb = bias_jacobian(fit, fit.invert(xy))
-            cov = cov + Jb @ fit.cov @ Jb.transpose(0, 2, 1)
+            cov = cov + bias_cov(sol, v, xy)
         ok = np.isfinite(xy).all(axis=1)
         for i, p in enumerate(q for q, w in zip(points, want) if w):
             if ok[i]:

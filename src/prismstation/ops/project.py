@@ -5,6 +5,7 @@ the tests that need a project on disk.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 from prismstation.errors import InputError
@@ -40,8 +41,20 @@ def create(project_path, scene_path, points=None, measurements=None, *, crs=None
         raise InputError("already exists (use --force to overwrite)", project_path)
     scene = read_scene(scene_path)
     project = Project(scene, str(Path(scene_path).resolve()), geoid=geoid_setting(geoid, scene))
+    if project.settings.bias_model != scene.sensor.default_bias:
+        project.set_settings(replace(project.settings, bias_model=scene.sensor.default_bias))
     pts = read_ground_points(points, crs=crs, to_crs=scene.crs, height=height) if points else []
     ms = read_measurements(measurements, views=list(scene.views)) if measurements else []
     project.load(pts, ms)
     save_project(project, project_path)
     return project
+
+
+def require_workflow(project, command: str, path=None) -> None:
+    """Refuse ``command`` (``"orient-dem"``, ``"dsm"``) on a project whose sensor model does not
+    offer it yet (:attr:`SensorModel.workflows <prismstation.core.sensor.SensorModel>`): one
+    :class:`~prismstation.errors.InputError` naming the project, the model and the command."""
+    sensor = project.scene.sensor
+    if command not in sensor.workflows:
+        raise InputError(f"{command} is not available yet for {sensor.description} (on this project: "
+                         f"{', '.join(sorted(sensor.workflows))})", path)

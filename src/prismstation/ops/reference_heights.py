@@ -41,12 +41,7 @@ class DemHeights:
 
 def scene_grid(scene, spacing: float = SPACING_M, margin: float = MARGIN_M):
     """``(transform, shape)`` of a north-up grid in the scene CRS covering every view's image."""
-    corners = []
-    for v in scene.views.values():
-        rows, cols = v.shape if v.shape else (20000, 20000)
-        px = np.array([[0, 0], [cols, 0], [0, rows], [cols, rows]], float)
-        corners.append(v.map_to_image.inverse()(px))
-    c = np.vstack(corners)
+    c = np.vstack([v.footprint() for v in scene.views.values()])
     x0, y0 = c.min(axis=0) - margin
     x1, y1 = c.max(axis=0) + margin
     shape = (int(math.ceil((y1 - y0) / spacing)), int(math.ceil((x1 - x0) / spacing)))

@@ -82,7 +82,7 @@ def model_sigma_m(sol: Solution) -> float:
     """σ (m) per view and component the searches assume for ``sol``: the ancillary model's
     a-priori σ until every view's bias is fitted (by GCPs or a reference DEM), then
     :data:`FITTED_SIGMA_M`."""
-    fitted = all(b.model != "none" for b in sol.bias.values())
+    fitted = all(sol.model.fitted(v) for v in sol.scene.views)
     return FITTED_SIGMA_M if fitted else SIGMA_APRIORI_M
 
 
@@ -407,10 +407,9 @@ def view_sigma_px(sol: Solution, view: str) -> float:
     """σ (px) of ``view``'s model for the consistency test: the a-priori geolocation σ
     (:func:`model_sigma_m`) while its bias is not fitted, else the a-posteriori σ of a
     measurement in its bias fit, :data:`MODEL_SIGMA_PX` where the fit gives none."""
-    fit = sol.bias[view]
-    if fit.model == "none":
+    if not sol.model.fitted(view):
         return model_sigma_m(sol) / sol.scene.views[view].pixel_size_m
-    s0 = fit.sigma0
+    s0 = sol.bias[view].sigma0
     return float(s0 * sol.settings.sigma_px) if s0 is not None and math.isfinite(s0) and s0 > 0 else MODEL_SIGMA_PX
 
 

@@ -1,0 +1,147 @@
+"""The sensor-model seam: the one interface every sensor model implements.
+
+A sensor model maps ground to the images of a scene and back, with what its fit estimated.
+Two implement it: the empirical PRISM 1B2 model of Gonçalves (2008)
+(:class:`prismstation.core.prism_model.PrismModel`) and the rational function model with an
+image-space bias of Grodecki & Dial (2003) (:class:`prismstation.core.rpc_model.RpcModel`).
+
+Conventions: ground ``en`` ``(..., 2)`` is map metres (E, N) in the scene's CRS and ``h``
+ellipsoidal metres (broadcastable to ``en[..., 0]``); image ``xy`` ``(..., 2)`` is pixels,
+x = column, y = row, origin at the top-left corner of the top-left pixel.
+
+**Where the model is chosen.** Once, where a scene is read (``io/scene.py``): the reader
+builds the views of one model and records its class as :attr:`Scene.sensor
+<prismstation.core.scene.Scene.sensor>`. From there :func:`prismstation.core.solve.solve`
+fits ``scene.sensor.fit(...)``, and the fitted instance travels in
+:attr:`Solution.model <prismstation.core.solve.Solution.model>`: predictions, linked cursors,
+transfer and reports call it and never ask which model it is.
+
+**What the class offers** (the solver's and the front ends' side):
+
+``name``
+    the word the scene file uses (``"prism"``, ``"rpc"``);
+``bias_models``
+    the bias models offered, name → number of parameters per view (the model panel's and
+    ``--bias``'s choices), and ``default_bias`` for a new project;
+``parallax_models``
+    the height–parallax relations offered (empty where points are intersected from rays);
+``height_source``
+    how a point measured in two or more views gets its height in the fit (``"parallax"``:
+    the F−B parallax line; ``"intersection"``: multi-ray intersection with its σ) — the points
+    whose height residuals the statistics count;
+``holds_view_fixed``
+    whether one view may be held fixed as the datum of a fit without ground control;
+``description``, ``workflows``
+    what the images are, in words (``"images with RPCs"``), and the commands that work on a
+    project of this model (``"fit"``, ``"report"``, ``"orient-dem"``, ``"dsm"``): the others
+    refuse it in one place (:func:`prismstation.ops.project.require_workflow`);
+``fit(scene, points, settings, *, height_of, height_sigma_m, revision, control)``
+    the model fitted to :class:`~prismstation.core.solve.PointObs` → a
+    :class:`~prismstation.core.solve.Solution`: each view's bias with its covariance, every
+    point's ground estimate (how it is obtained from its measurements is the model's:
+    parallax line or intersection, else the reference DEM, else the mean height), predictions,
+    residuals (measured − predicted, px), blunder tests against
+    ``settings.blunder_threshold`` (:func:`prismstation.core.solve.critical_value`) and the
+    statistics. It never raises for data the operator can fix (messages say why).
+
+**What a fitted instance offers** (everyone else's side), per view name:
+
+``ground_to_image(view, en, h)``, ``image_to_ground(view, xy, h)``
+    the model with its fitted bias (``image_to_ground`` is NaN where the model cannot invert);
+``partials(view, en, h)``
+    ``(xy, J)``: ``xy`` ``(n, 2)`` and ``J`` ``(n, 2, 3)`` = ∂(x, y)/∂(E, N, h), pixels per metre;
+``bias[view]``
+    the fitted parameters with their covariance (:class:`BiasParameters`);
+``bias_cov(view, xy)``
+    ``(..., 2, 2)`` px²: what the parameters' covariance adds to an image position ``xy``;
+``fitted(view)``
+    whether the view's geolocation is fitted (a bias estimated, or the view is the datum);
+``ok``
+    whether the fit succeeded (what :attr:`Solution.ok` reports).
+"""
+from __future__ import annotations
+
+from typing import ClassVar, Mapping, Protocol, runtime_checkable
+
+import numpy as np
+
+
+@runtime_checkable
+class BiasParameters(Protocol):
+    """One view's fitted bias: what reports, the model panel and predictions read.
+
+    ``model`` the bias model's name (``"none"``: nothing fitted), ``names`` / ``params`` /
+    ``std`` the parameters in their published form, ``cov`` their covariance (a-posteriori
+    where the fit has redundancy; None or empty when not fitted), ``M`` ``(2, 2)`` and ``b``
+    ``(2,)`` the correction written as ``Δxy = M·xy + b`` px (where the model is linear in the
+    image point), ``lsq`` the view's share of the adjustment
+    (:class:`~prismstation.core.lsq.LsqResult`: ``sigma0``, ``dof``, residuals, redundancy
+    numbers, studentised residuals) or None, ``sigma0`` its a-posteriori σ0 (unitless: a
+    measurement's σ is its a-priori σ times σ0), ``dof`` the fit's redundancy."""
+
+    model: str
+    names: tuple
+    params: np.ndarray
+    std: np.ndarray
+    cov: np.ndarray | None
+    M: np.ndarray
+    b: np.ndarray
+    lsq: object
+
+    @property
+    def sigma0(self) -> float | None: ...
+
+    @property
+    def dof(self) -> int: ...
+
+
+@runtime_checkable
+class SensorModel(Protocol):
+    """A sensor model: the class's choices and fit, and a fitted instance's geometry (module
+    docstring)."""
+
+    name: ClassVar[str]
+    bias_models: ClassVar[Mapping[str, int]]
+    default_bias: ClassVar[str]
+    parallax_models: ClassVar[tuple]
+    height_source: ClassVar[str]
+    holds_view_fixed: ClassVar[bool]
+    description: ClassVar[str]
+    workflows: ClassVar[frozenset]
+
+    scene: object
+    bias: Mapping[str, BiasParameters]
+
+    @classmethod
+    def fit(cls, scene, points, settings, *, height_of=None, height_sigma_m=None, revision: int = 0,
+            control=None): ...
+
+    def ground_to_image(self, view: str, en, h) -> np.ndarray: ...
+
+    def image_to_ground(self, view: str, xy, h) -> np.ndarray: ...
+
+    def partials(self, view: str, en, h) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def bias_cov(self, view: str, xy) -> np.ndarray: ...
+
+    def fitted(self, view: str) -> bool: ...
+
+    @property
+    def ok(self) -> bool: ...
+
+
+#: central-difference step of partials taken numerically (metres)
+STEP_M = 1.0
+
+
+def central_partials(ground_to_image, en, h, step_m: float = STEP_M) -> tuple[np.ndarray, np.ndarray]:
+    """``(xy, J)`` of ``ground_to_image(en, h)`` at ``n`` points ``en`` ``(n, 2)``, ``h`` ``(n,)``
+    by central differences of ``step_m`` metres in E, N and h: ``xy`` ``(n, 2)``, ``J``
+    ``(n, 2, 3)`` pixels per metre. One call of ``ground_to_image`` on the ``7n`` points
+    ``[g, g + s·e_k, g − s·e_k]`` (rows in that order for ``n = 1``)."""
+    g = np.column_stack([np.asarray(en, float).reshape(-1, 2), np.asarray(h, float).reshape(-1)])
+    n = len(g)
+    steps = np.vstack([g, *(g + step_m * e for e in np.eye(3)), *(g - step_m * e for e in np.eye(3))])
+    xy = ground_to_image(steps[:, :2], steps[:, 2]).reshape(7, n, 2)
+    J = np.transpose(xy[1:4] - xy[4:7], (1, 2, 0)) / (2 * step_m)
+    return xy[0], J

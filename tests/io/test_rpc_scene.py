@@ -1,0 +1,111 @@
+"""The RPC view of a scene file (``prismstation-scene/2``): written by ``new --images``, read back
+to the same model, bad files named with their line."""
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from prismstation.cli import main
+from prismstation.core.rpc_model import RpcModel
+from prismstation.errors import InputError
+from prismstation.io.project import load_project
+from prismstation.io.rpc import read_rpc
+from prismstation.io.rpc_scene import write_scene_for_images
+from prismstation.io.scene import read_scene
+
+PAIR = ["pleiades_pair_reunion/img_01.tif", "pleiades_pair_reunion/img_02.tif"]
+
+
+@pytest.fixture
+def scene_file(shared_data, tmp_path):
+    return write_scene_for_images([shared_data / f for f in PAIR], tmp_path / "s.scene.json")
+
+
+def test_the_scene_file_keeps_the_rpc_to_the_last_digit(shared_data, scene_file):
+    scene = read_scene(scene_file)
+    assert scene.sensor is RpcModel and list(scene.views) == ["img_01", "img_02"]
+    assert scene.crs.startswith("EPSG:327")              # La Réunion: UTM south
+    rng = np.random.default_rng(0)
+    for f, (name, view) in zip(PAIR, scene.views.items()):
+        rpc = read_rpc(shared_data / f)
+        assert view.shape is not None and view.pixel_size_m > 0
+        lon = rpc.lon_off + rng.uniform(-0.5, 0.5, 50) * rpc.lon_scale
+        lat = rpc.lat_off + rng.uniform(-0.5, 0.5, 50) * rpc.lat_scale
+        h = rpc.h_off + rng.uniform(-0.5, 0.5, 50) * rpc.h_scale
+        np.testing.assert_array_equal(np.column_stack(view.rpc.project(lon, lat, h)),
+                                      np.column_stack(rpc.project(lon, lat, h)))
+
+
+def _broken(scene_file, edit):
+    data = json.loads(scene_file.read_text())
+    edit(data)
+    scene_file.write_text(json.dumps(data, indent=1))
+    with pytest.raises(InputError) as exc:
+        read_scene(scene_file)
+    return str(exc.value)
+
+
+def test_bad_rpc_scenes_are_named(scene_file):
+    text = scene_file.read_text()
+    msg = _broken(scene_file, lambda d: d.update(format="prismstation-scene/1"))
+    assert 'needs "format": "prismstation-scene/2"' in msg
+    scene_file.write_text(text)
+    msg = _broken(scene_file, lambda d: d["views"]["img_02"].pop("model"))
+    assert "one sensor model" in msg
+    scene_file.write_text(text)
+    msg = _broken(scene_file, lambda d: d["views"]["img_01"].update(model="rational"))
+    assert "'rational' is not a sensor model" in msg
+    scene_file.write_text(text)
+    msg = _broken(scene_file, lambda d: d["views"]["img_02"]["rpc"].pop("samp_den"))
+    assert "missing samp_den" in msg and "line" in msg
+    scene_file.write_text(text)
+    msg = _broken(scene_file, lambda d: d["views"]["img_02"]["rpc"].update(line_num=[1.0] * 19))
+    assert "views.img_02" in msg
+
+
+def test_new_images_names_views_by_stem_and_refuses_twins(shared_data, tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir(), b.mkdir()
+    for d in (a, b):
+        shutil.copy(shared_data / PAIR[0], d / "img.tif")
+    assert main(["new", str(tmp_path / "p.prismproj"), "--images", str(a / "img.tif"), str(b / "img.tif")]) == 2
+    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *(str(shared_data / f) for f in PAIR)]) == 0
+    project = load_project(tmp_path / "p.prismproj")
+    assert project.scene.sensor is RpcModel and project.settings.bias_model == "shift"
+    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *(str(shared_data / f) for f in PAIR)]) == 2
+    assert main(["new", str(tmp_path / "q.prismproj"), "--images", str(tmp_path / "none.tif"),
+                 str(shared_data / PAIR[0])]) == 2
+
+
+def test_project_settings_are_checked_against_the_sensor_model(shared_data, tmp_path):
+    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *(str(shared_data / f) for f in PAIR)]) == 0
+    path = tmp_path / "p.prismproj"
+    data = json.loads(path.read_text())
+    data["settings"]["bias_model"] = "similarity"
+    path.write_text(json.dumps(data, indent=1))
+    with pytest.raises(InputError, match="settings.bias_model"):
+        load_project(path)
+    data["settings"].update(bias_model="shift_drift", fixed_view="img_09")
+    path.write_text(json.dumps(data, indent=1))
+    with pytest.raises(InputError, match="settings.fixed_view"):
+        load_project(path)
+    data["settings"]["fixed_view"] = "img_02"
+    path.write_text(json.dumps(data, indent=1))
+    assert load_project(path).settings.fixed_view == "img_02"
+
+
+def test_orient_dem_and_dsm_refuse_an_rpc_project_in_one_line(shared_data, tmp_path, capsys):
+    proj = tmp_path / "p.prismproj"
+    assert main(["new", str(proj), "--images", *(str(shared_data / f) for f in PAIR)]) == 0
+    capsys.readouterr()
+    assert main(["orient-dem", str(proj), str(shared_data / PAIR[0])]) == 2
+    assert main(["dsm", str(proj), "-o", str(tmp_path / "dsm.tif")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"prismstation orient-dem: {proj}: orient-dem is not available yet for images with RPCs "
+                   "(on this project: fit, report)",
+                   f"prismstation dsm: {proj}: dsm is not available yet for images with RPCs "
+                   "(on this project: fit, report)"]
+    assert not (tmp_path / "dsm.tif").exists()
