@@ -120,6 +120,7 @@ class PlotsWidget(QWidget):
         for c in range(3):
             cells.setColumnStretch(c, 1)
         self._follow = dict.fromkeys(PLOT_NAMES, True)
+        self._hidden: set = set()  # plots not shown (show_parallax)
         self._legends = legends
         self._build_items()
         if self._screen_k:  # the vectors keep their screen length as the plot resizes or zooms
@@ -159,6 +160,17 @@ class PlotsWidget(QWidget):
         if not self._fixed_tabs and (self.height() < self.COMPACT_HEIGHT) != self._compact:
             QTimer.singleShot(0, lambda: self._arrange(self.height() < self.COMPACT_HEIGHT))
 
+    def show_parallax(self, on: bool) -> None:
+        """Show the two height–parallax plots (off for a model whose points are intersected
+        from rays: it has no parallax line)."""
+        self._hidden = set() if on else {"height", "height_minus_theory"}
+        for name in ("height", "height_minus_theory"):
+            i = self.tabs.indexOf(self.plots[name])
+            if i >= 0:
+                self.tabs.setTabVisible(i, on)
+            if not self._compact:
+                self.plots[name].setVisible(on)
+
     def _arrange(self, compact: bool) -> None:
         """The four plots in tabs (``compact``) or in the grid (:data:`GRID_CELLS`)."""
         if compact == self._compact:
@@ -170,8 +182,10 @@ class PlotsWidget(QWidget):
             else:
                 self._cells.addWidget(self.plots[name], *GRID_CELLS[name])
         self._stack.setCurrentWidget(self.tabs if compact else self._grid_box)
-        for pw in self.plots.values():
-            pw.setVisible(not compact or pw is self.tabs.currentWidget())
+        for name, pw in self.plots.items():
+            if compact:
+                self.tabs.setTabVisible(self.tabs.indexOf(pw), name not in self._hidden)
+            pw.setVisible((not compact or pw is self.tabs.currentWidget()) and name not in self._hidden)
 
     # ------------------------------------------------------------------ construction
     # Plain pyqtgraph items, not PlotDataItems (``PlotWidget.plot``): a PlotDataItem wraps a

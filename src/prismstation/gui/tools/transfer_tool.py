@@ -32,6 +32,7 @@ from PySide6.QtWidgets import (QDialog, QDialogButtonBox, QFormLayout, QHBoxLayo
                                QPushButton, QSpinBox, QTableWidget, QTableWidgetItem, QVBoxLayout,
                                QWidget)
 
+from prismstation.core.scene import reference_view
 from prismstation.gui import commands as cmd
 from prismstation.gui.tools._worker import Job, run_with_progress
 from prismstation.model.points import GroundPoint, Measurement
@@ -135,8 +136,9 @@ class TransferTool:
             self.start(pid, view, x, y)
 
     def transfer_current(self):
-        """Transfer the current point from a view it is measured in (N first) to the views it is
-        not measured in; returns the Job (None when there is nothing to transfer)."""
+        """Transfer the current point from a view it is measured in (N where it is, else the
+        first in the scene's order) to the views it is not measured in; returns the Job (None when
+        there is nothing to transfer)."""
         p, pid = self.w.project, self.w.current
         if p is None or pid is None or pid not in p.points:
             self.w.status("Transfer: choose a point measured in one view first", 8000)
@@ -145,7 +147,7 @@ class TransferTool:
         if not measured or len(measured) == len(p.scene.views):
             self.w.status(f"Transfer: {pid} is {'measured in every view' if measured else 'not measured'}", 8000)
             return None
-        source = "N" if "N" in measured else measured[0]
+        source = reference_view(measured)  # N where measured, else the first in the scene's order
         m = p.measurement(pid, source)
         return self.start(pid, source, m.x, m.y)
 
@@ -250,7 +252,7 @@ class TransferTool:
         self.a_accept.setEnabled(any(t.ok for t in self.candidates.values()))
         self.a_reject.setEnabled(pending)
         self._update_this()
-        self.a_ties.setEnabled(self.w.project is not None and self.w.project.scene.is_triplet)
+        self.a_ties.setEnabled(self.w.project is not None and len(self.w.project.scene.views) > 1)
         self.panel.show_candidates(self.pid if pending else None, self.candidates)
         for v, t in self.candidates.items():
             iv = self.w.views.views.get(v)
@@ -274,7 +276,9 @@ class TransferTool:
         dlg.setWindowTitle("Automatic tie points")
         grid = QSpinBox(minimum=2, maximum=40, value=8)
         form = QFormLayout(dlg)
-        form.addRow(QLabel("A grid over the N image, found in F and B; blunders rejected."))
+        views = list(self.w.project.scene.views)
+        form.addRow(QLabel(f"A grid over the {views[0]} image, found in {', '.join(views[1:])}; "
+                           "blunders rejected."))
         form.addRow("Grid (points per side)", grid)
         bb = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel)
         bb.accepted.connect(dlg.accept)
@@ -309,7 +313,8 @@ class TransferTool:
             return
         ids = new_tie_ids(project, len(ties))
         points = [GroundPoint(pid, math.nan, math.nan, math.nan, kind="TIE") for pid in ids]
-        ms = [Measurement(pid, v, float(t[v][0]), float(t[v][1])) for pid, t in zip(ids, ties) for v in ("N", "F", "B")]
+        ms = [Measurement(pid, v, float(t[v][0]), float(t[v][1])) for pid, t in zip(ids, ties)
+              for v in project.scene.views]
         self.w.undo_stack.push(cmd.Import(project, points, ms, text=f"{len(ties)} automatic tie points"))
         self.w.status(f"Automatic tie points: {len(ties)} added ({ids[0]}–{ids[-1]})", 10000)
 
