@@ -177,6 +177,26 @@ def test_linked_cursor_goes_through_the_rpcs_and_the_reference_dem(qtbot, win, r
     assert win.status_ground.text().startswith("E ")
 
 
+def test_without_gcps_the_reference_dem_holds_the_tie_points(qtbot, win, rpc_path):
+    """The GCPs made check points (the table's kind action): the first view is held fixed and
+    the others' shifts are fitted relative to it, the tie points held to the loaded DEM."""
+    for pid in [p for p, q in win.project.points.items() if q.kind == "GCP"]:
+        win.set_current(pid)
+        win.a_kind["ICP"].trigger()
+    win.load_reference_dem(rpc_path.parent / "dem.tif", wait=True)
+    qtbot.waitUntil(lambda: win.solver.solution is not None and win.solver.solution.revision == win.project.revision
+                    and win.solver.solution.model.fitted("img_02"), timeout=30000)
+    sol = win.solver.solution
+    assert sol.ok and not any(r.kind == "GCP" for r in sol.points)
+    assert sol.bias["img_01"].cov is None or not len(sol.bias["img_01"].params)  # the datum
+    for v in ("img_02", "img_03"):
+        rel = np.subtract(TRUE_SHIFT[v], TRUE_SHIFT["img_01"])
+        # relative to img_01's own shift: found to 0.13, 0.17 px (σ 0.09, 0.16) along the lines,
+        # where img_01's line shift also moves the intersected heights the DEM holds
+        assert np.all(np.abs(np.asarray(sol.bias[v].params) - rel) < 0.5)
+    assert "held fixed" in win.panel.plain_text()
+
+
 def test_a_new_point_is_predicted_with_an_ellipse_then_measured_in_every_view(qtbot, win):
     sol = win.solver.solution
     # a new tie point clicked in img_01 (Create point, then a click in the view)

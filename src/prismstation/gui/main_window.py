@@ -144,6 +144,7 @@ class MainWindow(QMainWindow):
         for lab in (*self.status_xy.values(), *after):
             sb.removeWidget(lab)
         for lab in self.status_xy.values():
+            lab.setParent(None)
             lab.deleteLater()
         self.status_xy = {v: self._status_label(f"{v}  —", f"{v}  x -00000.0  y -00000.0")  # to 99,999 px, and < 0
                           for v in views}
