@@ -100,6 +100,43 @@ def win(qtbot, rpc_path):
     close_windows(qtbot, w)
 
 
+@pytest.fixture()
+def windows(qtbot):
+    """Windows a test makes (:func:`tests.qt_windows.new_window`), closed after it."""
+    made = []
+    yield made
+    close_windows(qtbot, *made)
+
+
+def test_opened_from_file_open_and_the_recent_list(qtbot, rpc_path, windows):
+    """File ▸ Open (the dialog answered), then the start page's recent list of a fresh window."""
+    from tests.qt_windows import new_window
+    from prismstation.gui.app import wait_settled
+    w = new_window(qtbot, (1600, 1000))
+    windows.append(w)
+    w.files.choose_open = lambda *a, **k: str(rpc_path)
+    w.a_open.trigger()
+    assert wait_settled(w) and w.project is not None and list(w.views.views) == list(VIEWS)
+    assert w.solver.solution is not None and w.solver.solution.ok
+    w = new_window(qtbot, (1600, 1000))
+    windows.append(w)
+    rec = w.start_page.recent
+    item = next(rec.item(i) for i in range(rec.count())
+                if rec.item(i).data(Qt.ItemDataRole.UserRole) == str(rpc_path.resolve()))
+    rec.setCurrentItem(item)
+    rec.setFocus()
+    QTest.keyClick(rec, Qt.Key.Key_Return)
+    assert wait_settled(w) and w.project is not None and list(w.views.views) == list(VIEWS)
+
+
+def test_gui_command_writes_a_picture_of_the_rpc_project(rpc_path, tmp_path):
+    from PySide6.QtGui import QImage
+    from prismstation.cli import main
+    png = tmp_path / "shot.png"
+    assert main(["gui", str(rpc_path), "--screenshot", str(png)]) == 0
+    assert QImage(str(png)).width() >= 1600
+
+
 def test_the_views_follow_the_scene_titled_by_their_names(win):
     assert list(win.views.views) == list(VIEWS)
     for v in VIEWS:
@@ -281,3 +318,24 @@ def test_report_export_of_an_rpc_project(qtbot, win, tmp_path):
     assert "View held fixed" in html and "Height–parallax model" not in html
     for v in VIEWS:
         assert f"view {v}" in html
+
+
+def test_the_plots_draw_the_tie_points_of_a_model_that_fits_them(win):
+    d = win.plots._data
+    assert d.ties and len(d.vec_tie_ids) == 16 and len(d.vec_gcp_ids) == 5 and len(d.vec_icp_ids) == 4
+    assert set(d.std_ids) == {p for p, q in win.project.points.items() if q.kind in ("GCP", "TIE")}
+    assert "tie points" in win.plots.plots["std_residuals"].getPlotItem().titleLabel.text
+    assert "16 tie points in img_01" in win.plots.summary.text()
+
+
+def test_space_resection_works_on_a_view_with_rpcs(qtbot, win):
+    """Tools ▸ Space resection…: a frame camera on img_01's 5 GCPs (no along-track angle: the
+    scene's B/H is not offered)."""
+    menu = win.tools_menu
+    act = next(a for a in menu.actions() if a.text() == "Space resection…")
+    act.trigger()
+    dlg = win.tool_context.tools["resection"].dialog
+    assert [dlg.view.itemText(i) for i in range(dlg.view.count())] == list(VIEWS)
+    res = dlg.run()
+    assert res is not None and "View img_01" in dlg.text.toPlainText()
+    dlg.close()
