@@ -95,3 +95,17 @@ def test_project_settings_are_checked_against_the_sensor_model(shared_data, tmp_
     data["settings"]["fixed_view"] = "img_02"
     path.write_text(json.dumps(data, indent=1))
     assert load_project(path).settings.fixed_view == "img_02"
+
+
+def test_orient_dem_and_dsm_refuse_an_rpc_project_in_one_line(shared_data, tmp_path, capsys):
+    proj = tmp_path / "p.prismproj"
+    assert main(["new", str(proj), "--images", *(str(shared_data / f) for f in PAIR)]) == 0
+    capsys.readouterr()
+    assert main(["orient-dem", str(proj), str(shared_data / PAIR[0])]) == 2
+    assert main(["dsm", str(proj), "-o", str(tmp_path / "dsm.tif")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"prismstation orient-dem: {proj}: orient-dem is not available yet for images with RPCs "
+                   "(on this project: fit, report)",
+                   f"prismstation dsm: {proj}: dsm is not available yet for images with RPCs "
+                   "(on this project: fit, report)"]
+    assert not (tmp_path / "dsm.tif").exists()

@@ -56,5 +56,5 @@ def require_workflow(project, command: str, path=None) -> None:
     :class:`~prismstation.errors.InputError` naming the project, the model and the command."""
     sensor = project.scene.sensor
     if command not in sensor.workflows:
-        raise InputError(f"{command} is not available yet for {sensor.description}; "
-                         f"{', '.join(sorted(sensor.workflows))} work on this project", path)
+        raise InputError(f"{command} is not available yet for {sensor.description} (on this project: "
+                         f"{', '.join(sorted(sensor.workflows))})", path)
