@@ -51,7 +51,8 @@ def solution_sections(sol) -> tuple[list, list]:
         dof = fit.lsq.dof if fit.lsq is not None else None
         title = f"Bias {v} ({fit.model})" + (f" — σ0 = {_f(s0, 3)} px, dof {dof}" if s0 is not None else "")
         rows = [[n, f"{p:+.6g}", f"{sd:.2g}" if sd == sd else "—"] for n, p, sd in zip(fit.names, fit.params, fit.std)]
-        sections.append((title, ["", "value", "σ"], rows or [["not fitted", "", ""]]))
+        none = "held fixed (the datum)" if getattr(fit, "fixed", False) else "not fitted"
+        sections.append((title, ["", "value", "σ"], rows or [[none, "", ""]]))
     par = sol.parallax
     check = parallax_check(sol)
     if par is not None:
