@@ -9,7 +9,11 @@ overviews 2–64), opens three ImageViews side by side in an offscreen window, a
   the pending events (tile deliveries included) and paint; tile reads run in worker threads;
 - time until the full-resolution tiles of a new place are all shown after a jump (drive-to);
 - resident memory (VmRSS) with the three views open after the sequence, and again after a long
-  use (many places visited, tile caches full: they are bounded).
+  use (many places visited, tile caches full: they are bounded) and the window idle for 3 s.
+
+The views are set up as the main window sets them up: GDAL's block cache bounded
+(``io.raster.gdal_env``), tile caches of ``gui.views.TILE_CACHE_MB`` per source, glibc's heaps
+limited and trimmed by the window's :class:`MemoryKeeper`.
 
 Usage: ``python benchmarks/bench_view.py [--dir /tmp/prismstation_bench] [--frames N]``
 """
@@ -109,9 +113,12 @@ def main(argv=None) -> int:
     from PySide6.QtWidgets import QApplication, QSplitter
 
     from prismstation.gui.image_view import ImageView
+    from prismstation.gui.memory import MemoryKeeper
+    from prismstation.gui.views import TILE_CACHE_MB
     from prismstation.io.raster import RasterSource
 
     app = QApplication.instance() or QApplication(sys.argv)
+    keeper = MemoryKeeper(app)  # as the window's (before the tile readers' threads start)
     win = QSplitter()
     views = [ImageView() for _ in paths]
     for v in views:
@@ -126,7 +133,7 @@ def main(argv=None) -> int:
     t_all = time.perf_counter()
     for v, p in zip(views, paths):
         t = time.perf_counter()
-        v.set_source(RasterSource(p))
+        v.set_source(RasterSource(p, cache_mb=TILE_CACHE_MB))
         v.graphics.viewport().repaint()
         opens.append(time.perf_counter() - t)
     t_all = time.perf_counter() - t_all
@@ -228,6 +235,10 @@ def main(argv=None) -> int:
             v.center_on(x, y, s)
         frame(views)
         settle()
+    idle_end = time.perf_counter() + 3.0  # the window idle: its memory keeper's turn
+    while time.perf_counter() < idle_end:
+        app.processEvents()
+        time.sleep(0.01)
     rss_long = rss_mb()
 
     # ---- loupe: one cursor move = one small full-resolution read (or cached tiles) + paint
@@ -276,6 +287,7 @@ def main(argv=None) -> int:
     print(f"{f'resident memory after {args.visits} more places (long use)':46s} "
           f"{rss_long:9.0f} MB   <= 500 MB")
     print(f"{'  tile caches (3 sources, bounded)':46s} {cache_long:9.0f} MB")
+    print(f"{'  heap handed back by the memory keeper':46s} {keeper.trims:9d} times")
     if args.screenshot:
         views[0].fit()
         views[1].center_on(WIDTH / 2, HEIGHT / 2, 4.0)
@@ -293,4 +305,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from prismstation.io.raster import gdal_env
+    with gdal_env():  # an entry point: GDAL's block cache bounded as the window bounds it
+        sys.exit(main())

@@ -3,14 +3,19 @@
 ``window_WxH.png`` and ``screenshot.png`` (the demo as it opens), ``editing_WxH.png`` (the known
 height of G01 typed in the table, the views at 1:1 on it), ``predictions_dem_WxH.png`` (a new
 point measured in N, predicted in F and B at the reference DEM's height with its 95 % ellipse),
-``predictions_intersection``, ``predictions_mean_height``, ``predictions_transfer`` (1600 × 1000)
-and ``start_page.png``. Every picture is checked to be exactly the size asked for (nothing
-below the screen's edge).
+``predictions_intersection``, ``predictions_mean_height``, ``predictions_transfer`` (1600 × 1000),
+``editing_new_point.png`` (Edit ▸ New point from coordinates…: the dialog as filled in, drawn
+over the window once the point is added and the views are driven to where the model puts it,
+1600 × 1000), ``start_page.png`` and ``image_view.png`` (three image views with their loupes
+and contrast panels, 1500 × 560, on ``--triplet``: a folder of three images, ``img_0*.tif`` or
+``N.tif``, ``F.tif``, ``B.tif``; the demo's by default). Every window picture is checked to be
+exactly the size asked for (nothing below the screen's edge).
 
 With ``--rpc IMG IMG [IMG …]`` (images with RPCs) it makes ``rpc_window_1600x1000.png`` instead
-(:func:`rpc_window`): the window on a project of those images.
+(:func:`screenshots_rpc.rpc_window`): the window on a project of those images.
 
-Run: ``.venv/bin/python benchmarks/screenshots.py [--project P] [--out docs]``
+Run: ``.venv/bin/python benchmarks/screenshots.py [--project P] [--out docs] [--triplet DIR]
+[--only NAME ...]`` (``--only``: the pictures whose file name starts with one of these)
 or ``.venv/bin/python benchmarks/screenshots.py --rpc img_01.tif img_02.tif img_03.tif``
 """
 from __future__ import annotations
@@ -31,12 +36,18 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--project", help="the demo project (default: made in a temporary folder)")
     ap.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "docs"))
+    ap.add_argument("--triplet", help="three images for image_view.png (default: the demo's)")
+    ap.add_argument("--only", nargs="+", default=None, help="make only the pictures named so")
     ap.add_argument("--rpc", nargs="+", metavar="IMG", help="images with RPCs: the RPC picture only")
     args = ap.parse_args(argv)
+
+    def wanted(*names) -> bool:
+        return args.only is None or any(n.startswith(o) for n in names for o in args.only)
     out = Path(args.out)
     tmp = Path(tempfile.mkdtemp(prefix="screenshots-"))
     os.environ["PRISMSTATION_SETTINGS_DIR"] = str(tmp / "settings")
     if args.rpc:
+        from benchmarks.screenshots_rpc import rpc_window
         return rpc_window([Path(f) for f in args.rpc], out, tmp)
     if args.project:
         project = Path(args.project)
@@ -69,10 +80,7 @@ def main(argv=None) -> int:
 
     def save(win, name, size):
         QCoreApplication.processEvents()
-        img = win.grab()
-        assert (img.width(), img.height()) == tuple(size), (name, img.width(), img.height())
-        img.save(str(out / name))
-        print("wrote", out / name)
+        save_image(win.grab(), out / name, size)
 
     def close(win):
         win.undo_stack.setClean()
@@ -85,24 +93,24 @@ def main(argv=None) -> int:
         win.default_layout()
         wait_settled(win)
 
-    # the start page
-    win = window(open_project=False)
-    win.resize(1280, 720)
-    wait_settled(win)
-    save(win, "start_page.png", (1280, 720))
-    close(win)
+    if wanted("start_page"):
+        win = window(open_project=False)
+        win.resize(1280, 720)
+        wait_settled(win)
+        save(win, "start_page.png", (1280, 720))
+        close(win)
 
-    # the demo as it opens
-    win = window()
-    for size in SIZES + ((1680, 1050),):
-        take_screenshot(win, tmp / "x.png", size=size)
-        win.statusBar().clearMessage()  # (the temporary folder's name)
-        save(win, "screenshot.png" if size == (1680, 1050) else f"window_{size[0]}x{size[1]}.png", size)
-    close(win)
+    if wanted("window", "screenshot"):  # the demo as it opens
+        win = window()
+        for size in SIZES + ((1680, 1050),):
+            take_screenshot(win, tmp / "x.png", size=size)
+            win.statusBar().clearMessage()  # (the temporary folder's name)
+            save(win, "screenshot.png" if size == (1680, 1050) else f"window_{size[0]}x{size[1]}.png", size)
+        close(win)
 
     # editing the known height of G01 in the table, the views at 1:1 on it
     from prismstation.gui.point_table import COLUMNS
-    for size in SIZES:
+    for size in SIZES if wanted("editing_1", "editing_") else ():
         win = window()
         lay_out(win, size)
         win.set_current("G01", drive=True)
@@ -152,7 +160,7 @@ def main(argv=None) -> int:
         wait_settled(win)
         point_at(win, m)
 
-    for size in SIZES:
+    for size in SIZES if wanted("predictions_dem", "predictions_intersection") else ():
         win = window()
         lay_out(win, size)
         pid, m = new_point_in_n(win)
@@ -170,117 +178,160 @@ def main(argv=None) -> int:
             save(win, "predictions_intersection_1600x1000.png", size)
         close(win)
 
-    win = window(dem=False)
-    lay_out(win, (1600, 1000))
-    pid, m = new_point_in_n(win)
-    centre_on_predictions(win, pid, m)
-    win.statusBar().showMessage(f"{pid}: no DEM: at the mean height, along the parallax")
-    save(win, "predictions_mean_height_1600x1000.png", (1600, 1000))
-    close(win)
+    if wanted("predictions_mean_height"):
+        win = window(dem=False)
+        lay_out(win, (1600, 1000))
+        pid, m = new_point_in_n(win)
+        centre_on_predictions(win, pid, m)
+        win.statusBar().showMessage(f"{pid}: no DEM: at the mean height, along the parallax")
+        save(win, "predictions_mean_height_1600x1000.png", (1600, 1000))
+        close(win)
 
-    win = window()
-    lay_out(win, (1600, 1000))
-    pid, m = new_point_in_n(win, transfer=True)
-    tool = win.tools.get("transfer")
-    while getattr(tool, "job", None) is not None and tool.job.isRunning():
-        QCoreApplication.processEvents()
-    for _ in range(50):
-        QCoreApplication.processEvents()
-    wait_settled(win)
-    point_at(win, m)
-    save(win, "predictions_transfer_1600x1000.png", (1600, 1000))
-    close(win)
+    if wanted("predictions_transfer"):
+        win = window()
+        lay_out(win, (1600, 1000))
+        pid, m = new_point_in_n(win, transfer=True)
+        tool = win.tools.get("transfer")
+        while getattr(tool, "job", None) is not None and tool.job.isRunning():
+            QCoreApplication.processEvents()
+        for _ in range(50):
+            QCoreApplication.processEvents()
+        wait_settled(win)
+        point_at(win, m)
+        save(win, "predictions_transfer_1600x1000.png", (1600, 1000))
+        close(win)
+
+    if wanted("editing_new_point"):
+        win = window()
+        lay_out(win, (1600, 1000))
+        save_image(new_point_picture(win, project), out / "editing_new_point.png", (1600, 1000))
+        close(win)
+
+    if wanted("image_view"):
+        save_image(image_views_picture(Path(args.triplet) if args.triplet else project.parent / "triplet"),
+                   out / "image_view.png", (1500, 560))
     return 0
 
 
-def rpc_window(images, out: Path, tmp: Path, size=(1600, 1000), cell: int = 64) -> int:
-    """``rpc_window_1600x1000.png``: the window on a project of ``images`` (with RPCs).
+def save_image(img, path: Path, size) -> None:
+    """Save a QImage or QPixmap at ``path``, checked to be exactly ``size``."""
+    assert (img.width(), img.height()) == tuple(size), (path.name, img.width(), img.height())
+    img.save(str(path))
+    print("wrote", path)
 
-    Tie points are matched automatically between the images
-    (:func:`prismstation.core.rpc_tiepoints.match_tie_points`, one per ``cell`` px) and given
-    to ``new --images``; the reference DEM is the tie points' own heights by the unbiased RPCs
-    (``fit --bias none``), gridded at 5 m (no DEM covering such crops is at hand: a DEM with no
-    offset to the RPCs). The window opens the project with shift biases, the first image held
-    fixed, the DEM loaded; a new point is measured in the first image and predicted in the
-    others with its 95 % ellipse, the views at 4:1 on it.
-    """
-    import csv
+
+def new_point_picture(win, project):
+    """Edit ▸ New point from coordinates… with a surveyed point (the ground truth of the demo's
+    tie point T10, near the image centre, typed as a GCP with orthometric height): the dialog
+    as filled in, drawn over the plots of the window after OK — the point current, the views
+    driven to its predictions, the mouse over its prediction in N (the loupes on it)."""
     import json
 
-    import numpy as np
-    import rasterio
-    from PySide6.QtCore import QCoreApplication, Qt
+    from PySide6.QtCore import QCoreApplication, QPoint, QTimer
+    from PySide6.QtGui import QColor, QPainter, QPen
     from PySide6.QtTest import QTest
-    from rasterio.transform import from_origin
-    from scipy.interpolate import griddata
+    from PySide6.QtWidgets import QApplication
 
-    from prismstation.cli import main as cli
-    from prismstation.core.rpc_tiepoints import match_tie_points
-    from prismstation.gui.app import make_app, wait_settled
-    from prismstation.gui.main_window import MainWindow
+    from prismstation.gui.app import wait_settled
+    from prismstation.gui.point_editor import NewPointDialog
 
-    arrays = []
-    for f in images:
-        with rasterio.open(f) as ds:
-            arrays.append(ds.read(1))
-    tp = match_tie_points(arrays, cell=cell)
-    with open(tmp / "ties.csv", "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["id", "view", "x", "y", "sigma_px"])
-        for j, i, xy, s in zip(tp.point, tp.image, tp.xy, tp.sigma):
-            w.writerow([f"T{j:04d}", images[i].stem, float(xy[0]), float(xy[1]), float(s[0])])
-    project = tmp / "block.prismproj"
-    assert cli(["new", str(project), "--images", *map(str, images), "--measurements", str(tmp / "ties.csv")]) == 0
-    assert cli(["fit", str(project), "--bias", "none", "--json", str(tmp / "before.json")]) == 0
-    report = json.loads((tmp / "before.json").read_text())
-    pts = [p for p in report["points"] if p.get("h_est") is not None]
-    en = np.array([(p["E_est"], p["N_est"]) for p in pts])
-    h = np.array([p["h_est"] for p in pts])
-    x0, y1 = en.min(0)[0] - 200, en.max(0)[1] + 200
-    nx, ny = int((en[:, 0].max() + 200 - x0) / 5), int((y1 - en[:, 1].min() + 200) / 5)
-    E, N = np.meshgrid(x0 + 2.5 + 5 * np.arange(nx), y1 - 2.5 - 5 * np.arange(ny))
-    grid = griddata(en, h, (E, N), method="linear")
-    grid = np.where(np.isfinite(grid), grid, griddata(en, h, (E, N), method="nearest"))
-    with rasterio.open(tmp / "dem.tif", "w", driver="GTiff", width=nx, height=ny, count=1, dtype="float32",
-                       crs=report["crs"], transform=from_origin(x0, y1, 5, 5)) as ds:
-        ds.write(grid.astype("float32"), 1)
+    truth = {p["id"]: p for p in json.loads((project.parent / "triplet" / "truth.json").read_text())["points"]}
+    t = truth["T10"]
+    shot = {}
 
-    make_app()
-    win = MainWindow(interactive=False)
-    win.files.interactive = False
-    win.show()
-    assert win.open_project(str(project), recover=False)
-    win.load_reference_dem(tmp / "dem.tif", wait=True)
-    win.resize(*size)
-    win.default_layout()
+    def fill(left=200):
+        dlg = QApplication.activeModalWidget()
+        if not isinstance(dlg, NewPointDialog):
+            if left:
+                QTimer.singleShot(20, lambda: fill(left - 1))
+            return
+        for w, v in ((dlg.e, t["E"]), (dlg.n, t["N"]), (dlg.h, t["H"])):
+            w.setText(f"{v:.3f}")
+        dlg.height_kind.setCurrentText("orthometric")
+        dlg.s_xy.setText("0.05")
+        dlg.s_h.setText("0.08")
+        dlg.e.selectAll()
+        dlg.e.setFocus()
+        QCoreApplication.processEvents()
+        shot["dialog"] = dlg.grab()
+        dlg.accept()
+    action = next(a for a in win.findChildren(type(win.tools_menu.menuAction()))
+                  if a.text() == "New point from &coordinates…")
+    QTimer.singleShot(20, fill)
+    action.trigger()
+    assert "dialog" in shot, "the New point dialog did not open"
     wait_settled(win)
-    first = next(iter(win.views.views))
-    tools = win.tools
-    if "transfer" in tools and hasattr(tools["transfer"], "a_auto"):
-        tools["transfer"].a_auto.setChecked(False)  # the predictions, not a transfer
-    x, y = 0.45 * arrays[0].shape[1], 0.55 * arrays[0].shape[0]
-    win.new_point()
-    pid = win.current
-    iv = win.views.views[first]
-    iv.center_on(x, y, 1.0)
+    iv = win.views.views["N"]
+    xy = win.views.point_position(win.current, "N")
+    QTest.mouseMove(iv.graphics.viewport(), iv.map_to_viewport(*xy).toPoint())
     wait_settled(win)
-    QTest.mouseClick(iv.graphics.viewport(), Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier,
-                     iv.map_to_viewport(x, y).toPoint())
-    wait_settled(win)
-    win.views.drive_to(pid, scale=0.25)  # 4 screen px per image px: the ellipses show
-    wait_settled(win)
-    QTest.mouseMove(iv.graphics.viewport(), iv.map_to_viewport(x, y).toPoint())
-    wait_settled(win)
-    win.statusBar().showMessage(f"{pid}: predicted at the DEM's height; dashed: 95 % ellipse")
-    QCoreApplication.processEvents()
     img = win.grab()
-    assert (img.width(), img.height()) == tuple(size), (img.width(), img.height())
-    name = out / f"rpc_window_{size[0]}x{size[1]}.png"
-    img.save(str(name))
-    print("wrote", name, f"({len(set(tp.point))} tie points)")
-    win.undo_stack.setClean()
+    d = shot["dialog"]
+    plots = win.plots
+    corner = plots.mapTo(win, QPoint(24, max(plots.height() - d.height(), 0) // 2))
+    corner.setY(min(corner.y(), img.height() - d.height() - 30))  # above the status bar
+    p = QPainter(img)
+    p.fillRect(corner.x() + 4, corner.y() + 4, d.width(), d.height(), QColor(0, 0, 0, 90))  # shadow
+    p.drawPixmap(corner, d)
+    p.setPen(QPen(QColor(90, 90, 90), 1))
+    p.drawRect(corner.x(), corner.y(), d.width() - 1, d.height() - 1)
+    p.end()
+    return img
+
+
+def image_views_picture(folder: Path):
+    """Three image views side by side, each with its loupe and contrast panel, on the three
+    images of ``folder``; the middle one zoomed to 2 screen px per image px, a cursor at
+    (0.4, 0.45) of each image."""
+    from PySide6.QtCore import QCoreApplication, QThread
+    from PySide6.QtWidgets import QHBoxLayout, QSplitter, QVBoxLayout, QWidget
+
+    from prismstation.gui.contrast import ContrastPanel
+    from prismstation.gui.image_view import ImageView
+    from prismstation.gui.loupe import Loupe
+    from prismstation.io.raster import RasterSource
+
+    paths = sorted(folder.glob("img_0*.tif")) or [folder / f"{v}.tif" for v in "NFB"]
+    win = QWidget()
+    split = QSplitter()
+    views = []
+    for p in paths:
+        col = QWidget()
+        lay = QVBoxLayout(col)
+        v = ImageView()
+        v.setMinimumHeight(380)
+        lay.addWidget(v, 1)
+        row = QHBoxLayout()
+        loupe = Loupe(zoom=6, pixels=21)
+        panel = ContrastPanel(v)
+        row.addWidget(loupe)
+        row.addWidget(panel, 1)
+        lay.addLayout(row)
+        split.addWidget(col)
+        views.append((v, loupe, panel, p))
+    QHBoxLayout(win).addWidget(split)
+    win.resize(1500, 560)
+    win.show()
+    for i, (v, loupe, panel, p) in enumerate(views):
+        v.set_source(RasterSource(p))
+        panel.refresh()
+        loupe.attach(v)
+        if i == 1:
+            v.center_on(v.source.width / 2, v.source.height / 2, scale=0.5)
+        v.cursor_moved.emit(v.source.width * 0.4, v.source.height * 0.45)
+    for _ in range(1000):
+        QCoreApplication.processEvents()
+        if all(v.tiles_complete() for v, *_ in views):
+            break
+        QThread.msleep(5)
+    for _ in range(10):
+        QCoreApplication.processEvents()
+    img = win.grab()
+    for v, *_ in views:
+        v.close()
     win.close()
-    return 0
+    win.deleteLater()
+    return img
 
 
 if __name__ == "__main__":

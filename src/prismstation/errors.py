@@ -1,7 +1,9 @@
 """Exceptions of prismstation: one root, subclasses that also inherit the matching builtin.
 
 Every reader raises :class:`InputError` naming the file, the line (1-based, when the input
-has lines) and the problem; the command line prints ``str(error)`` and exits 2.
+has lines) and the problem; a raster that cannot be read is a :class:`RasterReadError`, a file
+that cannot be written a :class:`WriteError` (both also ``OSError``, as rasterio's are). The
+command line prints ``str(error)`` and exits 2.
 """
 from __future__ import annotations
 
@@ -31,7 +33,26 @@ class ModelError(PrismError, ValueError):
 
 
 class RasterReadError(PrismError, OSError):
-    """A raster could not be opened or read."""
+    """A raster could not be opened or read: the message names the file and the place (view,
+    window or block) and GDAL's cause."""
+
+
+class WriteError(PrismError, OSError):
+    """A file could not be written (a full disk, a folder that cannot be written, a writer
+    that failed): names the target and the cause. Nothing is left at the target; a previous
+    version of it is untouched. ``errno`` is the cause's, when it had one."""
+
+    def __init__(self, problem: str, file=None, errno: int | None = None):
+        self.problem = problem
+        self.file = None if file is None else str(file)
+        super().__init__(str(self))
+        self.errno = errno
+
+    def __str__(self) -> str:
+        return f"{self.file}: {self.problem}" if self.file else self.problem
+
+    def __reduce__(self):  # through a process pool or a Dask worker, errno included
+        return type(self), (self.problem, self.file, self.errno)
 
 
 class Cancelled(PrismError):

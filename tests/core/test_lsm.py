@@ -193,3 +193,29 @@ def test_a_bend_beyond_the_limit_is_flagged_not_returned(texture):
     err = np.hypot(r.x - (p - r0)[0], r.y - (p - r0)[1])
     # 2.2 px of bend at the edge: the affine patch is ~1 px off and its σ says so
     assert not r.ok or err < 3 * r.sigma_y, (r.status, err, r.sigma_y)
+
+
+def test_the_weighted_fit_follows_relief_finer_than_the_template(texture):
+    # a mound 5 px wide under the point moves it 0.5 px along the parallax (y): the whole
+    # template's patch averages it away; the fit weighted to the point's surroundings follows it
+    img, coef = texture
+    rng = np.random.default_rng(8)
+    errs = {0.0: [], lsm.TAPER: []}
+    for _ in range(8):
+        p = rng.uniform(150, 850, 2)
+        r0 = (np.floor(p) - HALF).astype(int)
+        ref = img[r0[1]:r0[1] + 2 * HALF, r0[0]:r0[0] + 2 * HALF]
+        oy, ox = np.mgrid[0:2 * HALF, 0:2 * HALF]
+        xs, ys = ox + 0.5 + r0[0], oy + 0.5 + r0[1]
+        shift = 0.5 * np.exp(-((xs - p[0]) ** 2 + (ys - p[1]) ** 2) / (2 * 5.0 ** 2))
+        srch = ndimage.map_coordinates(coef, [ys - shift - 0.5, xs - 0.5], order=3, prefilter=False)
+        srch = np.clip(np.rint(srch + rng.normal(0, 5, srch.shape)), 0, 65535).astype(np.uint16)
+        truth = p - r0 + [0, 0.5]
+        for taper in errs:
+            r = refine(ref, *(p - r0), srch, truth + [0.2, -0.3], np.eye(2), parallax=(0, 1), taper=taper)
+            assert r.ok, r.reason
+            e = np.array([r.x, r.y]) - truth
+            errs[taper].append(abs(e[1]))
+            if taper:       # the two fits' disagreement is in the σ: it says how far
+                assert abs(e[1]) < 3 * r.sigma_y, (e, r.sigma_y)
+    assert np.median(errs[lsm.TAPER]) < 0.5 * np.median(errs[0.0]), errs

@@ -90,3 +90,41 @@ def test_the_table_paints_selection_blunder_and_text(qtbot, window):
     dark = sum(img.pixelColor(xx, yy).lightness() < 100
                for xx in range(x0, x0 + w) for yy in range(y, y + vh.sectionSize(plain)))
     assert dark > 10, "no text drawn in the cell"
+
+
+def test_a_refit_builds_the_rows_on_screen_and_the_others_when_shown(qtbot, window):
+    """In creation order a refit builds and repaints only the rows in the viewport; a row
+    scrolled into view afterwards shows the same fit as the others (not a stale one, not an
+    edit made since), and a refit repaints only cells on screen."""
+    from PySide6.QtWidgets import QAbstractItemView
+
+    win, m = window, window.table_model
+    t = win.table
+    t.scrollToTop()
+    qtbot.wait(20)
+    first, last = t.rows_on_screen()
+    assert last - first + 1 < len(m.ids), "the table shows every row: nothing to prove"
+    bottom = m.ids[-1]
+    g = win.project.measurement("G2", "N")
+    repainted = []
+    m.dataChanged.connect(lambda a, b, *_: repainted.append((a.row(), b.row())))
+    win.move("G2", "N", g.x + 3.0, g.y, True)   # a refit changes every row's residuals
+    qtbot.waitUntil(lambda: win.solver.solution.revision == win.project.revision and not win.solver.busy(),
+                    timeout=10000)
+    assert repainted and all(first <= a and b <= last for a, b in repainted)
+    assert sum(r is not None for r in m._rows) <= last - first + 1   # the rest: built when shown
+    sol = win.solver.solution
+    # the bottom row, scrolled into view, shows this fit's residual
+    t.scrollTo(m.index(m.row_of(bottom), 3), QAbstractItemView.ScrollHint.PositionAtBottom)
+    qtbot.wait(20)
+    res = sol.point(bottom).residual_px.get("N")
+    assert m.cell(bottom, "vx (px)") == ("" if res is None else f"{res[0]:.3f}")
+    # a row not built yet shows the state of the last refresh, not an edit made since (the
+    # edit's refit refreshes the table): here a point removed before its row is read
+    t.scrollToTop()
+    qtbot.wait(20)
+    gone = next(pid for i, pid in enumerate(m.ids) if m._rows[i] is None)
+    kind = win.project.points[gone].kind
+    win.project.remove_point(gone)
+    assert m.cell(gone, "Kind") == kind
+    qtbot.waitUntil(lambda: gone not in m.ids, timeout=10000)

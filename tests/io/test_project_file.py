@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from prismstation.errors import InputError
+from prismstation.errors import InputError, WriteError
 from prismstation.io.jsonfile import dumps, plain, write_json
 from prismstation.io.project import load_project, save_project
 from prismstation.io.recovery import Journal, recover
@@ -73,7 +73,7 @@ def test_plain_and_dumps_never_write_nan(tmp_path):
     assert json.loads(dumps(v)) == plain(v) and "é" in dumps(v)
     write_json(tmp_path / "x.json", {"v": float("nan")})
     assert json.loads((tmp_path / "x.json").read_text()) == {"v": None}
-    with pytest.raises(InputError, match="cannot write"):
+    with pytest.raises(WriteError, match="cannot write"):
         write_json(tmp_path / "x.json" / "under_a_file.json", {})
 
 

@@ -68,6 +68,38 @@ def test_default_is_synchronous(proj, monkeypatch):
     j.close()
 
 
+def test_the_edit_only_takes_a_snapshot_the_writer_serialises_it(proj, monkeypatch):
+    """The edit's call (the GUI thread) never serialises: ``project_to_dict`` runs on the
+    writer thread, on a snapshot that later edits do not reach."""
+    project, path = proj
+    gate = threading.Event()
+    disk = SlowDisk(gate=gate)
+    monkeypatch.setattr(rec, "write_atomic", disk)
+    serialised_on = []
+    to_dict = rec.project_to_dict
+
+    def spy(project, path):
+        serialised_on.append(threading.current_thread())
+        return to_dict(project, path)
+    monkeypatch.setattr(rec, "project_to_dict", spy)
+    j = Journal(project, path, background=True)
+    edit(project, 1)
+    assert disk.started.wait(5)  # the writer serialised revision r and waits for the disk
+    edit(project, 2)  # r + 1 handed over behind it, as a snapshot
+    handed = project.revision
+    project.changed.disconnect(j._on_changed)  # edits from now on are not journaled ...
+    project.remove_point("K1")  # ... and must not reach the snapshot of r + 1
+    project.set_measurement(Measurement("K2", "N", 1.0, 2.0))
+    gate.set()
+    assert j.flush(timeout=10) and disk.revisions == [handed - 1, handed]
+    assert serialised_on and threading.main_thread() not in serialised_on
+    assert all(t.name.startswith("journal") for t in serialised_on)
+    got = recover(path)
+    assert "K1" in got.points and got.measurement("K2", "N").x == 10.0 + 2
+    project.changed.connect(j._on_changed)
+    j.close()
+
+
 def test_rapid_edits_are_coalesced_and_the_last_state_lands(proj, monkeypatch):
     project, path = proj
     gate = threading.Event()

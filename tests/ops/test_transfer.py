@@ -121,3 +121,14 @@ def test_rays_that_do_not_meet_are_rejected(steep):
     out = consistency(sol, "N", p["image"]["N"], moved, h)
     assert out["F"].match.status == out["B"].match.status == "inconsistent"
     assert "do not meet" in out["F"].match.reason
+
+
+def test_the_slope_is_recovered_from_a_matched_shape(synth_sol):
+    # without a reference DEM the first view's matched shape tells the slope the other is searched on
+    from prismstation.ops.transfer import _plane, fitted_slope
+    sol = synth_sol
+    xy = np.array([6500.0, 7200.0])
+    en = sol.image_to_ground("N", xy, 600.0)
+    for grad in ((0.35, -0.2), (-0.5, 0.1), (0.0, 0.6)):
+        A = local_shape(sol, "N", xy, ["F"], h=600.0, height_of=_plane(en, 600.0, grad))[2]["F"].A
+        assert fitted_slope(sol, "N", xy, "F", A, en, 600.0) == pytest.approx(grad, abs=0.01)

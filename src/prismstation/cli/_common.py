@@ -61,20 +61,29 @@ def reference_heights(project, args):
     return load_for_scene(existing(args.dem, "reference DEM"), project), float(args.dem_sigma)
 
 
+_open_line = False  # a progress line is on stderr, not ended yet
+
+
 def progress_printer(what: str = ""):
     """A progress callable (:mod:`prismstation.ops.progress`) printing ``what``, the percentage
     and the message on one line of stderr when it is a terminal; it never asks to stop."""
-    show = sys.stderr.isatty()
+    from prismstation.cli._gdal_lines import stderr_is_terminal
+    show = stderr_is_terminal()
 
     def progress(fraction, message=""):
+        global _open_line
         if show:
             print(f"\r{what}{fraction:5.0%} {message:<30}", end="", file=sys.stderr, flush=True)
+            _open_line = True
     return progress
 
 
 def end_progress() -> None:
-    if sys.stderr.isatty():
+    """End the progress line (if one was printed): what follows starts on a line of its own."""
+    global _open_line
+    if _open_line:
         print(file=sys.stderr)
+        _open_line = False
 
 
 def existing(path: str, what: str = "file") -> Path:

@@ -20,8 +20,7 @@ import json
 import sys
 from pathlib import Path
 
-from prismstation.errors import InputError
-from prismstation.io.jsonfile import write_atomic
+from prismstation.io.atomic import write_atomic
 from prismstation.ops.coregister import METHODS, coregister_dems, result_dict
 
 NOT_CONVERGED = 3
@@ -51,11 +50,7 @@ def run(args) -> int:
     res = co.result
     doc = result_dict(res, args.reference, args.dem, args.method, co.transform)
     if args.json:
-        out = Path(args.json)
-        try:
-            write_atomic(out, json.dumps(doc, indent=2, allow_nan=False) + "\n", keep_backup=False)
-        except OSError as exc:
-            raise InputError(f"cannot write: {exc}", file=out) from None
+        write_atomic(Path(args.json), json.dumps(doc, indent=2, allow_nan=False) + "\n", keep_backup=False)
     if not co:
         print(f"prismstation coregister: no shift: {co.reason}", file=sys.stderr)
         return NOT_CONVERGED

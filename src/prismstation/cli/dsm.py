@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 
-from prismstation.cli._common import existing
+from prismstation.cli._common import end_progress, existing, progress_printer
 from prismstation.io.project import load_project
 from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest, export_dsm
 from prismstation.ops.fit import solve_project
@@ -50,16 +50,12 @@ def run(args) -> int:
     if args.reference:
         reference = load_for_scene(existing(args.reference, "reference DEM"), project)  # as the window does
 
-    def progress(fr, msg=""):
-        print(f"\r{fr:5.0%} {msg:<32}", end="", file=sys.stderr, flush=True)
-        return True
-
     request = DsmRequest(args.output, tuple(args.window) if args.window else None, args.posting,
                          args.orthometric, args.height_uncertainty, args.fill, args.min_fill,
                          args.heights, args.scheduler, args.workers)
-    out = export_dsm(sol, project, request, reference=reference, progress=progress)
+    out = export_dsm(sol, project, request, reference=reference, progress=progress_printer())
     dsm = out.dsm
-    print(file=sys.stderr)
+    end_progress()
     fill = out.fill_percent
     rows, cols = dsm.heights.shape
     print(f"wrote {args.output}: {cols} × {rows} cells at {args.posting:g} m, {dsm.height_kind} heights, "

@@ -14,6 +14,7 @@ from dataclasses import replace
 
 from prismstation.errors import InputError
 from prismstation.io import pointfiles as pfm
+from prismstation.io.atomic import write_atomic
 
 
 def register(subparsers) -> None:
@@ -62,8 +63,7 @@ def run(args) -> int:
             raise InputError(exc.problem, exc.file or args.input, exc.line) from None
     pfm.write_point_file(pf, args.output, args.fmt_out, view=args.view)
     if args.measurements:
-        with open(args.measurements, "w", encoding="utf-8", newline="") as fh:
-            fh.write(measurements_csv(pf))
+        write_atomic(args.measurements, measurements_csv(pf), keep_backup=False)
     print(f"{len(pf.points)} points, {len(pf.measurements)} measurements -> {args.output}")
     if str(args.output).lower().endswith(".csv") and pf.crs:
         print(f"note: the CSV states no CRS; its E, N are in {pf.crs}")

@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from prismstation.errors import InputError
+from prismstation.errors import InputError, PrismError, WriteError
 
 
 def _one_line_error(prog: str):
@@ -85,8 +85,10 @@ def run(args) -> int:
                          terrain=args.terrain or ("dem" if args.terrain_dem else "fractal"),
                          terrain_dem=args.terrain_dem, terrain_centre=args.terrain_centre,
                          relief_scale=args.relief_scale, progress=progress)
-    except OSError as exc:
-        raise InputError(f"cannot write: {exc.strerror or exc}", file=out) from None
+    except PrismError:
+        raise
+    except OSError as exc:  # the folder itself (a file writer raises WriteError naming its file)
+        raise WriteError(f"cannot write: {exc.strerror or exc}", out) from None
     finally:
         if not args.quiet and shown[0] >= 0:
             print(file=sys.stderr)

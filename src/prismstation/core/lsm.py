@@ -19,9 +19,11 @@ curvature within the template). Gauss–Newton from a start ``(t0, A0)``; the re
 
 Covariance (:func:`refine`): ``(SIGMA_SCALE·σ_formal)² + (RELIEF_SCALE·σ_relief)²·ddᵀ +
 σ_across²·d⊥d⊥ᵀ``. The formal ``σ0²·N⁻¹`` is inflated for the noise in the search image's
-gradients (:func:`gradient_noise_inflation`, the noise from :func:`noise_sigma`); ``σ_relief``
-and ``σ_across`` are the displacement the patch's shape does not follow, along and across ``d``
-(:func:`unmodelled_sigma`). The factors were calibrated on simulated PRISM triplets (the
+gradients; ``σ_relief`` and ``σ_across`` are the displacement the patch's shape does not
+follow, along and across ``d`` (all three in :mod:`prismstation.core.lsm_sigma`). Along ``d``
+a second fit weighted to the point's surroundings (Gaussian of σ :data:`TAPER` px) gives the
+position and σ when it states the smaller σ there, the two fits' disagreement counted in
+both (relief finer than the template). The factors were calibrated on simulated PRISM triplets (the
 fractal relief, smooth hills, a real DEM's relief); ``tests/core/test_lsm.py`` and
 ``benchmarks/bench_transfer.py`` check the σ against the scatter on other scenes, on warped
 real Pléiades texture and on the real Pléiades triplet (docs/matching.md).
@@ -35,14 +37,20 @@ allowance), ``moved`` (the patch ran away from its start), ``low_correlation``, 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 from scipy import ndimage, stats
+
+from prismstation.core.lsm_sigma import gradient_noise_inflation, noise_sigma, unmodelled_sigma
 
 OK = "ok"
 NOT_CONVERGED, TEXTURE, SHAPE, MOVED, LOW_CORRELATION, OUTSIDE = (
     "not_converged", "texture", "shape", "moved", "low_correlation", "outside")
 
+STEP_TOL = 1e-2
+"""Converged when the position moves less than this (px) in an iteration, and the shape less
+than 2.5 times this at the template's edge."""
 WANDER_ITER = 6
 """Iterations after which a patch still moving by 0.1 px per step is given up."""
 SIGMA_SCALE = 1.5
@@ -51,9 +59,6 @@ calibrated on the simulated triplets (1.3 times too large on warped real texture
 RELIEF_SCALE = 2.0
 """Factor on the σ of the unmodelled relief along the parallax: the 4 px blocks smooth the
 finest relief (calibrated on the simulator's fractal relief)."""
-GRADIENT_NOISE = 2.18
-"""Variance of a gradient component of the cubic B-spline interpolating unit white noise, over
-all sub-pixel positions (numerically: 2.18; the interpolated values themselves 0.77)."""
 MAX_BEND = 1.0
 """Largest bend (px) of the patch at the template's edge."""
 BEND_P = 0.99
@@ -61,6 +66,18 @@ BEND_P = 0.99
 MAX_ACROSS_CHANGE = 0.06
 """Largest change of the shape across the parallax (relief changes it along the parallax; the
 model's views are right to 10⁻³ across)."""
+TAPER = 3.0
+"""σ (px) of the Gaussian weight about the point in the fit that gives the position along the
+parallax: relief finer than the template moves the point by its own height, which an average
+over the whole template misses (on the fractal relief 0.22 px along the parallax with the whole
+template, 0.11 px with this weight; on smooth hills 0.04 and 0.07 px)."""
+NEAR_GAIN = 2.0
+"""The weighted fit's formal σ is about this many times the whole template's (its Gaussian
+holds a fifth of the template's weight): it is tried only where the unmodelled relief makes
+the whole template's σ larger than that."""
+NEAR_RELIEF = 0.7
+"""The weighted fit's error along the parallax as a share of its disagreement with the whole
+template's (measured on mounds 3–8 px wide on warped real texture: 0.4–0.7)."""
 BEND_TRIGGER = 0.03
 """A bend is tried when the affine patch leaves this much unmodelled relief (px)."""
 
@@ -165,21 +182,6 @@ class Spline:
         return s.reshape(shape), sx.reshape(shape), sy.reshape(shape)
 
 
-_LAPLACE = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
-
-
-def noise_sigma(a) -> float:
-    """σ of white noise in the image patch ``a`` (grey values): Immerkaer's (1996) difference
-    of Laplacians, which removes any locally planar signal, its median made robust to the
-    texture that leaks through (an upper bound on textured ground: 20 % high on the
-    simulator's images, right to 1 DN on Pléiades with 20 DN of added noise)."""
-    a = np.asarray(a, np.float64)
-    if min(a.shape) < 3:
-        return 0.0
-    L = ndimage.correlate(a, _LAPLACE, mode="nearest")[1:-1, 1:-1]
-    return 1.4826 * float(np.median(np.abs(L))) / 6.0
-
-
 #: cubic B-spline weights of taps −1..2 as polynomials in the fraction t: [1, t, t², t³] @ _BW
 _BW = np.array([[1, 4, 1, 0], [-3, 0, 3, 0], [3, -6, 3, 0], [-1, 3, -3, 1]], float) / 6.0
 _BD = np.array([[-3, 0, 3, 0], [6, -12, 6, 0], [-3, 9, -9, 3]], float) / 6.0   # d/dt: [1, t, t²] @ _BD
@@ -187,7 +189,11 @@ _BD = np.array([[-3, 0, 3, 0], [6, -12, 6, 0], [-3, 9, -9, 3]], float) / 6.0   #
 
 def _weights(t):
     """Cubic B-spline weights for taps −1..2 and their derivatives, ``(n, 4)`` each."""
-    p = np.column_stack([np.ones_like(t), t, t * t, t * t * t])
+    p = np.empty((t.size, 4))
+    p[:, 0] = 1.0
+    p[:, 1] = t
+    np.multiply(t, t, out=p[:, 2])
+    np.multiply(p[:, 2], t, out=p[:, 3])
     return p @ _BW, p[:, :3] @ _BD
 
 
@@ -224,8 +230,9 @@ class _Fit:
     """The Gauss–Newton state of one patch: position ``t``, shape ``A``, bend ``c`` (3 or 0
     terms), offset ``g0`` and gain ``g1``, on a fixed template and search spline."""
 
-    def __init__(self, T, u, v, spline, d, half):
+    def __init__(self, T, u, v, spline, d, half, w=None):
         self.T, self.u, self.v, self.spline, self.d, self.half = T.ravel(), u.ravel(), v.ravel(), spline, d, half
+        self.w = None if w is None else np.asarray(w, float).ravel()     # None: uniform
         gv, gu = np.gradient(T)                            # template gradients (grey values per px)
         self.Tu, self.Tv = gu.ravel(), gv.ravel()
         self.Q = np.column_stack([self.u ** 2, self.u * self.v, self.v ** 2]) / half
@@ -249,10 +256,13 @@ class _Fit:
             gx = 0.5 * (gx + Ai[0, 0] * self.Tu + Ai[1, 0] * self.Tv)
             gy = 0.5 * (gy + Ai[0, 1] * self.Tu + Ai[1, 1] * self.Tv)
         u, v = self.u, self.v
-        cols = [gx, gy, gx * u, gx * v, gy * u, gy * v]
+        J = np.empty((S.size, 11 if bend else 8))
+        J[:, 0], J[:, 1] = gx, gy
+        J[:, 2], J[:, 3], J[:, 4], J[:, 5] = gx * u, gx * v, gy * u, gy * v
         if bend:
-            cols += list(((gx * self.d[0] + gy * self.d[1])[:, None] * self.Q).T)
-        return np.column_stack(cols + [np.ones_like(S), S])
+            J[:, 6:9] = (gx * self.d[0] + gy * self.d[1])[:, None] * self.Q
+        J[:, -2], J[:, -1] = 1.0, S
+        return J
 
     def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float):
         """Iterate to convergence: ``(status, reason, iterations)``, status ``OK`` or a failure."""
@@ -267,8 +277,9 @@ class _Fit:
                 self.g0 = self.T.mean() - self.g1 * S.mean()
             r = self.T - (self.g0 + self.g1 * S)
             J = self.design(S, Sx, Sy, bend, esm=True)
+            Jw = J if self.w is None else J * self.w[:, None]
             try:
-                dp = np.linalg.solve(J.T @ J, J.T @ r)
+                dp = np.linalg.solve(Jw.T @ J, Jw.T @ r)
             except np.linalg.LinAlgError:
                 return TEXTURE, "singular normal matrix (no texture)", it
             self.t += dp[0:2]
@@ -283,7 +294,7 @@ class _Fit:
             if change > 2 * max_shape_change or self.g1 <= 0 or np.abs(self.c).max() * self.half > 2 * MAX_BEND:
                 return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else
                                f"the shape degenerated (changed by {change:.0%})"), it
-            if np.abs(dp[0:2]).max() < 2e-3 and np.abs(dp[2:6 + nb]).max() * self.half < 5e-3:
+            if np.abs(dp[0:2]).max() < STEP_TOL and (self.w is not None or np.abs(dp[2:6 + nb]).max() * self.half < 2.5 * STEP_TOL):
                 return OK, "", it
             if it >= WANDER_ITER and np.hypot(*dp[0:2]) > 0.1:
                 break   # still wandering
@@ -303,13 +314,14 @@ class _Fit:
             return None, None, np.nan
         S, Sx, Sy = smp
         r = self.T - (self.g0 + self.g1 * S)
-        return r, self.design(S, Sx, Sy, bend, esm=False), float(np.corrcoef(self.T, S)[0, 1])
+        a, b = self.T - self.T.mean(), S - S.mean()
+        return r, self.design(S, Sx, Sy, bend, esm=False), float(a @ b / np.sqrt((a @ a) * (b @ b)))
 
 
 def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half: int = 12,
            max_iter: int = 20, max_move: float = 3.0, max_shape_change: float = 0.25,
            min_rho: float = 0.6, max_sigma: float = 0.5, smooth: float = 0.0,
-           spline: Spline | None = None) -> LsmResult:
+           spline: Spline | None = None, taper: float = TAPER) -> LsmResult:
     """Least-squares matching of the point ``(x, y)`` of ``reference`` in ``search``.
 
     Parameters
@@ -359,7 +371,9 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     if float(T.std()) <= 1e-6 * (abs(float(T.mean())) + 1.0):
         return failed(t0[0], t0[1], TEXTURE, "template has no contrast", shape=A0)
     if spline is None or smooth > 0:
-        spline = search_spline(search, t0, A0, half, max_move + 1.0 + 3 * smooth, smooth)
+        # room for the patch to move by max_move and its shape to change by max_shape_change
+        spline = search_spline(search, t0, A0, half, max_move + 1.0 + 3 * smooth + 1.5 * max_shape_change * half,
+                               smooth)
         if spline is None:
             return failed(t0[0], t0[1], OUTSIDE, "patch leaves the search image", shape=A0)
     d = np.zeros(2) if parallax is None else np.asarray(parallax, float) / np.hypot(*parallax)
@@ -387,32 +401,71 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     why = shape_check(A0, fit.A, d if parallax is not None else None, max_shape_change)
     if why:
         return failed(fit.t[0], fit.t[1], SHAPE, why + " from the start", shape=fit.A, rho=rho, iterations=it)
-    k = J.shape[1]
-    s02 = float(r @ r) / max(r.size - k, 1)
+    e1 = d if parallax is not None else np.array([1.0, 0.0])
+    e2 = np.array([-e1[1], e1[0]])
     # the image noise, the lower of the two images' (in the template's grey values): textured
     # ground makes the estimate high, never low
     noise = min(noise_sigma(T), fit.g1 * spline.noise_near(fit.t[0], fit.t[1], half))
-    inflation = gradient_noise_inflation(J[:, 0], J[:, 1], noise ** 2)
-    if not np.isfinite(inflation):
+    stated = _stated(fit, r, J, noise, e1, e2, n)
+    if stated is None:
         return failed(fit.t[0], fit.t[1], TEXTURE, "too little texture: the image noise outweighs its gradients",
                       shape=fit.A, rho=rho, iterations=it)
-    formal = s02 * np.linalg.inv(J.T @ J)[:2, :2] * inflation
-    cov = SIGMA_SCALE ** 2 * formal
-    # the displacement the patch's shape does not follow, along the parallax and across it
-    e1 = d if parallax is not None else np.array([1.0, 0.0])
-    e2 = np.array([-e1[1], e1[0]])
-    s_relief = unmodelled_sigma(_along(J, e1, n), r.reshape(n, n), k)
-    s_across = unmodelled_sigma(_along(J, e2, n), r.reshape(n, n), k)
-    cov = cov + (RELIEF_SCALE * s_relief) ** 2 * np.outer(e1, e1) + s_across ** 2 * np.outer(e2, e2)
-    res = LsmResult(float(fit.t[0]), float(fit.t[1]), cov, formal, fit.A.copy(), float(fit.g1), float(fit.g0),
+    cov, formal, s_relief, s_across = stated
+    t = fit.t.copy()
+    local = 0.0
+    if taper > 0 and parallax is not None and e1 @ cov @ e1 > NEAR_GAIN ** 2 * SIGMA_SCALE ** 2 * (e1 @ formal @ e1):
+        # the relief the patch leaves moves the point along the parallax: a fit weighted to the
+        # point's surroundings follows it closer. How far the two fits disagree along the
+        # parallax measures that relief: the whole template's may be off by all of it, the
+        # weighted one by :data:`NEAR_RELIEF` of it. The one stating the smaller σ gives the
+        # position along the parallax (across, where relief moves nothing, the whole template)
+        near = fit.copy()
+        near.w = np.exp(-(fit.u ** 2 + fit.v ** 2) / (2 * taper ** 2))
+        status, _, it3 = near.run(bend, max_iter, t0, max_move, A0inv, max_shape_change)
+        r3, J3, _ = near.final(bend) if status == OK else (None, None, None)
+        st3 = _stated(near, r3, J3, noise, e1, e2, n) if r3 is not None else None
+        if st3 is not None:
+            it += it3
+            P1, P2 = np.outer(e1, e1), np.outer(e2, e2)
+            delta = float(e1 @ (near.t - fit.t))
+            var_near = e1 @ st3[0] @ e1 + (NEAR_RELIEF * delta) ** 2
+            var_whole = max(e1 @ cov @ e1, delta ** 2)
+            if var_near < var_whole:
+                t = t + P1 @ (near.t - fit.t)
+                formal = (e1 @ st3[1] @ e1) * P1 + (e2 @ formal @ e2) * P2
+                s_relief, local = st3[2], taper
+            cov = min(var_near, var_whole) * P1 + (e2 @ cov @ e2) * P2
+    res = LsmResult(float(t[0]), float(t[1]), cov, formal, fit.A.copy(), float(fit.g1), float(fit.g0),
                     rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),
-                                           "sigma_relief": s_relief, "sigma_across": s_across, "d": d})
+                                           "sigma_relief": s_relief, "sigma_across": s_across, "d": d,
+                                           "taper": local})
     if rho < min_rho:
         return _as_failure(res, LOW_CORRELATION, f"correlation {rho:.2f} below {min_rho:.2f}")
     smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
     if not np.isfinite(smax) or smax > max_sigma:
         return _as_failure(res, TEXTURE, f"too little texture: σ {smax:.2f} px above {max_sigma:.2f}")
     return res
+
+
+def _stated(fit: _Fit, r, J, noise: float, e1, e2, n: int):
+    """``(cov, formal, σ_relief, σ_across)`` of the fitted position (see :func:`refine`;
+    ``noise``: the images' noise σ in the template's grey values), None when the noise
+    outweighs the gradients."""
+    k = J.shape[1]
+    w = np.ones(r.size) if fit.w is None else fit.w
+    s02 = float(w @ (r * r)) / float(w.sum()) * r.size / max(r.size - k, 1)
+    inflation = gradient_noise_inflation(J[:, 0] * w, J[:, 1] * w, noise ** 2, float(w @ w))
+    if not np.isfinite(inflation):
+        return None
+    Mi = np.linalg.inv(J.T @ (J * w[:, None]))
+    formal = s02 * (Mi @ (J.T @ (J * (w * w)[:, None])) @ Mi)[:2, :2] * inflation
+    # the displacement the patch's shape does not follow, along the parallax and across it
+    wn = w.reshape(n, n)
+    s_relief = unmodelled_sigma(_along(J, e1, n), r.reshape(n, n), k, w=wn)
+    s_across = unmodelled_sigma(_along(J, e2, n), r.reshape(n, n), k, w=wn, other=_along(J, e1, n))
+    cov = (SIGMA_SCALE ** 2 * formal + (RELIEF_SCALE * s_relief) ** 2 * np.outer(e1, e1)
+           + s_across ** 2 * np.outer(e2, e2))
+    return cov, formal, s_relief, s_across
 
 
 def shape_check(A0, A, parallax, max_change: float, max_across: float = MAX_ACROSS_CHANGE) -> str:
@@ -431,18 +484,6 @@ def shape_check(A0, A, parallax, max_change: float, max_across: float = MAX_ACRO
     return ""
 
 
-def gradient_noise_inflation(gx, gy, var: float) -> float:
-    """Factor on the position's covariance for the noise in the gradients ``gx, gy`` (the
-    design's, grey values per px): their noise power, :data:`GRADIENT_NOISE` times the noise
-    variance ``var``, is no information about the position, so the structure tensor
-    ``G = Σ∇∇ᵀ`` overstates it; the factor is ``λ(G) / λ(G − n·GRADIENT_NOISE·var·I)`` in its
-    weakest direction; infinite when the noise has all of the gradients' power there."""
-    G = np.array([[gx @ gx, gx @ gy], [gx @ gy, gy @ gy]])
-    lam = float(np.linalg.eigvalsh(G)[0])
-    c = GRADIENT_NOISE * var * gx.size
-    return lam / (lam - c) if lam > c else float("inf")
-
-
 def _along(J, d, n: int):
     """The design's gradient along ``d`` on the template grid ``(n, n)``."""
     return (J[:, 0] * d[0] + J[:, 1] * d[1]).reshape(n, n)
@@ -453,34 +494,12 @@ def _significant(r0, r1) -> bool:
     noise would (at :data:`BEND_P`, the residual variance scaled by :data:`SIGMA_SCALE`²)?"""
     dof = r1.size - 11
     f = (float(r0 @ r0) - float(r1 @ r1)) / 3 / (SIGMA_SCALE ** 2 * float(r1 @ r1) / dof)
-    return bool(f > stats.f.ppf(BEND_P, 3, dof))
+    return bool(f > _f_quantile(dof))
 
 
-def unmodelled_sigma(G, r, n_params: int, block: int = 4) -> float:
-    """σ (px) of the displacement in one direction that the patch's shape does not follow.
-
-    ``G``: the fitted patch's gradient in that direction (e.g. the parallax) on the template grid
-    ``(n, n)`` (grey values per px), ``r``: the residuals ``(n, n)``, ``n_params``: the
-    adjustment's parameter count. Each ``block × block`` part of the template gets its own
-    displacement ``δ = ΣGr / ΣG²`` (the residual a displacement leaves is ``G·δ``); what the
-    residuals hold beyond it is noise of variance ``σn²``; the σ is the ``ΣG²``-weighted RMS of
-    the ``δ`` less their noise ``σn²/ΣG²``. Along the parallax: the relief within the template
-    that no affine or quadratic patch follows — the error it leaves at the point is of that
-    size."""
-    n = r.shape[0]
-    m = n // block
-    if m < 2:
-        return 0.0
-    lo = (n - m * block) // 2
-    Gb = G[lo:lo + m * block, lo:lo + m * block].reshape(m, block, m, block).transpose(0, 2, 1, 3).reshape(m * m, -1)
-    rb = r[lo:lo + m * block, lo:lo + m * block].reshape(m, block, m, block).transpose(0, 2, 1, 3).reshape(m * m, -1)
-    g2 = np.sum(Gb * Gb, axis=1)
-    if np.any(g2 <= 0):
-        return 0.0
-    delta = np.sum(Gb * rb, axis=1) / g2
-    noise = float(np.sum((rb - Gb * delta[:, None]) ** 2)) / max(rb.size - m * m - n_params, 1)
-    excess = np.sum(g2 * delta ** 2 - noise) / np.sum(g2)
-    return float(np.sqrt(max(excess, 0.0)))
+@lru_cache(maxsize=64)
+def _f_quantile(dof: int) -> float:
+    return float(stats.f.ppf(BEND_P, 3, dof))
 
 
 def _as_failure(res: LsmResult, status: str, reason: str) -> LsmResult:

@@ -71,7 +71,9 @@ def correlate(reference, x: float, y: float, search, pred, A0, direction, along:
     valid = np.isfinite(R)
     R = np.where(valid, R, 0.0).astype(np.float32)
     ncc = cv2.matchTemplate(R, tpl, cv2.TM_CCOEFF_NORMED)
-    full = cv2.matchTemplate(valid.astype(np.float32), np.ones_like(tpl), cv2.TM_CCORR)
+    # cells whose window holds a pixel from outside the search image are not allowed
+    full = (np.full(ncc.shape, tpl.size, np.float32) if valid.all() else
+            cv2.matchTemplate(valid.astype(np.float32), np.ones_like(tpl), cv2.TM_CCORR))
     sk, sl = np.meshgrid(np.arange(ncc.shape[1]) + k0, np.arange(ncc.shape[0]) + l0)
     off_x = A0[0, 0] * sk + A0[0, 1] * sl
     off_y = A0[1, 0] * sk + A0[1, 1] * sl
@@ -140,7 +142,10 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
         return failed(pred[0], pred[1], LOW_SCORE, f"no correlation peak above {min_ncc:.2f} "
                       f"(best {best:.2f})", shape=A0, score=best)
     d, c = _frame(direction)
-    spline = lsm.search_spline(search, pred, A0, half, np.hypot(along, across) + options.get("max_move", 3.0) + 1)
+    # one spline of the whole band when it is short; over a long band each peak's own
+    # (prefiltering hundreds of pixels for three patches costs more than three small ones)
+    spline = (lsm.search_spline(search, pred, A0, half, np.hypot(along, across) + options.get("max_move", 3.0) + 1)
+              if along <= 2 * half else None)
     results = []
     for score, k, l in found:
         if results and results[0].ok and 1 - score ** 2 > rival * (1 - found[0][0] ** 2):

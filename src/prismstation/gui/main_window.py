@@ -28,7 +28,8 @@ from prismstation.gui.memory import MemoryKeeper, one_dask_pool
 from prismstation.gui.model_panel import ModelPanel
 from prismstation.gui.plots import PlotsWidget
 from prismstation.gui.point_editor import PointEditor
-from prismstation.gui.point_table import PointTableModel, PointTableView
+from prismstation.gui.point_table import PointTableModel
+from prismstation.gui.point_table_view import PointTableView
 from prismstation.gui.start_page import StartPage
 from prismstation.gui.text_label import TextLabel
 from prismstation.gui.views import TripletViews
@@ -120,9 +121,6 @@ class MainWindow(QMainWindow):
         self.addDockWidget(area, d)
         self.docks[key] = d
         return d
-
-    def _act(self, *args, **kw):  # for tools still given the window (dsm_tool)
-        return menus.act(self, *args, **kw)
 
     def _status_widgets(self) -> None:
         sb = self.statusBar()

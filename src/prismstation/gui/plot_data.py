@@ -79,24 +79,28 @@ class PlotData:
         v_rows = {"GCP": ([], [], []), "ICP": ([], [], []), "TIE": ([], [], [])}
         fitted = ("GCP", "TIE") if ties else ("GCP",)
         std_ids, std_vals, blunders = [], [], []
-        for pid, kind, py, h, xy, v, s, bl in records:
-            if kind == "TIE" and ties:
-                if xy is not None and v is not None:
-                    for lst, x in zip(v_rows[kind], (pid, xy, v)):
-                        lst.append(x)
-            if kind not in h_rows:
-                if kind in fitted and s is not None:
-                    std_ids.append(pid)
-                    std_vals.append(s)
-                if kind in fitted and bl:
-                    blunders.append(pid)
+        for pid, kind, py, h, xy, v, s, bl in records:  # (a refit: every point, every click)
+            hr = h_rows.get(kind)
+            if hr is None:  # a tie point: drawn where the model fits it (``ties``)
+                if kind in fitted:
+                    if xy is not None and v is not None:
+                        for lst, x in zip(v_rows[kind], (pid, xy, v)):
+                            lst.append(x)
+                    if s is not None:
+                        std_ids.append(pid)
+                        std_vals.append(s)
+                    if bl:
+                        blunders.append(pid)
                 continue
             if py is not None and h is not None:
-                for lst, x in zip(h_rows[kind], (pid, py, h)):
-                    lst.append(x)
+                hr[0].append(pid)
+                hr[1].append(py)
+                hr[2].append(h)
             if xy is not None and v is not None:
-                for lst, x in zip(v_rows[kind], (pid, xy, v)):
-                    lst.append(x)
+                vr = v_rows[kind]
+                vr[0].append(pid)
+                vr[1].append(xy)
+                vr[2].append(v)
             if kind == "GCP" and s is not None:
                 std_ids.append(pid)
                 std_vals.append(s)

@@ -328,8 +328,9 @@ class PlotsWidget(QWidget):
         self._set(self.stems, stem_x, stem_y)
         self._set(self.std_pts, xs, d.std_values, data=list(d.std_ids))
         self._once("threshold", d.threshold, self.threshold_line.setValue)
-        self._once("threshold text", f"blunder threshold {{value:.2f}} (α = {alpha_of(d.threshold):.2g})",
-                   self.threshold_line.label.setFormat)
+        self._once("threshold text", d.threshold,  # (α computed only when the threshold changes)
+                   lambda t: self.threshold_line.label.setFormat(
+                       f"blunder threshold {{value:.2f}} (α = {alpha_of(t):.2g})"))
         flagged = [i for i, pid in enumerate(d.std_ids) if pid in d.blunders]
         if flagged:
             top_i = max(flagged, key=lambda i: d.std_values[i])

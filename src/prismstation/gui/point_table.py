@@ -3,18 +3,16 @@
 A ``QAbstractTableModel`` reading the project (ids, kinds, measurements) and the current
 :class:`~prismstation.core.solve.Solution` (residuals, estimates, standardised residuals).
 GCPs flagged as blunders get a red background; residuals are in pixels of the reference view.
-A refit repaints the table on every click, so the paint path is short: the model sorts itself
-(no proxy model in between) and :meth:`PointTableView.paintEvent` draws the visible cells in one
-pass from the model's preformatted strings (the standard path — an item delegate called per
-cell, seven ``data()`` roles each — took 3–7 ms for a 15-row view, this ~1 ms).
+A refit repaints the table on every click, so the model sorts itself (no proxy model in
+between), builds only the rows on screen and formats their texts once for the view's one-pass
+paint (:mod:`prismstation.gui.point_table_view`).
 """
 from __future__ import annotations
 
 import math
 
-from PySide6.QtCore import QAbstractTableModel, QModelIndex, QRect, Qt
-from PySide6.QtGui import QBrush, QColor, QPainter, QPalette
-from PySide6.QtWidgets import QAbstractItemView, QHeaderView, QMenu, QTableView
+from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt
+from PySide6.QtGui import QBrush, QColor
 
 from prismstation.core.scene import reference_view
 from prismstation.gui.overlays import KIND_COLORS
@@ -32,12 +30,12 @@ BLUNDER_BG = QColor(255, 190, 190)
 TOLERANCE_BG = QColor(255, 235, 180)
 
 
-_BLUNDER_BRUSH = QBrush(BLUNDER_BG)
-_ODD_HEIGHT_BRUSH = QBrush(TOLERANCE_BG)
-_ODD_BRUSH = QBrush(QColor(245, 245, 245))  # alternate rows (the view's own costs 3 ms a repaint)
-_KIND_BRUSHES = {k: QBrush(c.darker(140)) for k, c in KIND_COLORS.items()}
-_RIGHT = int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
-_LEFT = int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter)
+BLUNDER_BRUSH = QBrush(BLUNDER_BG)
+ODD_HEIGHT_BRUSH = QBrush(TOLERANCE_BG)
+ODD_ROW_BRUSH = QBrush(QColor(245, 245, 245))  # alternate rows (the view's own costs 3 ms a repaint)
+KIND_BRUSHES = {k: QBrush(c.darker(140)) for k, c in KIND_COLORS.items()}
+ALIGN_RIGHT = int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+ALIGN_LEFT = int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter)
 _DISPLAY, _BACKGROUND, _FOREGROUND, _ALIGN, _TOOLTIP, _SORT, _EDIT = (
     int(r) for r in (Qt.ItemDataRole.DisplayRole, Qt.ItemDataRole.BackgroundRole,
                      Qt.ItemDataRole.ForegroundRole, Qt.ItemDataRole.TextAlignmentRole,
@@ -70,7 +68,12 @@ def _sort_key(row, column):
 
 class PointTableModel(QAbstractTableModel):
     """Rows: the project's points, in creation order or sorted by a column (:meth:`sort`).
-    :meth:`refresh` after every change. ``ids`` are in the order shown."""
+    :meth:`refresh` after every change. ``ids`` are in the order shown.
+
+    In creation order a refresh builds only the rows on screen (:attr:`shown_rows`, set by the
+    view) and compares them with what they showed; the others are built when first read (a
+    refit changes every row's residuals, a view shows a few dozen of a thousand). Sorted, every
+    row is built (the order depends on them all)."""
 
     def __init__(self, parent=None):
         super().__init__(parent)
@@ -78,10 +81,12 @@ class PointTableModel(QAbstractTableModel):
         self.solution = None
         self.ids: list[str] = []
         self._row_of: dict[str, int] = {}
-        self._rows: list[tuple] = []
+        self._rows: list = []  # row tuples; None: not built since the last refresh
         self._text: list[list] = []
+        self._make = None  # pid -> row tuple, for the project and solution of the last refresh
         self._sort = (-1, Qt.SortOrder.AscendingOrder)
         self.edit_handler = None  # callable(pid, column, text): set by the point editor
+        self.shown_rows = None  # callable() -> (first, last) rows on screen; None: all
 
     def set_project(self, project) -> None:
         self.project, self.solution = project, None
@@ -92,50 +97,92 @@ class PointTableModel(QAbstractTableModel):
         self.refresh()
 
     def refresh(self) -> None:
-        """Rebuild the rows from the project and the solution: one ``dataChanged`` when the
-        rows are the same points in the same order, a layout change when only the order
-        changed (selection and scroll stay in both), else one reset."""
-        rows = self._sorted(self._build()) if self.project is not None else []
+        """Rebuild the rows from the project and the solution: ``dataChanged`` for the cells
+        that changed when the rows are the same points in the same order, a layout change when
+        only the order changed (selection and scroll stay in both), else one reset."""
+        if self.project is None:
+            self._reset([], None)
+            return
+        make = self._row_builder()
+        if self._sort[0] < 0:  # creation order: the ids say it all, rows are built when read
+            ids = list(self.project.points)
+            if ids == self.ids and ids:
+                self._refresh_shown(make)
+            else:
+                self._reset(ids, make)
+            return
+        rows = self._sorted([make(pid) for pid in self.project.points])
         ids = [r[0] for r in rows]
         if ids == self.ids and rows:
-            old = self._rows
-            changed = [i for i, (a, b) in enumerate(zip(old, rows)) if a != b]
-            if not changed:
-                return
-            # the cells that changed: the rows between the first and the last, the columns
-            # between the leftmost and the rightmost (a refit changes the residual columns of
-            # every row, never the ids: the frozen id column is not repainted); texts are
-            # formatted when a row is shown (a refit changes hundreds, a view shows a dozen)
-            n = len(COLUMNS)
-            was, now = [old[i][:n] for i in changed], [rows[i][:n] for i in changed]
-            cols = [c for c, (a, b) in enumerate(zip(zip(*was), zip(*now))) if a != b]
-            for i in changed:
-                self._text[i] = None
-            self._rows = rows
-            if cols:
-                self.dataChanged.emit(self.index(min(changed), cols[0]),
-                                      self.index(max(changed), cols[-1]))
-            for i in changed:  # a flag changed (the row's colour, a blunder): that whole row
-                if old[i][n:] != rows[i][n:]:
-                    self.dataChanged.emit(self.index(i, 0), self.index(i, n - 1))
+            old, self._make = self._rows, make
+            self._rows, self._text = rows, [None] * len(rows)
+            self._emit_changed(old, rows, range(len(rows)))
             return
         if rows and len(ids) == len(self.ids) and set(ids) == set(self.ids):
             self._relayout(rows)  # re-sorted by new values
             return
+        self._reset(ids, make, rows)
+
+    def _refresh_shown(self, make) -> None:
+        """The same points in creation order: build the rows on screen, repaint what changed
+        in them; the rest are built when read."""
+        n = len(self.ids)
+        try:
+            first, last = self.shown_rows() if self.shown_rows is not None else (0, n - 1)
+        except RuntimeError:  # the view is being deleted: every row
+            first, last = 0, n - 1
+        first, last = max(first, 0), min(last, n - 1)
+        old, rows = self._rows, [None] * n
+        for i in range(first, last + 1):
+            rows[i] = make(self.ids[i])
+        self._rows, self._text, self._make = rows, [None] * n, make
+        self._emit_changed(old, rows, range(first, last + 1))
+
+    def _emit_changed(self, old, rows, where) -> None:
+        """``dataChanged`` for the rows of ``where`` that differ between ``old`` and ``rows``:
+        the columns between the leftmost and the rightmost that changed (a refit changes the
+        residual columns, never the ids: the frozen id column is not repainted), and the whole
+        row where a flag changed (its colour, a blunder). A row not built before counts as
+        changed everywhere."""
+        n = len(COLUMNS)
+        changed = [i for i in where if old[i] != rows[i]]
+        if not changed:
+            return
+        if any(old[i] is None for i in changed):
+            cols = list(range(n))
+        else:
+            was, now = [old[i][:n] for i in changed], [rows[i][:n] for i in changed]
+            cols = [c for c, (a, b) in enumerate(zip(zip(*was), zip(*now))) if a != b]
+        if cols:
+            self.dataChanged.emit(self.index(min(changed), cols[0]), self.index(max(changed), cols[-1]))
+        for i in changed:
+            if old[i] is not None and old[i][n:] != rows[i][n:]:
+                self.dataChanged.emit(self.index(i, 0), self.index(i, n - 1))
+
+    def _reset(self, ids, make, rows=None) -> None:
         self.beginResetModel()
-        self._set_rows(rows)
+        self._make = make
+        self._set_rows(rows if rows is not None else [None] * len(ids), ids)
         self.endResetModel()
 
-    def _set_rows(self, rows) -> None:
-        self._rows, self.ids = rows, [r[0] for r in rows]
+    def _set_rows(self, rows, ids=None) -> None:
+        self._rows = rows
+        self.ids = [r[0] for r in rows] if ids is None else list(ids)
         self._row_of = {pid: i for i, pid in enumerate(self.ids)}
         self._text = [None] * len(rows)
+
+    def row(self, r: int) -> tuple:
+        """Row ``r``'s values (built when first read after a refresh)."""
+        x = self._rows[r]
+        if x is None:
+            x = self._rows[r] = self._make(self.ids[r])
+        return x
 
     def texts(self, r: int) -> list:
         """The display texts of row ``r`` (formatted when first shown after a change)."""
         t = self._text[r]
         if t is None:
-            t = self._text[r] = _texts(self._rows[r])
+            t = self._text[r] = _texts(self.row(r))
         return t
 
     def _sorted(self, rows: list[tuple]) -> list[tuple]:
@@ -150,7 +197,8 @@ class PointTableModel(QAbstractTableModel):
         cells first."""
         self._sort = (column, order)
         if self.project is not None:
-            self._relayout(self._sorted(self._build()))
+            self._make = self._row_builder()
+            self._relayout(self._sorted([self._make(pid) for pid in self.project.points]))
 
     def _relayout(self, rows) -> None:
         """The same points in a new order: selection and scroll follow their rows."""
@@ -163,21 +211,23 @@ class PointTableModel(QAbstractTableModel):
             [self.index(i, c) for i in range(len(self.ids)) for c in range(n)])
         self.layoutChanged.emit()
 
-    def _build(self) -> list[tuple]:
-        p, sol = self.project, self.solution
+    def _row_builder(self):
+        """``make(pid) -> row``: a row's values (the columns, then the blunder flag and the
+        unusual-height flag) from the project and the solution as they are now — a snapshot
+        of the project: a row built later shows the same state as the others, not an edit
+        made since (whose refit refreshes the table)."""
+        p, sol = self.project.snapshot(), self.solution
         views = list(p.scene.views)
         ref = reference_view(views)
-        measured: dict[str, set] = {}
-        for pid, v in p.measurements:
-            measured.setdefault(pid, set()).add(v)
-        shown: dict[frozenset, str] = {}  # views measured -> "N · B" (a handful of kinds)
+        measurements, points = p.measurements, p.points
+        shown: dict[tuple, str] = {}  # views measured -> "N · B" (a handful of kinds)
         results = {r.id: r for r in sol.points} if sol is not None else {}
         usual = p.height_kind()
-        rows = []
         hypot = math.hypot
-        for pid, pt in p.points.items():
-            r = results.get(pid)
-            have = frozenset(measured.get(pid, ()))
+
+        def make(pid: str) -> tuple:
+            pt, r = points[pid], results.get(pid)
+            have = tuple(v for v in views if (pid, v) in measurements)
             vs = shown.get(have)
             if vs is None:
                 vs = shown[have] = " ".join(v if v in have else "·" for v in views)
@@ -195,10 +245,10 @@ class PointTableModel(QAbstractTableModel):
                     dh = r.ground_residual[2]
                 sr, blunder = r.std_residual, r.blunder
             hk = pt.height_kind if pt.H == pt.H else ""  # (NaN: no height, no kind)
-            rows.append((pid, pt.kind, vs, vx, vy, vmax, e, n, h, dh, sr,
-                         pt.E, pt.N, pt.H, hk, pt.sigma_xy_m, pt.sigma_h_m, blunder,
-                         bool(hk) and hk != usual))
-        return rows
+            return (pid, pt.kind, vs, vx, vy, vmax, e, n, h, dh, sr,
+                    pt.E, pt.N, pt.H, hk, pt.sigma_xy_m, pt.sigma_h_m, blunder,
+                    bool(hk) and hk != usual)
+        return make
 
     # ------------------------------------------------------------------ Qt model
     def rowCount(self, parent=QModelIndex()) -> int:
@@ -218,19 +268,19 @@ class PointTableModel(QAbstractTableModel):
         r, c = index.row(), index.column()
         if role == _DISPLAY:
             return self.texts(r)[c]
-        row = self._rows[r]
+        row = self.row(r)
         if role == _SORT:
             return _sort_key(row, c)
         if role == _EDIT:
             return self.texts(r)[c] if COLUMNS[c] in EDITABLE else None
         if role == _BACKGROUND:
             if c == HEIGHT and row[ODD_HEIGHT]:
-                return _ODD_HEIGHT_BRUSH
-            return _BLUNDER_BRUSH if row[BLUNDER] else _ODD_BRUSH if r % 2 else None
+                return ODD_HEIGHT_BRUSH
+            return BLUNDER_BRUSH if row[BLUNDER] else ODD_ROW_BRUSH if r % 2 else None
         if role == _FOREGROUND and c == 1:
-            return _KIND_BRUSHES.get(row[1])
+            return KIND_BRUSHES.get(row[1])
         if role == _ALIGN and c not in TEXT:
-            return _RIGHT
+            return ALIGN_RIGHT
         if role == _TOOLTIP and c == HEIGHT and row[ODD_HEIGHT]:
             return odd_height_text(row[0], row[HEIGHT], self.project.height_kind())
         if role == _TOOLTIP and row[BLUNDER]:
@@ -262,218 +312,4 @@ class PointTableModel(QAbstractTableModel):
 
     def is_blunder(self, pid: str) -> bool:
         r = self.row_of(pid)
-        return r >= 0 and bool(self._rows[r][BLUNDER])
-
-
-class _FastTable(QTableView):
-    """A table view of a :class:`PointTableModel` that paints its visible cells in one pass."""
-
-    PAD = 4  # text inset in a cell, px
-
-    def __init__(self, model: PointTableModel, parent=None):
-        super().__init__(parent)
-        self.source_model = model
-        self.setModel(model)
-        self.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
-        self.setSelectionMode(QAbstractItemView.SelectionMode.SingleSelection)
-        self.verticalHeader().setVisible(False)
-        self.verticalHeader().setDefaultSectionSize(20)
-        # sized once per project (ResizeToContents would measure every cell at every change)
-        self.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.Interactive)
-
-    def dataChanged(self, top_left, bottom_right, roles=()) -> None:
-        """Repaint the changed cells only (Qt repaints the whole table for a range): a refit
-        changes the residual columns, and neither the ids nor the known coordinates."""
-        if not top_left.isValid() or not bottom_right.isValid() or self.state() == self.State.EditingState:
-            return super().dataChanged(top_left, bottom_right, roles)
-        vh, hh = self.verticalHeader(), self.horizontalHeader()
-        cols = [c for c in range(top_left.column(), bottom_right.column() + 1) if not hh.isSectionHidden(c)]
-        if not cols:
-            return
-        x0 = min(hh.sectionViewportPosition(c) for c in cols)
-        x1 = max(hh.sectionViewportPosition(c) + hh.sectionSize(c) for c in cols)
-        y0 = vh.sectionViewportPosition(top_left.row())
-        y1 = vh.sectionViewportPosition(bottom_right.row()) + vh.sectionSize(bottom_right.row())
-        rect = QRect(x0, y0, x1 - x0, y1 - y0).intersected(self.viewport().rect())
-        if not rect.isEmpty():
-            self.viewport().update(rect)
-
-    def paintEvent(self, event) -> None:
-        """The visible cells in one pass, from the model's preformatted strings: background
-        (selection, blunder, alternate rows, a height of an unusual kind), text in the kind
-        colour or aligned right for numbers, grid. A refit repaints the table at every click;
-        the item-view machinery (an item delegate called per cell) cost 3–5 ms of that, this
-        ~1 ms."""
-        m = self.source_model
-        if not m._rows:
-            return super().paintEvent(event)
-        vh, hh = self.verticalHeader(), self.horizontalHeader()
-        area = event.rect()
-        first = vh.visualIndexAt(area.top())
-        last = vh.visualIndexAt(area.bottom())
-        first = 0 if first < 0 else first
-        last = len(m._rows) - 1 if last < 0 else last
-        cols = []
-        for vis in range(hh.count()):
-            c = hh.logicalIndex(vis)
-            x, w = hh.sectionViewportPosition(c), hh.sectionSize(c)
-            if not hh.isSectionHidden(c) and x + w > area.left() and x < area.right() + 1:
-                cols.append((c, x, w))
-        selected = {i.row() for i in self.selectionModel().selectedRows()}
-        pal = self.palette()
-        text_pen, sel_pen = pal.color(QPalette.ColorRole.Text), pal.color(QPalette.ColorRole.HighlightedText)
-        p = QPainter(self.viewport())
-        p.fillRect(area, pal.base())
-        right = cols[-1][1] + cols[-1][2] if cols else 0
-        rows = []
-        for vis in range(first, last + 1):
-            r = vh.logicalIndex(vis)
-            y, h = vh.sectionViewportPosition(r), vh.sectionSize(r)
-            row, texts, chosen = m._rows[r], m.texts(r), r in selected
-            if chosen:
-                p.fillRect(0, y, right, h, pal.highlight())
-            elif row[BLUNDER] or r % 2:
-                p.fillRect(0, y, right, h, _BLUNDER_BRUSH if row[BLUNDER] else _ODD_BRUSH)
-            for c, x, w in cols:
-                odd = c == HEIGHT and row[ODD_HEIGHT]  # tinted, selected or not
-                if odd:
-                    p.fillRect(x, y, w, h, _ODD_HEIGHT_BRUSH)
-                kind = _KIND_BRUSHES.get(row[1]) if c == 1 and not chosen else None
-                p.setPen(sel_pen if chosen and not odd else kind.color() if kind is not None else text_pen)
-                p.drawText(x + self.PAD, y, w - 2 * self.PAD, h, _LEFT if c in TEXT else _RIGHT, texts[c])
-            rows.append(y + h - 1)
-        if self.showGrid():
-            p.setPen(pal.color(QPalette.ColorRole.Mid))
-            bottom = rows[-1] if rows else area.bottom()
-            for y in rows:
-                p.drawLine(area.left(), y, right - 1, y)
-            for _, x, w in cols:
-                p.drawLine(x + w - 1, area.top(), x + w - 1, bottom)
-        p.end()
-
-
-class _FrozenIds(_FastTable):
-    """The ID column kept in view over the left edge of the table while it scrolls sideways
-    (Qt's frozen-column pattern: a second view of the same model and selection, showing
-    column 0 only, scrolled with the table's rows)."""
-
-    def __init__(self, table: "PointTableView"):
-        super().__init__(table.source_model, table)
-        self.table = table
-        own = self.selectionModel()
-        self.setSelectionModel(table.selectionModel())
-        own.deleteLater()
-        self.setFocusPolicy(Qt.FocusPolicy.NoFocus)  # keys go to the table
-        self.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
-        self.setVerticalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
-        self.setVerticalScrollMode(table.verticalScrollMode())
-        self.setFrameShape(self.Shape.NoFrame)
-        self.horizontalHeader().setSortIndicator(-1, Qt.SortOrder.AscendingOrder)  # unsorted until the table is
-        self.horizontalHeader().setSortIndicatorShown(True)
-        self.horizontalHeader().setSectionsClickable(True)
-        self.horizontalHeader().sectionClicked.connect(self._sort_clicked)
-        self.setStyleSheet("QTableView { border-right: 1px solid palette(mid); }")
-        self._hide_other_columns()
-        table.source_model.modelReset.connect(self._hide_other_columns)
-        table.verticalScrollBar().valueChanged.connect(self.verticalScrollBar().setValue)
-        self.verticalScrollBar().valueChanged.connect(table.verticalScrollBar().setValue)
-
-    def _hide_other_columns(self) -> None:
-        for c in range(1, len(COLUMNS)):
-            self.setColumnHidden(c, True)
-
-    def _sort_clicked(self, column: int) -> None:
-        """The header's ID sorts the table as the table's own ID header does."""
-        hh = self.table.horizontalHeader()
-        order = (Qt.SortOrder.DescendingOrder if hh.sortIndicatorSection() == 0
-                 and hh.sortIndicatorOrder() == Qt.SortOrder.AscendingOrder else Qt.SortOrder.AscendingOrder)
-        hh.setSortIndicator(0, order)
-
-    def contextMenuEvent(self, event) -> None:
-        """The table's own context menu (go to, kind, delete) for the row clicked."""
-        if self.table.contextMenuPolicy() == Qt.ContextMenuPolicy.ActionsContextMenu and self.table.actions():
-            QMenu.exec(self.table.actions(), event.globalPos(), None, self)
-
-
-class PointTableView(_FastTable):
-    """Sortable table view of a :class:`PointTableModel` with single-row selection; its ID
-    column stays in view when the table scrolls sideways (:attr:`frozen`)."""
-
-    def __init__(self, model: PointTableModel, parent=None):
-        super().__init__(model, parent)
-        self.horizontalHeader().setSortIndicator(-1, Qt.SortOrder.AscendingOrder)
-        self.setSortingEnabled(True)
-        self.horizontalHeader().setStretchLastSection(True)
-        self.setHorizontalScrollMode(QAbstractItemView.ScrollMode.ScrollPerPixel)
-        model.modelReset.connect(self._size_columns)
-        self.frozen = _FrozenIds(self)
-        self.horizontalHeader().sectionResized.connect(self._frozen_width)
-        self.horizontalHeader().sortIndicatorChanged.connect(
-            lambda c, o: self.frozen.horizontalHeader().setSortIndicator(c if c == 0 else -1, o))
-        self._frozen_width(0, 0, self.columnWidth(0))
-
-    def _frozen_width(self, column: int, _old: int, width: int) -> None:
-        if column == 0:
-            self.frozen.setColumnWidth(0, width)
-            self._place_frozen()
-
-    def _place_frozen(self) -> None:
-        f = self.frameWidth()
-        self.frozen.setGeometry(f, f, self.columnWidth(0),
-                                self.viewport().height() + self.horizontalHeader().height())
-        self.frozen.horizontalHeader().setFixedHeight(self.horizontalHeader().height())
-
-    def resizeEvent(self, event) -> None:
-        super().resizeEvent(event)
-        if hasattr(self, "frozen"):
-            self._place_frozen()
-
-    def updateGeometries(self) -> None:
-        super().updateGeometries()
-        if hasattr(self, "frozen"):
-            self._place_frozen()
-
-    def scrollTo(self, index, hint=QAbstractItemView.ScrollHint.EnsureVisible) -> None:
-        """As QTableView, but a cell scrolled into view is never left under the frozen IDs."""
-        super().scrollTo(index, hint)
-        if index.isValid() and index.column() > 0:
-            left = self.visualRect(index).left()
-            under = self.columnWidth(0) - left
-            if under > 0:
-                sb = self.horizontalScrollBar()
-                sb.setValue(sb.value() - under)
-
-    def _size_columns(self) -> None:
-        fm = self.fontMetrics()
-        for c, name in enumerate(COLUMNS):
-            sample = {"ID": "W0000", "Kind": "GCP", "Views": "N F B", "E (m)": "000000.000",
-                      "N (m)": "0000000.000", "H (m)": "0000.000", "Height": "orthometric"}.get(name, "-000000.00")
-            self.setColumnWidth(c, max(fm.horizontalAdvance(name), fm.horizontalAdvance(sample)) + 14)
-
-    def current_id(self) -> str | None:
-        rows = self.selectionModel().selectedRows()
-        if not rows:
-            return None
-        r = rows[0].row()
-        return self.source_model.ids[r] if 0 <= r < len(self.source_model.ids) else None
-
-    def select_id(self, pid: str | None) -> None:
-        """Select the row of ``pid`` (clears the selection for None) without emitting twice."""
-        sm = self.selectionModel()
-        r = -1 if pid is None else self.source_model.row_of(pid)
-        if r < 0:
-            sm.clearSelection()
-            return
-        idx = self.source_model.index(r, 0)
-        if self.current_id() != pid or not sm.isSelected(idx):
-            sm.select(idx, sm.SelectionFlag.ClearAndSelect | sm.SelectionFlag.Rows)
-            sm.setCurrentIndex(idx, sm.SelectionFlag.NoUpdate)
-        # to the row only: a sideways scroll would move the cell being double-clicked (to
-        # edit it) away from under the mouse
-        x = self.horizontalScrollBar().value()
-        self.scrollTo(idx)
-        self.horizontalScrollBar().setValue(x)
-
-    def ordered_ids(self) -> list[str]:
-        """Ids in the order shown (after sorting)."""
-        return list(self.source_model.ids)
+        return r >= 0 and bool(self.row(r)[BLUNDER])

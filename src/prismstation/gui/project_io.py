@@ -30,7 +30,7 @@ from pathlib import Path
 from PySide6.QtCore import QObject, Signal, Slot
 from PySide6.QtWidgets import QFileDialog, QMessageBox
 
-from prismstation.errors import InputError, PrismError
+from prismstation.errors import InputError, PrismError, WriteError
 from prismstation.gui import settings as st
 from prismstation.gui import workers
 from prismstation.gui.journal import (WindowJournal, autosave_path, untitled_journals,  # noqa: F401
@@ -302,7 +302,8 @@ class ProjectFiles(QObject):
         try:
             save_project(self.project, self.path)
         except (PrismError, OSError) as exc:
-            self.warn("Save", f"Could not save {self.path}: {exc}")
+            named = isinstance(exc, WriteError) and exc.file == str(self.path)  # no path twice
+            self.warn("Save", f"Could not save {exc}" if named else f"Could not save {self.path}: {exc}")
             return False
         self.stack.setClean()
         self._remove_autosave()

@@ -18,11 +18,11 @@ import math
 import os
 import re
 import sys
-import tempfile
 from pathlib import Path
 
 from prismstation.core.scene import reference_view
-from prismstation.errors import InputError
+from prismstation.errors import InputError, WriteError
+from prismstation.io.atomic import write_atomic
 
 FIGURE_CAPTIONS = {
     "height": "Ellipsoidal height versus F−B parallax of the GCPs and ICPs, with the fitted and "
@@ -382,6 +382,11 @@ def _png_bytes(image) -> bytes:
 def write_document(report: dict, path, figures: dict | None = None) -> None:
     """Write the residual report to ``path``: ``.html`` or ``.pdf`` (by extension).
 
+    The document is made in memory, checked (a PDF begins with ``%PDF-`` and ends with
+    ``%%EOF``, Qt's painter reported no failure) and written atomically
+    (:func:`prismstation.io.atomic.write_atomic`: size checked, renamed into place): a
+    failure is a :class:`~prismstation.errors.WriteError` and leaves no file.
+
     Parameters
     ----------
     report : dict
@@ -401,29 +406,28 @@ def write_document(report: dict, path, figures: dict | None = None) -> None:
     if ext in (".html", ".htm"):
         srcs = {n: "data:image/png;base64," + base64.b64encode(_png_bytes(im)).decode("ascii")
                 for n, im in figures.items()}
-        text = report_html(report, srcs).encode("utf-8")
-        _atomic(path, lambda tmp: Path(tmp).write_bytes(text))
+        data = report_html(report, srcs).encode("utf-8")
     else:
-        _atomic(path, lambda tmp: _write_pdf(report, tmp, figures))
+        try:
+            data = pdf_bytes(report, figures)
+        except WriteError as exc:
+            raise WriteError(exc.problem, path) from None
+        problem = check_pdf(data)
+        if problem:
+            raise WriteError(f"cannot write: Qt's PDF writer {problem}", path)
+    write_atomic(path, data, keep_backup=False)
 
 
-def _atomic(path: Path, write) -> None:
-    """``write(tmp)`` a temporary file beside ``path``, then rename it onto ``path``
-    (permissions as a plain new file: 0666 less the umask)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        write(tmp)
-        if os.path.getsize(tmp) == 0:
-            raise InputError("nothing was written (Qt wrote an empty file)", path)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+def check_pdf(data: bytes) -> str:
+    """What is wrong with the PDF ``data`` ("" when nothing): a PDF begins with ``%PDF-`` and
+    its last line is ``%%EOF`` (a cut file has no end)."""
+    if not data:
+        return "wrote nothing"
+    if not data.startswith(b"%PDF-"):
+        return "wrote something that is not a PDF"
+    if not data.rstrip().endswith(b"%%EOF"):
+        return f"wrote an incomplete PDF ({len(data)} bytes, no %%EOF at the end)"
+    return ""
 
 
 def _footer_text(report: dict) -> str:
@@ -435,13 +439,28 @@ def _footer_text(report: dict) -> str:
     return " · ".join(bits)
 
 
-def _write_pdf(report: dict, path, figures: dict) -> None:
-    """Paint the report's QTextDocument page by page on an A4 ``QPdfWriter`` at ``path``, with
-    a footer on every page: the report's title, scene and date, and "Page i of n"."""
+def pdf_bytes(report: dict, figures: dict) -> bytes:
+    """The report as a PDF in memory: its QTextDocument painted page by page on an A4
+    ``QPdfWriter``, with a footer on every page (the report's title, scene and date, and
+    "Page i of n"). A painter that could not begin or end, or a page not added, is a
+    :class:`~prismstation.errors.WriteError`."""
+    from PySide6.QtCore import QBuffer, QByteArray, QIODevice
+    data = QByteArray()
+    buf = QBuffer(data)
+    if not buf.open(QIODevice.OpenModeFlag.WriteOnly):
+        raise WriteError("cannot write: Qt could not open a memory buffer for the PDF")
+    try:
+        _paint_pdf(report, buf, figures)
+    finally:
+        buf.close()
+    return bytes(data.data())
+
+
+def _paint_pdf(report: dict, device, figures: dict) -> None:
     from PySide6.QtCore import QMarginsF, QRectF, QSizeF, Qt, QUrl
     from PySide6.QtGui import (QColor, QFont, QPageLayout, QPageSize, QPainter, QPdfWriter,
                                QTextDocument)
-    writer = QPdfWriter(str(path))
+    writer = QPdfWriter(device)
     h = report.get("header") or {}
     writer.setTitle(h.get("title") or "ALOS-PRISM orientation report")
     writer.setCreator(str(h.get("software") or report.get("program") or "prismstation"))
@@ -462,11 +481,14 @@ def _write_pdf(report: dict, path, figures: dict) -> None:
     font = QFont("sans-serif")
     font.setPointSizeF(7.5)
     left = _footer_text(report)
-    painter = QPainter(writer)
+    painter = QPainter()
+    if not painter.begin(writer):
+        raise WriteError("cannot write: Qt's PDF painter could not begin")
+    ended = False
     try:
         for i in range(n):
-            if i:
-                writer.newPage()
+            if i and not writer.newPage():
+                raise WriteError(f"cannot write: Qt's PDF writer could not add page {i + 1}")
             painter.save()
             painter.translate(0, -i * body)
             doc.drawContents(painter, QRectF(0, i * body, width, body))
@@ -478,7 +500,11 @@ def _write_pdf(report: dict, path, figures: dict) -> None:
             painter.drawText(box, Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter, left)
             painter.drawText(box, Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter,
                              f"Page {i + 1} of {n}")
+        ended = painter.end()  # writes the PDF's end (trailer, %%EOF) into the device
     finally:
-        painter.end()
+        if painter.isActive():
+            painter.end()
     del painter, doc
-    del writer  # flushes and closes the file
+    del writer
+    if not ended:
+        raise WriteError("cannot write: Qt's PDF painter could not end the document")

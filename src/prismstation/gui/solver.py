@@ -12,7 +12,6 @@ is dropped (by revision number); edits made while a fit runs start one more fit 
 """
 from __future__ import annotations
 
-import copy
 import time
 
 from PySide6.QtCore import QObject, QTimer, Signal
@@ -25,13 +24,9 @@ from prismstation.ops.predict import DEFAULT_DEM_SIGMA_M
 
 
 def snapshot(project):
-    """A shallow copy of ``project`` whose point and measurement dicts are its own (the values
-    are frozen dataclasses), safe to solve in another thread while the original is edited."""
-    snap = copy.copy(project)
-    snap.points = dict(project.points)
-    snap.measurements = dict(project.measurements)
-    snap.changed = None
-    return snap
+    """``project.snapshot()``: a copy safe to solve in another thread while the original is
+    edited."""
+    return project.snapshot()
 
 
 def _fit(snap, height_of):

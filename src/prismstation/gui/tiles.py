@@ -55,6 +55,8 @@ class _Queue:
         self.cond = threading.Condition(threading.Lock())
         self.keys: list = []  # keys to read, most wanted first
         self.running: set = set()
+        self.failed: set = set()  # keys whose read failed: drawn as missing, never asked again
+        self.reported = False     # the first failure was reported (one message, not one a tile)
         self.stopped = False
 
     def stop(self) -> None:
@@ -83,9 +85,13 @@ class _Queue:
                     self.running.discard(key)
                     if self.stopped:
                         return
+                    first = error is not None and not self.reported
+                    if error is not None:
+                        self.failed.add(key)
+                        self.reported = True
                 if error is None:
                     workers.post(self.on_loaded, self.source, key, arr)
-                else:
+                elif first:
                     workers.post(self.on_failed, self.source, key, error)
         finally:
             self.source.release_thread()  # this thread's handle, closed by this thread
@@ -99,8 +105,11 @@ class TileLoader:
     the cache). Each worker thread has its own rasterio handle (``RasterSource`` sees to it) and
     closes it as it ends. Results go to ``on_loaded(source, key, array)`` or
     ``on_failed(source, key, message)`` on the GUI thread (:func:`workers.post`: a bound method
-    of a deleted view is not called). The owner calls :meth:`shutdown` (``wait=True``) before
-    it closes the source.
+    of a deleted view is not called). A tile whose read fails (a truncated or corrupt file, a
+    file gone: :class:`RasterReadError` naming the file and the window) is drawn as missing
+    and never asked for again; only the first failure is reported, so a broken file gives one
+    message, not one a tile. The owner calls :meth:`shutdown` (``wait=True``) before it closes
+    the source.
     """
 
     def __init__(self, source: RasterSource, threads: int = 2, on_loaded=None, on_failed=None):
@@ -114,8 +123,13 @@ class TileLoader:
         q = self._q
         with q.cond:
             if not q.stopped:
-                q.keys = [k for k in keys if k not in q.running]
+                q.keys = [k for k in keys if k not in q.running and k not in q.failed]
                 q.cond.notify_all()
+
+    def failed(self) -> set:
+        """Keys whose read failed (drawn as missing)."""
+        with self._q.cond:
+            return set(self._q.failed)
 
     def pending(self) -> int:
         """Number of tile reads queued or running."""

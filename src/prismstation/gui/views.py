@@ -143,6 +143,7 @@ class TripletViews(QWidget):
             iv.clicked.connect(lambda x, y, mods, n=name: self._on_clicked(n, x, y, mods))
             iv.cursor_moved.connect(lambda x, y, n=name: self.on_cursor(n, x, y))
             iv.view_changed.connect(lambda n=name: self._on_view_changed(n))
+            iv.read_failed.connect(lambda m, n=name: self.message.emit(f"view {n}: {m}"))
             iv.vb.sigRangeChangedManually.connect(lambda *_, n=name: self.navigated.emit(n))
         self.splitter.setSizes([1000] * len(self.views))
         self._pending = set()

@@ -54,6 +54,7 @@ import numpy as np
 from pyproj import Transformer
 
 from prismstation.errors import InputError
+from prismstation.io.atomic import atomic_path, raster_check
 
 NOMINAL_ALTITUDE_M = 691650.0
 """ALOS nominal orbit altitude (m), used when a product gives none."""
@@ -327,20 +328,16 @@ def write_geotiff(img_path, tif_path, crs: str, map_to_image, desc: dict | None 
     inv = ~Affine(a1, a2, a5, a3, a4, a6)
     dtype = "uint16" if desc["bits"] == 16 else "uint8"
     tif_path = Path(tif_path)
-    tmp = tif_path.with_name(tif_path.name + ".part")
     profile = dict(driver="GTiff", width=desc["pixels"], height=desc["lines"], count=1,
                    dtype=dtype, crs=crs, transform=inv, tiled=True, blockxsize=256,
                    blockysize=256, compress="deflate")
-    try:
+    # atomic: a failure is a WriteError naming the copy, and leaves no file
+    with atomic_path(tif_path, check=raster_check(desc["pixels"], desc["lines"], 1)) as tmp:
         with rasterio.open(tmp, "w", **profile) as dst:
             for r0 in range(0, desc["lines"], block_lines):
                 r1 = min(desc["lines"], r0 + block_lines)
                 dst.write(np.asarray(arr[r0:r1], dtype=dtype), 1,
                           window=Window(0, r0, desc["pixels"], r1 - r0))
-        tmp.replace(tif_path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise InputError(f"cannot write the GeoTIFF copy: {exc}", tif_path) from None
     return tif_path
 
 

@@ -7,20 +7,22 @@ coordinates; arrays are ``(rows, cols)`` float64 with NaN for voids.
 """
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import rasterio
+from rasterio._err import CPLE_BaseError
 from rasterio.crs import CRS
 from rasterio.enums import Resampling
-from rasterio.errors import NotGeoreferencedWarning, RasterioError, RasterioIOError
+from rasterio.errors import RasterioError
 from rasterio.transform import Affine
 from rasterio.warp import calculate_default_transform, reproject
 
 from prismstation.errors import InputError, RasterReadError
+from prismstation.io.atomic import atomic_path, cause_text, raster_check
 from prismstation.io.geoid import to_ellipsoidal
+from prismstation.io.windows import CheckedRaster
 
 SRTM_VOID = -32768
 
@@ -68,27 +70,23 @@ def grid_coordinates(transform, shape) -> tuple[np.ndarray, np.ndarray]:
     return x, y
 
 
-def open_raster(path, what: str = "raster"):
-    """Open a raster for reading; a missing or unreadable file → InputError naming ``what``."""
+def open_raster(path, what: str = "raster") -> CheckedRaster:
+    """Open a raster for reading; a missing or unopenable file → InputError naming ``what``;
+    its reads raise :class:`RasterReadError` naming the file, ``what`` and the window."""
     p = Path(path)
     if not p.exists():
         raise InputError(f"{what} not found", file=p)
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", NotGeoreferencedWarning)
-            return rasterio.open(p)
-    except RasterioIOError as exc:
-        raise InputError(f"cannot open {what} as a raster ({exc})", file=p) from None
+        return CheckedRaster(p, what)
+    except RasterReadError as exc:
+        raise InputError(str(exc).removeprefix(f"{p}: "), file=p) from None
 
 
 def _read_source(path: Path, what: str):
     with open_raster(path, what) as ds:
         if ds.crs is None:
             raise InputError(f"{what} has no coordinate reference system", file=path)
-        try:
-            arr = ds.read(1, masked=True).astype(np.float64).filled(np.nan)
-        except RasterioError as exc:
-            raise RasterReadError(f"{path}: cannot read {what} ({exc})") from None
+        arr = ds.read(1, masked=True).astype(np.float64).filled(np.nan)  # RasterReadError
         if ds.dtypes[0] == "int16":
             arr[arr <= SRTM_VOID] = np.nan        # SRTM voids even without a nodata tag
         arr[~np.isfinite(arr)] = np.nan
@@ -145,8 +143,8 @@ def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
             reproject(src, heights, src_transform=src_transform, src_crs=src_crs,
                       src_nodata=np.nan, dst_transform=out_t, dst_crs=out_crs, dst_nodata=np.nan,
                       resampling=Resampling[resampling])
-        except (RasterioError, KeyError) as exc:
-            raise RasterReadError(f"{path}: cannot resample {what} ({exc})") from None
+        except (RasterioError, CPLE_BaseError, KeyError) as exc:
+            raise RasterReadError(f"{path}: cannot resample {what} ({cause_text(exc, str(path))})") from None
     kind = "orthometric"
     if geoid is not None:
         if isinstance(geoid, (int, float)):
@@ -172,12 +170,14 @@ def resample_to_grid(path, grid: DemGrid, *, resampling: str = "bilinear",
                       src_crs=ds.crs, src_nodata=ds.nodata, dst_transform=grid.transform,
                       dst_crs=grid.crs, dst_nodata=fill, resampling=Resampling[resampling])
         except Exception as exc:
-            raise RasterReadError(f"{path}: cannot resample {what} onto the DSM grid ({exc})") from None
+            raise RasterReadError(f"{path}: cannot read or resample {what} onto the DSM grid "
+                                  f"({cause_text(exc, str(path))})") from None
     return out
 
 
 def write_dem(path, heights, crs, transform) -> None:
-    """Write a single-band float32 GeoTIFF (deflate, nodata NaN).
+    """Write a single-band float32 GeoTIFF (deflate, nodata NaN), atomically: a failure is a
+    :class:`~prismstation.errors.WriteError` and leaves no file.
 
     Parameters
     ----------
@@ -194,11 +194,9 @@ def write_dem(path, heights, crs, transform) -> None:
                    transform=Affine(*tuple(transform)[:6]), nodata=np.nan, compress="deflate")
     if h.shape[0] >= 256 and h.shape[1] >= 256:
         profile.update(tiled=True, blockxsize=256, blockysize=256)
-    try:
-        with rasterio.open(Path(path), "w", **profile) as ds:
+    with atomic_path(path, check=raster_check(h.shape[1], h.shape[0], 1)) as tmp:
+        with rasterio.open(tmp, "w", **profile) as ds:
             ds.write(h, 1)
-    except RasterioError as exc:
-        raise RasterReadError(f"{path}: cannot write the DEM ({exc})") from None
 
 
 def local_metric_transform(crs, transform, shape) -> tuple[float, ...]:

@@ -12,7 +12,8 @@ ellipsoid, or, for orthometric heights, the geoid's (EGM96 → EPSG:5773, EGM200
 any other geoid a named one). All of it lives in the GeoTIFF keys (GeoTIFF 1.1), none in a side
 file. Tiled 256 × 256, deflate, internal overviews (COG driver).
 Tags: ``FILL_PERCENT`` (matched share of the seen cells), ``SEEN_CELLS``, ``POSTING_M``,
-``HEIGHTS``. The file is written beside the target and renamed over it (atomic); the
+``HEIGHTS``. The file is written beside the target, read back and renamed over it
+(:mod:`prismstation.io.atomic`: a failure leaves no file and raises a ``WriteError``); the
 uncompressed GeoTIFF the COG is copied from (12 bytes a cell: ~0.6 GB for a 14,000 px scene at
 5 m) is written in the system's temporary folder (``TMPDIR``), not beside the target.
 """
@@ -26,12 +27,14 @@ import numpy as np
 import pyproj
 import rasterio
 from rasterio.crs import CRS
+from rasterio._err import CPLE_BaseError
 from rasterio.errors import RasterioError
 from rasterio.shutil import copy as rio_copy
 from rasterio.transform import Affine
 from rasterio.windows import Window
 
-from prismstation.errors import RasterReadError
+from prismstation.errors import WriteError
+from prismstation.io.atomic import atomic_path, free_bytes, raster_check, write_error
 
 NODATA = float("nan")   # what a plain read of band 1 shows as no height
 BANDS = ("height", "mask", "pairs_agreeing")
@@ -67,7 +70,9 @@ STRIP_ROWS = 1024
 
 
 def write_dsm(path, dsm) -> None:
-    """Write ``dsm`` (:class:`prismstation.ops.dsm.Dsm`) as a COG GeoTIFF at ``path``."""
+    """Write ``dsm`` (:class:`prismstation.ops.dsm.Dsm`) as a COG GeoTIFF at ``path``,
+    atomically; a failure is a :class:`~prismstation.errors.WriteError` (naming the scratch
+    copy when the temporary folder is what failed)."""
     path = Path(path)
     h = np.asarray(dsm.heights, np.float32)
     rows, cols = h.shape
@@ -83,39 +88,48 @@ def write_dsm(path, dsm) -> None:
     hm = dsm.info.get("heights")
     if hm:
         tags["HEIGHT_MODEL"] = f"{hm['model']} ({hm['reason']})"
-    fd, tmp = tempfile.mkstemp(prefix=".dsm-", suffix=".tif", dir=path.parent)
-    os.close(fd)
     # the plain copy is written in strips of rows (no grid-sized copy in memory), then copied
     # into the COG: a scratch file, in the temporary folder
-    fd, plain = tempfile.mkstemp(prefix="prismstation-dsm-", suffix=".tif")
-    os.close(fd)
+    plain = None
     try:
-        with rasterio.Env(GDAL_PAM_ENABLED="NO"):
-            with rasterio.open(plain, "w", **profile) as ds:
-                for r0 in range(0, rows, STRIP_ROWS):
-                    window = Window(0, r0, cols, min(STRIP_ROWS, rows - r0))
-                    hs, ss = h[r0:r0 + STRIP_ROWS], seen[r0:r0 + STRIP_ROWS]
-                    ds.write(np.where(np.isfinite(hs), hs, NODATA).astype(np.float32), 1, window=window)
-                    for i, band in ((2, dsm.mask), (3, dsm.quality)):
-                        v = (np.zeros(hs.shape, np.float32) if band is None
-                             else band[r0:r0 + STRIP_ROWS].astype(np.float32))
-                        v[~ss] = NODATA
-                        ds.write(v, i, window=window)
-                ds.update_tags(**tags)
-                for i, name in enumerate(BANDS, 1):
-                    ds.set_band_description(i, name)
+        with rasterio.Env(GDAL_PAM_ENABLED="NO"), atomic_path(path, check=raster_check(cols, rows, 3)) as tmp:
+            try:
+                fd, plain = tempfile.mkstemp(prefix="prismstation-dsm-", suffix=".tif")
+                os.close(fd)
+                _write_plain(plain, profile, h, seen, dsm, tags)
+                raster_check(cols, rows, 3)(Path(plain))
+            except WriteError as exc:  # the scratch copy is not whole
+                raise WriteError(f"cannot write the scratch copy of {path.name}: "
+                                 f"{exc.problem.removeprefix('cannot write: ')}", plain) from None
+            except (RasterioError, CPLE_BaseError, OSError) as exc:
+                scratch = plain or tempfile.gettempdir()
+                raise write_error(scratch, exc, f"cannot write the scratch copy of {path.name}",
+                                  free=free_bytes(tempfile.gettempdir())) from None
             with rasterio.open(plain) as src:
                 rio_copy(src, tmp, driver="COG", COMPRESS="DEFLATE", PREDICTOR="YES", BLOCKSIZE=256,
                          OVERVIEWS="AUTO", OVERVIEW_RESAMPLING="AVERAGE", GEOTIFF_VERSION="1.1")
-        os.replace(tmp, path)
-        if os.path.exists(tmp + ".aux.xml"):
-            os.unlink(tmp + ".aux.xml")
-    except RasterioError as exc:
-        raise RasterReadError(f"{path}: cannot write the DSM ({exc})") from None
     finally:
-        for f in (tmp, plain, plain + ".aux.xml"):
+        for f in (plain, f"{plain}.aux.xml") if plain else ():
             if os.path.exists(f):
                 os.unlink(f)
+
+
+def _write_plain(plain, profile, h, seen, dsm, tags) -> None:
+    """The uncompressed GeoTIFF the COG is copied from, written in strips of rows."""
+    rows, cols = h.shape
+    with rasterio.open(plain, "w", **profile) as ds:
+        for r0 in range(0, rows, STRIP_ROWS):
+            window = Window(0, r0, cols, min(STRIP_ROWS, rows - r0))
+            hs, ss = h[r0:r0 + STRIP_ROWS], seen[r0:r0 + STRIP_ROWS]
+            ds.write(np.where(np.isfinite(hs), hs, NODATA).astype(np.float32), 1, window=window)
+            for i, band in ((2, dsm.mask), (3, dsm.quality)):
+                v = (np.zeros(hs.shape, np.float32) if band is None
+                     else band[r0:r0 + STRIP_ROWS].astype(np.float32))
+                v[~ss] = NODATA
+                ds.write(v, i, window=window)
+        ds.update_tags(**tags)
+        for i, name in enumerate(BANDS, 1):
+            ds.set_band_description(i, name)
 
 
 def read_dsm_info(path) -> dict:

@@ -41,6 +41,7 @@ import re
 from pathlib import Path
 
 from prismstation.errors import InputError
+from prismstation.io.atomic import write_atomic
 from prismstation.io.csvtable import raise_errors, read_table, read_text
 from prismstation.io.gcpformats import (QGIS_COLUMNS, fmt, format_asp_gcp, format_odm_gcp,
                                         format_qgis_points, read_asp_gcp, read_odm_gcp,
@@ -127,11 +128,7 @@ def write_point_file(pf: PointFile, path, fmt: str | None = None, *, view: str |
                "csv": lambda: format_ground_csv(pf)}
     if fmt not in writers:
         raise InputError(f"unknown point-file format {fmt!r}", path)
-    text = writers[fmt]()
-    try:
-        path.write_text(text, encoding="utf-8", newline="")
-    except OSError as exc:
-        raise InputError(f"cannot write: {exc.strerror or exc}", path) from None
+    write_atomic(path, writers[fmt](), keep_backup=False)  # a failure: WriteError, no file
 
 
 def read_ground_csv(path, *, height: str = "ellipsoidal") -> PointFile:

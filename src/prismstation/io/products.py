@@ -28,6 +28,7 @@ import numpy as np
 from prismstation.core.scene import reference_view
 from prismstation.errors import InputError
 from prismstation.io import ceos
+from prismstation.io.atomic import write_atomic
 from prismstation.io.jaxa_geotiff import find_summary, read_geotiff_view
 from prismstation.io.jsonfile import dumps
 
@@ -224,7 +225,5 @@ def write_scene_for_product(product, out_dir) -> Path:
         except ValueError:  # another drive on Windows
             pass
     target = out_dir / "scene.json"
-    tmp = out_dir / "scene.json.part"
-    tmp.write_text(dumps(scene, indent=2) + "\n", encoding="utf-8")
-    tmp.replace(target)
+    write_atomic(target, dumps(scene, indent=2) + "\n", keep_backup=False)
     return target

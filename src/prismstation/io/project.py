@@ -20,7 +20,8 @@ from prismstation.core.prism import PARALLAX_MODELS
 from prismstation.core.solve import Settings
 from prismstation.errors import InputError
 from prismstation.io import geoid as geoid_mod
-from prismstation.io.jsonfile import dumps, line_of, read_json, write_atomic
+from prismstation.io.atomic import write_atomic
+from prismstation.io.jsonfile import dumps, line_of, read_json
 from prismstation.io.scene import read_scene
 from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint, Measurement
 from prismstation.model.project import Project, has_ground
@@ -90,8 +91,9 @@ def settings_dict(settings: Settings) -> dict:
 
 
 def save_project(project: Project, path) -> None:
-    """Save atomically (temporary file, fsync, rename), keeping the previous version as ``.bak``."""
-    write_atomic(path, dumps(project_to_dict(project, path), indent=1) + "\n")
+    """Save atomically (temporary file, fsync, rename), keeping the previous version as ``.bak``;
+    a failure is a :class:`~prismstation.errors.WriteError` and leaves the file as it was."""
+    write_atomic(path, dumps(project_to_dict(project, path), indent=1) + "\n", keep_backup=True)
 
 
 def load_project(path, *, scene_override=None) -> Project:

@@ -21,11 +21,14 @@ from pathlib import Path
 
 import numpy as np
 import rasterio
+from rasterio._err import CPLE_BaseError
 from rasterio.enums import Resampling
 from rasterio.errors import RasterioError
 from rasterio.windows import Window
 
 from prismstation.errors import RasterReadError
+from prismstation.io.atomic import cause_text
+from prismstation.io.windows import describe_window, read_error
 
 TILE_SIZE = 512
 """Side of a display tile, in pixels of its own overview level."""
@@ -202,8 +205,9 @@ class RasterSource:
                 ds.close()
             try:
                 ds = rasterio.open(self._name)
-            except (RasterioError, OSError) as exc:
-                raise RasterReadError(f"{self.path}: cannot open as a raster ({exc})") from None
+            except (RasterioError, CPLE_BaseError, OSError) as exc:
+                raise RasterReadError(f"{self.path}: cannot open as a raster "
+                                      f"({cause_text(exc, self._name)})") from None
             self._local.ds = ds
             self._local.generation = self._generation
             with self._handles_lock:
@@ -300,9 +304,8 @@ class RasterSource:
                                         out_shape=out_shape, resampling=resampling)
         except RasterReadError:
             raise
-        except (RasterioError, OSError, ValueError) as exc:
-            raise RasterReadError(f"{self.path}: read of window {tuple(window_xywh)} failed "
-                                  f"({exc})") from None
+        except (RasterioError, CPLE_BaseError, OSError, ValueError) as exc:
+            raise read_error(self.path, describe_window((x0, y0, x1 - x0, y1 - y0)), exc) from None
 
     def tile_rect(self, level: int, col: int, row: int) -> tuple[int, int, int, int]:
         """Full-resolution rectangle ``(x, y, w, h)`` covered by a tile (clipped to the image)."""

@@ -7,13 +7,13 @@ to recover and :func:`recover` reads it (the project file itself is never touche
 
 By default the write happens in the edit's own call, so a crash or a ``kill -9`` loses at most
 the edit being written, never an earlier one. With ``background=True`` (the window) the edit's
-call only serialises the project (a consistent snapshot, well under a millisecond) and hands
-the text to one writer thread, which always writes the newest document handed over (edits that
-arrive during one write are coalesced into the next). A crash then loses at most the edits
-made since the last completed write — those of the write in flight, a few milliseconds — never
-an earlier one: the file on disk is always one whole, consistent state of the project, and a
-newer state is never replaced by an older one. :meth:`Journal.flush` waits until everything
-handed over is on disk; :meth:`Journal.discard` (and so :meth:`Journal.save`) cancels what is
+call only takes a snapshot of the project (:meth:`Project.snapshot`: two dict copies, ~20 µs
+for 1,000 points) and hands it to one writer thread, which serialises and writes the newest
+snapshot handed over (edits that arrive during one write are coalesced into the next). A crash
+then loses at most the edits made since the last completed write — those of the write in
+flight, a few to a few tens of milliseconds — never an earlier one: the file on disk is always
+one whole, consistent state of the project, and a newer state is never replaced by an older
+one. :meth:`Journal.flush` waits until everything handed over is on disk; :meth:`Journal.discard` (and so :meth:`Journal.save`) cancels what is
 pending and waits for the write in flight before removing the file, so a late write never
 brings back the journal of a saved project.
 
@@ -31,8 +31,9 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from prismstation.io import jsonfile
-from prismstation.io.jsonfile import dumps, write_atomic
+from prismstation.io import atomic
+from prismstation.io.atomic import write_atomic
+from prismstation.io.jsonfile import dumps
 from prismstation.io.project import load_project, project_to_dict, save_project
 from prismstation.model.project import Change, Project
 
@@ -86,7 +87,7 @@ class Journal:
         self.written_revision: int | None = None
         self.last_error: Exception | None = None
         self._cond = threading.Condition()
-        self._pending: tuple[Path, str, int] | None = None  # (project path, text, revision)
+        self._pending: tuple | None = None  # (project path, project or snapshot, revision, time)
         self._busy = False  # the writer thread is writing (outside the lock)
         self._stop = False
         self._thread: threading.Thread | None = None  # the writer, while it runs
@@ -97,11 +98,10 @@ class Journal:
         self.journal(change.revision)
 
     def journal(self, revision: int) -> None:
-        """Serialise the project (at ``revision``) and write it, or hand it to the writer thread."""
-        doc = project_to_dict(self.project, self.path)
-        doc["recovery"] = {"of": self.path.name, "revision": revision, "time": time.time()}
-        item = (self.path, dumps(doc), revision)
+        """Write the project (at ``revision``) here, or hand a snapshot of it to the writer
+        thread (serialised there)."""
         if not self.background or self._stop:  # (after close: written here, not dropped)
+            item = (self.path, self.project, revision, time.time())
             self.submitted += 1
             try:
                 self._write(item)
@@ -111,6 +111,7 @@ class Journal:
                     raise
                 self.on_error(exc)
             return
+        item = (self.path, self.project.snapshot(), revision, time.time())
         with self._cond:
             self._pending = item  # replaces an older document not yet started: coalescing
             self.submitted += 1
@@ -120,9 +121,11 @@ class Journal:
                 self._thread.start()
             self._cond.notify_all()
 
-    def _write(self, item: tuple[Path, str, int]) -> None:
-        path, text, revision = item
-        write_atomic(recovery_path(path), text, keep_backup=False)
+    def _write(self, item: tuple) -> None:
+        path, project, revision, when = item
+        doc = project_to_dict(project, path)
+        doc["recovery"] = {"of": path.name, "revision": revision, "time": when}
+        write_atomic(recovery_path(path), dumps(doc), keep_backup=False)
         self.writes += 1
         self.written_revision = revision
 
@@ -275,7 +278,7 @@ class ProjectLock:
         """Write this process's lock (atomically); a failure to write is not an error (a
         read-only folder): the project then opens unlocked."""
         try:
-            jsonfile.write_atomic(self.path, dumps({**self._me(), "since": time.time()}), keep_backup=False)
+            atomic.write_atomic(self.path, dumps({**self._me(), "since": time.time()}), keep_backup=False)
             self.held = True
         except OSError as exc:
             _log.warning("project lock %s not written: %s", self.path, exc)

@@ -27,7 +27,8 @@ from pyproj.exceptions import CRSError
 from prismstation import __version__
 from prismstation.core.solve import Solution
 from prismstation.errors import InputError
-from prismstation.io.jsonfile import plain, read_json, write_atomic, write_json
+from prismstation.io.atomic import write_atomic
+from prismstation.io.jsonfile import plain, read_json, write_json
 
 REPORT_FORMAT = "prismstation-report/1"
 TITLE = "ALOS-PRISM orientation report"
@@ -237,9 +238,6 @@ def write_report(report: dict, path) -> None:
     if ext == ".json":
         write_json(path, report, indent=1)
     elif ext == ".csv":
-        try:
-            write_atomic(path, report_csv(report), keep_backup=False)
-        except OSError as exc:
-            raise InputError(f"cannot write: {exc.strerror or exc}", path) from None
+        write_atomic(path, report_csv(report), keep_backup=False)
     else:
         raise InputError(f"unknown report format {ext!r}: use .json, .csv, .html or .pdf", path)

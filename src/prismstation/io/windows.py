@@ -4,15 +4,82 @@ Image pixels ``(x, y)`` = (column, row), origin at the top-left corner of the to
 (docs/model.md §1). A window is returned with the image pixel ``(col0, row0)`` of its own top-left
 corner; :func:`shift` and :func:`scaling` build the affine maps between window, decimated and
 image pixels.
+
+Every read of an image's pixels by the engine goes through :class:`CheckedRaster`
+(:func:`open_image`): a file that cannot be opened, or a window that cannot be read (a
+truncated or corrupt file, a file gone), is a :class:`~prismstation.errors.RasterReadError`
+naming the file, what it is (``view N``), the window in image pixels and GDAL's cause.
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import rasterio
+from rasterio.errors import NotGeoreferencedWarning
 from rasterio.windows import Window
 
 from prismstation.core.affine import Affine2D
 from prismstation.errors import RasterReadError
+from prismstation.io.atomic import cause_text
+
+
+def describe_window(window) -> str:
+    """``window x 0–512, y 1024–1536`` (image pixels, x = column, y = row) of a rasterio
+    ``Window`` or ``(x, y, w, h)``."""
+    if window is None:
+        return "the whole image"
+    if isinstance(window, Window):
+        x, y, w, h = window.col_off, window.row_off, window.width, window.height
+    else:
+        x, y, w, h = window
+    return f"window x {x:g}–{x + w:g}, y {y:g}–{y + h:g}"
+
+
+def read_error(path, where: str, exc: BaseException) -> RasterReadError:
+    """The :class:`RasterReadError` of a read of ``path`` at ``where`` that raised ``exc``."""
+    return RasterReadError(f"{path}: cannot read {where} ({cause_text(exc, str(path))})")
+
+
+class CheckedRaster:
+    """A raster opened for reading (``with open_image(path, "view N") as ds:``) whose
+    ``read`` raises :class:`RasterReadError` naming the file, ``what`` and the window; every
+    other attribute is the rasterio dataset's. One thread's handle, like rasterio's."""
+
+    def __init__(self, path, what: str = "raster"):
+        self.name, self.what = str(path), what
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", NotGeoreferencedWarning)
+                self._ds = rasterio.open(self.name)
+        except Exception as exc:  # rasterio's and GDAL's errors, OSError: the file is unusable
+            raise RasterReadError(f"{self.name}: cannot open {what} as a raster "
+                                  f"({cause_text(exc, self.name)})") from None
+
+    def read(self, indexes=None, *, window=None, **kw) -> np.ndarray:
+        try:
+            return self._ds.read(indexes, window=window, **kw)
+        except Exception as exc:
+            raise read_error(self.name, f"{self.what}, {describe_window(window)}", exc) from None
+
+    def __getattr__(self, name):
+        if name == "_ds":  # not opened
+            raise AttributeError(name)
+        return getattr(self._ds, name)
+
+    def close(self) -> None:
+        self._ds.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def open_image(path, what: str = "raster") -> CheckedRaster:
+    """``path`` opened for checked reads (:class:`CheckedRaster`)."""
+    return CheckedRaster(path, what)
 
 
 #: full-resolution rows read at a time by :meth:`ImageWindows.read_reduced`
@@ -30,10 +97,10 @@ class ImageWindows:
         try:
             for v, view in scene.views.items():
                 if view.image:
-                    self._ds[v] = rasterio.open(view.image)
-        except rasterio.errors.RasterioIOError as exc:
+                    self._ds[v] = open_image(view.image, f"view {v}")
+        except RasterReadError:
             self.close()
-            raise RasterReadError(f"cannot open the image of view {v} ({exc})") from None
+            raise
 
     def read(self, view: str, c0: float, r0: float, w: float, h: float, min_px: int = 1):
         """Pixels ``[c0, c0 + w) × [r0, r0 + h)`` clipped to the image → ``(array, col0, row0)``;

@@ -9,6 +9,7 @@ changes its revision. Solving is separate (:meth:`point_obs` feeds
 """
 from __future__ import annotations
 
+import copy
 import math
 import re
 from collections import Counter, defaultdict
@@ -108,6 +109,17 @@ class Project:
                 change, self._pending = self._pending, None
                 self.revision += 1
                 self.changed.emit(replace(change, revision=self.revision))
+
+    def snapshot(self) -> "Project":
+        """A copy to read in another thread while this project is edited (a fit, the recovery
+        journal's writer): its point and measurement dicts are its own (the values are frozen);
+        every other attribute is replaced, never changed in place, by the edit methods. It
+        emits nothing (``changed`` is None). Copies two dicts: ~20 µs for 1,000 points."""
+        snap = copy.copy(self)
+        snap.points = dict(self.points)
+        snap.measurements = dict(self.measurements)
+        snap.changed = None
+        return snap
 
     def mark_modified(self) -> None:
         """Count as modified (a recovered project): a new revision, nothing named as changed."""

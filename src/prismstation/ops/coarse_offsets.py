@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import rasterio
 from rasterio.windows import Window
 from scipy import ndimage
 
@@ -26,6 +25,7 @@ from prismstation.core.coarse import K_SIGMA, search_radius_px
 from prismstation.core.scene import Scene
 from prismstation.errors import InputError
 from prismstation.io.dem import read_dem
+from prismstation.io.windows import open_image
 from prismstation.ops.progress import checkpoint
 
 SIGMA_APRIORI_M = 50.0
@@ -101,7 +101,7 @@ def coarse_view_offsets(scene: Scene, reference_path, geoid, *, sigma_apriori_m:
     margin = int(radius) + 24
     wins = vo.lattice((rows, cols), window_px, k=grid, margin_px=margin)
     found = []
-    ds = {v: rasterio.open(scene.views[v].image) for v in "NFB"}
+    ds = {v: open_image(scene.views[v].image, f"view {v}") for v in "NFB"}
     try:
         for i, win in enumerate(wins):
             checkpoint(progress, i / len(wins), f"coarse offsets: window {i + 1} of {len(wins)}")

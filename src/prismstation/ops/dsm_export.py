@@ -4,11 +4,12 @@
 It computes the DSM of a fitted solution (:func:`prismstation.ops.dsm.make_dsm`), with the
 project's geoid for orthometric heights and a reference DEM
 (:class:`~prismstation.ops.reference_heights.DemHeights`) as the prior, and writes it
-(:func:`prismstation.io.dsm.write_dsm`) through :func:`prismstation.ops.progress.partial_output`:
-a cancelled or failed export leaves no file and does not touch an existing one.
+(:func:`prismstation.io.dsm.write_dsm`, atomic): a cancelled or failed export leaves no file
+and does not touch an existing one; a read that failed is a ``RasterReadError`` naming the
+image and the tile, a write that failed a ``WriteError`` naming the file.
 
-Temporaries: the output is written as ``.NAME.part`` beside it and renamed at the end (the
-rename is atomic only within one file system); the uncompressed GeoTIFF the COG is copied from
+Temporaries: the output is written as ``.NAME.XXXX.part.tif`` beside it and renamed at the end
+(:mod:`prismstation.io.atomic`; the rename is atomic only within one file system); the uncompressed GeoTIFF the COG is copied from
 (12 bytes a cell: ~0.6 GB for a 14,000 px scene at 5 m) goes to the system's temporary folder
 (``TMPDIR``), see :func:`prismstation.io.dsm.write_dsm`.
 """
@@ -17,11 +18,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from prismstation.errors import ModelError
+from prismstation.io.atomic import check_writable
 from prismstation.io.dsm import write_dsm
 from prismstation.io.project import project_geoid
 from prismstation.ops import dsm as engine
 from prismstation.ops.dsm import HEIGHT_MODELS, MASK_FILLED, Dsm
-from prismstation.ops.progress import checkpoint, partial_output, scaled
+from prismstation.ops.progress import checkpoint, scaled
 
 __all__ = ["HEIGHT_MODELS", "DsmExport", "DsmRequest", "export_dsm"]
 
@@ -94,15 +96,16 @@ def export_dsm(sol, project, request: DsmRequest, *, reference=None, progress=No
     (and is not oriented from a reference DEM) is a :class:`ModelError`."""
     if not sol.ok and project.settings.orientation != "dem":
         raise ModelError("; ".join(sol.messages) or "the model could not be fitted")
+    check_writable(request.output)   # a folder that cannot be written: now, not after the work
     geoid = project_geoid(project) if request.orthometric else None
     prior = None if reference is None else (reference.grid.heights, tuple(reference.grid.transform)[:6])
-    with partial_output(request.output) as part:
-        dsm = engine.make_dsm(sol, request.window, posting_m=request.posting_m, orthometric_geoid=geoid,
-                              progress=scaled(progress, 0.0, COMPUTE_SHARE), reference=prior,
-                              height_uncertainty_m=request.height_uncertainty_m, fill=request.fill,
-                              scheduler=request.scheduler, workers=request.workers,
-                              heights_model=request.heights)
-        checkpoint(progress, COMPUTE_SHARE, "writing")
-        write_dsm(part, dsm)
-        checkpoint(progress, 1.0, "written")
+    dsm = engine.make_dsm(sol, request.window, posting_m=request.posting_m, orthometric_geoid=geoid,
+                          progress=scaled(progress, 0.0, COMPUTE_SHARE), reference=prior,
+                          height_uncertainty_m=request.height_uncertainty_m, fill=request.fill,
+                          scheduler=request.scheduler, workers=request.workers,
+                          heights_model=request.heights)
+    checkpoint(progress, COMPUTE_SHARE, "writing")   # the last point a cancel is heard
+    write_dsm(request.output, dsm)                   # atomic: the whole file or none
+    if progress is not None:
+        progress(1.0, "written")
     return DsmExport(str(request.output), dsm, request)

@@ -5,6 +5,10 @@ its crop of the prior surface, the level's parameters); :func:`run_tile` reads t
 images' windows itself, so a tile runs anywhere the image files can be read (a thread, a
 process, a ``dask.distributed`` worker on a shared file system).
 
+A read that fails inside a task (a truncated or corrupt image, a file gone) is a
+:class:`~prismstation.errors.RasterReadError` naming the file, the view, the window and the
+tile; Dask hands it to the caller as it is (it pickles, errno and all, from another process).
+
 Schedulers: ``"threads"`` (default) or ``"processes"`` on this machine, or the address of an
 existing ``dask.distributed`` scheduler (``"tcp://host:8786"``), or a ``distributed.Client``.
 """
@@ -17,6 +21,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from prismstation.errors import RasterReadError
 from prismstation.io.raster import gdal_env
 from prismstation.io.windows import ImageWindows
 from prismstation.core.solve import Solution
@@ -120,9 +125,14 @@ def run_tile(spec: TileSpec):
     factor = max(1, int(round(spec.g / pixel)))
     # a worker may be another process: its own bounded GDAL cache (in this process the
     # caller's, run_tiles', holds it while a thread leaves its own)
-    with gdal_env():
-        images = _read_views(sol, frame, float(h0.min()) - spec.half_range_m,
-                             float(h0.max()) + spec.half_range_m, factor)
+    try:
+        with gdal_env():
+            images = _read_views(sol, frame, float(h0.min()) - spec.half_range_m,
+                                 float(h0.max()) + spec.half_range_m, factor)
+    except RasterReadError as exc:  # which tile, beside the file and the window
+        r0, c0 = spec.window[0], spec.window[1]
+        raise RasterReadError(f"{exc}, for the DSM tile of cells rows {r0}–{r0 + rows}, columns "
+                              f"{c0}–{c0 + cols} at {spec.g:g} m") from None
     res = tile_dsm(sol, images, frame, h0, tile_t, (rows, cols), spec.half_range_m,
                    refine=spec.refine)
     return res.heights, res.quality, feather(spec, tile_t, (rows, cols)), (res.z_nmad, res.z_count)
@@ -142,17 +152,18 @@ def feather(spec: TileSpec, transform, shape) -> np.ndarray:
     return np.clip(d / max(2 * spec.overlap_m, 1e-9), 0.0, 1.0).astype(np.float32)
 
 
-def run_tiles(specs: list, consume, scheduler=None, workers: int | None = None, progress=None) -> None:
-    """Run :func:`run_tile` on ``specs`` and hand each result to ``consume(index, result)`` as
+def run_tiles(specs: list, consume, scheduler=None, workers: int | None = None, progress=None,
+              fn=None) -> None:
+    """Run ``fn`` (default :func:`run_tile`) on ``specs`` and hand each result to ``consume(index, result)`` as
     it arrives, so that no more than a few tiles' arrays are held at once (a 14,000 px scene at
     5 m has ~56 million cells: all its tiles' results together would be ~0.7 GB). See the
     module docstring for ``scheduler``. ``progress(fraction, message)`` after each tile; False
     cancels. Local schedulers run the tiles in batches of four per worker."""
     with gdal_env():      # the bound for every local worker thread, entry point or not
-        _run_tiles(specs, consume, scheduler, workers, progress)
+        _run_tiles(specs, consume, scheduler, workers, progress, fn or run_tile)
 
 
-def _run_tiles(specs, consume, scheduler, workers, progress) -> None:
+def _run_tiles(specs, consume, scheduler, workers, progress, fn) -> None:
     import dask
     done = 0
 
@@ -167,7 +178,7 @@ def _run_tiles(specs, consume, scheduler, workers, progress) -> None:
         batch = 4 * max(1, workers or CPU_COUNT)
         for b0 in range(0, len(specs), batch):
             # named, untraversed specs: dask neither hashes nor walks the solution's points
-            tasks = [dask.delayed(run_tile)(dask.delayed(specs[i], traverse=False, name=f"tile-spec-{i}"),
+            tasks = [dask.delayed(fn)(dask.delayed(specs[i], traverse=False, name=f"tile-spec-{i}"),
                                             dask_key_name=f"run_tile-{i}")
                      for i in range(b0, min(b0 + batch, len(specs)))]
             results = list(dask.compute(*tasks, scheduler=scheduler or "threads", num_workers=workers))
@@ -180,7 +191,7 @@ def _run_tiles(specs, consume, scheduler, workers, progress) -> None:
     from distributed import Client, as_completed
     client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
     try:
-        futures = client.map(run_tile, specs, pure=True)
+        futures = client.map(fn, specs, pure=True)
         index = {f.key: i for i, f in enumerate(futures)}
         try:
             for future in as_completed(futures):

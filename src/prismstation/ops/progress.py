@@ -8,12 +8,11 @@ partial output behind.
 """
 from __future__ import annotations
 
-import os
 from contextlib import contextmanager
-from pathlib import Path
 from typing import Callable
 
 from prismstation.errors import Cancelled
+from prismstation.io.atomic import atomic_path
 
 __all__ = ["Cancelled", "ProgressFn", "checkpoint", "partial_output", "scaled"]
 
@@ -34,15 +33,11 @@ def scaled(progress: ProgressFn | None, start: float, stop: float) -> ProgressFn
 
 
 @contextmanager
-def partial_output(path):
-    """Write to a temporary path beside ``path``: renamed to ``path`` when the block ends
-    without error, removed otherwise (a cancelled or failed operation leaves no output file
-    and does not touch an existing one)."""
-    out = Path(path)
-    part = out.with_name(f".{out.name}.part")
-    try:
+def partial_output(path, check=None):
+    """Write to a temporary path (a str) beside ``path``: checked (``check(tmp)``, see
+    :func:`prismstation.io.atomic.atomic_path`) and renamed to ``path`` when the block ends
+    without error, removed otherwise — a cancelled or failed operation leaves no output file
+    and does not touch an existing one; a failure to write is a
+    :class:`~prismstation.errors.WriteError` naming ``path``."""
+    with atomic_path(path, check=check) as part:
         yield str(part)
-    except BaseException:
-        part.unlink(missing_ok=True)
-        raise
-    os.replace(part, out)

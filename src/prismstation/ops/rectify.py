@@ -7,13 +7,14 @@ top-left pixel. Map coordinates ``(E, N)`` in metres of the points' CRS.
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from prismstation.core.rectify import KINDS, TransformReport, compare_transforms, format_rmse_table
-from prismstation.errors import InputError, ModelError, RasterReadError
+from prismstation.errors import InputError, ModelError
+from prismstation.io.atomic import raster_check
+from prismstation.io.windows import open_image
 from prismstation.ops.progress import ProgressFn, checkpoint, partial_output
 
 __all__ = ["KINDS", "RectifyResult", "fit_transforms", "format_rmse_table", "rectify_raster"]
@@ -38,7 +39,8 @@ class RectifyResult:
 
 
 def _sample(src, x: np.ndarray, y: np.ndarray, nodata: float, resampling: str) -> np.ndarray:
-    """Sample all bands of open dataset ``src`` at image points (x, y) (pixels, corner origin)."""
+    """Sample all bands of ``src`` (a :class:`~prismstation.io.windows.CheckedRaster`) at image
+    points (x, y) (pixels, corner origin)."""
     import cv2
     import rasterio.windows
 
@@ -51,11 +53,8 @@ def _sample(src, x: np.ndarray, y: np.ndarray, nodata: float, resampling: str) -
     r0 = int(max(0, math.floor(y[inside].min()) - 2))
     c1 = int(min(src.width, math.ceil(x[inside].max()) + 2))
     r1 = int(min(src.height, math.ceil(y[inside].max()) + 2))
-    win = rasterio.windows.Window(c0, r0, c1 - c0, r1 - r0)
-    try:
-        data = src.read(window=win).astype(np.float32)
-    except Exception as exc:  # rasterio raises its own errors for broken files
-        raise RasterReadError(f"{src.name}: cannot read pixels ({exc})") from None
+    # src is a CheckedRaster: a failed read names the file and the window
+    data = src.read(window=rasterio.windows.Window(c0, r0, c1 - c0, r1 - r0)).astype(np.float32)
     mx = np.where(inside, x - 0.5 - c0, -1e6).astype(np.float32)
     my = np.where(inside, y - 0.5 - r0, -1e6).astype(np.float32)
     interp = cv2.INTER_NEAREST if resampling == "nearest" else cv2.INTER_LINEAR
@@ -134,12 +133,7 @@ def rectify_raster(image, transform, out_path, *, points_crs, out_crs=None,
     to_out = Transformer.from_crs(pcrs, ocrs, always_xy=True)
     to_pts = Transformer.from_crs(ocrs, pcrs, always_xy=True)
     same_crs = ocrs == pcrs
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            src = rasterio.open(image)
-    except rasterio.errors.RasterioIOError as exc:
-        raise RasterReadError(f"{image}: cannot open raster ({exc})") from None
+    src = open_image(image, "the image")
     out_path = str(out_path)
     with src:
         W, H = src.width, src.height
@@ -173,7 +167,8 @@ def rectify_raster(image, transform, out_path, *, points_crs, out_crs=None,
                        BIGTIFF="IF_SAFER")
         bs = int(block)
         windows = [(r0, c0) for r0 in range(0, height, bs) for c0 in range(0, width, bs)]
-        with partial_output(out_path) as part, rasterio.open(part, "w", **profile) as dst:
+        with partial_output(out_path, check=raster_check(width, height, src.count)) as part, \
+                rasterio.open(part, "w", **profile) as dst:
             for k, (r0, c0) in enumerate(windows):
                 h, w = min(bs, height - r0), min(bs, width - c0)
                 def exact(rr, cc):

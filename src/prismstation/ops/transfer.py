@@ -17,7 +17,9 @@ by shape-aware least-squares matching (:func:`prismstation.core.lsm_search.match
   (its slope foreshortens F and B against N by ``tanθ × slope``: 15–30 % on mountains). With
   no DEM the plane is level at the model's height and the matcher lets the shape move
   further (:data:`FREE_SHAPE_CHANGE` instead of :data:`DEM_SHAPE_CHANGE`) after a smoothed
-  first pass.
+  first pass; a view that still fails is tried from slopes of :data:`SLOPE_HYPOTHESIS`; the
+  first view found gives the height and, from its matched shape (:func:`fitted_slope`), the
+  slope the other view is then searched at, over a short band.
 
 Every match states its covariance; a match that fails says why (``status``, ``reason``).
 Transferred from N to both F and B, the three rays must meet: :func:`consistency` intersects
@@ -67,6 +69,11 @@ CONSISTENCY_P = 0.999
 CONFIRM_ALONG_PX = 30.0
 """A match found in one view only, over a search longer than this (px, ±) along the parallax,
 is ``unconfirmed`` (a failure): with no reference DEM the band spans hundreds of pixels."""
+SLOPE_HYPOTHESIS = 0.4
+"""With no reference DEM, a match that fails from the level plane's shape is tried again from
+the shapes of slopes this steep (rising along and across the track, both ways)."""
+RETRY_STATUSES = ("not_converged", "shape", "texture", "low_correlation", "low_score", "moved")
+"""The failures a different start shape may cure."""
 MAX_SIGMA_PX = 0.5
 """A match stating a larger σ (px) is a failure (``texture``)."""
 
@@ -91,21 +98,36 @@ def known_ground(sol: Solution) -> dict:
 
 def ray_on_dem(sol: Solution, source: str, xy, h: float, height_of, iterations: int = 6):
     """Where the ray of ``source`` pixel ``xy`` meets the reference heights ``height_of``:
-    ``(en, h, True)``; ``(en at h, h, False)`` where the DEM has no height."""
+    ``(en, h, True)``; ``(en at h, h, False)`` where the DEM has no height. The ray is iterated
+    as the straight line through its points at ``h`` and ``h + 100`` m, the ground point at the
+    height found taken from the model."""
     xy = np.asarray(xy, float)
-    en = sol.image_to_ground(source, xy, h)
     if height_of is None:
-        return en, h, False
-    hit = False
+        return sol.image_to_ground(source, xy, h), h, False
+    ends = sol.image_to_ground(source, np.array([xy, xy]), np.array([h, h + 100.0]))
+    step = (ends[1] - ends[0]) / 100.0
+    h0, en, hit = h, ends[0], False
     for _ in range(iterations):
         hd = float(np.asarray(height_of(en[None]))[0])
         if not math.isfinite(hd):
             break
-        hit, done, h = True, abs(hd - h) < 0.01, hd
-        en = sol.image_to_ground(source, xy, h)
-        if done:
+        hit = True
+        if abs(hd - h) < 0.01:      # the ground point moves by less than a millimetre
             break
+        h = hd
+        en = ends[0] + step * (h - h0)
+    if hit and h != h0:
+        en = sol.image_to_ground(source, xy, h)
     return en, h, hit
+
+
+def search_sigmas(sol: Solution, height_of=None) -> tuple[float, float]:
+    """``(sigma_dem, sigma_mean)`` (m) that :func:`search_height` assumes for ``sol``: the
+    reference DEM's σ and the spread of the heights, measured at the solution's known points
+    (compute once for many transfers)."""
+    ground = known_ground(sol)
+    spread = height_spread(g[2] for g in ground.values()) if ground else DEFAULT_HEIGHT_SPREAD_M
+    return dem_sigma(height_of, ground), spread
 
 
 def search_height(sol: Solution, source: str, xy, *, height_of=None, sigma_dem: float | None = None,
@@ -171,15 +193,16 @@ def local_shape(sol: Solution, source: str, xy, views, *, h: float, height_of=No
         grad = terrain_gradient(height_of, en, radius)
     g = np.zeros(2) if grad is None else np.asarray(grad, float)
     step = float(half_window)
-    # four rays ±step px about the point meet the terrain plane; a fifth, the point's own, 1 m up
-    pix = xy + np.array([[step, 0], [-step, 0], [0, step], [0, -step], [0, 0]])
-    hs = np.array([h, h, h, h, h + 1.0])
-    for _ in range(10):
-        ground = sol.image_to_ground(source, pix, hs)
-        h_new = np.append(h + (ground[:4] - en) @ g, h + 1.0)
-        if np.abs(h_new - hs).max() < 1e-3:
-            break
-        hs = h_new
+    # four rays ±step px about the point meet the terrain plane (each ray the straight line
+    # through its points at h and h + 100 m); a fifth, the point's own, 1 m up
+    pix = xy + np.array([[step, 0], [-step, 0], [0, step], [0, -step]])
+    ground = sol.image_to_ground(source, np.vstack([pix, pix, xy]), np.r_[np.full(4, h), np.full(4, h + 100.0), h + 1.0])
+    hs = np.r_[np.full(4, h), h + 1.0]
+    if np.any(g != 0):
+        k = (ground[4:8] - ground[:4]) / 100.0                 # ground metres per metre of height
+        hs[:4] = h + ((ground[:4] - en) @ g) / (1.0 - k @ g)
+        ground[:4] = sol.image_to_ground(source, pix, hs[:4])
+    ground = np.vstack([ground[:4], ground[8]])
     pts = np.vstack([ground[:4], en, ground[4]])
     hh = np.concatenate([hs[:4], [h, h + 1.0]])
     out = {}
@@ -231,8 +254,10 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     free = next(iter(shapes.values())).slope is None if shapes else True
     radius = search_radius_px(model_sigma_m(sol) * np.sqrt(2), sc.views[source].pixel_size_m)
     ref, rc0, rr0 = images.around(source, xy[0], xy[1], half_window + 8)
-    out = {}
+    out, guided = {}, set()
     for v in targets:
+        if v in out and out[v].ok:
+            continue            # found already, guided by another view
         s = shapes[v]
         if ref is None or not np.all(np.isfinite(s.A)):
             continue
@@ -246,22 +271,90 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
                   across=radius, half=half_window, max_sigma=MAX_SIGMA_PX,
                   max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
                   coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, parallax=d)
+        if free and not m.ok and m.status in RETRY_STATUSES:
+            # the level start may be too far from a steep slope's shape: start from slopes
+            for A in _slope_shapes(sol, source, xy, v, h_pt, half_window):
+                m2 = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], A, d, along=along,
+                           across=radius, half=half_window, max_sigma=MAX_SIGMA_PX,
+                           max_shape_change=DEM_SHAPE_CHANGE, rival=6.0, parallax=d)
+                if m2.ok and (not m.ok or m2.rho > m.rho):
+                    m = m2
         m = replace(m, x=m.x + c0, y=m.y + r0, extra={**m.extra, "along": along})
         out[v] = Transfer(v, m.x, m.y, (float(s.pred[0]), float(s.pred[1])), m)
+        if check and free and m.ok and len(targets) >= 2:
+            # no reference DEM: the found view gives the height and the slope the others are
+            # searched at (a short band, the shape predicted)
+            out = _confirm(sol, images, source, xy, ref, (rc0, rr0), out, v, shapes, h_pt, half_window,
+                           free, mark=False)
+            guided.add(v)
     found = [v for v in targets if v in out and out[v].ok]
     if check and len(targets) >= 2 and len(found) == 1:
-        out = _confirm(sol, images, source, xy, ref, (rc0, rr0), out, found[0], shapes, h_pt, radius,
-                       half_window, free)
+        out = _confirm(sol, images, source, xy, ref, (rc0, rr0), out, found[0], shapes, h_pt, half_window, free,
+                       search=found[0] not in guided)
     if check and len([t for t in out.values() if t.ok]) >= 2:
         out = consistency(sol, source, xy, out, h_pt)
     return out
 
 
-def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, h, radius, half_window, free):
-    """One view found, the other not: search the other again at the height the found one
-    implies (±3 σ of it along the parallax); when that fails too, a match whose band was wider
-    than :data:`CONFIRM_ALONG_PX` (a wide height range: no reference DEM) is ``unconfirmed`` —
-    nothing checks it, and over hundreds of pixels a repeated texture can correlate as well."""
+def _slope_shapes(sol: Solution, source: str, xy, view: str, h: float, half_window: int):
+    """``view``'s predicted shapes of the point on planes of :data:`SLOPE_HYPOTHESIS` rising
+    along and across the track (the source image's rows and columns on the ground), both ways."""
+    xy = np.asarray(xy, float)
+    g = sol.image_to_ground(source, np.array([xy, xy + [0.0, 10.0], xy + [10.0, 0.0]]), np.full(3, h))
+    out = []
+    for axis in (g[1] - g[0], g[2] - g[0]):
+        e = axis / np.hypot(*axis)
+        for sign in (1.0, -1.0):
+            A = local_shape(sol, source, xy, [view], h=h, height_of=_plane(g[0], h, sign * SLOPE_HYPOTHESIS * e),
+                            half_window=half_window)[2][view].A
+            if np.all(np.isfinite(A)):
+                out.append(A)
+    return out
+
+
+def _plane(en0, h0: float, grad):
+    """Heights ``(n,)`` of the plane through ``(en0, h0)`` with gradient ``grad`` (dh/dE, dh/dN)
+    at map points ``(n, 2)``: a reference-height function for :func:`local_shape`."""
+    en0, g = np.asarray(en0, float), np.asarray(grad, float)
+    return lambda en: h0 + (np.atleast_2d(en) - en0) @ g
+
+
+def fitted_slope(sol: Solution, source: str, xy, view: str, A, en, h: float, step: float = 0.2,
+                 half_window: int = 12):
+    """The terrain gradient (dh/dE, dh/dN) under the point ``xy`` of ``source`` that makes the
+    model's shape in ``view`` (as :func:`local_shape` makes it, over ±``half_window`` px) equal
+    the matched shape ``A`` (2×2): Gauss–Newton on the shapes of planes through ``(en, h)``,
+    two steps (the shape is near linear in the gradient); the rays as straight lines."""
+    xy, A, en = np.asarray(xy, float), np.asarray(A, float), np.asarray(en, float)
+    w = float(half_window)
+    pix = xy + np.array([[w, 0], [-w, 0], [0, w], [0, -w]])
+    ends = sol.image_to_ground(source, np.vstack([pix, pix]), np.r_[np.full(4, h), np.full(4, h + 100.0)])
+    base, k = ends[:4], (ends[4:] - ends[:4]) / 100.0
+
+    def shapes(grads):
+        dh = [((base - en) @ g) / (1.0 - k @ g) for g in grads]
+        q = sol.ground_to_image(view, np.vstack([base + k * d[:, None] for d in dh]),
+                                np.concatenate([h + d for d in dh])).reshape(len(grads), 4, 2)
+        return [np.column_stack([(c[0] - c[1]) / (2 * w), (c[2] - c[3]) / (2 * w)]) for c in q]
+
+    g = np.zeros(2)
+    for _ in range(2):
+        s0, sE, sN = shapes([g, g + [step, 0.0], g + [0.0, step]])
+        J = np.column_stack([(sE - s0).ravel() / step, (sN - s0).ravel() / step])
+        g = g + np.linalg.lstsq(J, (A - s0).ravel(), rcond=None)[0]
+    return g if np.all(np.isfinite(g)) and np.hypot(*g) < 3.0 else None
+
+
+def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, h, half_window, free, mark=True,
+             search=True):
+    """One view found (``v1``), another not: search the other at the height the found one
+    implies (±3 σ of it along the parallax) and — with no reference DEM (``free``) — in the
+    shape the slope fitted to ``v1``'s matched shape predicts. With ``mark``, when that fails
+    too, a match whose band was wider than :data:`CONFIRM_ALONG_PX` (a wide height range: no
+    reference DEM) is ``unconfirmed`` — nothing checks it, and over hundreds of pixels a
+    repeated texture can correlate as well. ``search=False``: the marking only."""
+    if not search:
+        return _mark_unconfirmed(out, v1) if mark else out
     obs = {source: (np.asarray(xy, float), view_sigma_px(sol, source) ** 2 * np.eye(2)),
            v1: ((out[v1].x, out[v1].y), out[v1].match.cov + view_sigma_px(sol, v1) ** 2 * np.eye(2))}
     try:
@@ -269,23 +362,37 @@ def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, h, radiu
     except np.linalg.LinAlgError:
         return out
     sigma_h = float(np.sqrt(max(C[2, 2], 0.0)))
+    slope = fitted_slope(sol, source, xy, v1, out[v1].match.shape, g[:2], g[2], half_window=half_window) \
+        if free else None
     for v, s in shapes.items():
         if v in (source, v1) or (v in out and out[v].ok) or not np.all(np.isfinite(s.A)):
             continue
-        pred = np.asarray(sol.ground_to_image(v, g[:2], g[2]), float)
+        pred, A = np.asarray(sol.ground_to_image(v, g[:2], g[2]), float), s.A
+        if slope is not None:
+            ls = local_shape(sol, source, xy, [v], h=g[2], height_of=_plane(g[:2], g[2], slope),
+                             half_window=half_window)[2][v]
+            if np.all(np.isfinite(ls.A)):
+                pred, A = ls.pred, ls.A
         along = 3 * sigma_h * float(np.hypot(*s.dh)) + 2.0
-        win, c0, r0 = images.around(v, pred[0], pred[1], int(along + 2 * half_window * np.abs(s.A).max() + 12))
+        win, c0, r0 = images.around(v, pred[0], pred[1], int(along + 2 * half_window * np.abs(A).max() + 12))
         if win is None:
             continue
         d = s.dh if np.hypot(*s.dh) > 1e-9 else np.array([0.0, 1.0])
-        m = match(ref, xy[0] - ref_origin[0], xy[1] - ref_origin[1], win, pred - [c0, r0], s.A, d,
+        guided = slope is not None or not free
+        m = match(ref, xy[0] - ref_origin[0], xy[1] - ref_origin[1], win, pred - [c0, r0], A, d,
                   along=along, across=2.0, half=half_window, max_sigma=MAX_SIGMA_PX,
-                  max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
-                  coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, parallax=d)
+                  max_shape_change=DEM_SHAPE_CHANGE if guided else FREE_SHAPE_CHANGE,
+                  coarse=0.0 if guided else 1.5, rival=3.0 if guided else 6.0, parallax=d)
         if m.ok:
-            m = replace(m, x=m.x + c0, y=m.y + r0)
+            m = replace(m, x=m.x + c0, y=m.y + r0, extra={**m.extra, "along": along})
             out = dict(out)
             out[v] = Transfer(v, m.x, m.y, (float(pred[0]), float(pred[1])), m)
+    return _mark_unconfirmed(out, v1) if mark else out
+
+
+def _mark_unconfirmed(out, v1):
+    """``out`` with ``v1``'s match ``unconfirmed`` when it is the only one found and its band
+    was wider than :data:`CONFIRM_ALONG_PX`."""
     first = out[v1]
     if sum(t.ok for t in out.values()) == 1 and first.match.extra.get("along", 0.0) > CONFIRM_ALONG_PX:
         m = replace(first.match, status="unconfirmed",
@@ -316,15 +423,18 @@ def intersect(sol: Solution, obs: dict, h0: float) -> tuple[np.ndarray, dict, fl
     first = next(iter(obs))
     g = np.array([*sol.image_to_ground(first, np.asarray(obs[first][0], float), h0), h0], float)
     W = {v: np.linalg.inv(c) for v, (_, c) in obs.items()}
-    J = {v: ground_jacobian(sol, v, g)[1] for v in obs}     # the model is near linear over metres:
-    N = sum(J[v].T @ W[v] @ J[v] for v in obs)              # its Jacobian at the start serves
+    start = {v: ground_jacobian(sol, v, g) for v in obs}   # the model is near linear over metres:
+    J = {v: j for v, (_, j) in start.items()}              # its Jacobian at the start serves
+    N = sum(J[v].T @ W[v] @ J[v] for v in obs)
+    pred = {v: q for v, (q, _) in start.items()}
     for _ in range(8):
-        res = {v: np.asarray(xy, float) - sol.ground_to_image(v, g[:2], g[2]) for v, (xy, _) in obs.items()}
+        res = {v: np.asarray(xy, float) - pred[v] for v, (xy, _) in obs.items()}
         dg = np.linalg.solve(N, sum(J[v].T @ W[v] @ res[v] for v in obs))
         g = g + dg
+        pred = {v: sol.ground_to_image(v, g[:2], g[2]) for v in obs}
         if np.all(np.abs(dg) < 1e-3):
             break
-    res = {v: np.asarray(xy, float) - sol.ground_to_image(v, g[:2], g[2]) for v, (xy, _) in obs.items()}
+    res = {v: np.asarray(xy, float) - pred[v] for v, (xy, _) in obs.items()}
     chi2 = float(sum(res[v] @ W[v] @ res[v] for v in obs))
     return g, res, chi2, 2 * len(obs) - 3, np.linalg.inv(N)
 
@@ -356,7 +466,8 @@ def consistency(sol: Solution, source: str, xy, found: dict[str, Transfer], h0: 
 
 
 def auto_tie_points(sol: Solution, images: ImageWindows, *, grid: int = 8, margin: float = 0.05,
-                    height_of=None, progress: ProgressFn | None = None) -> list[dict]:
+                    height_of=None, progress: ProgressFn | None = None,
+                    summary: dict | None = None) -> list[dict]:
     """Tie points on a ``grid × grid`` lattice of the reference view's image (N for a
     triplet, else the scene's first view), transferred to every other view.
 
@@ -364,30 +475,47 @@ def auto_tie_points(sol: Solution, images: ImageWindows, *, grid: int = 8, margi
     rays meet (:func:`transfer`; ``score`` the lowest fitted correlation; ``progress`` per
     :mod:`prismstation.ops.progress`; a cancel raises :class:`~prismstation.errors.Cancelled`)
     and consistent with the others: a point whose difference to the source across the
-    parallax direction departs from the median by more than 3 NMAD (at least 1 px) is a
-    blunder (:func:`_across_parallax`).
+    parallax direction (:func:`_across_parallax`: across the track for a triplet) departs
+    from the median by more than 3 NMAD (at least 1 px) is a blunder. ``summary``, when given,
+    is filled with ``tried`` (grid points), ``failed`` (``{status: count}``: the first failed
+    view's status, in the scene's order; ``outside`` when a view could not be searched),
+    ``blunders`` (rejected by the test across the parallax) and ``rms_px`` (RMS of the kept
+    points' differences across the parallax about the median, every view together, source
+    pixels; NaN with fewer than 4 found).
     """
     sc = sol.scene
     source = sc.reference_view
     targets = [v for v in sc.views if v != source]
     rows, cols = sc.views[source].shape
     g = margin + (1 - 2 * margin) * (np.arange(grid) + 0.5) / grid
-    found = []
+    sigma_dem, sigma_mean = search_sigmas(sol, height_of)
+    found, failed = [], {}
     for k, (x, y) in enumerate((cx * cols, cy * rows) for cy in g for cx in g):
         checkpoint(progress, k / grid**2, f"point {k + 1} of {grid**2}")
-        tr = transfer(sol, images, source, (x, y), height_of=height_of)
-        if all(v in tr and tr[v].ok for v in targets):
+        tr = transfer(sol, images, source, (x, y), height_of=height_of, sigma_dem=sigma_dem,
+                      sigma_mean=sigma_mean)
+        bad = [tr[v].match.status if v in tr else "outside" for v in targets if v not in tr or not tr[v].ok]
+        if not bad:
             found.append({source: (x, y), **{v: (tr[v].x, tr[v].y) for v in targets},
                           "score": min(tr[v].match.rho for v in targets)})
+        else:
+            failed[bad[0]] = failed.get(bad[0], 0) + 1
+    if summary is not None:
+        summary.update(tried=grid**2, failed=failed, blunders=0, rms_px=math.nan)
     if len(found) < 4:
         return found
     keep = np.ones(len(found), bool)
     xs = np.array([p[source] for p in found])
+    dev = []
     for v in targets:
         a = _across_parallax(sol, source, xs, v, np.array([p[v] for p in found]))
         med = np.median(a)
         spread = max(nmad(a), 1.0 / 3)
         keep &= np.abs(a - med) <= 3 * spread
+        dev.append(a - med)
+    if summary is not None:
+        summary.update(blunders=int((~keep).sum()),
+                       rms_px=float(np.sqrt(np.mean(np.concatenate([e[keep] for e in dev]) ** 2))))
     return [p for p, k in zip(found, keep) if k]
 
 

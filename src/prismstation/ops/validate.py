@@ -14,7 +14,7 @@ from prismstation.errors import InputError
 from prismstation.io.dem import open_raster, read_dem, resample_to_grid, write_dem
 from prismstation.io.geoid import undulation_on_grid
 from prismstation.model.points import HEIGHT_KINDS
-from prismstation.ops.progress import ProgressFn, checkpoint, partial_output
+from prismstation.ops.progress import ProgressFn, checkpoint
 
 
 def validate_dsm_files(dsm_path, reference_path, *, dsm_height: str = "ellipsoidal",
@@ -79,8 +79,7 @@ def validate_dsm_files(dsm_path, reference_path, *, dsm_height: str = "ellipsoid
     result = validate_dsm(dsm, ref, classes=classes, class_nodata=mask_nodata)
     checkpoint(progress, 0.9, "statistics done")
     if diff_out is not None:
-        with partial_output(diff_out) as part:
-            write_dem(part, np.where(both, dsm - ref, np.nan), grid.crs, grid.transform)
+        write_dem(diff_out, np.where(both, dsm - ref, np.nan), grid.crs, grid.transform)  # atomic
         info["difference_raster"] = str(diff_out)
     checkpoint(progress, 1.0, "done")
     return result, info

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from prismstation.errors import InputError
+from prismstation.io.atomic import write_atomic
 from prismstation.sim import geometry as geo
 from prismstation.sim.scenario import publish
 
@@ -60,8 +61,5 @@ def perturb_geolocation(sim_dir, errors: dict, out) -> Path:
         image = (sim_dir / v["image"]).resolve()
         v["image"] = os.path.relpath(image, out.parent.resolve())
         v["map_to_image"] = [float(a) for a in grids[name]]
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(json.dumps(scene, indent=2) + "\n", encoding="utf-8")
-    os.replace(tmp, out)
+    write_atomic(out, json.dumps(scene, indent=2) + "\n", keep_backup=False)
     return out

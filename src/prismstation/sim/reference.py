@@ -11,6 +11,8 @@ from rasterio.enums import Resampling
 from rasterio.transform import Affine
 from scipy import ndimage
 
+from prismstation.io.atomic import atomic_path, raster_check
+
 
 def make_reference_dem(truth_dem, out, *, posting_m: float = 90.0, noise_m: float = 2.0,
                        void_fraction: float = 0.02, geoid_m: float = 55.0, seed: int = 0) -> Path:
@@ -29,7 +31,8 @@ def make_reference_dem(truth_dem, out, *, posting_m: float = 90.0, noise_m: floa
         H[voids] = np.nan
     out = Path(out)
     data = np.where(np.isfinite(H), np.round(H), -32768).astype(np.int16)
-    with rasterio.open(out, "w", driver="GTiff", width=shape[1], height=shape[0], count=1,
-                       dtype="int16", crs=crs, transform=t, nodata=-32768) as dst:
+    with atomic_path(out, check=raster_check(shape[1], shape[0], 1)) as tmp, \
+            rasterio.open(tmp, "w", driver="GTiff", width=shape[1], height=shape[0], count=1,
+                          dtype="int16", crs=crs, transform=t, nodata=-32768) as dst:
         dst.write(data, 1)
     return out

@@ -121,7 +121,7 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
         path = out / f"{name}.tif"
         gt = None if map_to_image_in_json else image_to_map_transform(scenario.published[name])
         rng = np.random.default_rng(r_render.integers(2 ** 63))
-        with writer.product_writer(path, size, gt, crs) as write:
+        with writer.product_writer(path, size, gt, crs, overviews=size > 4096) as write:
             for r0 in range(0, size, block):
                 r1 = min(size, r0 + block)
                 rows = render.render_rows(scenario.orbit, view, size, r0, r1, dem, texture,
@@ -129,8 +129,6 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
                                           sampler=sampler)
                 write(render.to_uint8(rows), r0)
                 report(0.15 + 0.8 * (k + r1 / size * 0.9) / 3)
-        if size > 4096:
-            writer.add_overviews(path, size)
         paths[name] = path
     del texture
 

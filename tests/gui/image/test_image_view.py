@@ -1,7 +1,6 @@
 """ImageView with the real widget offscreen: coordinates, navigation, tiles, contrast, loupe."""
 from __future__ import annotations
 
-import os
 import time
 from pathlib import Path
 
@@ -23,7 +22,6 @@ from prismstation.io.raster import RasterSource  # noqa: E402
 from .conftest import H, W, pattern  # noqa: E402
 
 pytestmark = pytest.mark.gui
-DOCS = Path(__file__).resolve().parents[3] / "docs"
 
 
 def grey_at(widget, pos: QPoint) -> int:
@@ -206,9 +204,6 @@ def test_screenshot_three_views(qtbot, tmp_path, pattern_tif):
     img = win.grab()
     out = tmp_path / "three.png"
     assert img.save(str(out))
-    if os.environ.get("PRISMSTATION_SCREENSHOTS"):  # refresh the picture in docs/ on demand
-        DOCS.mkdir(exist_ok=True)
-        img.save(str(DOCS / "image_view.png"))
     # each view really displays image content (not a blank background)
     for v, *_ in views:
         q = v.graphics.viewport().grab().toImage()

@@ -77,7 +77,7 @@ def test_automatic_tie_points_one_undo_step(qtbot, window, sim):
     job.result.connect(added.append)
     qtbot.waitUntil(lambda: window.undo_stack.count() == depth + 1, timeout=30000)
     new = sorted(set(p.points) - before)
-    assert len(new) == len(added[0]) >= 10
+    assert len(new) == len(added[0][0]) >= 10
     for pid in new:
         assert p.points[pid].kind == "TIE"
         assert all(p.measurement(pid, v) is not None for v in ("N", "F", "B"))

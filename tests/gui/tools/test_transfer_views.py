@@ -3,7 +3,10 @@
 reference DEM, and calibrated σ — against the simulator's truth."""
 from __future__ import annotations
 
+import re
+
 import numpy as np
+import pytest
 from PySide6.QtCore import Qt
 
 from tests.gui.test_operator import click_image
@@ -23,16 +26,18 @@ def _new_point_in_n(qtbot, window, xy):
 def test_candidates_drive_the_views_and_carry_a_believable_sigma(qtbot, window, truth):
     tool = window.tools["transfer"]
     t = [t for t in truth.values() if t["kind"] == "ICP"][1]
-    for v in "FB":                                       # far from the point
-        window.views.views[v].center_on(50, 50, 0.5)
-    pid = _new_point_in_n(qtbot, window, t["image"]["N"])
+    for v in "FB":                                       # at the overview
+        window.views.views[v].fit()
+        assert window.views.views[v].scale() > 1.5
+    pid = _new_point_in_n(qtbot, window, t["image"]["N"])  # N at 0.5 image px per screen px
     qtbot.waitUntil(lambda: bool(tool.candidates), timeout=10000)
     clicked = window.project.measurement(pid, "N")       # a click lands on a screen pixel:
     off_n = np.subtract((clicked.x, clicked.y), t["image"]["N"])  # up to ½ px from the truth
     for v, c in tool.candidates.items():
         assert c.ok
         cx, cy = window.views.views[v].center()
-        assert np.hypot(cx - c.x, cy - c.y) < 0.5, v     # driven to its candidate
+        assert np.hypot(cx - c.x, cy - c.y) < 0.5, v     # driven to its candidate ...
+        assert window.views.views[v].scale() == pytest.approx(0.5, rel=1e-3), v  # ... at N's zoom
         # the truth of the point clicked (same GSD and orientation: N's offset carries over)
         err = np.subtract((c.x, c.y), np.add(t["image"][v], off_n))
         assert np.hypot(*err) < 0.6
@@ -42,6 +47,68 @@ def test_candidates_drive_the_views_and_carry_a_believable_sigma(qtbot, window, 
     first = tool.candidates[tool.panel.table.item(0, 0).text()].match
     assert tool.panel.table.item(0, 5).text() == f"{first.sigma_y:.3f}"   # the dock shows it
     assert window.project.measurement(pid, "F") is None
+
+
+def test_a_point_placed_at_the_overview_is_shown_in_detail(qtbot, window, truth):
+    """Every view at the overview, a point clicked in N: the views go to the point and its
+    candidates at one image pixel per screen pixel, not left at the overview."""
+    tool = window.tools["transfer"]
+    t = [t for t in truth.values() if t["kind"] == "ICP"][3]
+    window.views.fit_all()
+    window.set_current(None)
+    qtbot.keyClick(window, Qt.Key.Key_Insert)            # New point
+    pid = window.current
+    assert window.views.views["N"].scale() > 1.5
+    click_image(qtbot, window, "N", *t["image"]["N"], SHIFT)
+    qtbot.waitUntil(lambda: bool(tool.candidates), timeout=10000)
+    assert set(tool.candidates) == {"F", "B"}
+    m = window.project.measurement(pid, "N")
+    for v in "NFB":
+        iv = window.views.views[v]
+        x, y = (m.x, m.y) if v == "N" else (tool.candidates[v].x, tool.candidates[v].y)
+        assert iv.scale() == pytest.approx(1.0, rel=1e-3), v
+        assert np.hypot(*np.subtract(iv.center(), (x, y))) < 0.5, v
+
+
+def test_automatic_tie_points_from_the_menu_end_with_a_summary(qtbot, window):
+    """Tools ▸ Automatic tie points…, the dialog answered: the ties are added in one step,
+    numbered on from the project's tie ids, and the status line says how many of the grid
+    points were added, not found and why, rejected, and the across-track RMS."""
+    from PySide6.QtCore import QTimer
+    from PySide6.QtWidgets import QApplication, QDialog, QSpinBox
+
+    tool = window.tools["transfer"]
+    p = window.project
+    before, depth = set(p.points), window.undo_stack.count()
+    action = next(a for a in window.tools_menu.actions() if a.text() == "Automatic tie &points…")
+
+    def answer():
+        dlg = QApplication.activeModalWidget()
+        if not isinstance(dlg, QDialog):
+            QTimer.singleShot(50, answer)
+            return
+        dlg.findChild(QSpinBox).setValue(4)
+        dlg.accept()
+    QTimer.singleShot(50, answer)
+    action.trigger()
+    qtbot.waitUntil(lambda: bool(tool.summary), timeout=60000)
+    new = sorted(set(p.points) - before)
+    status = window.statusBar().currentMessage()
+    assert status == f"Automatic tie points: {tool.summary}"
+    added = int(tool.summary.split(" of ")[0])
+    assert added == len(new) and "of 16 grid points added" in tool.summary
+    assert window.undo_stack.count() == depth + (1 if new else 0)
+    numbers = [int(i[1:]) for i in before if i.startswith("T") and i[1:].isdigit()]
+    assert [int(i[1:]) for i in new] == list(range(max(numbers, default=0) + 1,
+                                                   max(numbers, default=0) + 1 + len(new)))
+    not_found = re.search(r"; (\d+) not found in F and B \(([^)]*)\)", tool.summary)
+    blunders = re.search(r"; (\d+) rejected as blunders", tool.summary)
+    n_nf = int(not_found.group(1)) if not_found else 0
+    assert added + n_nf + (int(blunders.group(1)) if blunders else 0) == 16
+    if not_found:   # each reason counted: the counts add up to the points not found
+        assert sum(int(w.split()[0]) for w in not_found.group(2).split(", ")) == n_nf
+    assert re.search(r"across-track RMS (\d+\.\d\d) px\.$", tool.summary)
+    print(f"\n{tool.summary}")
 
 
 def test_transfer_this_point_from_the_menu_key(qtbot, window, truth):

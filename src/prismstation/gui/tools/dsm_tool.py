@@ -26,13 +26,9 @@ from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest
 HEIGHT_MODEL_NAMES = {"auto": "automatic (the one the GCPs predict better)",
                       "line": "the model's parallax line", "rays": "the rays through the biases"}
 
-TOOL_CONTEXT = True  # install() gets a ToolContext
-
-
 def visible_window(ctx) -> tuple | None:
     """The N-image window ``(col0, row0, cols, rows)`` visible in the N view, clipped to the
-    image (None if nothing of the image is visible). ``ctx``: anything with ``views`` and
-    ``project`` (a tool context or the window)."""
+    image (None if nothing of the image is visible). ``ctx``: the :class:`~prismstation.gui.tools.ToolContext`."""
     iv = ctx.views.views.get("N")
     if iv is None or ctx.project is None:
         return None
@@ -188,7 +184,7 @@ class DsmTool:
         """Where the DSM goes unless the operator says otherwise: beside the project file
         (``<project>_dsm.tif``), else beside the scene, else the last import folder."""
         p = self.ctx.project
-        path = getattr(self.ctx.files, "path", None)
+        path = self.ctx.files.path
         if path:
             return Path(path).with_name(f"{Path(path).stem}_dsm.tif")
         if p is not None and p.scene_path:
@@ -241,7 +237,7 @@ class DsmTool:
         def done(out):
             self.message, low = result_message(out)
             self.ctx.status(self.message, 30000 if low else 15000)
-            if getattr(self.ctx, "interactive", False):
+            if self.ctx.interactive:
                 (QMessageBox.warning if low else QMessageBox.information)(self.ctx.widget, "DSM", self.message)
 
         self.job = run_with_progress(self.ctx, "DSM", work, done)

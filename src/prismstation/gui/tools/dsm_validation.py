@@ -19,10 +19,12 @@ import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpinBox, QFileDialog,
-                               QFormLayout, QHBoxLayout, QLabel, QLineEdit, QPushButton,
-                               QSplitter, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
+                               QFormLayout, QHBoxLayout, QLabel, QLineEdit, QMessageBox,
+                               QPushButton, QSplitter, QTableWidget, QTableWidgetItem,
+                               QVBoxLayout, QWidget)
 
 from prismstation.core.dsmstats import hillshade, histogram, residual_sd_by_view
+from prismstation.errors import PrismError
 from prismstation.gui.titles import fit_title
 from prismstation.gui.tools._rect_common import crs_name, fmt
 from prismstation.gui.tools._worker import Job, run_with_progress
@@ -304,10 +306,17 @@ class DsmResultPanel(QWidget):
         p, _ = QFileDialog.getSaveFileName(self, "Export DSM validation", f"dsm_validation.{kind}",
                                            f"{kind.upper()} (*.{kind})")
         if p:
-            self.export(p, kind)
+            try:
+                self.export(p, kind)
+            except (PrismError, OSError) as exc:  # a full disk, a folder that cannot be written
+                QMessageBox.warning(self, "Export DSM validation", str(exc))
 
     def export(self, path, kind: str | None = None) -> None:
-        """Write the statistics as JSON (with the inputs) or CSV (one row per cell set)."""
+        """Write the statistics as JSON (with the inputs) or CSV (one row per cell set),
+        atomically (a failure is a ``WriteError``, no file)."""
+        import io
+
+        from prismstation.io.atomic import write_atomic
         from prismstation.io.jsonfile import write_json
 
         kind = kind or ("csv" if str(path).lower().endswith(".csv") else "json")
@@ -316,13 +325,14 @@ class DsmResultPanel(QWidget):
             return
         pct = sorted(self.validation.overall.percentiles)
         apct = sorted(self.validation.overall.abs_percentiles)
-        with open(path, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["cells"] + list(STAT_COLUMNS) + [f"p{p:g}" for p in pct]
-                       + [f"abs_p{p:g}" for p in apct])
-            for label, s in self.rows():
-                w.writerow([label] + [getattr(s, k) for k in STAT_COLUMNS]
-                           + [s.percentiles[p] for p in pct] + [s.abs_percentiles[p] for p in apct])
+        buf = io.StringIO(newline="")
+        w = csv.writer(buf)
+        w.writerow(["cells"] + list(STAT_COLUMNS) + [f"p{p:g}" for p in pct]
+                   + [f"abs_p{p:g}" for p in apct])
+        for label, s in self.rows():
+            w.writerow([label] + [getattr(s, k) for k in STAT_COLUMNS]
+                       + [s.percentiles[p] for p in pct] + [s.abs_percentiles[p] for p in apct])
+        write_atomic(path, buf.getvalue(), keep_backup=False)
 
 
 class DsmValidationTool:

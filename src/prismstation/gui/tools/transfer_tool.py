@@ -10,44 +10,71 @@ each view is driven to its candidate — and in the *Point transfer* dock with t
 (pixels, from the adjustment, checked against empirical scatter) and status (a failed search
 says why, in red); the status bar says the same. Enter (or *Accept*) places the found ones, one
 undoable step; a click in a view places the point there instead (that candidate is dropped);
-Esc (or *Reject*) drops them all.
+Esc (or *Reject*) drops them all. The views go to the candidates at the working zoom (the
+source view's, at most one image pixel per screen pixel): a view left at the overview zooms in.
 
 *Transfer this point* (Tools, Ctrl+T): the same search for the current point from a view it is
 measured in (N first) to the views it is not — a point measured before automatic transfer was
 on, or whose transfer was rejected.
 
-*Automatic tie points…*: a grid over the N image transferred to F and B, blunders rejected
+*Automatic tie points…*: a grid over the N image (the first of other scenes) transferred to
+the other views, blunders rejected
 (:func:`prismstation.ops.transfer.auto_tie_points`, with the reference DEM when one is loaded),
-added as new tie points in one undoable step.
+added as new tie points in one undoable step; a summary (how many added, not found and why,
+rejected as blunders, the across-track RMS) on the status line and, interactively, in a box.
 """
 from __future__ import annotations
 
 import math
+import re
 
 import pyqtgraph as pg
 import shiboken6
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QKeySequence
 from PySide6.QtWidgets import (QDialog, QDialogButtonBox, QFormLayout, QHBoxLayout, QLabel,
-                               QPushButton, QSpinBox, QTableWidget, QTableWidgetItem, QVBoxLayout,
-                               QWidget)
+                               QMessageBox, QPushButton, QSpinBox, QTableWidget, QTableWidgetItem,
+                               QVBoxLayout, QWidget)
 
 from prismstation.core.scene import reference_view
 from prismstation.gui import commands as cmd
 from prismstation.gui.tools._worker import Job, run_with_progress
+from prismstation.gui.views import DRIVE_TO_MAX_SCALE
 from prismstation.model.points import GroundPoint, Measurement
 
 CANDIDATE_COLOUR = "#39ff14"
 
 
 def new_tie_ids(project, n: int, prefix: str = "T") -> list[str]:
-    """``n`` point ids not used in ``project`` (``T<k>``, counting on from the point count)."""
-    out, i = [], len(project.points) + 1
-    while len(out) < n:
-        if f"{prefix}{i}" not in project.points:
-            out.append(f"{prefix}{i}")
-        i += 1
-    return out
+    """``n`` new point ids: the project's next id with ``prefix``
+    (:meth:`~prismstation.model.project.Project.new_point_id`: one more than the highest
+    number after it, zero-padded as the project's ids are) and the ones after it."""
+    first = project.new_point_id(prefix)
+    digits = re.search(r"\d+$", first).group()
+    k, width = int(digits), len(digits) if digits.startswith("0") else 0
+    return [f"{prefix}{k + i:0{width}d}" for i in range(n)]
+
+
+def ties_summary(summary: dict, ids: list[str], scene=None) -> str:
+    """What the automatic tie points did, in one paragraph: how many of the grid points were
+    added (their ids), how many were not found in the other views of ``scene`` and why (the
+    search's status), how many were rejected as blunders, and the RMS of the kept ones'
+    differences across the parallax (across the track for a PRISM triplet)."""
+    triplet = scene is None or scene.is_triplet
+    others = ("F", "B") if scene is None else [v for v in scene.views if v != scene.reference_view]
+    tried, failed, blunders = summary.get("tried", 0), summary.get("failed", {}), summary.get("blunders", 0)
+    text = f"{len(ids)} of {tried} grid points added" + (f" ({ids[0]}–{ids[-1]})" if ids else "")
+    n_failed = sum(failed.values())
+    if n_failed:
+        why = ", ".join(f"{n} {status}" for status, n in sorted(failed.items(), key=lambda kv: -kv[1]))
+        text += f"; {n_failed} not found in {' and '.join(others)} ({why})"
+    if blunders:
+        text += (f"; {blunders} rejected as blunders ("
+                 + ("across-track F−N or B−N" if triplet else "across the parallax") + " beyond 3 NMAD of the median)")
+    rms = summary.get("rms_px", math.nan)
+    if math.isfinite(rms):
+        text += f"; {'across-track' if triplet else 'across the parallax'} RMS {rms:.2f} px"
+    return text + "."
 
 
 class TransferPanel(QWidget):
@@ -95,40 +122,41 @@ class TransferPanel(QWidget):
 class TransferTool:
     """Automatic transfer of a placed point and automatic tie points (one per window)."""
 
-    def __init__(self, window):
-        self.w = window
+    def __init__(self, ctx):
+        self.ctx = ctx
         self.job = None
+        self.summary = ""  # what the last automatic tie points did (ties_summary)
         self.pid = None
         self.source = None
         self.candidates: dict = {}
         self._items = []
         self.panel = TransferPanel()
-        window.add_dock("transfer", "Point transfer", self.panel, Qt.DockWidgetArea.RightDockWidgetArea)
-        self.a_auto = window.add_action("Automatic &transfer", None, checkable=True,
+        ctx.add_dock("transfer", "Point transfer", self.panel, Qt.DockWidgetArea.RightDockWidgetArea)
+        self.a_auto = ctx.add_action("Automatic &transfer", None, checkable=True,
                                   tip="Search a point placed in one view in the other views")
         self.a_auto.setChecked(True)
-        self.a_accept = window.add_action("Accept transferred point", self.accept, [QKeySequence(Qt.Key.Key_Return), QKeySequence(Qt.Key.Key_Enter)],
+        self.a_accept = ctx.add_action("Accept transferred point", self.accept, [QKeySequence(Qt.Key.Key_Return), QKeySequence(Qt.Key.Key_Enter)],
                                     tip="Place the transferred point in the other views")
-        self.a_reject = window.add_action("Reject transferred point", self.reject, "Esc")
-        self.a_this = window.add_action("Transfer t&his point", self.transfer_current, "Ctrl+T",
+        self.a_reject = ctx.add_action("Reject transferred point", self.reject, "Esc")
+        self.a_this = ctx.add_action("Transfer t&his point", self.transfer_current, "Ctrl+T",
                                         tip="Search the current point, measured in one view, in the others")
-        self.a_ties = window.add_action("Automatic tie &points…", self.choose_ties,
+        self.a_ties = ctx.add_action("Automatic tie &points…", self.choose_ties,
                                   tip="A grid of tie points over the N image, found in F and B")
-        window.tools_menu.addActions([self.a_auto, self.a_this, self.a_accept, self.a_reject])
-        window.tools_menu.addSeparator()
-        window.tools_menu.addAction(self.a_ties)
+        ctx.tools_menu.addActions([self.a_auto, self.a_this, self.a_accept, self.a_reject])
+        ctx.tools_menu.addSeparator()
+        ctx.tools_menu.addAction(self.a_ties)
         self.panel.accept_button.clicked.connect(self.accept)
         self.panel.reject_button.clicked.connect(self.reject)
-        window.views.place_requested.connect(self._on_placed)  # after the window's own place()
-        window.files.project_opened.connect(lambda *_: self.reject())
-        window.undo_stack.indexChanged.connect(lambda *_: self._prune())
-        window.undo_stack.indexChanged.connect(lambda *_: self._update_this())
-        window.workspace.current_changed.connect(lambda *_: self._update_this())
+        ctx.views.place_requested.connect(self._on_placed)  # after the window's own place()
+        ctx.files.project_opened.connect(lambda *_: self.reject())
+        ctx.undo_stack.indexChanged.connect(lambda *_: self._prune())
+        ctx.undo_stack.indexChanged.connect(lambda *_: self._update_this())
+        ctx.workspace.current_changed.connect(lambda *_: self._update_this())
         self._update()
 
     # ------------------------------------------------------------------ transfer of one point
     def _on_placed(self, view: str, x: float, y: float) -> None:
-        p, pid = self.w.project, self.w.current
+        p, pid = self.ctx.project, self.ctx.current
         if not self.a_auto.isChecked() or p is None or pid is None or pid not in p.points:
             return
         measured = [v for v in p.scene.views if p.measurement(pid, v) is not None]
@@ -139,13 +167,13 @@ class TransferTool:
         """Transfer the current point from a view it is measured in (N where it is, else the
         first in the scene's order) to the views it is not measured in; returns the Job (None when
         there is nothing to transfer)."""
-        p, pid = self.w.project, self.w.current
+        p, pid = self.ctx.project, self.ctx.current
         if p is None or pid is None or pid not in p.points:
-            self.w.status("Transfer: choose a point measured in one view first", 8000)
+            self.ctx.status("Transfer: choose a point measured in one view first", 8000)
             return None
         measured = [v for v in p.scene.views if p.measurement(pid, v) is not None]
         if not measured or len(measured) == len(p.scene.views):
-            self.w.status(f"Transfer: {pid} is {'measured in every view' if measured else 'not measured'}", 8000)
+            self.ctx.status(f"Transfer: {pid} is {'measured in every view' if measured else 'not measured'}", 8000)
             return None
         source = reference_view(measured)  # N where measured, else the first in the scene's order
         m = p.measurement(pid, source)
@@ -156,19 +184,19 @@ class TransferTool:
         (:func:`prismstation.ops.transfer.search_height` with the loaded reference DEM and the
         σ the predictions measured for it and for the mean height)."""
         from prismstation.ops.transfer import search_height
-        preds = self.w.views.predictions
-        return search_height(sol, source, (x, y), height_of=self.w.views.height_of,
+        preds = self.ctx.views.predictions
+        return search_height(sol, source, (x, y), height_of=self.ctx.views.height_of,
                              sigma_dem=preds.sigma_dem, sigma_mean=preds.sigma_mean)
 
     def start(self, pid: str, source: str, x: float, y: float):
         """Search ``pid`` at image ``(x, y)`` of ``source`` in the other views (worker); returns the Job."""
-        sol = self.w.solver.solution
-        if sol is None or self.w.project is None:
-            self.w.status("Point transfer needs a fitted model", 8000)
+        sol = self.ctx.solver.solution
+        if sol is None or self.ctx.project is None:
+            self.ctx.status("Point transfer needs a fitted model", 8000)
             return None
         self.reject()
-        scene = self.w.project.scene
-        height_of, preds = self.w.views.height_of, self.w.views.predictions
+        scene = self.ctx.project.scene
+        height_of, preds = self.ctx.views.height_of, self.ctx.views.predictions
         sigma_dem, sigma_mean = preds.sigma_dem, preds.sigma_mean
 
         def work(progress):
@@ -179,44 +207,54 @@ class TransferTool:
                                 sigma_mean=sigma_mean)
 
         self.pid, self.source = pid, source
-        job = self.job = Job(work, "Point transfer", self.w)
+        job = self.job = Job(work, "Point transfer", self.ctx)
         job.result.connect(lambda res, job=job: self._on_result(job, pid, res))
-        job.failed.connect(lambda msg: shiboken6.isValid(self.w.widget)
-                           and self.w.status(f"Point transfer: {msg}", 10000))
-        self.w.status(f"{pid}: searching in the other views…")
+        job.failed.connect(lambda msg: shiboken6.isValid(self.ctx.widget)
+                           and self.ctx.status(f"Point transfer: {msg}", 10000))
+        self.ctx.status(f"{pid}: searching in the other views…")
         job.start()
         return job
 
     def _on_result(self, job, pid, res) -> None:
-        if not shiboken6.isValid(self.w.widget) or not shiboken6.isValid(self.panel):
+        if not shiboken6.isValid(self.ctx.widget) or not shiboken6.isValid(self.panel):
             return  # the window was closed while the search ran
-        if job is not self.job or pid != self.pid or self.w.project is None or pid not in self.w.project.points:
+        if job is not self.job or pid != self.pid or self.ctx.project is None or pid not in self.ctx.project.points:
             return
-        self.candidates = {v: t for v, t in res.items() if self.w.project.measurement(pid, v) is None}
+        self.candidates = {v: t for v, t in res.items() if self.ctx.project.measurement(pid, v) is None}
         parts = [f"{v} {'✓' if t.ok else '✗ ' + t.match.status} NCC {t.match.score:.2f} "
                  f"σ {t.match.sigma_x:.2f}/{t.match.sigma_y:.2f} px" for v, t in sorted(self.candidates.items())]
-        self.w.status(f"{pid} transferred: " + "; ".join(parts) + " — Enter accepts", 20000)
+        self.ctx.status(f"{pid} transferred: " + "; ".join(parts) + " — Enter accepts", 20000)
         self._update()
         self.drive_to_candidates()
 
     def drive_to_candidates(self) -> None:
-        """Centre each view holding a candidate on it (its zoom kept): the operator sees at
-        once what to accept."""
+        """Centre each view holding a candidate on it at the working zoom — the source view's,
+        at most :data:`~prismstation.gui.views.DRIVE_TO_MAX_SCALE` image px per screen px, so
+        that a view at the overview zooms in to detail — and the source view on the point when
+        it showed it coarser: the operator sees at once what to accept."""
+        views = self.ctx.views.views
+        src = views.get(self.source)
+        scale = min(src.scale(), DRIVE_TO_MAX_SCALE) if src is not None else DRIVE_TO_MAX_SCALE
+        if not scale > 0:  # (a view without its image: no scale of its own)
+            scale = DRIVE_TO_MAX_SCALE
         for v, t in self.candidates.items():
-            iv = self.w.views.views.get(v)
+            iv = views.get(v)
             if iv is not None and math.isfinite(t.x) and math.isfinite(t.y):
-                iv.center_on(t.x, t.y)
+                iv.center_on(t.x, t.y, scale)
+        m = self.ctx.project.measurement(self.pid, self.source) if self.ctx.project is not None else None
+        if src is not None and m is not None and src.scale() > scale * (1 + 1e-6):
+            src.center_on(m.x, m.y, scale)
 
     def accept(self) -> bool:
         """Place the good candidates (one undoable step); True if anything was placed."""
-        p = self.w.project
+        p = self.ctx.project
         ok = {v: t for v, t in self.candidates.items() if t.ok}
         if p is None or not ok or self.pid not in p.points:
             return False
         ms = [Measurement(self.pid, v, float(t.x), float(t.y)) for v, t in sorted(ok.items())]
         pid = self.pid
         self.candidates = {}
-        self.w.undo_stack.push(cmd.Import(p, [], ms, text=f"Transfer {pid} to {', '.join(sorted(ok))}"))
+        self.ctx.undo_stack.push(cmd.Import(p, [], ms, text=f"Transfer {pid} to {', '.join(sorted(ok))}"))
         self._update()
         return True
 
@@ -227,7 +265,7 @@ class TransferTool:
 
     def _prune(self) -> None:
         """A click (correction) or an undo made some candidates moot: drop them."""
-        p = self.w.project
+        p = self.ctx.project
         if not self.candidates:
             return
         if p is None or self.pid not in p.points or p.measurement(self.pid, self.source) is None:
@@ -238,7 +276,7 @@ class TransferTool:
 
     def _update_this(self) -> None:
         """*Transfer this point* is there for a current point measured in some views, not all."""
-        p, pid = self.w.project, self.w.current
+        p, pid = self.ctx.project, self.ctx.current
         n = 0 if p is None or pid not in p.points else sum(
             p.measurement(pid, v) is not None for v in p.scene.views)
         self.a_this.setEnabled(p is not None and 0 < n < len(p.scene.views))
@@ -252,10 +290,10 @@ class TransferTool:
         self.a_accept.setEnabled(any(t.ok for t in self.candidates.values()))
         self.a_reject.setEnabled(pending)
         self._update_this()
-        self.a_ties.setEnabled(self.w.project is not None and len(self.w.project.scene.views) > 1)
+        self.a_ties.setEnabled(self.ctx.project is not None and len(self.ctx.project.scene.views) > 1)
         self.panel.show_candidates(self.pid if pending else None, self.candidates)
         for v, t in self.candidates.items():
-            iv = self.w.views.views.get(v)
+            iv = self.ctx.views.views.get(v)
             if iv is None:
                 continue
             colour = CANDIDATE_COLOUR if t.ok else "#ff4040"
@@ -270,14 +308,15 @@ class TransferTool:
 
     # ------------------------------------------------------------------ automatic tie points
     def choose_ties(self) -> None:
-        if self.w.project is None:
+        if self.ctx.project is None:
             return
-        dlg = QDialog(self.w.widget)
+        dlg = QDialog(self.ctx.widget)
         dlg.setWindowTitle("Automatic tie points")
         grid = QSpinBox(minimum=2, maximum=40, value=8)
         form = QFormLayout(dlg)
-        views = list(self.w.project.scene.views)
-        form.addRow(QLabel(f"A grid over the {views[0]} image, found in {', '.join(views[1:])}; "
+        sc = self.ctx.project.scene
+        others = [v for v in sc.views if v != sc.reference_view]
+        form.addRow(QLabel(f"A grid over the {sc.reference_view} image, found in {' and '.join(others)}; "
                            "blunders rejected."))
         form.addRow("Grid (points per side)", grid)
         bb = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel)
@@ -289,37 +328,41 @@ class TransferTool:
 
     def start_ties(self, grid: int = 8):
         """Run the automatic tie points in a worker with a progress dialog; returns the Job."""
-        sol, project = self.w.solver.solution, self.w.project
+        sol, project = self.ctx.solver.solution, self.ctx.project
         if sol is None or project is None:
-            self.w.status("Automatic tie points need a fitted model", 8000)
+            self.ctx.status("Automatic tie points need a fitted model", 8000)
             return None
-        height_of = self.w.views.height_of
+        height_of = self.ctx.views.height_of
 
         def work(progress):
             from prismstation.io.windows import ImageWindows
             from prismstation.ops.transfer import auto_tie_points
+            summary: dict = {}
             with ImageWindows(project.scene) as im:
-                return auto_tie_points(sol, im, grid=grid, height_of=height_of, progress=progress)
+                ties = auto_tie_points(sol, im, grid=grid, height_of=height_of, progress=progress,
+                                       summary=summary)
+            return ties, summary
 
-        self.job = run_with_progress(self.w, "Automatic tie points", work,
-                                     lambda ties: self._add_ties(project, ties))
+        self.job = run_with_progress(self.ctx, "Automatic tie points", work,
+                                     lambda out: self._add_ties(project, *out))
         return self.job
 
-    def _add_ties(self, project, ties) -> None:
-        if project is not self.w.project:
-            return
-        if not ties:
-            self.w.status("Automatic tie points: none found", 10000)
+    def _add_ties(self, project, ties, summary) -> None:
+        """Add ``ties`` in one undoable step and say what the search did (:func:`ties_summary`)
+        on the status line and, in an interactive window, in a message box."""
+        if project is not self.ctx.project:
             return
         ids = new_tie_ids(project, len(ties))
-        points = [GroundPoint(pid, math.nan, math.nan, math.nan, kind="TIE") for pid in ids]
-        ms = [Measurement(pid, v, float(t[v][0]), float(t[v][1])) for pid, t in zip(ids, ties)
-              for v in project.scene.views]
-        self.w.undo_stack.push(cmd.Import(project, points, ms, text=f"{len(ties)} automatic tie points"))
-        self.w.status(f"Automatic tie points: {len(ties)} added ({ids[0]}–{ids[-1]})", 10000)
-
-
-TOOL_CONTEXT = True  # install() gets a ToolContext
+        if ties:
+            points = [GroundPoint(pid, math.nan, math.nan, math.nan, kind="TIE") for pid in ids]
+            ms = [Measurement(pid, v, float(t[v][0]), float(t[v][1]))
+                  for pid, t in zip(ids, ties) for v in project.scene.views]
+            self.ctx.undo_stack.push(cmd.Import(project, points, ms, text=f"{len(ties)} automatic tie points"))
+        self.summary = ties_summary(summary, ids, project.scene)
+        self.ctx.status(f"Automatic tie points: {self.summary}", 30000)
+        if self.ctx.interactive:
+            (QMessageBox.information if ties else QMessageBox.warning)(
+                self.ctx.widget, "Automatic tie points", self.summary)
 
 
 def install(ctx) -> None:

@@ -1,0 +1,242 @@
+"""The tiles of the RPC DSM: one output tile of one pair (:func:`run_pair_tile`: window,
+local epipolar rectification, SGBM, triangulation, binning) and of every pair, fused
+(:func:`run_block_tile`). A tile's spec holds all it needs (image paths, models, grid,
+window, height range): tiles run in threads, processes or on ``dask.distributed`` workers
+(:func:`prismstation.ops.dsm_tiles.run_tiles`). Map coordinates are metres of the grid's
+projected CRS; heights ellipsoidal metres.
+"""
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass
+from functools import lru_cache
+
+import cv2
+import numpy as np
+import pyproj
+import rasterio
+from rasterio.errors import NotGeoreferencedWarning
+from rasterio.windows import Window
+
+from prismstation.core import sgm
+from prismstation.core.rpc_bias import as_biased
+from prismstation.core.rpc_epipolar import (grid_heights, ray_lattice, rectify_pair, source_window,
+                                            triangulate, warp)
+from prismstation.errors import InputError, ModelError
+from prismstation.io.raster import gdal_env
+
+
+@lru_cache(maxsize=16)
+def _transformer(crs: str, inverse: bool) -> pyproj.Transformer:
+    a, b = ("EPSG:4326", crs) if not inverse else (crs, "EPSG:4326")
+    return pyproj.Transformer.from_crs(a, b, always_xy=True)
+
+
+def to_map(crs: str):
+    """``(lon°, lat°) → (E, N)`` of ``crs``."""
+    t = _transformer(str(crs), False)
+    return lambda lon, lat: t.transform(lon, lat)
+
+
+def to_lonlat(crs: str):
+    t = _transformer(str(crs), True)
+    return lambda e, n: t.transform(e, n)
+
+
+def _open(path):
+    """rasterio's dataset of an image; an image whose RPCs are in a side file is not
+    georeferenced in GDAL's sense, which is no reason for a warning."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NotGeoreferencedWarning)
+        return rasterio.open(path)
+
+
+def image_shape(path) -> tuple[int, int]:
+    try:
+        with _open(path) as ds:
+            return ds.height, ds.width
+    except rasterio.errors.RasterioError as exc:
+        raise InputError(f"cannot open the image ({exc})", path) from None
+
+
+@dataclass(frozen=True)
+class Grid:
+    """North-up output grid: ``crs`` (string), ``transform`` (a, 0, c, 0, e, f), ``shape``."""
+
+    crs: str
+    transform: tuple
+    shape: tuple
+
+    @property
+    def posting(self) -> float:
+        return float(self.transform[0])
+
+    def cell_centres(self, window=None):
+        r0, c0, rows, cols = window or (0, 0) + tuple(self.shape)
+        a, _, c, _, e, f = self.transform
+        E = c + a * (c0 + np.arange(cols) + 0.5)
+        N = f + e * (r0 + np.arange(rows) + 0.5)
+        return np.meshgrid(E, N)
+
+
+@dataclass(frozen=True)
+class PairTile:
+    """One tile of one pair (everything a worker needs): image ``paths`` and ``models``
+    (left, right), output cells ``window`` (row0, col0, rows, cols) of ``grid``, the height
+    range (m), the disparity margin (px), SGBM's block, the subpixel refinement, and the
+    disparity σ (px) for the heights' σ."""
+
+    paths: tuple
+    models: tuple
+    grid: Grid
+    window: tuple
+    height_range: tuple
+    margin_px: float = 2.0
+    block: int = 5
+    refine: bool = True
+    sigma_px: float = sgm.SIGMA_DISPARITY_PX
+
+
+def _read(path, win) -> np.ndarray:
+    """Window (x0, y0, w, h) of band 1 as float32, NaN outside the image."""
+    x0, y0, w, h = win
+    out = np.full((h, w), np.nan, np.float32)
+    with _open(path) as ds:
+        c0, r0 = max(x0, 0), max(y0, 0)
+        c1, r1 = min(x0 + w, ds.width), min(y0 + h, ds.height)
+        if c1 > c0 and r1 > r0:
+            out[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = ds.read(1, window=Window(c0, r0, c1 - c0, r1 - r0),
+                                                            out_dtype="float32")
+    return out
+
+
+def left_window(spec: PairTile, shape_a):
+    """The left image's window (x0, y0, w, h) px seeing the tile's cells over its height
+    range, clipped to the image; None if it sees none of it."""
+    r0, c0, rows, cols = spec.window
+    a, _, c, _, e, f = spec.grid.transform
+    E = c + a * np.array([c0, c0 + cols, c0, c0 + cols, c0 + cols / 2])
+    N = f + e * np.array([r0, r0, r0 + rows, r0 + rows, r0 + rows / 2])
+    lon, lat = to_lonlat(spec.grid.crs)(E, N)
+    m = as_biased(spec.models[0])
+    xs, ys = [], []
+    for h in spec.height_range:
+        x, y = m.project(lon, lat, h)
+        xs.append(x), ys.append(y)
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    x0, y0 = max(0.0, np.floor(x.min())), max(0.0, np.floor(y.min()))
+    x1, y1 = min(float(shape_a[1]), np.ceil(x.max())), min(float(shape_a[0]), np.ceil(y.max()))
+    if x1 - x0 < 16 or y1 - y0 < 16:
+        return None
+    return (x0, y0, x1 - x0, y1 - y0)
+
+
+def run_pair_tile(spec: PairTile):
+    """Match one tile of one pair: ``(heights, counts, sigma, stats)`` on the tile's cells
+    (float32 mean ellipsoidal height, samples per cell, the height's σ in metres from the
+    disparity σ; NaN where none) and a dict of what happened (rectification error, search,
+    matched share, seconds)."""
+    cv2.setNumThreads(1)
+    t0 = time.perf_counter()
+    rows, cols = spec.window[2], spec.window[3]
+    empty = (np.full((rows, cols), np.nan, np.float32), np.zeros((rows, cols), np.int32),
+             np.full((rows, cols), np.nan, np.float32))
+    with gdal_env():
+        shape_a = image_shape(spec.paths[0])
+        win = left_window(spec, shape_a)
+        if win is None:
+            return empty + ({"skipped": "outside the left image"},)
+        a, b = (as_biased(m) for m in spec.models)
+        try:
+            rect = rectify_pair(a, b, win, spec.height_range, margin_px=spec.margin_px)
+        except ModelError as exc:
+            return empty + ({"skipped": str(exc)},)
+        views = []
+        for path, aff in ((spec.paths[0], rect.left), (spec.paths[1], rect.right)):
+            sw = source_window(aff, rect.shape)
+            views.append(warp(_read(path, sw), sw[:2], aff, rect.shape))
+    valid = [np.isfinite(v) for v in views]
+    u8 = [sgm.to_uint8(v, ok) for v, ok in zip(views, valid)]
+    d = sgm.sgbm(u8[0], u8[1], *rect.search, block=spec.block)
+    if spec.refine:
+        f32 = [np.where(ok, v, 0).astype(np.float32) for v, ok in zip(views, valid)]
+        d = sgm.refine_subpixel(f32[0], f32[1], d)
+    # no match within two blocks of either image's edge (SGBM's paths run through the blank)
+    kernel = np.ones((2 * spec.block, 2 * spec.block), np.uint8)
+    bad = [cv2.dilate((~ok).astype(np.uint8), kernel) for ok in valid]
+    xr = np.arange(rect.shape[1], dtype=np.float32)[None, :] - d
+    yy = np.repeat(np.arange(rect.shape[0], dtype=np.float32)[:, None], rect.shape[1], 1)
+    bad_r = cv2.remap(bad[1], xr, yy, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=1)
+    d[(bad[0] > 0) | (bad_r > 0)] = np.nan
+    lattice = ray_lattice(a, b, rect, to_map(spec.grid.crs))
+    tri = triangulate(rect, lattice, d)
+    r0, c0 = spec.window[:2]
+    gt = spec.grid.transform
+    tile_t = (gt[0], 0.0, gt[2] + gt[0] * c0, 0.0, gt[4], gt[5] + gt[4] * r0)
+    h, cnt, mpp = grid_heights(tri.e, tri.n, tri.h, tile_t, (rows, cols), extra=tri.m_per_px)
+    sigma = (spec.sigma_px * mpp / np.sqrt(np.maximum(cnt, 1))).astype(np.float32)
+    stats = {"epipolar_error_px": rect.epipolar_error_px, "search": rect.search,
+             "height_range": tuple(rect.heights), "px_per_m": rect.px_per_m,
+             "matched": float(np.isfinite(d).mean()), "seconds": time.perf_counter() - t0}
+    return h, cnt, sigma, stats
+
+
+def seen_by_all(models, shapes, grid: Grid, heights, window=None) -> np.ndarray:
+    """Cells (of ``window`` = (row0, col0, rows, cols), default the grid) whose centre at
+    ``heights`` (NaN → their median) falls inside every image."""
+    E, N = grid.cell_centres(window)
+    lon, lat = to_lonlat(grid.crs)(E, N)
+    h = np.where(np.isfinite(heights), heights, np.nanmedian(heights) if np.isfinite(heights).any() else 0.0)
+    seen = np.ones(E.shape, bool)
+    for model, (rows, cols) in zip(models, shapes):
+        x, y = as_biased(model).project(lon, lat, h)
+        seen &= (x >= 0) & (x < cols) & (y >= 0) & (y < rows)
+    return seen
+
+
+def fuse_pairs(vals, sig, tau: float, posting: float):
+    """Fused heights and quality (pairs agreeing) of pair heights ``vals`` (P, rows, cols)
+    with σ ``sig`` (module docstring of :func:`rpc_dsm`)."""
+    if len(vals) == 1:
+        h = vals[0].copy()
+        return h, np.where(np.isfinite(h), 1, 0).astype(np.uint8)
+    h, q = sgm.fuse(vals, sig, tau)
+    finite = np.isfinite(sig)
+    tol = max(tau * 2 * float(np.median(sig[finite])) if finite.any() else 0.0, 3 * posting)
+    return sgm.resolve_single(h, q, vals, tol)
+
+
+@dataclass(frozen=True)
+class BlockTile:
+    """One output tile of every pair (what a worker needs): the images' ``paths``,
+    ``models`` and ``shapes``, the index ``pairs``, the cells ``window`` of ``grid``, the
+    tile's height range (m), the disparity margin (px), the refinement and the fusion's τ."""
+
+    paths: tuple
+    models: tuple
+    shapes: tuple
+    pairs: tuple
+    grid: Grid
+    window: tuple
+    height_range: tuple
+    margin_px: float = 2.0
+    refine: bool = True
+    tau: float = 3.0
+
+
+def run_block_tile(spec: BlockTile):
+    """Every pair of one tile, fused: ``(heights, quality, seen, pair heights, pair σ,
+    pair counts, pair stats)`` on the tile's cells (pair arrays (P, rows, cols))."""
+    outs = [run_pair_tile(PairTile((spec.paths[i], spec.paths[j]), (spec.models[i], spec.models[j]),
+                                   spec.grid, spec.window, spec.height_range, margin_px=spec.margin_px,
+                                   refine=spec.refine))
+            for i, j in spec.pairs]
+    vals = np.stack([o[0] for o in outs])
+    counts = np.stack([o[1] for o in outs])
+    sig = np.stack([o[2] for o in outs])
+    h, q = fuse_pairs(vals, sig, spec.tau, spec.grid.posting)
+    seen = seen_by_all(spec.models, spec.shapes, spec.grid, h, spec.window)
+    h[~seen] = np.nan
+    q[~seen] = 0
+    return h, q, seen, vals, sig, counts, [o[3] for o in outs]
