@@ -355,6 +355,7 @@ def test_automatic_tie_points_over_the_first_view(qtbot, win):
     qtbot.waitUntil(lambda: set(win.project.points) != before, timeout=10000)
     new = sorted(set(win.project.points) - before)
     assert len(new) >= 4  # of 9 (a few fall on shadow or featureless slopes)
+    assert tool.summary.startswith(f"{len(new)} of 9 grid points added")
     for pid in new:
         assert all(win.project.measurement(pid, v) is not None for v in VIEWS)
     qtbot.waitUntil(lambda: all(set(VIEWS) <= set(getattr(win.solver.solution.point(p), "residual_px", ()))
