@@ -362,3 +362,20 @@ def test_automatic_tie_points_over_the_first_view(qtbot, win):
                                 for p in new), timeout=20000)
     sol = win.solver.solution
     assert max(np.hypot(*sol.point(p).residual_px[v]) for p in new for v in VIEWS) < 1.0
+
+
+def test_a_pair_opens_with_two_views(qtbot, shared_data, tmp_path, windows):
+    """The Réunion pair (two Pléiades images, RPCs in the tags): two panes, the fit finds both
+    shifts from the GCPs, the automatic tie points offered between the two."""
+    path, _ = make_rpc_project(tmp_path, [shared_data / f"pleiades_pair_reunion/img_0{i}.tif" for i in (1, 2)])
+    w = open_window(qtbot, path, size=(1600, 1000))
+    windows.append(w)
+    assert list(w.views.views) == ["img_01", "img_02"] and list(w.status_xy) == ["img_01", "img_02"]
+    assert all(w.views.views[v].source is not None for v in ("img_01", "img_02"))
+    assert [w.panel.fixed.itemText(i) for i in range(w.panel.fixed.count())] == ["auto", "img_01", "img_02"]
+    sol = w.solver.solution
+    assert sol.ok
+    for v in ("img_01", "img_02"):
+        b = sol.bias[v]
+        assert np.all(np.abs(np.asarray(b.params) - TRUE_SHIFT[v]) < 4 * np.asarray(b.std) + 1e-3)
+    assert w.tool_context.tools["transfer"].a_ties.isEnabled()
