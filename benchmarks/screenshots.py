@@ -11,8 +11,12 @@ and contrast panels, 1500 × 560, on ``--triplet``: a folder of three images, ``
 ``N.tif``, ``F.tif``, ``B.tif``; the demo's by default). Every window picture is checked to be
 exactly the size asked for (nothing below the screen's edge).
 
+With ``--rpc IMG IMG [IMG …]`` (images with RPCs) it makes ``rpc_window_1600x1000.png`` instead
+(:func:`screenshots_rpc.rpc_window`): the window on a project of those images.
+
 Run: ``.venv/bin/python benchmarks/screenshots.py [--project P] [--out docs] [--triplet DIR]
-[--only NAME ...]`` (``--only``: the pictures whose file name starts with one of these).
+[--only NAME ...]`` (``--only``: the pictures whose file name starts with one of these)
+or ``.venv/bin/python benchmarks/screenshots.py --rpc img_01.tif img_02.tif img_03.tif``
 """
 from __future__ import annotations
 
@@ -34,6 +38,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "docs"))
     ap.add_argument("--triplet", help="three images for image_view.png (default: the demo's)")
     ap.add_argument("--only", nargs="+", default=None, help="make only the pictures named so")
+    ap.add_argument("--rpc", nargs="+", metavar="IMG", help="images with RPCs: the RPC picture only")
     args = ap.parse_args(argv)
 
     def wanted(*names) -> bool:
@@ -41,6 +46,9 @@ def main(argv=None) -> int:
     out = Path(args.out)
     tmp = Path(tempfile.mkdtemp(prefix="screenshots-"))
     os.environ["PRISMSTATION_SETTINGS_DIR"] = str(tmp / "settings")
+    if args.rpc:
+        from benchmarks.screenshots_rpc import rpc_window
+        return rpc_window([Path(f) for f in args.rpc], out, tmp)
     if args.project:
         project = Path(args.project)
     else:

@@ -20,7 +20,8 @@ from prismstation.gui.text_label import TextLabel
 FIELDS = (("E", "ICP RMSE of easting, estimated − known ground position (m)"),
           ("N", "ICP RMSE of northing, estimated − known ground position (m)"),
           ("plan", "ICP planimetric RMSE √(E² + N²) (m)"),
-          ("h", "ICP RMSE of the ellipsoidal height from the F−B parallax (m)"),
+          ("h", "ICP RMSE of the ellipsoidal height, from the F−B parallax (PRISM) or the "
+                "intersection of the rays (RPC images) (m)"),
           ("σ0", "a-posteriori σ0 of the reference view's bias fit (px): about the a-priori σ "
                  "when the measurements are as good as assumed"))
 
@@ -42,7 +43,8 @@ def accuracy_values(sol) -> dict:
     g = st.get("ground", {}).get("ICP")
     if g is not None:
         out.update(E=_m(g.x.rms), N=_m(g.y.rms), plan=_m(g.planimetric_rms))
-    hgt = st.get("height", {}).get("ICP") if sol.scene.is_triplet else None
+    heights = sol.scene.is_triplet or sol.scene.sensor.height_source != "parallax"
+    hgt = st.get("height", {}).get("ICP") if heights else None
     if hgt is not None:
         out["h"] = _m(hgt.rms)
     s0 = sol.bias[sol.reference_view].sigma0 if sol.reference_view in sol.bias else None

@@ -129,10 +129,26 @@ class MainWindow(QMainWindow):
             lab = TextLabel(text, widest)
             sb.addPermanentWidget(lab)
             return lab
-        for v in ("N", "F", "B"):
-            self.status_xy[v] = label(f"{v}  —", f"{v}  x -00000.0  y -00000.0")  # up to 99,999 px, and negative
+        self._status_label = label
+        self._status_views(("N", "F", "B"))
         self.status_ground = label("E —  N —  h —", "E 0000000.0  N 00000000.0  h -0000.0 m")
         self.status_fit = label("", "fit 0000 ms · σ0 000.000")
+
+    def _status_views(self, views) -> None:
+        """One cursor-position label per view of the scene, then the ground's and the fit's."""
+        if list(self.status_xy) == list(views):
+            return
+        sb, after = self.statusBar(), [getattr(self, k) for k in ("status_ground", "status_fit") if hasattr(self, k)]
+        for lab in (*self.status_xy.values(), *after):
+            sb.removeWidget(lab)
+        for lab in self.status_xy.values():
+            lab.setParent(None)
+            lab.deleteLater()
+        self.status_xy = {v: self._status_label(f"{v}  —", f"{v}  x -00000.0  y -00000.0")  # to 99,999 px, and < 0
+                          for v in views}
+        for lab in after:
+            sb.addPermanentWidget(lab)
+            lab.show()
 
     def _connect(self) -> None:
         self.files.project_opened.connect(self.set_project)
@@ -185,6 +201,9 @@ class MainWindow(QMainWindow):
         project.changed.connect(self._on_project_changed)
         self.views.height_of = None
         self.views.set_project(project)
+        self._status_views(project.scene.views)
+        self.panel.set_sensor(project.scene.sensor, list(project.scene.views))
+        self.plots.show_parallax(bool(project.scene.sensor.parallax_models))
         self._clear_status()
         split = st.value(st.Key.SPLITTER)
         if split is not None and not split.isEmpty():

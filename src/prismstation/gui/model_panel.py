@@ -1,8 +1,12 @@
 """Model panel: bias and parallax model choice, coefficients with σ, σ0, the statistics laid out
 as the paper's Tables 1–3, blunders and messages.
 
-Reads a :class:`~prismstation.core.solve.Solution`; a change of the choices is emitted as new
-:class:`~prismstation.core.solve.Settings` (the window turns it into an undoable command).
+The choices are the scene's sensor model's (:meth:`ModelPanel.set_sensor`,
+:mod:`prismstation.core.sensor`): its bias models; its height–parallax models, the row hidden
+where it has none (RPC images: points are intersected); the view held fixed where the model
+holds one as the datum. Reads a :class:`~prismstation.core.solve.Solution`; a change of the
+choices is emitted as new :class:`~prismstation.core.solve.Settings` (the window turns it into
+an undoable command).
 """
 from __future__ import annotations
 
@@ -21,6 +25,7 @@ SECTION_COLOR = QColor("#1d3c6e")
 HEAD_BG = QColor("#dde4ee")
 BAD_COLOR = QColor("#c00000")
 WARN_COLOR = QColor("#a04000")
+AUTO_FIXED = "auto"  # the fixed-view choice that holds none fixed by name (the model decides)
 
 
 def _f(v, nd=2, sign=False) -> str:
@@ -46,7 +51,8 @@ def solution_sections(sol) -> tuple[list, list]:
         dof = fit.lsq.dof if fit.lsq is not None else None
         title = f"Bias {v} ({fit.model})" + (f" — σ0 = {_f(s0, 3)} px, dof {dof}" if s0 is not None else "")
         rows = [[n, f"{p:+.6g}", f"{sd:.2g}" if sd == sd else "—"] for n, p, sd in zip(fit.names, fit.params, fit.std)]
-        sections.append((title, ["", "value", "σ"], rows or [["not fitted", "", ""]]))
+        none = "held fixed (the datum)" if getattr(fit, "fixed", False) else "not fitted"
+        sections.append((title, ["", "value", "σ"], rows or [[none, "", ""]]))
     par = sol.parallax
     check = parallax_check(sol)
     if par is not None:
@@ -61,7 +67,9 @@ def solution_sections(sol) -> tuple[list, list]:
     st = sol.stats
     ref = sol.reference_view
     img = st.get("image", {}).get(ref, {})
-    if img:
+    if img and sol.scene.sensor.height_source != "parallax":
+        sections.append(_per_view_table(st["image"]))
+    elif img:
         g, i = img["GCP"]["m"], img["ICP"]["m"]
         rows = _stat_rows([g.x, g.y, i.x, i.y])
         rows.append(["plan. RMS", "", _f(g.planimetric_rms), "", _f(i.planimetric_rms)])
@@ -70,7 +78,7 @@ def solution_sections(sol) -> tuple[list, list]:
     if "F-N" in st:
         sections.append(("Table 2 — across-track differences to N (px)", ["", "F−N", "B−N"],
                          _stat_rows([st["F-N"], st["B-N"]], ("n", "min", "max", "mean", "std"))))
-    if "height" in st and sol.scene.is_triplet:
+    if "height" in st and (sol.scene.is_triplet or sol.scene.sensor.height_source != "parallax"):
         sections.append(("Table 3 — height residuals (m)", ["", "GCP Rh", "ICP Rh"],
                          _stat_rows([st["height"]["GCP"], st["height"]["ICP"]])))
     if "ground" in st:
@@ -93,6 +101,17 @@ def solution_sections(sol) -> tuple[list, list]:
     if test.fits:
         notes.append((test.reason(), "info"))
     return sections, notes
+
+
+def _per_view_table(image_stats: dict) -> tuple:
+    """One row per view: n and RMS x, y (px) of the image residuals of each kind of point the
+    fit has (GCP, ICP, tie points) — the table of a model with any number of views."""
+    kinds = [k for k in ("GCP", "ICP", "TIE") if all(k in d for d in image_stats.values())]
+    rows = [[v] + [t for k in kinds for t in (str(d[k]["px"].x.n), _f(d[k]["px"].x.rms),
+                                             _f(d[k]["px"].y.rms))]
+            for v, d in image_stats.items()]
+    return ("Image residuals per view (px)",
+            ["view"] + [f"{k} {c}" for k in kinds for c in ("n", "RMS x", "RMS y")], rows)
 
 
 class _Sections(QWidget):
@@ -300,6 +319,8 @@ class ModelPanel(QWidget):
         self.bias.addItems(list(BIAS_MODELS))
         self.parallax = QComboBox()
         self.parallax.addItems(list(PARALLAX_MODELS))
+        self.fixed = QComboBox()  # the view held fixed (models that hold one): data = view or None
+        self.fixed.addItem(AUTO_FIXED, None)
         self.sigma = QDoubleSpinBox(decimals=2, minimum=0.01, maximum=100.0, singleStep=0.1, suffix=" px")
         self.threshold = QDoubleSpinBox(decimals=2, minimum=1.0, maximum=20.0, singleStep=0.5)
         for w, tip in (
@@ -309,6 +330,9 @@ class ModelPanel(QWidget):
                 (self.parallax, "Height from the F−B parallax h = c0 + c1·py: line fits c0 and c1 on "
                                 "the GCPs, offset fits c0 with the theoretical c1, theoretical "
                                 "takes both from the geometry"),
+                (self.fixed, "The view whose geolocation is the datum of a fit without GCPs: its "
+                             "bias is not fitted and the others' are relative to it (auto: the "
+                             "first view when there is no GCP, none with GCPs)"),
                 (self.sigma, "A-priori σ of one image measurement (pixels): weights the fit and "
                              "scales the standardised residuals; σ0 near 1× this means the "
                              "measurements are as good as assumed"),
@@ -318,9 +342,10 @@ class ModelPanel(QWidget):
                                  "critical |w| it means for each fit's redundancy (Student's t) "
                                  "is listed under Blunder test")):
             w.setToolTip(tip)
-        form = QFormLayout()
+        form = self.form = QFormLayout()
         form.addRow("Bias model", self.bias)
         form.addRow("Parallax model", self.parallax)
+        form.addRow("View held fixed", self.fixed)
         row = QHBoxLayout()
         row.addWidget(self.sigma)
         row.addWidget(self.threshold)
@@ -347,8 +372,25 @@ class ModelPanel(QWidget):
         self.solution = None
         self.bias.activated.connect(self._emit)
         self.parallax.activated.connect(self._emit)
+        self.fixed.activated.connect(self._emit)
         self.sigma.editingFinished.connect(self._emit)
         self.threshold.editingFinished.connect(self._emit)
+
+    def set_sensor(self, sensor, views) -> None:
+        """Offer the choices of sensor model class ``sensor`` (:mod:`prismstation.core.sensor`)
+        on a scene of ``views`` (names, in order): its bias models, its parallax models (the row
+        hidden when it has none), the view held fixed (the row shown when it holds one)."""
+        self._settings = None  # shown again from the next settings
+        for combo, items in ((self.bias, list(sensor.bias_models)), (self.parallax, list(sensor.parallax_models))):
+            if [combo.itemText(i) for i in range(combo.count())] != items:
+                combo.clear()
+                combo.addItems(items)
+        self.fixed.clear()
+        self.fixed.addItem(AUTO_FIXED, None)
+        for v in views:
+            self.fixed.addItem(v, v)
+        self.form.setRowVisible(self.parallax, bool(sensor.parallax_models))
+        self.form.setRowVisible(self.fixed, bool(sensor.holds_view_fixed))
 
     def set_settings(self, settings) -> None:
         """Show ``settings`` without emitting (nothing is touched when they are unchanged: a
@@ -356,13 +398,14 @@ class ModelPanel(QWidget):
         if settings == self._settings:
             return
         self._settings = settings
-        for w in (self.bias, self.parallax, self.sigma, self.threshold):
+        for w in (self.bias, self.parallax, self.fixed, self.sigma, self.threshold):
             w.blockSignals(True)
         self.bias.setCurrentText(settings.bias_model)
         self.parallax.setCurrentText(settings.parallax_model)
+        self.fixed.setCurrentIndex(max(self.fixed.findData(settings.fixed_view), 0))
         self.sigma.setValue(settings.sigma_px)
         self.threshold.setValue(settings.blunder_threshold)
-        for w in (self.bias, self.parallax, self.sigma, self.threshold):
+        for w in (self.bias, self.parallax, self.fixed, self.sigma, self.threshold):
             w.blockSignals(False)
 
     def set_solution(self, sol) -> None:
@@ -384,7 +427,8 @@ class ModelPanel(QWidget):
         if self._settings is None:
             return
         new = replace(self._settings, bias_model=self.bias.currentText(),
-                      parallax_model=self.parallax.currentText(), sigma_px=float(self.sigma.value()),
+                      parallax_model=self.parallax.currentText() or self._settings.parallax_model,
+                      fixed_view=self.fixed.currentData(), sigma_px=float(self.sigma.value()),
                       blunder_threshold=float(self.threshold.value()))
         if new != self._settings:
             self.settings_requested.emit(new)

@@ -34,9 +34,12 @@ class PlotData:
     view : str, the view of the residual vectors (the reference view, N for a triplet).
     vec_gcp_xy, vec_gcp_v, vec_icp_xy, vec_icp_v : (n, 2) arrays
         Measured image position (x column, y row, pixels) and residual (measured − predicted).
-    std_ids : tuple of str, GCPs with a standardised residual; ``std_values`` (n,) their values
-        (on the normal scale: one threshold for every fit, :mod:`prismstation.gui.fit_checks`).
-    blunders : tuple of str, the ids of the flagged GCPs. ``threshold``: the blunder threshold.
+    vec_tie_xy, vec_tie_v, vec_tie_ids : the same for tie points, where the model fits them
+        (``ties``: a model whose points are intersected from rays, the RPC model).
+    std_ids : tuple of str, the fitted points with a standardised residual (GCPs; and tie
+        points with ``ties``); ``std_values`` (n,) their values (on the normal scale: one
+        threshold for every fit, :mod:`prismstation.gui.fit_checks`).
+    blunders : tuple of str, the ids of the flagged points. ``threshold``: the blunder threshold.
     image_shape : (rows, cols) of the view, or None.
     """
 
@@ -61,18 +64,33 @@ class PlotData:
     blunders: tuple = ()
     threshold: float = 3.29
     image_shape: tuple | None = None
+    vec_tie_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    vec_tie_v: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    vec_tie_ids: tuple = ()
+    ties: bool = False
 
     @classmethod
     def from_records(cls, records, *, parallax=None, view="N", threshold=3.29,
-                     image_shape=None) -> "PlotData":
+                     image_shape=None, ties: bool = False) -> "PlotData":
         """From per-point tuples ``(id, kind, py, h_known, xy, v, std_residual, blunder)``
-        (``py``, ``h_known``, ``xy``, ``v``, ``std_residual`` may be None)."""
+        (``py``, ``h_known``, ``xy``, ``v``, ``std_residual`` may be None); ``ties``: tie
+        points are fitted points (their vectors and standardised residuals are drawn)."""
         h_rows = {"GCP": ([], [], []), "ICP": ([], [], [])}
-        v_rows = {"GCP": ([], [], []), "ICP": ([], [], [])}
+        v_rows = {"GCP": ([], [], []), "ICP": ([], [], []), "TIE": ([], [], [])}
+        fitted = ("GCP", "TIE") if ties else ("GCP",)
         std_ids, std_vals, blunders = [], [], []
         for pid, kind, py, h, xy, v, s, bl in records:  # (a refit: every point, every click)
             hr = h_rows.get(kind)
-            if hr is None:
+            if hr is None:  # a tie point: drawn where the model fits it (``ties``)
+                if kind in fitted:
+                    if xy is not None and v is not None:
+                        for lst, x in zip(v_rows[kind], (pid, xy, v)):
+                            lst.append(x)
+                    if s is not None:
+                        std_ids.append(pid)
+                        std_vals.append(s)
+                    if bl:
+                        blunders.append(pid)
                 continue
             if py is not None and h is not None:
                 hr[0].append(pid)
@@ -94,7 +112,8 @@ class PlotData:
                    c0, c1, c1t, view, _xy(v_rows["GCP"][1]), _xy(v_rows["GCP"][2]),
                    _xy(v_rows["ICP"][1]), _xy(v_rows["ICP"][2]), tuple(v_rows["GCP"][0]),
                    tuple(v_rows["ICP"][0]), tuple(std_ids), _arr(std_vals), tuple(blunders),
-                   float(threshold), image_shape)
+                   float(threshold), image_shape, _xy(v_rows["TIE"][1]), _xy(v_rows["TIE"][2]),
+                   tuple(v_rows["TIE"][0]), bool(ties))
 
     @classmethod
     def from_solution(cls, sol) -> "PlotData":
@@ -114,7 +133,8 @@ class PlotData:
         v = sol.scene.views[view]
         return cls.from_records(recs, parallax=line, view=view,
                                 threshold=sol.settings.blunder_threshold,
-                                image_shape=getattr(v, "shape", None))
+                                image_shape=getattr(v, "shape", None),
+                                ties=sol.scene.sensor.height_source != "parallax")
 
     @classmethod
     def from_report(cls, report: dict) -> "PlotData":
@@ -133,14 +153,15 @@ class PlotData:
         par = report.get("model", {}).get("parallax")
         line = None if not par else (par.get("c0"), par.get("c1"), par.get("c1_theoretical"))
         thr = (report.get("settings") or {}).get("blunder_threshold", 3.29)
-        return cls.from_records(recs, parallax=line, view=view, threshold=thr)
+        ties = report.get("model", {}).get("height_source", "parallax") != "parallax"
+        return cls.from_records(recs, parallax=line, view=view, threshold=thr, ties=ties)
 
 
 def auto_exaggeration(data: PlotData) -> float:
     """A 1-2-5 factor that draws the median residual vector ~4 % of the image (or points')
     extent, the longest at most ~35 %."""
-    v = np.vstack([data.vec_gcp_v, data.vec_icp_v])
-    xy = np.vstack([data.vec_gcp_xy, data.vec_icp_xy])
+    v = np.vstack([data.vec_gcp_v, data.vec_icp_v, data.vec_tie_v])
+    xy = np.vstack([data.vec_gcp_xy, data.vec_icp_xy, data.vec_tie_xy])
     if len(v) == 0:
         return 100.0
     length = np.hypot(v[:, 0], v[:, 1])
@@ -201,7 +222,7 @@ def data_ranges(d: PlotData, vector_segments=(), std_range=((0, 1), (0, 4))) -> 
         r, c = d.image_shape[:2]
         out["vectors"] = ((-0.03 * c, 1.03 * c), (-0.03 * r, 1.03 * r))
     else:
-        pts = [a for a in (d.vec_gcp_xy, d.vec_icp_xy, *vector_segments) if len(a)]
+        pts = [a for a in (d.vec_gcp_xy, d.vec_icp_xy, d.vec_tie_xy, *vector_segments) if len(a)]
         if pts:
             a = np.vstack(pts)
             lo, hi = a.min(axis=0), a.max(axis=0)

@@ -42,7 +42,7 @@ PLOT_TITLES = {
     "height": "Height vs F−B parallax",
     "height_minus_theory": "Height − theory vs parallax",
     "vectors": "Residual vectors, view {view}",
-    "std_residuals": "Standardised residuals of the GCPs",
+    "std_residuals": "Standardised residuals of the {fitted}",
 }
 GRID_CELLS = {"height": (0, 0), "height_minus_theory": (0, 1), "std_residuals": (1, 0, 1, 2),
               "vectors": (0, 2, 2, 1)}
@@ -120,6 +120,7 @@ class PlotsWidget(QWidget):
         for c in range(3):
             cells.setColumnStretch(c, 1)
         self._follow = dict.fromkeys(PLOT_NAMES, True)
+        self._hidden: set = set()  # plots not shown (show_parallax)
         self._legends = legends
         self._build_items()
         if self._screen_k:  # the vectors keep their screen length as the plot resizes or zooms
@@ -159,6 +160,17 @@ class PlotsWidget(QWidget):
         if not self._fixed_tabs and (self.height() < self.COMPACT_HEIGHT) != self._compact:
             QTimer.singleShot(0, lambda: self._arrange(self.height() < self.COMPACT_HEIGHT))
 
+    def show_parallax(self, on: bool) -> None:
+        """Show the two height–parallax plots (off for a model whose points are intersected
+        from rays: it has no parallax line)."""
+        self._hidden = set() if on else {"height", "height_minus_theory"}
+        for name in ("height", "height_minus_theory"):
+            i = self.tabs.indexOf(self.plots[name])
+            if i >= 0:
+                self.tabs.setTabVisible(i, on)
+            if not self._compact:
+                self.plots[name].setVisible(on)
+
     def _arrange(self, compact: bool) -> None:
         """The four plots in tabs (``compact``) or in the grid (:data:`GRID_CELLS`)."""
         if compact == self._compact:
@@ -170,8 +182,10 @@ class PlotsWidget(QWidget):
             else:
                 self._cells.addWidget(self.plots[name], *GRID_CELLS[name])
         self._stack.setCurrentWidget(self.tabs if compact else self._grid_box)
-        for pw in self.plots.values():
-            pw.setVisible(not compact or pw is self.tabs.currentWidget())
+        for name, pw in self.plots.items():
+            if compact:
+                self.tabs.setTabVisible(self.tabs.indexOf(pw), name not in self._hidden)
+            pw.setVisible((not compact or pw is self.tabs.currentWidget()) and name not in self._hidden)
 
     # ------------------------------------------------------------------ construction
     # Plain pyqtgraph items, not PlotDataItems (``PlotWidget.plot``): a PlotDataItem wraps a
@@ -224,6 +238,8 @@ class PlotsWidget(QWidget):
                          brush=(255, 255, 255, 210))
         self.v_gcp_seg = self._curve(pv, pg.mkPen(GCP_COLOR, width=2), connect="pairs")
         self.v_icp_seg = self._curve(pv, pg.mkPen(ICP_COLOR, width=2), connect="pairs")
+        self.v_tie_seg = self._curve(pv, pg.mkPen(KIND_RGB["TIE"], width=2), connect="pairs")
+        self.v_tie = self._scatter(p["vectors"], KIND_RGB["TIE"], "+", "TIE", size=7)  # (models that fit them)
         self.v_gcp = self._scatter(p["vectors"], GCP_COLOR, "o", "GCP", size=6)
         self.v_icp = self._scatter(p["vectors"], ICP_COLOR, "t", "ICP", size=7, filled=False)
         self.frame = self._curve(pv, pg.mkPen((150, 150, 150), width=1, style=dash))
@@ -260,7 +276,8 @@ class PlotsWidget(QWidget):
 
     def _set_titles(self) -> None:
         for name, pw in self.plots.items():
-            title = PLOT_TITLES[name].format(view=self._data.view)
+            title = PLOT_TITLES[name].format(view=self._data.view,
+                                             fitted="GCPs and tie points" if self._data.ties else "GCPs")
             if name == "vectors":
                 title += f" (×{self._exaggeration:g})"
             if self._titles.get(name) != title:
@@ -330,7 +347,8 @@ class PlotsWidget(QWidget):
         self._update_rings()
         self._std_range = ((0.3, n + 0.7), (0.0, top))
         self._apply_ranges()
-        self.summary.setText(f"{len(d.gcp_ids)} GCP, {len(d.icp_ids)} ICP with parallax"
+        self.summary.setText((f"{len(d.vec_gcp_ids)} GCP, {len(d.vec_icp_ids)} ICP, {len(d.vec_tie_ids)} tie points "
+                              f"in {d.view}" if d.ties else f"{len(d.gcp_ids)} GCP, {len(d.icp_ids)} ICP with parallax")
                              + (f"; blunder: {', '.join(d.blunders)}" if d.blunders else ""))
         self._set_titles()
 
@@ -409,6 +427,8 @@ class PlotsWidget(QWidget):
         if self._screen_k:  # screen px per px: times the image px per screen px of the plot
             px = self.plots["vectors"].getPlotItem().getViewBox().viewPixelSize()[0]
             k *= px if np.isfinite(px) and px > 0 else 1.0
+        self._set(self.v_tie_seg, *segments(d.vec_tie_xy, d.vec_tie_v, k))
+        self._set(self.v_tie, d.vec_tie_xy[:, 0], d.vec_tie_xy[:, 1], data=list(d.vec_tie_ids))
         self._set(self.v_gcp_seg, *segments(d.vec_gcp_xy, d.vec_gcp_v, k))
         self._set(self.v_icp_seg, *segments(d.vec_icp_xy, d.vec_icp_v, k))
         self._set(self.v_gcp, d.vec_gcp_xy[:, 0], d.vec_gcp_xy[:, 1], data=list(d.vec_gcp_ids))
@@ -421,7 +441,7 @@ class PlotsWidget(QWidget):
 
     def _ranges(self) -> dict:
         """``{plot: ((x0, x1), (y0, y1))}`` covering the data (plots with data only)."""
-        segs = [np.column_stack(item.getData()) for item in (self.v_gcp_seg, self.v_icp_seg)
+        segs = [np.column_stack(item.getData()) for item in (self.v_gcp_seg, self.v_icp_seg, self.v_tie_seg)
                 if item.getData()[0] is not None and len(item.getData()[0])]
         return data_ranges(self._data, segs, getattr(self, "_std_range", ((0, 1), (0, 4))))
 

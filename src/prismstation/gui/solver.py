@@ -20,6 +20,7 @@ from prismstation.gui import workers
 
 from prismstation.errors import PrismError
 from prismstation.ops.fit import solve_project
+from prismstation.ops.predict import DEFAULT_DEM_SIGMA_M
 
 
 def snapshot(project):
@@ -33,7 +34,10 @@ def _fit(snap, height_of):
     operator can fix is its message, anything else is named (the window must survive it)."""
     t0 = time.perf_counter()
     try:
-        sol, err = solve_project(snap, height_of=height_of), None
+        # the reference DEM's σ as the command line's default (a model that holds tie points
+        # to the DEM weighs them with it; the PRISM model does not use it)
+        sol, err = solve_project(snap, height_of=height_of,
+                                 height_sigma_m=None if height_of is None else DEFAULT_DEM_SIGMA_M), None
     except PrismError as exc:
         sol, err = None, str(exc)
     except Exception as exc:

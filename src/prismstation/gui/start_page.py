@@ -44,7 +44,9 @@ class StartPage(QWidget):
         title = QLabel("<h1>prismstation</h1><p>Orientation of ALOS-PRISM stereo triplets: "
                        "measure ground control and check points in the nadir, forward and "
                        "backward views, fit the bias and parallax models, check the accuracy on "
-                       "independent points, report.</p>")
+                       "independent points, report. Images with RPCs (Pléiades, SPOT, "
+                       "WorldView…) too: a project made by <tt>prismstation new P --images …</tt> "
+                       "opens here, with the RPC bias models.</p>")
         title.setWordWrap(True)
         col.addWidget(title)
         row = QHBoxLayout()

@@ -158,6 +158,23 @@ class DsmTool:
                                      tip="Semi-global matching of the three pairs through the model → DSM GeoTIFF")
         ctx.tools_menu.addSeparator()
         ctx.tools_menu.addAction(self.action)
+        ctx.files.project_opened.connect(lambda *_: self._update())
+
+    def refusal(self) -> str | None:
+        """Why the project's sensor model cannot make a DSM here, or None
+        (:func:`prismstation.ops.project.require_workflow`)."""
+        from prismstation.errors import InputError
+        from prismstation.ops.project import require_workflow
+        try:
+            require_workflow(self.ctx.project, "dsm")
+        except InputError as exc:
+            return str(exc)
+        return None
+
+    def _update(self) -> None:
+        no = self.ctx.project is not None and self.refusal()
+        self.action.setEnabled(not no)
+        self.action.setToolTip(no or "Semi-global matching of the three pairs through the model → DSM GeoTIFF")
 
     def reference(self):
         """The loaded reference DEM (:class:`~prismstation.ops.reference_heights.DemHeights`) or None."""
@@ -187,6 +204,9 @@ class DsmTool:
     def choose(self) -> None:
         if self.ctx.project is None or (self.job is not None and self.job.isRunning()):
             return
+        if self.refusal():
+            self.ctx.status(self.refusal(), 10000)
+            return
         ref = self.reference()
         name = Path(str(getattr(ref, "path", "") or "reference")).name if ref is not None else None
         from prismstation.model.project import has_ground
@@ -205,6 +225,9 @@ class DsmTool:
         sol, p = self.ctx.solver.solution, self.ctx.project
         if sol is None or p is None:
             self.ctx.status("A DSM needs a fitted model", 8000)
+            return None
+        if self.refusal():
+            self.ctx.status(self.refusal(), 10000)
             return None
         ref = self.reference() if use_reference else None
 

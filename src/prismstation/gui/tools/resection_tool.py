@@ -51,7 +51,8 @@ def geometry_bh(scene, left: str, right: str) -> float | None:
     ``|s_L·tan θ_L − s_R·tan θ_R|`` (``s`` +1 forward, −1 backward, 0 nadir); None when the
     scene gives neither view an angle."""
     a, b = scene.views.get(left), scene.views.get(right)
-    if a is None or b is None or not (a.along_track_angle_deg or b.along_track_angle_deg):
+    if a is None or b is None or not (getattr(a, "along_track_angle_deg", None)  # (RPC views: none)
+                                      or getattr(b, "along_track_angle_deg", None)):
         return None
     return abs(a.look_sign * a.tan_theta - b.look_sign * b.tan_theta)
 
@@ -240,7 +241,7 @@ class ResectionDialog(QDialog):
         look = look_angle_deg(res, self.ground[view])
         v = self.ctx.project.scene.views.get(view)
         scene_look = (f" (the scene's viewing angle: {v.along_track_angle_deg:.1f}°)"
-                      if v is not None and v.along_track_angle_deg else "")
+                      if getattr(v, "along_track_angle_deg", None) else "")
         self.text.setHtml(
             f"<b>View {view}</b>: {len(res.residuals_px)} GCPs, {len(res.corrections)} iterations, "
             f"{state}<br>σ0 = {res.sigma0_px:.3f} px · RMSE = {rmse:.3f} px<br>"

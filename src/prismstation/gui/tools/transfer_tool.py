@@ -17,7 +17,8 @@ source view's, at most one image pixel per screen pixel): a view left at the ove
 measured in (N first) to the views it is not — a point measured before automatic transfer was
 on, or whose transfer was rejected.
 
-*Automatic tie points…*: a grid over the N image transferred to F and B, blunders rejected
+*Automatic tie points…*: a grid over the N image (the first of other scenes) transferred to
+the other views, blunders rejected
 (:func:`prismstation.ops.transfer.auto_tie_points`, with the reference DEM when one is loaded),
 added as new tie points in one undoable step; a summary (how many added, not found and why,
 rejected as blunders, the across-track RMS) on the status line and, interactively, in a box.
@@ -35,6 +36,7 @@ from PySide6.QtWidgets import (QDialog, QDialogButtonBox, QFormLayout, QHBoxLayo
                                QMessageBox, QPushButton, QSpinBox, QTableWidget, QTableWidgetItem,
                                QVBoxLayout, QWidget)
 
+from prismstation.core.scene import reference_view
 from prismstation.gui import commands as cmd
 from prismstation.gui.tools._worker import Job, run_with_progress
 from prismstation.gui.views import DRIVE_TO_MAX_SCALE
@@ -53,21 +55,25 @@ def new_tie_ids(project, n: int, prefix: str = "T") -> list[str]:
     return [f"{prefix}{k + i:0{width}d}" for i in range(n)]
 
 
-def ties_summary(summary: dict, ids: list[str]) -> str:
+def ties_summary(summary: dict, ids: list[str], scene=None) -> str:
     """What the automatic tie points did, in one paragraph: how many of the grid points were
-    added (their ids), how many were not found and why (the search's status), how many were
-    rejected as blunders, and the RMS of the kept ones' across-track differences."""
+    added (their ids), how many were not found in the other views of ``scene`` and why (the
+    search's status), how many were rejected as blunders, and the RMS of the kept ones'
+    differences across the parallax (across the track for a PRISM triplet)."""
+    triplet = scene is None or scene.is_triplet
+    others = ("F", "B") if scene is None else [v for v in scene.views if v != scene.reference_view]
     tried, failed, blunders = summary.get("tried", 0), summary.get("failed", {}), summary.get("blunders", 0)
     text = f"{len(ids)} of {tried} grid points added" + (f" ({ids[0]}–{ids[-1]})" if ids else "")
     n_failed = sum(failed.values())
     if n_failed:
         why = ", ".join(f"{n} {status}" for status, n in sorted(failed.items(), key=lambda kv: -kv[1]))
-        text += f"; {n_failed} not found in F and B ({why})"
+        text += f"; {n_failed} not found in {' and '.join(others)} ({why})"
     if blunders:
-        text += f"; {blunders} rejected as blunders (across-track F−N or B−N beyond 3 NMAD of the median)"
+        text += (f"; {blunders} rejected as blunders ("
+                 + ("across-track F−N or B−N" if triplet else "across the parallax") + " beyond 3 NMAD of the median)")
     rms = summary.get("rms_px", math.nan)
     if math.isfinite(rms):
-        text += f"; across-track RMS {rms:.2f} px"
+        text += f"; {'across-track' if triplet else 'across the parallax'} RMS {rms:.2f} px"
     return text + "."
 
 
@@ -158,8 +164,9 @@ class TransferTool:
             self.start(pid, view, x, y)
 
     def transfer_current(self):
-        """Transfer the current point from a view it is measured in (N first) to the views it is
-        not measured in; returns the Job (None when there is nothing to transfer)."""
+        """Transfer the current point from a view it is measured in (N where it is, else the
+        first in the scene's order) to the views it is not measured in; returns the Job (None when
+        there is nothing to transfer)."""
         p, pid = self.ctx.project, self.ctx.current
         if p is None or pid is None or pid not in p.points:
             self.ctx.status("Transfer: choose a point measured in one view first", 8000)
@@ -168,7 +175,7 @@ class TransferTool:
         if not measured or len(measured) == len(p.scene.views):
             self.ctx.status(f"Transfer: {pid} is {'measured in every view' if measured else 'not measured'}", 8000)
             return None
-        source = "N" if "N" in measured else measured[0]
+        source = reference_view(measured)  # N where measured, else the first in the scene's order
         m = p.measurement(pid, source)
         return self.start(pid, source, m.x, m.y)
 
@@ -283,7 +290,7 @@ class TransferTool:
         self.a_accept.setEnabled(any(t.ok for t in self.candidates.values()))
         self.a_reject.setEnabled(pending)
         self._update_this()
-        self.a_ties.setEnabled(self.ctx.project is not None and self.ctx.project.scene.is_triplet)
+        self.a_ties.setEnabled(self.ctx.project is not None and len(self.ctx.project.scene.views) > 1)
         self.panel.show_candidates(self.pid if pending else None, self.candidates)
         for v, t in self.candidates.items():
             iv = self.ctx.views.views.get(v)
@@ -307,7 +314,10 @@ class TransferTool:
         dlg.setWindowTitle("Automatic tie points")
         grid = QSpinBox(minimum=2, maximum=40, value=8)
         form = QFormLayout(dlg)
-        form.addRow(QLabel("A grid over the N image, found in F and B; blunders rejected."))
+        sc = self.ctx.project.scene
+        others = [v for v in sc.views if v != sc.reference_view]
+        form.addRow(QLabel(f"A grid over the {sc.reference_view} image, found in {' and '.join(others)}; "
+                           "blunders rejected."))
         form.addRow("Grid (points per side)", grid)
         bb = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel)
         bb.accepted.connect(dlg.accept)
@@ -346,9 +356,9 @@ class TransferTool:
         if ties:
             points = [GroundPoint(pid, math.nan, math.nan, math.nan, kind="TIE") for pid in ids]
             ms = [Measurement(pid, v, float(t[v][0]), float(t[v][1]))
-                  for pid, t in zip(ids, ties) for v in ("N", "F", "B")]
+                  for pid, t in zip(ids, ties) for v in project.scene.views]
             self.ctx.undo_stack.push(cmd.Import(project, points, ms, text=f"{len(ties)} automatic tie points"))
-        self.summary = ties_summary(summary, ids)
+        self.summary = ties_summary(summary, ids, project.scene)
         self.ctx.status(f"Automatic tie points: {self.summary}", 30000)
         if self.ctx.interactive:
             (QMessageBox.information if ties else QMessageBox.warning)(
