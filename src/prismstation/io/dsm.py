@@ -69,10 +69,12 @@ def vertical_crs(crs, height_kind: str, geoid: str | None = None) -> CRS:
 STRIP_ROWS = 1024
 
 
-def write_dsm(path, dsm) -> None:
+def write_dsm(path, dsm, *, before_keep=None) -> None:
     """Write ``dsm`` (:class:`prismstation.ops.dsm.Dsm`) as a COG GeoTIFF at ``path``,
     atomically; a failure is a :class:`~prismstation.errors.WriteError` (naming the scratch
-    copy when the temporary folder is what failed)."""
+    copy when the temporary folder is what failed). ``before_keep()``, when given, is called
+    once the whole file is written and checked, before it replaces ``path``: whatever it
+    raises (a cancel) leaves ``path`` as it was and no temporary file."""
     path = Path(path)
     h = np.asarray(dsm.heights, np.float32)
     rows, cols = h.shape
@@ -92,7 +94,7 @@ def write_dsm(path, dsm) -> None:
     # into the COG: a scratch file, in the temporary folder
     plain = None
     try:
-        with rasterio.Env(GDAL_PAM_ENABLED="NO"), atomic_path(path, check=raster_check(cols, rows, 3)) as tmp:
+        with rasterio.Env(GDAL_PAM_ENABLED="NO"), atomic_path(path, check=_check_then(raster_check(cols, rows, 3), before_keep)) as tmp:
             try:
                 fd, plain = tempfile.mkstemp(prefix="prismstation-dsm-", suffix=".tif")
                 os.close(fd)
@@ -112,6 +114,17 @@ def write_dsm(path, dsm) -> None:
         for f in (plain, f"{plain}.aux.xml") if plain else ():
             if os.path.exists(f):
                 os.unlink(f)
+
+
+def _check_then(check, before_keep):
+    """``check``, then ``before_keep()`` (if given): the last step before the rename."""
+    if before_keep is None:
+        return check
+
+    def both(tmp: Path) -> None:
+        check(tmp)
+        before_keep()
+    return both
 
 
 def _write_plain(plain, profile, h, seen, dsm, tags) -> None:

@@ -104,8 +104,7 @@ def export_dsm(sol, project, request: DsmRequest, *, reference=None, progress=No
                           height_uncertainty_m=request.height_uncertainty_m, fill=request.fill,
                           scheduler=request.scheduler, workers=request.workers,
                           heights_model=request.heights)
-    checkpoint(progress, COMPUTE_SHARE, "writing")   # the last point a cancel is heard
-    write_dsm(request.output, dsm)                   # atomic: the whole file or none
-    if progress is not None:
-        progress(1.0, "written")
+    checkpoint(progress, COMPUTE_SHARE, "writing")
+    # atomic: the whole file or none; a cancel once it is written still keeps the old file
+    write_dsm(request.output, dsm, before_keep=lambda: checkpoint(progress, 1.0, "written"))
     return DsmExport(str(request.output), dsm, request)
