@@ -277,7 +277,8 @@ class FieldFit:
     with cells), ``cells`` used, ``spread`` (m, NMAD), ``area`` (correlation area, cells),
     ``shift`` (P, 3) its own departure from the field (m), the test ``T`` against the others'
     field with ``dof`` and critical value ``crit``; ``rejected`` the patches removed as
-    blunders, in order. ``reason`` is "" when the adjustment converged."""
+    blunders, in order. ``reason`` is "" when the adjustment converged; ``info`` (P, 3, 3) the
+    information each patch's cells give its own shift (1/m²)."""
 
     basis: Basis
     theta: np.ndarray
@@ -296,6 +297,7 @@ class FieldFit:
     rejected: tuple
     iterations: int
     reason: str = ""
+    info: np.ndarray | None = None
 
     def __bool__(self) -> bool:
         return not self.reason
@@ -419,4 +421,4 @@ def adjust_field(cells: Cells, surface: Surface, basis: Basis, theta0, *, n_patc
         cov_jack[np.ix_(act, act)] = jack
     return FieldFit(basis, theta, offset, cov, cov_jack, np.sqrt(sb), k, S.used, S.spread, S.area, shift,
                     np.where(k, loo.T, np.nan), np.where(k, loo.dof, 0), np.where(k, loo.crit, np.nan),
-                    tuple(rejected), total, reason)
+                    tuple(rejected), total, reason, S.I)
