@@ -177,6 +177,53 @@ def reoffset_cells(scene: Scene, xy: np.ndarray, h: np.ndarray, old_offset_of, n
     return moved, h2, prism.ancillary_to_ground(scene, N, moved, h2)
 
 
+@dataclass(frozen=True)
+class ControlPoints:
+    """Ground control points for the DEM orientation: ``ids``; F and B image positions
+    ``xy_f``, ``xy_b`` (n, 2) px; ``ground`` (n, 3) (E, N, h ellipsoidal) m; ``sigma_m`` (n, 3)
+    σ of the shift each gives (E, N, h; m: survey and image measurement together)."""
+
+    ids: tuple
+    xy_f: np.ndarray
+    xy_b: np.ndarray
+    ground: np.ndarray
+    sigma_m: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+
+def gcp_field_obs(scene: Scene, xy_f, xy_b, ground, sigma_m, offset_of, n_weight: float,
+                  ids=()) -> "FieldObs":
+    """Ground control points as observations of the shift field, in the frame of the relative
+    DEMs' cells: ``xy_f``, ``xy_b`` (n, 2) their F and B image positions (px), ``ground`` (n, 3)
+    their (E, N, h ellipsoidal) (m), ``sigma_m`` (n, 3) σ of the shift each gives (m: survey and
+    measurement together); ``offset_of(view, xy)`` the views' offsets from N (N-space px).
+
+    As :func:`prismstation.core.dense.parallax_map` makes a cell: F and B in N space with their
+    offsets removed, ``pF``, ``pB``; parallax ``py = (pF − pB)·d`` (``d`` the N-space flight
+    direction), relative height ``c1·py``, N position ``pF − w·py·d`` (``w = n_weight``), placed
+    by the ancillary N model; the shift is the ground point minus that."""
+    from prismstation.core.field_adjust import FieldObs
+    N = scene.views["N"]
+    xy_f, xy_b = np.atleast_2d(np.asarray(xy_f, float)), np.atleast_2d(np.asarray(xy_b, float))
+    ground = np.atleast_2d(np.asarray(ground, float))
+    tf, tb = prism.to_nadir_space(scene, scene.views["F"]), prism.to_nadir_space(scene, scene.views["B"])
+    d = prism.along_track_unit(scene, ground[:, :2])
+    c1 = prism.theoretical_c1(scene)
+    p = tf(xy_f)
+    for _ in range(3):                         # the offsets are taken at the point's N position
+        pF, pB = tf(xy_f) - offset_of("F", p), tb(xy_b) - offset_of("B", p)
+        py = np.einsum("ij,ij->i", pF - pB, d)
+        p = pF - n_weight * py[:, None] * d
+    h_rel = c1 * py
+    en = prism.ancillary_to_ground(scene, N, p, h_rel)
+    value = np.column_stack([ground[:, :2] - en, ground[:, 2] - h_rel])
+    n = len(ground)
+    return FieldObs(np.repeat(p[:, 0], 3), np.repeat(p[:, 1], 3), np.tile(np.arange(3), n), value.ravel(),
+                    np.broadcast_to(np.asarray(sigma_m, float), (n, 3)).ravel(), tuple(ids))
+
+
 def control_from_field(scene: Scene, field, mean_height: float, view_offsets: dict | None = None,
                        grid: int = 7, bias_model: str = "affine", offset_gradients: dict | None = None,
                        source: str = "reference DEM") -> Control:

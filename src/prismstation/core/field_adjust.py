@@ -202,9 +202,12 @@ def residuals(cells: Cells, surface: Surface, basis: Basis, theta, offset=(0.0, 
 
 def accumulate(cells: Cells, surface: Surface, basis: Basis, theta, offset, n_patches: int,
                free_offset=False, k_outlier: float = K_OUTLIER,
-               areas: np.ndarray | None = None) -> PatchSums:
+               areas: np.ndarray | None = None, frozen: PatchSums | None = None) -> PatchSums:
     """The patches' sums (:class:`PatchSums`) at ``theta`` (9,) and ``offset`` (3,).
-    ``areas``: correlation areas to use (default: measured from the residuals here)."""
+    ``areas``: correlation areas to use (default: measured from the residuals here);
+    ``frozen``: earlier sums whose inlier cells, spreads and areas are kept (the weights fixed,
+    so that Gauss–Newton minimises one objective: cells at the outlier bound flipping in and
+    out made it cycle)."""
     f, gx, gy = residuals(cells, surface, basis, theta, offset)
     act = _unknowns(basis, free_offset)
     u = int(act.sum())
@@ -220,16 +223,26 @@ def accumulate(cells: Cells, surface: Surface, basis: Basis, theta, offset, n_pa
         ok = np.isfinite(fp) & np.isfinite(gx[sl]) & np.isfinite(gy[sl])
         if ok.sum() < 10:
             continue
-        med = float(np.median(fp[ok]))
-        spread = max(nmad(fp[ok]), MIN_SPREAD_M)
-        ok &= np.abs(fp - med) <= k_outlier * spread
-        if ok.sum() < 10:
-            continue
-        spread = max(nmad(fp[ok]), MIN_SPREAD_M)
-        if areas is None or not np.isfinite(areas[p]):
-            area = _area(cells, sl, np.where(ok, fp - med, np.nan))
+        if frozen is not None:
+            ok &= frozen.inlier[sl]
+            if ok.sum() < 10 or not frozen.used[p]:
+                continue
+            spread, area = float(frozen.spread[p]), float(frozen.area[p])
         else:
-            area = float(areas[p])
+            # the cells' noise is what is left about the patch's OWN best shift: residuals about
+            # the field alone also hold the patch's shift, which Σ_b is there to describe
+            gp = np.column_stack([gx[sl], gy[sl], -np.ones(fp.size)])
+            e = _about_own_shift(gp, fp, ok)
+            spread = max(nmad(e[ok]), MIN_SPREAD_M)
+            ok &= np.abs(e - np.median(e[ok])) <= k_outlier * spread
+            if ok.sum() < 10:
+                continue
+            e = _about_own_shift(gp, fp, ok)
+            spread = max(nmad(e[ok]), MIN_SPREAD_M)
+            if areas is None or not np.isfinite(areas[p]):
+                area = _area(cells, sl, np.where(ok, e, np.nan))
+            else:
+                area = float(areas[p])
         w = 1.0 / (spread ** 2 * area)
         ph = phi[sl][ok]
         g = np.column_stack([gx[sl][ok], gy[sl][ok], -np.ones(ok.sum())])      # the patch's shift
@@ -240,6 +253,13 @@ def accumulate(cells: Cells, surface: Surface, basis: Basis, theta, offset, n_pa
         out.used[p], out.spread[p], out.area[p], out.ssr[p] = ok.sum(), spread, area, w * float(fo @ fo)
         out.inlier[np.arange(sl.start, sl.stop)[ok]] = True
     return out
+
+
+def _about_own_shift(g: np.ndarray, f: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """Residuals ``f`` (m,) less the least-squares shift of the cells ``ok`` (Jacobian ``g``
+    (m, 3)); NaN outside ``ok``."""
+    b = np.linalg.lstsq(g[ok], f[ok], rcond=None)[0]
+    return np.where(ok, f - g @ b, np.nan)
 
 
 def _area(cells: Cells, sl: slice, res: np.ndarray) -> float:
@@ -359,18 +379,24 @@ def adjust_field(cells: Cells, surface: Surface, basis: Basis, theta0, *, n_patc
         return No + np.diag(prior_w), bo + prior_w * np.r_[th, offset][act]
 
     def gauss_newton(sb, keep):
+        # the weights (inlier cells, spreads, correlation areas) are measured at the first three
+        # iterations, then kept: one objective, not one that moves by millimetres at every step
         nonlocal theta, offset, total
-        for _ in range(max_iter):
-            S = accumulate(cells, surface, basis, theta, offset, P, free)
+        frozen = None
+        for i in range(max_iter):
+            S = accumulate(cells, surface, basis, theta, offset, P, free, frozen=frozen)
+            if i >= 2:
+                frozen = S
             k = keep & (S.used > 0)
             if not k.any():
                 return S, k, False
             Nx, bx = extra(theta)
-            d, _ = fs.solve(S, k, sb, Nx, bx)
+            d, C = fs.solve(S, k, sb, Nx, bx)
             step = _expand(d, act)
             theta, offset = theta + step[:9], offset + step[9:]
             total += 1
-            if np.abs(step).max() < TOL_M:
+            # converged: no term moves by more than a millimetre or a fiftieth of its σ
+            if np.all(np.abs(d) < np.maximum(TOL_M, 0.02 * np.sqrt(np.diag(C)))):
                 S = accumulate(cells, surface, basis, theta, offset, P, free, areas=S.area)
                 return S, keep & (S.used > 0), True
         return S, k, False
@@ -382,8 +408,7 @@ def adjust_field(cells: Cells, surface: Surface, basis: Basis, theta0, *, n_patc
             if not k.any():
                 reason = "no patch has cells that the reference DEM covers"
                 break
-            if not ok:
-                reason = f"the adjustment did not converge within {max_iter} iterations"
+            reason = "" if ok else f"the adjustment did not converge within {max_iter} iterations"
             Nx, bx = extra(theta)
             new = fs.variance_components(S, k, Nx, bx, start=np.maximum(sb, 1.0))
             if np.all(np.abs(np.sqrt(new) - np.sqrt(sb)) <= 0.02 * np.sqrt(new) + 1e-3):

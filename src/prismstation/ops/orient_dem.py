@@ -33,8 +33,9 @@ import numpy as np
 from prismstation.core import conditioning as cond
 from prismstation.core import prism
 from prismstation.core.coarse import K_SIGMA, dem_offset
-from prismstation.core.dem_orient import PatchShift, affine_field, control_from_field, reoffset_cells
-from prismstation.core.field_adjust import Basis, Cells, FieldObs, adjust_field
+from prismstation.core.dem_orient import (ControlPoints, PatchShift, affine_field, control_from_field,
+                                          gcp_field_obs, reoffset_cells)
+from prismstation.core.field_adjust import Basis, Cells, adjust_field
 from prismstation.core.solve import Control
 from prismstation.core.view_offsets import SIGMA_HEIGHT_M, offset_at
 from prismstation.errors import InputError
@@ -154,16 +155,17 @@ class OrientRun:
         rows, cols = self.shape
         en = prism.ancillary_to_ground(self.scene, self.scene.views["N"], np.array([[cols / 2, rows / 2]]),
                                        self.ref.mean_h)
-        return prism.along_track_unit(self.scene, en)[0]
+        t = self.scene.track.foot(en)[1].reshape(-1, 2)[0]
+        return t / np.linalg.norm(t)
 
 
 def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float = SIGMA_APRIORI_M,
                     sigma_height_m: float = SIGMA_HEIGHT_M, patch_m: float = 4000.0,
                     posting_m: float = 30.0, decimation: int = 2, target_m: float = cond.TARGET_M,
-                    gcps: FieldObs | None = None, progress: ProgressFn | None = None) -> DemOrientation:
+                    gcps: ControlPoints | None = None, progress: ProgressFn | None = None) -> DemOrientation:
     """Orient ``project``'s triplet from the reference DEM at ``reference_path`` (see module
-    doc). ``gcps``: observations of the shift field from ground control points
-    (:func:`prismstation.ops.dem_gcp.gcp_field_obs`), adjusted with the DEM's cells.
+    doc). ``gcps``: ground control points (:func:`control_points`), observations of the same
+    shift field adjusted with the DEM's cells: they fix its frame, the cells its shape.
 
     Raises InputError when the views cannot be related (step 1) or no patch matches; an
     orientation that cannot be trusted is not an error: it is ``result.verdict`` (exit status 3).
@@ -260,10 +262,39 @@ def start_field(run: OrientRun, cells: Cells) -> np.ndarray:
     return theta
 
 
-def adjust(run: OrientRun, cells: Cells, n_patches: int, theta0, gcps: FieldObs | None):
-    """Step 4: :func:`prismstation.core.field_adjust.adjust_field` over all cells."""
+def adjust(run: OrientRun, cells: Cells, n_patches: int, theta0, gcps: ControlPoints | None):
+    """Step 4: :func:`prismstation.core.field_adjust.adjust_field` over all cells (and the GCPs,
+    observations of the field made with the run's current view offsets)."""
+    obs = None
+    if gcps is not None and len(gcps):
+        obs = gcp_field_obs(run.scene, gcps.xy_f, gcps.xy_b, gcps.ground, gcps.sigma_m, run.offset_of,
+                            run.n_weight, gcps.ids)
     return adjust_field(cells, run.ref.surface(), Basis.over(run.shape), theta0, n_patches=n_patches,
-                        prior_sigma=prior_sigma(run), obs=gcps)
+                        prior_sigma=prior_sigma(run), obs=obs)
+
+
+def control_points(project: Project, ids=None, sigma_px: float = 0.3) -> ControlPoints:
+    """The project's GCPs (or those in ``ids``) measured in F and B, as
+    :class:`~prismstation.core.dem_orient.ControlPoints`: heights made ellipsoidal through the
+    project's geoid; σ of each shift: its survey σ (``sigma_xy_m``, ``sigma_h_m``; 0 when not
+    stated) and its image measurements' (their ``sigma_px``, else ``sigma_px``) in quadrature."""
+    from prismstation.ops.fit import ellipsoidal_heights  # ops.fit rebuilds models from this module
+    scene = project.scene
+    h = ellipsoidal_heights(project)
+    gsd, c1 = scene.views["N"].pixel_size_m, prism.theoretical_c1(scene)
+    rows = []
+    for pid, p in project.points.items():
+        mf, mb = project.measurements.get((pid, "F")), project.measurements.get((pid, "B"))
+        if p.kind != "GCP" or pid not in h or mf is None or mb is None or (ids is not None and pid not in ids):
+            continue
+        spx = max(m.sigma_px if m.sigma_px is not None else sigma_px for m in (mf, mb))
+        sxy, sh = p.sigma_xy_m or 0.0, p.sigma_h_m or 0.0
+        rows.append((pid, (mf.x, mf.y), (mb.x, mb.y), (p.E, p.N, h[pid]),
+                     (np.hypot(sxy, spx * gsd), np.hypot(sxy, spx * gsd), np.hypot(sh, c1 * spx * np.sqrt(2)))))
+    if not rows:
+        raise InputError("no GCP measured in both F and B to orient with the reference DEM")
+    ids_, f, b, g, s = zip(*rows)
+    return ControlPoints(tuple(ids_), np.array(f, float), np.array(b, float), np.array(g, float), np.array(s, float))
 
 
 def second_pass(run: OrientRun, cells: Cells, fit, n_patches: int, gcps):
@@ -287,12 +318,14 @@ def second_pass(run: OrientRun, cells: Cells, fit, n_patches: int, gcps):
                                lambda v, p: offset_at(new_off[v], new_grad[v], (cols / 2, rows / 2), p),
                                run.n_weight)
     moved = replace(cells, x=xy[:, 0], y=xy[:, 1], e=en[:, 0], n=en[:, 1], h=h)
+    old = run.offsets, run.grads
+    run.offsets, run.grads = new_off, new_grad
     fit2 = adjust(run, moved, n_patches, fit.theta, gcps)
     if not fit2:
+        run.offsets, run.grads = old
         record = {**second.to_dict(), "first_pass": record,
                   "second_pass": f"not used: the adjustment after it failed ({fit2.reason})"}
         return cells, fit, record
-    run.offsets, run.grads = new_off, new_grad
     return moved, fit2, {**second.to_dict(), "first_pass": record}
 
 
