@@ -10,14 +10,14 @@ from __future__ import annotations
 import math
 import sys
 
-from prismstation.core.conditioning import TARGET_M, SigmaSummary
 from prismstation.cli._common import end_progress, existing, progress_printer
 from prismstation.io.project import load_project, save_project
 from prismstation.io.report import write_report
 from prismstation.io.text_report import format_report
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 from prismstation.ops.fit import fit_report
-from prismstation.ops.orient_dem import apply_orientation, orient_from_dem
+from prismstation.ops.orient_dem import (TARGET_M, SigmaSummary, apply_orientation, control_points,
+                                         orient_from_dem)
 
 
 def register(sub) -> None:
@@ -33,6 +33,10 @@ def register(sub) -> None:
     p.add_argument("--target-m", type=float, default=TARGET_M, metavar="M",
                    help=f"the planimetric and height σ the orientation must reach to be trusted, "
                         f"metres (default {TARGET_M:g})")
+    p.add_argument("--with-gcps", action="store_true",
+                   help="adjust the project's GCPs (those measured in F and B) together with the "
+                        "reference DEM's patches: the GCPs fix the frame, the patches the shape over "
+                        "the whole scene")
     p.add_argument("--json", metavar="OUT", help="write the report (with the patch shifts) as JSON")
     p.add_argument("--save", action="store_true", help="store the DEM orientation in the project")
     p.set_defaults(func=run)
@@ -41,7 +45,8 @@ def register(sub) -> None:
 def run(args) -> int:
     project = load_project(existing(args.project, "project"))
     existing(args.reference, "reference DEM")
-    result = orient_from_dem(project, args.reference, sigma_apriori_m=args.geolocation_sigma_m,
+    gcps = control_points(project) if args.with_gcps else None
+    result = orient_from_dem(project, args.reference, sigma_apriori_m=args.geolocation_sigma_m, gcps=gcps,
                              patch_m=args.patch_km * 1000, posting_m=args.posting, target_m=args.target_m,
                              progress=progress_printer())
     end_progress()
@@ -70,6 +75,10 @@ def run(args) -> int:
               f"{max(moved):.2f} px")
     elif result.coarse.get("second_pass"):
         print(f"  second pass {result.coarse['second_pass']}")
+    if gcps is not None:
+        print(f"{len(gcps)} GCPs in the adjustment with the reference DEM's patches; the reference's own "
+              f"offset from them (E, N, h): "
+              f"{', '.join(f'{v:+.2f}' for v in (result.field or {}).get('offset', []))} m")
     print(f"expected from the terrain before the run: "
           f"{SigmaSummary.from_dict(result.expected_sigma_m or {}).text()}")
     adj = result.adjustment or {}
@@ -84,7 +93,8 @@ def run(args) -> int:
         else:
             shift = "no shift"
         print(f"  patch at ({p.x:7.0f}, {p.y:7.0f}) px: {shift}  {state}")
-    print(f"after the run: {SigmaSummary.from_dict(result.sigma_m).text()} (in the reference DEM's frame)")
+    frame = "the GCPs'" if gcps is not None else "the reference DEM's"
+    print(f"after the run: {SigmaSummary.from_dict(result.sigma_m).text()} (in {frame} frame)")
     print(f"verdict: {result.verdict.message}")
     if result.verdict.advice:
         print(f"  what would help: {result.verdict.advice}")

@@ -46,6 +46,9 @@ from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M, coarse_view_offsets
 from prismstation.ops.dem_patches import ReferenceGrid, match_patches, read_reference
 from prismstation.ops.progress import ProgressFn, checkpoint, scaled
 
+TARGET_M = cond.TARGET_M            # the front ends' default target σ (m)
+SigmaSummary = cond.SigmaSummary
+
 
 @dataclass(frozen=True)
 class DemOrientation:
@@ -273,11 +276,12 @@ def adjust(run: OrientRun, cells: Cells, n_patches: int, theta0, gcps: ControlPo
                         prior_sigma=prior_sigma(run), obs=obs)
 
 
-def control_points(project: Project, ids=None, sigma_px: float = 0.3) -> ControlPoints:
+def control_points(project: Project, ids=None, sigma_px: float = 0.3, survey_sigma_m=(1.0, 1.0)) -> ControlPoints:
     """The project's GCPs (or those in ``ids``) measured in F and B, as
     :class:`~prismstation.core.dem_orient.ControlPoints`: heights made ellipsoidal through the
-    project's geoid; σ of each shift: its survey σ (``sigma_xy_m``, ``sigma_h_m``; 0 when not
-    stated) and its image measurements' (their ``sigma_px``, else ``sigma_px``) in quadrature."""
+    project's geoid; σ of each shift: its survey σ (``sigma_xy_m``, ``sigma_h_m``; where the
+    point states none, ``survey_sigma_m`` (planimetric per component, height)) and its image
+    measurements' (their ``sigma_px``, else ``sigma_px``) in quadrature."""
     from prismstation.ops.fit import ellipsoidal_heights  # ops.fit rebuilds models from this module
     scene = project.scene
     h = ellipsoidal_heights(project)
@@ -288,7 +292,8 @@ def control_points(project: Project, ids=None, sigma_px: float = 0.3) -> Control
         if p.kind != "GCP" or pid not in h or mf is None or mb is None or (ids is not None and pid not in ids):
             continue
         spx = max(m.sigma_px if m.sigma_px is not None else sigma_px for m in (mf, mb))
-        sxy, sh = p.sigma_xy_m or 0.0, p.sigma_h_m or 0.0
+        sxy = p.sigma_xy_m if p.sigma_xy_m is not None else survey_sigma_m[0]
+        sh = p.sigma_h_m if p.sigma_h_m is not None else survey_sigma_m[1]
         rows.append((pid, (mf.x, mf.y), (mb.x, mb.y), (p.E, p.N, h[pid]),
                      (np.hypot(sxy, spx * gsd), np.hypot(sxy, spx * gsd), np.hypot(sh, c1 * spx * np.sqrt(2)))))
     if not rows:
