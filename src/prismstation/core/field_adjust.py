@@ -202,12 +202,15 @@ def residuals(cells: Cells, surface: Surface, basis: Basis, theta, offset=(0.0, 
 
 def accumulate(cells: Cells, surface: Surface, basis: Basis, theta, offset, n_patches: int,
                free_offset=False, k_outlier: float = K_OUTLIER,
-               areas: np.ndarray | None = None, frozen: PatchSums | None = None) -> PatchSums:
+               areas: np.ndarray | None = None, frozen: PatchSums | None = None,
+               own_gradients: tuple | None = None) -> PatchSums:
     """The patches' sums (:class:`PatchSums`) at ``theta`` (9,) and ``offset`` (3,).
     ``areas``: correlation areas to use (default: measured from the residuals here);
     ``frozen``: earlier sums whose inlier cells, spreads and areas are kept (the weights fixed,
     so that Gauss–Newton minimises one objective: cells at the outlier bound flipping in and
-    out made it cycle)."""
+    out made it cycle). ``own_gradients``: the cells' own gradients ``(gx, gy)`` (m,) (their
+    relative DEM's, :func:`cell_gradients`); given, the reference's gradients in the sums are
+    scaled per patch by ``√ρ_p`` (:func:`signal_share`) — for the covariance, not for steps."""
     f, gx, gy = residuals(cells, surface, basis, theta, offset)
     act = _unknowns(basis, free_offset)
     u = int(act.sum())
@@ -245,7 +248,10 @@ def accumulate(cells: Cells, surface: Surface, basis: Basis, theta, offset, n_pa
                 area = float(areas[p])
         w = 1.0 / (spread ** 2 * area)
         ph = phi[sl][ok]
-        g = np.column_stack([gx[sl][ok], gy[sl][ok], -np.ones(ok.sum())])      # the patch's shift
+        k = 1.0
+        if own_gradients is not None:
+            k = np.sqrt(signal_share(gx[sl][ok], gy[sl][ok], own_gradients[0][sl][ok], own_gradients[1][sl][ok]))
+        g = np.column_stack([k * gx[sl][ok], k * gy[sl][ok], -np.ones(ok.sum())])  # the patch's shift
         J = np.column_stack([g[:, :1] * ph, g[:, 1:2] * ph, -ph, -g])[:, act]   # the parameters
         fo = fp[ok]
         out.N[p], out.b[p] = w * J.T @ J, w * J.T @ fo
@@ -253,6 +259,38 @@ def accumulate(cells: Cells, surface: Surface, basis: Basis, theta, offset, n_pa
         out.used[p], out.spread[p], out.area[p], out.ssr[p] = ok.sum(), spread, area, w * float(fo @ fo)
         out.inlier[np.arange(sl.start, sl.stop)[ok]] = True
     return out
+
+
+def cell_gradients(cells: "Cells", posting: float) -> tuple[np.ndarray, np.ndarray]:
+    """The gradients ``(∂h/∂E, ∂h/∂N)`` (m,) of the cells' own relative DEMs, patch by patch on
+    their grid (``row``, ``col``; cells ``posting`` m apart); NaN at a void's or a patch's edge."""
+    gx, gy = np.full(len(cells), np.nan), np.full(len(cells), np.nan)
+    bounds = np.searchsorted(cells.patch, np.arange(int(cells.patch.max(initial=-1)) + 2))
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if b - a < 9:
+            continue
+        r, c = cells.row[a:b] - cells.row[a:b].min(), cells.col[a:b] - cells.col[a:b].min()
+        grid = np.full((r.max() + 1, c.max() + 1), np.nan)
+        grid[r, c] = cells.h[a:b]
+        if min(grid.shape) < 3:
+            continue
+        dy, dx = np.gradient(grid, posting)
+        gx[a:b], gy[a:b] = dx[r, c], -dy[r, c]          # rows run south
+    return gx, gy
+
+
+def signal_share(gx, gy, ox, oy) -> float:
+    """ρ in [0, 1]: the share of the reference's gradients ``gx, gy`` that is relief the cells'
+    own gradients ``ox, oy`` see too, ``Σ g·o / Σ |g|²`` (cells where both are finite). The
+    reference's own noise makes gradients the relative DEM does not share: counted as relief,
+    they state a shift fixed to metres on terrain that fixes it to tens (a plane under SRTM's
+    2 m noise); both measure the same relief and their noises are independent, so their
+    product keeps the relief's part only."""
+    ok = np.isfinite(gx) & np.isfinite(gy) & np.isfinite(ox) & np.isfinite(oy)
+    den = float(np.sum(gx[ok] ** 2 + gy[ok] ** 2))
+    if ok.sum() < 10 or den <= 0:
+        return 0.0
+    return float(np.clip(np.sum(gx[ok] * ox[ok] + gy[ok] * oy[ok]) / den, 0.0, 1.0))
 
 
 def _about_own_shift(g: np.ndarray, f: np.ndarray, ok: np.ndarray) -> np.ndarray:
@@ -373,6 +411,7 @@ def adjust_field(cells: Cells, surface: Surface, basis: Basis, theta0, *, n_patc
     prior_w = np.r_[1.0 / np.square(np.asarray(prior_sigma, float)), np.zeros(3)][act]
     rejected: list[int] = []
     total, reason = 0, ""
+    own = cell_gradients(cells, surface.posting)
 
     def extra(th):
         No, bo = obs_sums(obs, basis, th, free)
@@ -397,7 +436,8 @@ def adjust_field(cells: Cells, surface: Surface, basis: Basis, theta0, *, n_patc
             total += 1
             # converged: no term moves by more than a millimetre or a fiftieth of its σ
             if np.all(np.abs(d) < np.maximum(TOL_M, 0.02 * np.sqrt(np.diag(C)))):
-                S = accumulate(cells, surface, basis, theta, offset, P, free, areas=S.area)
+                # the covariance's sums: the reference's gradients as far as the cells share them
+                S = accumulate(cells, surface, basis, theta, offset, P, free, areas=S.area, own_gradients=own)
                 return S, keep & (S.used > 0), True
         return S, k, False
 
