@@ -347,7 +347,6 @@ def _patch_sigma(info: np.ndarray, limit: float) -> np.ndarray:
 
 def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcps) -> DemOrientation:
     """Step 6: the patches' record, the field's σ, the verdict and the model."""
-    rows, cols = run.shape
     offsets = {v: [float(c) for c in o] for v, o in run.offsets.items()}
     grads = {v: [[float(c) for c in row] for row in g] for v, g in run.grads.items()}
     where = {k: j for j, k in enumerate(index)}
@@ -373,17 +372,16 @@ def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcp
         lx, ly = cond.lattice(run.shape)
         summary = cond.summarise(np.array([fit.cov_at(a, b) for a, b in zip(lx, ly)]), run.along())
         verdict = cond.judge(summary, target_m, used, run.sigma_apriori_m)
-        field = control_from_field(run.scene, fit.field, run.ref.mean_h, offsets, offset_gradients=grads,
-                                   source="reference DEM" + (" and GCPs" if gcps is not None and len(gcps) else ""))
     else:
         summary = cond.SigmaSummary(*(np.nan,) * 7)
         verdict = cond.OrientVerdict(cond.FAILED, f"NOT TRUSTED: {fit.reason}",
                                      "check the reference DEM covers the scene; a larger a-priori σ", target_m, None)
-        field = control_from_field(run.scene, fit.field, run.ref.mean_h, offsets, offset_gradients=grads)
-    source = field.source
+    source = "reference DEM" + (" and GCPs" if gcps is not None and len(gcps) else "")
+    control = control_from_field(run.scene, fit.field, run.ref.mean_h, offsets, offset_gradients=grads,
+                                 source=source)
     return DemOrientation(
         str(run.reference_path), tuple(patches), run.ref.mean_h, offsets, record, verdict,
-        float(run.sigma_apriori_m), field, summary.to_dict(), grads,
+        float(run.sigma_apriori_m), control, summary.to_dict(), grads,
         {"theta": fit.theta.tolist(), "centre": list(fit.basis.centre), "scale": fit.basis.scale,
          "terms": list(fit.basis.terms), "cov": np.where(np.isfinite(fit.cov), fit.cov, 0.0).tolist(),
          "offset": fit.offset.tolist(), "source": source},
