@@ -345,6 +345,28 @@ def _patch_sigma(info: np.ndarray, limit: float) -> np.ndarray:
     return np.where((s <= limit) & ~undetermined, s, np.nan)
 
 
+def offsets_along_sigma(run: OrientRun, record: dict) -> float:
+    """σ (m) along track of every cell's N position from the view offsets' along-track error:
+    a cell sits at ``pF − w·py·d``, so errors δF, δB of the offsets move all of them alike by
+    ``(1 − w)·δF + w·δB`` along ``d`` — a shift the adjustment takes for N's own and cannot see.
+    Each offset's along-track σ is the coarse step's (its windows' a-priori σ) scaled by the
+    windows' own scatter about their field (√ of the χ² test's variance factor)."""
+    rows, cols = run.shape
+    N = run.scene.views["N"]
+    en = prism.ancillary_to_ground(run.scene, N, np.array([[cols / 2, rows / 2]]), run.ref.mean_h)
+    d = prism.along_track_unit(run.scene, en)[0]
+    w = {"F": 1.0 - run.n_weight, "B": run.n_weight}
+    var = 0.0
+    for v in "FB":
+        sx, sy = (float("nan") if c is None else float(c) for c in record["sigma_px"][v])
+        if not np.isfinite([sx, sy]).all():
+            continue
+        vf = ((record.get("verdicts") or {}).get(v) or {}).get("variance_factor")
+        scale = float(vf) if vf is not None and np.isfinite(vf) else 1.0
+        var += w[v] ** 2 * ((d[0] * sx) ** 2 + (d[1] * sy) ** 2) * scale
+    return float(np.sqrt(var)) * N.pixel_size_m
+
+
 def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcps) -> DemOrientation:
     """Step 6: the patches' record, the field's σ, the verdict and the model."""
     offsets = {v: [float(c) for c in o] for v, o in run.offsets.items()}
@@ -370,7 +392,10 @@ def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcp
     used = sum(p.used for p in patches)
     if fit:
         lx, ly = cond.lattice(run.shape)
-        summary = cond.summarise(np.array([fit.cov_at(a, b) for a, b in zip(lx, ly)]), run.along())
+        along = run.along()
+        covs = np.array([fit.cov_at(a, b) for a, b in zip(lx, ly)])
+        covs[:, :2, :2] += offsets_along_sigma(run, record) ** 2 * np.outer(along, along)
+        summary = cond.summarise(covs, along)
         verdict = cond.judge(summary, target_m, used, run.sigma_apriori_m)
     else:
         summary = cond.SigmaSummary(*(np.nan,) * 7)
