@@ -394,7 +394,8 @@ def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcp
         lx, ly = cond.lattice(run.shape)
         along = run.along()
         covs = np.array([fit.cov_at(a, b) for a, b in zip(lx, ly)])
-        covs[:, :2, :2] += offsets_along_sigma(run, record) ** 2 * np.outer(along, along)
+        if gcps is None or not len(gcps):      # GCPs observe the field through the same offsets
+            covs[:, :2, :2] += offsets_along_sigma(run, record) ** 2 * np.outer(along, along)
         summary = cond.summarise(covs, along)
         verdict = cond.judge(summary, target_m, used, run.sigma_apriori_m)
     else:
