@@ -160,10 +160,17 @@ def match_patch(run, images, win, sigma_py_off: float) -> PatchCells:
     step = 8
     gx, gy = np.meshgrid(np.arange(wd[0] + 0.5, wd[0] + wd[2], step) * f,
                          np.arange(wd[1] + 0.5, wd[1] + wd[3], step) * f)
-    hit = ref.ground(scene, np.column_stack([gx.ravel(), gy.ravel()]))
-    if not hit:
+    pts = np.column_stack([gx.ravel(), gy.ravel()])
+    hit = ref.ground(scene, pts)
+    if hit.converged.mean() < 0.98:
         return fail(f"N's rays did not meet the reference DEM: {hit.reason}")
     en, hh = hit.en, hit.h
+    if not hit:
+        # a few rays on steep relief do not settle: the prior there is the median height's
+        # (the parallax search covers the difference); 1–8 of 9,409 had cost whole patches
+        miss = ~hit.converged
+        hh = np.where(miss, np.nanmedian(hh), hh)
+        en = np.where(miss[:, None], prism.ancillary_to_ground(scene, scene.views["N"], pts, hh), en)
     rms_slope = float(np.sqrt(np.mean(ref.at(ref.slope, en) ** 2)))
     sigma_py = float(np.hypot(np.hypot(run.sigma_height_m, run.sigma_apriori_m * rms_slope) / c1, sigma_py_off))
     search_px = int(np.ceil(K_SIGMA * sigma_py / f)) + 1

@@ -189,8 +189,8 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     run.ref = read_reference(run)
     expected = expected_sigma(run)                                      # 2.
     pcs = match_patches(run, patch_m, progress_range=(0.25, 0.8))       # 3.
-    cells = Cells.join([{**p.cells, "patch": k} for k, p in enumerate(pcs) if p.count])
-    index = [k for k, p in enumerate(pcs) if p.count]                   # adjustment's patch → pcs
+    index = [k for k, p in enumerate(pcs) if p.count]                   # adjustment's patch j → pcs[index[j]]
+    cells = Cells.join([{**pcs[k].cells, "patch": j} for j, k in enumerate(index)])
     checkpoint(progress, 0.8, "adjusting the shift field")
     fit = adjust(run, cells, len(index), start_field(run, cells), gcps)  # 4.
     record = run.coarse.to_dict()
