@@ -189,8 +189,7 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     run.ref = read_reference(run)
     expected = expected_sigma(run)                                      # 2.
     pcs = match_patches(run, patch_m, progress_range=(0.25, 0.8))       # 3.
-    index = [k for k, p in enumerate(pcs) if p.count]                   # adjustment's patch j → pcs[index[j]]
-    cells = Cells.join([{**pcs[k].cells, "patch": j} for j, k in enumerate(index)])
+    cells, index = join_cells(pcs)
     checkpoint(progress, 0.8, "adjusting the shift field")
     fit = adjust(run, cells, len(index), start_field(run, cells), gcps)  # 4.
     record = run.coarse.to_dict()
@@ -198,6 +197,14 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
         cells, fit, record = second_pass(run, cells, fit, len(index), gcps)  # 5.
     checkpoint(progress, 1.0, "done")
     return make_result(run, pcs, index, fit, expected, record, target_m, gcps)  # 6.
+
+
+def join_cells(pcs) -> tuple[Cells, list[int]]:
+    """The matched patches' cells as one :class:`~prismstation.core.field_adjust.Cells`, the
+    adjustment's patch ``j`` being ``pcs[index[j]]`` (patches without cells are left out, and
+    the labels stay contiguous: the adjustment counts its patches 0 … n − 1)."""
+    index = [k for k, p in enumerate(pcs) if p.count]
+    return Cells.join([{**pcs[k].cells, "patch": j} for j, k in enumerate(index)]), index
 
 
 def relate_views(run: OrientRun) -> None:
