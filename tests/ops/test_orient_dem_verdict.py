@@ -33,6 +33,7 @@ def test_too_few_patches_exit_3_with_the_verdict(project, capsys):
     assert rec["coarse"]["radius_px"] == pytest.approx(3 * 30 * 2 ** 0.5 / 2.5)
 
 
+@pytest.mark.slow  # ~40 s: the whole orientation runs and the flat reference is refused (too_smooth)
 def test_a_reference_of_other_terrain_is_an_error(project, tmp_path, capsys):
     import numpy as np
     import rasterio
