@@ -6,10 +6,15 @@ from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication, QMessageBox
 
 
-def answer_next_box(seen: list, button=QMessageBox.StandardButton.Ok, tries: int = 200) -> None:
+def answer_next_box(seen: list, button=QMessageBox.StandardButton.Ok, tries: int = 200):
     """When a modal QMessageBox shows (polled every 50 ms, ``tries`` times), append
-    ``(title, text)`` to ``seen`` and click ``button`` (a StandardButton)."""
+    ``(title, text)`` to ``seen`` and click ``button`` (a StandardButton). Returns a function
+    that stops the polling: a poller whose box never came must not answer a later one."""
+    stopped = []
+
     def poll(left=tries):
+        if stopped:
+            return
         w = QApplication.activeModalWidget()
         if isinstance(w, QMessageBox) and w.isVisible():
             seen.append((w.windowTitle(), w.text()))
@@ -18,3 +23,4 @@ def answer_next_box(seen: list, button=QMessageBox.StandardButton.Ok, tries: int
         elif left > 0:
             QTimer.singleShot(50, lambda: poll(left - 1))
     QTimer.singleShot(50, poll)
+    return lambda: stopped.append(True)
