@@ -39,9 +39,9 @@ def write_tagged(path, image, rpc) -> None:
         ds.write(image, 1)
 
 
-@pytest.fixture(scope="module")
-def block(tmp_path_factory):
-    d = tmp_path_factory.mktemp("rpc_block")
+def make_block(d):
+    """The synthetic block's images, tie points, reference DEM and project ``b.prismproj`` in
+    folder ``d``: ``(d, world, true RPCs)``."""
     world = World(LON0, LAT0, analytic_terrain, extent_m=2400, texture_cell_m=2.0)
     ke, kn = metres_per_degree(LAT0)
     true, paths = [], []
@@ -67,6 +67,11 @@ def block(tmp_path_factory):
     assert main(["new", str(d / "b.prismproj"), "--images", *map(str, paths), "--measurements",
                  str(d / "ties.csv")]) == 0
     return d, world, true
+
+
+@pytest.fixture(scope="module")
+def block(tmp_path_factory):
+    return make_block(tmp_path_factory.mktemp("rpc_block"))
 
 
 def truth_diff(path, world):

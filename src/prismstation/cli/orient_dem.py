@@ -14,7 +14,6 @@ import math
 import sys
 
 from prismstation.cli._common import end_progress, existing, progress_printer
-from prismstation.core.rpc_bias import BIAS_NAMES
 from prismstation.io.project import load_project, save_project
 from prismstation.io.report import write_report
 from prismstation.io.text_report import format_report
@@ -23,7 +22,7 @@ from prismstation.ops.coregister import result_dict
 from prismstation.ops.fit import fit_report, solve_project
 from prismstation.ops.orient_dem import apply_orientation, orient_from_dem
 from prismstation.ops.project import require_workflow
-from prismstation.ops.rpc_project import json_safe
+from prismstation.ops.rpc_project import json_safe, orientation_biases
 from prismstation.ops.workflows import workflows
 
 
@@ -72,13 +71,11 @@ def _run_rpc(project, args) -> int:
     print(f"relative DSM at {dsm.posting_m:.1f} m ({100 * dsm.fill_fraction:.0f} % matched) laid on "
           f"{args.reference}: the block moves dE {s[0]:+.2f} ± {sg[0]:.2f}, dN {s[1]:+.2f} ± {sg[1]:.2f}, "
           f"dh {s[2]:+.2f} ± {sg[2]:.2f} m")
-    doc["biases"] = {}
-    for v, m, c, e in zip(project.scene.views, orientation.models, orientation.bias_change, orientation.bias_sigma):
-        names = BIAS_NAMES[m.kind]
-        print(f"  {v}: {m.kind} bias " + ", ".join(f"{n} {p:+.3f} ± {q:.3f}" for n, p, q in zip(names, m.params, e))
-              + " px (change " + ", ".join(f"{x:+.3f}" for x in c) + ")")
-        doc["biases"][v] = {"model": m.kind, "names": list(names), "params": [float(x) for x in m.params],
-                            "sigma": [float(x) for x in e], "change": [float(x) for x in c]}
+    doc["biases"] = orientation_biases(project, orientation)
+    for v, b in doc["biases"].items():
+        print(f"  {v}: {b['model']} bias " + ", ".join(f"{n} {p:+.3f} ± {q:.3f}" for n, p, q in
+                                                      zip(b["names"], b["params"], b["sigma"]))
+              + " (change " + ", ".join(f"{x:+.3f}" for x in b["change"]) + ")")
     workflows(project).apply_orientation(project, orientation, args.reference)
     if args.save:
         save_project(project, args.project)

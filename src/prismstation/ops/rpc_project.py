@@ -141,6 +141,15 @@ def orientation_record(project, orientation, reference) -> dict:
             "shift_m": [float(x) for x in orientation.shift_m], "sigma_m": [float(x) for x in orientation.sigma_m]}
 
 
+def orientation_biases(project, orientation) -> dict:
+    """View → ``{"model", "names", "params", "sigma", "change"}`` (px, px per 1,000 px) of an
+    orientation's new biases: what the command line prints and writes."""
+    return {v: {"model": m.kind, "names": list(BIAS_NAMES[m.kind]), "params": [float(x) for x in m.params],
+                "sigma": [float(x) for x in e], "change": [float(x) for x in c]}
+            for v, m, c, e in zip(project.scene.views, orientation.models, orientation.bias_change,
+                                  orientation.bias_sigma)}
+
+
 def apply_rpc_orientation(project, orientation, reference) -> None:
     """Make ``orientation``'s biases the project's a-priori biases (its ``dem_control``) and
     its orientation "dem" (one change event): the fit then holds no view fixed."""

@@ -1,4 +1,7 @@
-"""Tools ▸ Export DSM…: the triplet's DSM as a GeoTIFF.
+"""Tools ▸ Export DSM…: the project's DSM as a GeoTIFF (a PRISM triplet's, or that of images
+with RPCs: every pair matched and fused through the fitted biases,
+:func:`prismstation.ops.rpc_project.export_rpc_dsm`, the sensor model's export looked up in
+:mod:`prismstation.ops.workflows`).
 
 The whole N image or the area visible in the N view, at a chosen posting, with ellipsoidal or
 orthometric heights (through the project's geoid), computed and written in a worker by the
@@ -134,9 +137,14 @@ def result_message(out) -> tuple[str, bool]:
     dsm, path, fill, seen, filled = out.dsm, out.path, out.fill_percent, out.seen_cells, out.filled_percent
     min_fill_percent = out.request.min_fill_percent
     rows, cols = dsm.heights.shape
+    n = len((dsm.info or {}).get("pairs") or [[0, 1], [0, 2], [1, 2]])
     text = (f"Wrote {path}: {cols} × {rows} cells at {dsm.posting_m:g} m, {dsm.height_kind} heights; "
-            f"{fill:.1f} % of the {seen} cells all three images see matched"
+            f"{fill:.1f} % of the {seen} cells {'both' if n == 1 else 'all'} images see matched"
             + (f", {filled:.1f} % filled by interpolation" if filled else ""))
+    agree = (dsm.info or {}).get("pair_agreement") or {}
+    if agree:
+        text += ". Pairs agree to NMAD " + ", ".join(
+            "–" if a.get("nmad_m") is None else f"{a['nmad_m']:.2f}" for a in agree.values()) + " m"
     hm = (dsm.info or {}).get("heights")
     if hm:
         text += f". Heights: {'parallax line' if hm['model'] == 'line' else 'rays through the biases'} ({hm['reason']})"
@@ -221,7 +229,7 @@ class DsmTool:
         """Compute and write the DSM of ``req`` in a worker, with the loaded reference DEM as
         the prior when ``use_reference``; returns the Job (result: the
         :class:`~prismstation.ops.dsm_export.DsmExport`)."""
-        from prismstation.ops.dsm_export import export_dsm
+        from prismstation.ops.workflows import workflows
         sol, p = self.ctx.solver.solution, self.ctx.project
         if sol is None or p is None:
             self.ctx.status("A DSM needs a fitted model", 8000)
@@ -232,7 +240,7 @@ class DsmTool:
         ref = self.reference() if use_reference else None
 
         def work(progress):
-            return export_dsm(sol, p, req, reference=ref, progress=progress)
+            return workflows(p).export_dsm(sol, p, req, reference=ref, progress=progress)
 
         def done(out):
             self.message, low = result_message(out)
