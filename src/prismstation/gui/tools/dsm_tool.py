@@ -137,9 +137,10 @@ def result_message(out) -> tuple[str, bool]:
     dsm, path, fill, seen, filled = out.dsm, out.path, out.fill_percent, out.seen_cells, out.filled_percent
     min_fill_percent = out.request.min_fill_percent
     rows, cols = dsm.heights.shape
-    n = len((dsm.info or {}).get("pairs") or [[0, 1], [0, 2], [1, 2]])
+    pairs = len((dsm.info or {}).get("pairs") or [[0, 1], [0, 2], [1, 2]])     # a triplet's three
+    every = {1: "both", 3: "all three"}.get(pairs, "all")
     text = (f"Wrote {path}: {cols} × {rows} cells at {dsm.posting_m:g} m, {dsm.height_kind} heights; "
-            f"{fill:.1f} % of the {seen} cells {'both' if n == 1 else 'all'} images see matched"
+            f"{fill:.1f} % of the {seen} cells {every} images see matched"
             + (f", {filled:.1f} % filled by interpolation" if filled else ""))
     agree = (dsm.info or {}).get("pair_agreement") or {}
     if agree:
