@@ -67,7 +67,8 @@ def run(args) -> int:
           "images see matched" + (f", {out.filled_percent:.1f} % filled" if args.fill else ""))
     hm = dsm.info.get("heights")
     if hm:
-        print(f"heights: {'the parallax line' if hm['model'] == 'line' else 'the rays through the biases'} ({hm['reason']})")
+        line = "the parallax line" if hm["model"] == "line" else "the rays through the biases"
+        print(f"heights: {line} ({hm['reason']})")
     for pair, a in dsm.info.get("pair_agreement", {}).items():
         print(f"pairs {pair}: NMAD {_m(a['nmad_m'])} m, median {_m(a['median_m'])} m over {a['cells']} cells "
               f"({_m(a['nmad_in_sigma'])} of their σ)")

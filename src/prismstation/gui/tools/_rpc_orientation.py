@@ -57,7 +57,8 @@ def start(tool, reference_path):
         if project is not ctx.project:
             return
         if not orientation:
-            tool.message = f"Not applied: the images' DSM could not be laid on the reference: {orientation.coreg.reason}"
+            tool.message = ("Not applied: the images' DSM could not be laid on the reference: "
+                            f"{orientation.coreg.reason}")
             ctx.status(tool.message, 30000)
             return
         record = orientation_record(project, orientation, path)
