@@ -48,9 +48,10 @@ class DsmDialog(QDialog):
     """File, extent, posting, height kind and the engine's options."""
 
     def __init__(self, parent, default_path: str, visible: tuple | None, reference: str | None = None,
-                 *, geoid: str | None = None, orthometric: bool = False):
+                 *, geoid: str | None = None, orthometric: bool = False, triplet: bool = True):
         """``geoid``: the project's geoid, described (None: it cannot be used, orthometric
-        heights are off); ``orthometric``: the heights kind to preselect."""
+        heights are off); ``orthometric``: the heights kind to preselect; ``triplet`` False
+        (images with RPCs): the height model and void filling, a triplet's, are off."""
         super().__init__(parent)
         self.setWindowTitle("Export DSM")
         self.visible = visible
@@ -95,6 +96,8 @@ class DsmDialog(QDialog):
         self.heights.setToolTip("heights from the model's parallax line, the rays through its biases, or the "
                                 "one the GCPs predict better, left out in turn")
         self.fill = QCheckBox("fill voids by interpolation (marked 2 in the mask band)")
+        for w in (self.heights, self.fill):
+            w.setEnabled(triplet)
         self.min_fill = QDoubleSpinBox(decimals=0, minimum=0.0, maximum=100.0, singleStep=5.0, suffix=" %")
         self.min_fill.setValue(90.0)
         self.reference = QCheckBox(f"the loaded reference DEM ({reference})" if reference else "no reference DEM loaded")
@@ -222,7 +225,8 @@ class DsmTool:
         kinds = [q.height_kind for q in self.ctx.project.points.values() if has_ground(q)]
         orthometric = bool(kinds) and kinds.count("orthometric") >= kinds.count("ellipsoidal")
         dlg = DsmDialog(self.ctx.widget, str(self.default_path()), visible_window(self.ctx), name,
-                        geoid=self.geoid(), orthometric=orthometric)
+                        geoid=self.geoid(), orthometric=orthometric,
+                        triplet=self.ctx.project.scene.is_triplet)
         if dlg.exec() == QDialog.DialogCode.Accepted and dlg.path.text():
             self.start(dlg.request(), use_reference=dlg.use_reference())
 
