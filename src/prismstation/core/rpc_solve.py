@@ -1,6 +1,7 @@
 """The RPC model's fit of a project (:mod:`prismstation.core.sensor`): every image's bias by the
 bias-compensated block adjustment of :mod:`prismstation.core.rpc_adjust` (Grodecki & Dial 2003;
-Fraser & Hanley 2003) on the GCPs and the tie points, then every point evaluated as the
+Fraser & Hanley 2003) on the GCPs and the tie points (and, after an orientation from a
+reference DEM, each bias's a-priori value: :class:`BiasPrior`), then every point evaluated as the
 :class:`~prismstation.core.solve.Solution` of the PRISM model is.
 
 What enters the adjustment: GCPs measured in one image or more (their known ground weighted
@@ -71,9 +72,11 @@ def solve_rpc(scene, points, settings: Settings = Settings(), *, height_of=None,
     """Fit every view's bias to ``points`` (:class:`~prismstation.core.solve.PointObs`) and
     evaluate every point (module docstring). ``height_of``: the reference DEM's ellipsoidal
     heights at map points ``(n, 2)`` → ``(n,)``, ``height_sigma_m`` their σ (without it tie
-    points are not held to them, and a message says so). Raises :class:`ModelError` only for settings this model does
-    not have (an unknown bias model or view, a DEM control); data the operator can fix are
-    messages."""
+    points are not held to them, and a message says so). ``control``: view →
+    :class:`BiasPrior`, each view's bias known a priori (an orientation from a reference DEM):
+    its parameters are observed at those values with their σ and no view is held fixed unless
+    ``settings.fixed_view`` names one. Raises :class:`ModelError` only for settings this model
+    does not have (an unknown bias model or view); data the operator can fix are messages."""
     kind = settings.bias_model
     if kind not in BIAS_MODELS:
         raise ModelError(f"bias model {kind!r} is not one the RPC model offers ({', '.join(BIAS_MODELS)})")
