@@ -14,8 +14,11 @@ the consistency verdict of the patch shift field (``core.consistency.snoop``), t
 
 Targets: 14,000 px ≤ 2.5 m planimetric and height; 6,000 px within Gonçalves's (2008) < 5 m
 and ≤ 3.2 m; no case wrong without saying so (a wrong case must have a non-ok verdict or a
-failure). Beside each RMSE, the orientation's stated σ (``orient-dem``'s ``sigma_m``) and the
-ratio of the two: a case more than 2 σ off is marked. The terrain column gives the terrain's
+failure). Beside each RMSE, the σ the orientation states for a check point (``orient-dem``'s
+``sigma_m`` with the check points' own measurement noise in quadrature: ``noise_px`` × GSD × √2
+planimetric, ``noise_px`` × c1 × √2 in height) and the ratio of the two: a case more than 2 σ off
+is marked; the σ expected from the terrain before the run; the mean check-point error along
+the flight direction and 90° to its left. The terrain column gives the terrain's
 mean slope over the ground N sees (30 m cells), as ``simulate`` states it.
 """
 from __future__ import annotations
@@ -36,6 +39,7 @@ sys.path.insert(0, str(ROOT / "src"))
 
 from prismstation.cli import main  # noqa: E402
 from prismstation.sim import simulate  # noqa: E402
+from prismstation.core.prism import theoretical_c1  # noqa: E402
 from prismstation.io.scene import read_scene  # noqa: E402
 from prismstation.sim.perturb import perturb_geolocation, truth_geometry  # noqa: E402
 from prismstation.sim.reference import make_reference_dem  # noqa: E402
@@ -103,11 +107,26 @@ def run_case(sim: Path, ref: Path, errors: dict, work: Path, patch_km: float,
     patches = rep["dem_control"]["patches"]
     used = [p for p in patches if p["used"]]
     verdict = rep["dem_control"]["verdict"]["status"]
+    num = lambda d, k: float("nan") if (d or {}).get(k) is None else float(d[k])  # noqa: E731
     sg = rep["dem_control"].get("sigma_m") or {}
+    ex = rep["dem_control"].get("expected_sigma_m") or {}
+    # the check points' own measurement noise (noise_px in each view) in their error: N's
+    # position gives E and N, the F−B parallax the height
+    t = json.loads((sim / "truth.json").read_text())
+    noise = float(t["arguments"].get("noise_px", 0.0))
+    sc = read_scene(scene)
+    meas_plan = noise * sc.views["N"].pixel_size_m * np.sqrt(2)
+    meas_h = noise * theoretical_c1(sc) * np.sqrt(2)
+    orbit, _, _ = truth_geometry(t)
+    err = np.column_stack([dE, dN])
     row.update(points=len(pts), plan=float(np.hypot(_rms(dE), _rms(dN))), height=_rms(dh),
+               along_mean=float(np.mean(err @ orbit.t)), across_mean=float(np.mean(err @ orbit.a)),
                used=len(used), patches=len(patches), verdict=verdict,
-               sigma_plan=float(np.hypot(sg.get("E", np.nan), sg.get("N", np.nan))),
-               sigma_h=float(sg.get("h", np.nan)))
+               sigma_plan=float(np.hypot(num(sg, "E"), num(sg, "N"))), sigma_h=num(sg, "h"),
+               expected_plan=float(np.hypot(num(ex, "E"), num(ex, "N"))),
+               sigma_plan_check=float(np.hypot(np.hypot(num(sg, "E"), num(sg, "N")), meas_plan)),
+               sigma_h_check=float(np.hypot(num(sg, "h"), meas_h)),
+               sigma_b=(rep["dem_control"].get("adjustment") or {}).get("sigma_b_m"))
     return row
 
 
@@ -146,9 +165,10 @@ def main_sweep(argv=None) -> int:
         ap.error("--terrains dem needs --terrain-dem")
     rows = []
     base = Path(a.keep) if a.keep else Path(tempfile.mkdtemp(prefix="orient_sweep_"))
-    print("| size | terrain (mean slope) | pass | seed | error m | coarse F / B err px (σ) | plan m (σ) | "
-          "plan err/σ | height m (σ) | height err/σ | patches used | verdict | s | note |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| size | terrain (mean slope) | pass | seed | error m | coarse F / B err px (σ) | expected σ plan m | "
+          "plan m (σ) | plan err/σ | height m (σ) | height err/σ | along / across mean m | patches used | "
+          "verdict | s | note |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     cases = [(size, terrain, pas, seed) for size in a.sizes for terrain in a.terrains
              for pas in a.passes for seed in a.seeds]
     for size, terrain, pas, seed in cases:
@@ -176,8 +196,8 @@ def main_sweep(argv=None) -> int:
             r = run_case(sim, sim / "srtm.tif", errors, work, patch_km, a.sigma_m)
             r.update(size=size, terrain=terrain, terrain_statistics=stats, pass_=pas, seed=seed,
                      scene_seed=scene_seed, error=m,
-                     plan_ratio=_ratio(r.get("plan", np.nan), r.get("sigma_plan", np.nan)),
-                     height_ratio=_ratio(r.get("height", np.nan), r.get("sigma_h", np.nan)))
+                     plan_ratio=_ratio(r.get("plan", np.nan), r.get("sigma_plan_check", np.nan)),
+                     height_ratio=_ratio(r.get("height", np.nan), r.get("sigma_h_check", np.nan)))
             rows.append(r)
             tgt = TARGETS.get(size)
             note = r.get("failure", "")
@@ -188,9 +208,11 @@ def main_sweep(argv=None) -> int:
                 note += "; error beyond 2 × the stated σ"
             cf = "-" if "coarse_F" not in r else (f"{r['coarse_F']:.2f} ({r['coarse_F_sigma']:.2f}) / "
                   f"{r['coarse_B']:.2f} ({r['coarse_B_sigma']:.2f})")
-            print(f"| {size} | {terrain} ({slope}) | {pas} | {seed} | {m:.0f} | {cf} | "
-                  f"{r.get('plan', float('nan')):.2f} ({r.get('sigma_plan', float('nan')):.1f}) | {r['plan_ratio']:.2f} | "
-                  f"{r.get('height', float('nan')):.2f} ({r.get('sigma_h', float('nan')):.1f}) | {r['height_ratio']:.2f} | "
+            nan = float("nan")
+            print(f"| {size} | {terrain} ({slope}) | {pas} | {seed} | {m:.0f} | {cf} | {r.get('expected_plan', nan):.1f} | "
+                  f"{r.get('plan', nan):.2f} ({r.get('sigma_plan_check', nan):.1f}) | {r['plan_ratio']:.2f} | "
+                  f"{r.get('height', nan):.2f} ({r.get('sigma_h_check', nan):.1f}) | {r['height_ratio']:.2f} | "
+                  f"{r.get('along_mean', nan):+.2f} / {r.get('across_mean', nan):+.2f} | "
                   f"{r.get('used', '-')}/{r.get('patches', '-')} | "
                   f"{r.get('verdict', 'failed')} | {r['seconds']:.0f} | {note} |", flush=True)
     clean = [{k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in r.items()}

@@ -2,20 +2,19 @@ import numpy as np
 import pytest
 
 from prismstation.core import prism
-from prismstation.core.dem_orient import (COMMON_SIGMA_M, FIELD_SIGMA_M, PatchShift, affine_field,
-                                          smooth_like_reference,
-                                          control_from_shifts, grid_points, orientation_sigma, patch_windows,
-                                          judge_patches, reoffset_patches)
+from prismstation.core.dem_orient import (PatchShift, affine_field, control_from_field, gcp_field_obs,
+                                          grid_points, patch_windows, reoffset_cells, smooth_like_reference)
 from prismstation.core.solve import PointObs, solve
 from prismstation.core import view_offsets as vo
 from tests.core.synth import make_scene
 
 
 def _shift(x, y):  # an affine field of shifts (m) over the N image, like the ~50 m Gonçalves reports
-    return np.array([40 + 3e-3 * x, -30 + 1e-3 * y, 12 - 5e-4 * x])
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    return np.stack([40 + 3e-3 * x, -30 + 1e-3 * y, 12 - 5e-4 * x], -1)
 
 
-def test_control_from_patch_shifts_recovers_truth():
+def test_control_from_field_recovers_truth():
     sc = make_scene()
     rng = np.random.default_rng(4)
     # images made by an orientation that is off by the field: each view shows a point where the
@@ -30,16 +29,7 @@ def test_control_from_patch_shifts_recovers_truth():
         img = {v: tuple(prism.ground_to_ancillary(sc, view, en_anc, h_rel)) for v, view in sc.views.items()}
         truth[f"P{i}"] = (*(en_anc + s[:2]), h_true)
         pts.append(PointObs(f"P{i}", "ICP", truth[f"P{i}"], img))
-    patches = []
-    for (c0, r0, w, h) in patch_windows((14000, 14000), 3500):
-        x, y = c0 + w / 2, r0 + h / 2
-        dE, dN, dh = _shift(x, y)
-        patches.append(PatchShift((c0, r0, w, h), x, y, dE, dN, dh, 1, 1, 1, 100, 0.9))
-    patches[5] = PatchShift(patches[5].window, patches[5].x, patches[5].y, 400, 0, 0, 1, 1, 1, 100, 0.9)
-    patches, verdict = judge_patches(patches)
-    assert [p.used for p in patches].count(False) == 1 and not patches[5].used
-    assert verdict.ok and verdict.rejected == (5,) and "blunder" in patches[5].reason
-    ctl = control_from_shifts(sc, patches, mean_height=700)
+    ctl = control_from_field(sc, _shift, mean_height=700)
     sol = solve(sc, pts, control=ctl)
     g = np.array([p.ground_residual for p in sol.points])
     # the ±3.5 m tilt of dh over the image is in the parallax line's tilt, not in the heights
@@ -60,38 +50,15 @@ def test_patch_windows_cover_without_slivers():
     assert w[0][:2] == (50, 50) and w[-1][0] + w[-1][2] == 2050
 
 
-def test_orientation_sigma_agrees_with_the_scatter_of_fitted_fields():
-    """The fitted part of :func:`orientation_sigma` (without the common part) against the
-    scatter of fields fitted to shifts drawn with the patches' σ: formal vs empirical."""
-    rng = np.random.default_rng(3)
-    xs, ys = np.meshgrid(np.arange(4) * 1500 + 750, np.arange(4) * 1500 + 750)
-    formal = np.array([0.8, 0.6, 0.3])
-    sig = np.sqrt(formal ** 2 + np.square(FIELD_SIGMA_M))
-    at = (np.array([300.0, 3000.0, 5900.0]), np.array([300.0, 3000.0, 100.0]))
-    errors, sigmas = [], []
-    for _ in range(400):
-        noise = rng.normal(0.0, 1.0, (16, 3)) * sig
-        patches = [PatchShift((0, 0, 1, 1), x, y, *(np.array(_shift(x, y)) + e), *formal, 500, 0.9)
-                   for x, y, e in zip(xs.ravel(), ys.ravel(), noise)]
-        field = affine_field(patches)
-        errors.append(field(*at) - np.array([_shift(x, y) for x, y in zip(*at)]))
-        sigmas.append(np.sqrt(orientation_sigma(patches, *at) ** 2 - np.square(COMMON_SIGMA_M)))
-    errors, sigmas = np.array(errors), np.array(sigmas)
-    ratio = np.sqrt(np.mean(errors ** 2, axis=0)) / np.median(sigmas, axis=0)
-    assert np.all((ratio > 0.85) & (ratio < 1.15)), ratio   # σ0 ≥ 1 only: slightly conservative
-    # five times the stated scatter: σ0 scales the field's σ up with it
-    noisy = [PatchShift((0, 0, 1, 1), x, y, *(np.array(_shift(x, y)) + 5 * e), *formal, 500, 0.9)
-             for x, y, e in zip(xs.ravel(), ys.ravel(), rng.normal(0.0, 1.0, (16, 3)) * sig)]
-    def fitted(ps):
-        return np.sqrt(orientation_sigma(ps, 3000.0, 3000.0) ** 2 - np.square(COMMON_SIGMA_M))
-    assert np.all(fitted(noisy) > 3 * fitted(patches)), (fitted(noisy), fitted(patches))
-
-def test_orientation_sigma_without_patches_or_with_a_line_of_them():
-    assert np.isnan(orientation_sigma([], 0.0, 0.0)).all()
+def test_affine_field_of_a_record_made_before_the_joint_adjustment():
+    """Records saved before the joint adjustment hold patches only: their used patches' affine
+    fit is the field (a constant for patches on a line), so such projects still open."""
+    patches = [PatchShift(w, w[0] + w[2] / 2, w[1] + w[3] / 2, *_shift(w[0] + w[2] / 2, w[1] + w[3] / 2),
+                          1, 1, 1, 100, 0.9) for w in patch_windows((6000, 6000), 1500)]
+    field = affine_field(patches)
+    assert field(100.0, 5000.0) == pytest.approx(_shift(100.0, 5000.0))
     line = [PatchShift((0, 0, 1, 1), 100.0 * i, 50.0, 1.0, 2.0, 3.0, 0.5, 0.5, 0.2, 100, 0.9) for i in range(4)]
-    s = orientation_sigma(line, 0.0, 0.0)
-    mean_sigma = np.sqrt((0.5 ** 2 + np.square(FIELD_SIGMA_M)) / 4)[:2]
-    assert s[:2] == pytest.approx(np.hypot(mean_sigma, COMMON_SIGMA_M[:2]))
+    assert affine_field(line)(0.0, 0.0) == pytest.approx([1.0, 2.0, 3.0])
 
 
 @pytest.mark.parametrize("with_gradients", [True, False])
@@ -118,10 +85,9 @@ def test_view_offsets_varying_over_n_reach_the_biases_and_the_parallax_line(with
             img[v] = tuple(prism.ground_to_ancillary(sc, view, en, h)
                            + prism.to_nadir_space(sc, view).inverse().apply_linear(o))
         pts.append(PointObs(f"P{i}", "ICP", (*en, h), img))
-    patches = [PatchShift(w, w[0] + w[2] / 2, w[1] + w[3] / 2, 0, 0, 0, 1, 1, 1, 100, 0.9)
-               for w in patch_windows((rows, cols), 3500)]
-    ctl = control_from_shifts(sc, patches, 700.0, {v: list(o) for v, o in offs.items()},
-                              offset_gradients=grads if with_gradients else None)
+    ctl = control_from_field(sc, lambda x, y: np.zeros(np.shape(x) + (3,)), 700.0,
+                             {v: list(o) for v, o in offs.items()},
+                             offset_gradients=grads if with_gradients else None)
     g = np.array([p.ground_residual for p in solve(sc, pts, control=ctl).points])
     if with_gradients:
         assert np.abs(g).max() < 0.05, np.abs(g).max(0)
@@ -129,34 +95,55 @@ def test_view_offsets_varying_over_n_reach_the_biases_and_the_parallax_line(with
         assert np.abs(g).max() > 1.0
 
 
-def test_reoffset_patches_moves_the_shift_as_the_relative_dem_moves():
-    """A relative DEM built by the parallax map's placement rule (a cell's value sits at
-    ``pF − w·py·d``, ``h = c1·py``) with F's and B's N-space content moved by other offsets:
-    the cloud moves, and the patch's shift onto the reference moves back by as much."""
+def test_reoffset_cells_moves_them_as_the_parallax_map_would_have_placed_them():
+    """Cells of a relative DEM built by the parallax map's placement rule (a cell's value sits
+    at ``pF − w·py·d``, ``h = c1·py``), made again with F's and B's N-space content moved by
+    other offsets: :func:`reoffset_cells` puts them where that rule puts them."""
     sc = make_scene()
     c1 = prism.theoretical_c1(sc)
     tF, tB = sc.views["F"].tan_theta, sc.views["B"].tan_theta
     w = tF / (tF + tB)
     rng = np.random.default_rng(1)
-    x, y = 5000.0, 9000.0
-    xy = np.array([x, y]) + rng.uniform(-800, 800, (200, 2))
+    xy = np.array([5000.0, 9000.0]) + rng.uniform(-800, 800, (200, 2))
     h = rng.uniform(300, 1500, 200)
     en = prism.ancillary_to_ground(sc, sc.views["N"], xy, h)
-    d = prism.along_track_unit(sc, en.mean(0))
+    d = prism.along_track_unit(sc, en)
     py = h / c1
     pF, pB = xy + w * py[:, None] * d, xy - (1 - w) * py[:, None] * d
     old = {"F": np.array([3.0, -40.0]), "B": np.array([-2.0, 25.0])}
     new = {"F": np.array([3.4, -41.5]), "B": np.array([-2.3, 26.2])}
     qF, qB = pF - (new["F"] - old["F"]), pB - (new["B"] - old["B"])
-    py2 = (qF - qB) @ d
+    py2 = np.einsum("ij,ij->i", qF - qB, d)
     xy2 = qF - w * py2[:, None] * d
-    en2 = prism.ancillary_to_ground(sc, sc.views["N"], xy2, c1 * py2)
-    moved = np.r_[(en2 - en).mean(0), c1 * (py2 - py).mean()]
-    assert np.abs(moved).max() > 1.0
-    patch = PatchShift((0, 0, 1, 1), x, y, 10.0, -5.0, 20.0, 1, 1, 1, 100, 0.9)
-    got = reoffset_patches(sc, [patch], lambda v, p: old[v], lambda v, p: new[v], w, 900.0)[0]
-    np.testing.assert_allclose([got.dE, got.dN, got.dh], np.array([10.0, -5.0, 20.0]) - moved, atol=0.02)
-    assert (got.sigma_E, got.used) == (1, True)
+    got_xy, got_h, got_en = reoffset_cells(sc, xy, h, lambda v, p: old[v] + 0 * p, lambda v, p: new[v] + 0 * p, w)
+    np.testing.assert_allclose(got_xy, xy2, atol=1e-6)
+    np.testing.assert_allclose(got_h, c1 * py2, atol=1e-6)
+    np.testing.assert_allclose(got_en, prism.ancillary_to_ground(sc, sc.views["N"], xy2, c1 * py2), atol=1e-3)
+    assert np.abs(got_en - en).max() > 1.0
+
+
+def test_gcps_observe_the_field_as_the_cells_do():
+    """A ground point seen in F and B through an orientation off by the field ``_shift`` (and
+    with view offsets from N): :func:`gcp_field_obs` gives the field at its N position."""
+    sc = make_scene()
+    tF, tB = sc.views["F"].tan_theta, sc.views["B"].tan_theta
+    w = tF / (tF + tB)
+    offs = {"F": np.array([0.4, -1.2]), "B": np.array([-0.3, 0.9])}
+    rng = np.random.default_rng(2)
+    xy = rng.uniform(1000, 13000, (6, 2))
+    h_true = rng.uniform(200, 1200, 6)
+    s = _shift(xy[:, 0], xy[:, 1])
+    h_rel = h_true - s[:, 2]
+    en_anc = prism.ancillary_to_ground(sc, sc.views["N"], xy, h_rel)
+    img = {}
+    for v in "FB":
+        view = sc.views[v]
+        img[v] = (prism.ground_to_ancillary(sc, view, en_anc, h_rel)
+                  + prism.to_nadir_space(sc, view).inverse().apply_linear(offs[v]))
+    ground = np.column_stack([en_anc + s[:, :2], h_true])
+    obs = gcp_field_obs(sc, img["F"], img["B"], ground, np.ones((6, 3)), lambda v, p: offs[v] + 0 * p, w)
+    np.testing.assert_allclose(obs.value.reshape(-1, 3), s, atol=0.05)
+    np.testing.assert_allclose(np.column_stack([obs.x, obs.y])[::3], xy, atol=0.02)
 
 
 def test_smooth_like_reference_is_the_box_and_tent_of_the_reference_cells():

@@ -33,6 +33,7 @@ def test_too_few_patches_exit_3_with_the_verdict(project, capsys):
     assert rec["coarse"]["radius_px"] == pytest.approx(3 * 30 * 2 ** 0.5 / 2.5)
 
 
+@pytest.mark.slow  # ~40 s: the whole orientation runs and the flat reference is refused (too_smooth)
 def test_a_reference_of_other_terrain_is_an_error(project, tmp_path, capsys):
     import numpy as np
     import rasterio
@@ -45,3 +46,33 @@ def test_a_reference_of_other_terrain_is_an_error(project, tmp_path, capsys):
     code = main(["orient-dem", str(proj), str(other), "--patch-km", "1"])
     err = capsys.readouterr().err
     assert code != 0 and "Traceback" not in err and err.strip(), err
+
+
+@pytest.mark.slow  # ~40 s: a scene of its own
+def test_flat_terrain_is_refused_with_the_reason(tmp_path, capsys):
+    """Terrain with almost no relief (the simulator's smooth hills × 0.01: a few metres, under
+    the reference's 2 m noise) fixes the height of the field but no horizontal shift: exit
+    status 3, the verdict too_smooth naming both horizontal directions, what would help, the σ
+    expected before the run already beyond the target, and a σ after it that covers the error
+    (the reference's noisy gradients alone had stated 11 m for an error of 57 m)."""
+    d = tmp_path
+    simulate(d, size=1200, seed=7, terrain="smooth", relief_scale=0.01)
+    make_reference_dem(d / "truth_dem.tif", d / "srtm.tif", seed=1)
+    proj = d / "p.prismproj"
+    assert main(["new", str(proj), "--scene", str(d / "scene.json"), "--points", str(d / "points.csv"),
+                 "--measurements", str(d / "measurements.csv")]) == 0
+    capsys.readouterr()
+    code = main(["orient-dem", str(proj), str(d / "srtm.tif"), "--patch-km", "1", "--geolocation-sigma-m", "30",
+                 "--json", str(d / "flat.json")])
+    out, err = capsys.readouterr()
+    assert code == 3 and "NOT TRUSTED (too_smooth)" in err and "fixes no shift in both horizontal directions" in err
+    assert "what would help: GCPs" in out and "expected from the terrain before the run" in out
+    rec = json.loads((d / "flat.json").read_text())["dem_control"]
+    assert rec["verdict"]["status"] == "too_smooth" and rec["verdict"]["advice"]
+    assert rec["expected_sigma_m"]["plan"] > 5.0 and rec["sigma_m"]["plan"] > 5.0
+    assert rec["sigma_m"]["h"] < 2.0                      # the height it does fix
+    rep = json.loads((d / "flat.json").read_text())
+    truth = {p["id"]: p for p in json.loads((d / "truth.json").read_text())["points"]}
+    pts = [p for p in rep["points"] if p["kind"] in ("GCP", "ICP") and p.get("E_est") is not None]
+    err = [(p["E_est"] - truth[p["id"]]["E"]) ** 2 + (p["N_est"] - truth[p["id"]]["N"]) ** 2 for p in pts]
+    assert (sum(err) / len(err)) ** 0.5 < 2.0 * rec["sigma_m"]["plan"]

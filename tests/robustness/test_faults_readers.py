@@ -66,3 +66,29 @@ def test_coarse_offsets_on_a_broken_raster(sim, broken, how):
     with pytest.raises(RasterReadError) as err:
         coarse_view_offsets(scene, sim / "srtm_tiled.tif", 55.0, sigma_apriori_m=60.0, grid=2)
     assert broken in str(err.value), err.value
+
+
+def test_a_tile_failure_crosses_a_process_boundary():
+    """A DSM tile's read error, chained to GDAL's exception where it was caught, reaches the
+    caller of a process pool as the project's error: once tblib's pickling is installed
+    after rasterio's exceptions exist (as Dask's process pool does), a chained GDAL exception
+    fails to unpickle — the tile runner sends the error without its chain."""
+    import pickle
+
+    import tblib.pickling_support
+    from rasterio._err import CPLE_AppDefinedError
+
+    from prismstation.errors import RasterReadError
+    from prismstation.ops.dsm_tiles import _portable
+    tblib.pickling_support.install()
+
+    def tile(spec):
+        try:
+            raise CPLE_AppDefinedError(3, 1, "TIFFFillTile:Read error")
+        except Exception:
+            raise RasterReadError(f"F.tif: cannot read view F, for the DSM tile {spec}") from None
+
+    with pytest.raises(RasterReadError) as err:
+        _portable(tile, 7)
+    back = pickle.loads(pickle.dumps(err.value))
+    assert isinstance(back, RasterReadError) and "F.tif" in str(back) and "tile 7" in str(back)

@@ -1,12 +1,13 @@
 """``prismstation orient-dem PROJECT REFERENCE_DEM``: orientation with no GCP (Gonçalves, SRTM as ground control).
 
-A PRISM triplet: exit status 0 when the patch shifts agree with their σ, 3 (with one line on
-stderr) when they do not or too few patches matched: the orientation is then stored and
-reported, but not trusted. Images with RPCs: the relative DSM laid on the reference gives each
-image's bias with its σ (:func:`prismstation.ops.rpc_project.orient_rpc_project`); ``--save``
-stores them as the fit's a-priori biases; a failed co-registration is refused with its reason,
-exit status 3, nothing stored. The functions are the sensor model's
-(:mod:`prismstation.ops.workflows`).
+A PRISM triplet: exit status 0 when the orientation's σ (from the adjustment of every matched
+cell) reaches the target, 3 (with one line on stderr: why, and what would help) when the
+terrain cannot fix the shift field that well, too few patches matched or the adjustment
+failed: the orientation is then stored and reported, but not trusted. Images with RPCs: the
+relative DSM laid on the reference gives each image's bias with its σ
+(:func:`prismstation.ops.rpc_project.orient_rpc_project`); ``--save`` stores them as the fit's
+a-priori biases; a failed co-registration is refused with its reason, exit status 3, nothing
+stored. The functions are the sensor model's (:mod:`prismstation.ops.workflows`).
 """
 from __future__ import annotations
 
@@ -20,7 +21,8 @@ from prismstation.io.text_report import format_report
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 from prismstation.ops.coregister import result_dict
 from prismstation.ops.fit import fit_report, solve_project
-from prismstation.ops.orient_dem import apply_orientation, orient_from_dem
+from prismstation.ops.orient_dem import (TARGET_M, SigmaSummary, apply_orientation, control_points,
+                                         orient_from_dem)
 from prismstation.ops.project import require_workflow
 from prismstation.ops.rpc_project import json_safe, orientation_biases
 from prismstation.ops.workflows import workflows
@@ -38,6 +40,13 @@ def register(sub) -> None:
     p.add_argument("--patch-km", type=float, default=4.0, help="patch size (default 4 km)")
     p.add_argument("--posting", type=float,
                    help="grid posting of the matching, m (default 30; images with RPCs: 8 pixels)")
+    p.add_argument("--target-m", type=float, default=TARGET_M, metavar="M",
+                   help=f"the planimetric and height σ the orientation must reach to be trusted, "
+                        f"metres (default {TARGET_M:g}; a PRISM triplet)")
+    p.add_argument("--with-gcps", action="store_true",
+                   help="adjust the project's GCPs (those measured in F and B) together with the "
+                        "reference DEM's patches: the GCPs fix the frame, the patches the shape over "
+                        "the whole scene (a PRISM triplet)")
     p.add_argument("--json", metavar="OUT", help="write the report (with the patch shifts) as JSON")
     p.add_argument("--save", action="store_true", help="store the DEM orientation in the project")
     p.set_defaults(func=run)
@@ -90,8 +99,10 @@ def _run_rpc(project, args) -> int:
 
 def _run_prism(project, args) -> int:
     sigma = SIGMA_APRIORI_M if args.geolocation_sigma_m is None else args.geolocation_sigma_m
-    result = orient_from_dem(project, args.reference, sigma_apriori_m=sigma,
+    gcps = control_points(project) if args.with_gcps else None
+    result = orient_from_dem(project, args.reference, sigma_apriori_m=sigma, gcps=gcps,
                              patch_m=args.patch_km * 1000, posting_m=30.0 if args.posting is None else args.posting,
+                             target_m=args.target_m,
                              progress=progress_printer())
     end_progress()
     apply_orientation(project, result)
@@ -119,19 +130,29 @@ def _run_prism(project, args) -> int:
               f"{max(moved):.2f} px")
     elif result.coarse.get("second_pass"):
         print(f"  second pass {result.coarse['second_pass']}")
-    print(f"{len(used)} of {len(result.patches)} patches matched the reference")
+    if gcps is not None:
+        print(f"{len(gcps)} GCPs in the adjustment with the reference DEM's patches; the reference's own "
+              f"offset from them (E, N, h): "
+              f"{', '.join(f'{v:+.2f}' for v in (result.field or {}).get('offset', []))} m")
+    print(f"expected from the terrain before the run: "
+          f"{SigmaSummary.from_dict(result.expected_sigma_m or {}).text()}")
+    adj = result.adjustment or {}
+    print(f"{len(used)} of {len(result.patches)} patches used, {adj.get('cells', 0)} cells in one adjustment; "
+          f"each patch's own shift beyond its cells' noise σ_b (E, N, h) "
+          f"{', '.join(f'{v:.2f}' for v in adj.get('sigma_b_m') or [])} m")
     for p in result.patches:
         state = "used" if p.used else f"not used: {p.reason}"
         if math.isfinite(p.dE):
-            shift = (f"dE {p.dE:+7.2f} dN {p.dN:+7.2f} dh {p.dh:+7.2f} m  "
-                     f"σ ({p.sigma_E:.2f}, {p.sigma_N:.2f}, {p.sigma_h:.2f})")
+            sig = ", ".join("—" if not math.isfinite(v) else f"{v:.2f}" for v in (p.sigma_E, p.sigma_N, p.sigma_h))
+            shift = f"dE {p.dE:+7.2f} dN {p.dN:+7.2f} dh {p.dh:+7.2f} m  σ ({sig})"
         else:
             shift = "no shift"
         print(f"  patch at ({p.x:7.0f}, {p.y:7.0f}) px: {shift}  {state}")
+    frame = "the GCPs'" if gcps is not None else "the reference DEM's"
+    print(f"after the run: {SigmaSummary.from_dict(result.sigma_m).text()} (in {frame} frame)")
     print(f"verdict: {result.verdict.message}")
-    sg = result.sigma_m
-    print(f"orientation σ in the reference DEM's frame: E {sg['E']:.1f} m, N {sg['N']:.1f} m "
-          f"(planimetric {result.sigma_plan_m:.1f} m), h {sg['h']:.1f} m")
+    if result.verdict.advice:
+        print(f"  what would help: {result.verdict.advice}")
     print(format_report(report))
     if result.exit_status:
         print(f"prismstation orient-dem: NOT TRUSTED ({result.verdict.status}): {result.verdict.message}",

@@ -1,22 +1,22 @@
 """Orientation without GCPs from a reference DEM (Gonçalves, SRTM as ground control; docs/model.md §3) — the pure parts.
 
 The workflow (``prismstation.ops.orient_dem``) matches F and B densely in N space per patch,
-turns parallax into a *relative DEM* placed on the map by the ancillary model, and finds the
-3-D shift ``(dE, dN, dh)`` laying each patch on the reference DEM. This module turns those
-shifts into the sensor model: the shifts are modelled as an affine function of the patch
-position in the N image, and virtual control points on a grid over the image then give the
-bias affine of every view and the parallax line's offset.
+turns parallax into a *relative DEM* placed on the map by the ancillary model (this module:
+the patches, the cells, their smoothing to the reference's resolution, their moving when the
+view offsets change), and finds the shift field ``(dE, dN, dh)`` over the N image laying every
+cell on the reference DEM (:mod:`prismstation.core.field_adjust`). This module then turns the
+field into the sensor model: virtual control points on a grid over the image give the bias
+affine of every view and the parallax line's offset.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
 
 from prismstation.core import prism
 from prismstation.core.prism import BiasFit, ParallaxLine
-from prismstation.core.consistency import ALPHA, MIN_PATCHES, snoop
 from prismstation.core.scene import Scene
 from prismstation.core.shift_field import ShiftField
 from prismstation.core.solve import Control
@@ -107,7 +107,12 @@ def smooth_like_reference(rel: np.ndarray, cells, need: float = 0.95) -> np.ndar
 
 @dataclass(frozen=True)
 class PatchShift:
-    """One patch's result: N-image window, centre, shift (metres) with σ, and whether used."""
+    """One patch as the orientation saw it: N-image window and centre (px); its shift
+    ``(dE, dN, dh)`` (m: the field at its centre plus its own departure from it) and the σ its
+    cells alone give it (NaN in a direction they do not fix: a flat patch fixes its height
+    only); the cells used, the share of the patch matched, whether it was used and why not.
+    ``T``, ``dof``: its χ² test against the other patches' field (NaN, 0 when not tested);
+    ``spread`` (m, NMAD) and ``area`` (cells) of its residuals."""
 
     window: tuple
     x: float
@@ -122,32 +127,24 @@ class PatchShift:
     valid_fraction: float
     used: bool = True
     reason: str = ""
-
-
-#: how far (m; E, N, h) a patch's shift may depart from an affine field beyond its formal σ
-#: (added in quadrature): attitude drift that is not affine across the scene, the reference's
-#: errors correlated over a patch. Measured on simulated triplets at 0–100 m per view (6,000 px,
-#: 4 km patches, both passes): 0.4–2.2 m horizontally and 0.7–1.1 m in height beyond
-#: ``coregister``'s σ, whose height σ (≈ 0.1 m) counts only the cells' noise.
-FIELD_SIGMA_M = (1.5, 1.5, 1.0)
-
-
-def patch_sigmas(patches: list[PatchShift]) -> np.ndarray:
-    """(n, 3) σ (m) of the patches' shifts as the field sees them: formal σ ⊕ :data:`FIELD_SIGMA_M`."""
-    formal = np.array([[p.sigma_E, p.sigma_N, p.sigma_h] for p in patches], float).reshape(-1, 3)
-    return np.sqrt(np.nan_to_num(formal, nan=0.0) ** 2 + np.square(FIELD_SIGMA_M))
+    T: float = float("nan")
+    dof: int = 0
+    spread: float = float("nan")
+    area: float = float("nan")
 
 
 def affine_field(patches: list[PatchShift]):
-    """The :class:`~prismstation.core.shift_field.ShiftField` of ``(dE, dN, dh)`` over the
-    used patches (weights 1/σ², σ from :func:`patch_sigmas`), as a callable ``(xx, yy) → (..., 3)``;
-    fewer than 3 patches, or patches (nearly) on one line → a constant field (weighted mean)."""
-    use = [p for p in patches if p.used]
+    """The field of a record made before the joint adjustment: the used patches' shifts fitted
+    by an affine function of their position (weights from their σ), as a callable
+    ``(xx, yy) → (..., 3)``; a constant (the weighted mean) for fewer than 3 patches or
+    patches on a line."""
+    use = [p for p in patches if p.used and np.isfinite([p.dE, p.dN, p.dh]).all()]
     if len(use) == 0:
         return lambda xx, yy: np.zeros(np.shape(xx) + (3,))
     xy = np.array([[p.x, p.y] for p in use])
     s = np.array([[p.dE, p.dN, p.dh] for p in use])
-    sig = patch_sigmas(use)
+    sig = np.nan_to_num(np.array([[p.sigma_E, p.sigma_N, p.sigma_h] for p in use], float), nan=1.0)
+    sig = np.maximum(sig, 1e-3)
     field = ShiftField.fit(xy, s, sig)
     if field:
         return field.predict
@@ -156,91 +153,82 @@ def affine_field(patches: list[PatchShift]):
     return lambda xx, yy: np.broadcast_to(mean, np.shape(xx) + (3,)).copy()
 
 
-#: the part of the patches' error they share, which fitting a field over many patches does not
-#: reduce (m; E, N, h): the reference's coarse posting and what the matcher's voids leave of its
-#: smoothing bias every patch alike. Measured on simulated triplets (6,000 px, 4 km patches,
-#: three scenes per pass, no geolocation error, so that the field fit is exact; relative DEMs
-#: smoothed like the reference): check-point RMSE 1.11–1.41 m planimetric (≤ 1.0 m per
-#: component; 1.6–2.3 m before the smoothing) and 0.9–1.45 m in height.
-COMMON_SIGMA_M = (1.0, 1.0, 1.2)
+def reoffset_cells(scene: Scene, xy: np.ndarray, h: np.ndarray, old_offset_of, new_offset_of,
+                   n_weight: float):
+    """Where the cells of relative DEMs made with the view offsets ``old_offset_of(view, xy)``
+    would be, had they been made with ``new_offset_of`` (N-space px at N positions ``xy``
+    (m, 2)), without matching again. ``h`` (m,) their relative heights.
 
-
-def orientation_sigma(patches: list[PatchShift], x, y) -> np.ndarray:
-    """σ (m; E, N, h), shape (..., 3), of the orientation at N-image positions ``x, y`` (px):
-    the used patches' field (:func:`affine_field`'s fit) predicted there — a-priori from
-    :func:`patch_sigmas`, scaled up by σ0 where the patches scatter more than that — ⊕
-    :data:`COMMON_SIGMA_M`. With fewer than 3 patches or patches on a line: the weighted
-    mean's σ. Relative to the reference DEM's own frame (its geolocation error is not in it)."""
-    use = [p for p in patches if p.used]
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    if not use:
-        return np.full(x.shape + (3,), np.nan)
-    sig = patch_sigmas(use)
-    field = ShiftField.fit([[p.x, p.y] for p in use],
-                           [[p.dE, p.dN, p.dh] for p in use], sig)
-    if field:
-        s0 = np.nan_to_num(field.sigma0, nan=1.0)
-        s0 = np.where(s0 > 0, s0, 1.0)
-        fit = field.predict_sigma(x, y) / s0 * np.maximum(s0, 1.0)
-    else:
-        fit = np.broadcast_to(np.sqrt(1 / (1 / sig ** 2).sum(0)), x.shape + (3,))
-    return np.sqrt(fit ** 2 + np.square(COMMON_SIGMA_M))
-
-
-def reoffset_patches(scene: Scene, patches: list[PatchShift], old_offset_of, new_offset_of,
-                     n_weight: float, mean_height: float) -> list[PatchShift]:
-    """The patches' shifts had their relative DEMs been made with the view offsets
-    ``new_offset_of(view, xy)`` instead of ``old_offset_of`` (N-space px at N position
-    ``xy``), without matching them again.
-
-    A patch's F (B) image entered N space moved by −offset, so a change δF, δB at its centre
-    moves every matched cell alike: its parallax by −(δF − δB)·d (``d`` the N-space flight
-    direction) — the height by c1 times that — and its N position by −δF across track and
-    −((1 − w)·δF + w·δB)·d along it (``w = n_weight``: where :func:`prismstation.core.dense.parallax_map`
-    places a value). The relative DEM moves by that, so its shift onto the reference moves back.
-    Exact for offsets constant over a patch (their gradients change them by ≲ 0.1 px per 4 km).
-    The patches keep their σ and their used flag."""
+    A cell's F (B) content entered N space moved by −offset, so changes δF, δB move its
+    parallax by −(δF − δB)·d (``d`` the N-space flight direction) — its height by c1 times
+    that — and its N position by −δF across track and −((1 − w)·δF + w·δB)·d along it
+    (``w = n_weight``: where :func:`prismstation.core.dense.parallax_map` places a value).
+    Returns ``(xy', h', en')``: the new N positions, heights and ancillary map positions."""
     c1 = prism.theoretical_c1(scene)
-    out = []
-    for p in patches:
-        if not np.isfinite([p.dE, p.dN, p.dh]).all():
-            out.append(p)
-            continue
-        xy = np.array([[p.x, p.y]], float)
-        dF = new_offset_of("F", xy[0]) - old_offset_of("F", xy[0])
-        dB = new_offset_of("B", xy[0]) - old_offset_of("B", xy[0])
-        h = np.array([mean_height - p.dh])
-        en = prism.ancillary_to_ground(scene, scene.views["N"], xy, h)
-        d = prism.along_track_unit(scene, en)[0]
-        dpy = float((dF - dB) @ d)
-        moved = xy - dF + n_weight * dpy * d
-        en2 = prism.ancillary_to_ground(scene, scene.views["N"], moved, h - c1 * dpy)
-        dE, dN = (en2 - en)[0]
-        out.append(replace(p, dE=p.dE - float(dE), dN=p.dN - float(dN), dh=p.dh + c1 * dpy))
-    return out
+    N = scene.views["N"]
+    xy = np.asarray(xy, float)
+    en = prism.ancillary_to_ground(scene, N, xy, h)
+    d = prism.along_track_unit(scene, en)
+    dF = new_offset_of("F", xy) - old_offset_of("F", xy)
+    dB = new_offset_of("B", xy) - old_offset_of("B", xy)
+    dpy = np.einsum("ij,ij->i", dF - dB, d)
+    moved = xy - dF + n_weight * dpy[:, None] * d
+    h2 = h - c1 * dpy
+    return moved, h2, prism.ancillary_to_ground(scene, N, moved, h2)
 
 
-def judge_patches(patches: list[PatchShift], alpha: float = ALPHA, min_patches: int = MIN_PATCHES):
-    """Test the usable patches' shift field against their σ (:func:`prismstation.core.consistency.snoop`,
-    σ from :func:`patch_sigmas`) and mark the blunders it removes as not used. Returns ``(patches, verdict)``;
-    the verdict's indices refer to the usable patches."""
-    patches = list(patches)
-    use = [i for i, p in enumerate(patches) if p.used]
-    verdict = snoop([patches[i].x for i in use], [patches[i].y for i in use],
-                    [[patches[i].dE, patches[i].dN, patches[i].dh] for i in use],
-                    patch_sigmas([patches[i] for i in use]), alpha=alpha, min_patches=min_patches)
-    for j in verdict.rejected:
-        i = use[j]
-        patches[i] = replace(patches[i], used=False,
-                             reason=f"a blunder: departs from the other patches' field by "
-                                    f"more than its σ allows (χ² test, α {alpha})")
-    return patches, verdict
+@dataclass(frozen=True)
+class ControlPoints:
+    """Ground control points for the DEM orientation: ``ids``; F and B image positions
+    ``xy_f``, ``xy_b`` (n, 2) px; ``ground`` (n, 3) (E, N, h ellipsoidal) m; ``sigma_m`` (n, 3)
+    σ of the shift each gives (E, N, h; m: survey and image measurement together)."""
+
+    ids: tuple
+    xy_f: np.ndarray
+    xy_b: np.ndarray
+    ground: np.ndarray
+    sigma_m: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.ids)
 
 
-def control_from_shifts(scene: Scene, patches: list[PatchShift], mean_height: float,
-                        view_offsets: dict | None = None, grid: int = 7,
-                        bias_model: str = "affine", offset_gradients: dict | None = None) -> Control:
-    """The sensor model implied by the patches' shifts (docs/model.md §3 step 4).
+def gcp_field_obs(scene: Scene, xy_f, xy_b, ground, sigma_m, offset_of, n_weight: float,
+                  ids=()) -> "FieldObs":
+    """Ground control points as observations of the shift field, in the frame of the relative
+    DEMs' cells: ``xy_f``, ``xy_b`` (n, 2) their F and B image positions (px), ``ground`` (n, 3)
+    their (E, N, h ellipsoidal) (m), ``sigma_m`` (n, 3) σ of the shift each gives (m: survey and
+    measurement together); ``offset_of(view, xy)`` the views' offsets from N (N-space px).
+
+    As :func:`prismstation.core.dense.parallax_map` makes a cell: F and B in N space with their
+    offsets removed, ``pF``, ``pB``; parallax ``py = (pF − pB)·d`` (``d`` the N-space flight
+    direction), relative height ``c1·py``, N position ``pF − w·py·d`` (``w = n_weight``), placed
+    by the ancillary N model; the shift is the ground point minus that."""
+    from prismstation.core.field_adjust import FieldObs
+    N = scene.views["N"]
+    xy_f, xy_b = np.atleast_2d(np.asarray(xy_f, float)), np.atleast_2d(np.asarray(xy_b, float))
+    ground = np.atleast_2d(np.asarray(ground, float))
+    tf, tb = prism.to_nadir_space(scene, scene.views["F"]), prism.to_nadir_space(scene, scene.views["B"])
+    d = prism.along_track_unit(scene, ground[:, :2])
+    c1 = prism.theoretical_c1(scene)
+    p = tf(xy_f)
+    for _ in range(3):                         # the offsets are taken at the point's N position
+        pF, pB = tf(xy_f) - offset_of("F", p), tb(xy_b) - offset_of("B", p)
+        py = np.einsum("ij,ij->i", pF - pB, d)
+        p = pF - n_weight * py[:, None] * d
+    h_rel = c1 * py
+    en = prism.ancillary_to_ground(scene, N, p, h_rel)
+    value = np.column_stack([ground[:, :2] - en, ground[:, 2] - h_rel])
+    n = len(ground)
+    return FieldObs(np.repeat(p[:, 0], 3), np.repeat(p[:, 1], 3), np.tile(np.arange(3), n), value.ravel(),
+                    np.broadcast_to(np.asarray(sigma_m, float), (n, 3)).ravel(), tuple(ids))
+
+
+def control_from_field(scene: Scene, field, mean_height: float, view_offsets: dict | None = None,
+                       grid: int = 7, bias_model: str = "affine", offset_gradients: dict | None = None,
+                       source: str = "reference DEM") -> Control:
+    """The sensor model implied by the shift field ``field(x, y) → (..., 3)`` (dE, dN, dh, m, at
+    N positions; docs/model.md §3 step 4).
 
     Virtual control points on a ``grid × grid`` lattice over the N image, at the relative
     height ``mean_height − dh``: the ancillary model places them at ``P``; the truth is
@@ -252,7 +240,6 @@ def control_from_shifts(scene: Scene, patches: list[PatchShift], mean_height: fl
     gives a model that carries every measurement to the reference DEM's frame. ``c1`` stays
     theoretical.
     """
-    field = affine_field(patches)
     views = scene.views
     rows, cols = views["N"].shape or (14000, 14000)
     g = (np.arange(grid) + 0.5) / grid
@@ -284,7 +271,7 @@ def control_from_shifts(scene: Scene, patches: list[PatchShift], mean_height: fl
                             f"from reference-DEM control: c0 follows the patches' dh over the image "
                             f"({dh.min():+.1f} to {dh.max():+.1f} m); c1 theoretical",
                             (float(dx), float(dy)))
-    return Control(bias, parallax, "reference DEM", float(mean_height))
+    return Control(bias, parallax, source, float(mean_height))
 
 
 def identity_control(scene: Scene, mean_height: float) -> Control:

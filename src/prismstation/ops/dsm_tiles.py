@@ -17,11 +17,12 @@ from __future__ import annotations
 import ctypes
 import sys
 from dataclasses import dataclass
+from functools import partial
 
 import cv2
 import numpy as np
 
-from prismstation.errors import RasterReadError
+from prismstation.errors import PrismError, RasterReadError
 from prismstation.io.raster import gdal_env
 from prismstation.io.windows import ImageWindows
 from prismstation.core.solve import Solution
@@ -160,7 +161,18 @@ def run_tiles(specs: list, consume, scheduler=None, workers: int | None = None, 
     module docstring for ``scheduler``. ``progress(fraction, message)`` after each tile; False
     cancels. Local schedulers run the tiles in batches of four per worker."""
     with gdal_env():      # the bound for every local worker thread, entry point or not
-        _run_tiles(specs, consume, scheduler, workers, progress, fn or run_tile)
+        _run_tiles(specs, consume, scheduler, workers, progress, partial(_portable, fn or run_tile))
+
+
+def _portable(fn, spec):
+    """``fn(spec)``, its failure made fit to cross a process boundary: the project's error
+    without the library exceptions it was raised from (a GDAL error chained to it does not
+    unpickle in the caller, which then saw an AttributeError of the unpickler instead)."""
+    try:
+        return fn(spec)
+    except PrismError as exc:
+        exc.__context__ = exc.__cause__ = None
+        raise
 
 
 def _run_tiles(specs, consume, scheduler, workers, progress, fn) -> None:

@@ -1,75 +1,76 @@
-"""Orientation of a triplet from a reference DEM, no GCP (Gonçalves, SRTM as ground control; docs/model.md §3).
+"""Orientation of a triplet from a reference DEM, no GCP needed (Gonçalves, SRTM as ground control; docs/model.md §3).
 
 Every search takes its range from a stated a-priori uncertainty (docs/orientation_engine.md):
 
 1. Where F and B are relative to N, over the whole range the geolocation σ allows
    (:func:`prismstation.ops.coarse_offsets.coarse_view_offsets`).
-2. Per patch of the N image: F and B, with those offsets removed, matched densely in N space
-   along the flight direction around the reference DEM's parallax → a relative DEM
-   (``h = c1·py``) placed on the map by the ancillary N model, gridded.
-3. Where that relative DEM lies on the reference: :func:`prismstation.core.coarse.dem_offset`
-   searches the radius N's geolocation σ allows, then least-squares surface matching gives
-   ``(dE, dN, dh)`` with σ.
-4. The patch shifts are tested against their σ (:func:`prismstation.core.dem_orient.judge_patches`,
-   a χ² test with data snooping); the verdict goes into the result, the report and the exit status.
-5. Step 1 again, now that N's own error is known to metres: the reference heights under each
-   window are taken where N really looks; the patches' shifts follow the new offsets
-   (:func:`prismstation.core.dem_orient.reoffset_patches`, no second matching) and are judged again.
-6. The shifts of the patches kept become the model (:mod:`prismstation.core.dem_orient`).
+2. What the terrain can fix: the field's σ expected from the reference's gradients over N's
+   footprint (:mod:`prismstation.core.conditioning`), before any matching.
+3. Per patch of the N image: F and B, with those offsets removed, matched densely in N space →
+   relative-DEM cells (:mod:`prismstation.ops.dem_patches`).
+4. One adjustment of the shift field ``(dE, dN, dh)`` over N from every cell of every patch
+   (:func:`prismstation.core.field_adjust.adjust_field`), started from a search of the whole
+   mosaic over the a-priori radius; GCPs, when given, are observations of the same field.
+5. Step 1 again with N placed by that field, the cells moved to the new offsets
+   (:func:`prismstation.core.dem_orient.reoffset_cells`), the field adjusted again.
+6. The verdict on the field's σ against the target (:func:`prismstation.core.conditioning.judge`)
+   and the model (:func:`prismstation.core.dem_orient.control_from_field`).
 
 A-priori settings: ``sigma_apriori_m`` (each view's ancillary geolocation σ per component; 50 m
-by default, after the shifts of about 50 m Gonçalves reports with SRTM as control; Tadono et al. (2008) report ±10 m after calibration),
-``sigma_height_m`` (the reference DEM's height σ, 10 m: SRTM's stated 16 m absolute at 90 %),
-``k`` = 3 σ per search. ``progress`` per :mod:`prismstation.ops.progress`; a cancel raises
-:class:`~prismstation.errors.Cancelled`.
+by default, after the shifts of about 50 m Gonçalves reports with SRTM as control; Tadono et al.
+(2008) report ±10 m after calibration), ``sigma_height_m`` (the reference DEM's height σ, 10 m:
+SRTM's stated 16 m absolute at 90 %), ``k`` = 3 σ per search, ``target_m`` (the σ an
+orientation must reach to be trusted, 5 m). ``progress`` per :mod:`prismstation.ops.progress`;
+a cancel raises :class:`~prismstation.errors.Cancelled`.
 """
 from __future__ import annotations
 
+import os
 from dataclasses import asdict, dataclass, replace
 
-import os
-
-import cv2
 import numpy as np
 
+from prismstation.core import conditioning as cond
 from prismstation.core import prism
-from prismstation.core.affine import Affine2D
 from prismstation.core.coarse import K_SIGMA, dem_offset
-from prismstation.core.consistency import Verdict
-from prismstation.core.dem_orient import (PatchShift, affine_field, control_from_shifts, grid_points,
-                                          judge_patches, orientation_sigma, patch_windows,
-                                          relative_dem_points, reoffset_patches, smooth_like_reference)
-from prismstation.core.dense import parallax_map
-from prismstation.core.ray_dem import ray_meets_surface
+from prismstation.core.dem_orient import (ControlPoints, PatchShift, affine_field, control_from_field,
+                                          gcp_field_obs, reoffset_cells)
+from prismstation.core.field_adjust import Basis, Cells, adjust_field
 from prismstation.core.solve import Control
-from prismstation.core.sample import remap_points
 from prismstation.core.view_offsets import SIGMA_HEIGHT_M, offset_at
 from prismstation.errors import InputError
-from prismstation.io.dem import read_dem
 from prismstation.io.jsonfile import plain
 from prismstation.io.project import project_geoid
-from prismstation.io.windows import ImageWindows, scaling, shift
 from prismstation.model.project import Project
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M, coarse_view_offsets
+from prismstation.ops.dem_patches import ReferenceGrid, match_patches, read_reference
 from prismstation.ops.progress import ProgressFn, checkpoint, scaled
+
+TARGET_M = cond.TARGET_M            # the front ends' default target σ (m)
+SigmaSummary = cond.SigmaSummary
 
 
 @dataclass(frozen=True)
 class DemOrientation:
-    """The result: patches (with shifts, σ and whether used), the view offsets F−N and B−N
-    (N-space px, from the ancillary prediction to where the view sees the point), the coarse
-    step's record, the consistency verdict of the patch field and the model."""
+    """The result: the patches (their shifts, σ, whether used), the view offsets F−N and B−N
+    (N-space px, from the ancillary prediction to where the view sees the point) and their
+    gradients, the coarse step's record, the adjusted field (``field``: its parameters and
+    covariance), the σ expected from the terrain before the run and the σ stated after it
+    (:class:`~prismstation.core.conditioning.SigmaSummary` dicts, m), the verdict and the model."""
 
     reference: str
     patches: tuple
     mean_height: float
     offsets_px: dict
     coarse: dict
-    verdict: Verdict
+    verdict: cond.OrientVerdict
     sigma_apriori_m: float
     control: Control
-    sigma_m: dict     # the orientation's σ (m): {"E", "N", "h"}, RMS over the N image
-    gradients_px: dict | None = None   # the offsets' gradients over N (px per N pixel, 2 × 2)
+    sigma_m: dict
+    gradients_px: dict | None = None
+    field: dict | None = None
+    expected_sigma_m: dict | None = None
+    adjustment: dict | None = None
 
     @property
     def sigma_plan_m(self) -> float:
@@ -80,10 +81,12 @@ class DemOrientation:
         return self.verdict.exit_status
 
     def to_dict(self) -> dict:
-        return {"reference": self.reference, "mean_height": self.mean_height,
-                "sigma_apriori_m": self.sigma_apriori_m, "offsets_px": self.offsets_px,
-                "offset_gradients_px": self.gradients_px, "coarse": self.coarse, "verdict": self.verdict.to_dict(), "sigma_m": self.sigma_m,
-                "patches": [plain(asdict(p)) for p in self.patches]}
+        return plain({"reference": self.reference, "mean_height": self.mean_height,
+                      "sigma_apriori_m": self.sigma_apriori_m, "offsets_px": self.offsets_px,
+                      "offset_gradients_px": self.gradients_px, "coarse": self.coarse,
+                      "verdict": self.verdict.to_dict(), "sigma_m": self.sigma_m,
+                      "expected_sigma_m": self.expected_sigma_m, "field": self.field,
+                      "adjustment": self.adjustment, "patches": [asdict(p) for p in self.patches]})
 
 
 def apply_orientation(project: Project, result: DemOrientation) -> None:
@@ -93,42 +96,23 @@ def apply_orientation(project: Project, result: DemOrientation) -> None:
         project.set_settings(replace(project.settings, orientation="dem"))
 
 
+def field_of_record(record: dict):
+    """The shift field ``(x, y) → (..., 3)`` of a saved ``dem_control`` record (a record made
+    before the joint adjustment: its used patches' affine fit)."""
+    f = record.get("field")
+    if f:
+        basis = Basis(tuple(f["centre"]), float(f["scale"]), tuple(f["terms"]))
+        theta = np.asarray(f["theta"], float)
+        return lambda x, y: basis.predict(theta, x, y)
+    patches = [PatchShift(**{**p, "window": tuple(p["window"])}) for p in record["patches"]]
+    return affine_field(patches)
+
+
 def control_from_record(scene, record: dict) -> Control:
     """Rebuild the model from a project's saved ``dem_control`` record."""
-    patches = [PatchShift(**{**p, "window": tuple(p["window"])}) for p in record["patches"]]
-    return control_from_shifts(scene, patches, record["mean_height"], record.get("offsets_px"),
-                               offset_gradients=record.get("offset_gradients_px"))
-
-
-@dataclass(frozen=True)
-class ReferenceGrid:
-    """The reference DEM read over N's footprint and the search radius: ellipsoidal heights
-    ``dem.heights`` (NaN where void) on the north-up grid of ``posting_m`` whose corner cells
-    span ``lo`` (west, south) to ``hi`` (east, north), metres; ``filled`` the same with voids
-    at the mean height ``mean_h`` (float32), ``slope`` its gradient's norm (m/m), ``cells`` the
-    reference's own cell size in grid cells (col, row)."""
-
-    dem: object
-    lo: np.ndarray
-    hi: np.ndarray
-    posting_m: float
-    mean_h: float
-    filled: np.ndarray
-    slope: np.ndarray
-    cells: tuple
-
-    def at(self, grid: np.ndarray, en: np.ndarray) -> np.ndarray:
-        """``grid`` (one of this grid's arrays) sampled bilinearly at map points ``en`` (..., 2)."""
-        col = (en[..., 0] - self.lo[0]) / self.posting_m - 0.5
-        row = (self.hi[1] - en[..., 1]) / self.posting_m - 0.5
-        return remap_points(grid, col, row).astype(float)
-
-    def ground(self, scene, xy: np.ndarray):
-        """Where N's ancillary rays through image points ``xy`` (n, 2) meet the reference
-        (:class:`~prismstation.core.ray_dem.RayHits`: ``en`` (n, 2), ``h`` (n,), NaN where a
-        ray did not meet it)."""
-        return ray_meets_surface(lambda h: prism.ancillary_to_ground(scene, scene.views["N"], xy, h),
-                                 lambda en: self.at(self.filled, en), self.mean_h)
+    return control_from_field(scene, field_of_record(record), record["mean_height"], record.get("offsets_px"),
+                              offset_gradients=record.get("offset_gradients_px"),
+                              source=(record.get("field") or {}).get("source", "reference DEM"))
 
 
 @dataclass
@@ -165,20 +149,29 @@ class OrientRun:
         return tanF / (tanF + tanB)
 
     def offset_of(self, v: str, xy) -> np.ndarray:
-        """View ``v``'s offset from N (px) at N position ``xy``."""
+        """View ``v``'s offset from N (px) at N positions ``xy`` (..., 2)."""
         rows, cols = self.shape
         return offset_at(self.offsets[v], self.grads[v], (cols / 2, rows / 2), xy)
+
+    def along(self) -> np.ndarray:
+        """The flight direction on the map (unit E, N) at N's centre."""
+        rows, cols = self.shape
+        en = prism.ancillary_to_ground(self.scene, self.scene.views["N"], np.array([[cols / 2, rows / 2]]),
+                                       self.ref.mean_h)
+        t = self.scene.track.foot(en)[1].reshape(-1, 2)[0]
+        return t / np.linalg.norm(t)
 
 
 def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float = SIGMA_APRIORI_M,
                     sigma_height_m: float = SIGMA_HEIGHT_M, patch_m: float = 4000.0,
-                    posting_m: float = 30.0, decimation: int = 2,
-                    progress: ProgressFn | None = None) -> DemOrientation:
-    """Orient ``project``'s triplet from the reference DEM at ``reference_path`` (see module doc;
-    one function per step below).
+                    posting_m: float = 30.0, decimation: int = 2, target_m: float = cond.TARGET_M,
+                    gcps: ControlPoints | None = None, progress: ProgressFn | None = None) -> DemOrientation:
+    """Orient ``project``'s triplet from the reference DEM at ``reference_path`` (see module
+    doc). ``gcps``: ground control points (:func:`control_points`), observations of the same
+    shift field adjusted with the DEM's cells: they fix its frame, the cells its shape.
 
     Raises InputError when the views cannot be related (step 1) or no patch matches; an
-    untrustworthy patch field is not an error: it is ``result.verdict`` (exit status 3).
+    orientation that cannot be trusted is not an error: it is ``result.verdict`` (exit status 3).
     """
     scene = project.scene
     if not scene.is_triplet:
@@ -188,17 +181,30 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
         raise InputError("image not found (relocate the scene's images)", missing[0])
     if not sigma_apriori_m > 0:
         raise InputError(f"the a-priori geolocation σ must be positive, got {sigma_apriori_m} m")
+    if not target_m > 0:
+        raise InputError(f"the target σ must be positive, got {target_m} m")
     run = OrientRun(scene, reference_path, project_geoid(project), sigma_apriori_m, sigma_height_m,
                     posting_m, decimation, progress)
-    relate_views(run)                                            # 1.
+    relate_views(run)                                                   # 1.
     run.ref = read_reference(run)
-    shifts = match_patches(run, patch_m)                         # 2.–3.
-    patches, verdict = judge_patches(shifts)                     # 4.
-    shifts, record = second_pass(run, shifts, patches)           # 5.
-    if shifts is not None:
-        patches, verdict = judge_patches(shifts)
+    expected = expected_sigma(run)                                      # 2.
+    pcs = match_patches(run, patch_m, progress_range=(0.25, 0.8))       # 3.
+    cells, index = join_cells(pcs)
+    checkpoint(progress, 0.8, "adjusting the shift field")
+    fit = adjust(run, cells, len(index), start_field(run, cells), gcps)  # 4.
+    record = run.coarse.to_dict()
+    if fit:
+        cells, fit, record = second_pass(run, cells, fit, len(index), gcps)  # 5.
     checkpoint(progress, 1.0, "done")
-    return make_result(run, patches, verdict, record)           # 6.
+    return make_result(run, pcs, index, fit, expected, record, target_m, gcps)  # 6.
+
+
+def join_cells(pcs) -> tuple[Cells, list[int]]:
+    """The matched patches' cells as one :class:`~prismstation.core.field_adjust.Cells`, the
+    adjustment's patch ``j`` being ``pcs[index[j]]`` (patches without cells are left out, and
+    the labels stay contiguous: the adjustment counts its patches 0 … n − 1)."""
+    index = [k for k, p in enumerate(pcs) if p.count]
+    return Cells.join([{**pcs[k].cells, "patch": j} for j, k in enumerate(index)]), index
 
 
 def relate_views(run: OrientRun) -> None:
@@ -217,158 +223,202 @@ def relate_views(run: OrientRun) -> None:
     run.coarse = coarse
 
 
-def read_reference(run: OrientRun) -> ReferenceGrid:
-    """The reference DEM over the N footprint and the search radius, ellipsoidal, north-up."""
-    N, posting_m = run.scene.views["N"], run.posting_m
+def prior_sigma(run: OrientRun) -> np.ndarray:
+    """(9,) a-priori σ (m) of the field's terms: N's geolocation σ for every term (the field
+    at the image's edge may differ from its centre by as much again, attitude drift)."""
+    return np.full(9, float(run.sigma_apriori_m))
+
+
+def expected_sigma(run: OrientRun, step_px: int | None = None) -> cond.SigmaSummary:
+    """Step 2: the field's σ the terrain allows, from the reference's gradients where N's
+    ancillary model puts its footprint: every reference cell a matched cell of a-priori σ
+    :data:`~prismstation.core.conditioning.SIGMA_CELL_M`."""
     rows, cols = run.shape
-    corners = N.map_to_image.inverse()(np.array([[0, 0], [cols, 0], [0, rows], [cols, rows]], float))
-    lo, hi = corners.min(0) - 1000 - run.radius_m, corners.max(0) + 1000 + run.radius_m
-    shape = (int((hi[1] - lo[1]) // posting_m) + 1, int((hi[0] - lo[0]) // posting_m) + 1)
-    transform = (posting_m, 0.0, lo[0], 0.0, -posting_m, hi[1])
-    ref = read_dem(run.reference_path, run.scene.crs, transform, shape, geoid=run.geoid)
-    if not np.isfinite(ref.heights).any():
-        raise InputError("the reference DEM does not cover the scene", run.reference_path)
-    mean_h = float(np.nanmean(ref.heights))
-    # the reference's own cells, in grid cells: the relative DEMs are smoothed to match
-    cells = tuple(c / posting_m for c in (ref.source_cell_m or (posting_m, posting_m)))
-    filled = np.nan_to_num(ref.heights, nan=mean_h).astype(np.float32)
-    gy, gx = np.gradient(filled, posting_m)
-    return ReferenceGrid(ref, lo, hi, posting_m, mean_h, filled, np.hypot(gx, gy), cells)
+    N = run.scene.views["N"]
+    step = step_px or max(int(round(run.posting_m / N.pixel_size_m)), 1)
+    step = max(step, int(np.ceil(max(rows, cols) / 400)))          # at most 400 × 400 samples
+    x, y = np.meshgrid(np.arange(step / 2, cols, step), np.arange(step / 2, rows, step))
+    xy = np.column_stack([x.ravel(), y.ravel()])
+    en = prism.ancillary_to_ground(run.scene, N, xy, run.ref.mean_h)
+    gy, gx = np.gradient(run.ref.filled.astype(float), run.posting_m)
+    gx, gy = run.ref.at(gx, en), -run.ref.at(gy, en)
+    ok = np.isfinite(gx) & np.isfinite(gy)
+    basis = Basis.over(run.shape)
+    cells_per_sample = (step * N.pixel_size_m / run.posting_m) ** 2
+    w = cells_per_sample / (cond.SIGMA_CELL_M ** 2 * cond.a_priori_area(run.ref.cells))
+    info = cond.information(gx[ok], gy[ok], basis.phi(xy[ok, 0], xy[ok, 1]), w)
+    cov = cond.expected_cov(info, prior_sigma(run))
+    lx, ly = cond.lattice(run.shape)
+    p = basis.phi(lx, ly)
+    Phi = np.einsum("kl,ni->nkli", np.eye(3), p).reshape(len(lx), 3, 9)
+    return cond.summarise(Phi @ cov @ np.swapaxes(Phi, 1, 2), run.along())
 
 
-def match_patches(run: OrientRun, patch_m: float) -> list[PatchShift]:
-    """Steps 2–3: every patch of N matched (:func:`match_patch`); InputError when none was."""
-    scene, N = run.scene, run.scene.views["N"]
-    rows, cols = run.shape
-    # the parallax's a-priori σ (px) from the offsets' along-track σ
-    centre = np.array([[cols / 2, rows / 2]])
-    hit = run.ref.ground(scene, centre)
-    en0 = hit.en[0] if hit else prism.ancillary_to_ground(scene, N, centre, run.ref.mean_h)[0]
-    d = N.map_to_image.apply_linear(prism.along_track_unit(scene, en0))
-    d = d / np.linalg.norm(d)
-    sigma_py_off = float(np.hypot(*(np.hypot(*(d * run.coarse.sigma_px[v])) for v in "FB")))
-    patch_px = max(int(round(patch_m / N.pixel_size_m)), 64)
-    wins = patch_windows((rows, cols), patch_px, margin_px=32)
-    images = ImageWindows(scene)
-    shifts = []
-    try:
-        for k, win in enumerate(wins):
-            checkpoint(run.progress, 0.25 + 0.7 * k / len(wins), f"patch {k + 1} of {len(wins)}")
-            shifts.append(match_patch(run, images, win, sigma_py_off))
-    finally:
-        images.close()
-    if not any(p.used for p in shifts):
-        raise InputError("no patch could be matched to the reference DEM: "
-                         + "; ".join(sorted({p.reason for p in shifts})), run.reference_path)
-    return shifts
+def start_field(run: OrientRun, cells: Cells) -> np.ndarray:
+    """The adjustment's start (9,): the whole mosaic of relative DEMs laid on the reference by
+    an exhaustive search over the a-priori radius (:func:`prismstation.core.coarse.dem_offset`)
+    — a constant shift; where that finds nothing (a plane), the median height difference."""
+    ref = run.ref
+    mosaic = np.full(ref.dem.heights.shape, np.nan)
+    mosaic[cells.row, cells.col] = cells.h
+    t = (run.posting_m, 0.0, float(ref.lo[0]), 0.0, -run.posting_m, float(ref.hi[1]))
+    theta = np.zeros(9)
+    r = dem_offset(ref.dem.heights, mosaic, t, run.radius_m)
+    if r and np.isfinite([r.dx, r.dy, r.dz]).all():
+        theta[[0, 3, 6]] = r.dx, r.dy, r.dz
+    else:
+        diff = ref.dem.heights[cells.row, cells.col] - cells.h
+        theta[6] = float(np.nanmedian(diff)) if np.isfinite(diff).any() else 0.0
+    return theta
 
 
-def second_pass(run: OrientRun, shifts, patches):
+def adjust(run: OrientRun, cells: Cells, n_patches: int, theta0, gcps: ControlPoints | None):
+    """Step 4: :func:`prismstation.core.field_adjust.adjust_field` over all cells (and the GCPs,
+    observations of the field made with the run's current view offsets)."""
+    obs = None
+    if gcps is not None and len(gcps):
+        obs = gcp_field_obs(run.scene, gcps.xy_f, gcps.xy_b, gcps.ground, gcps.sigma_m, run.offset_of,
+                            run.n_weight, gcps.ids)
+    return adjust_field(cells, run.ref.surface(), Basis.over(run.shape), theta0, n_patches=n_patches,
+                        prior_sigma=prior_sigma(run), obs=obs)
+
+
+def control_points(project: Project, ids=None, sigma_px: float = 0.3, survey_sigma_m=(1.0, 1.0)) -> ControlPoints:
+    """The project's GCPs (or those in ``ids``) measured in F and B, as
+    :class:`~prismstation.core.dem_orient.ControlPoints`: heights made ellipsoidal through the
+    project's geoid; σ of each shift: its survey σ (``sigma_xy_m``, ``sigma_h_m``; where the
+    point states none, ``survey_sigma_m`` (planimetric per component, height)) and its image
+    measurements' (their ``sigma_px``, else ``sigma_px``) in quadrature."""
+    from prismstation.ops.fit import ellipsoidal_heights  # ops.fit rebuilds models from this module
+    scene = project.scene
+    h = ellipsoidal_heights(project)
+    gsd, c1 = scene.views["N"].pixel_size_m, prism.theoretical_c1(scene)
+    rows = []
+    for pid, p in project.points.items():
+        mf, mb = project.measurements.get((pid, "F")), project.measurements.get((pid, "B"))
+        if p.kind != "GCP" or pid not in h or mf is None or mb is None or (ids is not None and pid not in ids):
+            continue
+        spx = max(m.sigma_px if m.sigma_px is not None else sigma_px for m in (mf, mb))
+        sxy = p.sigma_xy_m if p.sigma_xy_m is not None else survey_sigma_m[0]
+        sh = p.sigma_h_m if p.sigma_h_m is not None else survey_sigma_m[1]
+        rows.append((pid, (mf.x, mf.y), (mb.x, mb.y), (p.E, p.N, h[pid]),
+                     (np.hypot(sxy, spx * gsd), np.hypot(sxy, spx * gsd), np.hypot(sh, c1 * spx * np.sqrt(2)))))
+    if not rows:
+        raise InputError("no GCP measured in both F and B to orient with the reference DEM")
+    ids_, f, b, g, s = zip(*rows)
+    return ControlPoints(tuple(ids_), np.array(f, float), np.array(b, float), np.array(g, float), np.array(s, float))
+
+
+def second_pass(run: OrientRun, cells: Cells, fit, n_patches: int, gcps):
     """Step 5: N's own error is now known to metres: step 1 again with the reference heights
     taken where N really looks (tens of metres off on slopes made its windows scatter by
-    pixels, so the offsets' drift over N went unseen), and the patches moved to the new
-    offsets. ``patches``: step 4's judged patches. Returns ``(shifts, record)``: the moved
-    shifts (None when the second pass could not be used) and the coarse step's record;
-    updates ``run.offsets``, ``run.grads``."""
-    field = affine_field(patches)
+    pixels, so the offsets' drift over N went unseen), the cells moved to the new offsets and
+    the field adjusted again from the first one. Returns ``(cells, fit, record)``; updates
+    ``run.offsets``, ``run.grads``."""
     rows, cols = run.shape
     second = coarse_view_offsets(run.scene, run.reference_path, run.geoid, sigma_apriori_m=run.sigma_apriori_m,
-                                 n_shift=lambda xy: field(xy[:, 0], xy[:, 1])[..., :2],
-                                 progress=scaled(run.progress, 0.95, 1.0))
+                                 n_shift=lambda xy: fit.field(xy[:, 0], xy[:, 1])[..., :2],
+                                 progress=scaled(run.progress, 0.85, 0.95))
     record = run.coarse.to_dict()
     if not all(second.ok(v) for v in "FB"):
         record["second_pass"] = "not used: " + ("; ".join(
-            f"{w.view}: {w.reason}" for w in second.windows if w.reason)[:300] or "a view was not found")
-        return None, record
+            f"{w.view}: {w.reason}" for w in second.windows if w.reason) or "a view was not found")
+        return cells, fit, record
     new_off = {v: np.asarray(second.offsets_px[v], float) for v in "FB"}
     new_grad = {v: np.asarray(second.gradients_px[v], float) for v in "FB"}
-    shifts = reoffset_patches(run.scene, shifts, run.offset_of,
-                              lambda v, xy: offset_at(new_off[v], new_grad[v], (cols / 2, rows / 2), xy),
-                              run.n_weight, run.ref.mean_h)
+    xy, h, en = reoffset_cells(run.scene, np.column_stack([cells.x, cells.y]), cells.h, run.offset_of,
+                               lambda v, p: offset_at(new_off[v], new_grad[v], (cols / 2, rows / 2), p),
+                               run.n_weight)
+    moved = replace(cells, x=xy[:, 0], y=xy[:, 1], e=en[:, 0], n=en[:, 1], h=h)
+    old = run.offsets, run.grads
     run.offsets, run.grads = new_off, new_grad
-    return shifts, {**second.to_dict(), "first_pass": record}
+    fit2 = adjust(run, moved, n_patches, fit.theta, gcps)
+    if not fit2:
+        run.offsets, run.grads = old
+        record = {**second.to_dict(), "first_pass": record,
+                  "second_pass": f"not used: the adjustment after it failed ({fit2.reason})"}
+        return cells, fit, record
+    return moved, fit2, {**second.to_dict(), "first_pass": record}
 
 
-def make_result(run: OrientRun, patches, verdict, record) -> DemOrientation:
-    """Step 6: the shifts of the patches kept become the model; its σ over the N image."""
+def _patch_sigma(info: np.ndarray, limit: float) -> np.ndarray:
+    """σ (m; E, N, h) a patch's cells alone give its shift, from their information ``info``
+    (3, 3); NaN in a direction they fix worse than ``limit`` (a plane fixes its height only)."""
+    w, v = np.linalg.eigh(info)
+    weak = w <= max(w.max(), 1e-300) * 1e-9
+    cov = (v[:, ~weak] / w[~weak]) @ v[:, ~weak].T
+    s = np.sqrt(np.clip(np.diag(cov), 0, None))
+    undetermined = (np.abs(v[:, weak]) > 0.1).any(1) if weak.any() else np.zeros(3, bool)
+    return np.where((s <= limit) & ~undetermined, s, np.nan)
+
+
+def offsets_along_sigma(run: OrientRun, record: dict) -> float:
+    """σ (m) along track of every cell's N position from the view offsets' along-track error:
+    a cell sits at ``pF − w·py·d``, so errors δF, δB of the offsets move all of them alike by
+    ``(1 − w)·δF + w·δB`` along ``d`` — a shift the adjustment takes for N's own and cannot see.
+    Each offset's along-track σ is the coarse step's (its windows' a-priori σ) scaled by the
+    windows' own scatter about their field (√ of the χ² test's variance factor)."""
     rows, cols = run.shape
+    N = run.scene.views["N"]
+    en = prism.ancillary_to_ground(run.scene, N, np.array([[cols / 2, rows / 2]]), run.ref.mean_h)
+    d = prism.along_track_unit(run.scene, en)[0]
+    w = {"F": 1.0 - run.n_weight, "B": run.n_weight}
+    var = 0.0
+    for v in "FB":
+        sx, sy = (float("nan") if c is None else float(c) for c in record["sigma_px"][v])
+        if not np.isfinite([sx, sy]).all():
+            continue
+        vf = ((record.get("verdicts") or {}).get(v) or {}).get("variance_factor")
+        scale = float(vf) if vf is not None and np.isfinite(vf) else 1.0
+        var += w[v] ** 2 * ((d[0] * sx) ** 2 + (d[1] * sy) ** 2) * scale
+    return float(np.sqrt(var)) * N.pixel_size_m
+
+
+def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcps) -> DemOrientation:
+    """Step 6: the patches' record, the field's σ, the verdict and the model."""
     offsets = {v: [float(c) for c in o] for v, o in run.offsets.items()}
     grads = {v: [[float(c) for c in row] for row in g] for v, g in run.grads.items()}
-    control = control_from_shifts(run.scene, patches, run.ref.mean_h, offsets, offset_gradients=grads)
-    g = (np.arange(5) + 0.5) / 5
-    sig = orientation_sigma(patches, *np.meshgrid(g * cols, g * rows))
-    sigma_m = {k: float(np.sqrt(np.mean(sig[..., i] ** 2))) for i, k in enumerate("ENh")}
-    return DemOrientation(str(run.reference_path), tuple(patches), run.ref.mean_h, offsets, record, verdict,
-                          float(run.sigma_apriori_m), control, sigma_m, grads)
-
-
-def match_patch(run: OrientRun, images, win, sigma_py_off: float) -> PatchShift:
-    """One patch at N-space decimation ``f = run.decimation`` (F and B averaged f×f; SRTM is 90 m
-    anyway). Its relative DEM is gridded at ``run.posting_m`` and smoothed to the reference's
-    resolution (:func:`prismstation.core.dem_orient.smooth_like_reference`).
-
-    The parallax search covers K_SIGMA σ of the prior's error: the reference heights' σ, the
-    height error of sampling them where N's error puts the patch (σ_geolocation × the patch's
-    RMS slope) and the offsets' along-track σ ``sigma_py_off`` (px); F and B are placed by
-    their offsets from N (:meth:`OrientRun.offset_of`) at the patch's centre."""
-    scene, ref, f, posting_m = run.scene, run.ref, run.decimation, run.posting_m
-    lo, hi = ref.lo, ref.hi
-    c1 = prism.theoretical_c1(scene)
-    c0, r0, w, h = win
-    x, y = c0 + w / 2, r0 + h / 2
-    fail = lambda why: PatchShift(win, x, y, *(np.nan,) * 6, 0, 0.0, False, why)  # noqa: E731
-    wd = (c0 // f, r0 // f, w // f, h // f)  # the window in decimated N space
-    step = 8
-    gx, gy = np.meshgrid(np.arange(wd[0] + 0.5, wd[0] + wd[2], step) * f,
-                         np.arange(wd[1] + 0.5, wd[1] + wd[3], step) * f)
-    hit = ref.ground(scene, np.column_stack([gx.ravel(), gy.ravel()]))
-    if not hit:
-        return fail(f"N's rays did not meet the reference DEM: {hit.reason}")
-    en, hh = hit.en, hit.h
-    rms_slope = float(np.sqrt(np.mean(ref.at(ref.slope, en) ** 2)))
-    sigma_py = float(np.hypot(np.hypot(run.sigma_height_m, run.sigma_apriori_m * rms_slope) / c1, sigma_py_off))
-    search_px = int(np.ceil(K_SIGMA * sigma_py / f)) + 1
-    # the samples sit at decimated pixel centres 0.5 + step·k of the window: interpolate there
-    # (a plain resize would take them as the centres of step-wide blocks, step/2 − 0.5 off)
-    u = (np.arange(wd[2], dtype=np.float32) / step)[None, :].repeat(wd[3], 0)
-    v = (np.arange(wd[3], dtype=np.float32) / step)[:, None].repeat(wd[2], 1)
-    prior = cv2.remap((hh / c1 / f).reshape(gx.shape).astype(np.float32), u, v, cv2.INTER_LINEAR,
-                      borderMode=cv2.BORDER_REPLICATE)
-    d = prism.along_track_unit(scene, en.mean(0))
-    reach = float(np.abs(prior).max()) * f + (search_px + 20) * f
-    arrays, to_n = {}, {}
-    for v in ("F", "B"):
-        view = scene.views[v]
-        back = prism.to_nadir_space(scene, view).inverse()
-        box = np.array([[c0 - reach, r0 - reach], [c0 + w + reach, r0 - reach],
-                        [c0 - reach, r0 + h + reach], [c0 + w + reach, r0 + h + reach]], float)
-        o = run.offset_of(v, np.array([x, y], float))
-        pc = back(box + o)
-        (a0, b0), (a1, b1) = pc.min(0), pc.max(0)
-        # whole f × f blocks from the window's corner (a resize of the rest would stretch it)
-        arr, ac0, ar0 = images.read_reduced(v, a0, b0, a1 - a0, b1 - b0, f)
-        if arr is None:
-            return fail(f"the {v} image does not cover the patch")
-        corr = Affine2D([[1, 0, -o[0]], [0, 1, -o[1]]])
-        to_n[v] = (scaling(1 / f) @ corr @ prism.to_nadir_space(scene, view) @ shift(ac0, ar0) @ scaling(f)).matrix
-        arrays[v] = arr
-    pm = parallax_map(arrays["F"], arrays["B"], to_n["F"], to_n["B"], wd, d, prior=prior,
-                      search_range=search_px, half_window=4, n_weight=run.n_weight)
-    if pm.valid_fraction < 0.05:
-        return fail(f"only {pm.valid_fraction:.0%} of the patch matched")
-    E, Nn, hr = relative_dem_points(scene, pm.parallax * f, wd, c1, step=1, scale=f)
-    pad = run.radius_m + 300.0
-    elo = np.array([E.min() - pad, Nn.min() - pad]); ehi = np.array([E.max() + pad, Nn.max() + pad])
-    i0, i1 = int((elo[0] - lo[0]) // posting_m), int((ehi[0] - lo[0]) // posting_m) + 1
-    j0, j1 = int((hi[1] - ehi[1]) // posting_m), int((hi[1] - elo[1]) // posting_m) + 1
-    i0, j0 = max(i0, 0), max(j0, 0)
-    refp = ref.dem.heights[j0:j1, i0:i1]
-    t = (posting_m, 0.0, lo[0] + i0 * posting_m, 0.0, -posting_m, hi[1] - j0 * posting_m)
-    rel = smooth_like_reference(grid_points(E, Nn, hr, t, refp.shape), ref.cells)
-    if np.isfinite(rel).sum() < 50:
-        return fail("too few cells of the relative DEM")
-    r = dem_offset(refp, rel, t, run.radius_m)
-    if not r or not np.isfinite([r.dx, r.dy, r.dz]).all():
-        return fail(r.reason or "surface matching did not converge (flat terrain?)")
-    return PatchShift(win, x, y, r.dx, r.dy, r.dz, r.sigma_dx, r.sigma_dy, r.sigma_dz, r.count,
-                      pm.valid_fraction)
+    where = {k: j for j, k in enumerate(index)}
+    rejected = {index[j] for j in fit.rejected}
+    patches = []
+    for k, pc in enumerate(pcs):
+        j = where.get(k)
+        if j is None or not fit.used[j]:
+            why = (pc.reason if j is None else
+                   "a blunder: its shift departs from the other patches' field beyond its σ (χ² test)"
+                   if k in rejected else "no cell left after the outlier test")
+            s = np.full(3, np.nan) if j is None else fit.field(pc.x, pc.y) + np.nan_to_num(fit.shift[j])
+            patches.append(PatchShift(pc.window, pc.x, pc.y, *s, *(np.nan,) * 3, pc.count, pc.valid_fraction,
+                                      False, why, float(fit.T[j]) if j is not None else np.nan,
+                                      int(fit.dof[j]) if j is not None else 0))
+            continue
+        s = fit.field(pc.x, pc.y) + fit.shift[j]
+        sg = _patch_sigma(fit.info[j], 3 * run.sigma_apriori_m)
+        patches.append(PatchShift(pc.window, pc.x, pc.y, *s, *sg, int(fit.cells[j]), pc.valid_fraction, True, "",
+                                  float(fit.T[j]), int(fit.dof[j]), float(fit.spread[j]), float(fit.area[j])))
+    used = sum(p.used for p in patches)
+    if fit:
+        lx, ly = cond.lattice(run.shape)
+        along = run.along()
+        covs = np.array([fit.cov_at(a, b) for a, b in zip(lx, ly)])
+        if gcps is None or not len(gcps):      # GCPs observe the field through the same offsets
+            covs[:, :2, :2] += offsets_along_sigma(run, record) ** 2 * np.outer(along, along)
+        summary = cond.summarise(covs, along)
+        verdict = cond.judge(summary, target_m, used, run.sigma_apriori_m)
+    else:
+        summary = cond.SigmaSummary(*(np.nan,) * 7)
+        verdict = cond.OrientVerdict(cond.FAILED, f"NOT TRUSTED: {fit.reason}",
+                                     "check the reference DEM covers the scene; a larger a-priori σ", target_m, None)
+    source = "reference DEM" + (" and GCPs" if gcps is not None and len(gcps) else "")
+    control = control_from_field(run.scene, fit.field, run.ref.mean_h, offsets, offset_gradients=grads,
+                                 source=source)
+    return DemOrientation(
+        str(run.reference_path), tuple(patches), run.ref.mean_h, offsets, record, verdict,
+        float(run.sigma_apriori_m), control, summary.to_dict(), grads,
+        {"theta": fit.theta.tolist(), "centre": list(fit.basis.centre), "scale": fit.basis.scale,
+         "terms": list(fit.basis.terms), "cov": np.where(np.isfinite(fit.cov), fit.cov, 0.0).tolist(),
+         "offset": fit.offset.tolist(), "source": source},
+        expected.to_dict(),
+        {"sigma_b_m": fit.sigma_b.tolist(), "iterations": fit.iterations, "cells": int(np.sum(fit.cells)),
+         "rejected": [index[j] for j in fit.rejected], "gcp_observations": 0 if gcps is None else len(gcps),
+         "reason": fit.reason})

@@ -42,7 +42,9 @@ def test_orient_from_srtm_in_the_window(qtbot, window, sim, truth, job_done):
     assert "σ 50 m per view" in tool.panel.summary.text()
     assert record["verdict"]["status"] == "ok" and "trusted" in tool.panel.verdict.text()
     sg = record["sigma_m"]
-    assert f"planimetric {(sg['E'] ** 2 + sg['N'] ** 2) ** 0.5:.1f} m, height {sg['h']:.1f} m" in tool.panel.verdict.text()
+    assert (f"After the run: planimetric {(sg['E'] ** 2 + sg['N'] ** 2) ** 0.5:.1f} m" in tool.panel.verdict.text()
+            and f"height {sg['h']:.1f} m" in tool.panel.verdict.text())
+    assert "Expected from the terrain before the run" in tool.panel.verdict.text()
     assert tool._items, "no shift vectors on the N view"
 
     # the solver reports it like a GCP orientation: ICP statistics against the simulator's truth
@@ -152,9 +154,10 @@ def test_the_default_patch_size_follows_the_scene(window):
 
 
 def test_an_untrusted_orientation_is_applied_only_on_the_operators_yes(qtbot, window, sim, monkeypatch, job_done):
-    """Through the menu: a-priori σ 60 m and 1.5 km patches on a 3 km scene → 4 patches, too few
-    to test the field. The question states the verdict; No leaves the GCP orientation (the
-    result stays in the dock, not applied); the dock's button applies it after all."""
+    """Through the menu: a-priori σ 60 m and a target σ of 0.2 m, finer than this terrain can fix
+    the orientation → refused (too_smooth). The question states the verdict and what would
+    help; No leaves the GCP orientation (the result stays in the dock, not applied, with the σ
+    expected before the run and the σ after it); the dock's button applies it after all."""
     from PySide6.QtWidgets import QDialog, QMessageBox
 
     from prismstation.gui.tools import dem_orientation as mod
@@ -162,9 +165,11 @@ def test_an_untrusted_orientation_is_applied_only_on_the_operators_yes(qtbot, wi
 
     def fake_exec(dlg):
         assert dlg.sigma.value() == 50.0                  # the default a-priori σ is shown
+        assert dlg.target.value() == 5.0                  # and the default target σ
         dlg.path.setText(str(sim / "srtm.tif"))
-        dlg.patch.setValue(1.5)
         dlg.sigma.setValue(60.0)
+        dlg.target.setValue(0.5)
+        dlg.target.setValue(dlg.target.minimum())
         return QDialog.DialogCode.Accepted
 
     monkeypatch.setattr(mod.OrientDialog, "exec", fake_exec)
@@ -180,15 +185,18 @@ def test_an_untrusted_orientation_is_applied_only_on_the_operators_yes(qtbot, wi
         window.interactive = False
     title, text = asked[0]
     assert title == "Orientation from the reference DEM"
-    assert "NOT TRUSTED (too_few)" in text and "Apply it anyway?" in text
+    assert "NOT TRUSTED (too_smooth)" in text and "What would help: GCPs" in text and "Apply it anyway?" in text
     qtbot.waitUntil(lambda: tool.panel.apply_button.isVisible() or not tool.dock.isVisible(), timeout=5000)
     assert window.project.settings.orientation == "gcp" and window.project.dem_control is None
     assert "NOT APPLIED" in tool.panel.summary.text() and "σ 60 m per view" in tool.panel.summary.text()
-    assert "NOT TRUSTED (too_few)" in tool.panel.verdict.text()
+    shown = tool.panel.verdict.text()
+    assert "NOT TRUSTED (too_smooth)" in shown and "target is 0.5 m" in shown
+    assert "Expected from the terrain before the run: planimetric" in shown and "After the run: planimetric" in shown
+    assert "What would help" in shown
     assert window.statusBar().currentMessage().startswith("Not applied: Verdict: NOT TRUSTED")
     qtbot.mouseClick(tool.panel.apply_button, __import__("PySide6.QtCore", fromlist=["Qt"]).Qt.MouseButton.LeftButton)
     assert window.project.settings.orientation == "dem"
     record = window.project.dem_control
-    assert record["sigma_apriori_m"] == 60.0 and record["verdict"]["status"] == "too_few"
+    assert record["sigma_apriori_m"] == 60.0 and record["verdict"]["status"] == "too_smooth"
     assert not tool.panel.apply_button.isVisible() and "in use" in tool.panel.summary.text()
     assert "NOT TRUSTED" in window.statusBar().currentMessage()

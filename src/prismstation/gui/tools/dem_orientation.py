@@ -30,7 +30,7 @@ from PySide6.QtWidgets import (QDialog, QDialogButtonBox, QDoubleSpinBox, QFileD
                                QHBoxLayout, QLabel, QLineEdit, QMessageBox, QPushButton, QTableWidget,
                                QTableWidgetItem, QVBoxLayout, QWidget)
 
-from prismstation.core.consistency import MIN_PATCHES
+from prismstation.core.conditioning import MIN_PATCHES, TARGET_M, SigmaSummary
 from prismstation.core.dem_orient import patch_windows
 from prismstation.gui import settings as st
 from prismstation.gui.titles import fit_title
@@ -99,7 +99,7 @@ class OrientDialog(QDialog):
     changed it) and the a-priori geolocation σ per view; says how many patches the size gives."""
 
     def __init__(self, parent=None, path: str = "", patch_km: float | None = None,
-                 sigma_m: float = SIGMA_APRIORI_M, scene=None):
+                 sigma_m: float = SIGMA_APRIORI_M, scene=None, target_m: float = TARGET_M):
         super().__init__(parent)
         self.setWindowTitle("Orient from reference DEM")
         fit_title(self)
@@ -121,6 +121,10 @@ class OrientDialog(QDialog):
         self.sigma.setToolTip("σ of each view's ancillary geolocation, per component: every search "
                               "covers 3 σ. 50 m: the shifts Gonçalves reports for uncalibrated "
                               "products; about 10 m for calibrated ones.")
+        self.target = QDoubleSpinBox(decimals=1, minimum=0.5, maximum=100.0, singleStep=0.5, suffix=" m")
+        self.target.setValue(target_m)
+        self.target.setToolTip("The planimetric and height σ the orientation must reach to be trusted: "
+                               "terrain too smooth to fix it that well is refused, with what would help.")
         form = QFormLayout(self)
         form.addRow(QLabel("Orientation with no GCP: the image DSM is matched to the reference\n"
                            "(SRTM .hgt or GeoTIFF, orthometric heights) patch by patch."))
@@ -128,6 +132,7 @@ class OrientDialog(QDialog):
         form.addRow("Patch size", self.patch)
         form.addRow("", self.patches)
         form.addRow("Geolocation σ per view", self.sigma)
+        form.addRow("Target σ", self.target)
         bb = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel)
         bb.accepted.connect(self.accept)
         bb.rejected.connect(self.reject)
@@ -159,7 +164,7 @@ class OrientDialog(QDialog):
 class PatchTable(QWidget):
     """The patches of the stored DEM orientation: position, shift, σ, used or why rejected."""
 
-    HEADERS = ("x px", "y px", "dE m", "dN m", "dh m", "σE m", "σN m", "σh m", "|w|", "state")
+    HEADERS = ("x px", "y px", "dE m", "dN m", "dh m", "σE m", "σN m", "σh m", "T/dof", "state")
 
     def __init__(self, parent=None):
         super().__init__(parent)
@@ -192,13 +197,11 @@ class PatchTable(QWidget):
         self.table.setSortingEnabled(False)
         patches = (record or {}).get("patches", [])
         verdict = (record or {}).get("verdict") or {}
-        # the normalised residual |w| of each patch the test kept (in the order of the usable ones)
-        usable = [i for i, p in enumerate(patches) if p.get("used") or "blunder" in (p.get("reason") or "")]
-        w = dict(zip(usable, verdict.get("w") or []))
         self.table.setRowCount(len(patches))
         for i, p in enumerate(patches):
-            vals = [p["x"], p["y"], p["dE"], p["dN"], p["dh"], p["sigma_E"], p["sigma_N"], p["sigma_h"],
-                    w.get(i)]
+            # each patch's χ² test against the other patches' field, per direction it fixes
+            t = _num(p.get("T")) / p["dof"] if p.get("dof") else None
+            vals = [p["x"], p["y"], p["dE"], p["dN"], p["dh"], p["sigma_E"], p["sigma_N"], p["sigma_h"], t]
             for j, v in enumerate(vals):
                 it = QTableWidgetItem()
                 v = _num(v)
@@ -236,16 +239,23 @@ class PatchTable(QWidget):
 
 
 def verdict_text(record) -> str:
-    """One line on whether the stored orientation's patch field can be trusted, and its σ."""
+    """Whether the stored orientation can be trusted: the σ the terrain was expected to allow
+    before the run, the σ stated after it, the verdict and what would help."""
     v = (record or {}).get("verdict")
     if not v:
-        return "No consistency verdict (an orientation made by an earlier version, before the consistency test): not tested."
-    sg = {k: _num(x) for k, x in ((record or {}).get("sigma_m") or {}).items()}
-    sigma = (f" Orientation σ (in the reference DEM's frame): planimetric "
-             f"{np.hypot(sg['E'], sg['N']):.1f} m, height {sg['h']:.1f} m." if {"E", "N", "h"} <= set(sg) else "")
+        return "No verdict (an orientation made by an earlier version): not tested."
+    def sigma(key, label):
+        d = (record or {}).get(key)
+        if not d:
+            return ""
+        s = SigmaSummary.from_dict(d)
+        return (f" {label}: planimetric {s.plan:.1f} m ({s.along:.1f} m along track, {s.across:.1f} m across), "
+                f"height {s.h:.1f} m.")
+    text = sigma("expected_sigma_m", "Expected from the terrain before the run") + sigma("sigma_m", "After the run")
     if v.get("status") == "ok":
-        return f"Verdict: trusted — the patch shifts agree with their σ ({v.get('message', '')}).{sigma}"
-    return f"Verdict: NOT TRUSTED ({v.get('status')}) — {v.get('message', '')}{sigma}"
+        return f"Verdict: trusted ({v.get('message', '')}).{text}"
+    advice = f" What would help: {v['advice']}." if v.get("advice") else ""
+    return f"Verdict: NOT TRUSTED ({v.get('status')}) — {v.get('message', '')}.{text}{advice}"
 
 
 class DemOrientationTool:
@@ -257,6 +267,7 @@ class DemOrientationTool:
         self.result = None
         self.patch_km = None  # None: chosen from the scene's size
         self.sigma_m = SIGMA_APRIORI_M
+        self.target_m = TARGET_M
         self.declined = None  # (project, record) of an untrusted result the operator declined
         self.last_path = ""
         self._items = []
@@ -280,12 +291,12 @@ class DemOrientationTool:
         if self.ctx.project is None:
             return
         dlg = OrientDialog(self.ctx.widget, self.reference_path(), self.patch_km, self.sigma_m,
-                           self.ctx.project.scene)
+                           self.ctx.project.scene, self.target_m)
         if dlg.exec() == QDialog.DialogCode.Accepted and dlg.path.text():
             km = dlg.patch.value()
             self.patch_km = None if abs(km - dlg.auto_km) < 1e-9 else km  # the operator's own size is kept
-            self.sigma_m, self.last_path = dlg.sigma.value(), dlg.path.text()
-            self.start(dlg.path.text(), km * 1000.0, sigma_m=self.sigma_m)
+            self.sigma_m, self.last_path, self.target_m = dlg.sigma.value(), dlg.path.text(), dlg.target.value()
+            self.start(dlg.path.text(), km * 1000.0, sigma_m=self.sigma_m, target_m=self.target_m)
 
     def reference_path(self) -> str:
         """The DEM to offer: the project's reference DEM, else the one loaded, else the last used."""
@@ -295,7 +306,7 @@ class DemOrientationTool:
                 str(loaded.path) if loaded is not None and getattr(loaded, "path", None) else self.last_path)
 
     def start(self, reference_path, patch_m: float = 4000.0, posting_m: float = 30.0,
-              sigma_m: float = SIGMA_APRIORI_M):
+              sigma_m: float = SIGMA_APRIORI_M, target_m: float = TARGET_M):
         """Orient the window's project from ``reference_path`` in a worker; returns the Job."""
         from prismstation.gui.solver import snapshot
         from prismstation.ops.orient_dem import orient_from_dem
@@ -309,7 +320,7 @@ class DemOrientationTool:
 
         def work(progress):
             return orient_from_dem(snap, path, sigma_apriori_m=sigma_m, patch_m=patch_m,
-                                   posting_m=posting_m, progress=lambda f, m="": progress(f, m))
+                                   posting_m=posting_m, target_m=target_m, progress=lambda f, m="": progress(f, m))
 
         self.job = run_with_progress(self.ctx, "Orientation from the reference DEM", work,
                                      lambda res: self._apply(project, res))
@@ -345,7 +356,9 @@ class DemOrientationTool:
         v = record.get("verdict") or {}
         box = QMessageBox(QMessageBox.Icon.Warning, "Orientation from the reference DEM",
                           f"The orientation from the reference DEM is NOT TRUSTED ({v.get('status')}): "
-                          f"{v.get('message', '')}.\n\nApply it anyway? It would replace the GCP "
+                          f"{v.get('message', '')}."
+                          + (f"\n\nWhat would help: {v['advice']}." if v.get("advice") else "")
+                          + "\n\nApply it anyway? It would replace the GCP "
                           "orientation (Edit ▸ Undo or Tools ▸ Back to GCP orientation return to it).",
                           QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, self.ctx.widget)
         box.setDefaultButton(QMessageBox.StandardButton.No)
