@@ -302,12 +302,11 @@ def test_transfer_finds_a_real_feature_in_the_other_images(qtbot, win):
     assert max(np.hypot(*r.residual_px[v]) for v in VIEWS) < 1.0  # the three rays meet
 
 
-def test_tools_that_cannot_work_on_rpc_images_say_so(qtbot, win):
-    dsm = win.tool_context.tools["dsm"]
-    assert not dsm.action.isEnabled()
-    assert "dsm is not available yet for images with RPCs" in dsm.action.toolTip()
-    assert dsm.start(None) is None
-    assert "not available" in win.statusBar().currentMessage()
+def test_the_dsm_and_orientation_tools_are_offered(qtbot, win):
+    """Images with RPCs list ``dsm`` and ``orient-dem`` among their workflows (the jobs
+    themselves: tests/gui/tools/test_rpc_workflows_window.py)."""
+    assert win.tool_context.tools["dsm"].action.isEnabled()
+    assert win.tool_context.tools["dem_orientation"].a_orient.isEnabled()
     assert win.tool_context.tools["transfer"].a_ties.isEnabled()  # automatic tie points: any views
 
 

@@ -97,7 +97,11 @@ def test_project_settings_are_checked_against_the_sensor_model(shared_data, tmp_
     assert load_project(path).settings.fixed_view == "img_02"
 
 
-def test_orient_dem_and_dsm_refuse_an_rpc_project_in_one_line(shared_data, tmp_path, capsys):
+def test_a_command_the_model_does_not_list_is_refused_in_one_line(shared_data, tmp_path, capsys, monkeypatch):
+    """``ops.project.require_workflow``: a sensor model whose ``workflows`` do not list a
+    command (here the RPC model with ``orient-dem`` and ``dsm`` taken out) refuses it."""
+    from prismstation.core.rpc_model import RpcModel
+    monkeypatch.setattr(RpcModel, "workflows", frozenset({"fit", "report"}))
     proj = tmp_path / "p.prismproj"
     assert main(["new", str(proj), "--images", *(str(shared_data / f) for f in PAIR)]) == 0
     capsys.readouterr()

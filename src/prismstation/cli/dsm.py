@@ -1,9 +1,11 @@
 """``prismstation dsm PROJECT -o dsm.tif [--posting m] [--window c r w h] [--reference DEM]
-[--orthometric] [--fill] [--min-fill %] [--heights auto|line|rays] [--scheduler ADDRESS]``: the triplet's DSM as a COG GeoTIFF.
+[--orthometric] [--fill] [--min-fill %] [--heights auto|line|rays] [--scheduler ADDRESS]``: the project's DSM as a COG GeoTIFF.
 
-The export is :func:`prismstation.ops.dsm_export.export_dsm`, the same as the window's. Exit
-status 3 (after writing the file) when fewer than ``--min-fill`` percent of the cells all three
-images see got a matched height.
+The export is the sensor model's (:mod:`prismstation.ops.workflows`: a PRISM triplet's
+:func:`prismstation.ops.dsm_export.export_dsm`, images with RPCs
+:func:`prismstation.ops.rpc_project.export_rpc_dsm`, which prints the pairs' agreement), the
+same as the window's. Exit status 3 (after writing the file) when fewer than ``--min-fill``
+percent of the cells all images see got a matched height.
 """
 from __future__ import annotations
 
@@ -11,10 +13,11 @@ import sys
 
 from prismstation.cli._common import end_progress, existing, progress_printer
 from prismstation.io.project import load_project
-from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest, export_dsm
+from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest
 from prismstation.ops.fit import solve_project
 from prismstation.ops.project import require_workflow
 from prismstation.ops.reference_heights import load_for_scene
+from prismstation.ops.workflows import workflows
 
 LOW_FILL_STATUS = 3
 
@@ -53,18 +56,28 @@ def run(args) -> int:
     request = DsmRequest(args.output, tuple(args.window) if args.window else None, args.posting,
                          args.orthometric, args.height_uncertainty, args.fill, args.min_fill,
                          args.heights, args.scheduler, args.workers)
-    out = export_dsm(sol, project, request, reference=reference, progress=progress_printer())
+    out = workflows(project).export_dsm(sol, project, request, reference=reference, progress=progress_printer())
     dsm = out.dsm
     end_progress()
     fill = out.fill_percent
     rows, cols = dsm.heights.shape
+    n = len(project.scene.views)
     print(f"wrote {args.output}: {cols} × {rows} cells at {args.posting:g} m, {dsm.height_kind} heights, "
-          f"{fill:.1f} % of the {out.seen_cells} cells all three images see matched"
-          + (f", {out.filled_percent:.1f} % filled" if args.fill else ""))
-    hm = dsm.info["heights"]
-    print(f"heights: {'the parallax line' if hm['model'] == 'line' else 'the rays through the biases'} ({hm['reason']})")
+          f"{fill:.1f} % of the {out.seen_cells} cells {'both' if n == 2 else 'all three' if n == 3 else f'all {n}'} "
+          "images see matched" + (f", {out.filled_percent:.1f} % filled" if args.fill else ""))
+    hm = dsm.info.get("heights")
+    if hm:
+        line = "the parallax line" if hm["model"] == "line" else "the rays through the biases"
+        print(f"heights: {line} ({hm['reason']})")
+    for pair, a in dsm.info.get("pair_agreement", {}).items():
+        print(f"pairs {pair}: NMAD {_m(a['nmad_m'])} m, median {_m(a['median_m'])} m over {a['cells']} cells "
+              f"({_m(a['nmad_in_sigma'])} of their σ)")
     if out.low_fill:
         print(f"prismstation dsm: LOW FILL: only {fill:.1f} % of the seen cells matched "
               f"(threshold {args.min_fill:g} %); the voids are marked 0 in the mask band", file=sys.stderr)
         return LOW_FILL_STATUS
     return 0
+
+
+def _m(v) -> str:
+    return "–" if v is None else f"{v:.2f}"

@@ -75,7 +75,7 @@ class RpcAdjustment:
 def adjust(models: Sequence[Rpc], point, image, xy, sigma, *, bias="shift", fixed=None,
            gcp_point=(), gcp_llh=None, gcp_sigma=None, height_point=(), height=None,
            height_sigma=None, centres=None, n_points: int | None = None, bias_sigma=None,
-           max_iter: int = 20, tol: float = 1e-6) -> RpcAdjustment:
+           bias_prior=None, max_iter: int = 20, tol: float = 1e-6) -> RpcAdjustment:
     """Fit each image's bias and every point's ground to the observations.
 
     ``models`` ``Rpc`` per image (of a :class:`BiasedRpc` only its RPC is used: the biases
@@ -89,6 +89,9 @@ def adjust(models: Sequence[Rpc], point, image, xy, sigma, *, bias="shift", fixe
     ``bias_sigma``: the a-priori σ of the bias parameters (Grodecki & Dial 2003's a-priori
     covariance of the adjustment parameters): a function ``kind → (p,)`` σ in the parameters'
     units, each parameter then observed as 0 with that σ; None: no a-priori weight.
+    ``bias_prior``: image index → ``(values (p,), σ (p,))`` of its ``bias`` model's
+    parameters observed a priori (an orientation made elsewhere: from a reference DEM), in
+    place of ``bias_sigma``'s zeros, at that image's ``centres`` (give them).
 
     Raises :class:`~prismstation.errors.DegenerateGeometry` when the biases are not
     determined (say no GCP and no fixed image) and :class:`ModelError` when a point is
@@ -134,18 +137,22 @@ def adjust(models: Sequence[Rpc], point, image, xy, sigma, *, bias="shift", fixe
         if cols[k].stop > cols[k].start:
             D[sel, :, cols[k]] = bias_design(kinds[k], xy[sel, 0], xy[sel, 1], *centres[k])
     w = 1.0 / sig ** 2
-    params = np.zeros(nb)
     prior_w = np.zeros(nb)                 # 1/σ² of each parameter's a-priori observation (0: none)
-    if bias_sigma is not None:
-        for k in range(ni):
-            if cols[k].stop > cols[k].start:
+    prior_mu = np.zeros(nb)                # its a-priori value
+    for k in range(ni):
+        if cols[k].stop > cols[k].start:
+            if bias_prior and k in bias_prior:
+                prior_mu[cols[k]] = np.asarray(bias_prior[k][0], float)
+                prior_w[cols[k]] = 1.0 / np.asarray(bias_prior[k][1], float) ** 2
+            elif bias_sigma is not None:
                 prior_w[cols[k]] = 1.0 / np.asarray(bias_sigma(kinds[k]), float) ** 2
+    params = prior_mu.copy()               # the biases start from their a-priori values
 
     def biased():
         return [BiasedRpc(rpcs[k], "none" if k in fixed else kinds[k],
                           None if k in fixed else params[cols[k]], *centres[k]) for k in range(ni)]
 
-    # first ground: GCPs where known, others intersected with the a-priori (zero) biases
+    # first ground: GCPs where known, others intersected with the a-priori biases
     hc = np.full(n, np.nan)
     hs = np.full(n, np.nan)
     hc[height_point], hs[height_point] = hval, hsig
@@ -160,7 +167,7 @@ def adjust(models: Sequence[Rpc], point, image, xy, sigma, *, bias="shift", fixe
 
     for it in range(1, max_iter + 1):
         sol = _normal_solve(biased(), point, image, xy, w, D, lon, lat, h, n, gcp_point, gcp_llh,
-                            gcp_sig, height_point, hval, hsig, need_cov=False, prior=(prior_w, params))
+                            gcp_sig, height_point, hval, hsig, need_cov=False, prior=(prior_w, params - prior_mu))
         db, dp = sol["db"], sol["dp"]
         params = params + db
         ke, kn = metres_per_degree(lat, h)
@@ -170,12 +177,12 @@ def adjust(models: Sequence[Rpc], point, image, xy, sigma, *, bias="shift", fixe
     else:
         raise ModelError(f"RPC bias adjustment did not converge in {max_iter} iterations")
     fin = _normal_solve(biased(), point, image, xy, w, D, lon, lat, h, n, gcp_point, gcp_llh,
-                        gcp_sig, height_point, hval, hsig, need_cov=True, prior=(prior_w, params))
+                        gcp_sig, height_point, hval, hsig, need_cov=True, prior=(prior_w, params - prior_mu))
     n_obs = 2 * m + 3 * g + hk + int(np.count_nonzero(prior_w))
     dof = n_obs - nb - 3 * n
     if dof < 0:
         raise degenerate(f"RPC bias adjustment: {nb + 3 * n} unknowns, {n_obs} observations")
-    wv = [fin["v"] * np.sqrt(w), fin["vg"] / gcp_sig, fin["vh"] / hsig, params * np.sqrt(prior_w)]
+    wv = [fin["v"] * np.sqrt(w), fin["vg"] / gcp_sig, fin["vh"] / hsig, (params - prior_mu) * np.sqrt(prior_w)]
     ssr = float(sum(np.sum(a * a) for a in wv))
     sigma0 = float(np.sqrt(ssr / dof)) if dof > 0 else float("nan")
     s2 = sigma0 ** 2 if dof > 0 else 1.0

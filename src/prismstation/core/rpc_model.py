@@ -154,7 +154,7 @@ class RpcModel:
     height_source = "intersection"
     holds_view_fixed = True
     description = "images with RPCs"
-    workflows = frozenset({"fit", "report"})
+    workflows = frozenset({"fit", "report", "orient-dem", "dsm"})
 
     def __init__(self, scene, bias: dict | None = None):
         self.scene = scene

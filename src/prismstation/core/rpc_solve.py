@@ -1,6 +1,7 @@
 """The RPC model's fit of a project (:mod:`prismstation.core.sensor`): every image's bias by the
 bias-compensated block adjustment of :mod:`prismstation.core.rpc_adjust` (Grodecki & Dial 2003;
-Fraser & Hanley 2003) on the GCPs and the tie points, then every point evaluated as the
+Fraser & Hanley 2003) on the GCPs and the tie points (and, after an orientation from a
+reference DEM, each bias's a-priori value: :class:`BiasPrior`), then every point evaluated as the
 :class:`~prismstation.core.solve.Solution` of the PRISM model is.
 
 What enters the adjustment: GCPs measured in one image or more (their known ground weighted
@@ -24,6 +25,7 @@ on the normal scale (:func:`~prismstation.core.solve.normal_equivalent`), beyond
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -70,11 +72,11 @@ def solve_rpc(scene, points, settings: Settings = Settings(), *, height_of=None,
     """Fit every view's bias to ``points`` (:class:`~prismstation.core.solve.PointObs`) and
     evaluate every point (module docstring). ``height_of``: the reference DEM's ellipsoidal
     heights at map points ``(n, 2)`` → ``(n,)``, ``height_sigma_m`` their σ (without it tie
-    points are not held to them, and a message says so). Raises :class:`ModelError` only for settings this model does
-    not have (an unknown bias model or view, a DEM control); data the operator can fix are
-    messages."""
-    if control is not None:
-        raise ModelError("orientation from a reference DEM (DEM control) is not available for RPC images")
+    points are not held to them, and a message says so). ``control``: view →
+    :class:`BiasPrior`, each view's bias known a priori (an orientation from a reference DEM):
+    its parameters are observed at those values with their σ and no view is held fixed unless
+    ``settings.fixed_view`` names one. Raises :class:`ModelError` only for settings this model
+    does not have (an unknown bias model or view); data the operator can fix are messages."""
     kind = settings.bias_model
     if kind not in BIAS_MODELS:
         raise ModelError(f"bias model {kind!r} is not one the RPC model offers ({', '.join(BIAS_MODELS)})")
@@ -87,9 +89,10 @@ def solve_rpc(scene, points, settings: Settings = Settings(), *, height_of=None,
     messages: list[str] = []
     failures: dict = {}
     ref = scene.reference_view
-    fixed_name = settings.fixed_view or (ref if not run.gcps and kind != "none" else None)
+    prior = _priors(control, names, kind, messages)
+    fixed_name = settings.fixed_view or (ref if not run.gcps and kind != "none" and not prior else None)
     fixed = () if fixed_name is None else (names.index(fixed_name),)
-    if not run.gcps and settings.fixed_view is None and kind != "none" and run.block:
+    if not run.gcps and settings.fixed_view is None and kind != "none" and run.block and not prior:
         messages.append(f"no GCP: view {ref} held fixed; the other views' biases are relative to its RPC")
     use_dem = height_of is not None and dem_needed(len(run.gcps), kind)
     if use_dem and not (height_sigma_m is not None and height_sigma_m > 0):
@@ -108,7 +111,8 @@ def solve_rpc(scene, points, settings: Settings = Settings(), *, height_of=None,
         reason = ""
         for m in [kind] if kind == "none" else [k for k in LADDER if BIAS_MODELS[k] <= BIAS_MODELS[kind]]:
             try:
-                result, held = run.adjust(m, fixed, height_of if use_dem else None, height_sigma_m)
+                result, held = run.adjust(m, fixed, height_of if use_dem else None, height_sigma_m,
+                                          _prior_as(prior, m))
             except DegenerateGeometry as exc:
                 reason = str(exc)
                 continue
@@ -125,7 +129,7 @@ def solve_rpc(scene, points, settings: Settings = Settings(), *, height_of=None,
             failures[ref] = FailedFit(DegenerateGeometry(reason) if "determined" in reason else ModelError(reason))
         else:
             bias = run.biases(result, m, fixed)
-            messages += _undetermined(bias, result, bool(run.gcps) or bool(held.any()))
+            messages += _undetermined(bias, result, bool(run.gcps) or bool(held.any()) or bool(prior))
             if held.any():
                 messages.append(f"{int(held.sum())} tie points held to the reference DEM's heights "
                                 f"(σ {height_sigma_m:.1f} m): fewer GCPs than the {m} bias needs")
@@ -163,14 +167,20 @@ class _Block:
         self.gcp_llh = np.column_stack([lon, lat, g[:, 2]])
         self.gcp_sigma = np.array([_ground_sigma(p.sigma_ground) for p in self.gcps], float).reshape(-1, 3)
 
-    def adjust(self, kind, fixed, height_of, height_sigma):
+    def adjust(self, kind, fixed, height_of, height_sigma, prior=None):
         """The adjustment with the ``kind`` bias; with ``height_of`` the tie points are held to
-        the DEM's heights, taken again where the adjusted points moved (three rounds at most).
+        the DEM's heights, taken again where the adjusted points moved (three rounds at most);
+        ``prior``: view index → :class:`BiasPrior` in ``kind``'s parameters.
         Returns ``(RpcAdjustment, held (n,) bool)``."""
         n, g = len(self.block), len(self.gcps)
         rpcs = [self.scene.views[v].rpc for v in self.names]
+        centres = np.array([self.xy[self.image == k].mean(0) if np.any(self.image == k) else (0.0, 0.0)
+                            for k in range(len(self.names))])
+        for k, p in (prior or {}).items():
+            centres[k] = (p.x0, p.y0)
         common = dict(bias=kind, fixed=fixed, n_points=n, gcp_point=np.arange(g), gcp_llh=self.gcp_llh,
-                      gcp_sigma=self.gcp_sigma, bias_sigma=apriori_sigma)
+                      gcp_sigma=self.gcp_sigma, bias_sigma=apriori_sigma, centres=centres,
+                      bias_prior={k: (p.params, p.sigma) for k, p in (prior or {}).items()})
         held = np.zeros(n, bool)
         if height_of is None:
             return adjust(rpcs, self.point, self.image, self.xy, self.sigma, **common), held
@@ -321,6 +331,49 @@ class _Block:
                                    source[i] if e else None, gres, s if math.isfinite(s) else None, red,
                                    math.isfinite(s) and s > settings.blunder_threshold, note, sg))
         return out
+
+
+class BiasPrior(NamedTuple):
+    """A view's bias known a priori (an orientation from a reference DEM): the ``model``'s
+    ``params`` with their ``sigma`` (same units), at the reference point ``(x0, y0)`` px."""
+
+    model: str
+    params: tuple
+    sigma: tuple
+    x0: float
+    y0: float
+
+
+def _priors(control, names, kind, messages) -> dict:
+    """``control`` (view → :class:`BiasPrior`, or None) by view index; a message says so."""
+    if not control:
+        return {}
+    unknown = sorted(set(control) - set(names))
+    if unknown:
+        raise ModelError(f"the a-priori biases name views the scene does not have: {', '.join(unknown)}")
+    if kind != "none":
+        messages.append("biases a priori from the orientation on a reference DEM (" + ", ".join(
+            f"{v}: " + ", ".join(f"{n} {p:+.2f} ± {s:.2f}" for n, p, s in zip(BIAS_NAMES[b.model], b.params, b.sigma))
+            for v, b in control.items()) + "); no view held fixed: the block's datum is the reference's")
+    return {names.index(v): BiasPrior(*b) for v, b in control.items()}
+
+
+def _prior_as(prior: dict, kind: str) -> dict:
+    """The a-priori biases in ``kind``'s parameters: a parameter the prior has keeps its value
+    and σ, another is 0 with :func:`apriori_sigma`."""
+    out = {}
+    for k, b in prior.items():
+        have = dict(zip(BIAS_NAMES[b.model], zip(b.params, b.sigma)))
+        base = dict(zip(BIAS_NAMES[kind], apriori_sigma(kind)))
+        vals = [have.get(n, (0.0, base[n])) for n in BIAS_NAMES[kind]]
+        out[k] = BiasPrior(kind, tuple(v[0] for v in vals), tuple(max(float(v[1]), MIN_PRIOR_SIGMA_PX) for v in vals),
+                           b.x0, b.y0)
+    return out
+
+
+#: the smallest σ an a-priori bias parameter is given (px): a co-registration's formal σ of a few
+#: hundredths would otherwise freeze the bias against the tie points
+MIN_PRIOR_SIGMA_PX = 0.05
 
 
 def _undetermined(bias: dict, res, controlled: bool) -> list[str]:

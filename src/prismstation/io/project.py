@@ -167,8 +167,10 @@ def load_project(path, *, scene_override=None) -> Project:
     dem = data.get(REFERENCE_DEM) if version >= 2 else None
     if dem is not None and not (isinstance(dem, str) and dem and "\0" not in dem):
         raise InputError(f'"{REFERENCE_DEM}": expected the path of a DEM file', path, line_of(text, REFERENCE_DEM))
-    if control is not None and not (isinstance(control, dict) and isinstance(control.get("patches"), list)):
-        raise InputError(f'"{DEM_CONTROL}": expected an object with "patches"', path, line_of(text, DEM_CONTROL))
+    if control is not None and not (isinstance(control, dict) and (isinstance(control.get("patches"), list)
+                                                                   or isinstance(control.get("biases"), dict))):
+        raise InputError(f'"{DEM_CONTROL}": expected an object with "patches" (a PRISM triplet) or "biases" '
+                         '(images with RPCs)', path, line_of(text, DEM_CONTROL))
     if reloc is not None and not (isinstance(reloc, dict) and all(isinstance(v, str) for v in reloc.values())):
         raise InputError(f'"{RELOCATED}": expected an object view → path', path, line_of(text, RELOCATED))
     if product is not None and not isinstance(product, str):

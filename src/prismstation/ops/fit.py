@@ -14,7 +14,7 @@ from prismstation.io.geoid import to_ellipsoidal
 from prismstation.io.project import project_geoid
 from prismstation.io.report import report_dict, report_header
 from prismstation.model.project import Project, has_ground
-from prismstation.ops.orient_dem import control_from_record
+from prismstation.ops.workflows import workflows
 
 #: the bias and parallax models a fit can use, of every sensor model (their names: the front
 #: ends' choices; a project's own are ``project.scene.sensor.bias_models``)
@@ -53,7 +53,7 @@ def solve_project(project: Project, *, height_of=None, height_sigma_m: float | N
             raise InputError("the project is set to orientation from a reference DEM but holds no "
                              "DEM control: run orient-dem first")
         try:
-            control = control_from_record(project.scene, project.dem_control)
+            control = workflows(project).control_from_record(project.scene, project.dem_control)
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f'the project\'s "dem_control" record is malformed ({exc!r}): run '
                              "orient-dem again") from None

@@ -36,6 +36,7 @@ from prismstation.core.rpc_bias import as_biased
 from prismstation.core.stats import nmad
 from prismstation.errors import InputError, ModelError
 from prismstation.io.dem import read_dem
+from prismstation.io.rpc_scene import utm_crs
 from prismstation.ops.dsm import MASK_MATCHED, Dsm
 from prismstation.ops.dsm_tiles import run_tiles
 from prismstation.ops.rpc_dsm_tiles import (BlockTile, Grid, image_shape, run_block_tile, to_lonlat,  # noqa: F401
@@ -51,12 +52,6 @@ MIN_TILE_POINTS = 5
 PRIOR_MARGIN_M = 40.0
 #: output cells per tile side
 TILE_CELLS = 256
-
-
-def utm_crs(lon: float, lat: float) -> str:
-    """The WGS 84 UTM zone's CRS at ``(lon, lat)``."""
-    zone = int(np.floor((lon + 180.0) / 6.0)) % 60 + 1
-    return f"EPSG:{(32600 if lat >= 0 else 32700) + zone}"
 
 
 def rpc_height_domain(models) -> tuple[float, float]:

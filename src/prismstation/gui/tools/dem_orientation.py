@@ -34,6 +34,7 @@ from prismstation.core.conditioning import MIN_PATCHES, TARGET_M, SigmaSummary
 from prismstation.core.dem_orient import patch_windows
 from prismstation.gui import settings as st
 from prismstation.gui.titles import fit_title
+from prismstation.gui.tools import _rpc_orientation as rpc_orientation
 from prismstation.gui.tools._worker import run_with_progress
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 
@@ -214,8 +215,9 @@ class PatchTable(QWidget):
             self.table.setItem(i, len(vals), it)
         self.table.setSortingEnabled(True)
         self.table.resizeColumnsToContents()
-        if record is None:
-            self.summary.setText("No orientation from a reference DEM yet (Tools ▸ Orient from reference DEM…).")
+        if record is None or "biases" in record:   # none yet, or images with RPCs
+            self.summary.setText(rpc_orientation.summary(record) if record else
+                                 "No orientation from a reference DEM yet (Tools ▸ Orient from reference DEM…).")
             self.verdict.setText("")
             return
         used = sum(1 for p in patches if p.get("used"))
@@ -311,6 +313,8 @@ class DemOrientationTool:
         project = self.ctx.project
         if project is None or (self.job is not None and self.job.isRunning()):
             return None
+        if not project.scene.is_triplet:   # images with RPCs: their own job
+            return rpc_orientation.start(self, reference_path)
         snap = snapshot(project)
         path = str(reference_path)
 
@@ -381,7 +385,7 @@ class DemOrientationTool:
             self.declined = None  # another project, or oriented since
         if self.declined is not None:
             record, applied = self.declined[1], False
-        self.a_orient.setEnabled(p is not None and p.scene.is_triplet)
+        self.a_orient.setEnabled(rpc_orientation.orientable(p))
         self.a_gcp.setEnabled(active)
         self._draw_vectors()
         shown = (record, active, self.scale, applied)

@@ -1,4 +1,7 @@
-"""Tools ▸ Export DSM…: the triplet's DSM as a GeoTIFF.
+"""Tools ▸ Export DSM…: the project's DSM as a GeoTIFF (a PRISM triplet's, or that of images
+with RPCs: every pair matched and fused through the fitted biases,
+:func:`prismstation.ops.rpc_project.export_rpc_dsm`, the sensor model's export looked up in
+:mod:`prismstation.ops.workflows`).
 
 The whole N image or the area visible in the N view, at a chosen posting, with ellipsoidal or
 orthometric heights (through the project's geoid), computed and written in a worker by the
@@ -45,9 +48,10 @@ class DsmDialog(QDialog):
     """File, extent, posting, height kind and the engine's options."""
 
     def __init__(self, parent, default_path: str, visible: tuple | None, reference: str | None = None,
-                 *, geoid: str | None = None, orthometric: bool = False):
+                 *, geoid: str | None = None, orthometric: bool = False, triplet: bool = True):
         """``geoid``: the project's geoid, described (None: it cannot be used, orthometric
-        heights are off); ``orthometric``: the heights kind to preselect."""
+        heights are off); ``orthometric``: the heights kind to preselect; ``triplet`` False
+        (images with RPCs): the height model and void filling, a triplet's, are off."""
         super().__init__(parent)
         self.setWindowTitle("Export DSM")
         self.visible = visible
@@ -92,6 +96,8 @@ class DsmDialog(QDialog):
         self.heights.setToolTip("heights from the model's parallax line, the rays through its biases, or the "
                                 "one the GCPs predict better, left out in turn")
         self.fill = QCheckBox("fill voids by interpolation (marked 2 in the mask band)")
+        for w in (self.heights, self.fill):
+            w.setEnabled(triplet)
         self.min_fill = QDoubleSpinBox(decimals=0, minimum=0.0, maximum=100.0, singleStep=5.0, suffix=" %")
         self.min_fill.setValue(90.0)
         self.reference = QCheckBox(f"the loaded reference DEM ({reference})" if reference else "no reference DEM loaded")
@@ -134,9 +140,15 @@ def result_message(out) -> tuple[str, bool]:
     dsm, path, fill, seen, filled = out.dsm, out.path, out.fill_percent, out.seen_cells, out.filled_percent
     min_fill_percent = out.request.min_fill_percent
     rows, cols = dsm.heights.shape
+    pairs = len((dsm.info or {}).get("pairs") or [[0, 1], [0, 2], [1, 2]])     # a triplet's three
+    every = {1: "both", 3: "all three"}.get(pairs, "all")
     text = (f"Wrote {path}: {cols} × {rows} cells at {dsm.posting_m:g} m, {dsm.height_kind} heights; "
-            f"{fill:.1f} % of the {seen} cells all three images see matched"
+            f"{fill:.1f} % of the {seen} cells {every} images see matched"
             + (f", {filled:.1f} % filled by interpolation" if filled else ""))
+    agree = (dsm.info or {}).get("pair_agreement") or {}
+    if agree:
+        text += ". Pairs agree to NMAD " + ", ".join(
+            "–" if a.get("nmad_m") is None else f"{a['nmad_m']:.2f}" for a in agree.values()) + " m"
     hm = (dsm.info or {}).get("heights")
     if hm:
         text += f". Heights: {'parallax line' if hm['model'] == 'line' else 'rays through the biases'} ({hm['reason']})"
@@ -213,7 +225,8 @@ class DsmTool:
         kinds = [q.height_kind for q in self.ctx.project.points.values() if has_ground(q)]
         orthometric = bool(kinds) and kinds.count("orthometric") >= kinds.count("ellipsoidal")
         dlg = DsmDialog(self.ctx.widget, str(self.default_path()), visible_window(self.ctx), name,
-                        geoid=self.geoid(), orthometric=orthometric)
+                        geoid=self.geoid(), orthometric=orthometric,
+                        triplet=self.ctx.project.scene.is_triplet)
         if dlg.exec() == QDialog.DialogCode.Accepted and dlg.path.text():
             self.start(dlg.request(), use_reference=dlg.use_reference())
 
@@ -221,7 +234,7 @@ class DsmTool:
         """Compute and write the DSM of ``req`` in a worker, with the loaded reference DEM as
         the prior when ``use_reference``; returns the Job (result: the
         :class:`~prismstation.ops.dsm_export.DsmExport`)."""
-        from prismstation.ops.dsm_export import export_dsm
+        from prismstation.ops.workflows import workflows
         sol, p = self.ctx.solver.solution, self.ctx.project
         if sol is None or p is None:
             self.ctx.status("A DSM needs a fitted model", 8000)
@@ -232,7 +245,7 @@ class DsmTool:
         ref = self.reference() if use_reference else None
 
         def work(progress):
-            return export_dsm(sol, p, req, reference=ref, progress=progress)
+            return workflows(p).export_dsm(sol, p, req, reference=ref, progress=progress)
 
         def done(out):
             self.message, low = result_message(out)

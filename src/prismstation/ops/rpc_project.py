@@ -1,0 +1,175 @@
+"""The DSM and the orientation from a reference DEM of a project of images with RPCs.
+
+The project-level side of :func:`prismstation.ops.rpc_dsm.rpc_dsm` and
+:func:`prismstation.ops.rpc_orient.orient_rpc_from_dem`: the fitted model's biased RPCs
+(``Solution.model.models``), the fit's intersected tie points for the search ranges, the
+project's geoid for an orthometric reference and for orthometric output, and the record an
+orientation leaves in the project (``Project.dem_control``) for the fit to read back as each
+image's a-priori bias (:class:`prismstation.core.rpc_solve.BiasPrior`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+from rasterio.transform import Affine
+
+from prismstation.core.rpc_bias import BIAS_MODELS, BIAS_NAMES
+from prismstation.core.rpc_solve import BiasPrior
+from prismstation.errors import InputError, ModelError
+from prismstation.io.dsm import write_dsm
+from prismstation.io.geoid import undulation_on_grid
+from prismstation.io.project import project_geoid
+from prismstation.ops.dsm_export import COMPUTE_SHARE, DsmExport, DsmRequest
+from prismstation.ops.progress import checkpoint, scaled
+from prismstation.ops.rpc_dsm import rpc_dsm
+from prismstation.ops.rpc_orient import DEFAULT_MAX_SHIFT_M, orient_rpc_from_dem
+
+#: widening (m) of the tie points' height range into the DSM's a-priori range (tiles narrow it
+#: further to their own points': :func:`prismstation.ops.rpc_dsm.tile_height_range`)
+POINTS_MARGIN_M = 100.0
+
+
+def images_and_models(sol, project) -> tuple[list, list]:
+    """The views' image files and their fitted :class:`~prismstation.core.rpc_bias.BiasedRpc`,
+    in the scene's order."""
+    views = project.scene.views
+    missing = [v for v, view in views.items() if not view.image]
+    if missing:
+        raise InputError(f"the scene gives no image file for {', '.join(missing)}", project.scene_path)
+    return [views[v].image for v in views], [sol.model.models[v] for v in views]
+
+
+def tie_points(sol, project):
+    """``(lon°, lat°, h m)`` arrays of every point the fit placed by intersection (ellipsoidal
+    heights), or None when there is none."""
+    g = np.array([p.ground_est for p in sol.points if p.ground_est is not None and p.height_source == "intersection"],
+                 float).reshape(-1, 3)
+    g = g[np.all(np.isfinite(g), axis=1)]
+    if not len(g):
+        return None
+    lon, lat = next(iter(project.scene.views.values())).projection.to_lonlat(g[:, 0], g[:, 1])
+    return np.asarray(lon, float), np.asarray(lat, float), g[:, 2]
+
+
+def height_range(points, margin_m: float | None) -> tuple | None:
+    """The DSM's a-priori heights: the points' range ± ``margin_m`` (default
+    max(:data:`POINTS_MARGIN_M`, 25 % of their spread)), or None (the RPCs' own domain)."""
+    if points is None or len(points[2]) < 3:
+        return None
+    lo, hi = float(np.min(points[2])), float(np.max(points[2]))
+    m = max(POINTS_MARGIN_M, 0.25 * (hi - lo)) if margin_m is None else float(margin_m)
+    return lo - m, hi + m
+
+
+def json_safe(value):
+    """``value`` with every non-finite float as None and tuples as lists (JSON holds no NaN)."""
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
+
+
+def export_rpc_dsm(sol, project, request: DsmRequest, *, reference=None, progress=None) -> DsmExport:
+    """:func:`prismstation.ops.dsm_export.export_dsm` for images with RPCs: every pair matched
+    and fused (:func:`~prismstation.ops.rpc_dsm.rpc_dsm`) through the fitted biases over the
+    images' common footprint, the search from the fit's tie points (± the request's height
+    uncertainty, default :func:`height_range`) and the reference DEM's heights (``reference``:
+    a :class:`~prismstation.ops.reference_heights.DemHeights`, its file read again on the DSM's
+    grid through the project's geoid). ``dsm.info`` is JSON-safe; the pairs' agreement is
+    ``info["pair_agreement"]``."""
+    if request.window is not None:
+        raise InputError("a window is an N-image window of a PRISM triplet; the DSM of images with RPCs "
+                         "covers their common footprint")
+    if request.fill:
+        raise InputError("void filling is not available for images with RPCs (the voids stay marked 0 "
+                         "in the mask band)")
+    if request.heights != "auto":
+        raise InputError("images with RPCs have one height model, the rays' intersection (--heights auto)")
+    if not sol.ok and project.settings.orientation != "dem":
+        raise ModelError("; ".join(sol.messages) or "the model could not be fitted")
+    from prismstation.io.atomic import check_writable
+    check_writable(request.output)
+    paths, models = images_and_models(sol, project)
+    points = tie_points(sol, project)
+    geoid = project_geoid(project)
+    dsm, _ = rpc_dsm(paths, models, posting=request.posting_m,
+                     height_range=height_range(points, request.height_uncertainty_m), points=points,
+                     reference=None if reference is None else reference.path, geoid=geoid,
+                     scheduler=request.scheduler, workers=request.workers,
+                     progress=scaled(progress, 0.0, COMPUTE_SHARE))
+    dsm = replace(dsm, info=json_safe(dsm.info))
+    if request.orthometric:
+        grid = SimpleNamespace(shape=dsm.heights.shape, transform=Affine(*tuple(dsm.transform)[:6]), crs=dsm.crs)
+        dsm = replace(dsm, heights=dsm.heights - undulation_on_grid(geoid, grid).astype(np.float32),
+                      height_kind="orthometric", geoid=geoid.describe() if hasattr(geoid, "describe") else "geoid")
+    checkpoint(progress, COMPUTE_SHARE, "writing")
+    write_dsm(request.output, dsm, before_keep=lambda: checkpoint(progress, 1.0, "written"))
+    return DsmExport(str(request.output), dsm, request)
+
+
+def orient_rpc_project(sol, project, reference, *, posting_m: float | None = None,
+                       max_shift_m: float | None = None, progress=None):
+    """The project's relative DSM (its fitted biases, one view held fixed or not) laid on the
+    reference DEM file ``reference`` (orthometric heights, through the project's geoid):
+    ``(RpcDemOrientation, dsm)`` (:func:`~prismstation.ops.rpc_orient.orient_rpc_from_dem`),
+    the new biases of the project's bias model (``shift`` when it is ``none``)."""
+    paths, models = images_and_models(sol, project)
+    points = tie_points(sol, project)
+    kind = project.settings.bias_model if project.settings.bias_model != "none" else "shift"
+    return orient_rpc_from_dem(paths, models, reference, bias=kind, geoid=project_geoid(project),
+                               posting=posting_m, points=points, height_range=height_range(points, None),
+                               max_shift_m=DEFAULT_MAX_SHIFT_M if max_shift_m is None else max_shift_m,
+                               progress=progress)
+
+
+def orientation_record(project, orientation, reference) -> dict:
+    """The ``dem_control`` record of an RPC orientation: each view's bias (model, parameters,
+    σ, reference point px), the ground shift and its σ (m), the reference's file."""
+    biases = {}
+    for v, m, s in zip(project.scene.views, orientation.models, orientation.bias_sigma):
+        biases[v] = {"model": m.kind, "params": [float(p) for p in m.params],
+                     "sigma": [float(x) for x in s], "x0": float(m.x0), "y0": float(m.y0)}
+    return {"sensor": "rpc", "reference": str(reference), "biases": biases,
+            "shift_m": [float(x) for x in orientation.shift_m], "sigma_m": [float(x) for x in orientation.sigma_m]}
+
+
+def orientation_biases(project, orientation) -> dict:
+    """View → ``{"model", "names", "params", "sigma", "change"}`` (px, px per 1,000 px) of an
+    orientation's new biases: what the command line prints and writes."""
+    return {v: {"model": m.kind, "names": list(BIAS_NAMES[m.kind]), "params": [float(x) for x in m.params],
+                "sigma": [float(x) for x in e], "change": [float(x) for x in c]}
+            for v, m, c, e in zip(project.scene.views, orientation.models, orientation.bias_change,
+                                  orientation.bias_sigma)}
+
+
+def apply_rpc_orientation(project, orientation, reference) -> None:
+    """Make ``orientation``'s biases the project's a-priori biases (its ``dem_control``) and
+    its orientation "dem" (one change event): the fit then holds no view fixed."""
+    with project.batch():
+        project.set_dem_control(orientation_record(project, orientation, reference))
+        project.set_settings(replace(project.settings, orientation="dem"))
+
+
+def control_from_record(scene, record: dict) -> dict:
+    """Each view's a-priori bias (:class:`~prismstation.core.rpc_solve.BiasPrior`) from a saved
+    ``dem_control`` record (:func:`orientation_record`); a malformed one is a ``KeyError``,
+    ``TypeError`` or ``ValueError``."""
+    if record.get("sensor") != "rpc":
+        raise ValueError("not the record of an orientation of images with RPCs")
+    out = {}
+    for v, b in record["biases"].items():
+        if v not in scene.views or b["model"] not in BIAS_MODELS:
+            raise ValueError(f"view {v!r} or bias model {b['model']!r} unknown")
+        p, s = tuple(map(float, b["params"])), tuple(map(float, b["sigma"]))
+        if not (len(p) == len(s) == len(BIAS_NAMES[b["model"]])) or not all(map(math.isfinite, p + s)):
+            raise ValueError(f"view {v}: {len(p)} parameters for the {b['model']} bias")
+        out[v] = BiasPrior(b["model"], p, s, float(b["x0"]), float(b["y0"]))
+    return out
