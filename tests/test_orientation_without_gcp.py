@@ -11,7 +11,8 @@ from prismstation.cli import main
 from prismstation.io.project import load_project
 from prismstation.io.windows import ImageWindows
 from prismstation.ops.fit import solve_project
-from prismstation.ops.transfer import auto_tie_points, transfer
+from prismstation.ops.tie_points import auto_tie_points
+from prismstation.ops.transfer import transfer
 from prismstation.sim import simulate
 from prismstation.sim.reference import make_reference_dem
 

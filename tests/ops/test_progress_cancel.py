@@ -14,7 +14,7 @@ from prismstation.ops.fit import solve_project
 from prismstation.ops.orient_dem import orient_from_dem
 from prismstation.ops.progress import checkpoint, partial_output, scaled
 from prismstation.ops.reference_heights import load_for_scene
-from prismstation.ops.transfer import auto_tie_points
+from prismstation.ops.tie_points import auto_tie_points
 from prismstation.ops.validate import validate_dsm_files
 from prismstation.sim import simulate
 from prismstation.sim.reference import make_reference_dem

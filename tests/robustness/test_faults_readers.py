@@ -34,7 +34,7 @@ def _transfer(sol, images):
 
 
 def _auto_ties(sol, images):
-    from prismstation.ops.transfer import auto_tie_points
+    from prismstation.ops.tie_points import auto_tie_points
     return auto_tie_points(sol, images, grid=2)
 
 

@@ -19,7 +19,7 @@ on, or whose transfer was rejected.
 
 *Automatic tie points…*: a grid over the N image (the first of other scenes) transferred to
 the other views, blunders rejected
-(:func:`prismstation.ops.transfer.auto_tie_points`, with the reference DEM when one is loaded),
+(:func:`prismstation.ops.tie_points.auto_tie_points`, with the reference DEM when one is loaded),
 added as new tie points in one undoable step; a summary (how many added, not found and why,
 rejected as blunders, the across-track RMS) on the status line and, interactively, in a box.
 """
@@ -336,7 +336,7 @@ class TransferTool:
 
         def work(progress):
             from prismstation.io.windows import ImageWindows
-            from prismstation.ops.transfer import auto_tie_points
+            from prismstation.ops.tie_points import auto_tie_points
             summary: dict = {}
             with ImageWindows(project.scene) as im:
                 ties = auto_tie_points(sol, im, grid=grid, height_of=height_of, progress=progress,
