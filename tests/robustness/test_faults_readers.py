@@ -12,16 +12,6 @@ from tests.robustness import faults as ft
 pytestmark = pytest.mark.filterwarnings("ignore")
 
 
-@pytest.fixture(scope="module")
-def master(tmp_path_factory):
-    return ft.shared_sim(tmp_path_factory)
-
-
-@pytest.fixture()
-def sim(master, tmp_path):
-    return ft.copy_sim(master, tmp_path / "sim")
-
-
 def _solution(sim):
     from prismstation.io.project import load_project
     from prismstation.ops.fit import solve_project

@@ -16,16 +16,6 @@ from tests.robustness import faults as ft
 pytestmark = [pytest.mark.gui, pytest.mark.filterwarnings("ignore")]
 
 
-@pytest.fixture(scope="module")
-def master(tmp_path_factory):
-    return ft.shared_sim(tmp_path_factory)
-
-
-@pytest.fixture()
-def sim(master, tmp_path):
-    return ft.copy_sim(master, tmp_path / "sim")
-
-
 @pytest.fixture()
 def window(qtbot, sim):
     win = open_window(qtbot, sim / "p.prismproj")
