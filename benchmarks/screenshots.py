@@ -44,6 +44,7 @@ def main(argv=None) -> int:
     def wanted(*names) -> bool:
         return args.only is None or any(n.startswith(o) for n in names for o in args.only)
     out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix="screenshots-"))
     os.environ["PRISMSTATION_SETTINGS_DIR"] = str(tmp / "settings")
     if args.rpc:
@@ -216,7 +217,8 @@ def main(argv=None) -> int:
 def save_image(img, path: Path, size) -> None:
     """Save a QImage or QPixmap at ``path``, checked to be exactly ``size``."""
     assert (img.width(), img.height()) == tuple(size), (path.name, img.width(), img.height())
-    img.save(str(path))
+    if not img.save(str(path)):
+        raise SystemExit(f"screenshots: cannot write {path}")
     print("wrote", path)
 
 
