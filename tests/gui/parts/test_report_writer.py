@@ -10,7 +10,8 @@ from html.parser import HTMLParser
 import pytest
 
 from prismstation.io.report import report_dict
-from prismstation.gui.report_writer import report_html, write_document
+from prismstation.gui.report_writer import write_document
+from prismstation.io.report_html import report_html
 
 
 class Tables(HTMLParser):
