@@ -87,3 +87,38 @@ def test_a_new_project_with_content_is_at_revision_zero_and_refuses_bad_measurem
     p.mark_modified()
     assert p.revision == 1 and events == [Change(1)]
     assert not math.isnan(p.points["A"].E) and p.settings == Settings()
+
+
+def _fresh_obs(project, heights):
+    """point_obs of a new project with the same content (an empty cache)."""
+    fresh = Project(project.scene, points=project.points.values(),
+                    measurements=project.measurements.values())
+    return fresh.point_obs(heights)
+
+
+def test_point_obs_reused_between_fits_follow_every_edit(project):
+    """point_obs keeps the PointObs of unchanged points between calls: after every kind of edit,
+    in the project and in a snapshot fitted meanwhile, it equals a fresh project's."""
+    project.load([GroundPoint("A", 1.0, 2.0, 3.0), GroundPoint("B", 4.0, 5.0, 6.0, kind="ICP")],
+                 [Measurement("A", "N", 10.0, 20.0), Measurement("A", "F", 11.0, 21.0),
+                  Measurement("B", "N", 30.0, 40.0, sigma_px=0.5), Measurement("T", "B", 1.0, 2.0)])
+    heights = {"A": 40.0, "B": 41.0}
+    edits = [
+        lambda p: p.set_measurement(Measurement("A", "N", 10.5, 20.0)),
+        lambda p: p.set_measurement(Measurement("B", "F", 31.0, 41.0, sigma_px=0.2)),
+        lambda p: p.remove_measurement("A", "F"),
+        lambda p: p.set_kind("A", "ICP"),
+        lambda p: p.replace_point(replace(p.points["B"], E=4.5, sigma_xy_m=0.3)),
+        lambda p: p.set_kind("A", "TIE"),
+        lambda p: p.remove_point("T"),
+        lambda p: p.set_measurement(Measurement("T", "N", 3.0, 4.0)),  # the same id again
+    ]
+    assert project.point_obs(heights) == _fresh_obs(project, heights)
+    for i, edit in enumerate(edits):
+        snap = project.snapshot()
+        edit(project)
+        assert project.point_obs(heights) == _fresh_obs(project, heights), i
+        assert snap.point_obs(heights) == _fresh_obs(snap, heights), i  # the snapshot unchanged
+    project.point_obs(heights)
+    heights = {**heights, "B": 52.0}  # a new geoid: other ellipsoidal heights, nothing edited
+    assert project.point_obs(heights) == _fresh_obs(project, heights)

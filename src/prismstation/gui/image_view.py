@@ -126,8 +126,14 @@ class ImageView(QWidget):
         self._drain_timer.setInterval(0)
         self._drain_timer.timeout.connect(self._drain_arrived)
         self.vb.sigRangeChanged.connect(self._on_range_changed)
-        self.graphics.scene().sigMouseMoved.connect(self._on_mouse_moved)
-        self.graphics.scene().sigMouseClicked.connect(self._on_mouse_clicked)
+        scene = self.graphics.scene()
+        scene.sigMouseMoved.connect(self._on_mouse_moved)
+        scene.sigMouseClicked.connect(self._on_mouse_clicked)
+        # no item of a view takes clicks or hovers (markers are picked by the views, the box
+        # pans on drags): pyqtgraph's two searches of the items near the cursor at every click
+        # (~1 ms with a few hundred markers) are skipped
+        scene.sendClickEvent = lambda ev: (scene.sigMouseClicked.emit(ev), ev.isAccepted())[1]
+        scene.sendHoverEvents = lambda ev, exitOnly=False: None
 
     # ------------------------------------------------------------------ source
     def set_source(self, source: RasterSource | None, levels=None) -> None:
