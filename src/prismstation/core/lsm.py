@@ -153,7 +153,7 @@ class Spline:
         rows, cols = self.coef.shape
         self._flat, self._w = self.coef.ravel(), cols
         k = np.arange(-1, 3)
-        self._taps = (k[:, None] * cols + k[None, :]).ravel()
+        self._taps = (k[:, None] * cols + k[None, :]).reshape(16, 1)   # [row tap, col tap] flat
         self.lo = (c0 + 1.5, r0 + 1.5)                  # where the 4×4 support stays inside
         self.hi = (c0 + cols - 2.5, r0 + rows - 2.5)
 
@@ -168,33 +168,30 @@ class Spline:
 
     def sample(self, x, y):
         """``(S, ∂S/∂x, ∂S/∂y)`` at image points ``x, y`` (same shape, inside)."""
-        col = np.ravel(x) - 0.5 - self.c0
-        row = np.ravel(y) - 0.5 - self.r0
-        i, j = np.floor(col).astype(np.intp), np.floor(row).astype(np.intp)
-        wx, dx = _weights(col - i)
-        wy, dy = _weights(row - j)
-        g = np.take(self._flat, (j * self._w + i)[:, None] + self._taps).reshape(-1, 4, 4)   # [n, row, col]
-        along = g @ np.stack([wx, dx], axis=2)                                            # (n, 4, 2)
-        s = np.einsum("nm,nm->n", along[:, :, 0], wy)
-        sx = np.einsum("nm,nm->n", along[:, :, 1], wy)
-        sy = np.einsum("nm,nm->n", along[:, :, 0], dy)
+        col = np.ravel(x) - (0.5 + self.c0)
+        row = np.ravel(y) - (0.5 + self.r0)
+        i, j = np.floor(col), np.floor(row)
+        n = col.size
+        p = np.empty((2, 4, n))                  # [x, y] × [1, t, t², t³] of the fractions t
+        p[:, 0] = 1.0
+        np.subtract(col, i, out=p[0, 1])
+        np.subtract(row, j, out=p[1, 1])
+        np.multiply(p[:, 1], p[:, 1], out=p[:, 2])
+        np.multiply(p[:, 2], p[:, 1], out=p[:, 3])
+        w = (_BWD @ p).reshape(2, 2, 4, n)       # [x, y] × [weight, derivative] × tap × point
+        k = j.astype(np.intp) * self._w + i.astype(np.intp)
+        g = np.take(self._flat, self._taps + k).reshape(4, 4, n)                 # [row, col, point]
+        rows = np.einsum("mkn,jmn->jkn", g, w[1])          # the 4 columns' taps by row weight, derivative
+        out = np.einsum("jkn,ikn->jin", rows, w[0])        # [row weight, derivative] × [col weight, derivative]
         shape = np.shape(x)
-        return s.reshape(shape), sx.reshape(shape), sy.reshape(shape)
+        return out[0, 0].reshape(shape), out[0, 1].reshape(shape), out[1, 0].reshape(shape)
 
 
 #: cubic B-spline weights of taps −1..2 as polynomials in the fraction t: [1, t, t², t³] @ _BW
 _BW = np.array([[1, 4, 1, 0], [-3, 0, 3, 0], [3, -6, 3, 0], [-1, 3, -3, 1]], float) / 6.0
 _BD = np.array([[-3, 0, 3, 0], [6, -12, 6, 0], [-3, 9, -9, 3]], float) / 6.0   # d/dt: [1, t, t²] @ _BD
-
-
-def _weights(t):
-    """Cubic B-spline weights for taps −1..2 and their derivatives, ``(n, 4)`` each."""
-    p = np.empty((t.size, 4))
-    p[:, 0] = 1.0
-    p[:, 1] = t
-    np.multiply(t, t, out=p[:, 2])
-    np.multiply(p[:, 2], t, out=p[:, 3])
-    return p @ _BW, p[:, :3] @ _BD
+#: the weights (rows 0–3) and their derivatives (rows 4–7) from [1, t, t², t³] (a column)
+_BWD = np.vstack([_BW.T, np.hstack([_BD.T, np.zeros((4, 1))])])
 
 
 def template(reference, x: float, y: float, half: int):
