@@ -151,8 +151,11 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
         if results and results[0].ok and 1 - score ** 2 > rival * (1 - found[0][0] ** 2):
             break   # a peak this much weaker than a converged best cannot rival it
         t0 = pred + shifts(k, l)
+        # a rival of a converged best matters only if it correlates nearly as well
+        top = max((r.rho for r in results if r.ok), default=None)
+        need = None if top is None else float(np.sqrt(max(1.0 - ambiguity * (1.0 - top ** 2), 0.0)))
         r = lsm.refine(reference, x, y, search, t0, A0, half=half, spline=spline,
-                       max_shape_change=max_shape_change, **options)
+                       max_shape_change=max_shape_change, need_rho=need, **options)
         if not r.ok and coarse > 0 and r.status != lsm.OUTSIDE and not results:
             # the shape known only roughly: a smoothed pass first, then the full resolution
             # (for the best peak only: the others are there to expose an ambiguity)
