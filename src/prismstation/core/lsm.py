@@ -469,15 +469,23 @@ def _stated(fit: _Fit, r, J, noise: float, e1, e2, n: int):
     ``noise``: the images' noise σ in the template's grey values), None when the noise
     outweighs the gradients."""
     k = J.shape[1]
-    w = np.ones(r.size) if fit.w is None else fit.w
-    s02 = float(w @ (r * r)) / float(w.sum()) * r.size / max(r.size - k, 1)
-    inflation = gradient_noise_inflation(J[:, 0] * w, J[:, 1] * w, noise ** 2, float(w @ w))
-    if not np.isfinite(inflation):
-        return None
-    Mi = np.linalg.inv(J.T @ (J * w[:, None]))
-    formal = s02 * (Mi @ (J.T @ (J * (w * w)[:, None])) @ Mi)[:2, :2] * inflation
+    if fit.w is None:        # uniform weights: the sandwich is N⁻¹ itself
+        s02 = float(r @ r) / max(r.size - k, 1)
+        inflation = gradient_noise_inflation(J[:, 0], J[:, 1], noise ** 2, r.size)
+        if not np.isfinite(inflation):
+            return None
+        formal = s02 * np.linalg.inv(J.T @ J)[:2, :2] * inflation
+        wn = None
+    else:
+        w = fit.w
+        s02 = float(w @ (r * r)) / float(w.sum()) * r.size / max(r.size - k, 1)
+        inflation = gradient_noise_inflation(J[:, 0] * w, J[:, 1] * w, noise ** 2, float(w @ w))
+        if not np.isfinite(inflation):
+            return None
+        Mi = np.linalg.inv(J.T @ (J * w[:, None]))
+        formal = s02 * (Mi @ (J.T @ (J * (w * w)[:, None])) @ Mi)[:2, :2] * inflation
+        wn = w.reshape(n, n)
     # the displacement the patch's shape does not follow, along the parallax and across it
-    wn = w.reshape(n, n)
     s_relief = unmodelled_sigma(_along(J, e1, n), r.reshape(n, n), k, w=wn)
     s_across = unmodelled_sigma(_along(J, e2, n), r.reshape(n, n), k, w=wn, other=_along(J, e1, n))
     cov = (SIGMA_SCALE ** 2 * formal + (RELIEF_SCALE * s_relief) ** 2 * np.outer(e1, e1)
