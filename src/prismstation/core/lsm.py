@@ -36,6 +36,7 @@ allowance), ``moved`` (the patch ran away from its start), ``low_correlation``, 
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -235,37 +236,47 @@ class _Fit:
 
     def __init__(self, T, u, v, spline, d, half, w=None):
         self.T, self.u, self.v, self.spline, self.d, self.half = T.ravel(), u.ravel(), v.ravel(), spline, d, half
+        self.uv = np.vstack([self.u, self.v])                  # (2, n) template offsets
         self.w = None if w is None else np.asarray(w, float).ravel()     # None: uniform
         gv, gu = np.gradient(T)                            # template gradients (grey values per px)
         self.Tu, self.Tv = gu.ravel(), gv.ravel()
-        self.Q = np.column_stack([self.u ** 2, self.u * self.v, self.v ** 2]) / half
+        self.Q = np.vstack([self.u ** 2, self.u * self.v, self.v ** 2]) / half    # (3, n) bend terms
         self.c = np.zeros(3)
         self.g0, self.g1 = 0.0, None
 
     def sample(self):
-        bend = self.Q @ self.c
-        qx = self.t[0] + self.A[0, 0] * self.u + self.A[0, 1] * self.v + self.d[0] * bend
-        qy = self.t[1] + self.A[1, 0] * self.u + self.A[1, 1] * self.v + self.d[1] * bend
-        return self.spline.sample(qx, qy) if self.spline.inside(qx, qy) else None
+        q = self.A @ self.uv
+        q += self.t[:, None]
+        if self.c.any():
+            q += np.outer(self.d, self.c @ self.Q)
+        lo, hi = q.min(axis=1), q.max(axis=1)
+        sp = self.spline
+        if lo[0] < sp.lo[0] or lo[1] < sp.lo[1] or hi[0] > sp.hi[0] or hi[1] > sp.hi[1]:
+            return None
+        return sp.sample(q[0], q[1])
 
     def design(self, S, Sx, Sy, bend: bool, esm: bool):
-        """Rows ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)``; with ``esm`` the gradient is the mean
-        of the search image's and the template's carried into the search image (Benhimane and
-        Malis 2004: faster convergence); without, the search image's alone (the covariance)."""
+        """Rows ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)`` ``(n, 8 or 11)`` (a transposed view);
+        with ``esm`` the gradient is the mean of the search image's and the template's carried
+        into the search image (Benhimane and Malis 2004: faster convergence); without, the
+        search image's alone (the covariance)."""
         gx, gy = self.g1 * Sx, self.g1 * Sy
         if esm:
             a, b, c, d = self.A.ravel()
-            Ai = np.array([[d, -b], [-c, a]]) / (a * d - b * c)
-            gx = 0.5 * (gx + Ai[0, 0] * self.Tu + Ai[1, 0] * self.Tv)
-            gy = 0.5 * (gy + Ai[0, 1] * self.Tu + Ai[1, 1] * self.Tv)
+            det = a * d - b * c
+            gx = 0.5 * (gx + (d / det) * self.Tu - (c / det) * self.Tv)
+            gy = 0.5 * (gy - (b / det) * self.Tu + (a / det) * self.Tv)
         u, v = self.u, self.v
-        J = np.empty((S.size, 11 if bend else 8))
-        J[:, 0], J[:, 1] = gx, gy
-        J[:, 2], J[:, 3], J[:, 4], J[:, 5] = gx * u, gx * v, gy * u, gy * v
+        J = np.empty((11 if bend else 8, S.size))
+        J[0], J[1] = gx, gy
+        np.multiply(gx, u, out=J[2])
+        np.multiply(gx, v, out=J[3])
+        np.multiply(gy, u, out=J[4])
+        np.multiply(gy, v, out=J[5])
         if bend:
-            J[:, 6:9] = (gx * self.d[0] + gy * self.d[1])[:, None] * self.Q
-        J[:, -2], J[:, -1] = 1.0, S
-        return J
+            np.multiply(gx * self.d[0] + gy * self.d[1], self.Q, out=J[6:9])
+        J[-2], J[-1] = 1.0, S
+        return J.T
 
     def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float,
             need_rho: float | None = None):
@@ -285,10 +296,10 @@ class _Fit:
                 self.g1 = self.T.std() / max(S.std(), 1e-12)
                 self.g0 = self.T.mean() - self.g1 * S.mean()
             r = self.T - (self.g0 + self.g1 * S)
-            J = self.design(S, Sx, Sy, bend, esm=True)
-            Jw = J if self.w is None else J * self.w[:, None]
+            Jt = self.design(S, Sx, Sy, bend, esm=True).T
+            Jw = Jt if self.w is None else Jt * self.w
             try:
-                dp = np.linalg.solve(Jw.T @ J, Jw.T @ r)
+                dp = np.linalg.solve(Jw @ Jt.T, Jw @ r)
             except np.linalg.LinAlgError:
                 return TEXTURE, "singular normal matrix (no texture)", it
             self.t += dp[0:2]
@@ -297,15 +308,16 @@ class _Fit:
                 self.c += dp[6:9]
             self.g0 += dp[6 + nb]
             self.g1 += dp[7 + nb]
-            if np.hypot(*(self.t - t0)) > max_move:
+            if math.hypot(self.t[0] - t0[0], self.t[1] - t0[1]) > max_move:
                 return MOVED, f"the patch moved more than {max_move:g} px from its start", it
             change = np.linalg.norm(A0inv @ self.A - _I2)      # ≥ the largest singular value
-            if change > 2 * max_shape_change or self.g1 <= 0 or np.abs(self.c).max() * self.half > 2 * MAX_BEND:
+            if change > 2 * max_shape_change or self.g1 <= 0 or (bend and np.abs(self.c).max() * self.half > 2 * MAX_BEND):
                 return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else
                                f"the shape degenerated (changed by {change:.0%})"), it
-            if np.abs(dp[0:2]).max() < STEP_TOL and (self.w is not None or np.abs(dp[2:6 + nb]).max() * self.half < 2.5 * STEP_TOL):
+            step = math.hypot(dp[0], dp[1])
+            if max(abs(dp[0]), abs(dp[1])) < STEP_TOL and (self.w is not None or np.abs(dp[2:6 + nb]).max() * self.half < 2.5 * STEP_TOL):
                 return OK, "", it
-            if it >= WANDER_ITER and np.hypot(*dp[0:2]) > 0.1:
+            if it >= WANDER_ITER and step > 0.1:
                 break   # still wandering
         return NOT_CONVERGED, f"no convergence in {it} iterations", it
 
