@@ -87,6 +87,16 @@ def correlate(reference, x: float, y: float, search, pred, A0, direction, along:
     return np.where(np.isfinite(ncc), ncc, -1.0), shifts, allowed
 
 
+def best_score(reference, x: float, y: float, search, pred, A0, direction, along: float,
+               across: float, half: int) -> float:
+    """The highest NCC of :func:`correlate` in the search region (−1 when there is none): a
+    cheap first test of a start shape ``A0`` before a least-squares match."""
+    cor = correlate(reference, x, y, search, pred, A0, direction, along, across, half)
+    if cor is None or not cor[2].any():
+        return -1.0
+    return float(cor[0][cor[2]].max())
+
+
 def _parabola(m1: float, m0: float, p1: float) -> float:
     den = m1 - 2.0 * m0 + p1
     if not np.isfinite(den) or den >= 0:

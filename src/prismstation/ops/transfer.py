@@ -39,7 +39,7 @@ from scipy import stats
 
 from prismstation.core.coarse import search_radius_px
 from prismstation.core.lsm import LsmResult
-from prismstation.core.lsm_search import match
+from prismstation.core.lsm_search import best_score, match
 from prismstation.core.solve import Solution
 from prismstation.io.windows import ImageWindows
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
@@ -269,13 +269,17 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
                   max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
                   coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, parallax=d)
         if free and not m.ok and m.status in RETRY_STATUSES:
-            # the level start may be too far from a steep slope's shape: start from slopes
-            for A in _slope_shapes(sol, source, xy, v, h_pt, half_window):
-                m2 = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], A, d, along=along,
-                           across=radius, half=half_window, max_sigma=MAX_SIGMA_PX,
-                           max_shape_change=DEM_SHAPE_CHANGE, rival=6.0, parallax=d)
-                if m2.ok and (not m.ok or m2.rho > m.rho):
+            # the level start may be too far from a steep slope's shape: start from slopes,
+            # the one correlating best first (a cheap test), until one is found
+            band = (ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0])
+            starts = _slope_shapes(sol, source, xy, v, h_pt, half_window)
+            scores = [best_score(*band, A, d, along, radius, half_window) for A in starts]
+            for k in np.argsort(scores)[::-1]:
+                m2 = match(*band, starts[k], d, along=along, across=radius, half=half_window,
+                           max_sigma=MAX_SIGMA_PX, max_shape_change=DEM_SHAPE_CHANGE, rival=6.0, parallax=d)
+                if m2.ok:
                     m = m2
+                    break
         m = replace(m, x=m.x + c0, y=m.y + r0, extra={**m.extra, "along": along})
         out[v] = Transfer(v, m.x, m.y, (float(s.pred[0]), float(s.pred[1])), m)
         if check and free and m.ok and len(targets) >= 2:
