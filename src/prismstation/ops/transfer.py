@@ -200,7 +200,7 @@ def local_shape(sol: Solution, source: str, xy, views, *, h: float, height_of=No
     if np.any(g != 0):
         k = (ground[4:8] - ground[:4]) / 100.0                 # ground metres per metre of height
         hs[:4] = h + ((ground[:4] - en) @ g) / (1.0 - k @ g)
-        ground[:4] = sol.image_to_ground(source, pix, hs[:4])
+        ground[:4] += k * (hs[:4] - h)[:, None]
     ground = np.vstack([ground[:4], ground[8]])
     pts = np.vstack([ground[:4], en, ground[4]])
     hh = np.concatenate([hs[:4], [h, h + 1.0]])
@@ -308,15 +308,10 @@ def _slope_shapes(sol: Solution, source: str, xy, view: str, h: float, half_wind
     along and across the track (the source image's rows and columns on the ground), both ways."""
     xy = np.asarray(xy, float)
     g = sol.image_to_ground(source, np.array([xy, xy + [0.0, 10.0], xy + [10.0, 0.0]]), np.full(3, h))
-    out = []
-    for axis in (g[1] - g[0], g[2] - g[0]):
-        e = axis / np.hypot(*axis)
-        for sign in (1.0, -1.0):
-            A = local_shape(sol, source, xy, [view], h=h, height_of=_plane(g[0], h, sign * SLOPE_HYPOTHESIS * e),
-                            half_window=half_window)[2][view].A
-            if np.all(np.isfinite(A)):
-                out.append(A)
-    return out
+    grads = [sign * SLOPE_HYPOTHESIS * axis / np.hypot(*axis) for axis in (g[1] - g[0], g[2] - g[0])
+             for sign in (1.0, -1.0)]
+    shapes = _plane_shapes(sol, source, xy, view, g[0], h, half_window)
+    return [A for A in shapes(grads) if np.all(np.isfinite(A))]
 
 
 def _plane(en0, h0: float, grad):
@@ -326,15 +321,12 @@ def _plane(en0, h0: float, grad):
     return lambda en: h0 + (np.atleast_2d(en) - en0) @ g
 
 
-def fitted_slope(sol: Solution, source: str, xy, view: str, A, en, h: float, step: float = 0.2,
-                 half_window: int = 12):
-    """The terrain gradient (dh/dE, dh/dN) under the point ``xy`` of ``source`` that makes the
-    model's shape in ``view`` (as :func:`local_shape` makes it, over ±``half_window`` px) equal
-    the matched shape ``A`` (2×2): Gauss–Newton on the shapes of planes through ``(en, h)``,
-    two steps (the shape is near linear in the gradient); the rays as straight lines."""
-    xy, A, en = np.asarray(xy, float), np.asarray(A, float), np.asarray(en, float)
+def _plane_shapes(sol: Solution, source: str, xy, view: str, en, h: float, half_window: int):
+    """A function: gradients ``[(dh/dE, dh/dN), …]`` → ``view``'s shapes (2×2 each) of the point
+    ``xy`` of ``source`` on the planes through ``(en, h)`` with those gradients, as
+    :func:`local_shape` makes them (over ±``half_window`` px, the rays as straight lines)."""
     w = float(half_window)
-    pix = xy + np.array([[w, 0], [-w, 0], [0, w], [0, -w]])
+    pix = np.asarray(xy, float) + np.array([[w, 0], [-w, 0], [0, w], [0, -w]])
     ends = sol.image_to_ground(source, np.vstack([pix, pix]), np.r_[np.full(4, h), np.full(4, h + 100.0)])
     base, k = ends[:4], (ends[4:] - ends[:4]) / 100.0
 
@@ -344,6 +336,17 @@ def fitted_slope(sol: Solution, source: str, xy, view: str, A, en, h: float, ste
                                 np.concatenate([h + d for d in dh])).reshape(len(grads), 4, 2)
         return [np.column_stack([(c[0] - c[1]) / (2 * w), (c[2] - c[3]) / (2 * w)]) for c in q]
 
+    return shapes
+
+
+def fitted_slope(sol: Solution, source: str, xy, view: str, A, en, h: float, step: float = 0.2,
+                 half_window: int = 12):
+    """The terrain gradient (dh/dE, dh/dN) under the point ``xy`` of ``source`` that makes the
+    model's shape in ``view`` (as :func:`local_shape` makes it, over ±``half_window`` px) equal
+    the matched shape ``A`` (2×2): Gauss–Newton on the shapes of planes through ``(en, h)``,
+    two steps (the shape is near linear in the gradient); the rays as straight lines."""
+    A, en = np.asarray(A, float), np.asarray(en, float)
+    shapes = _plane_shapes(sol, source, xy, view, en, h, half_window)
     g = np.zeros(2)
     for _ in range(2):
         s0, sE, sN = shapes([g, g + [step, 0.0], g + [0.0, step]])
