@@ -25,6 +25,7 @@ from scipy import ndimage
 
 from prismstation.core import lsm
 from prismstation.core.lsm import LsmResult, failed
+from prismstation.core.lsm_spline import search_spline
 
 AMBIGUOUS, BORDER, LOW_SCORE = "ambiguous", "border", "low_score"
 
@@ -154,7 +155,7 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
     d, c = _frame(direction)
     # one spline of the whole band when it is short; over a long band each peak's own
     # (prefiltering hundreds of pixels for three patches costs more than three small ones)
-    spline = (lsm.search_spline(search, pred, A0, half, np.hypot(along, across) + options.get("max_move", 3.0) + 1)
+    spline = (search_spline(search, pred, A0, half, np.hypot(along, across) + options.get("max_move", 3.0) + 1)
               if along <= 2 * half else None)
     results = []
     for score, k, l in found:
