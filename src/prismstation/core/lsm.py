@@ -13,9 +13,10 @@ offset ``w = (u, v)`` from the point (pixel centre minus point) is modelled as
 with ``S`` the search image (cubic B-spline interpolation, values and gradients exact:
 :mod:`prismstation.core.lsm_spline`), ``t`` the point's position in the search image, ``A``
 (2×2) the local shape (search pixels per reference pixel: the Jacobian of the reference →
-search mapping at the point), ``g0``, ``g1`` offset and gain, and optionally a bend along the parallax direction ``d`` (the terrain's
-curvature within the template). Gauss–Newton from a start ``(t0, A0)``; the result is ``t``
-— the point itself, not a template corner — and its 2×2 covariance.
+search mapping at the point), ``g0``, ``g1`` offset and gain, and optionally a bend along the
+parallax direction ``d`` (the terrain's curvature within the template). Gauss–Newton from a
+start ``(t0, A0)``; the result is ``t`` — the point itself, not a template corner — and its 2×2
+covariance.
 
 Covariance (:func:`refine`): ``(SIGMA_SCALE·σ_formal)² + (RELIEF_SCALE·σ_relief)²·ddᵀ +
 σ_across²·d⊥d⊥ᵀ``. The formal ``σ0²·N⁻¹`` is inflated for the noise in the search image's
@@ -241,11 +242,13 @@ class _Fit:
             if math.hypot(self.t[0] - t0[0], self.t[1] - t0[1]) > max_move:
                 return MOVED, f"the patch moved more than {max_move:g} px from its start", it
             change = np.linalg.norm(A0inv @ self.A - _I2)      # ≥ the largest singular value
-            if change > 2 * max_shape_change or self.g1 <= 0 or (bend and np.abs(self.c).max() * self.half > 2 * MAX_BEND):
+            bent = bend and np.abs(self.c).max() * self.half > 2 * MAX_BEND
+            if change > 2 * max_shape_change or self.g1 <= 0 or bent:
                 return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else
                                f"the shape degenerated (changed by {change:.0%})"), it
             step = math.hypot(dp[0], dp[1])
-            if max(abs(dp[0]), abs(dp[1])) < STEP_TOL and (self.w is not None or np.abs(dp[2:6 + nb]).max() * self.half < 2.5 * STEP_TOL):
+            shape_still = self.w is not None or np.abs(dp[2:6 + nb]).max() * self.half < 2.5 * STEP_TOL
+            if max(abs(dp[0]), abs(dp[1])) < STEP_TOL and shape_still:
                 return OK, "", it
             if it >= WANDER_ITER and step > 0.1:
                 break   # still wandering
