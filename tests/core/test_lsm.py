@@ -219,3 +219,43 @@ def test_the_weighted_fit_follows_relief_finer_than_the_template(texture):
             if taper:       # the two fits' disagreement is in the σ: it says how far
                 assert abs(e[1]) < 3 * r.sigma_y, (e, r.sigma_y)
     assert np.median(errs[lsm.TAPER]) < 0.5 * np.median(errs[0.0]), errs
+
+
+def test_the_spline_gives_the_interpolating_spline_and_its_gradients():
+    # values as scipy's cubic B-spline, gradients as its central differences; image coordinates
+    # (pixel centre at +0.5) of a window whose corner is image pixel (c0, r0)
+    from prismstation.core.lsm_spline import Spline
+    rng = np.random.default_rng(3)
+    img = ndimage.gaussian_filter(rng.normal(0, 50, (40, 50)), 1.0) + 500
+    sp = Spline(img, c0=100, r0=200)
+    x, y = rng.uniform(103, 146, 300), rng.uniform(203, 236, 300)
+    s, sx, sy = sp.sample(x, y)
+    at = lambda xx, yy: ndimage.map_coordinates(img, [yy - 200.5, xx - 100.5], order=3, mode="mirror")  # noqa: E731
+    assert s == pytest.approx(at(x, y), abs=1e-9)
+    e = 1e-4
+    assert sx == pytest.approx((at(x + e, y) - at(x - e, y)) / (2 * e), abs=1e-4)
+    assert sy == pytest.approx((at(x, y + e) - at(x, y - e)) / (2 * e), abs=1e-4)
+
+
+def test_the_unmodelled_displacement_from_block_sums_is_the_blocks_own_fit():
+    # each 4 × 4 block's displacement by least squares, done block by block, against the sums
+    from prismstation.core.lsm_sigma import unmodelled_sigma
+    rng = np.random.default_rng(4)
+    n, k = 25, 8
+    G, O = rng.normal(0, 30, (n, n)), rng.normal(0, 30, (n, n))
+    shift = np.kron(rng.normal(0, 0.2, (6, 6)), np.ones((4, 4)))
+    r = np.pad(G[:24, :24] * shift, ((0, 1), (0, 1))) + rng.normal(0, 2, (n, n))
+    for other in (None, O):
+        delta, g2, rss = [], [], 0.0
+        for i in range(6):
+            for j in range(6):
+                b = np.s_[4 * i:4 * i + 4, 4 * j:4 * j + 4]
+                X = np.column_stack([G[b].ravel()] + ([] if other is None else [other[b].ravel()]))
+                sol, *_ = np.linalg.lstsq(X, r[b].ravel(), rcond=None)
+                rss += float(np.sum((r[b].ravel() - X @ sol) ** 2))
+                delta.append(sol[0])
+                g2.append(1.0 / np.linalg.inv(X.T @ X)[0, 0])
+        noise = rss / (576 - (36 if other is None else 72) - k)
+        delta, g2 = np.array(delta), np.array(g2)
+        expected = np.sqrt(max(np.sum(g2 * delta ** 2 - noise) / np.sum(g2), 0.0))
+        assert unmodelled_sigma(G, r, k, other=other) == pytest.approx(expected, rel=1e-9)

@@ -10,12 +10,13 @@ offset ``w = (u, v)`` from the point (pixel centre minus point) is modelled as
 
     T(w) = g0 + g1 · S(t + A·w [+ d·(c1·u² + c2·u·v + c3·v²)/h])
 
-with ``S`` the search image (cubic B-spline interpolation, values and gradients exact), ``t``
-the point's position in the search image, ``A`` (2×2) the local shape (search pixels per
-reference pixel: the Jacobian of the reference → search mapping at the point), ``g0``, ``g1``
-offset and gain, and optionally a bend along the parallax direction ``d`` (the terrain's
-curvature within the template). Gauss–Newton from a start ``(t0, A0)``; the result is ``t``
-— the point itself, not a template corner — and its 2×2 covariance.
+with ``S`` the search image (cubic B-spline interpolation, values and gradients exact:
+:mod:`prismstation.core.lsm_spline`), ``t`` the point's position in the search image, ``A``
+(2×2) the local shape (search pixels per reference pixel: the Jacobian of the reference →
+search mapping at the point), ``g0``, ``g1`` offset and gain, and optionally a bend along the
+parallax direction ``d`` (the terrain's curvature within the template). Gauss–Newton from a
+start ``(t0, A0)``; the result is ``t`` — the point itself, not a template corner — and its 2×2
+covariance.
 
 Covariance (:func:`refine`): ``(SIGMA_SCALE·σ_formal)² + (RELIEF_SCALE·σ_relief)²·ddᵀ +
 σ_across²·d⊥d⊥ᵀ``. The formal ``σ0²·N⁻¹`` is inflated for the noise in the search image's
@@ -36,6 +37,7 @@ allowance), ``moved`` (the patch ran away from its start), ``low_correlation``, 
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -43,6 +45,7 @@ import numpy as np
 from scipy import ndimage, stats
 
 from prismstation.core.lsm_sigma import gradient_noise_inflation, noise_sigma, unmodelled_sigma
+from prismstation.core.lsm_spline import Spline, search_spline
 
 OK = "ok"
 NOT_CONVERGED, TEXTURE, SHAPE, MOVED, LOW_CORRELATION, OUTSIDE = (
@@ -80,6 +83,12 @@ NEAR_RELIEF = 0.7
 template's (measured on mounds 3–8 px wide on warped real texture: 0.4–0.7)."""
 BEND_TRIGGER = 0.03
 """A bend is tried when the affine patch leaves this much unmodelled relief (px)."""
+RIVAL_ITER = 3
+RIVAL_MARGIN = 0.1
+"""A patch that must reach a correlation (``need_rho`` of :func:`refine`: a rival peak) is given
+up when, after :data:`RIVAL_ITER` iterations, its correlation lies more than this below it (on
+the tuning scenes and the Pléiades triplet the correlation rose by at most 0.06 after the third
+iteration)."""
 
 
 @dataclass(frozen=True)
@@ -140,63 +149,6 @@ def failed(x, y, status, reason, *, shape=None, rho=np.nan, iterations=0, score=
                      np.nan, np.nan, float(rho), iterations, status, reason, float(score))
 
 
-class Spline:
-    """Cubic B-spline interpolation of a window of an image, with analytic derivatives.
-
-    ``img`` is a window whose top-left corner is image pixel ``(c0, r0)``; :meth:`sample`
-    takes image coordinates (continuous, docs/model.md §1)."""
-
-    def __init__(self, img, c0: int = 0, r0: int = 0):
-        self.raw = np.asarray(img, np.float64)
-        self.coef = ndimage.spline_filter(self.raw, order=3, mode="mirror")
-        self.c0, self.r0 = c0, r0
-        rows, cols = self.coef.shape
-        self._flat, self._w = self.coef.ravel(), cols
-        k = np.arange(-1, 3)
-        self._taps = (k[:, None] * cols + k[None, :]).ravel()
-        self.lo = (c0 + 1.5, r0 + 1.5)                  # where the 4×4 support stays inside
-        self.hi = (c0 + cols - 2.5, r0 + rows - 2.5)
-
-    def noise_near(self, x: float, y: float, half: int) -> float:
-        """:func:`noise_sigma` of the window's pixels within ``half`` px of ``(x, y)``."""
-        i, j = int(x - self.c0), int(y - self.r0)
-        return noise_sigma(self.raw[max(j - half, 0):j + half + 1, max(i - half, 0):i + half + 1])
-
-    def inside(self, x, y) -> bool:
-        return bool(x.min() >= self.lo[0] and y.min() >= self.lo[1]
-                    and x.max() <= self.hi[0] and y.max() <= self.hi[1])
-
-    def sample(self, x, y):
-        """``(S, ∂S/∂x, ∂S/∂y)`` at image points ``x, y`` (same shape, inside)."""
-        col = np.ravel(x) - 0.5 - self.c0
-        row = np.ravel(y) - 0.5 - self.r0
-        i, j = np.floor(col).astype(np.intp), np.floor(row).astype(np.intp)
-        wx, dx = _weights(col - i)
-        wy, dy = _weights(row - j)
-        g = np.take(self._flat, (j * self._w + i)[:, None] + self._taps).reshape(-1, 4, 4)   # [n, row, col]
-        along = g @ np.stack([wx, dx], axis=2)                                            # (n, 4, 2)
-        s = np.einsum("nm,nm->n", along[:, :, 0], wy)
-        sx = np.einsum("nm,nm->n", along[:, :, 1], wy)
-        sy = np.einsum("nm,nm->n", along[:, :, 0], dy)
-        shape = np.shape(x)
-        return s.reshape(shape), sx.reshape(shape), sy.reshape(shape)
-
-
-#: cubic B-spline weights of taps −1..2 as polynomials in the fraction t: [1, t, t², t³] @ _BW
-_BW = np.array([[1, 4, 1, 0], [-3, 0, 3, 0], [3, -6, 3, 0], [-1, 3, -3, 1]], float) / 6.0
-_BD = np.array([[-3, 0, 3, 0], [6, -12, 6, 0], [-3, 9, -9, 3]], float) / 6.0   # d/dt: [1, t, t²] @ _BD
-
-
-def _weights(t):
-    """Cubic B-spline weights for taps −1..2 and their derivatives, ``(n, 4)`` each."""
-    p = np.empty((t.size, 4))
-    p[:, 0] = 1.0
-    p[:, 1] = t
-    np.multiply(t, t, out=p[:, 2])
-    np.multiply(p[:, 2], t, out=p[:, 3])
-    return p @ _BW, p[:, :3] @ _BD
-
-
 def template(reference, x: float, y: float, half: int):
     """``(T, u, v)``: the ``(2·half+1)²`` reference pixels around ``(x, y)`` (float64) and
     their centres' offsets from the point (pixels), or None when the window leaves the image."""
@@ -209,77 +161,76 @@ def template(reference, x: float, y: float, half: int):
     return t, u, v
 
 
-def search_spline(search, t0, A0, half: int, margin: float, smooth: float = 0.0) -> Spline | None:
-    """The :class:`Spline` of the part of ``search`` that a patch of ``A0``-shape at ``t0``
-    can reach within ``margin`` px (low-passed by a Gaussian of σ ``smooth`` px when > 0);
-    None when less than the patch remains."""
-    reach = half * np.abs(np.asarray(A0, float)).sum(axis=1) + margin + 4
-    c0 = max(int(np.floor(t0[0] - reach[0])), 0)
-    r0 = max(int(np.floor(t0[1] - reach[1])), 0)
-    c1 = min(int(np.ceil(t0[0] + reach[0])) + 1, search.shape[1])
-    r1 = min(int(np.ceil(t0[1] + reach[1])) + 1, search.shape[0])
-    if c1 - c0 < 8 or r1 - r0 < 8:
-        return None
-    crop = np.asarray(search[r0:r1, c0:c1], np.float64)
-    if smooth > 0:
-        crop = ndimage.gaussian_filter(crop, smooth, mode="nearest")
-    return Spline(crop, c0, r0)
-
-
 class _Fit:
     """The Gauss–Newton state of one patch: position ``t``, shape ``A``, bend ``c`` (3 or 0
     terms), offset ``g0`` and gain ``g1``, on a fixed template and search spline."""
 
     def __init__(self, T, u, v, spline, d, half, w=None):
         self.T, self.u, self.v, self.spline, self.d, self.half = T.ravel(), u.ravel(), v.ravel(), spline, d, half
+        self.uv = np.vstack([self.u, self.v])                  # (2, n) template offsets
         self.w = None if w is None else np.asarray(w, float).ravel()     # None: uniform
         gv, gu = np.gradient(T)                            # template gradients (grey values per px)
         self.Tu, self.Tv = gu.ravel(), gv.ravel()
-        self.Q = np.column_stack([self.u ** 2, self.u * self.v, self.v ** 2]) / half
+        self.Q = np.vstack([self.u ** 2, self.u * self.v, self.v ** 2]) / half    # (3, n) bend terms
         self.c = np.zeros(3)
         self.g0, self.g1 = 0.0, None
 
     def sample(self):
-        bend = self.Q @ self.c
-        qx = self.t[0] + self.A[0, 0] * self.u + self.A[0, 1] * self.v + self.d[0] * bend
-        qy = self.t[1] + self.A[1, 0] * self.u + self.A[1, 1] * self.v + self.d[1] * bend
-        return self.spline.sample(qx, qy) if self.spline.inside(qx, qy) else None
+        q = self.A @ self.uv
+        q += self.t[:, None]
+        if self.c.any():
+            q += np.outer(self.d, self.c @ self.Q)
+        lo, hi = q.min(axis=1), q.max(axis=1)
+        sp = self.spline
+        if lo[0] < sp.lo[0] or lo[1] < sp.lo[1] or hi[0] > sp.hi[0] or hi[1] > sp.hi[1]:
+            return None
+        return sp.sample(q[0], q[1])
 
     def design(self, S, Sx, Sy, bend: bool, esm: bool):
-        """Rows ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)``; with ``esm`` the gradient is the mean
-        of the search image's and the template's carried into the search image (Benhimane and
-        Malis 2004: faster convergence); without, the search image's alone (the covariance)."""
+        """Rows ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)`` ``(n, 8 or 11)`` (a transposed view);
+        with ``esm`` the gradient is the mean of the search image's and the template's carried
+        into the search image (Benhimane and Malis 2004: faster convergence); without, the
+        search image's alone (the covariance)."""
         gx, gy = self.g1 * Sx, self.g1 * Sy
         if esm:
             a, b, c, d = self.A.ravel()
-            Ai = np.array([[d, -b], [-c, a]]) / (a * d - b * c)
-            gx = 0.5 * (gx + Ai[0, 0] * self.Tu + Ai[1, 0] * self.Tv)
-            gy = 0.5 * (gy + Ai[0, 1] * self.Tu + Ai[1, 1] * self.Tv)
+            det = a * d - b * c
+            gx = 0.5 * (gx + (d / det) * self.Tu - (c / det) * self.Tv)
+            gy = 0.5 * (gy - (b / det) * self.Tu + (a / det) * self.Tv)
         u, v = self.u, self.v
-        J = np.empty((S.size, 11 if bend else 8))
-        J[:, 0], J[:, 1] = gx, gy
-        J[:, 2], J[:, 3], J[:, 4], J[:, 5] = gx * u, gx * v, gy * u, gy * v
+        J = np.empty((11 if bend else 8, S.size))
+        J[0], J[1] = gx, gy
+        np.multiply(gx, u, out=J[2])
+        np.multiply(gx, v, out=J[3])
+        np.multiply(gy, u, out=J[4])
+        np.multiply(gy, v, out=J[5])
         if bend:
-            J[:, 6:9] = (gx * self.d[0] + gy * self.d[1])[:, None] * self.Q
-        J[:, -2], J[:, -1] = 1.0, S
-        return J
+            np.multiply(gx * self.d[0] + gy * self.d[1], self.Q, out=J[6:9])
+        J[-2], J[-1] = 1.0, S
+        return J.T
 
-    def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float):
-        """Iterate to convergence: ``(status, reason, iterations)``, status ``OK`` or a failure."""
+    def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float,
+            need_rho: float | None = None):
+        """Iterate to convergence: ``(status, reason, iterations)``, status ``OK`` or a failure;
+        ``need_rho``: give up as :data:`RIVAL_ITER` and :data:`RIVAL_MARGIN` say."""
         nb = 3 if bend else 0
         for it in range(1, max_iter + 1):
             smp = self.sample()
             if smp is None:
                 return OUTSIDE, "patch left the search image", it
             S, Sx, Sy = smp
+            if need_rho is not None and it >= RIVAL_ITER:
+                rho = _correlation(self.T, S)
+                if rho < need_rho - RIVAL_MARGIN:
+                    return LOW_CORRELATION, f"correlation {rho:.2f} after {it - 1} iterations: no rival", it
             if self.g1 is None:
                 self.g1 = self.T.std() / max(S.std(), 1e-12)
                 self.g0 = self.T.mean() - self.g1 * S.mean()
             r = self.T - (self.g0 + self.g1 * S)
-            J = self.design(S, Sx, Sy, bend, esm=True)
-            Jw = J if self.w is None else J * self.w[:, None]
+            Jt = self.design(S, Sx, Sy, bend, esm=True).T
+            Jw = Jt if self.w is None else Jt * self.w
             try:
-                dp = np.linalg.solve(Jw.T @ J, Jw.T @ r)
+                dp = np.linalg.solve(Jw @ Jt.T, Jw @ r)
             except np.linalg.LinAlgError:
                 return TEXTURE, "singular normal matrix (no texture)", it
             self.t += dp[0:2]
@@ -288,15 +239,18 @@ class _Fit:
                 self.c += dp[6:9]
             self.g0 += dp[6 + nb]
             self.g1 += dp[7 + nb]
-            if np.hypot(*(self.t - t0)) > max_move:
+            if math.hypot(self.t[0] - t0[0], self.t[1] - t0[1]) > max_move:
                 return MOVED, f"the patch moved more than {max_move:g} px from its start", it
             change = np.linalg.norm(A0inv @ self.A - _I2)      # ≥ the largest singular value
-            if change > 2 * max_shape_change or self.g1 <= 0 or np.abs(self.c).max() * self.half > 2 * MAX_BEND:
+            bent = bend and np.abs(self.c).max() * self.half > 2 * MAX_BEND
+            if change > 2 * max_shape_change or self.g1 <= 0 or bent:
                 return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else
                                f"the shape degenerated (changed by {change:.0%})"), it
-            if np.abs(dp[0:2]).max() < STEP_TOL and (self.w is not None or np.abs(dp[2:6 + nb]).max() * self.half < 2.5 * STEP_TOL):
+            step = math.hypot(dp[0], dp[1])
+            shape_still = self.w is not None or np.abs(dp[2:6 + nb]).max() * self.half < 2.5 * STEP_TOL
+            if max(abs(dp[0]), abs(dp[1])) < STEP_TOL and shape_still:
                 return OK, "", it
-            if it >= WANDER_ITER and np.hypot(*dp[0:2]) > 0.1:
+            if it >= WANDER_ITER and step > 0.1:
                 break   # still wandering
         return NOT_CONVERGED, f"no convergence in {it} iterations", it
 
@@ -314,14 +268,19 @@ class _Fit:
             return None, None, np.nan
         S, Sx, Sy = smp
         r = self.T - (self.g0 + self.g1 * S)
-        a, b = self.T - self.T.mean(), S - S.mean()
-        return r, self.design(S, Sx, Sy, bend, esm=False), float(a @ b / np.sqrt((a @ a) * (b @ b)))
+        return r, self.design(S, Sx, Sy, bend, esm=False), _correlation(self.T, S)
+
+
+def _correlation(a, b) -> float:
+    """Correlation coefficient of the arrays ``a`` and ``b`` (same size)."""
+    a, b = a - a.mean(), np.ravel(b) - b.mean()
+    return float(a @ b / np.sqrt((a @ a) * (b @ b)))
 
 
 def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half: int = 12,
            max_iter: int = 20, max_move: float = 3.0, max_shape_change: float = 0.25,
            min_rho: float = 0.6, max_sigma: float = 0.5, smooth: float = 0.0,
-           spline: Spline | None = None, taper: float = TAPER) -> LsmResult:
+           spline: Spline | None = None, taper: float = TAPER, need_rho: float | None = None) -> LsmResult:
     """Least-squares matching of the point ``(x, y)`` of ``reference`` in ``search``.
 
     Parameters
@@ -358,6 +317,9 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         σ (px) of a Gaussian low-pass applied to both images first (a coarse pass; 0: none).
     spline : Spline, optional
         A ready :class:`Spline` of ``search`` (for repeated calls); built here otherwise.
+    need_rho : float, optional
+        The correlation the match must reach to matter (a rival of a match found already):
+        given up early (``low_correlation``) when it falls far short (:data:`RIVAL_MARGIN`).
     """
     A0 = np.asarray(A0, float)
     t0 = np.asarray(t0, float)
@@ -380,7 +342,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     fit = _Fit(T, u, v, spline, d, half)
     fit.t, fit.A = t0.copy(), A0.copy()
     A0inv = np.linalg.inv(A0)
-    status, reason, it = fit.run(False, max_iter, t0, max_move, A0inv, max_shape_change)
+    status, reason, it = fit.run(False, max_iter, t0, max_move, A0inv, max_shape_change, need_rho)
     if status != OK:
         x_, y_ = (t0 if status == MOVED else fit.t)
         rho = fit.final(False)[2] if status == NOT_CONVERGED else np.nan
@@ -452,15 +414,23 @@ def _stated(fit: _Fit, r, J, noise: float, e1, e2, n: int):
     ``noise``: the images' noise σ in the template's grey values), None when the noise
     outweighs the gradients."""
     k = J.shape[1]
-    w = np.ones(r.size) if fit.w is None else fit.w
-    s02 = float(w @ (r * r)) / float(w.sum()) * r.size / max(r.size - k, 1)
-    inflation = gradient_noise_inflation(J[:, 0] * w, J[:, 1] * w, noise ** 2, float(w @ w))
-    if not np.isfinite(inflation):
-        return None
-    Mi = np.linalg.inv(J.T @ (J * w[:, None]))
-    formal = s02 * (Mi @ (J.T @ (J * (w * w)[:, None])) @ Mi)[:2, :2] * inflation
+    if fit.w is None:        # uniform weights: the sandwich is N⁻¹ itself
+        s02 = float(r @ r) / max(r.size - k, 1)
+        inflation = gradient_noise_inflation(J[:, 0], J[:, 1], noise ** 2, r.size)
+        if not np.isfinite(inflation):
+            return None
+        formal = s02 * np.linalg.inv(J.T @ J)[:2, :2] * inflation
+        wn = None
+    else:
+        w = fit.w
+        s02 = float(w @ (r * r)) / float(w.sum()) * r.size / max(r.size - k, 1)
+        inflation = gradient_noise_inflation(J[:, 0] * w, J[:, 1] * w, noise ** 2, float(w @ w))
+        if not np.isfinite(inflation):
+            return None
+        Mi = np.linalg.inv(J.T @ (J * w[:, None]))
+        formal = s02 * (Mi @ (J.T @ (J * (w * w)[:, None])) @ Mi)[:2, :2] * inflation
+        wn = w.reshape(n, n)
     # the displacement the patch's shape does not follow, along the parallax and across it
-    wn = w.reshape(n, n)
     s_relief = unmodelled_sigma(_along(J, e1, n), r.reshape(n, n), k, w=wn)
     s_across = unmodelled_sigma(_along(J, e2, n), r.reshape(n, n), k, w=wn, other=_along(J, e1, n))
     cov = (SIGMA_SCALE ** 2 * formal + (RELIEF_SCALE * s_relief) ** 2 * np.outer(e1, e1)

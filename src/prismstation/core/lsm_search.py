@@ -25,6 +25,7 @@ from scipy import ndimage
 
 from prismstation.core import lsm
 from prismstation.core.lsm import LsmResult, failed
+from prismstation.core.lsm_spline import search_spline
 
 AMBIGUOUS, BORDER, LOW_SCORE = "ambiguous", "border", "low_score"
 
@@ -87,6 +88,16 @@ def correlate(reference, x: float, y: float, search, pred, A0, direction, along:
     return np.where(np.isfinite(ncc), ncc, -1.0), shifts, allowed
 
 
+def best_score(reference, x: float, y: float, search, pred, A0, direction, along: float,
+               across: float, half: int) -> float:
+    """The highest NCC of :func:`correlate` in the search region (−1 when there is none): a
+    cheap first test of a start shape ``A0`` before a least-squares match."""
+    cor = correlate(reference, x, y, search, pred, A0, direction, along, across, half)
+    if cor is None or not cor[2].any():
+        return -1.0
+    return float(cor[0][cor[2]].max())
+
+
 def _parabola(m1: float, m0: float, p1: float) -> float:
     den = m1 - 2.0 * m0 + p1
     if not np.isfinite(den) or den >= 0:
@@ -144,15 +155,18 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
     d, c = _frame(direction)
     # one spline of the whole band when it is short; over a long band each peak's own
     # (prefiltering hundreds of pixels for three patches costs more than three small ones)
-    spline = (lsm.search_spline(search, pred, A0, half, np.hypot(along, across) + options.get("max_move", 3.0) + 1)
+    spline = (search_spline(search, pred, A0, half, np.hypot(along, across) + options.get("max_move", 3.0) + 1)
               if along <= 2 * half else None)
     results = []
     for score, k, l in found:
         if results and results[0].ok and 1 - score ** 2 > rival * (1 - found[0][0] ** 2):
             break   # a peak this much weaker than a converged best cannot rival it
         t0 = pred + shifts(k, l)
+        # a rival of a converged best matters only if it correlates nearly as well
+        top = max((r.rho for r in results if r.ok), default=None)
+        need = None if top is None else float(np.sqrt(max(1.0 - ambiguity * (1.0 - top ** 2), 0.0)))
         r = lsm.refine(reference, x, y, search, t0, A0, half=half, spline=spline,
-                       max_shape_change=max_shape_change, **options)
+                       max_shape_change=max_shape_change, need_rho=need, **options)
         if not r.ok and coarse > 0 and r.status != lsm.OUTSIDE and not results:
             # the shape known only roughly: a smoothed pass first, then the full resolution
             # (for the best peak only: the others are there to expose an ambiguity)

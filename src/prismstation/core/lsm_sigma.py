@@ -60,25 +60,27 @@ def unmodelled_sigma(G, r, n_params: int, block: int = 4, w=None, other=None) ->
     if m < 2:
         return 0.0
     lo = (n - m * block) // 2
-    Gb = G[lo:lo + m * block, lo:lo + m * block].reshape(m, block, m, block).transpose(0, 2, 1, 3).reshape(m * m, -1)
-    rb = r[lo:lo + m * block, lo:lo + m * block].reshape(m, block, m, block).transpose(0, 2, 1, 3).reshape(m * m, -1)
-    g2 = np.sum(Gb * Gb, axis=1)
+
+    def sums(a):
+        """Sums of ``a`` over the ``m × m`` blocks, ``(m²,)``."""
+        return a[lo:lo + m * block, lo:lo + m * block].reshape(m, block, m, block).sum(axis=(1, 3)).ravel()
+
+    g2, p, rr = sums(G * G), sums(G * r), float(sums(r * r).sum())
     if np.any(g2 <= 0):
         return 0.0
     if other is None:
-        delta = np.sum(Gb * rb, axis=1) / g2
-        fit, unknowns = Gb * delta[:, None], m * m
+        delta = p / g2
+        rss, unknowns = rr - float(delta @ p), m * m
     else:
-        Ob = other[lo:lo + m * block, lo:lo + m * block].reshape(m, block, m, block).transpose(0, 2, 1, 3).reshape(m * m, -1)
-        go, gc = np.sum(Ob * Ob, axis=1), np.sum(Gb * Ob, axis=1)
+        go, gc, q = sums(other * other), sums(G * other), sums(other * r)
         det = g2 * go - gc ** 2
         if np.any(det <= 1e-9 * g2 * go):
             return 0.0
-        p, q = np.sum(Gb * rb, axis=1), np.sum(Ob * rb, axis=1)
         delta, delta_o = (go * p - gc * q) / det, (g2 * q - gc * p) / det
-        fit, unknowns = Gb * delta[:, None] + Ob * delta_o[:, None], 2 * m * m
+        rss, unknowns = rr - float(delta @ p + delta_o @ q), 2 * m * m
         g2 = det / go                                   # the information on δ left by the other
-    noise = float(np.sum((rb - fit) ** 2)) / max(rb.size - unknowns - n_params, 1)
-    wb = 1.0 if w is None else w[lo:lo + m * block, lo:lo + m * block].reshape(m, block, m, block).mean(axis=(1, 3)).ravel()
+    # the residuals less each block's fitted displacement: noise
+    noise = rss / max(m * m * block * block - unknowns - n_params, 1)
+    wb = 1.0 if w is None else sums(w) / block ** 2
     excess = np.sum(wb * (g2 * delta ** 2 - noise)) / np.sum(wb * g2)
     return float(np.sqrt(max(excess, 0.0)))

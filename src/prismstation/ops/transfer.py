@@ -39,7 +39,7 @@ from scipy import stats
 
 from prismstation.core.coarse import search_radius_px
 from prismstation.core.lsm import LsmResult
-from prismstation.core.lsm_search import match
+from prismstation.core.lsm_search import best_score, match
 from prismstation.core.solve import Solution
 from prismstation.io.windows import ImageWindows
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
@@ -128,7 +128,7 @@ def search_sigmas(sol: Solution, height_of=None) -> tuple[float, float]:
 
 
 def search_height(sol: Solution, source: str, xy, *, height_of=None, sigma_dem: float | None = None,
-                  sigma_mean: float | None = None) -> tuple[float, float]:
+                  sigma_mean: float | None = None, ray=None) -> tuple[float, float]:
     """``(h, h_range)`` metres searched for a point at ``xy`` of ``source``: where its ray meets
     the reference DEM ``height_of`` (σ ``sigma_dem``), else the mean height (σ ``sigma_mean``),
     and ±3 σ of it, at least ±:data:`MIN_HEIGHT_RANGE_M`; the mean height and
@@ -136,9 +136,10 @@ def search_height(sol: Solution, source: str, xy, *, height_of=None, sigma_dem: 
     ``sigma_mean`` default to what the solution's known points measure
     (:func:`prismstation.ops.predict.dem_sigma`, :func:`~prismstation.ops.predict.height_spread`).
     This is the height :func:`prismstation.ops.predict.predict_point` gives a point measured in
-    one view, with its σ."""
+    one view, with its σ. ``ray``: :func:`ray_on_dem` of the point from the mean height, when
+    computed already."""
     ground = known_ground(sol) if sigma_dem is None or sigma_mean is None else {}
-    en, h, hit = ray_on_dem(sol, source, xy, float(sol.mean_height), height_of)
+    en, h, hit = ray if ray is not None else ray_on_dem(sol, source, xy, float(sol.mean_height), height_of)
     if not np.all(np.isfinite(en)):
         return float(sol.mean_height), FALLBACK_HEIGHT_RANGE_M
     if hit:
@@ -173,7 +174,7 @@ def terrain_gradient(height_of, en, radius_m: float):
 
 
 def local_shape(sol: Solution, source: str, xy, views, *, h: float, height_of=None,
-                half_window: int = 12) -> tuple[np.ndarray, float, dict[str, LocalShape]]:
+                half_window: int = 12, ray=None) -> tuple[np.ndarray, float, dict[str, LocalShape]]:
     """The predicted position, shape and parallax direction of the point ``xy`` of ``source``
     in each of ``views``.
 
@@ -181,9 +182,10 @@ def local_shape(sol: Solution, source: str, xy, views, *, h: float, height_of=No
     metres ``(n, 2)`` → ellipsoidal metres ``(n,)``) the point sits on the DEM and the terrain
     is the plane of the DEM's gradient over the template's footprint (±``half_window`` px);
     otherwise the level plane at ``h``. The shape is the central difference of the mapping
-    over ±``half_window`` px. Returns ``(en, h, {view: LocalShape})``, the ground point first."""
+    over ±``half_window`` px. ``ray``: :func:`ray_on_dem` of the point from ``h``, when computed
+    already. Returns ``(en, h, {view: LocalShape})``, the ground point first."""
     xy = np.asarray(xy, float)
-    en, h, hit = ray_on_dem(sol, source, xy, float(h), height_of)
+    en, h, hit = ray if ray is not None else ray_on_dem(sol, source, xy, float(h), height_of)
     grad = None
     if hit:
         radius = max(half_window * sol.scene.views[source].pixel_size_m, 15.0)
@@ -198,7 +200,7 @@ def local_shape(sol: Solution, source: str, xy, views, *, h: float, height_of=No
     if np.any(g != 0):
         k = (ground[4:8] - ground[:4]) / 100.0                 # ground metres per metre of height
         hs[:4] = h + ((ground[:4] - en) @ g) / (1.0 - k @ g)
-        ground[:4] = sol.image_to_ground(source, pix, hs[:4])
+        ground[:4] += k * (hs[:4] - h)[:, None]
     ground = np.vstack([ground[:4], ground[8]])
     pts = np.vstack([ground[:4], en, ground[4]])
     hh = np.concatenate([hs[:4], [h, h + 1.0]])
@@ -240,14 +242,18 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     """
     sc = sol.scene
     xy = np.asarray(xy, float)
+    ray = None
     if h is None or h_range is None:
+        ray = ray_on_dem(sol, source, xy, float(sol.mean_height), height_of)
         h0, r0 = search_height(sol, source, xy, height_of=height_of, sigma_dem=sigma_dem,
-                               sigma_mean=sigma_mean)
+                               sigma_mean=sigma_mean, ray=ray)
+        if h is not None or not np.all(np.isfinite(ray[0])):
+            ray = None          # the point's ray from another height
         h = h0 if h is None else float(h)
         h_range = r0 if h_range is None else float(h_range)
     targets = [v for v in sc.views if v != source]
-    _, h_pt, shapes = local_shape(sol, source, xy, targets, h=float(h), height_of=height_of,
-                                  half_window=half_window)
+    en_pt, h_pt, shapes = local_shape(sol, source, xy, targets, h=float(h), height_of=height_of,
+                                      half_window=half_window, ray=ray)
     free = next(iter(shapes.values())).slope is None if shapes else True
     radius = search_radius_px(model_sigma_m(sol) * np.sqrt(2), sc.views[source].pixel_size_m)
     ref, rc0, rr0 = images.around(source, xy[0], xy[1], half_window + 8)
@@ -269,27 +275,31 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
                   max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
                   coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, parallax=d)
         if free and not m.ok and m.status in RETRY_STATUSES:
-            # the level start may be too far from a steep slope's shape: start from slopes
-            for A in _slope_shapes(sol, source, xy, v, h_pt, half_window):
-                m2 = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], A, d, along=along,
-                           across=radius, half=half_window, max_sigma=MAX_SIGMA_PX,
-                           max_shape_change=DEM_SHAPE_CHANGE, rival=6.0, parallax=d)
-                if m2.ok and (not m.ok or m2.rho > m.rho):
+            # the level start may be too far from a steep slope's shape: start from slopes,
+            # the one correlating best first (a cheap test), until one is found
+            band = (ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0])
+            starts = _slope_shapes(sol, source, xy, v, h_pt, half_window)
+            scores = [best_score(*band, A, d, along, radius, half_window) for A in starts]
+            for k in np.argsort(scores)[::-1]:
+                m2 = match(*band, starts[k], d, along=along, across=radius, half=half_window,
+                           max_sigma=MAX_SIGMA_PX, max_shape_change=DEM_SHAPE_CHANGE, rival=6.0, parallax=d)
+                if m2.ok:
                     m = m2
+                    break
         m = replace(m, x=m.x + c0, y=m.y + r0, extra={**m.extra, "along": along})
         out[v] = Transfer(v, m.x, m.y, (float(s.pred[0]), float(s.pred[1])), m)
         if check and free and m.ok and len(targets) >= 2:
             # no reference DEM: the found view gives the height and the slope the others are
             # searched at (a short band, the shape predicted)
-            out = _confirm(sol, images, source, xy, ref, (rc0, rr0), out, v, shapes, h_pt, half_window,
-                           free, mark=False)
+            out = _confirm(sol, images, source, xy, ref, (rc0, rr0), out, v, shapes, (en_pt, h_pt),
+                           half_window, free, mark=False)
             guided.add(v)
     found = [v for v in targets if v in out and out[v].ok]
     if check and len(targets) >= 2 and len(found) == 1:
-        out = _confirm(sol, images, source, xy, ref, (rc0, rr0), out, found[0], shapes, h_pt, half_window, free,
-                       search=found[0] not in guided)
+        out = _confirm(sol, images, source, xy, ref, (rc0, rr0), out, found[0], shapes, (en_pt, h_pt),
+                       half_window, free, search=found[0] not in guided)
     if check and len([t for t in out.values() if t.ok]) >= 2:
-        out = consistency(sol, source, xy, out, h_pt)
+        out = consistency(sol, source, xy, out, h_pt, en0=en_pt)
     return out
 
 
@@ -298,15 +308,10 @@ def _slope_shapes(sol: Solution, source: str, xy, view: str, h: float, half_wind
     along and across the track (the source image's rows and columns on the ground), both ways."""
     xy = np.asarray(xy, float)
     g = sol.image_to_ground(source, np.array([xy, xy + [0.0, 10.0], xy + [10.0, 0.0]]), np.full(3, h))
-    out = []
-    for axis in (g[1] - g[0], g[2] - g[0]):
-        e = axis / np.hypot(*axis)
-        for sign in (1.0, -1.0):
-            A = local_shape(sol, source, xy, [view], h=h, height_of=_plane(g[0], h, sign * SLOPE_HYPOTHESIS * e),
-                            half_window=half_window)[2][view].A
-            if np.all(np.isfinite(A)):
-                out.append(A)
-    return out
+    grads = [sign * SLOPE_HYPOTHESIS * axis / np.hypot(*axis) for axis in (g[1] - g[0], g[2] - g[0])
+             for sign in (1.0, -1.0)]
+    shapes = _plane_shapes(sol, source, xy, view, g[0], h, half_window)
+    return [A for A in shapes(grads) if np.all(np.isfinite(A))]
 
 
 def _plane(en0, h0: float, grad):
@@ -316,15 +321,12 @@ def _plane(en0, h0: float, grad):
     return lambda en: h0 + (np.atleast_2d(en) - en0) @ g
 
 
-def fitted_slope(sol: Solution, source: str, xy, view: str, A, en, h: float, step: float = 0.2,
-                 half_window: int = 12):
-    """The terrain gradient (dh/dE, dh/dN) under the point ``xy`` of ``source`` that makes the
-    model's shape in ``view`` (as :func:`local_shape` makes it, over ±``half_window`` px) equal
-    the matched shape ``A`` (2×2): Gauss–Newton on the shapes of planes through ``(en, h)``,
-    two steps (the shape is near linear in the gradient); the rays as straight lines."""
-    xy, A, en = np.asarray(xy, float), np.asarray(A, float), np.asarray(en, float)
+def _plane_shapes(sol: Solution, source: str, xy, view: str, en, h: float, half_window: int):
+    """A function: gradients ``[(dh/dE, dh/dN), …]`` → ``view``'s shapes (2×2 each) of the point
+    ``xy`` of ``source`` on the planes through ``(en, h)`` with those gradients, as
+    :func:`local_shape` makes them (over ±``half_window`` px, the rays as straight lines)."""
     w = float(half_window)
-    pix = xy + np.array([[w, 0], [-w, 0], [0, w], [0, -w]])
+    pix = np.asarray(xy, float) + np.array([[w, 0], [-w, 0], [0, w], [0, -w]])
     ends = sol.image_to_ground(source, np.vstack([pix, pix]), np.r_[np.full(4, h), np.full(4, h + 100.0)])
     base, k = ends[:4], (ends[4:] - ends[:4]) / 100.0
 
@@ -334,6 +336,17 @@ def fitted_slope(sol: Solution, source: str, xy, view: str, A, en, h: float, ste
                                 np.concatenate([h + d for d in dh])).reshape(len(grads), 4, 2)
         return [np.column_stack([(c[0] - c[1]) / (2 * w), (c[2] - c[3]) / (2 * w)]) for c in q]
 
+    return shapes
+
+
+def fitted_slope(sol: Solution, source: str, xy, view: str, A, en, h: float, step: float = 0.2,
+                 half_window: int = 12):
+    """The terrain gradient (dh/dE, dh/dN) under the point ``xy`` of ``source`` that makes the
+    model's shape in ``view`` (as :func:`local_shape` makes it, over ±``half_window`` px) equal
+    the matched shape ``A`` (2×2): Gauss–Newton on the shapes of planes through ``(en, h)``,
+    two steps (the shape is near linear in the gradient); the rays as straight lines."""
+    A, en = np.asarray(A, float), np.asarray(en, float)
+    shapes = _plane_shapes(sol, source, xy, view, en, h, half_window)
     g = np.zeros(2)
     for _ in range(2):
         s0, sE, sN = shapes([g, g + [step, 0.0], g + [0.0, step]])
@@ -342,20 +355,21 @@ def fitted_slope(sol: Solution, source: str, xy, view: str, A, en, h: float, ste
     return g if np.all(np.isfinite(g)) and np.hypot(*g) < 3.0 else None
 
 
-def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, h, half_window, free, mark=True,
+def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, ground, half_window, free, mark=True,
              search=True):
     """One view found (``v1``), another not: search the other at the height the found one
     implies (±3 σ of it along the parallax) and — with no reference DEM (``free``) — in the
     shape the slope fitted to ``v1``'s matched shape predicts. With ``mark``, when that fails
     too, a match whose band was wider than :data:`CONFIRM_ALONG_PX` (a wide height range: no
     reference DEM) is ``unconfirmed`` — nothing checks it, and over hundreds of pixels a
-    repeated texture can correlate as well. ``search=False``: the marking only."""
+    repeated texture can correlate as well. ``ground``: ``(en, h)`` of the source point at the
+    height searched. ``search=False``: the marking only."""
     if not search:
         return _mark_unconfirmed(out, v1) if mark else out
     obs = {source: (np.asarray(xy, float), view_sigma_px(sol, source) ** 2 * np.eye(2)),
            v1: ((out[v1].x, out[v1].y), out[v1].match.cov + view_sigma_px(sol, v1) ** 2 * np.eye(2))}
     try:
-        g, _, _, _, C = intersect(sol, obs, h)
+        g, _, _, _, C = intersect(sol, obs, ground[1], en0=ground[0])
     except np.linalg.LinAlgError:
         return out
     sigma_h = float(np.sqrt(max(C[2, 2], 0.0)))
@@ -410,15 +424,16 @@ def view_sigma_px(sol: Solution, view: str) -> float:
     return float(s0 * sol.settings.sigma_px) if s0 is not None and math.isfinite(s0) and s0 > 0 else MODEL_SIGMA_PX
 
 
-def intersect(sol: Solution, obs: dict, h0: float) -> tuple[np.ndarray, dict, float, int]:
+def intersect(sol: Solution, obs: dict, h0: float, en0=None) -> tuple[np.ndarray, dict, float, int]:
     """Least-squares ground point of image observations ``{view: ((x, y), cov 2×2 px²)}``
     through the model (Gauss–Newton on ``(E, N, h)`` from height ``h0``, the Jacobian of the
-    start kept).
+    start kept; ``en0``: the first view's point at ``h0`` on the ground, when known).
 
     Returns ``(g, residuals {view: (2,) px, observed − predicted}, χ², redundancy, covariance
     of g (3×3, m²))``."""
     first = next(iter(obs))
-    g = np.array([*sol.image_to_ground(first, np.asarray(obs[first][0], float), h0), h0], float)
+    en0 = sol.image_to_ground(first, np.asarray(obs[first][0], float), h0) if en0 is None else en0
+    g = np.array([*en0, h0], float)
     W = {v: np.linalg.inv(c) for v, (_, c) in obs.items()}
     start = {v: ground_jacobian(sol, v, g) for v in obs}   # the model is near linear over metres:
     J = {v: j for v, (_, j) in start.items()}              # its Jacobian at the start serves
@@ -436,18 +451,20 @@ def intersect(sol: Solution, obs: dict, h0: float) -> tuple[np.ndarray, dict, fl
     return g, res, chi2, 2 * len(obs) - 3, np.linalg.inv(N)
 
 
-def consistency(sol: Solution, source: str, xy, found: dict[str, Transfer], h0: float | None = None
-                ) -> dict[str, Transfer]:
+def consistency(sol: Solution, source: str, xy, found: dict[str, Transfer], h0: float | None = None,
+                en0=None) -> dict[str, Transfer]:
     """The three-ray test: the source point and its matches in the other views intersected
     (:func:`intersect` from height ``h0``, default the mean height; each view weighted by its
-    match covariance plus its model σ², :func:`view_sigma_px`); a χ² beyond :data:`CONSISTENCY_P` marks every match
-    ``inconsistent`` with the residuals in its reason."""
+    match covariance plus its model σ², :func:`view_sigma_px`; ``en0``: the source point's ground
+    at ``h0``, when known); a χ² beyond :data:`CONSISTENCY_P` marks every match ``inconsistent``
+    with the residuals in its reason."""
     ok = {v: t for v, t in found.items() if t.ok}
     obs = {source: (np.asarray(xy, float), view_sigma_px(sol, source) ** 2 * np.eye(2))}
     for v, t in ok.items():
         obs[v] = ((t.x, t.y), t.match.cov + view_sigma_px(sol, v) ** 2 * np.eye(2))
     try:
-        _, res, chi2, dof, _ = intersect(sol, obs, sol.mean_height if h0 is None else h0)
+        _, res, chi2, dof, _ = intersect(sol, obs, sol.mean_height if h0 is None else h0,
+                                         en0=None if h0 is None else en0)
     except np.linalg.LinAlgError:
         return found
     limit = float(stats.chi2.ppf(CONSISTENCY_P, dof))
