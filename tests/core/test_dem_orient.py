@@ -3,7 +3,7 @@ import pytest
 
 from prismstation.core import prism
 from prismstation.core.dem_orient import (PatchShift, affine_field, control_from_field, gcp_field_obs,
-                                          grid_points, patch_windows, reoffset_cells, smooth_like_reference)
+                                          grid_points, patch_windows, smooth_like_reference)
 from prismstation.core.solve import PointObs, solve
 from prismstation.core import view_offsets as vo
 from tests.core.synth import make_scene
@@ -93,33 +93,6 @@ def test_view_offsets_varying_over_n_reach_the_biases_and_the_parallax_line(with
         assert np.abs(g).max() < 0.05, np.abs(g).max(0)
     else:
         assert np.abs(g).max() > 1.0
-
-
-def test_reoffset_cells_moves_them_as_the_parallax_map_would_have_placed_them():
-    """Cells of a relative DEM built by the parallax map's placement rule (a cell's value sits
-    at ``pF − w·py·d``, ``h = c1·py``), made again with F's and B's N-space content moved by
-    other offsets: :func:`reoffset_cells` puts them where that rule puts them."""
-    sc = make_scene()
-    c1 = prism.theoretical_c1(sc)
-    tF, tB = sc.views["F"].tan_theta, sc.views["B"].tan_theta
-    w = tF / (tF + tB)
-    rng = np.random.default_rng(1)
-    xy = np.array([5000.0, 9000.0]) + rng.uniform(-800, 800, (200, 2))
-    h = rng.uniform(300, 1500, 200)
-    en = prism.ancillary_to_ground(sc, sc.views["N"], xy, h)
-    d = prism.along_track_unit(sc, en)
-    py = h / c1
-    pF, pB = xy + w * py[:, None] * d, xy - (1 - w) * py[:, None] * d
-    old = {"F": np.array([3.0, -40.0]), "B": np.array([-2.0, 25.0])}
-    new = {"F": np.array([3.4, -41.5]), "B": np.array([-2.3, 26.2])}
-    qF, qB = pF - (new["F"] - old["F"]), pB - (new["B"] - old["B"])
-    py2 = np.einsum("ij,ij->i", qF - qB, d)
-    xy2 = qF - w * py2[:, None] * d
-    got_xy, got_h, got_en = reoffset_cells(sc, xy, h, lambda v, p: old[v] + 0 * p, lambda v, p: new[v] + 0 * p, w)
-    np.testing.assert_allclose(got_xy, xy2, atol=1e-6)
-    np.testing.assert_allclose(got_h, c1 * py2, atol=1e-6)
-    np.testing.assert_allclose(got_en, prism.ancillary_to_ground(sc, sc.views["N"], xy2, c1 * py2), atol=1e-3)
-    assert np.abs(got_en - en).max() > 1.0
 
 
 def test_gcps_observe_the_field_as_the_cells_do():

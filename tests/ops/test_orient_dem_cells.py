@@ -20,3 +20,33 @@ def test_failed_patches_do_not_shift_the_others():
     for j, k in enumerate(index):                                  # adjustment patch j holds pcs[k]'s cells
         sel = cells.patch == j
         assert sel.sum() == pcs[k].count and np.all(cells.h[sel] == k)
+
+
+def test_the_prior_is_taken_where_the_field_puts_n():
+    """With N's shift field known, a patch's prior heights are the reference where N really
+    looks (at the ancillary point plus (dE, dN)), minus dh: in the ancillary frame, the frame of
+    the relative DEM's heights. Without it, where the ancillary model puts N."""
+    from types import SimpleNamespace
+    from prismstation.core import prism
+    from prismstation.ops.dem_patches import ReferenceGrid
+    from tests.core.synth import make_scene
+
+    sc = make_scene(size=2000)
+    posting = 30.0
+    lo, hi = np.array([530000.0, 4550000.0]), np.array([550000.0, 4570000.0])
+    n = int((hi[0] - lo[0]) / posting)
+    e = lo[0] + (np.arange(n) + 0.5) * posting
+    nn = hi[1] - (np.arange(n) + 0.5) * posting
+    heights = (800 + 0.3 * (e[None, :] - 540000) + 300 * np.sin((nn[:, None] - 4560000) / 700)).astype(np.float32)
+    ref = ReferenceGrid(SimpleNamespace(heights=heights), lo, hi, posting, 800.0, heights, None, (3.0, 3.0))
+    rng = np.random.default_rng(2)
+    xy = rng.uniform(100, 1900, (60, 2))
+    shift = lambda x, y: np.stack([np.full_like(x, 60.0), -45.0 + 0.01 * y, np.full_like(x, 7.0)], -1)  # noqa: E731
+    hit = ref.ground(sc, xy, shift)
+    assert hit.converged.all()
+    s = shift(xy[:, 0], xy[:, 1])
+    np.testing.assert_allclose(hit.en, prism.ancillary_to_ground(sc, sc.views["N"], xy, hit.h), atol=1e-6)
+    np.testing.assert_allclose(hit.h, ref.at(heights, hit.en + s[:, :2]) - s[:, 2], atol=0.05)
+    plain = ref.ground(sc, xy)
+    np.testing.assert_allclose(plain.h, ref.at(heights, plain.en), atol=0.05)
+    assert np.abs(plain.h - hit.h).max() > 20.0       # 75 m on slopes of up to 0.5: tens of metres

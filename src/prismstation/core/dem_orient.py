@@ -153,30 +153,6 @@ def affine_field(patches: list[PatchShift]):
     return lambda xx, yy: np.broadcast_to(mean, np.shape(xx) + (3,)).copy()
 
 
-def reoffset_cells(scene: Scene, xy: np.ndarray, h: np.ndarray, old_offset_of, new_offset_of,
-                   n_weight: float):
-    """Where the cells of relative DEMs made with the view offsets ``old_offset_of(view, xy)``
-    would be, had they been made with ``new_offset_of`` (N-space px at N positions ``xy``
-    (m, 2)), without matching again. ``h`` (m,) their relative heights.
-
-    A cell's F (B) content entered N space moved by −offset, so changes δF, δB move its
-    parallax by −(δF − δB)·d (``d`` the N-space flight direction) — its height by c1 times
-    that — and its N position by −δF across track and −((1 − w)·δF + w·δB)·d along it
-    (``w = n_weight``: where :func:`prismstation.core.dense.parallax_map` places a value).
-    Returns ``(xy', h', en')``: the new N positions, heights and ancillary map positions."""
-    c1 = prism.theoretical_c1(scene)
-    N = scene.views["N"]
-    xy = np.asarray(xy, float)
-    en = prism.ancillary_to_ground(scene, N, xy, h)
-    d = prism.along_track_unit(scene, en)
-    dF = new_offset_of("F", xy) - old_offset_of("F", xy)
-    dB = new_offset_of("B", xy) - old_offset_of("B", xy)
-    dpy = np.einsum("ij,ij->i", dF - dB, d)
-    moved = xy - dF + n_weight * dpy[:, None] * d
-    h2 = h - c1 * dpy
-    return moved, h2, prism.ancillary_to_ground(scene, N, moved, h2)
-
-
 @dataclass(frozen=True)
 class ControlPoints:
     """Ground control points for the DEM orientation: ``ids``; F and B image positions

@@ -201,9 +201,18 @@ def parallax_map(f_image, b_image, f_to_n, b_to_n, window, direction, *, prior=0
     # N window index → frame index (for the prior and the final placement)
     n_to_frame = np.linalg.inv(frame) @ np.array([[1, 0, col0 + 0.5], [0, 1, row0 + 0.5], [0, 0, 1]])
     frame_to_nidx = np.linalg.inv(n_to_frame)
-    prior_f = cv2.warpAffine(np.ascontiguousarray(prior_n, np.float32), frame_to_nidx[:2],
-                             (fcols, frows), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                             borderMode=cv2.BORDER_REPLICATE)
+    prior_at_n = cv2.warpAffine(np.ascontiguousarray(prior_n, np.float32), frame_to_nidx[:2],
+                                (fcols, frows), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                                borderMode=cv2.BORDER_REPLICATE)
+    # the prior where F sees each point: F's pixel at frame u shows the point N sees at
+    # u − w·py, so prior_f(u) = prior(u − w·prior_f(u)) (fixed point; the prior taken at u
+    # itself is the relief w·py — hundreds of metres — away along the flight direction)
+    fx = np.arange(fcols, dtype=np.float32)[None, :].repeat(frows, 0)
+    fy = np.arange(frows, dtype=np.float32)[:, None].repeat(fcols, 1)
+    prior_f = prior_at_n
+    for _ in range(4):
+        prior_f = cv2.remap(prior_at_n, fx - np.float32(n_weight) * prior_f, fy, cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_REPLICATE)
     py_f = np.full((frows, fcols), np.nan, np.float32)
     sc_f = np.full((frows, fcols), np.nan, np.float32)
     cancelled = False

@@ -51,12 +51,15 @@ class ReferenceGrid:
         row = (self.hi[1] - en[..., 1]) / self.posting_m - 0.5
         return remap_points(grid, col, row).astype(float)
 
-    def ground(self, scene, xy: np.ndarray):
+    def ground(self, scene, xy: np.ndarray, shift=None):
         """Where N's ancillary rays through image points ``xy`` (n, 2) meet the reference
         (:class:`~prismstation.core.ray_dem.RayHits`: ``en`` (n, 2), ``h`` (n,), NaN where a
-        ray did not meet it)."""
+        ray did not meet it). ``shift`` (optional): N's shift field ``(x, y) → (dE, dN, dh)``
+        (m), the reference laid where N really looks — ``en`` and ``h`` are then in the
+        ancillary frame (the reference at ``en + (dE, dN)``, minus ``dh``)."""
+        s = np.zeros((len(xy), 3)) if shift is None else np.asarray(shift(xy[:, 0], xy[:, 1]), float)
         return ray_meets_surface(lambda h: prism.ancillary_to_ground(scene, scene.views["N"], xy, h),
-                                 lambda en: self.at(self.filled, en), self.mean_h)
+                                 lambda en: self.at(self.filled, en + s[:, :2]) - s[:, 2], self.mean_h)
 
     def surface(self) -> Surface:
         """The heights (voids NaN) as the adjustment samples them."""
@@ -147,9 +150,11 @@ def match_patch(run, images, win, sigma_py_off: float) -> PatchCells:
     anyway): its relative DEM gridded at ``run.posting_m``, smoothed to the reference's
     resolution, as cells.
 
-    The parallax search covers K_SIGMA σ of the prior's error: the reference heights' σ, the
-    height error of sampling them where N's error puts the patch (σ_geolocation × the patch's
-    RMS slope) and the offsets' along-track σ ``sigma_py_off`` (px)."""
+    The prior is the reference where N's ancillary model puts the patch, or where the field
+    ``run.n_field`` puts it once one is known. The parallax search covers K_SIGMA σ of the
+    prior's error: the reference heights' σ, the height error of sampling them where N's error
+    puts the patch (``run.n_sigma_m`` × the patch's RMS slope: the a-priori geolocation σ, or
+    the field's) and the offsets' along-track σ ``sigma_py_off`` (px)."""
     scene, ref, f, posting_m = run.scene, run.ref, run.decimation, run.posting_m
     lo, hi = ref.lo, ref.hi
     c1 = prism.theoretical_c1(scene)
@@ -161,7 +166,7 @@ def match_patch(run, images, win, sigma_py_off: float) -> PatchCells:
     gx, gy = np.meshgrid(np.arange(wd[0] + 0.5, wd[0] + wd[2], step) * f,
                          np.arange(wd[1] + 0.5, wd[1] + wd[3], step) * f)
     pts = np.column_stack([gx.ravel(), gy.ravel()])
-    hit = ref.ground(scene, pts)
+    hit = ref.ground(scene, pts, run.n_field)
     if hit.converged.mean() < 0.98:
         return fail(f"N's rays did not meet the reference DEM: {hit.reason}")
     en, hh = hit.en, hit.h
@@ -172,7 +177,7 @@ def match_patch(run, images, win, sigma_py_off: float) -> PatchCells:
         hh = np.where(miss, np.nanmedian(hh), hh)
         en = np.where(miss[:, None], prism.ancillary_to_ground(scene, scene.views["N"], pts, hh), en)
     rms_slope = float(np.sqrt(np.mean(ref.at(ref.slope, en) ** 2)))
-    sigma_py = float(np.hypot(np.hypot(run.sigma_height_m, run.sigma_apriori_m * rms_slope) / c1, sigma_py_off))
+    sigma_py = float(np.hypot(np.hypot(run.sigma_height_m, run.n_sigma_m * rms_slope) / c1, sigma_py_off))
     search_px = int(np.ceil(K_SIGMA * sigma_py / f)) + 1
     # the samples sit at decimated pixel centres 0.5 + step·k of the window: interpolate there
     # (a plain resize would take them as the centres of step-wide blocks, step/2 − 0.5 off)

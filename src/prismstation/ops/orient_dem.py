@@ -11,8 +11,8 @@ Every search takes its range from a stated a-priori uncertainty (docs/orientatio
 4. One adjustment of the shift field ``(dE, dN, dh)`` over N from every cell of every patch
    (:func:`prismstation.core.field_adjust.adjust_field`), started from a search of the whole
    mosaic over the a-priori radius; GCPs, when given, are observations of the same field.
-5. Step 1 again with N placed by that field, the cells moved to the new offsets
-   (:func:`prismstation.core.dem_orient.reoffset_cells`), the field adjusted again.
+5. Step 1 again with N placed by that field, every patch matched again with the new offsets
+   and the reference laid where the field puts N, the field adjusted again.
 6. The verdict on the field's σ against the target (:func:`prismstation.core.conditioning.judge`)
    and the model (:func:`prismstation.core.dem_orient.control_from_field`).
 
@@ -34,7 +34,7 @@ from prismstation.core import conditioning as cond
 from prismstation.core import prism
 from prismstation.core.coarse import K_SIGMA, dem_offset
 from prismstation.core.dem_orient import (ControlPoints, PatchShift, affine_field, control_from_field,
-                                          gcp_field_obs, reoffset_cells)
+                                          gcp_field_obs)
 from prismstation.core.field_adjust import Basis, Cells, adjust_field
 from prismstation.core.solve import Control
 from prismstation.core.view_offsets import SIGMA_HEIGHT_M, offset_at
@@ -132,6 +132,8 @@ class OrientRun:
     offsets: dict = None          # F−N and B−N at N's centre (N-space px), from step 1 (then 5)
     grads: dict = None            # their gradients over N (px per N pixel)
     ref: ReferenceGrid = None     # the reference DEM on the matching's grid
+    n_field: object = None        # N's shift field once adjusted (step 5 matches with it)
+    n_field_sigma_m: float = None  # its planimetric σ (m)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -141,6 +143,12 @@ class OrientRun:
     def radius_m(self) -> float:
         """How far N's own error may put it from the reference (K_SIGMA σ)."""
         return K_SIGMA * self.sigma_apriori_m
+
+    @property
+    def n_sigma_m(self) -> float:
+        """σ (m) of N's position where the patches' priors are taken: the a-priori geolocation
+        σ, then the adjusted field's."""
+        return self.sigma_apriori_m if self.n_field is None else self.n_field_sigma_m
 
     @property
     def n_weight(self) -> float:
@@ -188,13 +196,13 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     relate_views(run)                                                   # 1.
     run.ref = read_reference(run)
     expected = expected_sigma(run)                                      # 2.
-    pcs = match_patches(run, patch_m, progress_range=(0.25, 0.8))       # 3.
+    pcs = match_patches(run, patch_m, progress_range=(0.25, 0.55))      # 3.
     cells, index = join_cells(pcs)
-    checkpoint(progress, 0.8, "adjusting the shift field")
+    checkpoint(progress, 0.55, "adjusting the shift field")
     fit = adjust(run, cells, len(index), start_field(run, cells), gcps)  # 4.
     record = run.coarse.to_dict()
     if fit:
-        cells, fit, record = second_pass(run, cells, fit, len(index), gcps)  # 5.
+        pcs, index, fit, record = second_pass(run, pcs, index, fit, patch_m, gcps)  # 5.
     checkpoint(progress, 1.0, "done")
     return make_result(run, pcs, index, fit, expected, record, target_m, gcps)  # 6.
 
@@ -309,36 +317,47 @@ def control_points(project: Project, ids=None, sigma_px: float = 0.3, survey_sig
     return ControlPoints(tuple(ids_), np.array(f, float), np.array(b, float), np.array(g, float), np.array(s, float))
 
 
-def second_pass(run: OrientRun, cells: Cells, fit, n_patches: int, gcps):
+def second_pass(run: OrientRun, pcs, index, fit, patch_m: float, gcps):
     """Step 5: N's own error is now known to metres: step 1 again with the reference heights
     taken where N really looks (tens of metres off on slopes made its windows scatter by
-    pixels, so the offsets' drift over N went unseen), the cells moved to the new offsets and
-    the field adjusted again from the first one. Returns ``(cells, fit, record)``; updates
-    ``run.offsets``, ``run.grads``."""
-    rows, cols = run.shape
+    pixels, so the offsets' drift over N went unseen), every patch matched again with the new
+    offsets and its prior taken where the field puts N, and the field adjusted again from the
+    first one. Returns ``(pcs, index, fit, record)`` — the first pass's where the second
+    fails; updates ``run.offsets``, ``run.grads``."""
     second = coarse_view_offsets(run.scene, run.reference_path, run.geoid, sigma_apriori_m=run.sigma_apriori_m,
                                  n_shift=lambda xy: fit.field(xy[:, 0], xy[:, 1])[..., :2],
-                                 progress=scaled(run.progress, 0.85, 0.95))
+                                 progress=scaled(run.progress, 0.55, 0.65))
     record = run.coarse.to_dict()
     if not all(second.ok(v) for v in "FB"):
         record["second_pass"] = "not used: " + ("; ".join(
             f"{w.view}: {w.reason}" for w in second.windows if w.reason) or "a view was not found")
-        return cells, fit, record
-    new_off = {v: np.asarray(second.offsets_px[v], float) for v in "FB"}
-    new_grad = {v: np.asarray(second.gradients_px[v], float) for v in "FB"}
-    xy, h, en = reoffset_cells(run.scene, np.column_stack([cells.x, cells.y]), cells.h, run.offset_of,
-                               lambda v, p: offset_at(new_off[v], new_grad[v], (cols / 2, rows / 2), p),
-                               run.n_weight)
-    moved = replace(cells, x=xy[:, 0], y=xy[:, 1], e=en[:, 0], n=en[:, 1], h=h)
+        return pcs, index, fit, record
     old = run.offsets, run.grads
-    run.offsets, run.grads = new_off, new_grad
-    fit2 = adjust(run, moved, n_patches, fit.theta, gcps)
-    if not fit2:
+    run.offsets = {v: np.asarray(second.offsets_px[v], float) for v in "FB"}
+    run.grads = {v: np.asarray(second.gradients_px[v], float) for v in "FB"}
+    run.n_field, run.n_field_sigma_m = fit.field, field_plan_sigma(run, fit)
+    try:
+        pcs2 = match_patches(run, patch_m, progress_range=(0.65, 0.95))
+    except InputError as e:
+        pcs2, why = None, str(e)
+    if pcs2 is not None:
+        cells2, index2 = join_cells(pcs2)
+        checkpoint(run.progress, 0.95, "adjusting the shift field again")
+        fit2 = adjust(run, cells2, len(index2), fit.theta, gcps)
+        why = f"the adjustment after it failed ({fit2.reason})"
+    run.n_field = None
+    if pcs2 is None or not fit2:
         run.offsets, run.grads = old
-        record = {**second.to_dict(), "first_pass": record,
-                  "second_pass": f"not used: the adjustment after it failed ({fit2.reason})"}
-        return cells, fit, record
-    return moved, fit2, {**second.to_dict(), "first_pass": record}
+        return pcs, index, fit, {**second.to_dict(), "first_pass": record, "second_pass": f"not used: {why}"}
+    return pcs2, index2, fit2, {**second.to_dict(), "first_pass": record}
+
+
+def field_plan_sigma(run: OrientRun, fit) -> float:
+    """The largest planimetric σ (m) of ``fit``'s field at a lattice over N (the a-priori σ
+    where it is not finite)."""
+    lx, ly = cond.lattice(run.shape)
+    s = max(float(np.sqrt(np.linalg.eigvalsh(fit.cov_at(a, b)[:2, :2]).max())) for a, b in zip(lx, ly))
+    return s if np.isfinite(s) else float(run.sigma_apriori_m)
 
 
 def _patch_sigma(info: np.ndarray, limit: float) -> np.ndarray:
