@@ -189,7 +189,7 @@ def test_linked_cursor_lands_where_the_model_says(qtbot, window):
     for v in ("F", "B"):
         ch = win.views.overlays[v].crosshair
         assert ch.isVisible()
-        cx, cy = ch.data["x"][0], ch.data["y"][0]
+        (cx,), (cy,) = ch.getData()
         assert (cx, cy) == linked[v]
         tx, ty = demo.truth["G2"][v]
         assert math.hypot(cx - tx, cy - ty) < 2.0        # truth of the simulated geometry

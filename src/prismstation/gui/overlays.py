@@ -3,7 +3,7 @@ ellipses, residual vectors, labels, the current point and the linked-cursor cros
 
 All items live in the view box of an :class:`~prismstation.gui.image_view.ImageView`, in image
 pixels (x = column, y = row, origin at the top-left corner of the top-left pixel). Markers keep
-their size on screen (pyqtgraph ``pxMode``). Updates are incremental where it matters: labels are
+their size on screen (:mod:`~prismstation.gui.markers`). Updates are incremental where it matters: labels are
 created once per point and only moved, so a click repaints in a few milliseconds.
 """
 from __future__ import annotations
@@ -15,6 +15,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainterPath, QPen, QStaticText, QTransform
 
+from prismstation.gui.markers import Markers
 from prismstation.gui.palette import BLUNDER_RGB, CURRENT_RGB, CURSOR_RGB, KIND_RGB, qcolor
 from prismstation.ops.predict import CHI2_95_2D
 
@@ -59,47 +60,6 @@ class Curve(pg.PlotCurveItem):
 
     def mouseClickEvent(self, ev) -> None:
         ev.ignore()
-
-
-class Markers(pg.ScatterPlotItem):
-    """pyqtgraph's scatter item with its bounding rectangle remembered.
-
-    Qt asks for it dozens of times per click (the items under the mouse), and pyqtgraph
-    recomputes the screen-pixel padding each time (~45 µs). pyqtgraph replaces ``self.bounds``
-    whenever the data or the view transform change, so the rectangle stays valid as long as
-    that list (held here, so that its identity cannot be reused) and the spot size are the same.
-    """
-
-    _br_key = None
-
-    def clear(self) -> None:
-        """Remove every spot, and repaint where they were: pyqtgraph's ``clear`` only repaints
-        the new (empty) bounds, which left ghost markers on screen until the view moved. An
-        empty item is hidden: the view's repaints then skip it (pyqtgraph's paint of an empty
-        scatter still costs its Python call)."""
-        self.prepareGeometryChange()
-        super().clear()
-        self.setVisible(False)
-
-    def addPoints(self, *args, **kwargs) -> None:
-        super().addPoints(*args, **kwargs)
-        self.setVisible(len(self.data) > 0)
-
-    def mouseClickEvent(self, ev) -> None:
-        """Not a click target: the views pick markers themselves (:meth:`ViewOverlay.nearest`),
-        and pyqtgraph's search of the spots under the click cost every click a millisecond."""
-        ev.ignore()
-
-    def shape(self) -> QPainterPath:  # (nor for Qt's search of the items under the mouse)
-        return _NO_SHAPE
-
-    def boundingRect(self) -> QRectF:
-        key = self._br_key
-        if key is None or key[0] is not self.bounds or key[1] != self._maxSpotPxWidth:
-            rect = super().boundingRect()
-            self._br_key = (self.bounds, self._maxSpotPxWidth, rect)
-            return QRectF(rect)
-        return QRectF(key[2])
 
 
 class LabelLayer(pg.GraphicsObject):
@@ -216,18 +176,16 @@ class ViewOverlay:
         self.scale = 1.0          # image pixels per screen pixel of the view
         self._residuals = np.zeros((0, 4))  # x, y, vx, vy (image pixels)
         self.show_labels = True
-        self.measured = Markers(symbol=MEASURED_SYMBOL, size=19, pxMode=True, brush=None)
+        self.measured = Markers(MEASURED_SYMBOL, 19)
         # the current point's marker in an item of its own: a click moves that point, and
         # re-setting one spot costs nothing where re-setting hundreds (each with its pen) cost
         # milliseconds at every click
-        self.measured_current = Markers(symbol=MEASURED_SYMBOL, size=19, pxMode=True, brush=None)
+        self.measured_current = Markers(MEASURED_SYMBOL, 19)
         # blunders drawn over their markers by an item of their own: a point that becomes (or
         # stops being) a blunder repaints its marker, not the whole view
-        self.blunders = Markers(symbol=MEASURED_SYMBOL, size=19, pxMode=True, brush=None,
-                                           pen=_pen(BLUNDER_COLOR))
-        self.predicted = Markers(symbol="o", size=15, pxMode=True, brush=None)
-        self.current = Markers(symbol="s", size=27, pxMode=True, brush=None,
-                                          pen=pg.mkPen(CURRENT_COLOR, width=1.5))
+        self.blunders = Markers(MEASURED_SYMBOL, 19, _pen(BLUNDER_COLOR))
+        self.predicted = Markers("o", 15)
+        self.current = Markers("s", 27, pg.mkPen(CURRENT_COLOR, width=1.5))
         self.vectors = Curve(connect="pairs", pen=pg.mkPen(255, 120, 0, width=2))
         # one curve per kind: the ellipses of its predictions, separated by NaN
         self.ellipses = {k: Curve(connect="finite", pen=_pen(c, 1.2, True))
@@ -236,13 +194,12 @@ class ViewOverlay:
             item.setZValue(20.5)
             vb.addItem(item, ignoreBounds=True)
         self._ellipse_key = None
-        self.crosshair = Markers(symbol=CROSSHAIR_SYMBOL, size=46, pxMode=True, brush=None,
-                                            pen=pg.mkPen(CURSOR_COLOR, width=1.5))
+        self.crosshair = Markers(CROSSHAIR_SYMBOL, 46, pg.mkPen(CURSOR_COLOR, width=1.5))
         for z, item in ((20, self.vectors), (21, self.predicted), (22, self.measured),
                         (22.2, self.measured_current), (22.5, self.blunders), (23, self.current),
                         (30, self.crosshair)):
             item.setZValue(z)
-            vb.addItem(item)
+            vb.addItem(item, ignoreBounds=True)  # overlays never move the view's range
         self.crosshair.setVisible(False)
         self.labels = LabelLayer()
         self.labels.setZValue(24)
