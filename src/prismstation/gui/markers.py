@@ -1,4 +1,5 @@
-"""Markers: symbols of a constant size on screen at points of a view box (image pixels).
+"""Markers: symbols of a constant size on screen at points of a view box (image pixels), and
+Scatter, the plots' scatter item with the same lean repaint.
 
 pyqtgraph's ``ScatterPlotItem`` does the same job for plots; in an image view it cost ~0.25 ms
 of Python per item at every repaint, however small the repainted area (it maps and masks
@@ -13,10 +14,11 @@ import math
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF
-from PySide6.QtGui import QPainterPath, QPen, QPixmap
+from PySide6.QtGui import QBrush, QPainterPath, QPen, QPixmap
 from pyqtgraph.graphicsItems.ScatterPlotItem import renderSymbol
 
 _NO_SHAPE = QPainterPath()
+_NO_BRUSH = QBrush()
 _PIXMAPS: dict = {}  # (symbol key, size, pen key, device pixel ratio) -> QPixmap
 
 
@@ -24,12 +26,15 @@ def _pen_key(pen: QPen) -> tuple:
     return pen.color().rgba(), pen.widthF(), int(pen.style().value)
 
 
-def _pixmap(symbol, size: float, pen: QPen, dpr: float) -> QPixmap:
-    """The symbol drawn once with ``pen`` (no fill), centred in a square pixmap."""
-    key = (symbol if isinstance(symbol, str) else id(symbol), size, _pen_key(pen), dpr)
+def _pixmap(symbol, size: float, pen: QPen, dpr: float, brush: QBrush | None = None) -> QPixmap:
+    """The symbol drawn once with ``pen`` and ``brush`` (None: no fill), centred in a square
+    pixmap of ``dpr`` device pixels per pixel."""
+    brush = brush if brush is not None else _NO_BRUSH
+    key = (symbol if isinstance(symbol, str) else id(symbol), size, _pen_key(pen),
+           brush.color().rgba(), int(brush.style().value), dpr)
     pm = _PIXMAPS.get(key)
     if pm is None:
-        pm = _PIXMAPS[key] = QPixmap.fromImage(renderSymbol(symbol, size, pen, pg.mkBrush(None), dpr=dpr))
+        pm = _PIXMAPS[key] = QPixmap.fromImage(renderSymbol(symbol, size, pen, brush, dpr=dpr))
     return pm
 
 
@@ -137,4 +142,52 @@ class Markers(pg.GraphicsObject):
         for x, y, k in zip(dx[inside].tolist(), dy[inside].tolist(), which):
             h = halves[k]
             p.drawPixmap(QPointF(x - h, y - h), pms[k])
+        p.setTransform(t)
+
+
+class Scatter(pg.ScatterPlotItem):
+    """pyqtgraph's scatter item for the plots (hover tips, clicks, legend samples kept), with
+    one style for all its spots (``symbol``, ``size``, ``pen``, ``brush`` of the item; the
+    plots never style a spot of their own) and a cheaper repaint: the spots in the exposed
+    area mapped by one product and drawn from one cached pixmap, the bounding rectangle
+    remembered while the data and the view are unchanged (pyqtgraph recomputes both on every
+    call, ~0.2 ms per repaint and ~45 µs per rectangle)."""
+
+    _br_key = None
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.setFlag(self.GraphicsItemFlag.ItemUsesExtendedStyleOption)  # option.exposedRect
+
+    def boundingRect(self) -> QRectF:
+        # pyqtgraph replaces ``self.bounds`` when the data or the view transform change
+        key = self._br_key
+        if key is None or key[0] is not self.bounds or key[1] != self._maxSpotPxWidth:
+            rect = super().boundingRect()
+            self._br_key = (self.bounds, self._maxSpotPxWidth, rect)
+            return QRectF(rect)
+        return QRectF(key[2])
+
+    def paint(self, p, option, widget=None) -> None:
+        n = len(self.data)
+        if not n:
+            return
+        o = self.opts
+        if self._exportOpts is not False or not o["pxMode"]:
+            return super().paint(p, option, widget)
+        dpr = widget.devicePixelRatioF() if widget is not None else 1.0
+        pm = _pixmap(o["symbol"], o["size"], pg.mkPen(o["pen"]), dpr, pg.mkBrush(o["brush"]))
+        half = pm.width() / dpr * 0.5
+        t = p.transform()
+        area = t.mapRect(option.exposedRect).adjusted(-half, -half, half, half)
+        x, y = self.data["x"], self.data["y"]
+        dx = t.m11() * x + t.m21() * y + t.dx()
+        dy = t.m12() * x + t.m22() * y + t.dy()
+        inside = np.flatnonzero((dx >= area.left()) & (dx <= area.right()) &
+                                (dy >= area.top()) & (dy <= area.bottom()))
+        if not inside.size:
+            return
+        p.resetTransform()
+        for sx, sy in zip((dx[inside] - half).tolist(), (dy[inside] - half).tolist()):
+            p.drawPixmap(QPointF(sx, sy), pm)
         p.setTransform(t)

@@ -29,6 +29,7 @@ from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QGridLayout, QHBoxLayo
                                QStackedWidget, QTabWidget, QVBoxLayout, QWidget)
 
 from prismstation.gui.fit_checks import alpha_of
+from prismstation.gui.markers import Scatter
 from prismstation.gui.palette import BLUNDER_RGB, FIT_RGB, KIND_RGB, THEORY_RGB, qcolor
 from prismstation.gui.plot_data import PlotData, auto_exaggeration, data_ranges, line_x, segments
 from prismstation.gui.text_label import TextLabel
@@ -192,9 +193,9 @@ class PlotsWidget(QWidget):
     # curve and a scatter and re-processes both at every setData, several times the cost.
     def _scatter(self, pw, color, symbol, name, size=8, filled=True):
         brush = pg.mkBrush(*color) if filled else pg.mkBrush(255, 255, 255, 0)
-        item = pg.ScatterPlotItem(pen=pg.mkPen(color, width=1.5), brush=brush, symbol=symbol,
-                                  size=size, name=name, hoverable=True,  # tool tip: id, values
-                                  tip=lambda x, y, data: f"{data}: {x:.2f}, {y:.2f}")
+        item = Scatter(pen=pg.mkPen(color, width=1.5), brush=brush, symbol=symbol, size=size,
+                       name=name, hoverable=True,  # tool tip: id, values
+                       tip=lambda x, y, data: f"{data}: {x:.2f}, {y:.2f}")
         item.sigClicked.connect(self._on_clicked)
         pw.addItem(item)
         return item

@@ -106,3 +106,35 @@ def test_a_small_repaint_draws_only_the_spots_in_it(qtbot, view, monkeypatch):
     sx, sy = _screen(view, 50, 50)
     view.viewport().repaint(QRect(int(sx) - 2, int(sy) - 2, 4, 4))
     assert 1 <= len(drawn) <= 3
+
+
+def _plot(qtbot, item_cls):
+    w = pg.PlotWidget()
+    w.resize(300, 240)
+    qtbot.addWidget(w)
+    w.show()
+    qtbot.waitExposed(w)
+    item = item_cls(pen=pg.mkPen((220, 40, 40), width=1.5), brush=pg.mkBrush(220, 40, 40),
+                    symbol="t", size=9, hoverable=True)
+    w.addItem(item)
+    rng = np.random.default_rng(3)
+    item.setData(rng.uniform(0, 10, 60), rng.uniform(-5, 5, 60), data=[f"P{i}" for i in range(60)])
+    w.setRange(xRange=(0, 10), yRange=(-5, 5))
+    qtbot.wait(30)
+    return w, item
+
+
+def test_the_plots_scatter_draws_what_pyqtgraphs_does_and_still_takes_clicks(qtbot):
+    from prismstation.gui.markers import Scatter
+    ref, _ = _plot(qtbot, pg.ScatterPlotItem)
+    w, item = _plot(qtbot, Scatter)
+    a = ref.grab().toImage()
+    b = w.grab().toImage()
+    assert a == b                                        # the same picture, pixel for pixel
+    clicked = []
+    item.sigClicked.connect(lambda it, pts, ev: clicked.append(pts[0].data()))
+    x, y = item.getData()
+    pos = w.getPlotItem().vb.mapViewToScene(pg.QtCore.QPointF(x[7], y[7]))
+    qtbot.mouseClick(w.viewport(), pg.QtCore.Qt.MouseButton.LeftButton,
+                     pos=w.mapFromScene(pos))
+    assert clicked and clicked[0] in {f"P{i}" for i in range(60)}
