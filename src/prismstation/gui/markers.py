@@ -39,6 +39,17 @@ def _pixmap(symbol, size: float, pen: QPen, dpr: float, brush: QBrush | None = N
     return pm
 
 
+def on_screen(t, x: np.ndarray, y: np.ndarray, area: QRectF):
+    """``(dx, dy, inside)``: the positions ``x``, ``y`` (``(n,)``, item coordinates) mapped by
+    the painter transform ``t`` to device pixels, and the indices of those in ``area`` (device
+    pixels, edges included)."""
+    dx = t.m11() * x + t.m21() * y + t.dx()
+    dy = t.m12() * x + t.m22() * y + t.dy()
+    inside = np.flatnonzero((dx >= area.left()) & (dx <= area.right()) &
+                            (dy >= area.top()) & (dy <= area.bottom()))
+    return dx, dy, inside
+
+
 def _draw_centred(p: QPainter, pm: QPixmap, dpr: float, x: np.ndarray, y: np.ndarray,
                   frags=internals.PrimitiveArray(QPainter.PixmapFragment, 10)) -> None:
     """``pm`` centred at each device position ``(x[i], y[i])``, in one call (Qt's pixmap
@@ -143,11 +154,7 @@ class Markers(pg.GraphicsObject):
             self._drawn = (dpr, pms, max(pm.width() for pm in pms) / dpr * 0.5)
         _, pms, half = self._drawn
         area = t.mapRect(option.exposedRect).adjusted(-half, -half, half, half)
-        x, y = self._xy[:, 0], self._xy[:, 1]
-        dx = t.m11() * x + t.m21() * y + t.dx()
-        dy = t.m12() * x + t.m22() * y + t.dy()
-        inside = np.flatnonzero((dx >= area.left()) & (dx <= area.right()) &
-                                (dy >= area.top()) & (dy <= area.bottom()))
+        dx, dy, inside = on_screen(t, self._xy[:, 0], self._xy[:, 1], area)
         if not inside.size:
             return
         p.resetTransform()
@@ -194,11 +201,7 @@ class Scatter(pg.ScatterPlotItem):
         half = pm.width() / dpr * 0.5
         t = p.transform()
         area = t.mapRect(option.exposedRect).adjusted(-half, -half, half, half)
-        x, y = self.data["x"], self.data["y"]
-        dx = t.m11() * x + t.m21() * y + t.dx()
-        dy = t.m12() * x + t.m22() * y + t.dy()
-        inside = np.flatnonzero((dx >= area.left()) & (dx <= area.right()) &
-                                (dy >= area.top()) & (dy <= area.bottom()))
+        dx, dy, inside = on_screen(t, self.data["x"], self.data["y"], area)
         if not inside.size:
             return
         p.resetTransform()

@@ -15,7 +15,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainterPath, QPen, QStaticText, QTransform
 
-from prismstation.gui.markers import Markers
+from prismstation.gui.markers import Markers, on_screen
 from prismstation.gui.palette import BLUNDER_RGB, CURRENT_RGB, CURSOR_RGB, KIND_RGB, qcolor
 from prismstation.ops.predict import CHI2_95_2D
 
@@ -117,11 +117,7 @@ class LabelLayer(pg.GraphicsObject):
         t = p.transform()
         area = t.mapRect(option.exposedRect).intersected(QRectF(p.viewport()))
         area = area.adjusted(-self.REACH.right(), -self.REACH.bottom(), -self.REACH.left(), -self.REACH.top())
-        x, y = self._xy[:, 0], self._xy[:, 1]
-        dx = t.m11() * x + t.m21() * y + t.dx()
-        dy = t.m12() * x + t.m22() * y + t.dy()
-        inside = np.flatnonzero((dx >= area.left()) & (dx <= area.right()) &
-                                (dy >= area.top()) & (dy <= area.bottom()))
+        dx, dy, inside = on_screen(t, self._xy[:, 0], self._xy[:, 1], area)
         if not inside.size:
             return
         p.resetTransform()
