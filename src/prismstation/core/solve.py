@@ -172,9 +172,10 @@ def solve_prism(scene: Scene, points, settings: Settings = Settings(), *,
               else float(np.mean(heights)) if heights else 0.0)
     if control is not None:
         messages.append(f"oriented by {control.source}: no GCP used in the fit; every ground point checks it")
-        results = _point_results(scene, points, control.bias, control.parallax, mean_h, height_of, settings)
+        results, stats = _point_results(scene, points, control.bias, control.parallax, mean_h, height_of,
+                                        settings)
         return Solution(scene, settings, dict(control.bias), control.parallax, tuple(results),
-                        statistics(scene, results), tuple(messages), mean_h, revision)
+                        stats, tuple(messages), mean_h, revision)
 
     # 1. bias per view, fitted on the GCPs measured in it
     bias: dict[str, BiasFit] = {}
@@ -219,8 +220,7 @@ def solve_prism(scene: Scene, points, settings: Settings = Settings(), *,
 
     # 3. per point
     adjustment = _adjustment_stats(gcps, bias, parallax, scene, settings)
-    results = _point_results(scene, points, bias, parallax, mean_h, height_of, settings, adjustment)
-    stats = statistics(scene, results)
+    results, stats = _point_results(scene, points, bias, parallax, mean_h, height_of, settings, adjustment)
     return Solution(scene, settings, bias, parallax, tuple(results), stats, tuple(messages),
                     mean_h, revision, failures, tuple(points))
 
@@ -233,9 +233,10 @@ def _parallax(scene: Scene, pts) -> np.ndarray:
 
 
 def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
-                   adjustment=None) -> list[PointResult]:
-    """Every point's predictions, residuals and ground estimate, vectorised over points.
-    ``adjustment`` maps a GCP's id to its ``(std_residual, redundancy, blunder)``."""
+                   adjustment=None) -> tuple[list[PointResult], FitStatistics]:
+    """Every point's predictions, residuals and ground estimate, vectorised over points, and
+    their :func:`statistics` (from the same arrays). ``adjustment`` maps a GCP's id to its
+    ``(std_residual, redundancy, blunder)``."""
     views = scene.views
     n = len(points)
     unmeasured = (np.nan, np.nan)
@@ -309,12 +310,19 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
     # one PointResult per point, read from plain lists: indexing numpy arrays element by
     # element would cost more than all the vectorised work above
     names = list(views)
+    res_ok = {v: has[v] & known & have_k for v in names}
+    res = {v: np.where(res_ok[v][:, None], X[v] - pred[v], np.nan) for v in names}
+    est_a = np.column_stack([en, h])
+    g_res_a = np.where((known & any_m)[:, None], est_a - G, np.nan)
+    kinds = np.array([p.kind for p in points], str)
+    tie_res = (kinds == "TIE") & np.logical_or.reduce([res_ok[v] for v in names])
+    stats = _statistics(scene, kinds, res, g_res_a, any_m & (source == scene.sensor.height_source),
+                        across, bool(tie_res.any()))
     measured = _by_point(n, X, has)
     predicted = _by_point(n, pred, dict.fromkeys(names, have_k))
-    residual = _by_point(n, {v: X[v] - pred[v] for v in names}, {v: has[v] & known & have_k for v in names})
+    residual = _by_point(n, res, res_ok)
     across_px = _by_point(n, across, {v: np.isfinite(a) for v, a in across.items()})
-    est_l = np.column_stack([en, h]).tolist()
-    g_res_l = (np.column_stack([en, h]) - G).tolist()
+    est_l, g_res_l = est_a.tolist(), g_res_a.tolist()
     py_l, source_l = py.tolist(), source.tolist()
     known_l, any_m_l = known.tolist(), any_m.tolist()
     adjustment = adjustment or {}
@@ -330,7 +338,7 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
         out.append(PointResult(p.id, p.kind, measured[i], predicted[i], residual[i],
                                py_l[i] if math.isfinite(py_l[i]) else None, across_px[i], est,
                                source_l[i] if est else None, g_res, std_res, red, blunder, note))
-    return out
+    return out, stats
 
 
 def _finite_rows(xy: np.ndarray) -> np.ndarray:
@@ -418,23 +426,35 @@ def statistics(scene: Scene, results) -> FitStatistics:
     """Tables 1–3 of the paper and their extensions, for GCPs and ICPs (and tie points, in
     the image, where a model gives them residuals); height residuals of the points whose
     height comes from the model's own rays (``scene.sensor.height_source``)."""
-    kinds = ("GCP", "ICP") + (("TIE",) if any(r.kind == "TIE" and r.residual_px for r in results) else ())
-    by_kind = {kind: [r for r in results if r.kind == kind] for kind in kinds}
-    image, ground, height = {}, {}, {}
+    nan2, nan3 = (math.nan,) * 2, (math.nan,) * 3
+    residual = {v: _rows([r.residual_px.get(v, nan2) for r in results], 2) for v in scene.views}
+    ground = _rows([nan3 if r.ground_residual is None else r.ground_residual for r in results], 3)
+    source = scene.sensor.height_source
+    own = np.array([r.height_source == source for r in results], bool)
+    across = ({v: np.array([r.across_px.get(v, math.nan) for r in results], float) for v in ("F", "B")}
+              if scene.is_triplet else {})
+    ties = any(r.kind == "TIE" and r.residual_px for r in results)
+    return _statistics(scene, np.array([r.kind for r in results], str), residual, ground, own, across, ties)
+
+
+def _statistics(scene: Scene, kinds: np.ndarray, residual: dict, ground: np.ndarray, own_height: np.ndarray,
+                across: dict, ties: bool) -> FitStatistics:
+    """:func:`statistics` of ``n`` points from arrays, NaN where a point has no value:
+    ``kinds`` (n,) point kinds, ``residual`` view → (n, 2) image residuals (px), ``ground``
+    (n, 3) ground residuals (m), ``own_height`` (n,) True where the height comes from the
+    model's own rays, ``across`` 'F', 'B' → (n,) across-track differences (px; triplets);
+    ``ties``: tie points have image residuals."""
+    of_kind = {k: kinds == k for k in ("GCP", "ICP") + (("TIE",) if ties else ())}
+    image = {}
     for v, view in scene.views.items():
         image[v] = {}
-        for kind, rs in by_kind.items():
-            px = VectorStats.of(_rows([r.residual_px[v] for r in rs if v in r.residual_px], 2))
-            image[v][kind] = ImageStats(px, px.scaled(view.pixel_size_m))
-    source = scene.sensor.height_source
-    for kind in ("GCP", "ICP"):
-        known = [r for r in by_kind[kind] if r.ground_residual is not None]
-        ground[kind] = VectorStats.of(_rows([r.ground_residual for r in known], 3)[:, :2])
-        height[kind] = ComponentStats.of([r.ground_residual[2] for r in known
-                                          if r.height_source == source])
-    across = ({v: ComponentStats.of([r.across_px[v] for r in results if v in r.across_px])
-               for v in ("F", "B")} if scene.is_triplet else {})
-    return FitStatistics(image, ground, height, across, scene.reference_view)
+        for k, sel in of_kind.items():
+            px = VectorStats.of(residual[v][sel])
+            image[v][k] = ImageStats(px, px.scaled(view.pixel_size_m))
+    ground_stats = {k: VectorStats.of(ground[of_kind[k], :2]) for k in ("GCP", "ICP")}
+    height = {k: ComponentStats.of(ground[of_kind[k] & own_height, 2]) for k in ("GCP", "ICP")}
+    across_stats = ({v: ComponentStats.of(across[v]) for v in ("F", "B")} if scene.is_triplet else {})
+    return FitStatistics(image, ground_stats, height, across_stats, scene.reference_view)
 
 
 def _rows(rows: list, width: int) -> np.ndarray:
