@@ -4,8 +4,9 @@ Scatter, the plots' scatter item with the same lean repaint.
 pyqtgraph's ``ScatterPlotItem`` does the same job for plots; in an image view it cost ~0.25 ms
 of Python per item at every repaint, however small the repainted area (it maps and masks
 every spot each time), and a view repaints a few markers' areas at every click. This item
-maps the spots with one numpy product, draws only those in the exposed area, one pixmap each,
-and knows its bounding rectangle without asking the view for every call.
+maps the spots with one numpy product, draws only those in the exposed area from one cached
+pixmap per style in one Qt call, and knows its bounding rectangle without asking the view for
+every call.
 """
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ from PySide6.QtGui import QBrush, QPainter, QPainterPath, QPen, QPixmap
 
 _NO_SHAPE = QPainterPath()
 _NO_BRUSH = QBrush()
-_PIXMAPS: dict = {}  # (symbol key, size, pen key, device pixel ratio) -> QPixmap
+_PIXMAPS: dict = {}  # (symbol, size, pen, brush, device pixel ratio) -> QPixmap
 
 
 def _pen_key(pen: QPen) -> tuple:
