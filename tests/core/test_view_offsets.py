@@ -155,3 +155,47 @@ def test_gradient_recovers_a_drifting_offset():
                            100.0, "ok", "", 0.9) for w in wins]
     o_n, G_n = vo.gradient(noisy, centre)
     assert not G_n.any() and o_n == pytest.approx(np.mean([[f.dx, f.dy] for f in noisy], axis=0))
+
+
+def _draw_n_error(rng, keys_f, keys_b, sigma_m, par, w, n, common_m=0.0, field=0.0):
+    """``n`` draws of ``(1 − w)·δF + w·δB`` (px along track): each window's height error δh_i
+    (par ∝ it: F's offset +par·δh, B's −par·δh, σ_h = 1), a common one, each window's matching
+    noise ``sigma_m`` and field deviation ``field``; each view's offset the weighted mean of its
+    windows, weighted as ``combine`` weighs them (equal σ here: equally)."""
+    keys = sorted(set(keys_f) | set(keys_b))
+    dh = rng.normal(0, 1, (n, len(keys))) + rng.normal(0, common_m, (n, 1))
+    out = np.zeros(n)
+    for v, ks, sign, wv in (("F", keys_f, +1, 1 - w), ("B", keys_b, -1, w)):
+        idx = [keys.index(k) for k in ks]
+        e = sign * par[v] * dh[:, idx] + rng.normal(0, np.hypot(sigma_m, field), (n, len(idx)))
+        out += wv * e.mean(axis=1)
+    return out
+
+
+@pytest.mark.parametrize("shared", [9, 6, 3, 0])
+def test_n_position_sigma_counts_the_height_error_only_where_f_and_b_windows_differ(shared):
+    rng = np.random.default_rng(shared)
+    tan_f, tan_b, gsd, sigma_h = 0.44, 0.40, 2.5, 10.0
+    w = tan_f / (tan_f + tan_b)
+    par = {"F": sigma_h * tan_f / gsd, "B": sigma_h * tan_b / gsd}       # px per σ_h
+    keys = [(i, 0) for i in range(18)]
+    keys_f = keys[:9]
+    keys_b = keys[9 - shared:18 - shared]                                # `shared` of them in both
+    sigma_m, along = 0.3, (0.0, 1.0)
+    windows = {"F": {k: (0.05, float(np.hypot(sigma_m, par["F"]))) for k in keys_f},
+               "B": {k: (0.05, float(np.hypot(sigma_m, par["B"]))) for k in keys_b}}
+    s = vo.n_along_sigma_px(windows, par, along, w, sigma_field_px=0.0)
+    # the reference error common to every window cancels whole: drawn 30 m here
+    draws = _draw_n_error(rng, keys_f, keys_b, sigma_m, par,
+                          w, 40000, common_m=3.0)
+    assert s == pytest.approx(np.std(draws), rel=0.03)
+    if shared == 9:   # the same windows: the heights' error cancels, the matching's is left
+        assert s == pytest.approx(np.hypot((1 - w) * sigma_m, w * sigma_m) / 3, rel=1e-9)
+    if shared == 0:   # disjoint windows: nothing cancels between them
+        k = (1 - w) * par["F"]
+        assert s == pytest.approx(np.hypot(np.hypot((1 - w) * sigma_m, w * sigma_m) / 3, k * np.sqrt(2 / 9)), rel=1e-9)
+
+
+def test_n_position_sigma_without_the_windows_of_a_view_is_not_a_number():
+    assert np.isnan(vo.n_along_sigma_px({"F": {(0, 0): (0.1, 2.0)}, "B": {}}, {"F": 1.8, "B": 1.8},
+                                        (0.0, 1.0), 0.5))

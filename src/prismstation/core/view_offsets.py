@@ -281,3 +281,45 @@ def offset_at(offset, grad, centre, xy) -> np.ndarray:
     if grad is not None:
         out += (xy - np.asarray(centre, float)) @ np.asarray(grad, float).T
     return out
+
+
+def n_along_sigma_px(windows: dict, par_px: dict, along, n_weight: float,
+                     sigma_field_px: float = SIGMA_FIELD_PX, variance_factor: dict | None = None) -> float:
+    """σ (N pixels, along track) of ``(1 − w)·δF + w·δB``, the error F's and B's combined
+    offsets put on a cell's N position (``w = n_weight = tanθF / (tanθF + tanθB)``).
+
+    ``windows``: ``{view: {n_window: (sigma_dx, sigma_dy)}}`` of the ok windows (px, the σ
+    :func:`view_offset` states, its reference-height term included); ``par_px``: that term per
+    view, ``σ_h·tanθ / GSD`` (px along ``along``, the unit N-space flight direction).
+
+    A height error δh of the reference in a window moves F's offset there by ``+δh·tanθF/GSD``
+    along track and B's by ``−δh·tanθB/GSD``; with this ``w`` the two cancel in N's position
+    (``(1 − w)·tanθF = w·tanθB``). What is left of them comes from the windows F and B do not
+    share, or weight differently: ``K²·σ_h²·Σ(wF_i − wB_i)²`` with ``K = (1 − w)·tanθF / GSD``,
+    each window's height error taken as its own (the reference's error common to all windows
+    cancels whole). The matching part of each window's σ (its stated σ without the height term,
+    widened by ``sigma_field_px``) averages over the windows and is scaled by each view's χ²
+    variance factor where the windows disagree more than their σ (``variance_factor``).
+    Diagonal σ are projected on ``along`` (``sx²·a_x² + sy²·a_y²``)."""
+    a = np.asarray(along, float) / np.linalg.norm(along)
+    w_view = {"F": 1.0 - n_weight, "B": n_weight}
+    weights, var = {}, 0.0
+    for v in ("F", "B"):
+        wins = windows.get(v) or {}
+        if not wins:
+            return float("nan")
+        keys = list(wins)
+        s = np.array([wins[k] for k in keys], float)
+        total = s[:, 0] ** 2 * a[0] ** 2 + s[:, 1] ** 2 * a[1] ** 2           # stated, along
+        match = np.clip(total - par_px[v] ** 2, 0.0, None) + sigma_field_px ** 2
+        wt = 1.0 / (total + sigma_field_px ** 2)                              # as combine weighs them
+        wt = wt / wt.sum()
+        vf = (variance_factor or {}).get(v)
+        scale = max(float(vf), 1.0) if vf is not None and np.isfinite(vf) else 1.0
+        var += w_view[v] ** 2 * float(np.sum(wt ** 2 * match)) * scale
+        weights[v] = dict(zip(keys, wt))
+    k = w_view["F"] * par_px["F"]      # = w·par_B when par ∝ tanθ: the height term of N's position
+    union = set(weights["F"]) | set(weights["B"])
+    diff = np.array([weights["F"].get(u, 0.0) - weights["B"].get(u, 0.0) for u in union])
+    var += k ** 2 * float(np.sum(diff ** 2))
+    return float(np.sqrt(var))

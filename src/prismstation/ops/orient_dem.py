@@ -37,7 +37,7 @@ from prismstation.core.dem_orient import (ControlPoints, PatchShift, affine_fiel
                                           gcp_field_obs)
 from prismstation.core.field_adjust import Basis, Cells, adjust_field
 from prismstation.core.solve import Control
-from prismstation.core.view_offsets import SIGMA_HEIGHT_M, offset_at
+from prismstation.core.view_offsets import SIGMA_HEIGHT_M, n_along_sigma_px, offset_at
 from prismstation.errors import InputError
 from prismstation.io.jsonfile import plain
 from prismstation.io.project import project_geoid
@@ -375,22 +375,23 @@ def offsets_along_sigma(run: OrientRun, record: dict) -> float:
     """σ (m) along track of every cell's N position from the view offsets' along-track error:
     a cell sits at ``pF − w·py·d``, so errors δF, δB of the offsets move all of them alike by
     ``(1 − w)·δF + w·δB`` along ``d`` — a shift the adjustment takes for N's own and cannot see.
-    Each offset's along-track σ is the coarse step's (its windows' a-priori σ) scaled by the
-    windows' own scatter about their field (√ of the χ² test's variance factor)."""
+    From the coarse step's windows (``record``, :meth:`CoarseOffsets.to_dict`):
+    :func:`~prismstation.core.view_offsets.n_along_sigma_px`, where the reference heights'
+    error, common to F and B in a window, cancels but for the windows they do not share."""
     rows, cols = run.shape
     N = run.scene.views["N"]
     en = prism.ancillary_to_ground(run.scene, N, np.array([[cols / 2, rows / 2]]), run.ref.mean_h)
     d = prism.along_track_unit(run.scene, en)[0]
-    w = {"F": 1.0 - run.n_weight, "B": run.n_weight}
-    var = 0.0
-    for v in "FB":
-        sx, sy = (float("nan") if c is None else float(c) for c in record["sigma_px"][v])
-        if not np.isfinite([sx, sy]).all():
-            continue
-        vf = ((record.get("verdicts") or {}).get(v) or {}).get("variance_factor")
-        scale = float(vf) if vf is not None and np.isfinite(vf) else 1.0
-        var += w[v] ** 2 * ((d[0] * sx) ** 2 + (d[1] * sy) ** 2) * scale
-    return float(np.sqrt(var)) * N.pixel_size_m
+    windows: dict = {"F": {}, "B": {}}
+    for w in record.get("windows") or ():
+        sx, sy = w.get("sigma_dx"), w.get("sigma_dy")
+        if w.get("status") == "ok" and w.get("view") in windows and sx is not None and sy is not None:
+            windows[w["view"]][tuple(w["n_window"])] = (float(sx), float(sy))
+    par = {v: run.sigma_height_m * abs(run.scene.views[v].tan_theta) / N.pixel_size_m for v in "FB"}
+    vf = {v: ((record.get("verdicts") or {}).get(v) or {}).get("variance_factor") for v in "FB"}
+    s = n_along_sigma_px(windows, par, d, run.n_weight,
+                         variance_factor={v: float(x) for v, x in vf.items() if x is not None})
+    return s * N.pixel_size_m if np.isfinite(s) else 0.0   # (no offsets: nothing to add)
 
 
 def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcps) -> DemOrientation:
