@@ -64,6 +64,28 @@ def _draw_centred(p: QPainter, pm: QPixmap, dpr: float, x: np.ndarray, y: np.nda
     p.drawPixmapFragments(*frags.drawargs(), pm)
 
 
+def _paint_spots(p: QPainter, option, x: np.ndarray, y: np.ndarray, pms: list, dpr: float,
+                 half: float, which: np.ndarray | None = None) -> None:
+    """Spots at item positions ``x``, ``y`` (``(n,)``) in the exposed area of ``option``, each
+    the pixmap ``pms[which[i]]`` (``which`` None: ``pms[0]``) centred on it; ``half``: half the
+    largest pixmap's side (device-independent px), how far a spot reaches into the area."""
+    t = p.transform()
+    area = t.mapRect(option.exposedRect).adjusted(-half, -half, half, half)
+    dx, dy, inside = on_screen(t, x, y, area)
+    if not inside.size:
+        return
+    p.resetTransform()
+    if len(pms) == 1 or which is None:
+        _draw_centred(p, pms[0], dpr, dx[inside], dy[inside])
+    else:
+        chosen = which[inside]
+        for k, pm in enumerate(pms):
+            sel = inside[chosen == k]
+            if sel.size:
+                _draw_centred(p, pm, dpr, dx[sel], dy[sel])
+    p.setTransform(t)
+
+
 class Markers(pg.GraphicsObject):
     """Symbols ``symbol`` (a pyqtgraph symbol name or a unit ``QPainterPath``, −0.5..0.5) of
     ``size`` screen pixels at image positions, each drawn with its own pen or ``pen``.
@@ -148,23 +170,12 @@ class Markers(pg.GraphicsObject):
     def paint(self, p, option, *args) -> None:
         if not len(self._xy):
             return
-        t = p.transform()
         dpr = p.device().devicePixelRatioF() if p.device() is not None else 1.0
         if self._drawn[0] != dpr:
             pms = [_pixmap(self.symbol, self.size, pen, dpr) for pen in self._pens]
             self._drawn = (dpr, pms, max(pm.width() for pm in pms) / dpr * 0.5)
         _, pms, half = self._drawn
-        area = t.mapRect(option.exposedRect).adjusted(-half, -half, half, half)
-        dx, dy, inside = on_screen(t, self._xy[:, 0], self._xy[:, 1], area)
-        if not inside.size:
-            return
-        p.resetTransform()
-        which = self._which[inside]
-        for k, pm in enumerate(pms):
-            sel = inside[which == k] if len(pms) > 1 else inside
-            if sel.size:
-                _draw_centred(p, pm, dpr, dx[sel], dy[sel])
-        p.setTransform(t)
+        _paint_spots(p, option, self._xy[:, 0], self._xy[:, 1], pms, dpr, half, self._which)
 
 
 class Scatter(pg.ScatterPlotItem):
@@ -198,13 +209,5 @@ class Scatter(pg.ScatterPlotItem):
         if self._exportOpts is not False or not o["pxMode"]:
             return super().paint(p, option, widget)
         dpr = widget.devicePixelRatioF() if widget is not None else 1.0
-        pm = _pixmap(o["symbol"], o["size"], pg.mkPen(o["pen"]), dpr, pg.mkBrush(o["brush"]))
-        half = pm.width() / dpr * 0.5
-        t = p.transform()
-        area = t.mapRect(option.exposedRect).adjusted(-half, -half, half, half)
-        dx, dy, inside = on_screen(t, self.data["x"], self.data["y"], area)
-        if not inside.size:
-            return
-        p.resetTransform()
-        _draw_centred(p, pm, dpr, dx[inside], dy[inside])
-        p.setTransform(t)
+        pm = _pixmap(o["symbol"], o["size"], o["pen"], dpr, o["brush"])  # (QPen, QBrush: pyqtgraph's)
+        _paint_spots(p, option, self.data["x"], self.data["y"], [pm], dpr, pm.width() / dpr * 0.5)
