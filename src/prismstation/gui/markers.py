@@ -19,7 +19,7 @@ from pyqtgraph.Qt import internals
 from PySide6.QtCore import QRectF
 from PySide6.QtGui import QBrush, QPainter, QPainterPath, QPen, QPixmap
 
-_NO_SHAPE = QPainterPath()
+NO_SHAPE = QPainterPath()  # the outline of an item that is no mouse target
 _NO_BRUSH = QBrush()
 _PIXMAPS: dict = {}  # (symbol, size, pen, brush, device pixel ratio) -> QPixmap
 
@@ -161,7 +161,7 @@ class Markers(pg.GraphicsObject):
         return self._data_rect.adjusted(-px, -py, px, py)
 
     def shape(self) -> QPainterPath:  # not a mouse target
-        return _NO_SHAPE
+        return NO_SHAPE
 
     def mouseClickEvent(self, ev) -> None:
         ev.ignore()

@@ -15,7 +15,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainterPath, QPen, QStaticText, QTransform
 
-from prismstation.gui.markers import Markers, on_screen
+from prismstation.gui.markers import NO_SHAPE, Markers, on_screen
 from prismstation.gui.palette import BLUNDER_RGB, CURRENT_RGB, CURSOR_RGB, KIND_RGB, qcolor
 from prismstation.ops.predict import CHI2_95_2D
 
@@ -47,7 +47,6 @@ def _pen(color: QColor, width: float = 2.0, dashed: bool = False):
     return pen
 
 
-_NO_SHAPE = QPainterPath()
 
 
 class Curve(pg.PlotCurveItem):
@@ -56,7 +55,7 @@ class Curve(pg.PlotCurveItem):
     anew whenever the data changed (the residual vectors: at every click)."""
 
     def shape(self) -> QPainterPath:
-        return _NO_SHAPE
+        return NO_SHAPE
 
     def mouseClickEvent(self, ev) -> None:
         ev.ignore()
@@ -91,7 +90,7 @@ class LabelLayer(pg.GraphicsObject):
         self.update()
 
     def shape(self) -> QPainterPath:  # not a mouse target
-        return _NO_SHAPE
+        return NO_SHAPE
 
     def boundingRect(self) -> QRectF:
         """The visible area of the view (image pixels): labels extend in screen pixels from
