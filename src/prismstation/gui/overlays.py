@@ -47,8 +47,6 @@ def _pen(color: QColor, width: float = 2.0, dashed: bool = False):
     return pen
 
 
-
-
 class Curve(pg.PlotCurveItem):
     """A line item that is not a mouse target: the views pick markers themselves, and Qt's
     search of the items under a click asked this curve for its outline, which pyqtgraph strokes
