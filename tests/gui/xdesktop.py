@@ -8,6 +8,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -21,19 +22,55 @@ def missing_tools() -> list[str]:
 class Desktop:
     """An X server of ``width`` × ``height`` with a window manager; ``env`` for its clients."""
 
+    _started = 0  # desktops this process has started: each gets a display number of its own
+
     def __init__(self, width: int, height: int):
-        r, w = os.pipe()
-        self.xvfb = subprocess.Popen(["Xvfb", "-displayfd", str(w), "-screen", "0", f"{width}x{height}x24",
-                                      "-nolisten", "tcp"], pass_fds=(w,), stderr=subprocess.DEVNULL)
-        os.close(w)
-        with os.fdopen(r) as f:
-            num = f.readline().strip()
-        if not num:
+        for _ in range(20):
+            num = self._next_display()
+            r, w = os.pipe()
+            self.xvfb = subprocess.Popen(["Xvfb", f":{num}", "-displayfd", str(w), "-screen", "0",
+                                          f"{width}x{height}x24", "-nolisten", "tcp"],
+                                         pass_fds=(w,), stderr=subprocess.DEVNULL)
+            os.close(w)
+            with os.fdopen(r) as f:
+                ready = f.readline().strip()     # written once the server accepts clients
+            if ready:
+                break
+            self.xvfb.wait()                      # that display was taken: the next one
+        else:
             raise RuntimeError("Xvfb did not start")
         self.env = {**os.environ, "DISPLAY": f":{num}", "QT_QPA_PLATFORM": "xcb"}
-        self.wm = subprocess.Popen(["openbox"], env=self.env, stdout=subprocess.DEVNULL,
-                                   stderr=subprocess.DEVNULL)
-        self.wait(lambda: self.run("wmctrl", "-m", check=False).returncode == 0, 10, "openbox")
+        self._wm_log = tempfile.TemporaryFile()
+        self.wm = subprocess.Popen(["openbox"], env=self.env, stdout=self._wm_log, stderr=subprocess.STDOUT)
+        try:
+            self.wait(self._wm_up, 10, "openbox")
+        except AssertionError:
+            self._wm_log.seek(0)
+            log = self._wm_log.read().decode(errors="replace").strip()
+            self.close()
+            raise AssertionError(f"openbox on {self.env['DISPLAY']} not up after 10 s (exit "
+                                 f"{self.wm.returncode}): {log or 'no output'}") from None
+
+    def _wm_up(self) -> bool:
+        """The window manager answers (it is not up if it has exited)."""
+        if self.wm.poll() is not None:
+            raise AssertionError("exited")
+        return self.run("wmctrl", "-m", check=False).returncode == 0
+
+    @classmethod
+    def _next_display(cls) -> int:
+        """A display number no other test worker uses and this one has not used lately. Xvfb's
+        own choice (the lowest free) reuses the number another worker's server is just giving
+        up, and openbox then could not connect ("Failed to open the display": in 3 of 4 runs of
+        the GUI tests with 4 workers, 0 of 5 with a display per worker) — most likely the exiting
+        server removing the socket the new one had made."""
+        worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0").lstrip("gw")
+        base = 400 + 100 * (int(worker) if worker.isdigit() else 0)
+        while True:
+            num = base + cls._started % 100
+            cls._started += 1
+            if not Path(f"/tmp/.X{num}-lock").exists():
+                return num
 
     def run(self, *cmd, check=True) -> subprocess.CompletedProcess:
         r = subprocess.run(cmd, env=self.env, capture_output=True, text=True, timeout=30)
@@ -59,6 +96,7 @@ class Desktop:
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
+        self._wm_log.close()
 
 
 class App:
