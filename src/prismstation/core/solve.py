@@ -19,6 +19,7 @@ import numpy as np
 from prismstation.core import prism
 from prismstation.core.prism import BiasFit, ParallaxLine
 from prismstation.core.ray_dem import ray_meets_surface
+from prismstation.core.recent import Recent, key_of
 from prismstation.core.scene import Scene
 from prismstation.core.stats import ComponentStats, FitStatistics, ImageStats, VectorStats
 from prismstation.errors import ModelError
@@ -154,6 +155,10 @@ def solve(scene: Scene, points, settings: Settings = Settings(), *,
                             revision=revision, control=control)
 
 
+_RECENT = Recent()
+"""The bias fits and parallax lines of the last fits: a click moves the inputs of one view."""
+
+
 def solve_prism(scene: Scene, points, settings: Settings = Settings(), *,
                 height_of: HeightFn | None = None, revision: int = 0,
                 control: Control | None = None) -> Solution:
@@ -192,7 +197,8 @@ def solve_prism(scene: Scene, points, settings: Settings = Settings(), *,
             sig = [p.sigma_px.get(name, settings.sigma_px) for p in sel]
             ladder = [m for m in prism.BIAS_MODELS if prism.BIAS_MODELS[m] <= prism.BIAS_MODELS[model]]
             for m in reversed(ladder):  # N follows the setting; F, B may step down for prediction
-                result = BiasFit.fit(xy0, xy, m, sig, what=f"view {name}")
+                result = _RECENT.get(key_of("bias", name, m, xy0, xy, sig),
+                                     lambda: BiasFit.fit(xy0, xy, m, sig, what=f"view {name}"))
                 if result:
                     fit = result
                     break
@@ -209,10 +215,10 @@ def solve_prism(scene: Scene, points, settings: Settings = Settings(), *,
     parallax = None
     if triplet:
         fb = [p for p in gcps if "F" in p.image and "B" in p.image]
-        py = _parallax(scene, fb)
+        py, h_fb, c1 = _parallax(scene, fb), [p.ground[2] for p in fb], prism.theoretical_c1(scene)
         try:
-            parallax = prism.fit_parallax(py, [p.ground[2] for p in fb], settings.parallax_model,
-                                          prism.theoretical_c1(scene))
+            parallax = _RECENT.get(key_of("parallax", settings.parallax_model, c1, py, h_fb),
+                                   lambda: prism.fit_parallax(py, h_fb, settings.parallax_model, c1))
             if parallax.note:
                 messages.append(parallax.note)
         except ModelError as exc:
