@@ -35,7 +35,8 @@ from prismstation.core.ray_dem import ray_meets_surface
 from prismstation.core.rpc_adjust import adjust
 from prismstation.core.rpc_bias import BIAS_MODELS, BIAS_NAMES, intersect_points
 from prismstation.core.rpc_model import RpcBias, RpcModel
-from prismstation.core.solve import PointResult, Settings, Solution, normal_equivalent, statistics
+from prismstation.core.results import PointColumns, PointResult
+from prismstation.core.solve import Settings, Solution, normal_equivalent, statistics
 from prismstation.errors import DegenerateGeometry, ModelError
 
 #: σ (m) of a GCP's ground when its survey gives none: taken as exact
@@ -135,7 +136,7 @@ def solve_rpc(scene, points, settings: Settings = Settings(), *, height_of=None,
                                 f"(σ {height_sigma_m:.1f} m): fewer GCPs than the {m} bias needs")
     sol_model = RpcModel(scene, bias)
     results, mean_h = run.evaluate(sol_model, result, height_of, settings)
-    return Solution(scene, settings, bias, None, tuple(results), statistics(scene, results),
+    return Solution(scene, settings, bias, None, PointColumns.of(results, scene.views), statistics(scene, results),
                     tuple(messages), mean_h, revision, failures, tuple(points))
 
 

@@ -20,6 +20,7 @@ from prismstation.core import prism
 from prismstation.core.prism import BiasFit, ParallaxLine
 from prismstation.core.ray_dem import ray_meets_surface
 from prismstation.core.recent import Recent, key_of
+from prismstation.core.results import PointColumns, PointResult
 from prismstation.core.scene import Scene
 from prismstation.core.stats import ComponentStats, FitStatistics, ImageStats, VectorStats
 from prismstation.errors import ModelError
@@ -57,29 +58,6 @@ class PointObs:
     sigma_ground: tuple | None = None
 
 
-@dataclass(frozen=True)
-class PointResult:
-    """Everything computed for one point. Residuals are measured − predicted (pixels);
-    ``ground_residual`` is estimated − known (E, N, h metres); ``ground_sigma`` the
-    estimate's σ (E, N, h metres) where the model states one."""
-
-    id: str
-    kind: str
-    measured: dict
-    predicted: dict
-    residual_px: dict
-    parallax_px: float | None
-    across_px: dict               # 'F', 'B' -> across-track difference to N (pixels)
-    ground_est: tuple[float, float, float] | None
-    height_source: str | None     # 'parallax', 'reference', 'mean'
-    ground_residual: tuple[float, float, float] | None
-    std_residual: float | None    # largest |standardised residual| of this GCP, normal scale
-    redundancy: float | None      # smallest redundancy number of its N observations
-    blunder: bool = False
-    note: str = ""
-    ground_sigma: tuple | None = None
-
-
 @dataclass(frozen=True, eq=False)
 class Solution:
     """An immutable fit: bias per view, parallax line (the PRISM model's; None otherwise),
@@ -93,7 +71,7 @@ class Solution:
     settings: Settings
     bias: dict                    # view -> BiasFit (identity where it could not be fitted)
     parallax: ParallaxLine | None
-    points: tuple
+    columns: PointColumns         # every point's results as arrays (the window reads these)
     stats: FitStatistics
     messages: tuple
     mean_height: float
@@ -119,8 +97,13 @@ class Solution:
         en = self.image_to_ground(view, xy, h)
         return {name: self.ground_to_image(name, en, h) for name in self.scene.views}
 
+    @property
+    def points(self) -> tuple:
+        """Every point's :class:`PointResult`, in the order of the fit's input (made once)."""
+        return self.columns.results()
+
     def point(self, pid: str) -> PointResult | None:
-        return next((p for p in self.points if p.id == pid), None)
+        return self.columns.result(pid)
 
     @property
     def ok(self) -> bool:
@@ -177,9 +160,9 @@ def solve_prism(scene: Scene, points, settings: Settings = Settings(), *,
               else float(np.mean(heights)) if heights else 0.0)
     if control is not None:
         messages.append(f"oriented by {control.source}: no GCP used in the fit; every ground point checks it")
-        results, stats = _point_results(scene, points, control.bias, control.parallax, mean_h, height_of,
+        columns, stats = _point_results(scene, points, control.bias, control.parallax, mean_h, height_of,
                                         settings)
-        return Solution(scene, settings, dict(control.bias), control.parallax, tuple(results),
+        return Solution(scene, settings, dict(control.bias), control.parallax, columns,
                         stats, tuple(messages), mean_h, revision)
 
     # 1. bias per view, fitted on the GCPs measured in it
@@ -226,8 +209,8 @@ def solve_prism(scene: Scene, points, settings: Settings = Settings(), *,
 
     # 3. per point
     adjustment = _adjustment_stats(gcps, bias, parallax, scene, settings)
-    results, stats = _point_results(scene, points, bias, parallax, mean_h, height_of, settings, adjustment)
-    return Solution(scene, settings, bias, parallax, tuple(results), stats, tuple(messages),
+    columns, stats = _point_results(scene, points, bias, parallax, mean_h, height_of, settings, adjustment)
+    return Solution(scene, settings, bias, parallax, columns, stats, tuple(messages),
                     mean_h, revision, failures, tuple(points))
 
 
@@ -239,7 +222,7 @@ def _parallax(scene: Scene, pts) -> np.ndarray:
 
 
 def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
-                   adjustment=None) -> tuple[list[PointResult], FitStatistics]:
+                   adjustment=None) -> tuple[PointColumns, FitStatistics]:
     """Every point's predictions, residuals and ground estimate, vectorised over points, and
     their :func:`statistics` (from the same arrays). ``adjustment`` maps a GCP's id to its
     ``(std_residual, redundancy, blunder)``."""
@@ -313,8 +296,7 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
             pv[have_k] = bias[v].apply(prism.ground_to_ancillary(scene, view, en_k[have_k], h_k[have_k]))
         pred[v] = pv
 
-    # one PointResult per point, read from plain lists: indexing numpy arrays element by
-    # element would cost more than all the vectorised work above
+    # the columns of every point (a PointResult is made only for a point asked for)
     names = list(views)
     res_ok = {v: has[v] & known & have_k for v in names}
     res = {v: np.where(res_ok[v][:, None], X[v] - pred[v], np.nan) for v in names}
@@ -324,45 +306,26 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
     tie_res = (kinds == "TIE") & np.logical_or.reduce([res_ok[v] for v in names])
     stats = _statistics(scene, kinds, res, g_res_a, any_m & (source == scene.sensor.height_source),
                         across, bool(tie_res.any()))
-    measured = _by_point(n, X, has)
-    predicted = _by_point(n, pred, dict.fromkeys(names, have_k))
-    residual = _by_point(n, res, res_ok)
-    across_px = _by_point(n, across, {v: np.isfinite(a) for v, a in across.items()})
-    est_l, g_res_l = est_a.tolist(), g_res_a.tolist()
-    py_l, source_l = py.tolist(), source.tolist()
-    known_l, any_m_l = known.tolist(), any_m.tolist()
-    adjustment = adjustment or {}
-    out = []
+    std_res, red, blunder = np.full(n, np.nan), np.full(n, np.nan), np.zeros(n, bool)
     for i, p in enumerate(points):
-        est = tuple(est_l[i]) if any_m_l[i] else None
-        g_res = tuple(g_res_l[i]) if known_l[i] and est else None
-        note = ("not measured in any view" if not any_m_l[i] else
-                "height not from parallax: measure the point in F and B"
-                if triplet and source_l[i] != "parallax" else "")
-        std_res, red, blunder = (adjustment.get(p.id, (None, None, False)) if p.kind == "GCP"
-                                 else (None, None, False))
-        out.append(PointResult(p.id, p.kind, measured[i], predicted[i], residual[i],
-                               py_l[i] if math.isfinite(py_l[i]) else None, across_px[i], est,
-                               source_l[i] if est else None, g_res, std_res, red, blunder, note))
-    return out, stats
+        a = adjustment.get(p.id) if adjustment and p.kind == "GCP" else None
+        if a is not None:
+            std_res[i] = math.nan if a[0] is None else a[0]
+            red[i], blunder[i] = a[1], a[2]
+    source_l, any_m_l = source.tolist(), any_m.tolist()
+    notes = tuple("not measured in any view" if not any_m_l[i] else
+                  "height not from parallax: measure the point in F and B"
+                  if triplet and source_l[i] != "parallax" else "" for i in range(n))
+    return PointColumns(tuple(p.id for p in points), tuple(kinds.tolist()),
+                        {v: np.where(has[v][:, None], X[v], np.nan) for v in names}, pred, res, py,
+                        across if triplet else {}, np.where(any_m[:, None], est_a, np.nan),
+                        tuple(source_l), g_res_a, std_res, red, blunder, notes), stats
 
 
 def _finite_rows(xy: np.ndarray) -> np.ndarray:
     """``(n,)`` True where both values of a row of ``xy`` ``(n, 2)`` are finite (the same as
     ``np.all(np.isfinite(xy), axis=1)``, which is slow on rows of two)."""
     return np.isfinite(xy[:, 0]) & np.isfinite(xy[:, 1])
-
-
-def _by_point(n: int, values: dict, masks: dict) -> list[dict]:
-    """``n`` per-point dicts from per-key arrays: item ``i`` is ``{key: values[key][i]}`` over the
-    keys (in the order of ``values``) whose ``masks[key][i]`` is set; an array row
-    (``(n, 2)`` arrays) becomes a tuple, a scalar (``(n,)``) a float."""
-    out = [{} for _ in range(n)]
-    for key, arr in values.items():
-        col = arr.tolist() if arr.ndim == 1 else list(zip(*arr.T.tolist()))  # rows as tuples
-        for i in np.flatnonzero(masks[key]).tolist():
-            out[i][key] = col[i]
-    return out
 
 
 @functools.lru_cache(maxsize=256)

@@ -49,7 +49,9 @@ def accuracy_values(sol) -> dict:
         out["h"] = _m(hgt.rms)
     s0 = sol.bias[sol.reference_view].sigma0 if sol.reference_view in sol.bias else None
     out["σ0"] = "—" if s0 is None or not math.isfinite(s0) else f"{s0:.3f}"
-    n = {k: sum(1 for r in sol.points if r.kind == k and r.measured) for k in ("GCP", "ICP")}
+    cols = sol.columns
+    measured = [k for k, m in zip(cols.kinds, cols.measured_anywhere().tolist()) if m]
+    n = {k: measured.count(k) for k in ("GCP", "ICP")}
     out["count"] = f"{n['GCP']} GCP · {n['ICP']} ICP"
     return out
 

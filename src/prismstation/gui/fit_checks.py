@@ -56,7 +56,7 @@ def blunder_test(sol) -> BlunderTest | None:
     par = sol.parallax
     if par is not None and par.lsq is not None and par.lsq.dof:
         fits.append(("parallax line", int(par.lsq.dof), critical_value(thr, int(par.lsq.dof))))
-    return BlunderTest(thr, alpha_of(thr), tuple(fits), tuple(r.id for r in sol.points if r.blunder))
+    return BlunderTest(thr, alpha_of(thr), tuple(fits), sol.columns.blunder_ids())
 
 
 @dataclass(frozen=True)

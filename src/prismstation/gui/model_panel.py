@@ -93,8 +93,9 @@ def solution_sections(sol) -> tuple[list, list]:
         sections.append((f"Blunder test — threshold {thr} (α = {test.alpha:.2g}) for every fit",
                          ["fit", "redundancy", "blunder at |w| >"],
                          [[label, str(dof), _f(c, 2)] for label, dof, c in test.fits]))
-    notes = [(f"Blunder: {r.id} — standardised residual {_f(r.std_residual)} > {thr}", "bad")
-             for r in sol.points if r.blunder]
+    cols = sol.columns
+    notes = [(f"Blunder: {cols.ids[i]} — standardised residual {_f(float(cols.std_residual[i]))} > {thr}", "bad")
+             for i, b in enumerate(cols.blunder.tolist()) if b]
     if check is not None:
         notes.append((check.text(), "info" if check.fits else "bad"))
     notes += [(m, "warn") for m in sol.messages]

@@ -236,7 +236,7 @@ class ViewOverlay:
                                          pen=[_pen(KIND_COLORS.get(k, CURRENT_COLOR)) for _, k in sel])
                         else:
                             item.clear()
-        flagged = {r.id for r in solution.points if r.blunder} if solution is not None else set()
+        flagged = set(solution.columns.blunder_ids()) if solution is not None else set()
         xy = ()
         if flagged and len(self.ids):
             xy = tuple(map(tuple, self.xy[np.isin(self.ids, list(flagged))].tolist()))
@@ -250,29 +250,32 @@ class ViewOverlay:
         vectors, labels. ``predictions``: ``{id: {view: Prediction}}``
         (:mod:`prismstation.ops.predict`); None: the solution's own predicted positions."""
         v, points = self.name, project.points
-        pred, pred_pens, segs = [], [], []
+        pred, pred_pens = [], []
         polys: dict = {k: [] for k in self.ellipses}
         label_pos = dict(zip(self.ids.tolist(), map(tuple, self.xy.tolist())))
+        residuals = np.zeros((0, 4))
         if solution is not None:
-            for r in solution.points:
-                if r.id not in points:
-                    continue
-                meas = r.measured.get(v)
-                if meas is None:
-                    p = None if predictions is None else predictions.get(r.id, {}).get(v)
-                    xy = r.predicted.get(v) if predictions is None else (None if p is None else p.xy)
-                    if xy is not None and math.isfinite(xy[0]) and math.isfinite(xy[1]) and \
-                            project.measurement(r.id, v) is None:
-                        kind = points[r.id].kind
-                        pred.append(xy)
-                        pred_pens.append(_pen(KIND_COLORS.get(kind, CURRENT_COLOR), 1.5, True))
-                        label_pos.setdefault(r.id, xy)
-                        if p is not None and kind in polys and np.all(np.isfinite(p.cov)):
-                            polys[kind].append(p)
-                else:
-                    res = r.residual_px.get(v)
-                    if res is not None:
-                        segs.append((*meas, *res))
+            c = solution.columns
+            n = len(c)
+            nan2 = np.full((n, 2), np.nan)
+            meas, res = c.measured.get(v, nan2), c.residual.get(v, nan2)
+            known = np.fromiter((pid in points for pid in c.ids), bool, n)
+            measured = np.isfinite(meas[:, 0]) & np.isfinite(meas[:, 1])
+            drawn = known & measured & np.isfinite(res[:, 0]) & np.isfinite(res[:, 1])
+            residuals = np.column_stack([meas[drawn], res[drawn]])
+            own = c.predicted.get(v, nan2)
+            for i in np.flatnonzero(known & ~measured).tolist():  # (a few: the unmeasured)
+                pid = c.ids[i]
+                p = None if predictions is None else predictions.get(pid, {}).get(v)
+                xy = tuple(own[i].tolist()) if predictions is None else (None if p is None else p.xy)
+                if xy is not None and math.isfinite(xy[0]) and math.isfinite(xy[1]) and \
+                        project.measurement(pid, v) is None:
+                    kind = points[pid].kind
+                    pred.append(xy)
+                    pred_pens.append(_pen(KIND_COLORS.get(kind, CURRENT_COLOR), 1.5, True))
+                    label_pos.setdefault(pid, xy)
+                    if p is not None and kind in polys and np.all(np.isfinite(p.cov)):
+                        polys[kind].append(p)
         key = (tuple(pred), tuple(id(p) for p in pred_pens))
         if key != self._predicted_key:
             self._predicted_key = key
@@ -281,7 +284,7 @@ class ViewOverlay:
             else:
                 self.predicted.clear()
         self._draw_ellipses(polys)
-        self._residuals = np.array(segs, float).reshape(-1, 4)
+        self._residuals = residuals
         self._draw_vectors()
         self._update_labels(project, label_pos)
 

@@ -70,69 +70,44 @@ class PlotData:
     ties: bool = False
 
     @classmethod
-    def from_records(cls, records, *, parallax=None, view="N", threshold=3.29,
-                     image_shape=None, ties: bool = False) -> "PlotData":
-        """From per-point tuples ``(id, kind, py, h_known, xy, v, std_residual, blunder)``
-        (``py``, ``h_known``, ``xy``, ``v``, ``std_residual`` may be None); ``ties``: tie
-        points are fitted points (their vectors and standardised residuals are drawn)."""
-        h_rows = {"GCP": ([], [], []), "ICP": ([], [], [])}
-        v_rows = {"GCP": ([], [], []), "ICP": ([], [], []), "TIE": ([], [], [])}
-        fitted = ("GCP", "TIE") if ties else ("GCP",)
-        std_ids, std_vals, blunders = [], [], []
-        for pid, kind, py, h, xy, v, s, bl in records:  # (a refit: every point, every click)
-            hr = h_rows.get(kind)
-            if hr is None:  # a tie point: drawn where the model fits it (``ties``)
-                if kind in fitted:
-                    if xy is not None and v is not None:
-                        for lst, x in zip(v_rows[kind], (pid, xy, v)):
-                            lst.append(x)
-                    if s is not None:
-                        std_ids.append(pid)
-                        std_vals.append(s)
-                    if bl:
-                        blunders.append(pid)
-                continue
-            if py is not None and h is not None:
-                hr[0].append(pid)
-                hr[1].append(py)
-                hr[2].append(h)
-            if xy is not None and v is not None:
-                vr = v_rows[kind]
-                vr[0].append(pid)
-                vr[1].append(xy)
-                vr[2].append(v)
-            if kind == "GCP" and s is not None:
-                std_ids.append(pid)
-                std_vals.append(s)
-            if bl:
-                blunders.append(pid)
+    def from_columns(cls, ids, kinds, py, h, xy, v, std, blunder, *, parallax=None, view="N",
+                     threshold=3.29, image_shape=None, ties: bool = False) -> "PlotData":
+        """From arrays over ``n`` points, NaN where a point has no value: ``ids``, ``kinds``
+        (n,), parallax ``py`` (n,) px, known height ``h`` (n,) m, measured position ``xy`` and
+        residual ``v`` (n, 2) px in ``view``, standardised residual ``std`` (n,), ``blunder``
+        (n,) bool. ``ties``: tie points are fitted points (their vectors and standardised
+        residuals are drawn); ``parallax``: ``(c0, c1, c1_theory)`` or None."""
+        ids = np.asarray(ids, dtype=object).reshape(-1)
+        kinds = np.asarray(kinds, dtype=object).reshape(-1)
+        py, h, std = _arr(py), _arr(h), _arr(std)
+        xy, v = _xy(xy), _xy(v)
+        fitted = (kinds == "GCP") | ((kinds == "TIE") & ties)
+        drawn = (kinds == "GCP") | (kinds == "ICP") | fitted  # a tie point: where it is fitted
+        has_h = np.isfinite(py) & np.isfinite(h)
+        has_v = np.isfinite(xy).all(axis=1) & np.isfinite(v).all(axis=1)
+        has_s = fitted & np.isfinite(std)
+        sel = {k: kinds == k for k in ("GCP", "ICP", "TIE")}
+        hg, hi = sel["GCP"] & has_h, sel["ICP"] & has_h
+        vg, vi, vt = (sel[k] & has_v & drawn for k in ("GCP", "ICP", "TIE"))
         c0, c1, c1t = (None, None, None) if parallax is None else parallax
-        return cls(_arr(h_rows["GCP"][1]), _arr(h_rows["GCP"][2]), _arr(h_rows["ICP"][1]),
-                   _arr(h_rows["ICP"][2]), tuple(h_rows["GCP"][0]), tuple(h_rows["ICP"][0]),
-                   c0, c1, c1t, view, _xy(v_rows["GCP"][1]), _xy(v_rows["GCP"][2]),
-                   _xy(v_rows["ICP"][1]), _xy(v_rows["ICP"][2]), tuple(v_rows["GCP"][0]),
-                   tuple(v_rows["ICP"][0]), tuple(std_ids), _arr(std_vals), tuple(blunders),
-                   float(threshold), image_shape, _xy(v_rows["TIE"][1]), _xy(v_rows["TIE"][2]),
-                   tuple(v_rows["TIE"][0]), bool(ties))
+        return cls(py[hg], h[hg], py[hi], h[hi], tuple(ids[hg]), tuple(ids[hi]), c0, c1, c1t, view,
+                   xy[vg], v[vg], xy[vi], v[vi], tuple(ids[vg]), tuple(ids[vi]), tuple(ids[has_s]),
+                   std[has_s], tuple(ids[np.asarray(blunder, bool).reshape(-1) & drawn]), float(threshold),
+                   image_shape, xy[vt], v[vt], tuple(ids[vt]), bool(ties))
 
     @classmethod
     def from_solution(cls, sol) -> "PlotData":
         """From a :class:`~prismstation.core.solve.Solution` (``None`` gives empty plots)."""
         if sol is None:
             return cls()
-        view = sol.reference_view
-        recs = []
-        for p in sol.points:
-            h = None
-            if p.ground_est is not None and p.ground_residual is not None:
-                h = p.ground_est[2] - p.ground_residual[2]
-            recs.append((p.id, p.kind, p.parallax_px, h, p.measured.get(view),
-                         p.residual_px.get(view), p.std_residual, p.blunder))
+        view, c = sol.reference_view, sol.columns
+        nan2 = np.full((len(c), 2), np.nan)
         par = sol.parallax
         line = None if par is None else (par.c0, par.c1, par.c1_theory)
         v = sol.scene.views[view]
-        return cls.from_records(recs, parallax=line, view=view,
-                                threshold=sol.settings.blunder_threshold,
+        return cls.from_columns(c.ids, c.kinds, c.parallax, c.ground_est[:, 2] - c.ground_residual[:, 2],
+                                c.measured.get(view, nan2), c.residual.get(view, nan2), c.std_residual,
+                                c.blunder, parallax=line, view=view, threshold=sol.settings.blunder_threshold,
                                 image_shape=getattr(v, "shape", None),
                                 ties=sol.scene.sensor.height_source != "parallax")
 
@@ -141,20 +116,26 @@ class PlotData:
         """From the dict of :func:`prismstation.io.report.report_dict` (or its JSON)."""
         bias = report.get("model", {}).get("bias", {})
         view = reference_view(bias)
-        recs = []
-        for p in report.get("points", []):
-            h = None
-            if p.get("h_est") is not None and p.get("dh") is not None:
-                h = p["h_est"] - p["dh"]
-            recs.append((p["id"], p["kind"], p.get("parallax_px"), h,
-                         (p.get("measured") or {}).get(view),
-                         (p.get("residual_px") or {}).get(view), p.get("std_residual"),
-                         p.get("blunder")))
+        pts = report.get("points", [])
+        nan = float("nan")
+
+        def num(v):
+            return nan if v is None else v
+
+        def pair(p, key):
+            xy = (p.get(key) or {}).get(view)
+            return (nan, nan) if xy is None else xy
+        h = [nan if p.get("h_est") is None or p.get("dh") is None else p["h_est"] - p["dh"] for p in pts]
         par = report.get("model", {}).get("parallax")
         line = None if not par else (par.get("c0"), par.get("c1"), par.get("c1_theoretical"))
         thr = (report.get("settings") or {}).get("blunder_threshold", 3.29)
         ties = report.get("model", {}).get("height_source", "parallax") != "parallax"
-        return cls.from_records(recs, parallax=line, view=view, threshold=thr, ties=ties)
+        return cls.from_columns([p["id"] for p in pts], [p["kind"] for p in pts],
+                                [num(p.get("parallax_px")) for p in pts], h,
+                                [pair(p, "measured") for p in pts], [pair(p, "residual_px") for p in pts],
+                                [num(p.get("std_residual")) for p in pts],
+                                [bool(p.get("blunder")) for p in pts], parallax=line, view=view,
+                                threshold=thr, ties=ties)
 
 
 def auto_exaggeration(data: PlotData) -> float:

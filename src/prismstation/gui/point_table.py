@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt
 from PySide6.QtGui import QBrush, QColor
 
@@ -59,6 +60,29 @@ def odd_height_text(pid: str, kind: str, usual: str) -> str:
 
 def _fmt(v, spec=".2f"):
     return "" if v is None or v != v or v in (math.inf, -math.inf) else format(v, spec)
+
+
+_UNFITTED = (None,) * 8 + (False,)
+
+
+def _fitted_values(sol, ref: str) -> dict:
+    """``{id: (vx, vy, vmax, E, N, h, dh, std residual, blunder)}`` of ``sol`` (None: none),
+    None where a point has no value: the residual in the ``ref`` view, the longest residual
+    over the views (px), the estimated ground and height residual (m)."""
+    if sol is None:
+        return {}
+    c = sol.columns
+    n = len(c)
+    nan2 = np.full((n, 2), np.nan)
+    r = c.residual.get(ref, nan2)
+    lengths = [np.hypot(a[:, 0], a[:, 1]) for a in c.residual.values()]
+    with np.errstate(invalid="ignore"):
+        vmax = np.fmax.reduce(lengths) if lengths else np.full(n, np.nan)  # (NaN where none)
+    est = np.where(np.isfinite(c.ground_est).all(axis=1)[:, None], c.ground_est, np.nan)
+    cols = [r[:, 0], r[:, 1], vmax, est[:, 0], est[:, 1], est[:, 2],
+            np.where(np.isfinite(est[:, 2]), c.ground_residual[:, 2], np.nan), c.std_residual]
+    lists = [[None if v != v else v for v in a.tolist()] for a in cols]
+    return dict(zip(c.ids, zip(*lists, c.blunder.tolist())))
 
 
 def _sort_key(row, column):
@@ -221,29 +245,16 @@ class PointTableModel(QAbstractTableModel):
         ref = reference_view(views)
         measurements, points = p.measurements, p.points
         shown: dict[tuple, str] = {}  # views measured -> "N · B" (a handful of kinds)
-        results = {r.id: r for r in sol.points} if sol is not None else {}
+        fitted = _fitted_values(sol, ref)
         usual = p.height_kind()
-        hypot = math.hypot
 
         def make(pid: str) -> tuple:
-            pt, r = points[pid], results.get(pid)
+            pt = points[pid]
             have = tuple(v for v in views if (pid, v) in measurements)
             vs = shown.get(have)
             if vs is None:
                 vs = shown[have] = " ".join(v if v in have else "·" for v in views)
-            vx = vy = vmax = e = n = h = dh = sr = None
-            blunder = False
-            if r is not None:
-                res = r.residual_px
-                if ref in res:
-                    vx, vy = res[ref]
-                if res:
-                    vmax = max([hypot(a, b) for a, b in res.values()])
-                if r.ground_est is not None:
-                    e, n, h = r.ground_est
-                if r.ground_residual is not None:
-                    dh = r.ground_residual[2]
-                sr, blunder = r.std_residual, r.blunder
+            vx, vy, vmax, e, n, h, dh, sr, blunder = fitted.get(pid, _UNFITTED)
             hk = pt.height_kind if pt.H == pt.H else ""  # (NaN: no height, no kind)
             return (pid, pt.kind, vs, vx, vy, vmax, e, n, h, dh, sr,
                     pt.E, pt.N, pt.H, hk, pt.sigma_xy_m, pt.sigma_h_m, blunder,

@@ -171,3 +171,22 @@ def test_a_short_widget_shows_one_plot_per_tab_and_a_tall_one_the_grid(qtbot, fi
     qtbot.waitUntil(lambda: w._stack.currentWidget() is w._grid_box)
     assert w.tabs.count() == 0 and all(p.isVisible() for p in w.plots.values())
     assert not w.spin.isVisible()
+
+
+def test_plot_data_from_columns_equals_the_report_path():
+    """The plots' data from the fit's columns equal those from its report (another path
+    through the same figures: the PDF writer's)."""
+    import dataclasses
+
+    from prismstation.io.report import report_dict
+    from tests.core.test_solve_reference import _project
+    sc, pts = _project()
+    sol = solve(sc, pts)
+    a, b = PlotData.from_solution(sol), PlotData.from_report(report_dict(sol))
+    for f in dataclasses.fields(PlotData):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(x, np.ndarray):
+            np.testing.assert_allclose(x, y, rtol=0, atol=1e-6, err_msg=f.name)
+        elif f.name not in ("image_shape", "c0", "c1", "c1_theory"):  # (the report rounds)
+            assert x == y, f.name
+    assert a.vec_gcp_ids and a.vec_icp_ids and a.std_ids and a.blunders and len(a.gcp_py)
