@@ -128,3 +128,24 @@ def test_a_refit_builds_the_rows_on_screen_and_the_others_when_shown(qtbot, wind
     win.project.remove_point(gone)
     assert m.cell(gone, "Kind") == kind
     qtbot.waitUntil(lambda: gone not in m.ids, timeout=10000)
+
+
+def test_cached_texts_draw_as_qt_draws_them(qtbot, window, monkeypatch):
+    """The table lays its texts out once and reuses them: the pixels are those of Qt's own
+    ``drawText`` in the cell (aligned, centred, a text wider than its cell clipped to it)."""
+    from prismstation.gui.point_table_view import _FastTable
+
+    t = window.table
+    narrow = COLUMNS.index("E est (m)")  # so narrow that its numbers do not fit: clipped
+    t.setColumnWidth(narrow, 30)
+    t.viewport().update()
+    cached = t.viewport().grab().toImage()
+    assert t._laid_out, "no text taken from the cache"
+
+    def qt_text(self, p, x, y, w, h, left, text):
+        from prismstation.gui.point_table import ALIGN_LEFT, ALIGN_RIGHT
+        p.drawText(x + self.PAD, y, w - 2 * self.PAD, h, ALIGN_LEFT if left else ALIGN_RIGHT, text)
+    monkeypatch.setattr(_FastTable, "_draw_text", qt_text)
+    t.viewport().update()
+    plain = t.viewport().grab().toImage()
+    assert cached == plain
