@@ -62,7 +62,7 @@ def demo_figures(project_path) -> dict:
     # the blunder exercise: G04 dragged five pixels in N
     before = sol.point("G04").std_residual
     m = project.measurements[("G04", "N")]
-    project.measurements[("G04", "N")] = dataclasses.replace(m, x=m.x + 5.0)
+    project.set_measurement(dataclasses.replace(m, x=m.x + 5.0))
     moved = solve_project(project)
     r = moved.point("G04")
     assert r.blunder and [p.id for p in moved.points if p.blunder] == ["G04"]

@@ -122,3 +122,37 @@ def test_point_obs_reused_between_fits_follow_every_edit(project):
     project.point_obs(heights)
     heights = {**heights, "B": 52.0}  # a new geoid: other ellipsoidal heights, nothing edited
     assert project.point_obs(heights) == _fresh_obs(project, heights)
+
+
+def test_measurements_of_follows_every_edit_in_the_order_of_the_measurements(project):
+    """The per-point index the solver reads equals a search of the measurements after every
+    edit (order included: a moved measurement keeps its place), and a snapshot keeps its own."""
+    def searched(p):
+        out = {}
+        for (pid, _), m in p.measurements.items():
+            out.setdefault(pid, []).append(m)
+        return {pid: tuple(ms) for pid, ms in out.items()}
+
+    def indexed(p):
+        return {pid: p.measurements_of(pid) for pid in p.points if p.measurements_of(pid)}
+
+    project.load([GroundPoint("A", 1.0, 2.0, 3.0)],
+                 [Measurement("A", "N", 1.0, 1.0), Measurement("A", "F", 2.0, 2.0), Measurement("T", "B", 3.0, 3.0)])
+    edits = [
+        lambda p: p.set_measurement(Measurement("A", "N", 1.5, 1.0)),   # moved: keeps its place
+        lambda p: p.set_measurement(Measurement("A", "B", 4.0, 4.0)),   # a new view: last
+        lambda p: p.remove_measurement("A", "N"),
+        lambda p: p.set_measurement(Measurement("A", "N", 5.0, 5.0)),   # back: now last
+        lambda p: p.remove_point("T"),
+        lambda p: p.set_measurement(Measurement("U", "F", 6.0, 6.0)),   # a new tie point
+        lambda p: p.remove_measurement("U", "F"),
+    ]
+    assert indexed(project) == searched(project)
+    for i, edit in enumerate(edits):
+        snap = project.snapshot()
+        before = indexed(snap)
+        edit(project)
+        assert indexed(project) == searched(project), i
+        assert indexed(snap) == before == searched(snap), i
+    assert [m.view for m in project.measurements_of("A")] == ["F", "B", "N"]
+    assert project.measurements_of("U") == () and project.measurements_of("T") == ()

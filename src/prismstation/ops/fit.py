@@ -23,9 +23,25 @@ __all__ = ["BIAS_MODELS", "PARALLAX_MODELS", "ellipsoidal_heights", "fit_report"
            "solve_project"]
 
 
+_LAST_HEIGHTS: tuple = (None, None)  # (what they were computed from, the heights)
+
+
 def ellipsoidal_heights(project: Project) -> dict[str, float]:
     """Point id → ellipsoidal height (m) of every point with ground coordinates; orthometric
-    heights through the project's geoid, which must cover them."""
+    heights through the project's geoid, which must cover them. The dict is shared: read it,
+    do not change it (a click moves a measurement, not a point: the last heights are
+    returned again while the points, the geoid setting and the scene are the same)."""
+    global _LAST_HEIGHTS
+    key = (tuple(project.points.values()), repr(project.geoid), project.scene)
+    last_key, last = _LAST_HEIGHTS
+    if last_key is not None and last_key[2] is key[2] and last_key[:2] == key[:2]:
+        return last
+    h = _ellipsoidal_heights(project)
+    _LAST_HEIGHTS = (key, h)
+    return h
+
+
+def _ellipsoidal_heights(project: Project) -> dict[str, float]:
     ground = [p for p in project.points.values() if has_ground(p)]
     h = np.array([p.H for p in ground], float)
     ortho = np.array([p.height_kind == "orthometric" for p in ground], bool)

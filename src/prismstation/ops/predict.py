@@ -272,15 +272,13 @@ def predict_all(sol: Solution, points, *, height_of=None, ground: dict | None = 
 def project_inputs(project, ground: dict) -> list[PointInput]:
     """The project's points with a view to predict in, as :class:`PointInput` (``ground``: id →
     ``(E, N, h ellipsoidal)`` of the GCPs and ICPs, e.g. :func:`known_ground`)."""
-    measured: dict = {}
-    for (pid, v), m in project.measurements.items():
-        measured.setdefault(pid, {})[v] = (m.x, m.y, m.sigma_px)
     n_views = len(project.scene.views)
     out = []
     for pid, p in project.points.items():
-        seen = measured.get(pid, {})
-        if len(seen) >= n_views:
+        ms = project.measurements_of(pid)
+        if len(ms) >= n_views:
             continue  # measured everywhere: nothing to predict
+        seen = {m.view: (m.x, m.y, m.sigma_px) for m in ms}
         g = ground.get(pid) if p.kind != "TIE" else None
         out.append(PointInput(pid, p.kind, seen, g, (p.sigma_xy_m or 0.0, p.sigma_h_m or 0.0)))
     return out

@@ -1,0 +1,35 @@
+"""The ellipsoidal heights of a project's points, kept between fits: the same points, geoid
+and scene give the same heights again; a changed point, geoid or scene gives new ones."""
+from dataclasses import replace
+
+import pytest
+
+from prismstation.model.points import GroundPoint, Measurement
+from prismstation.model.project import Project
+from prismstation.ops.fit import ellipsoidal_heights
+from tests.core.synth import make_scene
+
+
+@pytest.fixture
+def project():
+    p = Project(make_scene(size=2000), geoid={"kind": "constant", "value": 30.0})
+    p.load([GroundPoint("A", 1.0, 2.0, 100.0, height_kind="orthometric"),
+            GroundPoint("B", 4.0, 5.0, 200.0, height_kind="ellipsoidal", kind="ICP")],
+           [Measurement("A", "N", 10.0, 20.0)])
+    return p
+
+
+def test_heights_follow_points_geoid_and_scene_not_measurements(project):
+    h = ellipsoidal_heights(project)
+    assert h == {"A": 130.0, "B": 200.0}
+    project.set_measurement(Measurement("A", "N", 11.0, 20.0))   # a click: the same heights
+    assert ellipsoidal_heights(project) is h
+    assert ellipsoidal_heights(project.snapshot()) is h
+    project.replace_point(replace(project.points["A"], H=101.0))
+    assert ellipsoidal_heights(project) == {"A": 131.0, "B": 200.0}
+    project.set_geoid({"kind": "constant", "value": 10.0})
+    assert ellipsoidal_heights(project) == {"A": 111.0, "B": 200.0}
+    other = Project(make_scene(size=3000), geoid=dict(project.geoid))
+    other.load(list(project.points.values()), [])
+    assert ellipsoidal_heights(other) == {"A": 111.0, "B": 200.0}
+    assert ellipsoidal_heights(other) is not ellipsoidal_heights(project)  # another scene
