@@ -131,21 +131,23 @@ def test_a_refit_builds_the_rows_on_screen_and_the_others_when_shown(qtbot, wind
 
 
 def test_cached_texts_draw_as_qt_draws_them(qtbot, window, monkeypatch):
-    """The table lays its texts out once and reuses them: the pixels are those of Qt's own
-    ``drawText`` in the cell (aligned, centred, a text wider than its cell clipped to it)."""
-    from prismstation.gui.point_table_view import _FastTable
+    """The table and the model panel lay their texts out once and reuse them: the pixels are
+    those of Qt's own ``drawText`` in the cell (aligned, centred, a text wider than its cell
+    clipped to it)."""
+    from prismstation.gui.static_text import ALIGN_LEFT, ALIGN_RIGHT, StaticTexts
 
-    t = window.table
+    t, panel = window.table, window.panel.sections
     narrow = COLUMNS.index("E est (m)")  # so narrow that its numbers do not fit: clipped
     t.setColumnWidth(narrow, 30)
-    t.viewport().update()
-    cached = t.viewport().grab().toImage()
-    assert t._laid_out, "no text taken from the cache"
+    widgets = (t.viewport(), panel)
+    for w in widgets:
+        w.update()
+    cached = [w.grab().toImage() for w in widgets]
+    assert len(t._texts) > 20 and len(panel._texts) > 20, "no text taken from the cache"
 
-    def qt_text(self, p, x, y, w, h, left, text):
-        from prismstation.gui.point_table import ALIGN_LEFT, ALIGN_RIGHT
-        p.drawText(x + self.PAD, y, w - 2 * self.PAD, h, ALIGN_LEFT if left else ALIGN_RIGHT, text)
-    monkeypatch.setattr(_FastTable, "_draw_text", qt_text)
-    t.viewport().update()
-    plain = t.viewport().grab().toImage()
-    assert cached == plain
+    def qt_text(self, p, x, y, w, h, right, text):
+        p.drawText(x, y, w, h, ALIGN_RIGHT if right else ALIGN_LEFT, text)
+    monkeypatch.setattr(StaticTexts, "draw", qt_text)
+    for w in widgets:
+        w.update()
+    assert [w.grab().toImage() for w in widgets] == cached

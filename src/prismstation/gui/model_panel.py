@@ -20,6 +20,7 @@ from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QHBoxLayo
 
 from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
 from prismstation.gui.fit_checks import blunder_test, parallax_check
+from prismstation.gui.static_text import StaticTexts
 
 SECTION_COLOR = QColor("#1d3c6e")
 HEAD_BG = QColor("#dde4ee")
@@ -136,6 +137,7 @@ class _Sections(QWidget):
         self._line_cache = None
         self._bold = QFont(self.font())
         self._bold.setWeight(QFont.Weight.DemiBold)
+        self._texts = StaticTexts()  # the cells' texts, laid out once (most come back)
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Fixed)
 
     def show_sections(self, sections, notes) -> None:
@@ -248,8 +250,6 @@ class _Sections(QWidget):
         def shown(y):
             return region.intersects(QRect(0, y, width, rh))
         total = sum(self._widths)
-        left = int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter)
-        right = int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
         text_color = self.palette().color(QPalette.ColorRole.WindowText)
         y = 2
         first = [n for n in self._notes if n[1] == "bad"]   # what is wrong: above the tables
@@ -259,7 +259,7 @@ class _Sections(QWidget):
             if shown(y):
                 p.setFont(self._bold)
                 p.setPen(SECTION_COLOR)
-                p.drawText(QRect(x0, y, max(total, self.width()), rh), left, title)
+                self._texts.draw(p, x0, y, max(total, self.width()), rh, False, title)
             y += rh
             if shown(y):
                 p.fillRect(QRect(x0, y, total, rh), HEAD_BG)
@@ -270,7 +270,7 @@ class _Sections(QWidget):
                     x = x0
                     for c, t in enumerate(r):
                         w = self._widths[c]
-                        p.drawText(QRect(x + pad, y, w - 2 * pad, rh), left if c == 0 else right, t)
+                        self._texts.draw(p, x + pad, y, w - 2 * pad, rh, c > 0, t)
                         x += w
                 y += rh
         if first:

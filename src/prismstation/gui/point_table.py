@@ -17,6 +17,7 @@ from PySide6.QtGui import QBrush, QColor
 
 from prismstation.core.scene import reference_view
 from prismstation.gui.overlays import KIND_COLORS
+from prismstation.gui.static_text import ALIGN_LEFT, ALIGN_RIGHT
 
 COLUMNS = ("ID", "Kind", "Views", "vx (px)", "vy (px)", "|v| max (px)", "E est (m)", "N est (m)",
            "h est (m)", "dh (m)", "std. res.", "E (m)", "N (m)", "H (m)", "Height", "σ plan (m)",
@@ -35,8 +36,6 @@ BLUNDER_BRUSH = QBrush(BLUNDER_BG)
 ODD_HEIGHT_BRUSH = QBrush(TOLERANCE_BG)
 ODD_ROW_BRUSH = QBrush(QColor(245, 245, 245))  # alternate rows (the view's own costs 3 ms a repaint)
 KIND_BRUSHES = {k: QBrush(c.darker(140)) for k, c in KIND_COLORS.items()}
-ALIGN_RIGHT = int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
-ALIGN_LEFT = int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter)
 _DISPLAY, _BACKGROUND, _FOREGROUND, _ALIGN, _TOOLTIP, _SORT, _EDIT = (
     int(r) for r in (Qt.ItemDataRole.DisplayRole, Qt.ItemDataRole.BackgroundRole,
                      Qt.ItemDataRole.ForegroundRole, Qt.ItemDataRole.TextAlignmentRole,

@@ -8,25 +8,24 @@ took 3–7 ms for a 15-row view, this ~1 ms), and a change repaints only the cha
 """
 from __future__ import annotations
 
-from PySide6.QtCore import QPointF, QRect, Qt
-from PySide6.QtGui import QPainter, QPalette, QStaticText
+from PySide6.QtCore import QRect, Qt
+from PySide6.QtGui import QPainter, QPalette
 from PySide6.QtWidgets import QAbstractItemView, QHeaderView, QMenu, QTableView
 
-from prismstation.gui.point_table import (ALIGN_LEFT, ALIGN_RIGHT, BLUNDER, BLUNDER_BRUSH, COLUMNS,
+from prismstation.gui.point_table import (BLUNDER, BLUNDER_BRUSH, COLUMNS,
                                           HEIGHT, KIND_BRUSHES, ODD_HEIGHT, ODD_HEIGHT_BRUSH,
                                           ODD_ROW_BRUSH, TEXT, PointTableModel)
+from prismstation.gui.static_text import StaticTexts
 
 
 class _FastTable(QTableView):
     """A table view of a :class:`PointTableModel` that paints its visible cells in one pass."""
 
     PAD = 4  # text inset in a cell, px
-    TEXT_CACHE = 4000  # laid-out texts kept (residuals repeat: "0.03" is in many cells)
 
     def __init__(self, model: PointTableModel, parent=None):
         super().__init__(parent)
-        self._laid_out: dict = {}  # text -> (QStaticText, width px, height px), for _font_key
-        self._font_key = None
+        self._texts = StaticTexts()  # laid out once (residuals repeat: "0.03" is in many cells)
         self.source_model = model
         self.setModel(model)
         self.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
@@ -79,8 +78,6 @@ class _FastTable(QTableView):
         text_pen, sel_pen = pal.color(QPalette.ColorRole.Text), pal.color(QPalette.ColorRole.HighlightedText)
         p = QPainter(self.viewport())
         p.fillRect(area, pal.base())
-        if self._font_key != p.font().key() or len(self._laid_out) > self.TEXT_CACHE:
-            self._font_key, self._laid_out = p.font().key(), {}
         right = cols[-1][1] + cols[-1][2] if cols else 0
         rows = []
         for vis in range(first, last + 1):
@@ -97,7 +94,7 @@ class _FastTable(QTableView):
                     p.fillRect(x, y, w, h, ODD_HEIGHT_BRUSH)
                 kind = KIND_BRUSHES.get(row[1]) if c == 1 and not chosen else None
                 p.setPen(sel_pen if chosen and not odd else kind.color() if kind is not None else text_pen)
-                self._draw_text(p, x, y, w, h, c in TEXT, texts[c])
+                self._texts.draw(p, x + self.PAD, y, w - 2 * self.PAD, h, c not in TEXT, texts[c])
             rows.append(y + h - 1)
         if self.showGrid():
             p.setPen(pal.color(QPalette.ColorRole.Mid))
@@ -107,27 +104,6 @@ class _FastTable(QTableView):
             for _, x, w in cols:
                 p.drawLine(x + w - 1, area.top(), x + w - 1, bottom)
         p.end()
-
-    def _draw_text(self, p: QPainter, x: int, y: int, w: int, h: int, left: bool, text: str) -> None:
-        """``text`` in the cell at ``x, y`` (``w × h`` px), left- or right-aligned, centred
-        vertically, from a cache of laid-out texts (a refit repaints every visible residual,
-        and laying out each text again cost half the table's repaint); a text wider than
-        the cell is clipped to it, as Qt's own cells do."""
-        if not text:
-            return
-        hit = self._laid_out.get(text)
-        if hit is None:
-            st = QStaticText(text)
-            st.setTextFormat(Qt.TextFormat.PlainText)
-            st.prepare(p.transform(), p.font())
-            size = st.size()
-            hit = self._laid_out[text] = (st, size.width(), size.height())
-        st, tw, th = hit
-        room = w - 2 * self.PAD
-        if tw > room:
-            p.drawText(x + self.PAD, y, room, h, ALIGN_LEFT if left else ALIGN_RIGHT, text)
-            return
-        p.drawStaticText(QPointF(x + self.PAD if left else x + w - self.PAD - tw, y + (h - th) / 2), st)
 
 
 class _FrozenIds(_FastTable):
