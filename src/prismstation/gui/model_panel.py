@@ -257,7 +257,7 @@ class _Sections(QWidget):
         for title, head, rows in self._sections:
             y += self.TITLE_GAP
             if shown(y):
-                p.setFont(self._bold)
+                self._texts.set_font(p, self._bold)
                 p.setPen(SECTION_COLOR)
                 self._texts.draw(p, x0, y, max(total, self.width()), rh, False, title)
             y += rh
@@ -266,7 +266,7 @@ class _Sections(QWidget):
             p.setPen(text_color)
             for r, font in ((head, self._bold), *((row, self.font()) for row in rows)):
                 if shown(y):
-                    p.setFont(font)
+                    self._texts.set_font(p, font)
                     x = x0
                     for c, t in enumerate(r):
                         w = self._widths[c]

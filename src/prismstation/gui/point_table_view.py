@@ -73,11 +73,12 @@ class _FastTable(QTableView):
             x, w = hh.sectionViewportPosition(c), hh.sectionSize(c)
             if not hh.isSectionHidden(c) and x + w > area.left() and x < area.right() + 1:
                 cols.append((c, x, w))
-        selected = {i.row() for i in self.selectionModel().selectedRows()}
+        selected = {r for rng in self.selectionModel().selection() for r in range(rng.top(), rng.bottom() + 1)}
         pal = self.palette()
         text_pen, sel_pen = pal.color(QPalette.ColorRole.Text), pal.color(QPalette.ColorRole.HighlightedText)
         p = QPainter(self.viewport())
         p.fillRect(area, pal.base())
+        self._texts.set_font(p, self.font())
         right = cols[-1][1] + cols[-1][2] if cols else 0
         rows = []
         for vis in range(first, last + 1):
