@@ -9,6 +9,7 @@ created once per point and only moved, so a click repaints in a few milliseconds
 from __future__ import annotations
 
 import math
+from operator import attrgetter
 
 import numpy as np
 import pyqtgraph as pg
@@ -138,10 +139,13 @@ class LabelLayer(pg.GraphicsObject):
 def by_view(project) -> dict:
     """``{view: (measurements, kinds)}`` (tuples, in the project's order) of ``project``."""
     ms: dict = {}
-    points = project.points
-    for (pid, v), m in project.measurements.items():
+    for (_, v), m in project.measurements.items():
         ms.setdefault(v, []).append(m)
-    return {v: (tuple(lst), tuple(points[m.id].kind for m in lst)) for v, lst in ms.items()}
+    kind_of = {pid: p.kind for pid, p in project.points.items()}
+    return {v: (tuple(lst), tuple(map(kind_of.__getitem__, map(_ID, lst)))) for v, lst in ms.items()}
+
+
+_ID = attrgetter("id")
 
 
 def ellipse_polylines(preds, n: int = 40) -> np.ndarray:
@@ -226,14 +230,17 @@ class ViewOverlay:
                     self.ids = np.array([m.id for m in ms], dtype=object)
                     self.xy = np.array([(m.x, m.y) for m in ms], float).reshape(-1, 2)
                 self._split = current
-                for item, mine, attr in ((self.measured, False, "_others_key"),
-                                         (self.measured_current, True, "_current_key")):
-                    sel = tuple((m, k) for m, k in zip(ms, kinds) if (m.id == current) is mine)
-                    if sel != getattr(self, attr):
+                ids = list(map(_ID, ms))
+                i = ids.index(current) if current in ids else None  # (one measurement per view)
+                split = (((ms, kinds), ((), ())) if i is None else
+                         ((ms[:i] + ms[i + 1:], kinds[:i] + kinds[i + 1:]), (ms[i:i + 1], kinds[i:i + 1])))
+                for item, sel, attr in ((self.measured, split[0], "_others_key"),
+                                        (self.measured_current, split[1], "_current_key")):
+                    if sel != getattr(self, attr):  # (tuples of the same objects: quick)
                         setattr(self, attr, sel)
-                        if sel:
-                            item.setData(pos=[(m.x, m.y) for m, _ in sel], data=[m.id for m, _ in sel],
-                                         pen=[_pen(KIND_COLORS.get(k, CURRENT_COLOR)) for _, k in sel])
+                        if sel[0]:
+                            item.setData(pos=[(m.x, m.y) for m in sel[0]], data=[m.id for m in sel[0]],
+                                         pen=[_pen(KIND_COLORS.get(k, CURRENT_COLOR)) for k in sel[1]])
                         else:
                             item.clear()
         flagged = set(solution.columns.blunder_ids()) if solution is not None else set()
