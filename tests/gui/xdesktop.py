@@ -25,12 +25,15 @@ class Desktop:
     _started = 0  # desktops this process has started: each gets a display number of its own
 
     def __init__(self, width: int, height: int):
+        self._xvfb_log = tempfile.TemporaryFile()
         for _ in range(20):
             num = self._next_display()
             r, w = os.pipe()
+            self._xvfb_log.seek(0)
+            self._xvfb_log.truncate()
             self.xvfb = subprocess.Popen(["Xvfb", f":{num}", "-displayfd", str(w), "-screen", "0",
                                           f"{width}x{height}x24", "-nolisten", "tcp"],
-                                         pass_fds=(w,), stderr=subprocess.DEVNULL)
+                                         pass_fds=(w,), stderr=self._xvfb_log)
             os.close(w)
             with os.fdopen(r) as f:
                 ready = f.readline().strip()     # written once the server accepts clients
@@ -45,11 +48,18 @@ class Desktop:
         try:
             self.wait(self._wm_up, 10, "openbox")
         except AssertionError:
-            self._wm_log.seek(0)
-            log = self._wm_log.read().decode(errors="replace").strip()
+            xvfb_exit = self.xvfb.poll()
+            log, xlog = self._log(self._wm_log), self._log(self._xvfb_log)
             self.close()
             raise AssertionError(f"openbox on {self.env['DISPLAY']} not up after 10 s (exit "
-                                 f"{self.wm.returncode}): {log or 'no output'}") from None
+                                 f"{self.wm.returncode}): {log or 'no output'}; Xvfb "
+                                 f"{'running' if xvfb_exit is None else f'exited with {xvfb_exit}'}, "
+                                 f"it said: {xlog[-2000:] or 'nothing'}") from None
+
+    @staticmethod
+    def _log(f) -> str:
+        f.seek(0)
+        return f.read().decode(errors="replace").strip()
 
     def _wm_up(self) -> bool:
         """The window manager answers (it is not up if it has exited)."""
@@ -97,6 +107,7 @@ class Desktop:
                 p.kill()
                 p.wait()
         self._wm_log.close()
+        self._xvfb_log.close()
 
 
 class App:
