@@ -229,7 +229,7 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
     views = scene.views
     n = len(points)
     unmeasured = (np.nan, np.nan)
-    X = {v: np.array([p.image.get(v, unmeasured) for p in points], float).reshape(n, 2) for v in views}
+    X = {v: _rows([p.image.get(v, unmeasured) for p in points], 2) for v in views}
     has = {v: _finite_rows(X[v]) for v in views}
     any_m = np.any(np.column_stack([has[v] for v in views]), axis=1) if n else np.zeros(0, bool)
     triplet = scene.is_triplet
@@ -285,7 +285,7 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
         en = planimetry(h)
 
     known = np.array([p.ground is not None for p in points], bool)
-    G = np.array([p.ground if p.ground is not None else (np.nan,) * 3 for p in points], float).reshape(n, 3)
+    G = _rows([p.ground if p.ground is not None else (np.nan,) * 3 for p in points], 3)
     en_k = np.where(known[:, None], G[:, :2], en)
     h_k = np.where(known, G[:, 2], h)
     have_k = _finite_rows(en_k) & np.isfinite(h_k)
