@@ -64,12 +64,13 @@ def _fmt(v, spec=".2f"):
 _UNFITTED = (None,) * 8 + (False,)
 
 
-def _fitted_values(sol, ref: str) -> dict:
-    """``{id: (vx, vy, vmax, E, N, h, dh, std residual, blunder)}`` of ``sol`` (None: none),
-    None where a point has no value: the residual in the ``ref`` view, the longest residual
-    over the views (px), the estimated ground and height residual (m)."""
+def _fitted_values(sol, ref: str):
+    """``fitted(id) -> (vx, vy, vmax, E, N, h, dh, std residual, blunder)`` of ``sol`` (None:
+    none), None where a point has no value: the residual in the ``ref`` view, the longest
+    residual over the views (px), the estimated ground and height residual (m). Computed for
+    every point at once, read per row (a refit builds the rows on screen only)."""
     if sol is None:
-        return {}
+        return lambda pid: _UNFITTED
     c = sol.columns
     n = len(c)
     nan2 = np.full((n, 2), np.nan)
@@ -78,10 +79,17 @@ def _fitted_values(sol, ref: str) -> dict:
     with np.errstate(invalid="ignore"):
         vmax = np.fmax.reduce(lengths) if lengths else np.full(n, np.nan)  # (NaN where none)
     est = np.where(np.isfinite(c.ground_est).all(axis=1)[:, None], c.ground_est, np.nan)
-    cols = [r[:, 0], r[:, 1], vmax, est[:, 0], est[:, 1], est[:, 2],
-            np.where(np.isfinite(est[:, 2]), c.ground_residual[:, 2], np.nan), c.std_residual]
-    lists = [[None if v != v else v for v in a.tolist()] for a in cols]
-    return dict(zip(c.ids, zip(*lists, c.blunder.tolist())))
+    cols = [a.tolist() for a in (r[:, 0], r[:, 1], vmax, est[:, 0], est[:, 1], est[:, 2],
+                                 np.where(np.isfinite(est[:, 2]), c.ground_residual[:, 2], np.nan),
+                                 c.std_residual)]
+    blunder = c.blunder.tolist()
+
+    def fitted(pid: str) -> tuple:
+        i = c.index(pid)
+        if i is None:
+            return _UNFITTED
+        return (*(None if col[i] != col[i] else col[i] for col in cols), blunder[i])
+    return fitted
 
 
 def _sort_key(row, column):
@@ -253,7 +261,7 @@ class PointTableModel(QAbstractTableModel):
             vs = shown.get(have)
             if vs is None:
                 vs = shown[have] = " ".join(v if v in have else "·" for v in views)
-            vx, vy, vmax, e, n, h, dh, sr, blunder = fitted.get(pid, _UNFITTED)
+            vx, vy, vmax, e, n, h, dh, sr, blunder = fitted(pid)
             hk = pt.height_kind if pt.H == pt.H else ""  # (NaN: no height, no kind)
             return (pid, pt.kind, vs, vx, vy, vmax, e, n, h, dh, sr,
                     pt.E, pt.N, pt.H, hk, pt.sigma_xy_m, pt.sigma_h_m, blunder,

@@ -84,7 +84,7 @@ class Project:
         self._put_all(points, measurements)
         self.revision = 0
         self._obs: dict = {}  # point_obs's cache, shared with snapshots (see there)
-        self._kind_of: tuple = ((), "ellipsoidal")  # height_kind's: (points, kind)
+        self._kind_of: list = [((), "ellipsoidal")]  # height_kind's (points, kind), shared with snapshots
         self.changed = Signal()
         self._depth = 0
         self._pending: Change | None = None
@@ -156,10 +156,12 @@ class Project:
         pasted, imported, by coordinates): the kind most of its points with a height have;
         ellipsoidal when none has a height."""
         points = tuple(self.points.values())  # (frozen: the same objects, the same kind)
-        if points != self._kind_of[0]:
+        last, kind = self._kind_of[0]  # (one read: a snapshot in another thread may replace it)
+        if points != last:
             kinds = Counter(p.height_kind for p in points if math.isfinite(p.H))
-            self._kind_of = (points, kinds.most_common(1)[0][0] if kinds else "ellipsoidal")
-        return self._kind_of[1]
+            kind = kinds.most_common(1)[0][0] if kinds else "ellipsoidal"
+            self._kind_of[0] = (points, kind)
+        return kind
 
     def add_tie(self, pid: str | None = None) -> str:
         pid = pid or self.new_point_id("T")
