@@ -136,7 +136,8 @@ def solve_rpc(scene, points, settings: Settings = Settings(), *, height_of=None,
                                 f"(σ {height_sigma_m:.1f} m): fewer GCPs than the {m} bias needs")
     sol_model = RpcModel(scene, bias)
     results, mean_h = run.evaluate(sol_model, result, height_of, settings)
-    return Solution(scene, settings, bias, None, PointColumns.of(results, scene.views), statistics(scene, results),
+    columns = PointColumns.of(results, scene.views)
+    return Solution(scene, settings, bias, None, columns, statistics(scene, columns),
                     tuple(messages), mean_h, revision, failures, tuple(points))
 
 

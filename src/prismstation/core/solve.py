@@ -9,7 +9,6 @@ collinear GCPs, a point seen in too few views): such parts are left out of the
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 from dataclasses import dataclass, field
 from typing import Callable, Mapping
@@ -20,7 +19,7 @@ from prismstation.core import prism
 from prismstation.core.prism import BiasFit, ParallaxLine
 from prismstation.core.ray_dem import ray_meets_surface
 from prismstation.core.recent import Recent, key_of
-from prismstation.core.results import PointColumns, PointResult
+from prismstation.core.results import PointColumns, PointResult, rows_array
 from prismstation.core.scene import Scene
 from prismstation.core.stats import ComponentStats, FitStatistics, ImageStats, VectorStats
 from prismstation.errors import ModelError
@@ -229,7 +228,7 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
     views = scene.views
     n = len(points)
     unmeasured = (np.nan, np.nan)
-    X = {v: _rows([p.image.get(v, unmeasured) for p in points], 2) for v in views}
+    X = {v: rows_array([p.image.get(v, unmeasured) for p in points], 2) for v in views}
     has = {v: _finite_rows(X[v]) for v in views}
     any_m = np.any(np.column_stack([has[v] for v in views]), axis=1) if n else np.zeros(0, bool)
     triplet = scene.is_triplet
@@ -285,7 +284,7 @@ def _point_results(scene, points, bias, parallax, mean_h, height_of, settings,
         en = planimetry(h)
 
     known = np.array([p.ground is not None for p in points], bool)
-    G = _rows([p.ground if p.ground is not None else (np.nan,) * 3 for p in points], 3)
+    G = rows_array([p.ground if p.ground is not None else (np.nan,) * 3 for p in points], 3)
     en_k = np.where(known[:, None], G[:, :2], en)
     h_k = np.where(known, G[:, 2], h)
     have_k = _finite_rows(en_k) & np.isfinite(h_k)
@@ -391,19 +390,21 @@ def _adjustment_stats(gcps, bias, parallax, scene, settings) -> dict:
             for pid, (s, red) in w.items()}
 
 
-def statistics(scene: Scene, results) -> FitStatistics:
+def statistics(scene: Scene, columns: PointColumns) -> FitStatistics:
     """Tables 1–3 of the paper and their extensions, for GCPs and ICPs (and tie points, in
     the image, where a model gives them residuals); height residuals of the points whose
     height comes from the model's own rays (``scene.sensor.height_source``)."""
-    nan2, nan3 = (math.nan,) * 2, (math.nan,) * 3
-    residual = {v: _rows([r.residual_px.get(v, nan2) for r in results], 2) for v in scene.views}
-    ground = _rows([nan3 if r.ground_residual is None else r.ground_residual for r in results], 3)
-    source = scene.sensor.height_source
-    own = np.array([r.height_source == source for r in results], bool)
-    across = ({v: np.array([r.across_px.get(v, math.nan) for r in results], float) for v in ("F", "B")}
-              if scene.is_triplet else {})
-    ties = any(r.kind == "TIE" and r.residual_px for r in results)
-    return _statistics(scene, np.array([r.kind for r in results], str), residual, ground, own, across, ties)
+    n = len(columns)
+    kinds = np.array(columns.kinds, str).reshape(n)
+    nan2 = np.full((n, 2), np.nan)
+    residual = {v: columns.residual.get(v, nan2) for v in scene.views}
+    own = np.array([s == scene.sensor.height_source for s in columns.height_source], bool).reshape(n)
+    across = ({v: columns.across.get(v, np.full(n, np.nan)) for v in ("F", "B")} if scene.is_triplet else {})
+    fitted = np.zeros(n, bool)
+    for a in residual.values():
+        fitted |= _finite_rows(a)
+    ties = bool(np.any((kinds == "TIE") & fitted))
+    return _statistics(scene, kinds, residual, columns.ground_residual, own, across, ties)
 
 
 def _statistics(scene: Scene, kinds: np.ndarray, residual: dict, ground: np.ndarray, own_height: np.ndarray,
@@ -424,8 +425,3 @@ def _statistics(scene: Scene, kinds: np.ndarray, residual: dict, ground: np.ndar
     height = {k: ComponentStats.of(ground[of_kind[k] & own_height, 2]) for k in ("GCP", "ICP")}
     across_stats = ({v: ComponentStats.of(across[v]) for v in ("F", "B")} if scene.is_triplet else {})
     return FitStatistics(image, ground_stats, height, across_stats, scene.reference_view)
-
-
-def _rows(rows: list, width: int) -> np.ndarray:
-    """``(len(rows), width)`` float array of a list of tuples (np.array is slow on tuples)."""
-    return np.fromiter(itertools.chain.from_iterable(rows), float, len(rows) * width).reshape(-1, width)

@@ -9,7 +9,6 @@ created once per point and only moved, so a click repaints in a few milliseconds
 from __future__ import annotations
 
 import math
-from itertools import chain
 from operator import attrgetter
 
 import numpy as np
@@ -17,6 +16,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainterPath, QPen, QStaticText, QTransform
 
+from prismstation.core.results import rows_array
 from prismstation.gui.markers import NO_SHAPE, Markers, on_screen
 from prismstation.gui.palette import BLUNDER_RGB, CURRENT_RGB, CURSOR_RGB, KIND_RGB, qcolor
 from prismstation.ops.predict import CHI2_95_2D
@@ -86,7 +86,7 @@ class LabelLayer(pg.GraphicsObject):
 
     def set_labels(self, labels) -> None:
         self.labels = list(labels)
-        self._xy = _xy_array([(x, y) for x, y, _, _ in self.labels])
+        self._xy = rows_array([(x, y) for x, y, _, _ in self.labels], 2)
         self.update()
 
     def shape(self) -> QPainterPath:  # not a mouse target
@@ -147,11 +147,6 @@ def by_view(project) -> dict:
 
 
 _ID = attrgetter("id")
-
-
-def _xy_array(pairs: list) -> np.ndarray:
-    """``(n, 2)`` float array of ``n`` (x, y) pairs (np.array is ~4× slower on tuples)."""
-    return np.fromiter(chain.from_iterable(pairs), float, 2 * len(pairs)).reshape(-1, 2)
 
 
 def ellipse_polylines(preds, n: int = 40) -> np.ndarray:
@@ -234,7 +229,7 @@ class ViewOverlay:
                 if key != self._measured_key:
                     self._measured_key = key
                     self.ids = np.array([m.id for m in ms], dtype=object)
-                    self.xy = _xy_array([(m.x, m.y) for m in ms])
+                    self.xy = rows_array([(m.x, m.y) for m in ms], 2)
                 self._split = current
                 ids = list(map(_ID, ms))
                 i = ids.index(current) if current in ids else None  # (one measurement per view)
