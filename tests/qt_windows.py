@@ -1,18 +1,19 @@
 """The real main window for GUI tests: built offscreen, and freed at a safe point.
 
 A window freed by a garbage-collector run inside a later event loop can leave a timer event
-for its QWindow (offscreen plugin), which crashes Qt — hence the explicit collect on both sides.
+for its QWindow (offscreen plugin), which crashes Qt — hence the explicit collect on both sides,
+of every object (the window freezes the survivors of its full collections: gui/workers.py).
 """
-import gc
 
 
 def new_window(qtbot, size=(1500, 950)):
     """A shown, exposed, non-interactive main window with no project."""
     from prismstation.gui.app import make_app
     from prismstation.gui.main_window import MainWindow
+    from prismstation.gui.workers import collect_everything
 
     make_app()
-    gc.collect()  # windows left by earlier tests go now
+    collect_everything()  # windows left by earlier tests go now (frozen ones too)
     qtbot.wait(1)
     win = MainWindow(interactive=False)
     win.files.interactive = False
@@ -34,9 +35,11 @@ def open_window(qtbot, project_path, size=(1500, 950)):
 
 
 def close_windows(qtbot, *wins) -> None:
+    from prismstation.gui.workers import collect_everything
+
     for win in wins:
         win.undo_stack.setClean()
         win.close()
         win.deleteLater()
     qtbot.wait(10)
-    gc.collect()
+    collect_everything()

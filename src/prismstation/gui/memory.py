@@ -2,12 +2,13 @@
 back to the system after large computations (Linux, glibc)."""
 from __future__ import annotations
 
-import gc
 import os
 import sys
 import time
 
 from PySide6.QtCore import QObject, QTimer
+
+from prismstation.gui.workers import collect_everything
 
 
 def one_dask_pool() -> None:
@@ -33,7 +34,7 @@ class MemoryKeeper(QObject):
     glibc keeps what a large computation freed (a DSM, its validation: arrays of 10–100 MB in
     worker threads' heaps) for the next allocation instead of returning it, and the window
     collects cyclic garbage rarely (gui/workers.py): the window stayed ~100 MB above what it
-    used after the demo's tools. A full collection and ``malloc_trim`` take ~10–50 ms, only
+    used after the demo's tools. A full collection and ``malloc_trim`` take ~50–150 ms, only
     after such a growth."""
 
     INTERVAL_MS = 2000
@@ -77,7 +78,7 @@ class MemoryKeeper(QObject):
         rss, now = resident_mb(), time.monotonic()
         due = self._again is not None and now >= self._again
         if rss > self._floor + self.STEP_MB or due:
-            gc.collect()  # (on the GUI thread: arrays a large job left in reference cycles)
+            collect_everything()  # (GUI thread: arrays a large job left in reference cycles)
             self._libc.malloc_trim(0)
             self.trims += 1
             self._again = None if due else now + self.AGAIN_S

@@ -162,12 +162,28 @@ _GC_TIMER: QTimer | None = None
 
 
 def collect_if_due() -> None:
-    """Collect the generations whose allocation counts passed the interpreter's thresholds."""
+    """Collect the generations whose allocation counts passed the interpreter's thresholds.
+
+    The survivors of a full collection are frozen (``gc.freeze``: left out of the next ones),
+    so that a full collection scans what was made since the last, not every object of the
+    window and its project: at 1,000 points ~160,000 objects, 100–175 ms on the GUI thread
+    about every hundred clicks, now ~10 ms. What frozen objects leave in reference cycles is
+    reclaimed by :func:`collect_everything`."""
     counts, thresholds = gc.get_count(), gc.get_threshold()
     for gen in (2, 1, 0):
         if counts[gen] > thresholds[gen]:
             gc.collect(gen)
+            if gen == 2:
+                gc.freeze()
             return
+
+
+def collect_everything() -> None:
+    """A full collection of every object, the frozen included, its survivors frozen again
+    (~100 ms with a project open: after a large computation, and where tests free windows)."""
+    gc.unfreeze()
+    gc.collect()
+    gc.freeze()
 
 
 def collect_on_gui_thread(interval_ms: int = 500) -> None:

@@ -1,7 +1,6 @@
 """Tools ▸ Geoid… and File ▸ New project from product… in the real window."""
 from __future__ import annotations
 
-import gc
 import json
 from pathlib import Path
 
@@ -18,6 +17,7 @@ def ortho_window(qtbot, sim):
     constant geoid N0: the fit is the simulation's own."""
     from prismstation.gui.app import make_app, wait_settled
     from prismstation.gui.main_window import MainWindow
+    from prismstation.gui.workers import collect_everything
 
     path = sim / "p.prismproj"
     doc = json.loads(path.read_text())
@@ -28,7 +28,7 @@ def ortho_window(qtbot, sim):
     doc["geoid"] = {"kind": "constant", "value": N0}
     path.write_text(json.dumps(doc))
     make_app()
-    gc.collect()
+    collect_everything()
     win = MainWindow(interactive=False)
     win.files.interactive = False
     qtbot.addWidget(win)
@@ -41,7 +41,7 @@ def ortho_window(qtbot, sim):
     win.close()
     win.deleteLater()
     qtbot.wait(10)
-    gc.collect()
+    collect_everything()
 
 
 def _settle(win):
