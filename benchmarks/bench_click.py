@@ -6,7 +6,9 @@ measurement (the cursor is moved there first and the window settles: an operator
 clicks); the time runs from the press until the new Solution has been published and the event
 loop has painted everything it had to (the last pass that painted; the table, the model panel,
 the plots and the N view must be among what was painted, else the round fails). Printed: median and spread of the
-whole round, and its parts (the fit, the GUI update); ``--trace`` adds the stages.
+whole round, and its parts (the fit, the GUI update); ``--trace`` adds the stages. Also printed:
+what a full garbage collection costs the GUI thread after the clicks, the window's way (the
+survivors of the last one frozen) beside Python's default (every object scanned).
 
 Each click starts from an idle window: the recovery journal of the previous edit (handed to
 its writer thread 40 ms after it, serialised and written there) has been written, as it has
@@ -102,6 +104,8 @@ def main(argv=None) -> int:
                   **{f"plot {n}": win.plots.plots[n].viewport() for n in ("vectors", "std_residuals")},
                   "N view": vp}
     total, fit, cpu = [], [], []
+    from prismstation.gui.workers import collect_everything
+    collect_everything()  # (as the window's first full collection does: survivors frozen)
     prof = None
     if args.profile:
         import cProfile
@@ -147,6 +151,7 @@ def main(argv=None) -> int:
         print(f"  {name:<38} median {np.median(v):7.1f} ms   p10 {np.percentile(v, 10):7.1f}   "
               f"p90 {np.percentile(v, 90):7.1f}")
 
+    gc_frozen, gc_all = _full_collections()
     where = f"CPU {args.cpu}" if args.cpu is not None else f"CPUs {sorted(os.sched_getaffinity(0))}"
     print(f"click → refit → repaint ({where}), {len(win.project.points)} points "
           f"({n_gcp} GCP), {args.rounds} clicks after {args.warmup} not counted, images {args.size} px")
@@ -156,6 +161,8 @@ def main(argv=None) -> int:
     line("  fit published → last paint", gui_ms)
     line("CPU time of the process per round", cpu)
     print(f"  open to settled images and first fit      {t_open * 1000:7.0f} ms")
+    print(f"  a full garbage collection after the clicks {gc_frozen:6.1f} ms (the window's: the "
+          f"objects made since the last one), {gc_all:.1f} ms scanning every object (Python's default)")
     print(f"  machine speed: a fixed workload (no prismstation code) {ref_ms:.2f} ms before, "
           f"{_machine_ms():.2f} ms after ({QUIET_MACHINE_MS:g} in this VM's fast spells; every "
           f"figure above scales with it)")
@@ -196,6 +203,20 @@ def _machine_ms() -> float:
         work()
         ms.append((time.perf_counter() - t0) * 1000)
     return float(np.median(ms[5:]))
+
+
+def _full_collections() -> tuple[float, float]:
+    """The time (ms) of a full garbage collection now, with the survivors of the last one
+    frozen (the window's way, gui/workers.py), then of one that scans every object."""
+    import gc
+    t0 = time.perf_counter()
+    gc.collect()
+    t1 = time.perf_counter()
+    gc.unfreeze()
+    gc.collect()
+    t2 = time.perf_counter()
+    gc.freeze()
+    return (t1 - t0) * 1000, (t2 - t1) * 1000
 
 
 class _PaintWatch(QObject):
