@@ -31,8 +31,13 @@ class Desktop:
             r, w = os.pipe()
             self._xvfb_log.seek(0)
             self._xvfb_log.truncate()
+            # -noreset: an X server resets when its last client leaves, and refuses clients
+            # meanwhile; the window manager's check (wmctrl) could be that client on a busy
+            # machine, before openbox had connected: "openbox: Failed to open the display"
+            # (2 desktops in 160 beside the GUI suite; a client leaving over and over while
+            # openbox starts: 4 in 130, 0 in 130 with -noreset)
             self.xvfb = subprocess.Popen(["Xvfb", f":{num}", "-displayfd", str(w), "-screen", "0",
-                                          f"{width}x{height}x24", "-nolisten", "tcp"],
+                                          f"{width}x{height}x24", "-nolisten", "tcp", "-noreset"],
                                          pass_fds=(w,), stderr=self._xvfb_log)
             os.close(w)
             with os.fdopen(r) as f:
