@@ -373,18 +373,21 @@ class ImageView(QWidget):
             self.read_failed.emit(message)
 
     def _drain_arrived(self) -> None:
-        """Show delivered tiles for at most TILE_BUDGET_S, then yield to the event loop."""
+        """Show delivered tiles until TILE_BUDGET_S has passed (one at least), then yield to
+        the event loop; tiles no longer wanted are dropped on the way."""
         t0 = time.perf_counter()
-        while self._arrived and time.perf_counter() - t0 < TILE_BUDGET_S:
+        while self._arrived:
             key, arr = self._arrived.pop(0)
             if key in self._tiles or key not in self._wanted:
                 continue
             self._show_tile(key, arr).render()  # convert now, inside the budget
             self._unsettled = True
+            if time.perf_counter() - t0 >= TILE_BUDGET_S:
+                break
+        if self._unsettled and self.tiles_complete():  # (stale tiles may still be queued)
+            self._settled()
         if self._arrived:
             self._drain_timer.start()
-        elif self._unsettled and self.tiles_complete():  # (the last turn may show none)
-            self._settled()
 
     def _settled(self) -> None:
         """All wanted tiles shown: they cover the view, so backdrop tiles and overview go."""

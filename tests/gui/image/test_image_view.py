@@ -13,6 +13,7 @@ pytest.importorskip("pytestqt")
 from PySide6.QtCore import QPoint, Qt  # noqa: E402
 from PySide6.QtWidgets import QHBoxLayout, QSplitter, QVBoxLayout, QWidget  # noqa: E402
 
+from prismstation.gui import image_view  # noqa: E402
 from prismstation.gui.contrast import PRESETS, ContrastPanel  # noqa: E402
 from prismstation.gui.image_view import ImageView  # noqa: E402
 from prismstation.gui.loupe import Loupe  # noqa: E402
@@ -96,6 +97,30 @@ def test_tiles_arrive_at_full_resolution_after_zoom(qtbot, view):
     # zooming out to 3 px / screen px goes to the level-2 overview and drops the full-res tiles
     view.set_scale(3.0)
     qtbot.waitUntil(lambda: view.current_level() == 2 and view.tiles_complete(), timeout=5000)
+    assert all(k[0] == 2 for k in view.displayed_tiles())
+
+
+def test_the_backdrop_goes_with_the_last_wanted_tile_even_with_stale_ones_queued(qtbot, view, monkeypatch):
+    """Tiles of the previous level stay under the new ones until these cover the view. With a
+    stale tile queued behind the last wanted one, the view said it was complete and still
+    showed the previous level's tiles until the next event-loop turn (seen on a busy machine
+    right after a zoom out)."""
+    view.center_on(2600, 1700, scale=0.5)
+    qtbot.waitUntil(lambda: view.current_level() == 1 and view.tiles_complete(), timeout=5000)
+    backdrop = view.displayed_tiles()
+    monkeypatch.setattr(view.loader, "request", lambda keys: None)  # delivered by hand below
+    view.set_scale(3.0)
+    qtbot.waitUntil(lambda: not view._update_timer.isActive(), timeout=5000)
+    wanted = list(view._wanted)
+    assert view.current_level() == 2 and wanted and not view.tiles_complete()
+    for key in wanted + backdrop[:1]:                    # the last one no longer wanted
+        view._on_tile_loaded(view.source, key, view.source.read_tile(*key))
+    monkeypatch.setattr(image_view, "TILE_BUDGET_S", 0.0)  # one tile per event-loop turn
+    for _ in range(len(wanted) + 2):                     # the turns, one at a time
+        view._drain_arrived()
+        if view.tiles_complete():
+            break
+    assert view.tiles_complete()
     assert all(k[0] == 2 for k in view.displayed_tiles())
 
 
