@@ -157,7 +157,7 @@ def main(argv=None) -> int:
           f"({n_gcp} GCP), {args.rounds} clicks after {args.warmup} not counted, images {args.size} px")
     target = 16.0 if args.points <= 200 else 30.0
     line(f"whole round (target ≤ {target:g} ms)", total)
-    line("  fit (core.solve)", fit)
+    line("  fit (core.solution.solve)", fit)
     line("  fit published → last paint", gui_ms)
     line("CPU time of the process per round", cpu)
     print(f"  open to settled images and first fit      {t_open * 1000:7.0f} ms")

@@ -13,8 +13,8 @@ import math
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QDoubleSpinBox, QFrame, QHBoxLayout, QLabel
 
-from prismstation.gui.fit_checks import parallax_check
 from prismstation.gui.palette import html
+from prismstation.gui.sensors import parts_of
 from prismstation.gui.text_label import TextLabel
 
 FIELDS = (("E", "ICP RMSE of easting, estimated − known ground position (m)"),
@@ -43,8 +43,7 @@ def accuracy_values(sol) -> dict:
     g = st.get("ground", {}).get("ICP")
     if g is not None:
         out.update(E=_m(g.x.rms), N=_m(g.y.rms), plan=_m(g.planimetric_rms))
-    heights = sol.scene.is_triplet or sol.scene.sensor.height_source != "parallax"
-    hgt = st.get("height", {}).get("ICP") if heights else None
+    hgt = st.get("height", {}).get("ICP") if sol.model.heights_fitted else None
     if hgt is not None:
         out["h"] = _m(hgt.rms)
     s0 = sol.bias[sol.reference_view].sigma0 if sol.reference_view in sol.bias else None
@@ -58,12 +57,11 @@ def accuracy_values(sol) -> dict:
 
 def accuracy_warning(sol) -> tuple[str, str]:
     """``(short text, full text)`` of what the strip's figures stand on that does not hold
-    (the parallax model does not fit the GCPs); empty strings when nothing."""
-    check = parallax_check(sol)
-    if check is None or check.fits:
+    (the sensor model's own check: the PRISM parallax model does not fit the GCPs); empty
+    strings when nothing."""
+    if sol is None:
         return "", ""
-    return (f"⚠ h from the '{check.model}' parallax model, which does not fit the GCPs "
-            f"({check.rms_model:.3g} m RMS)", check.text())
+    return parts_of(sol.scene.sensor).fit_warning(sol)
 
 
 class AccuracyStrip(QFrame):

@@ -1,4 +1,4 @@
-"""Live plots of a fitted :class:`~prismstation.core.solve.Solution`.
+"""Live plots of a fitted :class:`~prismstation.core.solution.Solution`.
 
 Four pyqtgraph plots in a 2 × 2 grid, each a ``pg.PlotWidget`` whose items are created once and
 only get new data on :meth:`PlotsWidget.set_solution` (no rebuilding):
@@ -287,7 +287,7 @@ class PlotsWidget(QWidget):
 
     # ------------------------------------------------------------------ public
     def set_solution(self, solution) -> None:
-        """Show ``solution`` (a :class:`~prismstation.core.solve.Solution` or None)."""
+        """Show ``solution`` (a :class:`~prismstation.core.solution.Solution` or None)."""
         self.set_plot_data(PlotData.from_solution(solution))
 
     def set_report(self, report: dict) -> None:

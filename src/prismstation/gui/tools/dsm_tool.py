@@ -1,7 +1,7 @@
 """Tools ▸ Export DSM…: the project's DSM as a GeoTIFF (a PRISM triplet's, or that of images
 with RPCs: every pair matched and fused through the fitted biases,
-:func:`prismstation.ops.rpc_project.export_rpc_dsm`, the sensor model's export looked up in
-:mod:`prismstation.ops.workflows`).
+:func:`prismstation.ops.rpc_project.export_dsm`; the sensor model's export,
+:func:`prismstation.ops.sensors.workflows_of`).
 
 The whole N image or the area visible in the N view, at a chosen posting, with ellipsoidal or
 orthometric heights (through the project's geoid), computed and written in a worker by the
@@ -24,6 +24,7 @@ from PySide6.QtWidgets import (QAbstractSpinBox, QButtonGroup, QCheckBox, QCombo
 from prismstation.gui import settings as st
 from prismstation.gui.tools._worker import run_with_progress
 from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest
+from prismstation.ops.sensors import workflows_of
 
 #: the height models as the dialog names them (``prismstation dsm --heights``)
 HEIGHT_MODEL_NAMES = {"auto": "automatic (the one the GCPs predict better)",
@@ -234,7 +235,6 @@ class DsmTool:
         """Compute and write the DSM of ``req`` in a worker, with the loaded reference DEM as
         the prior when ``use_reference``; returns the Job (result: the
         :class:`~prismstation.ops.dsm_export.DsmExport`)."""
-        from prismstation.ops.workflows import workflows
         sol, p = self.ctx.solver.solution, self.ctx.project
         if sol is None or p is None:
             self.ctx.status("A DSM needs a fitted model", 8000)
@@ -245,7 +245,7 @@ class DsmTool:
         ref = self.reference() if use_reference else None
 
         def work(progress):
-            return workflows(p).export_dsm(sol, p, req, reference=ref, progress=progress)
+            return workflows_of(p).export_dsm(sol, p, req, reference=ref, progress=progress)
 
         def done(out):
             self.message, low = result_message(out)
