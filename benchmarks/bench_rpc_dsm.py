@@ -51,8 +51,8 @@ from prismstation.core.stats import nmad
 from prismstation.io.dem import write_dem
 from prismstation.io.raster import gdal_env
 from prismstation.io.rpc import read_rpc
-from prismstation.ops.rpc_dsm import (PairDsm, footprint_grid, image_shape, pair_agreement, rpc_dsm,
-                                      to_lonlat, to_map)
+from prismstation.io.rpc_scene import to_lonlat, to_map
+from prismstation.ops.rpc_dsm import PairDsm, footprint_grid, image_shape, pair_agreement, rpc_dsm
 from prismstation.ops.rpc_orient import orient_from_reference
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"

@@ -16,7 +16,8 @@ from prismstation.core.rpc_tiepoints import match_tie_points
 from prismstation.io.dem import write_dem
 from prismstation.io.rpc import read_rpc
 from prismstation.core.stats import nmad
-from prismstation.ops.rpc_dsm import rpc_dsm, to_map
+from prismstation.io.rpc_scene import to_map
+from prismstation.ops.rpc_dsm import rpc_dsm
 from prismstation.ops.rpc_orient import orient_from_reference
 from tests.ops.rpc_synth import write_image
 

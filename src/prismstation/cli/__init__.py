@@ -17,7 +17,10 @@ import pkgutil
 import sys
 
 from prismstation import __version__
+from prismstation.cli._common import end_progress
+from prismstation.cli._gdal_lines import GdalLines
 from prismstation.errors import PrismError
+from prismstation.io.raster import gdal_env
 
 
 #: commands that open the window: their stderr is left alone (a crash's dump must reach it)
@@ -43,8 +46,6 @@ def main(argv: list[str] | None = None) -> int:
         else:
             parser.print_help()
             return 2
-    from prismstation.cli._gdal_lines import GdalLines
-    from prismstation.io.raster import gdal_env
     # GDAL's own lines on stderr (a failed write prints one per block, from Python's logging
     # and from libtiff in C): the error's one line below names the file and carries them
     logging.getLogger("rasterio._env").setLevel(logging.CRITICAL)
@@ -56,7 +57,6 @@ def main(argv: list[str] | None = None) -> int:
             print(line, file=sys.stderr)
         return status
     except (PrismError, OSError) as exc:
-        from prismstation.cli._common import end_progress
         end_progress()
         text, cause = str(exc), gdal_lines.cause()
         if cause and cause not in text:

@@ -6,7 +6,7 @@ the JSON a ``prismstation resection --json`` wrote (``--left-resection`` / ``--r
 from __future__ import annotations
 
 from prismstation.errors import InputError
-from prismstation.io.jsonfile import write_json
+from prismstation.io.jsonfile import line_of, read_json, write_json
 from prismstation.ops.resection import base_height
 
 
@@ -23,8 +23,6 @@ def register(sub) -> None:
 
 
 def _from_resection(path) -> list[float]:
-    from prismstation.io.jsonfile import line_of, read_json
-
     data, text = read_json(path)
     eo = data.get("eo")
     if not isinstance(eo, dict):

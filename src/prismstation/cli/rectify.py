@@ -12,6 +12,7 @@ from prismstation.errors import InputError, ModelError
 from prismstation.cli._common import end_progress, progress_printer
 from prismstation.io.jsonfile import write_json
 from prismstation.io.rectify_io import read_point_pairs
+from prismstation.io.windows import raster_header
 from prismstation.ops.rectify import KINDS, fit_transforms, format_rmse_table, rectify_raster
 
 
@@ -37,18 +38,9 @@ def _points_crs(args):
         return args.points_crs
     if args.crs:
         return args.crs
-    import warnings
-
-    import rasterio
-
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            with rasterio.open(args.image) as ds:
-                if ds.crs is not None:
-                    return ds.crs.to_wkt()
-    except rasterio.errors.RasterioIOError as exc:
-        raise InputError(f"cannot open as a raster ({exc})", file=args.image) from None
+    crs = raster_header(args.image)[2]
+    if crs is not None:
+        return crs
     raise InputError("the image has no CRS: give the points' CRS with --points-crs or --crs",
                      file=args.image)
 

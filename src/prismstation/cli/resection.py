@@ -14,6 +14,7 @@ import numpy as np
 from prismstation.errors import InputError
 from prismstation.io.jsonfile import write_json
 from prismstation.io.rectify_io import read_point_pairs
+from prismstation.io.windows import raster_header
 from prismstation.ops.resection import PARAM_NAMES, resect_points
 
 
@@ -43,19 +44,10 @@ def _principal_point(args) -> tuple[float, float]:
     if args.image_size:
         w, h = args.image_size
         return w / 2.0, h / 2.0
-    import warnings
-
-    import rasterio
-
     if not Path(args.image).exists():
         raise InputError("image not found", file=args.image)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            with rasterio.open(args.image) as ds:
-                return ds.width / 2.0, ds.height / 2.0
-    except rasterio.errors.RasterioIOError as exc:
-        raise InputError(f"cannot open as a raster ({exc})", file=args.image) from None
+    width, height, _ = raster_header(args.image)
+    return width / 2.0, height / 2.0
 
 
 def run(args) -> int:

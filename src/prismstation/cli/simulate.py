@@ -61,7 +61,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from prismstation.sim import simulate
+    from prismstation.sim import simulate  # start-up: the simulator loads only to simulate
 
     out = Path(args.outdir)
     if out.exists() and not out.is_dir():

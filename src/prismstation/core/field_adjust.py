@@ -398,7 +398,7 @@ def adjust_field(cells: Cells, surface: Surface, basis: Basis, theta0, *, n_patc
     (GCPs) the reference's offset is estimated too. Patches whose own shift departs from the
     others' field beyond the χ² test at ``alpha`` are removed one at a time, at most
     ``max_reject`` (default a quarter of them)."""
-    from prismstation.core import field_stats as fs
+    from prismstation.core import field_stats as fs  # start-up: scipy.stats takes a second or more to import
 
     # the reference's offset is free in each component some GCP observes
     free = np.zeros(3, bool) if obs is None else np.isin(np.arange(3), np.asarray(obs.comp))

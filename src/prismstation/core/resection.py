@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from prismstation.core.estimate import Normaliser, check_points, check_spread, condition_number, degenerate
+from prismstation.core.rectify import fit_transform
 from prismstation.errors import ModelError
 
 PUSHBROOM_NOTE = ("The frame-camera (central projection) model is only an approximation for a "
@@ -159,7 +160,6 @@ def homography_start(camera: FrameCamera, xy, xyz) -> np.ndarray:
     """Starting EO from the plane-to-image homography (ground points taken on their mean
     height): ``H ∝ [m1 m2 t]`` with ``m1``, ``m2`` the first two columns of ``M``. Handles
     tilted views where a vertical start fails; needs ≥ 4 points, not three on a line."""
-    from prismstation.core.rectify import fit_transform   # core → core
 
     xyz = np.asarray(xyz, float)
     q = camera.to_photo(xy) / -camera.focal_m                 # (r1/r3, r2/r3)

@@ -11,6 +11,9 @@ import tempfile
 from pathlib import Path
 
 from prismstation.errors import InputError
+from prismstation.gui import settings, workers
+from prismstation.gui.main_window import MainWindow
+from prismstation.io.raster import gdal_env
 
 
 def icon_path():
@@ -32,7 +35,6 @@ def make_app():
     import pyqtgraph as pg
     from PySide6.QtWidgets import QApplication
 
-    from prismstation.gui import settings
 
     app = QApplication.instance() or QApplication(sys.argv[:1])
     icon = icon_path()
@@ -48,7 +50,6 @@ def make_app():
     # collector ran ~4 times per click and a full collection (~50 ms) now and then mid-click
     import gc
     gc.set_threshold(20000, 10, 10)
-    from prismstation.gui import workers
     workers.collect_on_gui_thread()  # a worker thread must never free a Qt object
     return app
 
@@ -120,14 +121,12 @@ def run(project_path=None, screenshot=None, reference_dem=None, demo_maker=None,
     if screenshot_path is not None:
         if "PRISMSTATION_SETTINGS_DIR" not in os.environ:  # never the user's layout in a picture
             os.environ["PRISMSTATION_SETTINGS_DIR"] = tempfile.mkdtemp(prefix="prismstation-settings-")
-    from prismstation.io.raster import gdal_env
     with gdal_env():                 # the window's GDAL settings, for as long as it runs
         return _run_window(project_path, screenshot_path, reference_dem, demo_maker, open_demo)
 
 
 def _run_window(project_path, screenshot_path, reference_dem, demo_maker, open_demo) -> int:
     app = make_app()
-    from prismstation.gui.main_window import MainWindow
 
     interactive = screenshot_path is None
     win = MainWindow(interactive=interactive, demo_maker=demo_maker)

@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from prismstation.errors import InputError, WriteError
+from prismstation.gui.plots import PlotsWidget
 from prismstation.io.atomic import write_atomic
 from prismstation.io.report_html import format_when, report_html
 
@@ -36,7 +37,6 @@ def _ensure_app():
 def render_figures(report: dict, size=(840, 540)) -> dict:
     """The four plots of ``report`` as QImages ``{name: QImage}`` (offscreen pyqtgraph)."""
     _ensure_app()
-    from prismstation.gui.plots import PlotsWidget
     w = PlotsWidget()
     try:
         w.set_report(report)

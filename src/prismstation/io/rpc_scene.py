@@ -1,5 +1,5 @@
 """Images with RPCs as a scene: the map projection the RPC model works through
-(:class:`LonLatProjection`), the RPC view of a scene file (:func:`rpc_view_from_dict`,
+(:class:`LonLatProjection`; :func:`to_map`, :func:`to_lonlat` for a grid's CRS), the RPC view of a scene file (:func:`rpc_view_from_dict`,
 :func:`rpc_to_dict`) and the scene of a set of images (:func:`write_scene_for_images`, behind
 ``prismstation new --images``).
 
@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import os
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +56,24 @@ class LonLatProjection:
 
     def __setstate__(self, state):
         self.__init__(state["crs"])
+
+
+@lru_cache(maxsize=16)
+def _transformer(crs: str, inverse: bool) -> Transformer:
+    a, b = ("EPSG:4326", crs) if not inverse else (crs, "EPSG:4326")
+    return Transformer.from_crs(a, b, always_xy=True)
+
+
+def to_map(crs: str):
+    """``(lon°, lat°) → (E, N)`` of ``crs``."""
+    t = _transformer(str(crs), False)
+    return lambda lon, lat: t.transform(lon, lat)
+
+
+def to_lonlat(crs: str):
+    """``(E, N)`` of ``crs`` → ``(lon°, lat°)``."""
+    t = _transformer(str(crs), True)
+    return lambda e, n: t.transform(e, n)
 
 
 def utm_crs(lon: float, lat: float) -> str:

@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from rasterio.windows import Window
 from scipy import ndimage
 
 from prismstation.core import view_offsets as vo
@@ -63,16 +62,6 @@ class CoarseOffsets:
                             for w in self.windows]}
 
 
-def _read(ds, c0, r0, w, h) -> np.ndarray:
-    """Window of band 1 as float32, NaN outside the image."""
-    out = np.full((h, w), np.nan, np.float32)
-    a0, b0 = max(c0, 0), max(r0, 0)
-    a1, b1 = min(c0 + w, ds.width), min(r0 + h, ds.height)
-    if a1 > a0 and b1 > b0:
-        out[b0 - r0:b1 - r0, a0 - c0:a1 - c0] = ds.read(1, window=Window(a0, b0, a1 - a0, b1 - b0))
-    return out
-
-
 def coarse_view_offsets(scene: Scene, reference_path, geoid, *, sigma_apriori_m: float = SIGMA_APRIORI_M,
                         k: float = K_SIGMA, window_px: int = 512, grid: int = 3,
                         posting_m: float = 30.0, n_shift=None, progress=None) -> CoarseOffsets:
@@ -106,13 +95,13 @@ def coarse_view_offsets(scene: Scene, reference_path, geoid, *, sigma_apriori_m:
         for i, win in enumerate(wins):
             checkpoint(progress, i / len(wins), f"coarse offsets: window {i + 1} of {len(wins)}")
             c0, r0, w, h = win
-            n_img = _read(ds["N"], c0, r0, w, h)
+            n_img = ds["N"].read_padded(c0, r0, w, h)
             if not np.isfinite(n_img).all():
                 continue
             hh = vo.n_heights(scene, win, sample, mean_h, n_shift=n_shift)
             for v in "FB":
                 a0, b0, aw, ah = vo.source_window(scene, v, win, hh, radius + 12)
-                found.append(vo.view_offset(scene, v, n_img, win, _read(ds[v], a0, b0, aw, ah),
+                found.append(vo.view_offset(scene, v, n_img, win, ds[v].read_padded(a0, b0, aw, ah),
                                             (a0, b0), hh, sigma_apriori_m, k))
     finally:
         for d in ds.values():

@@ -41,6 +41,7 @@ import numpy as np
 from prismstation.core.ray_dem import ray_meets_surface
 from prismstation.core.sensor import STEP_M
 from prismstation.core.solution import Solution
+from prismstation.ops.fit import ellipsoidal_heights
 
 CHI2_95_2D = 5.991464547107979
 """χ² with 2 degrees of freedom at 95 %: the 95 % ellipse has semi-axes ``sqrt(5.99·λ)``."""
@@ -286,6 +287,5 @@ def project_inputs(project, ground: dict) -> list[PointInput]:
 
 def known_ground(project) -> dict:
     """id → ``(E, N, h ellipsoidal)`` of the project's points with ground coordinates."""
-    from prismstation.ops.fit import ellipsoidal_heights
     h = ellipsoidal_heights(project)
     return {pid: (project.points[pid].E, project.points[pid].N, hv) for pid, hv in h.items()}

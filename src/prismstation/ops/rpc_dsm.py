@@ -36,11 +36,10 @@ from prismstation.core.rpc_bias import as_biased
 from prismstation.core.stats import nmad
 from prismstation.errors import InputError, ModelError
 from prismstation.io.dem import read_dem
-from prismstation.io.rpc_scene import utm_crs
+from prismstation.io.rpc_scene import to_map, utm_crs
 from prismstation.ops.dsm import MASK_MATCHED, Dsm
 from prismstation.ops.dsm_tiles import run_tiles
-from prismstation.ops.rpc_dsm_tiles import (BlockTile, Grid, image_shape, run_block_tile, to_lonlat,  # noqa: F401
-                                            to_map)
+from prismstation.ops.rpc_dsm_tiles import BlockTile, Grid, image_shape, run_block_tile
 
 #: smallest widening (m) of a tile's height range beyond its tie points' heights
 POINT_MARGIN_M = 20.0

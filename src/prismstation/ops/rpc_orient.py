@@ -28,8 +28,8 @@ from prismstation.core.coreg import CoregResult, block_mean
 from prismstation.core.rpc_bias import BIAS_MODELS, BiasedRpc, as_biased, bias_design, metres_per_degree
 from prismstation.errors import InputError
 from prismstation.io.dem import read_dem
+from prismstation.io.rpc_scene import to_lonlat
 from prismstation.ops.rpc_dsm import rpc_dsm
-from prismstation.ops.rpc_dsm_tiles import to_lonlat
 
 #: default bound of the horizontal shift (metres)
 DEFAULT_MAX_SHIFT_M = 100.0

@@ -15,7 +15,6 @@ from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
-from rasterio.transform import Affine
 
 from prismstation.core import conditioning as cond
 from prismstation.core.rpc_bias import BIAS_NAMES
@@ -99,7 +98,7 @@ def export_dsm(sol, project, request: DsmRequest, *, reference=None, progress=No
                      progress=scaled(progress, 0.0, COMPUTE_SHARE))
     dsm = replace(dsm, info=plain(dsm.info))
     if request.orthometric:
-        grid = SimpleNamespace(shape=dsm.heights.shape, transform=Affine(*tuple(dsm.transform)[:6]), crs=dsm.crs)
+        grid = SimpleNamespace(shape=dsm.heights.shape, transform=tuple(dsm.transform)[:6], crs=dsm.crs)
         dsm = replace(dsm, heights=dsm.heights - undulation_on_grid(geoid, grid).astype(np.float32),
                       height_kind="orthometric", geoid=geoid.describe() if hasattr(geoid, "describe") else "geoid")
     checkpoint(progress, COMPUTE_SHARE, "writing")

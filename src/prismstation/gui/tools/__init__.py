@@ -16,6 +16,9 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction
 from PySide6.QtWidgets import QDockWidget, QMessageBox
 
+from prismstation.gui.menus import act
+from prismstation.gui.tools._worker import running_jobs_of, stop_jobs_of
+
 
 class ToolContext:
     """What a tool may use of the window.
@@ -66,7 +69,6 @@ class ToolContext:
 
     def add_action(self, text, slot, shortcut=None, tip=None, checkable=False) -> QAction:
         """An action of the window (its shortcut works anywhere in it); not put in a menu."""
-        from prismstation.gui.menus import act
         return act(self.widget, text, slot, shortcut, tip=tip, checkable=checkable)
 
     def add_dock(self, key: str, title: str, widget, area=Qt.DockWidgetArea.RightDockWidgetArea,
@@ -86,7 +88,6 @@ class ToolContext:
     def may_close(self) -> bool:
         """The window is asked to close (X, Ctrl+Q): with a tool's job running, ask whether to
         cancel it and quit (a window that asks nothing — tests, screenshots — says yes)."""
-        from prismstation.gui.tools._worker import running_jobs_of
         jobs = [job for job in running_jobs_of(self.widget) if not job.is_cancelled()]  # (cancelled: ending)
         if not jobs or not self.interactive:
             return True
@@ -97,7 +98,6 @@ class ToolContext:
 
     def shutdown(self) -> None:
         """Cancel and join the tools' running jobs (the window is closing)."""
-        from prismstation.gui.tools._worker import stop_jobs_of
         stop_jobs_of(self.widget)
 
 

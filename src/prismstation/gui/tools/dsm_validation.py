@@ -26,8 +26,14 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpin
 from prismstation.core.dsmstats import hillshade, histogram, residual_sd_by_view
 from prismstation.errors import PrismError
 from prismstation.gui.titles import fit_title
-from prismstation.gui.tools._rect_common import crs_name, fmt
+from prismstation.gui.tools._rect_common import fmt
 from prismstation.gui.tools._worker import Job, run_with_progress
+from prismstation.io.atomic import write_atomic
+from prismstation.io.dem import read_dem
+from prismstation.io.geoid import ConstantGeoid, GridGeoid, find_grid
+from prismstation.io.georef import crs_name
+from prismstation.io.jsonfile import write_json
+from prismstation.ops.validate import validate_dsm_files
 
 STAT_COLUMNS = ("count", "bias", "sd", "rmse", "min", "max", "median", "nmad")
 
@@ -110,8 +116,6 @@ class ResidualSDPanel(QWidget):
 def run_validation(dsm, reference, *, dsm_height="ellipsoidal", reference_height="ellipsoidal",
                    geoid=None, mask=None):
     """Worker body: ``(validation, info, difference (rows, cols) m, shaded relief [0, 1])``."""
-    from prismstation.io.dem import read_dem
-    from prismstation.ops.validate import validate_dsm_files
 
     fd, tmp = tempfile.mkstemp(suffix=".tif", prefix="dsmdiff_")
     os.close(fd)
@@ -170,7 +174,6 @@ def prefill(project, project_path, last: dict) -> dict:
             grid = Path(g.get("path", ""))
             out["geoid_grid"] = str(grid if grid.is_absolute() or not folders else folders[-1] / grid)
         elif g.get("kind") == "auto":
-            from prismstation.io.geoid import find_grid
             grid = find_grid()
             out.update({"geoid_grid": str(grid)} if grid else {"geoid_constant": float(g.get("value") or 0.0)})
         elif g.get("value") is not None:
@@ -316,8 +319,6 @@ class DsmResultPanel(QWidget):
         atomically (a failure is a ``WriteError``, no file)."""
         import io
 
-        from prismstation.io.atomic import write_atomic
-        from prismstation.io.jsonfile import write_json
 
         kind = kind or ("csv" if str(path).lower().endswith(".csv") else "json")
         if kind == "json":
@@ -359,7 +360,6 @@ class DsmValidationTool:
     def start(self, dsm, reference, dsm_height="ellipsoidal", reference_height="ellipsoidal",
               mask="", geoid_grid="", geoid_constant=0.0, progress_dialog=True) -> Job | None:
         """Validate in a worker (returns the Job); the result appears in the "DSM validation" dock."""
-        from prismstation.io.geoid import ConstantGeoid, GridGeoid
 
         self.last = dict(dsm=dsm, reference=reference, dsm_height=dsm_height,
                          reference_height=reference_height, mask=mask, geoid_grid=geoid_grid,

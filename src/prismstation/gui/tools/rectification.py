@@ -19,8 +19,10 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpin
 
 from prismstation.core.rectify import KINDS, compare_transforms, min_points, n_params
 from prismstation.gui.titles import fit_title
-from prismstation.gui.tools._rect_common import crs_name, fmt, view_points, watch_project
+from prismstation.gui.tools._rect_common import fmt, view_points, watch_project
 from prismstation.gui.tools._worker import Job, run_with_progress
+from prismstation.io.georef import crs_name
+from prismstation.ops.rectify import rectify_raster
 
 
 def _item(text, align=Qt.AlignmentFlag.AlignRight) -> QTableWidgetItem:
@@ -230,7 +232,6 @@ class RectifyTool:
         """Rectify ``view`` through ``kind`` into ``out_path`` in a worker; returns the Job
         (result: the rectified raster's record), or None with a message when the transform
         cannot be fitted."""
-        from prismstation.ops.rectify import rectify_raster
 
         w = self.ctx
         self.panel.refresh(force=True)

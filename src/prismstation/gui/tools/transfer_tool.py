@@ -40,7 +40,10 @@ from prismstation.core.scene import reference_view
 from prismstation.gui import commands as cmd
 from prismstation.gui.tools._worker import Job, run_with_progress
 from prismstation.gui.views import DRIVE_TO_MAX_SCALE
+from prismstation.io.windows import ImageWindows
 from prismstation.model.points import GroundPoint, Measurement
+from prismstation.ops.tie_points import auto_tie_points
+from prismstation.ops.transfer import search_height, transfer
 
 CANDIDATE_COLOUR = "#39ff14"
 
@@ -183,7 +186,6 @@ class TransferTool:
         """``(h, h_range)`` metres searched for a point at ``(x, y)`` of ``source``
         (:func:`prismstation.ops.transfer.search_height` with the loaded reference DEM and the
         σ the predictions measured for it and for the mean height)."""
-        from prismstation.ops.transfer import search_height
         preds = self.ctx.views.predictions
         return search_height(sol, source, (x, y), height_of=self.ctx.views.height_of,
                              sigma_dem=preds.sigma_dem, sigma_mean=preds.sigma_mean)
@@ -200,8 +202,6 @@ class TransferTool:
         sigma_dem, sigma_mean = preds.sigma_dem, preds.sigma_mean
 
         def work(progress):
-            from prismstation.io.windows import ImageWindows
-            from prismstation.ops.transfer import transfer
             with ImageWindows(scene) as im:
                 return transfer(sol, im, source, (x, y), height_of=height_of, sigma_dem=sigma_dem,
                                 sigma_mean=sigma_mean)
@@ -335,8 +335,6 @@ class TransferTool:
         height_of = self.ctx.views.height_of
 
         def work(progress):
-            from prismstation.io.windows import ImageWindows
-            from prismstation.ops.tie_points import auto_tie_points
             summary: dict = {}
             with ImageWindows(project.scene) as im:
                 ties = auto_tie_points(sol, im, grid=grid, height_of=height_of, progress=progress,
