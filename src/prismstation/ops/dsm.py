@@ -73,6 +73,18 @@ class Dsm:
         return float(((self.mask == MASK_MATCHED) & self.seen).sum() / n) if n else 0.0
 
 
+def grid_dsm(heights, seen, quality, transform, crs: str, posting_m: float, info: dict, *, mask=None,
+             height_kind: str = "ellipsoidal", geoid: str | None = None) -> Dsm:
+    """The :class:`Dsm` of ``heights`` on a grid, the last step of every DSM (a triplet's, images
+    with RPCs'): ``mask`` (default: :data:`MASK_MATCHED` where a ``seen`` cell has a height,
+    :data:`MASK_VOID` elsewhere) and the share of the seen cells with a height."""
+    n_seen = int(seen.sum())
+    if mask is None:
+        mask = (np.isfinite(heights) & seen).astype(np.uint8) * MASK_MATCHED
+    valid = float(np.isfinite(heights[seen]).sum() / n_seen) if n_seen else 0.0
+    return Dsm(heights, transform, crs, height_kind, valid, mask, seen, quality, posting_m, geoid, info)
+
+
 def _track_tiles(sol, transform, shape, wanted, size_m: float, overlap_m: float):
     """Rectangles aligned with the flight direction covering the wanted cells: ``(rect, window)``
     with ``rect`` = (origin, t, u, x0, x1, y0, y1) in metres along/across track, overlap
@@ -344,7 +356,6 @@ def finish_dsm(plan: DsmPlan, heights, quality, t, info, *, fill: bool, orthomet
             heights[r0:r0 + 512] -= orthometric_geoid.undulation(en[..., 0], en[..., 1], sc.crs).astype(np.float32)
         kind = "orthometric"
         geoid_name = orthometric_geoid.describe() if hasattr(orthometric_geoid, "describe") else "geoid"
-    n_seen = int(seen.sum())
-    valid = float(np.isfinite(heights[seen]).sum() / n_seen) if n_seen else 0.0
     checkpoint(progress, 1.0, "done")
-    return Dsm(heights, t, sc.crs, kind, valid, mask, seen, quality, plan.posting_m, geoid_name, info)
+    return grid_dsm(heights, seen, quality, t, sc.crs, plan.posting_m, info, mask=mask, height_kind=kind,
+                    geoid=geoid_name)
