@@ -11,7 +11,11 @@ prismstation's own (a cancel, a read that failed) pass through unchanged.
 
 The permissions of a new file are those of a plain new file (0666 less the umask); a file
 written over keeps its previous mode. With ``keep_backup`` the previous version is kept as
-``NAME.bak``.
+``NAME.bak``, made *before* the one rename that puts the new file in place (a hard link to the
+previous version, or a copy where the file system has no links, itself put in place by a rename):
+the target is replaced by exactly one ``os.replace``, so at every moment — a crash, a
+``kill -9``, an I/O error at any step — the target's path holds either its previous version or
+the new one, whole.
 """
 from __future__ import annotations
 
@@ -136,6 +140,26 @@ def _temporary_beside(target: Path) -> Path:
     return Path(name)
 
 
+def _backup(target: Path) -> None:
+    """``target`` kept as ``target.bak``, ``target`` itself untouched: a hard link to it (or,
+    where links cannot be made, a copy flushed to the disk) made under a temporary name, then
+    renamed onto ``.bak`` (a previous ``.bak`` stays whole until then)."""
+    bak = target.with_name(target.name + ".bak")
+    tmp = _temporary_beside(bak)
+    try:
+        try:
+            os.unlink(tmp)
+            os.link(target, tmp)
+        except OSError:  # no hard links here (some network and FAT file systems): a copy
+            import shutil
+            shutil.copyfile(target, tmp)
+            _fsync(tmp)
+        os.replace(tmp, bak)
+    except BaseException:
+        _remove(tmp)
+        raise
+
+
 def check_writable(path) -> None:
     """Raise the :class:`WriteError` :func:`atomic_path` would raise at once for ``path`` (its
     folder cannot be made or written): called before long work, so that it does not end on a
@@ -160,8 +184,8 @@ def atomic_path(path, *, keep_backup: bool = False,
         os.chmod(tmp, mode)
         _fsync(tmp)
         if keep_backup and target.exists():
-            os.replace(target, target.with_name(target.name + ".bak"))
-        os.replace(tmp, target)
+            _backup(target)
+        os.replace(tmp, target)  # the one step that changes the target
         for s in SIDE_FILES:  # a side file GDAL wrote goes with its raster
             if os.path.exists(str(tmp) + s):
                 os.replace(str(tmp) + s, str(target) + s)
