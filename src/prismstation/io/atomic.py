@@ -141,23 +141,98 @@ def _temporary_beside(target: Path) -> Path:
 
 
 def _backup(target: Path) -> None:
-    """``target`` kept as ``target.bak``, ``target`` itself untouched: a hard link to it (or,
-    where links cannot be made, a copy flushed to the disk) made under a temporary name, then
-    renamed onto ``.bak`` (a previous ``.bak`` stays whole until then)."""
-    bak = target.with_name(target.name + ".bak")
-    tmp = _temporary_beside(bak)
+    """``target`` kept as ``target.bak``, ``target`` itself untouched (:func:`_link_or_copy`)."""
+    _link_or_copy(target, target.with_name(target.name + ".bak"))
+
+
+def _link_or_copy(source: Path, dest: Path) -> None:
+    """``dest`` made the same file as ``source`` (``source`` untouched): a hard link to it
+    (or, where links cannot be made, a copy flushed to the disk) made under a temporary name,
+    then renamed onto ``dest`` (a previous ``dest`` stays whole until then)."""
+    tmp = _temporary_beside(dest)
     try:
         try:
             os.unlink(tmp)
-            os.link(target, tmp)
+            os.link(source, tmp)
         except OSError:  # no hard links here (some network and FAT file systems): a copy
             import shutil
-            shutil.copyfile(target, tmp)
+            shutil.copyfile(source, tmp)
             _fsync(tmp)
-        os.replace(tmp, bak)
+        os.replace(tmp, dest)
     except BaseException:
         _remove(tmp)
         raise
+
+
+def _encoded(data: str | bytes) -> bytes:
+    return data.encode("utf-8") if isinstance(data, str) else bytes(data)
+
+
+def write_together(files: dict, keep_backup: bool = True) -> None:
+    """Write several files (path → text or bytes) as one change: every file is written,
+    checked and flushed beside its target first, the previous version of every target kept
+    (``NAME.bak`` with ``keep_backup``, else a temporary link), and only then is each renamed
+    onto its target, in the order given (the last is the one the others belong to: a project
+    after its scene). A failure at any step puts the targets already replaced back as they were
+    and leaves no file behind; a file whose bytes are already those at its target is not
+    written. A ``kill -9`` between two renames leaves the earlier targets new and the later
+    ones as they were (their previous versions in ``.bak``). A failure is a
+    :class:`WriteError` naming the file it met."""
+    staged: list[tuple[Path, Path]] = []     # (target, temporary)
+    kept: dict[Path, Path | None] = {}       # target → its previous version
+    done: list[Path] = []
+    target = None
+    try:
+        for path, data in files.items():
+            target, raw = Path(path), _encoded(data)
+            try:
+                if target.is_file() and target.stat().st_size == len(raw) and target.read_bytes() == raw:
+                    continue
+            except OSError:
+                pass
+            tmp = _temporary_beside(target)
+            staged.append((target, tmp))
+            with open(tmp, "wb") as fh:
+                fh.write(raw)
+            check_size(len(raw))(tmp)
+            os.chmod(tmp, target.stat().st_mode & 0o7777 if target.exists() else _new_file_mode())
+            _fsync(tmp)
+        for target, _ in staged:
+            prev = None
+            if target.exists():
+                prev = (target.with_name(target.name + ".bak") if keep_backup
+                        else _temporary_beside(target))
+                _link_or_copy(target, prev)
+            kept[target] = prev
+        for target, tmp in staged:
+            os.replace(tmp, target)
+            done.append(target)
+    except BaseException as exc:
+        for t in reversed(done):  # as they were
+            try:
+                if kept.get(t) is None:
+                    os.unlink(t)
+                else:
+                    _link_or_copy(kept[t], t)
+            except OSError:  # pragma: no cover - nothing more can be done
+                pass
+        for _, tmp in staged:
+            _remove(tmp)
+        if not keep_backup:
+            for prev in kept.values():
+                if prev is not None:
+                    _remove(prev)
+        if isinstance(exc, WriteError) and target is not None and exc.file is None:
+            raise WriteError(exc.problem, target, exc.errno) from None
+        if isinstance(exc, PrismError) or not isinstance(exc, OSError) or target is None:
+            raise
+        raise write_error(target, exc) from exc
+    if not keep_backup:
+        for prev in kept.values():
+            if prev is not None:
+                _remove(prev)
+    for folder in {t.parent for t in done}:
+        _fsync(folder, directory=True)
 
 
 def check_writable(path) -> None:
@@ -214,7 +289,7 @@ def write_atomic(path, data: str | bytes, keep_backup: bool = True) -> None:
     """Write ``data`` (text as UTF-8 with ``\\n`` line ends, or bytes) to ``path`` atomically;
     with ``keep_backup`` the previous version is kept as ``path + '.bak'``. A failure is a
     :class:`WriteError`."""
-    raw = data.encode("utf-8") if isinstance(data, str) else bytes(data)
+    raw = _encoded(data)
     with atomic_path(path, keep_backup=keep_backup, check=check_size(len(raw))) as tmp:
         with open(tmp, "wb") as fh:
             fh.write(raw)

@@ -90,10 +90,15 @@ def settings_dict(settings: Settings) -> dict:
     return d
 
 
+def project_json(project: Project, path) -> str:
+    """The text of ``project`` saved at ``path``."""
+    return dumps(project_to_dict(project, path), indent=1) + "\n"
+
+
 def save_project(project: Project, path) -> None:
     """Save atomically (temporary file, fsync, rename), keeping the previous version as ``.bak``;
     a failure is a :class:`~prismstation.errors.WriteError` and leaves the file as it was."""
-    write_atomic(path, dumps(project_to_dict(project, path), indent=1) + "\n", keep_backup=True)
+    write_atomic(path, project_json(project, path), keep_backup=True)
 
 
 def load_project(path, *, scene_override=None) -> Project:
