@@ -10,7 +10,7 @@ of the last 40 ms and of the write in flight, never an earlier one.
 Saving, discarding or undoing back to the saved state clears the journal (cancelling what is
 pending first); closing, saving as and opening a project flush it. Opening a project with a
 journal (or starting with an untitled one) offers to recover it — unless another window holds
-the project (:class:`~prismstation.io.recovery.ProjectLock`, ``<project>.lock``: that journal
+the project (:class:`~prismstation.io.lock.ProjectLock`, ``<project>.lock``: that journal
 is the other window's, not a crash's). A second window on this host does not open a project
 another one has open; a lock from another host (a shared folder) is asked about. An untitled
 project whose usual journal another window writes gets a journal of its own
@@ -36,7 +36,8 @@ from prismstation.gui import workers
 from prismstation.gui.journal import (WindowJournal, autosave_path, untitled_journals,  # noqa: F401
                                       untitled_path)
 from prismstation.io.project import SUFFIX, load_project, save_project
-from prismstation.io.recovery import Journal, ProjectLock, describe_holder
+from prismstation.io.lock import ProjectLock, describe_holder
+from prismstation.io.recovery import Journal
 from prismstation.io.scene import read_scene
 from prismstation.model.project import Project
 

@@ -21,6 +21,7 @@ from prismstation.core.solve import Settings
 from prismstation.errors import InputError
 from prismstation.io import geoid as geoid_mod
 from prismstation.io.atomic import write_atomic
+from prismstation.io.lock import refuse_if_held
 from prismstation.io.jsonfile import dumps, line_of, read_json
 from prismstation.io.scene import read_scene
 from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint, Measurement
@@ -97,7 +98,9 @@ def project_json(project: Project, path) -> str:
 
 def save_project(project: Project, path) -> None:
     """Save atomically (temporary file, fsync, rename), keeping the previous version as ``.bak``;
-    a failure is a :class:`~prismstation.errors.WriteError` and leaves the file as it was."""
+    a failure is a :class:`~prismstation.errors.WriteError` and leaves the file as it was. A
+    project another process (a window) holds is refused (:func:`prismstation.io.lock.refuse_if_held`)."""
+    refuse_if_held(path)
     write_atomic(path, project_json(project, path), keep_backup=True)
 
 

@@ -12,6 +12,7 @@ from prismstation.errors import InputError
 from prismstation.io.points import read_ground_points, read_measurements
 from prismstation.io.atomic import write_together
 from prismstation.io.jsonfile import dumps
+from prismstation.io.lock import refuse_if_held
 from prismstation.io.project import project_json
 from prismstation.io.scene import read_scene, scene_from_dict
 from prismstation.model.project import Project
@@ -46,6 +47,7 @@ def create(project_path, scene_path, points=None, measurements=None, *, crs=None
     project_path = Path(project_path)
     if project_path.exists() and not force:
         raise InputError("already exists (use --force to overwrite)", project_path)
+    refuse_if_held(project_path)
     if scene_doc is None:
         scene = read_scene(scene_path)
     else:
