@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -134,7 +134,10 @@ def load_project(path, *, scene_override=None) -> Project:
     if not found:
         raise InputError(f"scene file not found: {scene_path} (moved? open it with the scene relocated)",
                          path, line_of(text, "scene"))
-    scene = read_scene(scene_path)
+    reloc = data.get(RELOCATED)
+    if reloc is not None and not (isinstance(reloc, dict) and all(isinstance(v, str) for v in reloc.values())):
+        raise InputError(f'"{RELOCATED}": expected an object view → path', path, line_of(text, RELOCATED))
+    scene = read_scene(scene_path, images=relocated_images(reloc, path.parent))
     settings = _settings(data.get("settings", {}), path, text, scene)
     geoid = _geoid(data.get("geoid"), path, text)
     points, measurements = [], []
@@ -171,7 +174,7 @@ def load_project(path, *, scene_override=None) -> Project:
             raise InputError(f'"measurements"[{i}]: malformed measurement ({exc})', path,
                              _line_of_id(text, d)) from None
         measurements.append(m)
-    control, reloc, product = data.get(DEM_CONTROL), data.get(RELOCATED), data.get(PRODUCT)
+    control, product = data.get(DEM_CONTROL), data.get(PRODUCT)
     dem = data.get(REFERENCE_DEM) if version >= 2 else None
     if dem is not None and not (isinstance(dem, str) and dem and "\0" not in dem):
         raise InputError(f'"{REFERENCE_DEM}": expected the path of a DEM file', path, line_of(text, REFERENCE_DEM))
@@ -179,17 +182,42 @@ def load_project(path, *, scene_override=None) -> Project:
                                                                    or isinstance(control.get("biases"), dict))):
         raise InputError(f'"{DEM_CONTROL}": expected an object with "patches" (a PRISM triplet) or "biases" '
                          '(images with RPCs)', path, line_of(text, DEM_CONTROL))
-    if reloc is not None and not (isinstance(reloc, dict) and all(isinstance(v, str) for v in reloc.values())):
-        raise InputError(f'"{RELOCATED}": expected an object view → path', path, line_of(text, RELOCATED))
     if product is not None and not isinstance(product, str):
         raise InputError(f'"{PRODUCT}": expected a folder path', path, line_of(text, PRODUCT))
     try:
-        return Project(scene, str(scene_path), settings=settings, geoid=geoid, points=points,
-                       measurements=measurements, dem_control=control, relocations=reloc, product=product,
-                       other={k: v for k, v in data.items() if k not in _KNOWN},
-                       reference_dem=None if dem is None else str((path.parent / dem).resolve()))
+        project = Project(scene, str(scene_path), settings=settings, geoid=geoid, points=points,
+                          measurements=measurements, dem_control=control, relocations=reloc, product=product,
+                          other={k: v for k, v in data.items() if k not in _KNOWN},
+                          reference_dem=None if dem is None else str((path.parent / dem).resolve()))
     except InputError as exc:
         raise InputError(exc.problem, path) from None
+    return project
+
+
+def relocated_images(relocations: dict | None, base=None) -> dict:
+    """View → image file of the ``relocated_images`` that are there (a relative path: from
+    ``base``, the project's folder); a view whose recorded file is not there keeps the scene's."""
+    out = {}
+    for name, path in (relocations or {}).items():
+        p = Path(path)
+        if not p.is_absolute() and base is not None:
+            p = Path(base) / p
+        try:
+            if p.is_file():
+                out[name] = str(p.resolve())
+        except (OSError, ValueError):  # a NUL byte, a name too long: not there
+            pass
+    return out
+
+
+def apply_relocations(project: Project, base=None) -> None:
+    """The project's scene read again with the image files recorded in
+    ``project.relocations`` (:func:`relocated_images`). :func:`load_project` reads the scene
+    so, for the window and the command line alike; the window calls this after the operator
+    relocated images."""
+    images = relocated_images(project.relocations, base)
+    if images and project.scene_path:
+        project.scene = read_scene(project.scene_path, images=images)
 
 
 def _number(v, minimum=None, strict=False) -> bool:

@@ -30,16 +30,24 @@ FORMATS = ("prismstation-scene/1", FORMAT)
 MODELS = ("prism", RpcModel.name)
 
 
-def read_scene(path) -> Scene:
-    """Read and validate a scene file; every malformed field gets an :class:`InputError`."""
+def read_scene(path, images: dict | None = None) -> Scene:
+    """Read and validate a scene file; every malformed field gets an :class:`InputError`.
+    ``images``: view → image file used instead of the scene's (a project's relocated images)."""
     path = Path(path)
     data, text = read_json(path)
-    return scene_from_dict(data, path.parent, str(path), text)
+    return scene_from_dict(data, path.parent, str(path), text, images)
 
 
-def scene_from_dict(data: dict, base_dir, source: str = "scene", text: str = "") -> Scene:
-    """Build a Scene from the scene.json dict; image paths are relative to ``base_dir``."""
+def scene_from_dict(data: dict, base_dir, source: str = "scene", text: str = "",
+                    images: dict | None = None) -> Scene:
+    """Build a Scene from the scene.json dict; image paths are relative to ``base_dir``;
+    ``images``: view → image path (absolute) used instead of the scene's."""
     base_dir = Path(base_dir)
+    if images:  # the views' image paths replaced before they are read
+        views_in = data.get("views")
+        if isinstance(views_in, dict):
+            data = {**data, "views": {n: {**v, "image": str(images[n])} if n in images and isinstance(v, dict)
+                                      else v for n, v in views_in.items()}}
 
     def fail(problem, key=None):
         raise InputError(problem, source, line_of(text, key) if key and text else None)
