@@ -18,7 +18,7 @@ from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError, ProjError
 
 from prismstation.errors import InputError
-from prismstation.io.csvtable import Row, Table, raise_errors, read_table, records
+from prismstation.io.csvtable import Row, Table, raise_errors, read_table, records, text_cell
 from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint, Measurement
 
 POINT_COLUMNS = ("id", "E", "N", "H", "kind", "height", "sigma_xy_m", "sigma_h_m")
@@ -154,10 +154,10 @@ def ground_points_csv(points) -> str:
     extras = sorted({k for p in points for k in p.extra})
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(list(POINT_COLUMNS) + extras)
+    w.writerow(list(POINT_COLUMNS) + [text_cell(k) for k in extras])
     for p in points:
-        w.writerow([p.id, _fmt(p.E), _fmt(p.N), _fmt(p.H), p.kind, p.height_kind,
-                    _fmt(p.sigma_xy_m), _fmt(p.sigma_h_m)] + [p.extra.get(k, "") for k in extras])
+        w.writerow([text_cell(p.id), _fmt(p.E), _fmt(p.N), _fmt(p.H), p.kind, p.height_kind,
+                    _fmt(p.sigma_xy_m), _fmt(p.sigma_h_m)] + [text_cell(p.extra.get(k, "")) for k in extras])
     return buf.getvalue()
 
 
@@ -166,5 +166,5 @@ def measurements_csv(measurements) -> str:
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(MEASUREMENT_COLUMNS)
     for m in measurements:
-        w.writerow([m.id, m.view, _fmt(m.x), _fmt(m.y), _fmt(m.sigma_px)])
+        w.writerow([text_cell(m.id), text_cell(m.view), _fmt(m.x), _fmt(m.y), _fmt(m.sigma_px)])
     return buf.getvalue()

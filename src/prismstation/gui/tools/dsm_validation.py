@@ -317,6 +317,7 @@ class DsmResultPanel(QWidget):
         import io
 
         from prismstation.io.atomic import write_atomic
+        from prismstation.io.csvtable import text_cell
         from prismstation.io.jsonfile import write_json
 
         kind = kind or ("csv" if str(path).lower().endswith(".csv") else "json")
@@ -330,7 +331,7 @@ class DsmResultPanel(QWidget):
         w.writerow(["cells"] + list(STAT_COLUMNS) + [f"p{p:g}" for p in pct]
                    + [f"abs_p{p:g}" for p in apct])
         for label, s in self.rows():
-            w.writerow([label] + [getattr(s, k) for k in STAT_COLUMNS]
+            w.writerow([text_cell(label)] + [getattr(s, k) for k in STAT_COLUMNS]
                        + [s.percentiles[p] for p in pct] + [s.abs_percentiles[p] for p in apct])
         write_atomic(path, buf.getvalue(), keep_backup=False)
 
