@@ -17,9 +17,8 @@ from __future__ import annotations
 import csv
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
-
 from prismstation.errors import InputError
+from prismstation.io.inputs import local_file
 
 
 def guess_delimiter(lines) -> str:
@@ -114,7 +113,7 @@ def split_text(text: str, delimiter: str | None = None, header: bool = True, pat
 def read_text(path) -> str:
     """The UTF-8 text of ``path``; :class:`InputError` naming the file when it cannot be read."""
     try:
-        return Path(path).read_text(encoding="utf-8-sig")
+        return local_file(path).read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise InputError("file not found", path) from None
     except UnicodeDecodeError:

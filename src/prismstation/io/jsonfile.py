@@ -9,12 +9,12 @@ from __future__ import annotations
 import json
 import math
 import re
-from pathlib import Path
 
 import numpy as np
 
 from prismstation.errors import InputError
 from prismstation.io.atomic import write_atomic
+from prismstation.io.inputs import local_file
 
 
 def plain(v):
@@ -55,7 +55,7 @@ def write_json(path, obj, indent: int = 2, keep_backup: bool = False) -> None:
 
 def read_json(path) -> tuple[dict, str]:
     """Parse a JSON object; returns ``(data, text)``. Bad JSON → InputError with its line."""
-    path = Path(path)
+    path = local_file(path)  # not a FIFO, a device, a folder, a link loop (it would hang or fail)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:

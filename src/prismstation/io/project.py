@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import asdict, replace
+from dataclasses import asdict
 from functools import lru_cache
 from pathlib import Path
 
@@ -128,7 +128,7 @@ def load_project(path, *, scene_override=None) -> Project:
     try:
         scene_path = (path.parent / scene_rel).resolve() if scene_override is None else Path(scene_override).resolve()
         found = scene_path.is_file()
-    except (OSError, ValueError) as exc:  # a NUL byte, a name too long...
+    except (OSError, ValueError, RuntimeError) as exc:  # a NUL byte, a name too long, a link loop
         raise InputError(f'"scene": {scene_rel[:60]!r} is not a usable file path ({exc.__class__.__name__})',
                          path, line_of(text, "scene")) from None
     if not found:

@@ -12,15 +12,15 @@ import math
 from pathlib import Path
 
 import numpy as np
-import rasterio
 from pyproj import CRS
 from pyproj.exceptions import CRSError
 
 from prismstation.core.affine import Affine2D
 from prismstation.core.rpc_model import RpcModel
 from prismstation.core.scene import GroundTrack, Scene, View
-from prismstation.errors import InputError
+from prismstation.errors import InputError, RasterReadError
 from prismstation.io import rpc_scene
+from prismstation.io.inputs import open_raster_file
 from prismstation.io.jsonfile import line_of, read_json
 
 FORMAT = rpc_scene.SCENE_FORMAT  # "prismstation-scene/2"
@@ -122,12 +122,7 @@ def _rpc_scene(data: dict, crs: str, base_dir: Path, fail) -> Scene:
         image = v.get("image")
         if image is not None and not (isinstance(image, str) and image):
             fail(f'"{key}.image": expected the path of the image file', "image")
-        img_path = None
-        if image:
-            try:
-                img_path = str((base_dir / image).resolve())
-            except (OSError, ValueError) as exc:
-                fail(f'"{key}.image": {image[:60]!r} is not a usable file path ({exc.__class__.__name__})', "image")
+        img_path = str(_image_path(base_dir, image, key, fail)) if image else None
         rpc = rpc_scene.rpc_from_dict(v.get("rpc"), str(v.get("rpc_source") or f"{key}.rpc"),
                                       lambda problem: fail(f'"{key}": {problem}', "rpc"))
         gsd = v.get("pixel_size_m")
@@ -140,6 +135,18 @@ def _rpc_scene(data: dict, crs: str, base_dir: Path, fail) -> Scene:
         geoid = _number(geoid, "geoid_undulation_m", fail)
     extra = {k: v for k, v in data.items() if k not in known}
     return Scene(crs, None, None, views, geoid, extra, RpcModel)
+
+
+def _image_path(base_dir: Path, image: str, key: str, fail) -> Path:
+    """The absolute path of a view's image; a path that is no local file path (a GDAL virtual
+    file system, a URL, a NUL byte, a symbolic-link loop) fails."""
+    low = image.strip().lower()
+    if low.startswith(("/vsi", "\\vsi")) or "://" in low:
+        fail(f'"{key}.image": {image[:60]!r} is not a local file; prismstation reads only local files', "image")
+    try:
+        return (base_dir / image).resolve()
+    except (OSError, ValueError, RuntimeError) as exc:  # a NUL byte, a name too long, a link loop
+        fail(f'"{key}.image": {image[:60]!r} is not a usable file path ({exc.__class__.__name__})', "image")
 
 
 def _finite(value) -> bool:
@@ -171,22 +178,22 @@ def _view(name: str, v, base_dir: Path, fail) -> View:
     image = v.get("image")
     if not isinstance(image, str) or not image:
         fail(f'"{key}.image": expected the path of the image file', "image")
+    img_path = _image_path(base_dir, image, key, fail)
     try:
-        img_path = (base_dir / image).resolve()
         exists = img_path.exists()
-    except (OSError, ValueError) as exc:  # a NUL byte, a name too long...
-        fail(f'"{key}.image": {image[:60]!r} is not a usable file path ({exc.__class__.__name__})', "image")
+    except OSError:  # a name too long: open_raster_file says so
+        exists = True
     m2i = v.get("map_to_image")
     shape, gt_affine = None, None
     if exists:
         try:
-            with rasterio.open(img_path) as ds:
+            with open_raster_file(img_path, f"view {name}") as ds:
                 shape = (ds.height, ds.width)
                 t = ds.transform
                 if not t.is_identity:
                     gt_affine = Affine2D([[t.a, t.b, t.c], [t.d, t.e, t.f]])
-        except rasterio.errors.RasterioError as exc:
-            fail(f'"{key}.image": {image} cannot be read as a raster ({exc})', "image")
+        except (InputError, RasterReadError) as exc:
+            fail(f'"{key}.image": {exc}', "image")
     if m2i is not None:
         try:
             c = np.asarray(m2i, dtype=float)
