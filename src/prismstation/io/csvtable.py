@@ -98,7 +98,10 @@ def split_text(text: str, delimiter: str | None = None, header: bool = True, pat
         if ln.lstrip().startswith("#"):
             comments.append((no, ln.strip()))
             continue
-        rows.append((no, _split(ln, d)))
+        try:
+            rows.append((no, _split(ln, d)))
+        except csv.Error as exc:  # a field past the csv module's limit (131,072 characters)
+            raise InputError(f"unreadable line ({exc})", path, no) from None
     path = None if path is None else str(path)
     if not rows:
         return Table(path, [], None, [], d, comments)

@@ -66,6 +66,8 @@ def read_json(path) -> tuple[dict, str]:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"not valid JSON: {exc.msg}", path, exc.lineno) from None
+    except RecursionError:  # [[[[… a hundred thousand deep
+        raise InputError("not a usable JSON document: nested too deep", path) from None
     if not isinstance(data, dict):
         raise InputError("expected a JSON object at the top level", path, 1)
     return data, text
