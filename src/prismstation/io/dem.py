@@ -22,6 +22,7 @@ from rasterio.warp import calculate_default_transform, reproject
 from prismstation.errors import InputError, RasterReadError
 from prismstation.io.atomic import atomic_path, cause_text, raster_check
 from prismstation.io.geoid import to_ellipsoidal
+from prismstation.io.georef import height_metres_per_unit
 from prismstation.io.windows import CheckedRaster
 
 SRTM_VOID = -32768
@@ -90,6 +91,7 @@ def _read_source(path: Path, what: str):
         if ds.dtypes[0] == "int16":
             arr[arr <= SRTM_VOID] = np.nan        # SRTM voids even without a nodata tag
         arr[~np.isfinite(arr)] = np.nan
+        arr *= height_metres_per_unit(ds.crs.to_wkt(), path)  # heights in feet: refused or converted
         return arr, ds.crs, ds.transform
 
 

@@ -23,6 +23,7 @@ from prismstation.io import geoid as geoid_mod
 from prismstation.io.atomic import write_atomic
 from prismstation.io.lock import refuse_if_held
 from prismstation.io.jsonfile import dumps, line_of, read_json
+from prismstation.io.ranges import SIGMA_M, check_map, check_sigma, outside_images
 from prismstation.io.scene import read_scene
 from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint, Measurement
 from prismstation.model.project import Project, has_ground
@@ -159,9 +160,14 @@ def load_project(path, *, scene_override=None) -> Project:
                             extra=d.get("extra", {}))
             if kind != "TIE" and not has_ground(p):
                 raise ValueError("a GCP or ICP needs E, N and H")
+            why = check_map(p.E, p.N, p.H) or check_sigma("sigma_xy_m", p.sigma_xy_m, SIGMA_M, "m") \
+                or check_sigma("sigma_h_m", p.sigma_h_m, SIGMA_M, "m")
+            if why:
+                raise ValueError(why)
         except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
             raise InputError(f"{where}: malformed point ({exc})", path, _line_of_id(text, d)) from None
         points.append(p)
+    seen = {}
     for i, d in enumerate(_list(data, "measurements", path, text)):
         try:
             m = Measurement(str(d["id"]), str(d["view"]), float(d["x"]), float(d["y"]),
@@ -170,6 +176,10 @@ def load_project(path, *, scene_override=None) -> Project:
                 raise ValueError("non-finite coordinates")
             if m.sigma_px is not None and not _number(m.sigma_px, minimum=0.0, strict=True):
                 raise ValueError("sigma_px must be a positive number")
+            if (m.id, m.view) in seen:  # as the measurement CSV's reader refuses it
+                raise ValueError(f"point {m.id!r} is measured twice in view {m.view} "
+                                 f'(first: "measurements"[{seen[m.id, m.view]}])')
+            seen[m.id, m.view] = i
         except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
             raise InputError(f'"measurements"[{i}]: malformed measurement ({exc})', path,
                              _line_of_id(text, d)) from None
@@ -191,6 +201,9 @@ def load_project(path, *, scene_override=None) -> Project:
                           reference_dem=None if dem is None else str((path.parent / dem).resolve()))
     except InputError as exc:
         raise InputError(exc.problem, path) from None
+    bad = outside_images(project.scene, project.points, project.measurements.values())
+    if bad is not None:
+        raise InputError(f"point {bad[0]!r}: {bad[1]}", path, _line_of_id(text, {"id": bad[0]}))
     return project
 
 

@@ -22,6 +22,7 @@ from prismstation.errors import InputError, RasterReadError
 from prismstation.io import rpc_scene
 from prismstation.io.inputs import open_raster_file
 from prismstation.io.jsonfile import line_of, read_json
+from prismstation.io.ranges import ALTITUDE_M, PIXEL_SIZE_M, UNDULATION_M
 
 FORMAT = rpc_scene.SCENE_FORMAT  # "prismstation-scene/2"
 #: the versions read: 1 (PRISM views only), 2 (a view may be an image with RPCs)
@@ -64,10 +65,13 @@ def scene_from_dict(data: dict, base_dir, source: str = "scene", text: str = "",
         fail(f'"crs": {crs!r} is not a coordinate reference system pyproj knows', "crs")
     if crs_obj.is_geographic:
         fail(f'"crs": {crs} is geographic; a scene needs a projected CRS in metres (UTM)', "crs")
+    units = {a.unit_name for a in crs_obj.axis_info[:2]}
+    if units - {"metre", "meter"}:
+        fail(f'"crs": {crs} is in {", ".join(sorted(units))}; a scene needs a projected CRS in metres (UTM)', "crs")
     model = _sensor_model(data, fmt, fail)
     if model == RpcModel.name:
         return _rpc_scene(data, crs_obj.to_string(), base_dir, fail)
-    hs = _number(data.get("satellite_altitude_m"), "satellite_altitude_m", fail, positive=True)
+    hs = _number(data.get("satellite_altitude_m"), "satellite_altitude_m", fail, within=ALTITUDE_M)
     track = data.get("ground_track")
     try:
         tr = np.asarray(track, dtype=float)
@@ -87,7 +91,7 @@ def scene_from_dict(data: dict, base_dir, source: str = "scene", text: str = "",
     views = {name: _view(name, v, base_dir, fail) for name, v in views_in.items()}
     geoid = data.get("geoid_undulation_m")
     if geoid is not None:
-        geoid = _number(geoid, "geoid_undulation_m", fail)
+        geoid = _number(geoid, "geoid_undulation_m", fail, within=UNDULATION_M)
     known = {"format", "crs", "satellite_altitude_m", "ground_track", "views", "geoid_undulation_m"}
     extra = {k: v for k, v in data.items() if k not in known}
     return Scene(crs_obj.to_string(), hs, GroundTrack(tr), views, geoid, extra)
@@ -127,12 +131,12 @@ def _rpc_scene(data: dict, crs: str, base_dir: Path, fail) -> Scene:
                                       lambda problem: fail(f'"{key}": {problem}', "rpc"))
         gsd = v.get("pixel_size_m")
         if gsd is not None:
-            gsd = _number(gsd, f"{key}.pixel_size_m", fail, positive=True)
+            gsd = _number(gsd, f"{key}.pixel_size_m", fail, within=PIXEL_SIZE_M)
         views[name] = rpc_scene.rpc_view(name, rpc, projection, img_path, gsd)
     known = {"format", "crs", "views", "geoid_undulation_m"}
     geoid = data.get("geoid_undulation_m")
     if geoid is not None:
-        geoid = _number(geoid, "geoid_undulation_m", fail)
+        geoid = _number(geoid, "geoid_undulation_m", fail, within=UNDULATION_M)
     extra = {k: v for k, v in data.items() if k not in known}
     return Scene(crs, None, None, views, geoid, extra, RpcModel)
 
@@ -156,11 +160,14 @@ def _finite(value) -> bool:
         return False
 
 
-def _number(value, key, fail, positive=False) -> float:
+def _number(value, key, fail, positive=False, within=None) -> float:
+    """``value`` as a float; ``within``: the ``(lo, hi)`` it must fall in (:mod:`prismstation.io.ranges`)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not _finite(value):
         fail(f'"{key}": expected a number, found {value!r}', key.split(".")[-1])
     if positive and value <= 0:
         fail(f'"{key}": must be positive, found {value}', key.split(".")[-1])
+    if within is not None and not within[0] <= value <= within[1]:
+        fail(f'"{key}": {value:g} is outside the plausible range {within[0]:g} to {within[1]:g}', key.split(".")[-1])
     return float(value)
 
 
@@ -168,7 +175,7 @@ def _view(name: str, v, base_dir: Path, fail) -> View:
     key = f"views.{name}"
     if not isinstance(v, dict):
         fail(f'"{key}": expected an object with "image" and "pixel_size_m"', name)
-    p = _number(v.get("pixel_size_m"), f"{key}.pixel_size_m", fail, positive=True)
+    p = _number(v.get("pixel_size_m"), f"{key}.pixel_size_m", fail, within=PIXEL_SIZE_M)
     ang = _number(v.get("along_track_angle_deg", 0.0), f"{key}.along_track_angle_deg", fail)
     if not -60 < ang < 60:
         fail(f'"{key}.along_track_angle_deg": {ang} is not a plausible viewing angle', "along_track_angle_deg")

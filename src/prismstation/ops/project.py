@@ -14,6 +14,7 @@ from prismstation.io.atomic import write_together
 from prismstation.io.jsonfile import dumps
 from prismstation.io.lock import refuse_if_held
 from prismstation.io.project import project_json
+from prismstation.io.ranges import outside_images
 from prismstation.io.scene import read_scene, scene_from_dict
 from prismstation.model.project import Project
 
@@ -58,6 +59,10 @@ def create(project_path, scene_path, points=None, measurements=None, *, crs=None
     pts = read_ground_points(points, crs=crs, to_crs=scene.crs, height=height) if points else []
     ms = read_measurements(measurements, views=list(scene.views)) if measurements else []
     project.load(pts, ms)
+    bad = outside_images(scene, project.points, ms)
+    if bad is not None:
+        source = measurements if any(m.id == bad[0] for m in ms) and "view " in bad[1] else points
+        raise InputError(f"point {bad[0]!r}: {bad[1]}", source)
     files = {} if scene_doc is None else {Path(scene_path): dumps(scene_doc, indent=1) + "\n"}
     files[project_path] = project_json(project, project_path)
     write_together(files, keep_backup=True)
