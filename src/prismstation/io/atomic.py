@@ -90,6 +90,40 @@ def free_bytes(folder) -> int | None:
     return st.f_bavail * st.f_frsize
 
 
+class FreeSpaceWatch:
+    """The least free space seen on ``folder``'s file system while the block runs
+    (``with FreeSpaceWatch(folder) as w: …; w.least``), sampled every ``interval`` s on a
+    thread and once more at the end: a writer that fails on a full disk and cleans up after
+    itself (GDAL removes a temporary overview file before it raises) leaves more space free
+    than there was when it failed, and a message must say the latter."""
+
+    def __init__(self, folder, interval: float = 0.05):
+        self.folder, self.interval = folder, interval
+        self.least: int | None = None
+
+    def _sample(self) -> None:
+        free = free_bytes(self.folder)
+        if free is not None and (self.least is None or free < self.least):
+            self.least = free
+
+    def __enter__(self):
+        import threading
+        self._stop = threading.Event()
+        self._sample()
+
+        def run():
+            while not self._stop.wait(self.interval):
+                self._sample()
+        self._thread = threading.Thread(target=run, daemon=True, name="free space")
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join()
+        return False
+
+
 def write_error(target, exc: BaseException, what: str = "cannot write",
                 free: int | None = None) -> WriteError:
     """The :class:`WriteError` for ``exc`` met while writing ``target``. GDAL says only "write
@@ -123,12 +157,81 @@ def _fsync(path: Path, directory: bool = False) -> None:
         os.close(fd)
 
 
+# ---------------------------------------------------------------------- stale temporaries
+def _host_tag() -> str:
+    import hashlib
+    import socket
+    return hashlib.sha1(socket.gethostname().encode("utf-8", "replace")).hexdigest()[:8]
+
+
+#: ``<host>-<pid>`` in the name of every temporary file this process makes: a file whose
+#: process is gone (a ``kill -9``, a crash) is known to be stale and is removed by the next run
+OWNER_TAG = f"{_host_tag()}-{os.getpid()}"
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process: it exists
+        return True
+    return True
+
+
+def clean_stale(folder, prefix: str, folders: bool = False) -> list[Path]:
+    """Remove the files in ``folder`` whose names start with ``prefix`` followed by an owner tag
+    (:data:`OWNER_TAG`) of a process of this host that no longer runs and that belong to this
+    user — the temporaries of a killed run (``.part.tif``, GDAL's ``.ovr.tmp`` beside them, a
+    scratch copy; with ``folders``, folders too). A live process's files, another host's (a
+    shared folder) and other users' are left alone. Returns what was removed; never raises."""
+    host, me, removed = _host_tag(), os.getpid(), []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for e in entries:
+        if not e.name.startswith(prefix):
+            continue
+        tag = e.name[len(prefix):].split(".", 1)[0].split("_", 1)[0]
+        h, _, pid = tag.partition("-")
+        if h != host or not pid.isdigit() or int(pid) == me or _pid_alive(int(pid)):
+            continue
+        try:
+            if e.stat(follow_symlinks=False).st_uid != os.getuid():
+                continue
+            if e.is_file(follow_symlinks=False):
+                os.unlink(e.path)
+            elif folders and e.is_dir(follow_symlinks=False):
+                import shutil
+                shutil.rmtree(e.path, ignore_errors=True)
+            else:
+                continue
+            removed.append(Path(e.path))
+        except OSError:
+            pass
+    return removed
+
+
+def scratch_file(kind: str, suffix: str) -> Path:
+    """A new empty file ``prismstation-<kind>-<owner tag>_XXXX<suffix>`` in the temporary
+    folder, the stale ones of earlier killed runs removed first (:func:`clean_stale`). The
+    caller removes it when done."""
+    prefix = f"prismstation-{kind}-"
+    clean_stale(tempfile.gettempdir(), prefix)
+    fd, name = tempfile.mkstemp(prefix=f"{prefix}{OWNER_TAG}_", suffix=suffix)
+    os.close(fd)
+    return Path(name)
+
+
 def _temporary_beside(target: Path) -> Path:
-    """A new empty temporary file beside ``target`` (its folder made if absent); a
+    """A new empty temporary file beside ``target`` (its folder made if absent), named
+    ``.NAME.<owner tag>.XXXX.partEXT``, the stale ones of killed runs removed first; a
     :class:`WriteError` naming ``target`` when the folder cannot be written."""
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{target.suffix}",
+        clean_stale(target.parent, f".{target.name}.")
+        fd, name = tempfile.mkstemp(prefix=f".{target.name}.{OWNER_TAG}.", suffix=f".part{target.suffix}",
                                     dir=target.parent)
         os.close(fd)
     except OSError as exc:

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import csv
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -113,8 +112,8 @@ def run_validation(dsm, reference, *, dsm_height="ellipsoidal", reference_height
     from prismstation.io.dem import read_dem
     from prismstation.ops.validate import validate_dsm_files
 
-    fd, tmp = tempfile.mkstemp(suffix=".tif", prefix="dsmdiff_")
-    os.close(fd)
+    from prismstation.io.atomic import scratch_file
+    tmp = str(scratch_file("dsmdiff", ".tif"))  # (a killed run's: removed first)
     try:
         val, info = validate_dsm_files(dsm, reference, dsm_height=dsm_height,
                                        reference_height=reference_height, geoid=geoid,
