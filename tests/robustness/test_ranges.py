@@ -30,7 +30,10 @@ def _gcp(doc):
     (lambda d: _gcp(d).update(E=1e308), "is not a map coordinate"),
     (lambda d: _gcp(d).update(H=1e5), "is not a height on Earth"),
     (lambda d: _gcp(d).update(E=_gcp(d)["E"] + 5e5), "far from every image"),
-], ids=["x 1e308", "measured twice", "GCP id reused by a tie point", "E 1e308", "H 1e5", "far away"])
+    (lambda d: d.update(dem_control={"patches": [{"x": "a"}]}), "dem_control"),
+    (lambda d: d.update(dem_control={"biases": {"N": {}}}), "dem_control"),
+], ids=["x 1e308", "measured twice", "GCP id reused by a tie point", "E 1e308", "H 1e5", "far away",
+        "garbage dem_control", "an RPC record in a triplet"])
 def test_a_project_file_with_an_impossible_number(sim, change, said):
     project = sim / "p.prismproj"
     _edit(project, change)

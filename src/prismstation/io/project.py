@@ -17,6 +17,7 @@ from pathlib import Path
 
 from prismstation import __version__
 from prismstation.core.prism import PARALLAX_MODELS
+from prismstation.core.rpc_model import RpcModel
 from prismstation.core.solve import Settings
 from prismstation.errors import InputError
 from prismstation.io import geoid as geoid_mod
@@ -188,10 +189,10 @@ def load_project(path, *, scene_override=None) -> Project:
     dem = data.get(REFERENCE_DEM) if version >= 2 else None
     if dem is not None and not (isinstance(dem, str) and dem and "\0" not in dem):
         raise InputError(f'"{REFERENCE_DEM}": expected the path of a DEM file', path, line_of(text, REFERENCE_DEM))
-    if control is not None and not (isinstance(control, dict) and (isinstance(control.get("patches"), list)
-                                                                   or isinstance(control.get("biases"), dict))):
-        raise InputError(f'"{DEM_CONTROL}": expected an object with "patches" (a PRISM triplet) or "biases" '
-                         '(images with RPCs)', path, line_of(text, DEM_CONTROL))
+    if control is not None and not _dem_control_ok(control, scene):
+        raise InputError(f'"{DEM_CONTROL}": expected an object with "patches" (a PRISM triplet: each with '
+                         'numbers x, y, dE, dN, dh and their σ) or "biases" (images with RPCs: view → model, params)',
+                         path, line_of(text, DEM_CONTROL))
     if product is not None and not isinstance(product, str):
         raise InputError(f'"{PRODUCT}": expected a folder path', path, line_of(text, PRODUCT))
     try:
@@ -231,6 +232,25 @@ def apply_relocations(project: Project, base=None) -> None:
     images = relocated_images(project.relocations, base)
     if images and project.scene_path:
         project.scene = read_scene(project.scene_path, images=images)
+
+
+def _dem_control_ok(control, scene) -> bool:
+    """The ``dem_control`` record has the shape its readers (the fit, the window's vectors)
+    take for granted: a PRISM triplet's ``patches`` of numbers, an RPC block's ``biases``."""
+    if not isinstance(control, dict):
+        return False
+    patches, biases = control.get("patches"), control.get("biases")
+    if scene.sensor is RpcModel:
+        return isinstance(biases, dict) and all(
+            isinstance(b, dict) and isinstance(b.get("model"), str) and isinstance(b.get("params"), list)
+            for b in biases.values())
+    return isinstance(patches, list) and all(
+        isinstance(q, dict) and all(k in q and (q[k] is None or _number(q[k])) for k in _PATCH_NUMBERS)
+        for q in patches)
+
+
+#: the numbers (or nulls) every saved patch holds
+_PATCH_NUMBERS = ("x", "y", "dE", "dN", "dh", "sigma_E", "sigma_N", "sigma_h")
 
 
 def _number(v, minimum=None, strict=False) -> bool:
