@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from prismstation.errors import InputError, ModelError
+from prismstation.io.inputs import local_file
 from prismstation.cli._common import end_progress, progress_printer
 from prismstation.io.jsonfile import write_json
 from prismstation.io.rectify_io import read_point_pairs
@@ -38,7 +39,7 @@ def _points_crs(args):
         return args.points_crs
     if args.crs:
         return args.crs
-    crs = raster_header(args.image)[2]
+    crs = raster_header(args.image, "image")[2]
     if crs is not None:
         return crs
     raise InputError("the image has no CRS: give the points' CRS with --points-crs or --crs",
@@ -46,8 +47,7 @@ def _points_crs(args):
 
 
 def run(args) -> int:
-    if not Path(args.image).exists():
-        raise InputError("image not found", file=args.image)
+    local_file(args.image, "image")
     pairs = read_point_pairs(args.points, args.measurements, args.view)
     reports = fit_transforms(pairs)
     name = pairs.view or Path(args.image).stem

@@ -7,11 +7,8 @@ deviations and each iteration's corrections; ``--json`` writes all of it.
 """
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from prismstation.errors import InputError
 from prismstation.io.jsonfile import write_json
 from prismstation.io.rectify_io import read_point_pairs
 from prismstation.io.windows import raster_header
@@ -44,9 +41,7 @@ def _principal_point(args) -> tuple[float, float]:
     if args.image_size:
         w, h = args.image_size
         return w / 2.0, h / 2.0
-    if not Path(args.image).exists():
-        raise InputError("image not found", file=args.image)
-    width, height, _ = raster_header(args.image)
+    width, height, _ = raster_header(args.image, "image")
     return width / 2.0, height / 2.0
 
 

@@ -12,16 +12,13 @@ naming the file, what it is (``view N``), the window in image pixels and GDAL's 
 """
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
-import rasterio
-from rasterio.errors import NotGeoreferencedWarning
 from rasterio.windows import Window
 
 from prismstation.core.affine import Affine2D
 from prismstation.errors import InputError, RasterReadError
 from prismstation.io.atomic import cause_text
+from prismstation.io.inputs import open_raster_file
 
 
 def describe_window(window) -> str:
@@ -49,12 +46,9 @@ class CheckedRaster:
     def __init__(self, path, what: str = "raster"):
         self.name, self.what = str(path), what
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", NotGeoreferencedWarning)
-                self._ds = rasterio.open(self.name)
-        except Exception as exc:  # rasterio's and GDAL's errors, OSError: the file is unusable
-            raise RasterReadError(f"{self.name}: cannot open {what} as a raster "
-                                  f"({cause_text(exc, self.name)})") from None
+            self._ds = open_raster_file(self.name, what)  # a local file only (io.inputs)
+        except InputError as exc:
+            raise RasterReadError(str(exc)) from None
 
     def read(self, indexes=None, *, window=None, **kw) -> np.ndarray:
         try:
@@ -98,16 +92,15 @@ def open_image(path, what: str = "raster") -> CheckedRaster:
     return CheckedRaster(path, what)
 
 
-def raster_header(path) -> tuple[int, int, str | None]:
-    """``(width, height, CRS as WKT or None)`` of the raster ``path``, its pixels unread; a
-    file that does not open as a raster is an :class:`InputError` naming it."""
+def raster_header(path, what: str = "image") -> tuple[int, int, str | None]:
+    """``(width, height, CRS as WKT or None)`` of the raster ``path``, its pixels unread
+    (opened through :func:`~prismstation.io.inputs.open_raster_file`: a local file only); a
+    file that fails the checks or does not open as a raster is an :class:`InputError` naming it."""
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            with rasterio.open(path) as ds:
-                return ds.width, ds.height, (ds.crs.to_wkt() if ds.crs is not None else None)
-    except rasterio.errors.RasterioError as exc:
-        raise InputError(f"cannot open as a raster ({exc})", path) from None
+        with open_raster_file(path, what) as ds:
+            return ds.width, ds.height, (ds.crs.to_wkt() if ds.crs is not None else None)
+    except RasterReadError as exc:
+        raise InputError(str(exc).removeprefix(f"{path}: "), file=path) from None
 
 
 #: full-resolution rows read at a time by :meth:`ImageWindows.read_reduced`

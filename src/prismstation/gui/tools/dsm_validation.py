@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import csv
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +27,8 @@ from prismstation.errors import PrismError
 from prismstation.gui.titles import fit_title
 from prismstation.gui.tools._rect_common import fmt
 from prismstation.gui.tools._worker import Job, run_with_progress
-from prismstation.io.atomic import write_atomic
+from prismstation.io.atomic import scratch_file, write_atomic
+from prismstation.io.csvtable import text_cell
 from prismstation.io.dem import read_dem
 from prismstation.io.geoid import ConstantGeoid, GridGeoid, find_grid
 from prismstation.io.georef import crs_name
@@ -116,9 +116,7 @@ class ResidualSDPanel(QWidget):
 def run_validation(dsm, reference, *, dsm_height="ellipsoidal", reference_height="ellipsoidal",
                    geoid=None, mask=None):
     """Worker body: ``(validation, info, difference (rows, cols) m, shaded relief [0, 1])``."""
-
-    fd, tmp = tempfile.mkstemp(suffix=".tif", prefix="dsmdiff_")
-    os.close(fd)
+    tmp = str(scratch_file("dsmdiff", ".tif"))  # (a killed run's: removed first)
     try:
         val, info = validate_dsm_files(dsm, reference, dsm_height=dsm_height,
                                        reference_height=reference_height, geoid=geoid,
@@ -319,7 +317,6 @@ class DsmResultPanel(QWidget):
         atomically (a failure is a ``WriteError``, no file)."""
         import io
 
-
         kind = kind or ("csv" if str(path).lower().endswith(".csv") else "json")
         if kind == "json":
             write_json(path, {"validation": self.validation.as_dict(), "inputs": self.info})
@@ -331,7 +328,7 @@ class DsmResultPanel(QWidget):
         w.writerow(["cells"] + list(STAT_COLUMNS) + [f"p{p:g}" for p in pct]
                    + [f"abs_p{p:g}" for p in apct])
         for label, s in self.rows():
-            w.writerow([label] + [getattr(s, k) for k in STAT_COLUMNS]
+            w.writerow([text_cell(label)] + [getattr(s, k) for k in STAT_COLUMNS]
                        + [s.percentiles[p] for p in pct] + [s.abs_percentiles[p] for p in apct])
         write_atomic(path, buf.getvalue(), keep_backup=False)
 
