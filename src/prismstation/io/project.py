@@ -22,7 +22,7 @@ from prismstation.errors import InputError
 from prismstation.io import geoid as geoid_mod
 from prismstation.io.atomic import write_atomic
 from prismstation.io.lock import refuse_if_held
-from prismstation.io.jsonfile import dumps, line_of, read_json
+from prismstation.io.jsonfile import dumps, line_of, plain, read_json
 from prismstation.io.ranges import SIGMA_M, check_map, check_sigma, outside_images
 from prismstation.io.scene import read_scene
 from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint, Measurement
@@ -34,10 +34,6 @@ SUFFIX = ".prismproj"
 DEM_CONTROL, RELOCATED, PRODUCT, REFERENCE_DEM = "dem_control", "relocated_images", "product", "reference_dem"
 _KNOWN = {"format", "saved_by", "scene", "settings", "geoid", "points", "measurements",
           DEM_CONTROL, RELOCATED, PRODUCT, REFERENCE_DEM, "recovery"}  # "recovery": the journal's own note
-
-
-def _num(v):
-    return None if v is None or (isinstance(v, float) and not math.isfinite(v)) else v
 
 
 def _relative(path, base: Path) -> str:
@@ -67,7 +63,7 @@ def project_to_dict(project: Project, path) -> dict:
         "settings": settings_dict(project.settings),
         "geoid": geoid,
         "points": [
-            {"id": p.id, "kind": p.kind, "E": _num(p.E), "N": _num(p.N), "H": _num(p.H),
+            {"id": p.id, "kind": p.kind, "E": plain(p.E), "N": plain(p.N), "H": plain(p.H),
              "height": p.height_kind, "sigma_xy_m": p.sigma_xy_m, "sigma_h_m": p.sigma_h_m,
              **({"extra": p.extra} if p.extra else {})}
             for p in project.points.values()],

@@ -1,5 +1,5 @@
 """Shared pieces of the rectification / resection / DSM tools: the project's points of one view,
-a refresh coalescer and number formatting. (Their worker thread is :mod:`._worker`.)"""
+and a refresh coalescer. (Their worker thread is :mod:`._worker`.)"""
 from __future__ import annotations
 
 import numpy as np
@@ -49,7 +49,3 @@ def watch_project(ctx, fn) -> Coalescer:
     ctx.solver.solution_changed.connect(c.poke)
     ctx.views.images_loaded.connect(c.poke)
     return c
-
-
-def fmt(v: float, digits: int = 3) -> str:
-    return f"{v:.{digits}f}" if v is not None and np.isfinite(v) else "—"

@@ -25,11 +25,11 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpin
 from prismstation.core.dsmstats import hillshade, histogram, residual_sd_by_view
 from prismstation.errors import PrismError
 from prismstation.gui.titles import fit_title
-from prismstation.gui.tools._rect_common import fmt
 from prismstation.gui.tools._worker import Job, run_with_progress
 from prismstation.io.atomic import scratch_file, write_atomic
 from prismstation.io.csvtable import text_cell
 from prismstation.io.dem import read_dem
+from prismstation.io.formatting import fixed
 from prismstation.io.geoid import ConstantGeoid, GridGeoid, find_grid
 from prismstation.io.georef import crs_name
 from prismstation.io.jsonfile import write_json
@@ -106,7 +106,7 @@ class ResidualSDPanel(QWidget):
             cells = [v]
             for kind in ("GCP", "ICP"):
                 r = next((r for r in rows[kind] if r.view == v), None)
-                cells += ["0", "—", "—"] if r is None else [str(r.n_points), fmt(r.sd_x), fmt(r.sd_y)]
+                cells += ["0", "—", "—"] if r is None else [str(r.n_points), fixed(r.sd_x, 3), fixed(r.sd_y, 3)]
             for c, text in enumerate(cells):
                 self.table.setItem(i, c, _item(text, c == 0))
         self.table.resizeColumnsToContents()
@@ -282,8 +282,8 @@ class DsmResultPanel(QWidget):
         rows = self.rows()
         self.table.setRowCount(len(rows))
         for i, (label, s) in enumerate(rows):
-            cells = [label, str(s.count)] + [fmt(getattr(s, k)) for k in STAT_COLUMNS[1:]] \
-                + [fmt(s.percentiles.get(p, float("nan"))) for p in pct]
+            cells = [label, str(s.count)] + [fixed(getattr(s, k), 3) for k in STAT_COLUMNS[1:]] \
+                + [fixed(s.percentiles.get(p, float("nan")), 3) for p in pct]
             for c, text in enumerate(cells):
                 self.table.setItem(i, c, _item(text, c == 0))
         self.table.resizeColumnsToContents()
