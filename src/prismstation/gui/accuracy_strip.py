@@ -16,6 +16,7 @@ from PySide6.QtWidgets import QDoubleSpinBox, QFrame, QHBoxLayout, QLabel
 from prismstation.gui.fit_checks import parallax_check
 from prismstation.gui.palette import html
 from prismstation.gui.text_label import TextLabel
+from prismstation.gui.plain import plain
 
 FIELDS = (("E", "ICP RMSE of easting, estimated − known ground position (m)"),
           ("N", "ICP RMSE of northing, estimated − known ground position (m)"),
@@ -126,8 +127,8 @@ class AccuracyStrip(QFrame):
         self.count.setText(vals["count"])
         short, full = accuracy_warning(sol)
         self.warning.setText(short)
-        if self.warning.toolTip() != full:
-            self.warning.setToolTip(full)
+        if self.warning.toolTip() != plain(full):
+            self.warning.setToolTip(plain(full))
         self.values["h"].set_color(WARN_COLOR if short else None)
 
     def text(self) -> str:

@@ -16,6 +16,7 @@ from PySide6.QtWidgets import QFileDialog, QInputDialog, QMessageBox
 from prismstation.errors import PrismError
 from prismstation.gui import commands as cmd
 from prismstation.gui import settings as st
+from prismstation.gui.plain import plain
 
 REPORT_FILTER = "HTML (*.html);;PDF (*.pdf);;CSV (*.csv);;JSON (*.json)"
 
@@ -93,7 +94,7 @@ def export_report(window, path: str | None = None) -> bool:
         else:
             write_report(rep, path)
     except (PrismError, OSError) as exc:
-        QMessageBox.warning(window, "Export report", str(exc))
+        QMessageBox.warning(window, "Export report", plain(str(exc)))
         return False
     st.set_value(st.Key.LAST_EXPORT_DIR, str(Path(path).parent))
     window.statusBar().showMessage(f"Report written to {path} (operator {operator}: File ▸ Report "

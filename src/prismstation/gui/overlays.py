@@ -128,6 +128,7 @@ class LabelLayer(pg.GraphicsObject):
             st = self._static.get(text)
             if st is None:  # laid out once, drawn many times
                 st = self._static[text] = QStaticText(text)
+                st.setTextFormat(Qt.TextFormat.PlainText)  # an id is never markup
                 st.prepare(QTransform(), self.font)
             px, py = dx[i] + ox, dy[i] + oy
             p.setPen(shadow)

@@ -30,6 +30,7 @@ from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QGridLayout, QHBoxLayo
 
 from prismstation.gui.fit_checks import alpha_of
 from prismstation.gui.markers import Scatter
+from prismstation.gui.plain import plain_block
 from prismstation.gui.palette import BLUNDER_RGB, FIT_RGB, KIND_RGB, THEORY_RGB, qcolor
 from prismstation.gui.plot_data import PlotData, auto_exaggeration, data_ranges, line_x, segments
 from prismstation.gui.text_label import TextLabel
@@ -195,7 +196,7 @@ class PlotsWidget(QWidget):
         brush = pg.mkBrush(*color) if filled else pg.mkBrush(255, 255, 255, 0)
         item = Scatter(pen=pg.mkPen(color, width=1.5), brush=brush, symbol=symbol, size=size,
                        name=name, hoverable=True,  # tool tip: id, values
-                       tip=lambda x, y, data: f"{data}: {x:.2f}, {y:.2f}")
+                       tip=lambda x, y, data: plain_block(f"{data}: {x:.2f}, {y:.2f}"))
         item.sigClicked.connect(self._on_clicked)
         pw.addItem(item)
         return item

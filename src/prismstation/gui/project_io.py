@@ -39,6 +39,7 @@ from prismstation.io.project import SUFFIX, load_project, save_project
 from prismstation.io.recovery import Journal, ProjectLock, describe_holder
 from prismstation.io.scene import read_scene
 from prismstation.model.project import Project
+from prismstation.gui.plain import plain
 
 FILTER = f"prismstation projects (*{SUFFIX});;All files (*)"
 
@@ -97,7 +98,7 @@ class ProjectFiles(QObject):
         if not self.interactive:
             return b.No
         buttons = buttons or (b.Yes | b.No)
-        return QMessageBox.question(self.widget, title, text, buttons, default or b.Yes)
+        return QMessageBox.question(self.widget, title, plain(text), buttons, default or b.Yes)
 
     def warn(self, title: str, text: str) -> None:
         self.message.emit(f"{title}: {text}")
@@ -105,7 +106,7 @@ class ProjectFiles(QObject):
             import sys
             print(f"{title}: {text}", file=sys.stderr)
             return
-        QMessageBox.warning(self.widget, title, text)
+        QMessageBox.warning(self.widget, title, plain(text))
 
     def choose_open(self, title=None, filt=FILTER) -> str:
         path, _ = QFileDialog.getOpenFileName(self.widget, title or "Open project",

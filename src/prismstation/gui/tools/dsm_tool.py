@@ -24,6 +24,7 @@ from PySide6.QtWidgets import (QAbstractSpinBox, QButtonGroup, QCheckBox, QCombo
 from prismstation.gui import settings as st
 from prismstation.gui.tools._worker import run_with_progress
 from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest
+from prismstation.gui.plain import plain
 
 #: the height models as the dialog names them (``prismstation dsm --heights``)
 HEIGHT_MODEL_NAMES = {"auto": "automatic (the one the GCPs predict better)",
@@ -251,7 +252,7 @@ class DsmTool:
             self.message, low = result_message(out)
             self.ctx.status(self.message, 30000 if low else 15000)
             if self.ctx.interactive:
-                (QMessageBox.warning if low else QMessageBox.information)(self.ctx.widget, "DSM", self.message)
+                (QMessageBox.warning if low else QMessageBox.information)(self.ctx.widget, "DSM", plain(self.message))
 
         self.job = run_with_progress(self.ctx, "DSM", work, done)
         return self.job

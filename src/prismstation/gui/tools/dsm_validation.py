@@ -10,6 +10,7 @@
 """
 from __future__ import annotations
 
+from html import escape
 import csv
 import os
 import tempfile
@@ -270,7 +271,8 @@ class DsmResultPanel(QWidget):
 
     def show_result(self, val, info, diff, relief) -> None:
         self.validation, self.info, self.diff = val, info, diff
-        self.title.setText(f"<b>{os.path.basename(info['dsm'])}</b> − <b>{os.path.basename(info['reference'])}</b>"
+        self.title.setText(f"<b>{escape(os.path.basename(info['dsm']))}</b> − "
+                           f"<b>{escape(os.path.basename(info['reference']))}</b>"
                            f" on the DSM grid ({info['grid']['width']} × {info['grid']['height']}, "
                            f"{crs_name(info['grid']['crs'])}), heights {info['heights']['compared_as']}")
         pct = sorted(val.overall.percentiles)
@@ -379,7 +381,7 @@ class DsmValidationTool:
         return self.job
 
     def _failed(self, error: str) -> None:
-        self.panel.title.setText(f"<span style='color:#b91c1c'>Validation failed: {error}</span>")
+        self.panel.title.setText(f"<span style='color:#b91c1c'>Validation failed: {escape(error)}</span>")
         self.dock.show()
 
     def _done(self, result) -> None:

@@ -21,6 +21,7 @@ from prismstation.core.rectify import KINDS, compare_transforms, min_points, n_p
 from prismstation.gui.titles import fit_title
 from prismstation.gui.tools._rect_common import crs_name, fmt, view_points, watch_project
 from prismstation.gui.tools._worker import Job, run_with_progress
+from prismstation.gui.plain import plain
 
 
 def _item(text, align=Qt.AlignmentFlag.AlignRight) -> QTableWidgetItem:
@@ -121,7 +122,7 @@ class TransformsPanel(QWidget):
                 t.setItem(i, 3 + 2 * j, _item(fmt(r.rmse_icp)))
                 if not r.ok:
                     for c in (2 + 2 * j, 3 + 2 * j):
-                        t.item(i, c).setToolTip(r.error)
+                        t.item(i, c).setToolTip(plain(r.error))
                     notes.append(f"{v} · {kind}: {r.error}")
         t.resizeColumnsToContents()
         if notes:
@@ -263,7 +264,7 @@ class RectifyTool:
                         f"in {crs_name(result.crs)} — {view} through {report.kind}, planimetric RMSE "
                         f"{fmt(report.rmse_gcp)} m (GCPs), {fmt(report.rmse_icp)} m (ICPs)", 30000)
         if self.ctx.interactive:
-            box = QMessageBox(QMessageBox.Icon.Information, "Rectify", self.summary,
+            box = QMessageBox(QMessageBox.Icon.Information, "Rectify", plain(self.summary),
                               QMessageBox.StandardButton.Ok, self.ctx.widget)
             fit_title(box)
             box.exec()
@@ -271,7 +272,7 @@ class RectifyTool:
     def _message(self, text: str) -> None:
         self.ctx.status(text, 15000)
         if self.ctx.interactive and "Cannot" in text:
-            QMessageBox.warning(self.ctx.widget, "Rectify", text)
+            QMessageBox.warning(self.ctx.widget, "Rectify", plain(text))
 
 
 def install(ctx) -> None:

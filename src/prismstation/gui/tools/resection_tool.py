@@ -16,6 +16,7 @@ where the satellite was (the demo's N–F: B/H 0.16 from the resections, 0.50 fr
 """
 from __future__ import annotations
 
+from html import escape
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt
@@ -276,7 +277,7 @@ class ResectionDialog(QDialog):
             ra, rb = (self.resect_view(v) for v in (lv, rv))
             bh = base_height(ra.position, rb.position)
         except PrismError as exc:
-            self.bh_label.setText(f"<span style='color:#b91c1c'>{exc}</span>")
+            self.bh_label.setText(f"<span style='color:#b91c1c'>{escape(str(exc))}</span>")
             return None
         self._show_bh(bh, {lv: ra, rv: rb})
         return bh
