@@ -319,12 +319,26 @@ class MainWindow(QMainWindow):
         if c.pid != self.current:
             self.set_current(c.pid, drive=False)
         self.measure_mode.placed(c.pid)
+        self._first_frame(view, c)
 
     def move(self, pid: str, view: str, x: float, y: float, finished: bool) -> None:
         if self.project is not None and pid in self.project.points:
-            self.undo_stack.push(cmd.PlaceMeasurement(self.project, pid, view, x, y, merge=True))
+            c = cmd.PlaceMeasurement(self.project, pid, view, x, y, merge=True)
+            self.undo_stack.push(c)
             if pid != self.current:
                 self.set_current(pid, drive=False)
+            self._first_frame(view, c)
+
+    def _first_frame(self, view: str, c) -> None:
+        """Answer a click (or a drag's step) in the next frame: the marker, its label, the loupe
+        and the table's row painted now; the refit, which the solver starts from the event loop
+        once this returns, repaints what it changes in the frame after."""
+        xy = (c.new.x, c.new.y)
+        self.table_model.refresh()  # the row's views (its residuals follow the refit)
+        lp = self.loupes.get(view)
+        if lp is not None:
+            lp.set_position(*xy)
+        self.views.paint_edit(view, [xy] + ([(c.old.x, c.old.y)] if c.old is not None else []))
 
     def new_point(self) -> None:
         if self.project is None:
