@@ -161,7 +161,7 @@ class MainWindow(QMainWindow):
         self.solver.failed.connect(lambda m: self.statusBar().showMessage(m, 10000))
         self.views.place_requested.connect(self.place)
         self.views.move_requested.connect(self.move)
-        self.views.point_picked.connect(lambda pid: self.set_current(pid, drive=False))
+        self.views.point_picked.connect(self._on_marker_picked)
         self.views.cursor_info.connect(self.on_cursor)
         self.views.message.connect(lambda m: self.statusBar().showMessage(m, 10000))
         self.views.images_loaded.connect(self._on_images_loaded)
@@ -289,6 +289,24 @@ class MainWindow(QMainWindow):
         if pid is not None and drive and changed:
             self.views.drive_to(pid)
         self._update_actions()
+
+    def _on_marker_picked(self, pid: str) -> None:
+        """A click on another point's marker makes it current. The click was meant to place
+        the point just made by Insert, if that is current and still empty: it is dropped."""
+        left = self.current
+        self.set_current(pid, drive=False)
+        if left is not None and left != self.current:
+            self._drop_if_abandoned(left)
+
+    def _drop_if_abandoned(self, pid: str) -> None:
+        """Undo the creation of ``pid`` if it was the last edit (Insert) and the point is still
+        as made: no measurement, no coordinates, its id."""
+        st = self.undo_stack
+        top = st.command(st.index() - 1) if st.index() == st.count() and st.index() > 0 else None
+        p = self.project
+        if (isinstance(top, cmd.AddPoint) and top.pid == pid and pid in p.points
+                and p.points[pid] == top.point and not p.measurements_of(pid)):
+            st.undo()
 
     def _on_table_selection(self, *_) -> None:
         pid = self.table.current_id()
