@@ -1,4 +1,6 @@
-"""User strings — point ids, file names, messages that quote them — shown as they were typed.
+"""Texts for the operator: user strings shown as they were typed, counts with their nouns.
+
+User strings — point ids, file names, messages that quote them — must show as typed.
 
 Qt renders a text as rich text wherever it "might be" (``Qt.mightBeRichText``: a tag on its first
 line): tool tips, ``QLabel``, ``QMessageBox``, ``QStaticText``. An id ``<b>x</b>`` would show as a
@@ -23,3 +25,8 @@ def plain_block(text: str) -> str:
     """``text`` escaped in a block of rich text: for texts Qt joins before showing (pyqtgraph's
     tool tip of several points joins them with blank lines), which :func:`plain` cannot reach."""
     return f"<div>{html.escape(str(text))}</div>"
+
+
+def counted(n: int, noun: str, plural: str | None = None) -> str:
+    """``"1 patch"``, ``"3 patches"``: ``n`` with ``noun`` or its ``plural`` (default ``noun + "s"``)."""
+    return f"{n} {noun if n == 1 else plural or noun + 's'}"
