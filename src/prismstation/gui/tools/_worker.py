@@ -34,6 +34,7 @@ class Job(QObject):
     """Run ``fn(progress)`` in a worker thread (see module doc)."""
 
     progress = Signal(float, str)
+    ended = Signal()  # the thread has ended (before the outcome is emitted)
     result = Signal(object)
     failed = Signal(str)
     cancelled = Signal()
@@ -101,6 +102,7 @@ class Job(QObject):
         it has let go of everything it held before this job is released."""
         self.wait()
         _LIVE.discard(self)
+        self.ended.emit()
         if self._window is not None and shiboken6.isValid(self._window):
             self._window.removeEventFilter(self)
         app = QCoreApplication.instance()
