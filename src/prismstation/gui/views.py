@@ -146,6 +146,7 @@ class TripletViews(QWidget):
             iv.vb.drag_handler = _MarkerDrag(self, name)
             iv.clicked.connect(lambda x, y, mods, n=name: self._on_clicked(n, x, y, mods))
             iv.cursor_moved.connect(lambda x, y, n=name: self.on_cursor(n, x, y))
+            iv.cursor_left.connect(self.hide_crosshairs)
             iv.view_changed.connect(lambda n=name: self._on_view_changed(n))
             iv.read_failed.connect(lambda m, n=name: self.message.emit(f"view {n}: {m}"))
             iv.vb.sigRangeChangedManually.connect(lambda *_, n=name: self.navigated.emit(n))
@@ -408,6 +409,11 @@ class TripletViews(QWidget):
         for v, ov in self.overlays.items():
             ov.set_crosshair(positions.get(v) if v != name else None)
         self.cursor_info.emit(name, x, y, positions, ground)
+
+    def hide_crosshairs(self) -> None:
+        """The mouse left a view: no linked cursor in the others."""
+        for ov in self.overlays.values():
+            ov.set_crosshair(None)
 
     def shutdown(self) -> None:
         """End every job reading the images and close them (the window is closing)."""
