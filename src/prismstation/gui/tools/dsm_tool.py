@@ -124,8 +124,16 @@ class DsmDialog(QDialog):
         if p:
             self.path.setText(p)
 
+    def accept(self) -> None:
+        """OK with no file name says so and stays open (it used to close, writing nothing)."""
+        if not self.path.text().strip():
+            QMessageBox.warning(self, "Export DSM", "Choose the DSM GeoTIFF: a file name is needed.")
+            self.path.setFocus()
+            return
+        super().accept()
+
     def request(self) -> DsmRequest:
-        return DsmRequest(self.path.text(), self.visible if self.area.isChecked() else None,
+        return DsmRequest(self.path.text().strip(), self.visible if self.area.isChecked() else None,
                           self.posting.value(), self.orthometric.isChecked(),
                           self.uncertainty.value() or None, self.fill.isChecked(),
                           self.min_fill.value(), self.heights.currentData())
@@ -228,7 +236,7 @@ class DsmTool:
         dlg = DsmDialog(self.ctx.widget, str(self.default_path()), visible_window(self.ctx), name,
                         geoid=self.geoid(), orthometric=orthometric,
                         triplet=self.ctx.project.scene.is_triplet)
-        if dlg.exec() == QDialog.DialogCode.Accepted and dlg.path.text():
+        if dlg.exec() == QDialog.DialogCode.Accepted:
             self.start(dlg.request(), use_reference=dlg.use_reference())
 
     def start(self, req: DsmRequest, *, use_reference: bool = False):
