@@ -31,6 +31,8 @@ class ToolContext:
     model_panel : ModelPanel
     tools : dict
         The installed tools by name.
+    outputs : dict
+        The last file a tool wrote, by what it is (``"dsm"``), for another tool to offer.
     """
 
     def __init__(self, window):
@@ -42,6 +44,7 @@ class ToolContext:
         self.open_action = window.a_open
         self.model_panel = window.panel
         self.tools: dict = {}
+        self.outputs: dict = {}
         self._docks = window.docks
 
     @property

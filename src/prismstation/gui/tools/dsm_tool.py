@@ -257,6 +257,7 @@ class DsmTool:
             return workflows(p).export_dsm(sol, p, req, reference=ref, progress=progress)
 
         def done(out):
+            self.ctx.outputs["dsm"] = str(out.path)  # (Validate DSM offers it next)
             self.message, low = result_message(out)
             self.ctx.status(self.message, 30000 if low else 15000)
             if self.ctx.interactive:

@@ -153,14 +153,17 @@ def shaded_difference(diff, relief, limit=None) -> np.ndarray:
     return np.clip(rgb * 255, 0, 255).astype(np.uint8)
 
 
-def prefill(project, project_path, last: dict) -> dict:
-    """What the dialog starts from: the last run's choices, else the project's — its DSM
-    (``dsm.tif`` beside the project, the DSM tool's default), its reference DEM (SRTM-like:
-    orthometric) and its geoid (a grid's path, or the constant)."""
+def prefill(project, project_path, last: dict, exported: str | None = None) -> dict:
+    """What the dialog starts from: the DSM the window ``exported`` last (when given: since the
+    last validation), the last run's choices, else the project's — its DSM (``<project>_dsm.tif``,
+    the DSM tool's default, or ``dsm.tif`` beside the project or the scene), its reference DEM
+    (SRTM-like: orthometric where the file does not say) and its geoid (a grid's path, or the
+    constant). The heights' kinds the files record are read by the dialog."""
     out = {"dsm_height": "ellipsoidal", "reference_height": "ellipsoidal", "geoid_constant": 0.0}
     if project is not None:
         folders = [Path(p).parent for p in (project_path, project.scene_path) if p]
-        for cand in (f / "dsm.tif" for f in folders):
+        named = [Path(project_path).with_name(f"{Path(project_path).stem}_dsm.tif")] if project_path else []
+        for cand in named + [f / "dsm.tif" for f in folders]:
             if cand.is_file():
                 out["dsm"] = str(cand)
                 break
@@ -176,7 +179,10 @@ def prefill(project, project_path, last: dict) -> dict:
             out.update({"geoid_grid": str(grid)} if grid else {"geoid_constant": float(g.get("value") or 0.0)})
         elif g.get("value") is not None:
             out["geoid_constant"] = float(g["value"])
-    return {**out, **{k: v for k, v in last.items() if v not in ("", None)}}
+    out = {**out, **{k: v for k, v in last.items() if v not in ("", None)}}
+    if exported:
+        out["dsm"] = str(exported)
+    return out
 
 
 class DsmDialog(QDialog):
@@ -196,13 +202,21 @@ class DsmDialog(QDialog):
             row.addWidget(b)
             f.addRow(label, row)
             self.paths[key] = e
-        self.kinds = {}
+        self.kinds, self.kind_notes = {}, {}
         for key, label in (("dsm_height", "DSM heights"), ("reference_height", "Reference heights")):
             c = QComboBox()
             c.addItems(["ellipsoidal", "orthometric"])
             c.setCurrentText(last.get(key, "ellipsoidal"))
-            f.addRow(label, c)
-            self.kinds[key] = c
+            note = QLabel("")
+            note.setStyleSheet("color: #555")
+            row = QHBoxLayout()
+            row.addWidget(c)
+            row.addWidget(note, 1)
+            f.addRow(label, row)
+            self.kinds[key], self.kind_notes[key] = c, note
+        for path_key, kind_key in (("dsm", "dsm_height"), ("reference", "reference_height")):
+            self.paths[path_key].textChanged.connect(lambda text, k=kind_key: self._kind_from_file(k, text))
+            self._kind_from_file(kind_key, self.paths[path_key].text())
         self.geoid_constant = QDoubleSpinBox()
         self.geoid_constant.setRange(-200, 200)
         self.geoid_constant.setDecimals(3)
@@ -213,6 +227,19 @@ class DsmDialog(QDialog):
         bb.accepted.connect(self.accept)
         bb.rejected.connect(self.reject)
         f.addRow(bb)
+
+    def _kind_from_file(self, key: str, path: str) -> None:
+        """The heights' kind as the file records it (a DSM written here does: its vertical CRS),
+        shown and not asked; where the file does not say, the operator chooses."""
+        from prismstation.io.dsm import recorded_height_kind
+        path = path.strip()
+        kind = recorded_height_kind(path) if path and Path(path).is_file() else None
+        combo, note = self.kinds[key], self.kind_notes[key]
+        if kind is not None:
+            combo.setCurrentText(kind)
+        combo.setEnabled(kind is None)
+        note.setText("recorded in the file" if kind is not None else
+                     "the file does not say: choose" if path else "")
 
     def _browse(self, edit, title) -> None:
         p, _ = QFileDialog.getOpenFileName(self, title, edit.text(), "Rasters (*.tif *.tiff *.img *.vrt);;All (*)")
@@ -354,7 +381,8 @@ class DsmValidationTool:
         ctx.tools_menu.addAction(self.dock.toggleViewAction())
 
     def open_dialog(self) -> None:
-        d = DsmDialog(self.ctx.widget, prefill(self.ctx.project, self.ctx.files.path, self.last))
+        exported = self.ctx.outputs.pop("dsm", None)  # written since the last validation: offered once
+        d = DsmDialog(self.ctx.widget, prefill(self.ctx.project, self.ctx.files.path, self.last, exported))
         if d.exec() == QDialog.DialogCode.Accepted:
             self.start(**d.values())
 
