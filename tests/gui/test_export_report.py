@@ -64,6 +64,10 @@ def test_ctrl_e_writes_the_report(window, qtbot, answered, tmp_path):
 
 def test_the_export_proposes_a_file_in_the_project_folder_and_asks_the_operator_once(window, qtbot, answered,
                                                                                      tmp_path, monkeypatch):
+    """The first export starts in the project's folder, the next ones in the folder the last
+    report went to."""
+    from pathlib import Path
+
     from PySide6.QtWidgets import QFileDialog
     win = window
     offered = []
@@ -81,6 +85,7 @@ def test_the_export_proposes_a_file_in_the_project_folder_and_asks_the_operator_
     answered.path = str(tmp_path / "second.json")
     win.a_export.trigger()                                 # the operator is remembered: not asked
     assert [k for k, _ in answered.asked] == ["file"]
+    assert offered[-1] == str(Path(answered.path).with_name(f"{win.demo.path.stem}_report.pdf"))  # its folder too
     rep = _written(win, qtbot, answered.path)
     assert rep["header"]["operator"] == "A. Operator"
     assert "operator A. Operator" in win.statusBar().currentMessage()
