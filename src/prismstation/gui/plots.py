@@ -25,7 +25,7 @@ import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtGui import QFont, QImage
-from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QGridLayout, QHBoxLayout, QLabel,
+from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QGridLayout, QHBoxLayout, QLabel,
                                QStackedWidget, QTabWidget, QVBoxLayout, QWidget)
 
 from prismstation.gui.fit_checks import alpha_of
@@ -143,6 +143,14 @@ class PlotsWidget(QWidget):
         for w in (label, self.spin, self.auto_box):
             bar.addWidget(w)
             w.setVisible(own_exaggeration)
+        # the image whose residual vectors are drawn (several images: any of them)
+        self.view_box = QComboBox()
+        self.view_box.setToolTip("The image whose residual vectors the plot shows")
+        self.view_box.setSizeAdjustPolicy(QComboBox.SizeAdjustPolicy.AdjustToContents)
+        self.view_box.setVisible(False)
+        self.view_box.activated.connect(self._on_view_chosen)
+        self._solution, self._vector_view = None, None  # (None: the default view)
+        bar.addWidget(self.view_box)
         self.legend = QLabel(_LEGEND_HTML)
         self.legend.setVisible(not legends)
         bar.addWidget(self.legend)
@@ -288,8 +296,23 @@ class PlotsWidget(QWidget):
 
     # ------------------------------------------------------------------ public
     def set_solution(self, solution) -> None:
-        """Show ``solution`` (a :class:`~prismstation.core.solve.Solution` or None)."""
-        self.set_plot_data(PlotData.from_solution(solution))
+        """Show ``solution`` (a :class:`~prismstation.core.solve.Solution` or None), the residual
+        vectors of the image chosen in :attr:`view_box` (by default :func:`.plot_data.vector_view`)."""
+        self._solution = solution
+        data = PlotData.from_solution(solution, self._vector_view)
+        views = list(solution.bias) if solution is not None else []
+        box = self.view_box
+        if [box.itemText(i) for i in range(box.count())] != views:
+            box.clear()
+            box.addItems(views)
+        if box.currentText() != data.view:
+            box.setCurrentText(data.view)
+        box.setVisible(len(views) > 1)
+        self.set_plot_data(data)
+
+    def _on_view_chosen(self, index: int) -> None:
+        self._vector_view = self.view_box.itemText(index) or None
+        self.set_solution(self._solution)
 
     def set_report(self, report: dict) -> None:
         """Show a report dict (:func:`prismstation.io.report.report_dict`)."""
