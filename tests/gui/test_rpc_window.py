@@ -420,3 +420,18 @@ def test_the_dsm_dialog_of_an_rpc_project(qtbot, win, monkeypatch):
     assert seen["posting"] == round(2 * gsd, 1) and "2 × the images'" in seen["tip"]
     assert seen["whole"] == "the ground every image sees" and seen["checked"]
     assert not seen["area"] and seen["window"] is None
+
+
+def test_a_status_message_is_shown_whole(qtbot, win, rpc_path):
+    """Three views named img_0…: the message was cut where the mode's label begins; now the
+    views' cursor positions step aside while it needs their room, and come back after."""
+    sb = win.statusBar()
+    win.load_reference_dem(rpc_path.parent / "dem.tif", wait=True)
+    qtbot.waitUntil(lambda: sb.currentMessage().startswith("Reference DEM: "), timeout=5000)
+    msg = sb.currentMessage()
+    qtbot.wait(20)
+    assert sb.fontMetrics().horizontalAdvance(msg) <= win.status.message_room(), msg
+    assert win.measure_mode.label.isVisible() and win.status_fit.isVisible()
+    assert not all(lab.isVisible() for lab in win.status_xy.values())
+    sb.clearMessage()
+    assert all(lab.isVisible() for lab in win.status_xy.values()) and win.status_ground.isVisible()
