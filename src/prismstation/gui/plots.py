@@ -58,6 +58,25 @@ TAB_NAMES = {"height": "h vs parallax", "height_minus_theory": "h − theory",
              "vectors": "Residual vectors", "std_residuals": "Std. residuals"}
 
 
+def legend_below(plot_item, columns: int = 4, **style) -> pg.LegendItem:
+    """A legend in a row of its own under ``plot_item``'s bottom axis — never over the data
+    (inside the plot it hid points where they gathered) — listing the items added with a name
+    from now on, in ``columns`` columns. ``style``: pyqtgraph's legend options."""
+    legend = pg.LegendItem(offset=None, colCount=columns, **style)
+    plot_item.layout.addItem(legend, 4, 1)
+    plot_item.layout.setAlignment(legend, Qt.AlignmentFlag.AlignHCenter)
+    plot_item.legend = legend  # (PlotItem.addItem lists named items in it)
+    return legend
+
+
+def _drawn(item) -> bool:
+    """Whether a plot item has anything to draw (a legend lists only those)."""
+    if isinstance(item, pg.ScatterPlotItem):
+        return len(item.data) > 0
+    x = getattr(item, "xData", None)
+    return x is not None and len(x) > 0
+
+
 class PlotsWidget(QWidget):
     """The four live plots of a Solution (see the module docstring).
 
@@ -220,8 +239,7 @@ class PlotsWidget(QWidget):
         for name in ("height", "height_minus_theory"):
             pi = p[name].getPlotItem()
             if self._legends:
-                pi.addLegend(offset=(8, 8), labelTextSize="8pt", labelTextColor=(30, 30, 30),
-                             brush=(255, 255, 255, 210))
+                legend_below(pi, labelTextSize="9pt", labelTextColor=(30, 30, 30))
             pi.setLabel("bottom", "F−B parallax", units="px")
         p["height"].setLabel("left", "h (ellipsoidal)", units="m")
         p["height_minus_theory"].setLabel("left", "h − c1ₜₕ·py", units="m")
@@ -244,8 +262,7 @@ class PlotsWidget(QWidget):
         pv.setLabel("bottom", "x (column)", units="px")
         pv.setLabel("left", "y (row)", units="px")
         if self._legends:
-            pv.addLegend(offset=(8, 8), labelTextSize="8pt", labelTextColor=(30, 30, 30),
-                         brush=(255, 255, 255, 210))
+            legend_below(pv, labelTextSize="9pt", labelTextColor=(30, 30, 30))
         self.v_gcp_seg = self._curve(pv, pg.mkPen(GCP_COLOR, width=2), connect="pairs")
         self.v_icp_seg = self._curve(pv, pg.mkPen(ICP_COLOR, width=2), connect="pairs")
         self.v_tie_seg = self._curve(pv, pg.mkPen(KIND_RGB["TIE"], width=2), connect="pairs")
@@ -409,23 +426,34 @@ class PlotsWidget(QWidget):
     def exaggeration(self) -> float:
         return self._exaggeration
 
-    def render_images(self, size=(900, 560)) -> dict:
-        """Each plot as a QImage of ``size`` pixels (for reports): ``{name: QImage}``.
-
-        Drawn by a hidden copy of this widget laid out at that size, so a docked, visible
-        widget is not disturbed."""
-        from PySide6.QtWidgets import QApplication
+    def figure_widget(self) -> "PlotsWidget":
+        """A hidden copy of this widget drawn as the report's figures are: antialiased, a grid,
+        each legend under its plot naming only what it draws. The caller deletes it."""
         smooth = pg.getConfigOption("antialias")
         pg.setConfigOptions(antialias=True)  # items read it when created
         try:
             tmp = PlotsWidget(grid=True, legends=True)
         finally:
             pg.setConfigOptions(antialias=smooth)
+        tmp.setAttribute(Qt.WidgetAttribute.WA_DontShowOnScreen, True)
+        if not self.auto_box.isChecked() and not self._screen_k:
+            tmp.set_exaggeration(self._exaggeration)
+        tmp.set_plot_data(self._data)
+        for pw in tmp.plots.values():
+            legend = pw.getPlotItem().legend
+            for sample, _ in list(legend.items) if legend is not None else ():
+                if not _drawn(sample.item):
+                    legend.removeItem(sample.item)
+        return tmp
+
+    def render_images(self, size=(900, 560)) -> dict:
+        """Each plot as a QImage of ``size`` pixels (for reports): ``{name: QImage}``.
+
+        Drawn by a hidden copy of this widget laid out at that size, so a docked, visible
+        widget is not disturbed."""
+        from PySide6.QtWidgets import QApplication
+        tmp = self.figure_widget()
         try:
-            tmp.setAttribute(Qt.WidgetAttribute.WA_DontShowOnScreen, True)
-            if not self.auto_box.isChecked() and not self._screen_k:
-                tmp.set_exaggeration(self._exaggeration)
-            tmp.set_plot_data(self._data)
             for name in tmp._titles:
                 tmp.plots[name].setTitle(tmp._titles[name], size="12pt", color=(30, 30, 30))
             font = QFont()

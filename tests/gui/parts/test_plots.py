@@ -190,3 +190,25 @@ def test_plot_data_from_columns_equals_the_report_path():
         elif f.name not in ("image_shape", "c0", "c1", "c1_theory"):  # (the report rounds)
             assert x == y, f.name
     assert a.vec_gcp_ids and a.vec_icp_ids and a.std_ids and a.blunders and len(a.gcp_py)
+
+
+def test_report_figures_list_what_they_draw_under_the_plot(qtbot, fitted):
+    """The figures' legends sat over the data (the PDF's Fig. 2: over the points near the top);
+    they go under the axis, and name only what the figure draws (no "TIE" on a triplet)."""
+    w = PlotsWidget()
+    qtbot.addWidget(w)
+    w.set_solution(fitted[2])
+    fig = w.figure_widget()
+    qtbot.addWidget(fig)
+    fig.resize(1200, 800)
+    fig.show()
+    qtbot.wait(20)
+    for name, pw in fig.plots.items():
+        pi = pw.getPlotItem()
+        assert (pi.legend is not None) == (name != "std_residuals"), name  # (that one needs none)
+        if pi.legend is not None:
+            assert not pi.legend.sceneBoundingRect().intersects(pi.vb.sceneBoundingRect()), name
+    names = {n: [label.text for _, label in pw.getPlotItem().legend.items] for n, pw in fig.plots.items()
+             if pw.getPlotItem().legend is not None}
+    assert names["vectors"] == ["GCP", "ICP"], names
+    assert names["height_minus_theory"] == ["fitted − theoretical", "GCP", "ICP"], names

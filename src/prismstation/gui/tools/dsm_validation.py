@@ -21,7 +21,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpinBox, QFileDialog,
                                QFormLayout, QHBoxLayout, QLabel, QLineEdit, QMessageBox,
-                               QPushButton, QSplitter, QTableWidget, QTableWidgetItem,
+                               QPushButton, QSplitter, QStackedWidget, QTableWidget, QTableWidgetItem, QTabWidget,
                                QVBoxLayout, QWidget)
 
 from prismstation.core.dsmstats import hillshade, histogram, residual_sd_by_view
@@ -72,7 +72,9 @@ class ResidualSDPanel(QWidget):
         super().__init__(ctx.widget)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(4, 4, 4, 4)
-        lay.addWidget(QLabel("<b>SD of image residuals (px) — as Tadono et al. 2008, Table 1</b>"))
+        title = QLabel("<b>SD of image residuals (px) — as Tadono et al. 2008, Table 1</b>")
+        title.setWordWrap(True)  # (a narrow dock cut it)
+        lay.addWidget(title)
         self.table = _table(self.HEAD)
         lay.addWidget(self.table)
         self.solution = None
@@ -254,31 +256,38 @@ class DsmDialog(QDialog):
 
 
 class DsmResultPanel(QWidget):
+    """The statistics (title, table, colour scale, export buttons) and the two plots (the
+    difference map, its histogram): the statistics above the plots side by side where the dock
+    is tall, one tab each where it is short (a bottom dock on a laptop squeezed the plots to
+    nothing, then to slivers)."""
+
+    COMPACT_HEIGHT = 420  # px: below this the three parts go in tabs
+
     def __init__(self, parent=None):
         super().__init__(parent)
         self.validation = self.info = self.diff = None
-        lay = QVBoxLayout(self)
-        lay.setContentsMargins(4, 4, 4, 4)
+        self.stats = QWidget()
+        lay = QVBoxLayout(self.stats)
+        lay.setContentsMargins(0, 0, 0, 0)
         self.title = QLabel("No DSM validated yet (Tools ▸ Validate DSM…)")
         self.title.setWordWrap(True)
         lay.addWidget(self.title)
         self.table = _table(("Cells",) + STAT_COLUMNS)
-        self.table.setMinimumHeight(90)
-        self.table.setMaximumHeight(130)
+        self.table.setFixedHeight(66)  # the header and a row (then: its rows, at most 130 px)
         lay.addWidget(self.table)
-        split = QSplitter(Qt.Orientation.Horizontal)
-        self.map = pg.PlotWidget(title="DSM − reference over shaded relief")
+        self.map = pg.PlotWidget()
+        self.map.setTitle("DSM − reference over shaded relief", size="9pt")
         self.map.setAspectLocked(True)
         self.map.invertY(True)
         self.map_item = pg.ImageItem(axisOrder="row-major")
         self.map.addItem(self.map_item)
-        self.hist = pg.PlotWidget(title="Histogram of DSM − reference")
+        self.hist = pg.PlotWidget()
+        self.hist.setTitle("Histogram of DSM − reference", size="9pt")
         self.hist.setLabel("bottom", "difference (m)")
         self.hist.setLabel("left", "cells")
         for p in (self.map, self.hist):
             p.setBackground("w")
-            split.addWidget(p)
-        lay.addWidget(split, 1)
+            p.setMinimumSize(160, 130)
         row = QHBoxLayout()
         self.legend = QLabel("")
         row.addWidget(self.legend, 1)
@@ -290,6 +299,45 @@ class DsmResultPanel(QWidget):
             b.setEnabled(False)
             row.addWidget(b)
         lay.addLayout(row)
+        lay.addStretch(1)
+        self.full = QWidget()
+        full = QVBoxLayout(self.full)
+        full.setContentsMargins(0, 0, 0, 0)
+        self.split = QSplitter(Qt.Orientation.Horizontal)
+        full.addWidget(self.split, 1)
+        self.tabs = QTabWidget()
+        self.tabs.setDocumentMode(True)
+        self._stack = QStackedWidget()
+        self._stack.addWidget(self.full)
+        self._stack.addWidget(self.tabs)
+        outer = QVBoxLayout(self)
+        outer.setContentsMargins(4, 4, 4, 4)
+        outer.addWidget(self._stack)
+        self._compact = None
+        self._arrange(False)
+
+    def _arrange(self, compact: bool) -> None:
+        """The three parts in tabs (``compact``) or the statistics above the two plots."""
+        if compact == self._compact:
+            return
+        self._compact = compact
+        if compact:
+            for w, name in ((self.stats, "Statistics"), (self.map, "Difference map"), (self.hist, "Histogram")):
+                self.tabs.addTab(w, name)
+        else:
+            self.tabs.clear()  # (the pages are kept: they move back)
+            self.full.layout().insertWidget(0, self.stats)
+            self.split.addWidget(self.map)
+            self.split.addWidget(self.hist)
+            for w in (self.stats, self.map, self.hist):
+                w.show()
+        self._stack.setCurrentWidget(self.tabs if compact else self.full)
+
+    def resizeEvent(self, ev) -> None:
+        """Judged on what the dock shows (its scroll area's viewport), not on this panel."""
+        super().resizeEvent(ev)
+        area = self.parentWidget() if self.parentWidget() is not None else self
+        self._arrange(area.height() < self.COMPACT_HEIGHT)
 
     def rows(self):
         """``[(label, DiffStats)]``: overall first, then one per class."""
@@ -315,6 +363,10 @@ class DsmResultPanel(QWidget):
             for c, text in enumerate(cells):
                 self.table.setItem(i, c, _item(text, c == 0))
         self.table.resizeColumnsToContents()
+        t = self.table  # as tall as its rows (with room for the side scroll bar), no taller
+        need = (t.horizontalHeader().height() + sum(t.rowHeight(i) for i in range(t.rowCount()))
+                + 2 * t.frameWidth() + t.horizontalScrollBar().sizeHint().height())
+        t.setFixedHeight(min(need, 130))
         ok = np.isfinite(diff)
         limit = float(np.percentile(np.abs(diff[ok]), 98)) if ok.any() else 1.0
         self.map_item.setImage(shaded_difference(diff, relief, limit))

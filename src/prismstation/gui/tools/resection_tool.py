@@ -26,6 +26,7 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDoubleSpinBox, QFormLayout, 
 
 from prismstation.core.resection import PUSHBROOM_NOTE, FrameCamera, base_height, resect
 from prismstation.errors import PrismError
+from prismstation.gui.plots import legend_below
 from prismstation.gui.titles import fit_title
 from prismstation.gui.tools._rect_common import view_points
 from prismstation.io.report import scene_identity
@@ -138,7 +139,7 @@ class ResectionDialog(QDialog):
         self.plot_pos.setLabel("bottom", "iteration")
         for p in (self.plot_angles, self.plot_pos):
             p.setBackground("w")
-            p.addLegend(offset=(-10, 10))
+            legend_below(p.getPlotItem(), columns=3)  # (inside, it hid the first iterations)
             p.showGrid(x=True, y=True, alpha=0.3)
             right.addWidget(p)
         self.resize(1100, 720)
@@ -222,7 +223,7 @@ class ResectionDialog(QDialog):
         try:
             res = self.resect_view(view)
         except PrismError as exc:
-            self.text.setHtml(f"<p style='color:#b91c1c'>Resection of {view} failed: {exc}</p>")
+            self.text.setHtml(f"<p style='color:#b91c1c'>Resection of {escape(view)} failed: {escape(str(exc))}</p>")
             return None
         self.show_result(view, res)
         return res
