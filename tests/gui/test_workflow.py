@@ -196,7 +196,7 @@ def test_validate_dsm_offers_the_dsm_just_exported_with_the_heights_it_records(q
         return QDialog.DialogCode.Accepted
     monkeypatch.setattr(dsm_tool.DsmDialog, "exec", export_exec)
     next(a for a in win.tools_menu.actions() if a.text() == "Export &DSM…").trigger()
-    qtbot.waitUntil(lambda: out.is_file() and not win.tools["dsm"].job.isRunning(), timeout=120000)
+    qtbot.waitUntil(lambda: win.statusBar().currentMessage().startswith("Wrote"), timeout=120000)  # its end
     offered = {}
 
     def validate_exec(dlg):
