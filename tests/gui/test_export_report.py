@@ -154,3 +154,13 @@ def test_an_edit_just_made_is_in_the_report(window, qtbot, answered):
     assert next(p for p in rep["points"] if p["id"] == gcp)["kind"] == "ICP"
     assert rep["statistics"]["ground"]["ICP"]["x"]["n"] == \
         sum(1 for p in win.solver.solution.points if p.kind == "ICP" and p.ground_residual is not None)
+
+
+def test_the_reports_figures_are_freed_at_once(window, answered, tmp_path):
+    """Each PDF export left its figures' widgets (~26 MB) until an event loop deleted them
+    later: a script's exports, or the window's in a loop that does not return, piled up."""
+    from PySide6.QtWidgets import QApplication
+    before = len(QApplication.allWidgets())
+    for k in range(2):
+        assert window.export_report(str(tmp_path / f"r{k}.pdf"))
+    assert len(QApplication.allWidgets()) == before

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 import pyqtgraph as pg
+import shiboken6
 from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtGui import QFont, QImage
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QGridLayout, QHBoxLayout, QLabel,
@@ -472,7 +473,8 @@ class PlotsWidget(QWidget):
                     for name, pw in tmp.plots.items()}
         finally:
             tmp.hide()
-            tmp.deleteLater()
+            shiboken6.delete(tmp)  # now: deleteLater waits for the event loop (a script has
+            # none, and a report's figures are ~26 MB of widgets and pictures)
 
     # ------------------------------------------------------------------ internals
     def _update_vectors(self) -> None:

@@ -42,7 +42,8 @@ def render_figures(report: dict, size=(840, 540)) -> dict:
         w.set_report(report)
         return w.render_images(size)
     finally:
-        w.deleteLater()
+        import shiboken6
+        shiboken6.delete(w)  # now, not from an event loop a script may not run
 
 
 def _png_bytes(image) -> bytes:
