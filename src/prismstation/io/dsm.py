@@ -34,7 +34,8 @@ from rasterio.transform import Affine
 from rasterio.windows import Window
 
 from prismstation.errors import WriteError
-from prismstation.io.atomic import atomic_path, free_bytes, raster_check, write_error
+from prismstation.io.atomic import (FreeSpaceWatch, atomic_path, free_bytes, raster_check, scratch_file,
+                                    write_error)
 
 NODATA = float("nan")   # what a plain read of band 1 shows as no height
 BANDS = ("height", "mask", "pairs_agreeing")
@@ -96,9 +97,9 @@ def write_dsm(path, dsm, *, before_keep=None) -> None:
     try:
         with rasterio.Env(GDAL_PAM_ENABLED="NO"), atomic_path(path, check=_check_then(raster_check(cols, rows, 3), before_keep)) as tmp:
             try:
-                fd, plain = tempfile.mkstemp(prefix="prismstation-dsm-", suffix=".tif")
-                os.close(fd)
-                _write_plain(plain, profile, h, seen, dsm, tags)
+                plain = str(scratch_file("dsm", ".tif"))  # (a killed run's: removed first)
+                with FreeSpaceWatch(tempfile.gettempdir()) as watch:
+                    _write_plain(plain, profile, h, seen, dsm, tags)
                 raster_check(cols, rows, 3)(Path(plain))
             except WriteError as exc:  # the scratch copy is not whole
                 raise WriteError(f"cannot write the scratch copy of {path.name}: "
@@ -106,14 +107,24 @@ def write_dsm(path, dsm, *, before_keep=None) -> None:
             except (RasterioError, CPLE_BaseError, OSError) as exc:
                 scratch = plain or tempfile.gettempdir()
                 raise write_error(scratch, exc, f"cannot write the scratch copy of {path.name}",
-                                  free=free_bytes(tempfile.gettempdir())) from None
-            with rasterio.open(plain) as src:
-                rio_copy(src, tmp, driver="COG", COMPRESS="DEFLATE", PREDICTOR="YES", BLOCKSIZE=256,
-                         OVERVIEWS="AUTO", OVERVIEW_RESAMPLING="AVERAGE", GEOTIFF_VERSION="1.1")
+                                  free=_least(watch if plain else None, tempfile.gettempdir())) from None
+            try:
+                with FreeSpaceWatch(path.parent) as watch, rasterio.open(plain) as src:
+                    rio_copy(src, tmp, driver="COG", COMPRESS="DEFLATE", PREDICTOR="YES", BLOCKSIZE=256,
+                             OVERVIEWS="AUTO", OVERVIEW_RESAMPLING="AVERAGE", GEOTIFF_VERSION="1.1")
+            except (RasterioError, CPLE_BaseError) as exc:  # the free space when it failed, not after
+                raise write_error(path, exc, free=_least(watch, path.parent)) from None
     finally:
         for f in (plain, f"{plain}.aux.xml") if plain else ():
             if os.path.exists(f):
                 os.unlink(f)
+
+
+def _least(watch, folder) -> int | None:
+    """The least free space ``watch`` saw (GDAL frees its temporaries before it raises), else
+    the free space now."""
+    least = getattr(watch, "least", None)
+    return least if least is not None else free_bytes(folder)
 
 
 def _check_then(check, before_keep):
