@@ -33,3 +33,11 @@ def test_recorded_height_kinds(tmp_path):
     assert recorded_height_kind(tmp_path / "missing.tif") is None
     (tmp_path / "g.tif").write_text("not a raster")
     assert recorded_height_kind(tmp_path / "g.tif") is None
+
+
+def test_a_fifo_or_a_folder_says_nothing_and_does_not_hang(tmp_path):
+    import os
+    fifo = tmp_path / "dsm.tif"
+    os.mkfifo(fifo)
+    assert recorded_height_kind(fifo) is None      # (opening it for reading would block)
+    assert recorded_height_kind(tmp_path) is None

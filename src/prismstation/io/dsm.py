@@ -33,7 +33,7 @@ from rasterio.shutil import copy as rio_copy
 from rasterio.transform import Affine
 from rasterio.windows import Window
 
-from prismstation.errors import WriteError
+from prismstation.errors import PrismError, WriteError
 from prismstation.io.atomic import (FreeSpaceWatch, atomic_path, free_bytes, raster_check, scratch_file,
                                     write_error)
 
@@ -171,10 +171,11 @@ def recorded_height_kind(path) -> str | None:
     a vertical CRS is gravity-related (orthometric) unless its name or datum names an ellipsoid
     (GeoTIFF keys keep those, not the axis), a 3-D CRS with an ellipsoidal height axis is
     ellipsoidal; a 2-D CRS says nothing."""
+    from prismstation.io.inputs import open_raster_file
     try:
-        with rasterio.open(path) as ds:
+        with open_raster_file(path, "DSM") as ds:  # (a typed path: a FIFO would hang the reader)
             tag, wkt = ds.tags().get("HEIGHTS"), ds.crs.to_wkt() if ds.crs else None
-    except (RasterioError, CPLE_BaseError, OSError):
+    except (PrismError, RasterioError, CPLE_BaseError, OSError):
         return None
     if tag in ("ellipsoidal", "orthometric"):
         return tag
