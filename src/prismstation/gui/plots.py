@@ -23,9 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 import pyqtgraph as pg
-import shiboken6
 from PySide6.QtCore import Qt, QTimer, Signal
-from PySide6.QtGui import QFont, QImage
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QGridLayout, QHBoxLayout, QLabel,
                                QStackedWidget, QTabWidget, QVBoxLayout, QWidget)
 
@@ -34,6 +32,7 @@ from prismstation.gui.markers import Scatter
 from prismstation.gui.plain import plain_block
 from prismstation.gui.palette import BLUNDER_RGB, FIT_RGB, KIND_RGB, THEORY_RGB, qcolor
 from prismstation.gui.plot_data import PlotData, auto_exaggeration, data_ranges, line_x, segments
+from prismstation.gui.plot_figures import legend_below
 from prismstation.gui.text_label import TextLabel
 
 __all__ = ["PlotsWidget", "PlotData", "PLOT_NAMES", "auto_exaggeration"]
@@ -57,25 +56,6 @@ _LEGEND_HTML = (f"<span style='color:{qcolor(KIND_RGB['GCP']).name()}'>●</span
                 f"<span style='color:{qcolor(BLUNDER_RGB).name()}'>■ ◯</span> blunder")
 TAB_NAMES = {"height": "h vs parallax", "height_minus_theory": "h − theory",
              "vectors": "Residual vectors", "std_residuals": "Std. residuals"}
-
-
-def legend_below(plot_item, columns: int = 4, **style) -> pg.LegendItem:
-    """A legend in a row of its own under ``plot_item``'s bottom axis — never over the data
-    (inside the plot it hid points where they gathered) — listing the items added with a name
-    from now on, in ``columns`` columns. ``style``: pyqtgraph's legend options."""
-    legend = pg.LegendItem(offset=None, colCount=columns, **style)
-    plot_item.layout.addItem(legend, 4, 1)
-    plot_item.layout.setAlignment(legend, Qt.AlignmentFlag.AlignHCenter)
-    plot_item.legend = legend  # (PlotItem.addItem lists named items in it)
-    return legend
-
-
-def _drawn(item) -> bool:
-    """Whether a plot item has anything to draw (a legend lists only those)."""
-    if isinstance(item, pg.ScatterPlotItem):
-        return len(item.data) > 0
-    x = getattr(item, "xData", None)
-    return x is not None and len(x) > 0
 
 
 class PlotsWidget(QWidget):
@@ -426,55 +406,6 @@ class PlotsWidget(QWidget):
     @property
     def exaggeration(self) -> float:
         return self._exaggeration
-
-    def figure_widget(self) -> "PlotsWidget":
-        """A hidden copy of this widget drawn as the report's figures are: antialiased, a grid,
-        each legend under its plot naming only what it draws. The caller deletes it."""
-        smooth = pg.getConfigOption("antialias")
-        pg.setConfigOptions(antialias=True)  # items read it when created
-        try:
-            tmp = PlotsWidget(grid=True, legends=True)
-        finally:
-            pg.setConfigOptions(antialias=smooth)
-        tmp.setAttribute(Qt.WidgetAttribute.WA_DontShowOnScreen, True)
-        if not self.auto_box.isChecked() and not self._screen_k:
-            tmp.set_exaggeration(self._exaggeration)
-        tmp.set_plot_data(self._data)
-        for pw in tmp.plots.values():
-            legend = pw.getPlotItem().legend
-            for sample, _ in list(legend.items) if legend is not None else ():
-                if not _drawn(sample.item):
-                    legend.removeItem(sample.item)
-        return tmp
-
-    def render_images(self, size=(900, 560)) -> dict:
-        """Each plot as a QImage of ``size`` pixels (for reports): ``{name: QImage}``.
-
-        Drawn by a hidden copy of this widget laid out at that size, so a docked, visible
-        widget is not disturbed."""
-        from PySide6.QtWidgets import QApplication
-        tmp = self.figure_widget()
-        try:
-            for name in tmp._titles:
-                tmp.plots[name].setTitle(tmp._titles[name], size="12pt", color=(30, 30, 30))
-            font = QFont()
-            font.setPointSizeF(10.5)
-            for pw in tmp.plots.values():
-                pw.setFixedSize(int(size[0]), int(size[1]))
-                for side, extent in (("left", 74), ("bottom", 46)):
-                    axis = pw.getPlotItem().getAxis(side)
-                    axis.setTickFont(font)
-                    axis.label.setFont(font)
-                    axis.setWidth(extent) if side == "left" else axis.setHeight(extent)
-            tmp.adjustSize()
-            tmp.show()
-            QApplication.processEvents()
-            return {name: pw.grab().toImage().convertToFormat(QImage.Format.Format_RGB32)
-                    for name, pw in tmp.plots.items()}
-        finally:
-            tmp.hide()
-            shiboken6.delete(tmp)  # now: deleteLater waits for the event loop (a script has
-            # none, and a report's figures are ~26 MB of widgets and pictures)
 
     # ------------------------------------------------------------------ internals
     def _update_vectors(self) -> None:

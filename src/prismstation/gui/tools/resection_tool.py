@@ -26,7 +26,7 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDoubleSpinBox, QFormLayout, 
 
 from prismstation.core.resection import PUSHBROOM_NOTE, FrameCamera, base_height, resect
 from prismstation.errors import PrismError
-from prismstation.gui.plots import legend_below
+from prismstation.gui.plot_figures import legend_below
 from prismstation.gui.titles import fit_title
 from prismstation.gui.tools._rect_common import view_points
 from prismstation.io.report import scene_identity
