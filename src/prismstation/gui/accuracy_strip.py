@@ -16,6 +16,7 @@ from PySide6.QtWidgets import QDoubleSpinBox, QFrame, QHBoxLayout, QLabel
 from prismstation.gui.fit_checks import parallax_check
 from prismstation.gui.palette import html
 from prismstation.gui.text_label import TextLabel
+from prismstation.gui.plain import plain
 
 FIELDS = (("E", "ICP RMSE of easting, estimated − known ground position (m)"),
           ("N", "ICP RMSE of northing, estimated − known ground position (m)"),
@@ -56,14 +57,17 @@ def accuracy_values(sol) -> dict:
     return out
 
 
-def accuracy_warning(sol) -> tuple[str, str]:
-    """``(short text, full text)`` of what the strip's figures stand on that does not hold
-    (the parallax model does not fit the GCPs); empty strings when nothing."""
+def accuracy_warning(sol) -> tuple[tuple[str, ...], str]:
+    """``(wordings, full text)`` of what the strip's figures stand on that does not hold (the
+    parallax model does not fit the GCPs): the strip shows the longest wording it has room
+    for, the full text in its tool tip; ``((), "")`` when nothing."""
     check = parallax_check(sol)
     if check is None or check.fits:
-        return "", ""
-    return (f"⚠ h from the '{check.model}' parallax model, which does not fit the GCPs "
-            f"({check.rms_model:.3g} m RMS)", check.text())
+        return (), ""
+    return ((f"⚠ h from the '{check.model}' parallax model, which does not fit the GCPs "
+             f"({check.rms_model:.3g} m RMS)",
+             f"⚠ h: the '{check.model}' parallax model does not fit the GCPs",
+             "⚠ h: the parallax model does not fit", "⚠ h: model off", "⚠ h"), check.text())
 
 
 class AccuracyStrip(QFrame):
@@ -124,11 +128,11 @@ class AccuracyStrip(QFrame):
             unit = "" if vals[f] == "—" else (" px" if f == "σ0" else " m")
             lab.setText(vals[f] + unit)
         self.count.setText(vals["count"])
-        short, full = accuracy_warning(sol)
-        self.warning.setText(short)
-        if self.warning.toolTip() != full:
-            self.warning.setToolTip(full)
-        self.values["h"].set_color(WARN_COLOR if short else None)
+        wordings, full = accuracy_warning(sol)
+        self.warning.setText(*(wordings or ("",)))
+        if self.warning.toolTip() != plain(full):
+            self.warning.setToolTip(plain(full))
+        self.values["h"].set_color(WARN_COLOR if wordings else None)
 
     def text(self) -> str:
         """What the strip shows, one line (tests)."""

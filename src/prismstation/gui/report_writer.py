@@ -36,13 +36,15 @@ def _ensure_app():
 def render_figures(report: dict, size=(840, 540)) -> dict:
     """The four plots of ``report`` as QImages ``{name: QImage}`` (offscreen pyqtgraph)."""
     _ensure_app()
+    from prismstation.gui.plot_figures import render_images
     from prismstation.gui.plots import PlotsWidget
     w = PlotsWidget()
     try:
         w.set_report(report)
-        return w.render_images(size)
+        return render_images(w, size)
     finally:
-        w.deleteLater()
+        import shiboken6
+        shiboken6.delete(w)  # now, not from an event loop a script may not run
 
 
 def _png_bytes(image) -> bytes:

@@ -33,7 +33,7 @@ from rasterio.shutil import copy as rio_copy
 from rasterio.transform import Affine
 from rasterio.windows import Window
 
-from prismstation.errors import WriteError
+from prismstation.errors import PrismError, WriteError
 from prismstation.io.atomic import (FreeSpaceWatch, atomic_path, free_bytes, raster_check, scratch_file,
                                     write_error)
 
@@ -162,3 +162,30 @@ def read_dsm_info(path) -> dict:
         return {"tags": ds.tags(), "bands": ds.descriptions, "crs": pyproj.CRS.from_wkt(ds.crs.to_wkt()),
                 "blocks": ds.block_shapes[0], "overviews": ds.overviews(1), "nodata": ds.nodata,
                 "shape": (ds.height, ds.width)}
+
+
+def recorded_height_kind(path) -> str | None:
+    """The kind of heights a raster says it holds — ``"ellipsoidal"``, ``"orthometric"`` — or
+    None where it does not say (or cannot be read). A DSM written here says it twice (the
+    ``HEIGHTS`` tag, the vertical CRS of :func:`vertical_crs`); another raster through its CRS:
+    a vertical CRS is gravity-related (orthometric) unless its name or datum names an ellipsoid
+    (GeoTIFF keys keep those, not the axis), a 3-D CRS with an ellipsoidal height axis is
+    ellipsoidal; a 2-D CRS says nothing."""
+    from prismstation.io.inputs import open_raster_file
+    try:
+        with open_raster_file(path, "DSM") as ds:  # (a typed path: a FIFO would hang the reader)
+            tag, wkt = ds.tags().get("HEIGHTS"), ds.crs.to_wkt() if ds.crs else None
+    except (PrismError, RasterioError, CPLE_BaseError, OSError):
+        return None
+    if tag in ("ellipsoidal", "orthometric"):
+        return tag
+    if not wkt:
+        return None
+    crs = pyproj.CRS.from_wkt(wkt)
+    for part in crs.sub_crs_list if crs.is_compound else [crs]:
+        if part.is_vertical:
+            names = f"{part.name} {part.datum.name if part.datum else ''}".lower()
+            return "ellipsoidal" if "ellipsoid" in names else "orthometric"
+        if any("ellipsoidal height" in a.name.lower() for a in part.axis_info):
+            return "ellipsoidal"
+    return None

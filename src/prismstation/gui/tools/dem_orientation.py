@@ -33,6 +33,7 @@ from PySide6.QtWidgets import (QDialog, QDialogButtonBox, QDoubleSpinBox, QFileD
 from prismstation.core.conditioning import MIN_PATCHES, TARGET_M, SigmaSummary
 from prismstation.core.dem_orient import patch_windows
 from prismstation.gui import settings as st
+from prismstation.gui.plain import counted, plain
 from prismstation.gui.titles import fit_title
 from prismstation.gui.tools import _rpc_orientation as rpc_orientation
 from prismstation.gui.tools._worker import run_with_progress
@@ -174,6 +175,8 @@ class PatchTable(QWidget):
         self.summary.setWordWrap(True)
         self.verdict = QLabel("")
         self.verdict.setWordWrap(True)
+        for lab in (self.summary, self.verdict):
+            lab.setTextFormat(Qt.TextFormat.PlainText)  # (the reference's file name)
         self.apply_button = QPushButton("Apply this orientation anyway")
         self.apply_button.setToolTip("Make this untrusted orientation the project's (undoable)")
         self.apply_button.hide()
@@ -228,10 +231,10 @@ class PatchTable(QWidget):
         vec = f"; vectors on N × {scale:.0f}" if scale else ""
         ref = str(record.get("reference", "?"))
         sigma = record.get("sigma_apriori_m")
-        self.summary.setToolTip(ref)
+        self.summary.setToolTip(plain(ref))
         self.summary.setText(
             f"Reference {ref.replace(chr(92), '/').rsplit('/', 1)[-1]} — {state}. A-priori geolocation σ "
-            f"{_num(sigma):.0f} m per view. {used} of {len(patches)} patches used; from the ancillary model "
+            f"{_num(sigma):.0f} m per view. {used} of {counted(len(patches), 'patch', 'patches')} used; from the ancillary model "
             f"F−N ({off.get('F', nan2)[0]:+.1f}, {off.get('F', nan2)[1]:+.1f}) px, "
             f"B−N ({off.get('B', nan2)[0]:+.1f}, {off.get('B', nan2)[1]:+.1f}) px{vec}.")
         self.verdict.setText(verdict_text(record))
@@ -345,7 +348,7 @@ class DemOrientationTool:
         self.declined = None
         self._shown = None
         used = sum(1 for p in record["patches"] if p.get("used"))
-        self.ctx.undo_stack.push(SetDemOrientation(project, record, "dem", f"Orient from DEM ({used} patches)"))
+        self.ctx.undo_stack.push(SetDemOrientation(project, record, "dem", f"Orient from DEM ({counted(used, 'patch', 'patches')})"))
         if record.get("verdict", {}).get("status") != "ok":
             self.ctx.status(f"Applied, not trusted: {verdict_text(record)}", 30000)
 
@@ -354,12 +357,17 @@ class DemOrientationTool:
         if not self.ctx.interactive:
             return False
         v = record.get("verdict") or {}
+        p = self.ctx.project
+        if p is not None and p.settings.orientation == "dem":
+            now = ("the orientation from the reference DEM applied before (Edit ▸ Undo returns to "
+                   "it; Tools ▸ Back to GCP orientation to the GCPs)")
+        else:
+            now = "the GCP orientation (Edit ▸ Undo or Tools ▸ Back to GCP orientation return to it)"
         box = QMessageBox(QMessageBox.Icon.Warning, "Orientation from the reference DEM",
-                          f"The orientation from the reference DEM is NOT TRUSTED ({v.get('status')}): "
-                          f"{v.get('message', '')}."
-                          + (f"\n\nWhat would help: {v['advice']}." if v.get("advice") else "")
-                          + "\n\nApply it anyway? It would replace the GCP "
-                          "orientation (Edit ▸ Undo or Tools ▸ Back to GCP orientation return to it).",
+                          plain(f"The orientation from the reference DEM is NOT TRUSTED ({v.get('status')}): "
+                                f"{v.get('message', '')}."
+                                + (f"\n\nWhat would help: {v['advice']}." if v.get("advice") else "")
+                                + f"\n\nApply it anyway? It would replace {now}."),
                           QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, self.ctx.widget)
         box.setDefaultButton(QMessageBox.StandardButton.No)
         fit_title(box)
