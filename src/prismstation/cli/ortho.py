@@ -37,7 +37,7 @@ def register(sub) -> None:
                    help="σ of the DEM's heights, m (default: measured at the project's points, else 10 m)")
     p.add_argument("--height", type=float, metavar="H",
                    help="without --dem: one orthometric height for every cell (a warning says what relief does)")
-    p.add_argument("--posting", type=float, metavar="M", help="cell size, m (default: the view's pixel)")
+    p.add_argument("--posting", type=float, metavar="M", help="cell size, m (default: the reference view's pixel, to 2 figures)")
     p.add_argument("--window", nargs=4, type=int, metavar=("COL", "ROW", "W", "H"),
                    help="the ground under this window of the reference view's image, pixels (default: each whole image)")
     p.add_argument("--resampling", choices=RESAMPLINGS, default="bilinear")

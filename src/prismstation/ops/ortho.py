@@ -58,7 +58,7 @@ class OrthoRequest:
     project's DSM, a reference DEM), ``dem_kind`` its heights (``auto``: as the file states,
     else orthometric), ``dem_sigma_m`` its height σ when known. Without a DEM: the constant
     orthometric ``height_m``, else the fit's mean height (both with a warning). ``posting_m``:
-    the grid's cell (default the view's pixel). ``window``: ``(col, row, w, h)`` pixels of the
+    the grid's cell (default the reference view's pixel, rounded: :func:`default_posting`). ``window``: ``(col, row, w, h)`` pixels of the
     reference view, None for each whole image. ``resampling``: ``bilinear`` or ``cubic``.
     ``scheduler``, ``workers``: see :mod:`prismstation.ops.dsm_tiles`."""
 
@@ -257,6 +257,13 @@ def _tags(sol, project, view, request, heights, posting, accuracy: OrthoAccuracy
     return t
 
 
+def default_posting(scene) -> float:
+    """The reference view's pixel rounded to two significant figures (PRISM 2.5 m, Pléiades
+    0.5 m): one posting for every view, so their orthos share their cells."""
+    g = float(scene.views[scene.reference_view].pixel_size_m)
+    return float(f"{g:.2g}")
+
+
 def tiles_of(shape, size: int = TILE):
     """``(row0, col0, rows, cols)`` windows of ``size`` cells covering a grid of ``shape``."""
     rows, cols = shape
@@ -308,7 +315,7 @@ def export_orthos(sol, project, request: OrthoRequest, *, project_path=None, pro
 def _one_view(sol, project, request, view, path, heights, geoid, ground, project_path, progress) -> OrthoView:
     checkpoint(progress, 0.0, f"view {view}: planning")
     v = sol.scene.views[view]
-    posting = float(request.posting_m or v.pixel_size_m)
+    posting = float(request.posting_m or default_posting(sol.scene))
     plan_heights = heights if geoid is None else _with_undulation(heights, geoid, _rough_bounds(sol, view, request))
     transform, shape = plan_grid(sol, view, plan_heights, posting, request.window)
     if geoid is not None:
