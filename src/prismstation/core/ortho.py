@@ -66,17 +66,6 @@ class Lattice:
     def levels(self) -> int:
         return self.coef.shape[0]
 
-    def node_positions(self) -> np.ndarray:
-        """Image ``(x, y)`` of every node at the range's ends and middle ``(3, nr, nc, 2)`` (where
-        the tile's image window lies)."""
-        out = []
-        for t in (-1.0, 0.0, 1.0):
-            v = np.zeros(self.coef.shape[1:])
-            for k in range(self.levels - 1, -1, -1):
-                v = v * t + self.coef[k]
-            out.append(np.moveaxis(v, 0, -1))
-        return np.stack(out)
-
 
 def _nodes(transform, shape, step):
     """Map ``(E, N)`` ``(nr, nc, 2)`` of the lattice nodes of a tile."""

@@ -264,8 +264,10 @@ def default_posting(scene) -> float:
     return float(f"{g:.2g}")
 
 
-def tiles_of(shape, size: int = TILE):
-    """``(row0, col0, rows, cols)`` windows of ``size`` cells covering a grid of ``shape``."""
+def tiles_of(shape, size: int | None = None):
+    """``(row0, col0, rows, cols)`` windows of ``size`` (default :data:`TILE`) cells covering a
+    grid of ``shape``."""
+    size = size or TILE
     rows, cols = shape
     return [(r, c, min(size, rows - r), min(size, cols - c)) for r in range(0, rows, size)
             for c in range(0, cols, size)]

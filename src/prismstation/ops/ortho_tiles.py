@@ -165,6 +165,18 @@ def run_ortho_tile(spec: OrthoTile) -> TileOut:
                                   f"columns {c}–{c + cols}") from None
 
 
+def _edge(transform, shape, every: int = 8) -> np.ndarray:
+    """Map ``(E, N)`` of the cell centres along a grid's edge, every ``every`` cells and at its
+    corners."""
+    a, _, c, _, e, f = tuple(transform)[:6]
+    rows, cols = shape
+    i = np.unique(np.r_[np.arange(0, cols, every), cols - 1]) + 0.5
+    j = np.unique(np.r_[np.arange(0, rows, every), rows - 1]) + 0.5
+    cx = np.r_[i, i, np.full(len(j), 0.5), np.full(len(j), cols - 0.5)]
+    cy = np.r_[np.full(len(i), 0.5), np.full(len(i), rows - 0.5), j, j]
+    return np.column_stack([c + a * cx, f + e * cy])
+
+
 def sample_view(ground_to_image, view: str, image: str, image_shape, transform, heights,
                 resampling: str = "bilinear", factor: int = 1) -> TileOut:
     """The image ``image`` (view ``view``, ``image_shape`` (rows, cols)) resampled at
@@ -175,8 +187,13 @@ def sample_view(ground_to_image, view: str, image: str, image_shape, transform, 
     finite = np.isfinite(heights)
     if not finite.any():
         return empty
-    lat = fit_lattice(ground_to_image, transform, shape, float(heights[finite].min()), float(heights[finite].max()))
-    xy = lat.node_positions().reshape(-1, 2)
+    h_lo, h_hi = float(heights[finite].min()), float(heights[finite].max())
+    lat = fit_lattice(ground_to_image, transform, shape, h_lo, h_hi)
+    # the window: the grid's edge at the lowest, middle and highest heights (a smooth map's
+    # extremes over a rectangle and a height range lie there)
+    edge = _edge(transform, shape)
+    xy = np.concatenate([np.asarray(ground_to_image(edge, np.full(len(edge), hh)), float)
+                         for hh in (h_lo, 0.5 * (h_lo + h_hi), h_hi)])
     xy = xy[np.isfinite(xy).all(axis=1)]
     if not len(xy):
         return empty
