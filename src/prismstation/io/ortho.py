@@ -132,6 +132,6 @@ def read_ortho_overview(path, max_px: int = 2048) -> tuple[np.ndarray, tuple]:
         shape = (max(1, ds.height // f), max(1, ds.width // f))
         v = ds.read(1, out_shape=shape).astype(np.float32)
         m = ds.dataset.read_masks(1, out_shape=shape)
-        t = ds.transform * Affine.scale(ds.width / shape[1], ds.height / shape[0])
+        t = ds.transform @ Affine.scale(ds.width / shape[1], ds.height / shape[0])
     return np.where(m > 0, v, np.nan), tuple(t)[:6]
 

@@ -128,6 +128,8 @@ def validate_ortho(sol, project, path, *, points=None, kinds=("GCP", "ICP"), hal
     info = read_ortho_info(path)
     tags = info["tags"]
     view = tags.get("ORTHO_VIEW")
+    if view is None:
+        raise InputError("not an orthoimage of prismstation (no ORTHO_VIEW tag)", file=path)
     if view not in sol.scene.views:
         raise InputError(f"the ortho is of view {view!r}, not a view of the project "
                          f"({', '.join(sol.scene.views)})", file=path)
