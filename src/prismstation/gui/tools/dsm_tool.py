@@ -30,13 +30,13 @@ from prismstation.ops.sensors import workflows_of
 HEIGHT_MODEL_NAMES = {"auto": "automatic (the one the GCPs predict better)",
                       "line": "the model's parallax line", "rays": "the rays through the biases"}
 
-def visible_window(ctx) -> tuple | None:
-    """The N-image window ``(col0, row0, cols, rows)`` visible in the N view, clipped to the
-    image (None if nothing of the image is visible). ``ctx``: the :class:`~prismstation.gui.tools.ToolContext`."""
-    iv = ctx.views.views.get("N")
+def visible_window(ctx, view: str = "N") -> tuple | None:
+    """The window ``(col0, row0, cols, rows)`` of ``view``'s image visible in its view, clipped
+    to the image (None if nothing of the image is visible). ``ctx``: the :class:`~prismstation.gui.tools.ToolContext`."""
+    iv = ctx.views.views.get(view)
     if iv is None or ctx.project is None:
         return None
-    rows, cols = ctx.project.scene.views["N"].shape
+    rows, cols = ctx.project.scene.views[view].shape
     x, y, w, h = iv.visible_rect()
     c0, r0 = max(int(x), 0), max(int(y), 0)
     c1, r1 = min(int(x + w) + 1, cols), min(int(y + h) + 1, rows)
