@@ -5,6 +5,7 @@ import sys
 from pathlib import Path
 
 from prismstation.errors import InputError
+from prismstation.io.inputs import local_file
 from prismstation.ops.fit import BIAS_MODELS, PARALLAX_MODELS
 from prismstation.ops.predict import DEFAULT_DEM_SIGMA_M
 
@@ -91,7 +92,5 @@ def end_progress() -> None:
 
 
 def existing(path: str, what: str = "file") -> Path:
-    p = Path(path)
-    if not p.exists():
-        raise InputError(f"{what} not found", p)
-    return p
+    """``path`` when it is a regular local file (:func:`prismstation.io.inputs.local_file`)."""
+    return local_file(path, what)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import sys
 
 from prismstation.cli._common import end_progress, existing, progress_printer
+from prismstation.io.lock import refuse_if_held
 from prismstation.io.project import load_project, save_project
 from prismstation.io.report import write_report
 from prismstation.io.text_report import format_report
@@ -49,6 +50,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    if args.save:  # before the work: the window holding the project would drop what is saved
+        refuse_if_held(args.project)
     project = load_project(existing(args.project, "project"))
     require_workflow(project, "orient-dem", args.project)
     existing(args.reference, "reference DEM")

@@ -23,7 +23,8 @@ from rasterio.errors import RasterioError
 from rasterio.shutil import copy as rio_copy
 
 from prismstation.errors import PrismError, WriteError
-from prismstation.io.atomic import atomic_path, free_bytes, raster_check, write_error
+from prismstation.io.atomic import (FreeSpaceWatch, atomic_path, free_bytes, raster_check, scratch_file,
+                                    write_error)
 
 BLOCK = 256
 
@@ -35,7 +36,8 @@ def write_cog(path, profile: dict, fill: Callable, *, before_keep=None, what: st
     256 × 256 here); its tags, band names and mask go into the COG. ``before_keep()``, when
     given, is called once the COG is written and checked, before it replaces ``path``: whatever
     it raises (a cancel) leaves ``path`` as it was. ``what`` names the scratch file
-    (``prismstation-WHAT-…``)."""
+    (``prismstation-WHAT-<owner>_…``: :func:`prismstation.io.atomic.scratch_file`, a killed run's
+    removed by the next)."""
     path = Path(path)
     profile = dict(profile, driver="GTiff", tiled=True, blockxsize=BLOCK, blockysize=BLOCK)
     cols, rows, count = profile["width"], profile["height"], profile["count"]
@@ -44,10 +46,10 @@ def write_cog(path, profile: dict, fill: Callable, *, before_keep=None, what: st
     try:
         with rasterio.Env(GDAL_PAM_ENABLED="NO", GDAL_TIFF_INTERNAL_MASK="YES"), \
                 atomic_path(path, check=_check_then(check, before_keep)) as tmp:
+            watch = None
             try:
-                fd, plain = tempfile.mkstemp(prefix=f"prismstation-{what}-", suffix=".tif")
-                os.close(fd)
-                with rasterio.open(plain, "w", **profile) as ds:
+                plain = str(scratch_file(what, ".tif"))  # (a killed run's: removed first)
+                with FreeSpaceWatch(tempfile.gettempdir()) as watch, rasterio.open(plain, "w", **profile) as ds:
                     fill(ds)
                 check(Path(plain))
             except PrismError as exc:
@@ -58,15 +60,25 @@ def write_cog(path, profile: dict, fill: Callable, *, before_keep=None, what: st
             except (RasterioError, CPLE_BaseError, OSError) as exc:
                 scratch = plain or tempfile.gettempdir()
                 raise write_error(scratch, exc, f"cannot write the scratch copy of {path.name}",
-                                  free=free_bytes(tempfile.gettempdir())) from None
-            with rasterio.open(plain) as src:
-                rio_copy(src, tmp, driver="COG", COMPRESS="DEFLATE", PREDICTOR="YES", BLOCKSIZE=BLOCK,
-                         OVERVIEWS="AUTO", OVERVIEW_RESAMPLING=overview_resampling, GEOTIFF_VERSION="1.1",
-                         NUM_THREADS="ALL_CPUS")
+                                  free=_least(watch, tempfile.gettempdir())) from None
+            try:
+                with FreeSpaceWatch(path.parent) as watch, rasterio.open(plain) as src:
+                    rio_copy(src, tmp, driver="COG", COMPRESS="DEFLATE", PREDICTOR="YES", BLOCKSIZE=BLOCK,
+                             OVERVIEWS="AUTO", OVERVIEW_RESAMPLING=overview_resampling, GEOTIFF_VERSION="1.1",
+                             NUM_THREADS="ALL_CPUS")
+            except (RasterioError, CPLE_BaseError) as exc:  # the free space when it failed, not after
+                raise write_error(path, exc, free=_least(watch, path.parent)) from None
     finally:
         for f in (plain, f"{plain}.aux.xml", f"{plain}.msk") if plain else ():
             if os.path.exists(f):
                 os.unlink(f)
+
+
+def _least(watch, folder) -> int | None:
+    """The least free space ``watch`` saw (GDAL frees its temporaries before it raises), else
+    the free space now."""
+    least = getattr(watch, "least", None)
+    return least if least is not None else free_bytes(folder)
 
 
 def _check_then(check, before_keep):

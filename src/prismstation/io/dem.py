@@ -22,6 +22,7 @@ from rasterio.warp import calculate_default_transform, reproject
 from prismstation.errors import InputError, RasterReadError
 from prismstation.io.atomic import atomic_path, cause_text, raster_check
 from prismstation.io.geoid import to_ellipsoidal
+from prismstation.io.georef import height_metres_per_unit
 from prismstation.io.windows import CheckedRaster
 
 SRTM_VOID = -32768
@@ -82,15 +83,48 @@ def open_raster(path, what: str = "raster") -> CheckedRaster:
         raise InputError(str(exc).removeprefix(f"{p}: "), file=p) from None
 
 
-def _read_source(path: Path, what: str):
+#: the most cells one DEM read may hold (2 GiB as float64): a file declaring more is refused
+MAX_READ_CELLS = 1 << 28
+
+
+def _needed_window(ds, target):
+    """The window of ``ds`` that covers the target grid ``(crs, transform, shape)`` with a
+    margin of two cells (None: the whole file), so that a DEM is read only where it is used."""
+    if target is None:
+        return None
+    from rasterio.warp import transform_bounds
+    from rasterio.windows import Window, from_bounds
+    crs, t, (rows, cols) = target
+    xs, ys = zip(*(t * (c, r) for c, r in ((0, 0), (cols, 0), (0, rows), (cols, rows))))
+    try:
+        b = transform_bounds(crs, ds.crs, min(xs), min(ys), max(xs), max(ys), densify_pts=21)
+        w = from_bounds(*b, transform=ds.transform)
+    except Exception:  # bounds GDAL cannot transform: the whole file (its size checked below)
+        return None
+    c0, r0 = max(int(np.floor(w.col_off)) - 2, 0), max(int(np.floor(w.row_off)) - 2, 0)
+    c1 = min(int(np.ceil(w.col_off + w.width)) + 2, ds.width)
+    r1 = min(int(np.ceil(w.row_off + w.height)) + 2, ds.height)
+    return Window(c0, r0, max(c1 - c0, 1), max(r1 - r0, 1)) if c1 > c0 and r1 > r0 else Window(0, 0, 1, 1)
+
+
+def _read_source(path: Path, what: str, target=None):
+    """Band 1 of the DEM in metres (NaN: no data), its CRS and transform; with ``target``
+    (the grid it will be resampled onto) only the window that grid needs is read."""
     with open_raster(path, what) as ds:
         if ds.crs is None:
             raise InputError(f"{what} has no coordinate reference system", file=path)
-        arr = ds.read(1, masked=True).astype(np.float64).filled(np.nan)  # RasterReadError
+        window = _needed_window(ds, target)
+        rows, cols = (window.height, window.width) if window is not None else ds.shape
+        if rows * cols > MAX_READ_CELLS:
+            raise InputError(f"{what} of {ds.width:,} × {ds.height:,} cells: the part needed, {cols:,} × "
+                             f"{rows:,}, is too large to read (at most {MAX_READ_CELLS:,} cells)", file=path)
+        arr = ds.read(1, masked=True, window=window).astype(np.float64).filled(np.nan)  # RasterReadError
+        transform = ds.transform if window is None else ds.window_transform(window)
         if ds.dtypes[0] == "int16":
             arr[arr <= SRTM_VOID] = np.nan        # SRTM voids even without a nodata tag
         arr[~np.isfinite(arr)] = np.nan
-        return arr, ds.crs, ds.transform
+        arr *= height_metres_per_unit(ds.crs.to_wkt(), path)  # heights in feet: refused or converted
+        return arr, ds.crs, transform
 
 
 def _auto_resampling(src, src_crs, src_transform, crs, transform) -> str:
@@ -129,7 +163,9 @@ def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
     DemGrid
     """
     path = Path(path)
-    src, src_crs, src_transform = _read_source(path, what)
+    target = None if crs is None or transform is None or shape is None else \
+        (CRS.from_user_input(crs), Affine(*tuple(transform)[:6]), tuple(shape))
+    src, src_crs, src_transform = _read_source(path, what, target)
     if crs is None and transform is None and shape is None:
         heights, out_crs, out_t = src, src_crs, src_transform
     elif crs is None or transform is None or shape is None:
@@ -165,8 +201,10 @@ def resample_to_grid(path, grid: DemGrid, *, resampling: str = "bilinear",
         if ds.crs is None:
             raise InputError(f"{what} has no coordinate reference system", file=path)
         out = np.full(grid.shape, fill, dtype=dtype)
+        window = _needed_window(ds, (CRS.from_user_input(grid.crs), Affine(*tuple(grid.transform)[:6]), grid.shape))
         try:
-            reproject(source=ds.read(1), destination=out, src_transform=ds.transform,
+            reproject(source=ds.read(1, window=window), destination=out,
+                      src_transform=ds.transform if window is None else ds.window_transform(window),
                       src_crs=ds.crs, src_nodata=ds.nodata, dst_transform=grid.transform,
                       dst_crs=grid.crs, dst_nodata=fill, resampling=Resampling[resampling])
         except Exception as exc:

@@ -28,6 +28,7 @@ from prismstation import __version__
 from prismstation.core.solution import Solution
 from prismstation.errors import InputError
 from prismstation.io.atomic import write_atomic
+from prismstation.io.csvtable import text_cell
 from prismstation.io.jsonfile import plain, read_json, write_json
 
 REPORT_FORMAT = "prismstation-report/1"
@@ -221,7 +222,8 @@ def report_csv(report: dict) -> str:
                     row["x_pred"], row["y_pred"] = p["predicted"][v]
                 if v in p["residual_px"]:
                     row["vx_px"], row["vy_px"] = p["residual_px"][v]
-            w.writerow([_cell(row[k], nd) for k, nd in CSV_COLUMNS.items()])
+            w.writerow([_cell(row[k], nd) if nd is not None else text_cell(_cell(row[k], nd))
+                        for k, nd in CSV_COLUMNS.items()])
     return buf.getvalue()
 
 

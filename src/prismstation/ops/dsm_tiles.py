@@ -19,7 +19,7 @@ import sys
 from dataclasses import dataclass
 from functools import partial
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
 from prismstation.errors import PrismError, RasterReadError

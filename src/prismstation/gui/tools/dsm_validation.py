@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import csv
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -113,8 +112,8 @@ def run_validation(dsm, reference, *, dsm_height="ellipsoidal", reference_height
     from prismstation.io.dem import read_dem
     from prismstation.ops.validate import validate_dsm_files
 
-    fd, tmp = tempfile.mkstemp(suffix=".tif", prefix="dsmdiff_")
-    os.close(fd)
+    from prismstation.io.atomic import scratch_file
+    tmp = str(scratch_file("dsmdiff", ".tif"))  # (a killed run's: removed first)
     try:
         val, info = validate_dsm_files(dsm, reference, dsm_height=dsm_height,
                                        reference_height=reference_height, geoid=geoid,
@@ -317,6 +316,7 @@ class DsmResultPanel(QWidget):
         import io
 
         from prismstation.io.atomic import write_atomic
+        from prismstation.io.csvtable import text_cell
         from prismstation.io.jsonfile import write_json
 
         kind = kind or ("csv" if str(path).lower().endswith(".csv") else "json")
@@ -330,7 +330,7 @@ class DsmResultPanel(QWidget):
         w.writerow(["cells"] + list(STAT_COLUMNS) + [f"p{p:g}" for p in pct]
                    + [f"abs_p{p:g}" for p in apct])
         for label, s in self.rows():
-            w.writerow([label] + [getattr(s, k) for k in STAT_COLUMNS]
+            w.writerow([text_cell(label)] + [getattr(s, k) for k in STAT_COLUMNS]
                        + [s.percentiles[p] for p in pct] + [s.abs_percentiles[p] for p in apct])
         write_atomic(path, buf.getvalue(), keep_backup=False)
 
