@@ -11,13 +11,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pyproj
 import rasterio
 from rasterio._err import CPLE_BaseError
 from rasterio.crs import CRS
 from rasterio.enums import Resampling
 from rasterio.errors import RasterioError
 from rasterio.transform import Affine
-from rasterio.warp import calculate_default_transform, reproject
+from rasterio.vrt import WarpedVRT
+from rasterio.warp import calculate_default_transform, reproject, transform_bounds
+from rasterio.windows import Window
 
 from prismstation.errors import InputError, RasterReadError
 from prismstation.io.atomic import atomic_path, cause_text, raster_check
@@ -278,7 +281,6 @@ def dem_height_kind(path) -> str | None:
     ``HEIGHTS`` tag; another file in the vertical part of a compound CRS (a vertical datum
     named after an ellipsoid: ``"ellipsoidal"``, any other: ``"orthometric"``). None when the
     file says nothing (a plain SRTM or Copernicus GeoTIFF: orthometric by convention)."""
-    import pyproj
     with rasterio.Env(GTIFF_REPORT_COMPD_CS="YES"), open_raster(path, "DEM") as ds:
         kind = (ds.tags().get("HEIGHTS") or "").lower()
         if kind in ("ellipsoidal", "orthometric"):
@@ -303,7 +305,6 @@ def read_dem_window(path, crs, transform, shape, *, resampling: str = "bilinear"
     read (GDAL's warper; positions exact to :data:`WARP_ERROR_PX` of a source cell), so a tile
     of a large DSM costs a tile's memory. ``resampling``: a ``rasterio.enums.Resampling`` name
     (``"min"`` and ``"max"`` give a height range)."""
-    from rasterio.vrt import WarpedVRT
     path = Path(path)
     with open_raster(path, what) as ds:
         if ds.crs is None:
@@ -321,6 +322,7 @@ def read_dem_window(path, crs, transform, shape, *, resampling: str = "bilinear"
         except (RasterioError, CPLE_BaseError, KeyError) as exc:
             raise RasterReadError(f"{path}: cannot read {what} onto a grid "
                                   f"({cause_text(exc, str(path))})") from None
+        out *= np.float32(height_metres_per_unit(ds.crs.to_wkt(), path))
     out[~np.isfinite(out)] = np.nan
     return out
 
@@ -337,7 +339,6 @@ def dem_bounds(path, crs, what: str = "DEM") -> tuple[float, float, float, float
 
 def _same_horizontal(file_crs, crs) -> bool:
     """Whether the file's CRS (its horizontal part, when compound) is ``crs``."""
-    import pyproj
     try:
         a = pyproj.CRS.from_wkt(file_crs.to_wkt())
         b = pyproj.CRS.from_user_input(crs.to_wkt() if hasattr(crs, "to_wkt") else crs)
@@ -369,12 +370,11 @@ def read_dem_cells(path, crs, bounds, *, min_cell: float = 0.0, what: str = "DEM
             out = np.full((r1 - r0, c1 - c0), np.nan, np.float32)
             a0, b0, a1, b1 = max(c0, 0), max(r0, 0), min(c1, ds.width), min(r1, ds.height)
             if a1 > a0 and b1 > b0:
-                from rasterio.windows import Window
                 v = ds.read(1, window=Window(a0, b0, a1 - a0, b1 - b0), masked=True)
                 v = v.astype(np.float32).filled(np.nan)
                 if ds.dtypes[0] == "int16":
                     v[v <= SRTM_VOID] = np.nan
-                out[b0 - r0:b1 - r0, a0 - c0:a1 - c0] = v
+                out[b0 - r0:b1 - r0, a0 - c0:a1 - c0] = v * np.float32(height_metres_per_unit(ds.crs.to_wkt(), path))
             out[~np.isfinite(out)] = np.nan
             return out, (t.a, 0.0, t.c + t.a * c0, 0.0, t.e, t.f + t.e * r0)
         a, b, _, d, e, _ = local_metric_transform(ds.crs, t, (ds.height, ds.width))

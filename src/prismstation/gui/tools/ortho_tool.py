@@ -25,6 +25,7 @@ from PySide6.QtWidgets import (QAbstractSpinBox, QButtonGroup, QCheckBox, QCombo
                                QDialogButtonBox, QDoubleSpinBox, QFileDialog, QFormLayout, QHBoxLayout,
                                QLabel, QLineEdit, QMessageBox, QPushButton, QRadioButton, QVBoxLayout, QWidget)
 
+from prismstation.errors import PrismError
 from prismstation.gui import settings as st
 from prismstation.gui.image_view import ImageView
 from prismstation.gui.markers import Markers
@@ -229,7 +230,6 @@ class OrthoViewer(QWidget):
         prismstation is said in the status bar)."""
         if not path:
             return
-        from prismstation.errors import PrismError
         try:
             info = read_ortho_info(path)
             source = RasterSource(path)
