@@ -322,6 +322,19 @@ def test_without_a_dem_a_constant_height_with_a_warning(scene, on_truth, tmp_pat
     assert "mean height" in m.warnings[0]
     with pytest.raises(InputError, match="not a view"):
         export_orthos(sol, p, OrthoRequest(str(tmp_path / "x.tif"), ("Q",)))
+
+
+def test_without_a_dem_the_projects_reference_dem(scene, on_truth, tmp_path):
+    """No DEM named and no constant: the project's own reference DEM, without a warning; a
+    constant named still wins over it."""
+    out, p, sol = on_truth
+    withref = load_project(scene / "p.prismproj")
+    withref.reference_dem = str(scene / "truth_dem.tif")
+    r = export_orthos(sol, withref, OrthoRequest(str(tmp_path / "r.tif"), ("N",), dem_kind="ellipsoidal"))
+    assert not r.warnings
+    assert r.orthos[0].tags["ORTHO_DEM_PATH"] == str((scene / "truth_dem.tif").resolve())
+    c = export_orthos(sol, withref, OrthoRequest(str(tmp_path / "c.tif"), ("N",), height_m=200.0))
+    assert "ORTHO_DEM_PATH" not in c.orthos[0].tags
     with pytest.raises(InputError, match="DEM not found"):
         export_orthos(sol, p, OrthoRequest(str(tmp_path / "x.tif"), dem=str(tmp_path / "none.tif")))
 

@@ -30,7 +30,8 @@ def register(sub) -> None:
                    help="N, F, B, an image's file name, or all (default: the reference view)")
     p.add_argument("--dem", metavar="DEM",
                    help="heights to project onto: the project's DSM or a reference DEM (any CRS; heights as "
-                        "the file states, else orthometric, made ellipsoidal through the project's geoid)")
+                        "the file states, else orthometric, made ellipsoidal through the project's geoid; "
+                        "default: the project's reference DEM)")
     p.add_argument("--dem-heights", choices=DEM_KINDS, default="auto",
                    help="the DEM's heights (default auto: as the file states, else orthometric)")
     p.add_argument("--dem-sigma", type=float, metavar="M",

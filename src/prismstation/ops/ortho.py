@@ -57,10 +57,11 @@ class OrthoRequest:
     names (or image file names), None for the reference view. ``dem``: a DEM file (the
     project's DSM, a reference DEM), ``dem_kind`` its heights (``auto``: as the file states,
     else orthometric), ``dem_sigma_m`` its height σ when known. Without a DEM: the constant
-    orthometric ``height_m``, else the fit's mean height (both with a warning). ``posting_m``:
-    the grid's cell (default the reference view's pixel, rounded: :func:`default_posting`). ``window``: ``(col, row, w, h)`` pixels of the
-    reference view, None for each whole image. ``resampling``: ``bilinear`` or ``cubic``.
-    ``scheduler``, ``workers``: see :mod:`prismstation.ops.dsm_tiles`."""
+    orthometric ``height_m``, else the project's reference DEM, else the fit's mean height (a
+    constant and the mean height with a warning). ``posting_m``: the grid's cell (default the
+    reference view's pixel, rounded: :func:`default_posting`). ``window``: ``(col, row, w, h)``
+    pixels of the reference view, None for each whole image. ``resampling``: ``bilinear`` or
+    ``cubic``. ``scheduler``, ``workers``: see :mod:`prismstation.ops.dsm_tiles`."""
 
     output: str
     views: tuple | None = None
@@ -137,8 +138,11 @@ def output_paths(output, views) -> dict:
 def heights_source(project, request: OrthoRequest, sol) -> tuple[Heights, tuple]:
     """The :class:`Heights` of the request (its geoid not yet laid on a grid) and warnings."""
     crs = project.scene.crs
-    if request.dem is not None:
-        path = Path(request.dem)
+    dem = request.dem
+    if dem is None and request.height_m is None and getattr(project, "reference_dem", None):
+        dem = project.reference_dem        # the project's own reference DEM
+    if dem is not None:
+        path = Path(dem)
         if not path.exists():
             raise InputError("DEM not found", file=path)
         if request.dem_kind not in DEM_KINDS:
