@@ -7,7 +7,7 @@ import pyqtgraph as pg
 import pytest
 from PySide6.QtCore import Qt
 
-from prismstation.core.solve import critical_value
+from prismstation.core.solution import critical_value
 from prismstation.gui.accuracy_strip import WARN_COLOR
 from tests.gui.test_operator import click_image, key, settle
 from tests.qt_windows import close_windows, open_window
@@ -39,7 +39,7 @@ def test_a_parallax_model_that_does_not_fit_the_gcps_is_said_so(qtbot, demo_wind
     assert strip.warning.text() == "" and "does not fit" not in win.panel.plain_text()
     choose(qtbot, win.panel.parallax, "theoretical")
     settle(qtbot, win)
-    assert win.solver.solution.parallax.used == "theoretical"
+    assert win.solver.solution.model.parallax.used == "theoretical"
     text = win.panel.plain_text()
     assert "The 'theoretical' parallax model does not fit the GCPs" in text, text
     assert "— does not fit the GCPs" in text                       # in the parallax section's title
@@ -65,7 +65,7 @@ def test_a_parallax_model_that_does_not_fit_the_gcps_is_said_so(qtbot, demo_wind
     key(qtbot, win, "Ctrl+Z")
     key(qtbot, win, "Ctrl+Z")
     settle(qtbot, win)
-    assert win.solver.solution.parallax.used == "line" and strip.warning.text() == ""
+    assert win.solver.solution.model.parallax.used == "line" and strip.warning.text() == ""
     assert "parallax model fits" not in win.panel.plain_text()
 
 

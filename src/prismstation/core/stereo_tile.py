@@ -25,7 +25,7 @@ from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up sa
 import numpy as np
 
 from prismstation.core import prism, sgm
-from prismstation.core.solve import Solution
+from prismstation.core.solution import Solution
 from prismstation.core.stats import nmad
 
 PAIRS = (("F", "N"), ("N", "B"), ("F", "B"))

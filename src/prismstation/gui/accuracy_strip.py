@@ -13,8 +13,8 @@ import math
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QDoubleSpinBox, QFrame, QHBoxLayout, QLabel
 
-from prismstation.gui.fit_checks import parallax_check
 from prismstation.gui.palette import html
+from prismstation.gui.sensors import parts_of
 from prismstation.gui.text_label import TextLabel
 from prismstation.gui.plain import plain
 
@@ -44,8 +44,7 @@ def accuracy_values(sol) -> dict:
     g = st.get("ground", {}).get("ICP")
     if g is not None:
         out.update(E=_m(g.x.rms), N=_m(g.y.rms), plan=_m(g.planimetric_rms))
-    heights = sol.scene.is_triplet or sol.scene.sensor.height_source != "parallax"
-    hgt = st.get("height", {}).get("ICP") if heights else None
+    hgt = st.get("height", {}).get("ICP") if sol.model.heights_fitted else None
     if hgt is not None:
         out["h"] = _m(hgt.rms)
     s0 = sol.bias[sol.reference_view].sigma0 if sol.reference_view in sol.bias else None
@@ -59,15 +58,11 @@ def accuracy_values(sol) -> dict:
 
 def accuracy_warning(sol) -> tuple[tuple[str, ...], str]:
     """``(wordings, full text)`` of what the strip's figures stand on that does not hold (the
-    parallax model does not fit the GCPs): the strip shows the longest wording it has room
-    for, the full text in its tool tip; ``((), "")`` when nothing."""
-    check = parallax_check(sol)
-    if check is None or check.fits:
+    sensor model's own check: the PRISM parallax model does not fit the GCPs), longest wording
+    first; ``((), "")`` when nothing."""
+    if sol is None:
         return (), ""
-    return ((f"⚠ h from the '{check.model}' parallax model, which does not fit the GCPs "
-             f"({check.rms_model:.3g} m RMS)",
-             f"⚠ h: the '{check.model}' parallax model does not fit the GCPs",
-             "⚠ h: the parallax model does not fit", "⚠ h: model off", "⚠ h"), check.text())
+    return parts_of(sol.scene.sensor).fit_warning(sol)
 
 
 class AccuracyStrip(QFrame):

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from prismstation.core.scene import reference_view
+from prismstation.gui.sensors import parts_of
 
 
 def _arr(values) -> np.ndarray:
@@ -115,14 +116,13 @@ class PlotData:
 
     @classmethod
     def from_solution(cls, sol, view: str | None = None) -> "PlotData":
-        """From a :class:`~prismstation.core.solve.Solution` (``None`` gives empty plots); the
+        """From a :class:`~prismstation.core.solution.Solution` (``None`` gives empty plots); the
         residual vectors of ``view`` (default: :func:`vector_view`)."""
         if sol is None:
             return cls()
         view, c = vector_view(sol.bias, view), sol.columns
         nan2 = np.full((len(c), 2), np.nan)
-        par = sol.parallax
-        line = None if par is None else (par.c0, par.c1, par.c1_theory)
+        line = parts_of(sol.scene.sensor).plot_line(sol)
         v = sol.scene.views[view]
         return cls.from_columns(c.ids, c.kinds, c.parallax, c.ground_est[:, 2] - c.ground_residual[:, 2],
                                 c.measured.get(view, nan2), c.residual.get(view, nan2), c.std_residual,

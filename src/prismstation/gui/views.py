@@ -6,7 +6,7 @@ each with its 95 % error ellipse; ``navigated`` tells
 :class:`~prismstation.gui.linked_nav.LinkedNavigation` of a zoom or pan made by hand.
 
 Views of different images are not linked by pyqtgraph's ``setXLink`` (their geometries differ):
-the cursor in one view goes through the current :class:`~prismstation.core.solve.Solution`
+the cursor in one view goes through the current :class:`~prismstation.core.solution.Solution`
 (pixel → ground at a height → pixel) to the others (docs/architecture.md). The height is that of the
 point under the cursor when there is one (its estimated or known height), else the mean scene
 height of the solution.

@@ -42,6 +42,11 @@ def plain(v):
     return v
 
 
+def number(v) -> float:
+    """A JSON number as a float, NaN where :func:`plain` wrote None (a value not there)."""
+    return math.nan if v is None else float(v)
+
+
 def dumps(obj, indent: int | None = None) -> str:
     """JSON text of ``obj`` (through :func:`plain`: no NaN, no numpy), UTF-8 characters kept."""
     return json.dumps(plain(obj), indent=indent, ensure_ascii=False, allow_nan=False)

@@ -18,7 +18,7 @@ from pathlib import Path
 from prismstation import __version__
 from prismstation.core.prism import PARALLAX_MODELS
 from prismstation.core.rpc_model import RpcModel
-from prismstation.core.solve import Settings
+from prismstation.core.solution import Settings
 from prismstation.errors import InputError
 from prismstation.io import geoid as geoid_mod
 from prismstation.io.atomic import write_atomic

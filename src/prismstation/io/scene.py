@@ -16,7 +16,7 @@ from pyproj import CRS
 from pyproj.exceptions import CRSError
 
 from prismstation.core.affine import Affine2D
-from prismstation.core.rpc_model import RpcModel
+from prismstation.core import sensors
 from prismstation.core.scene import GroundTrack, Scene, View
 from prismstation.errors import InputError, RasterReadError
 from prismstation.io import rpc_scene
@@ -28,7 +28,7 @@ FORMAT = rpc_scene.SCENE_FORMAT  # "prismstation-scene/2"
 #: the versions read: 1 (PRISM views only), 2 (a view may be an image with RPCs)
 FORMATS = ("prismstation-scene/1", FORMAT)
 #: the sensor models a view may name (``"model"``), the PRISM one when it names none
-MODELS = ("prism", RpcModel.name)
+MODELS = tuple(sensors.MODELS)
 
 
 def read_scene(path, images: dict | None = None) -> Scene:
@@ -69,7 +69,7 @@ def scene_from_dict(data: dict, base_dir, source: str = "scene", text: str = "",
     if units - {"metre", "meter"}:
         fail(f'"crs": {crs} is in {", ".join(sorted(units))}; a scene needs a projected CRS in metres (UTM)', "crs")
     model = _sensor_model(data, fmt, fail)
-    if model == RpcModel.name:
+    if model == "rpc":
         return _rpc_scene(data, crs_obj.to_string(), base_dir, fail)
     hs = _number(data.get("satellite_altitude_m"), "satellite_altitude_m", fail, within=ALTITUDE_M)
     track = data.get("ground_track")
@@ -94,7 +94,7 @@ def scene_from_dict(data: dict, base_dir, source: str = "scene", text: str = "",
         geoid = _number(geoid, "geoid_undulation_m", fail, within=UNDULATION_M)
     known = {"format", "crs", "satellite_altitude_m", "ground_track", "views", "geoid_undulation_m"}
     extra = {k: v for k, v in data.items() if k not in known}
-    return Scene(crs_obj.to_string(), hs, GroundTrack(tr), views, geoid, extra)
+    return Scene(crs_obj.to_string(), hs, GroundTrack(tr), views, geoid, extra, sensors.model_named("prism"))
 
 
 def _sensor_model(data: dict, fmt: str, fail) -> str:
@@ -138,7 +138,7 @@ def _rpc_scene(data: dict, crs: str, base_dir: Path, fail) -> Scene:
     if geoid is not None:
         geoid = _number(geoid, "geoid_undulation_m", fail, within=UNDULATION_M)
     extra = {k: v for k, v in data.items() if k not in known}
-    return Scene(crs, None, None, views, geoid, extra, RpcModel)
+    return Scene(crs, None, None, views, geoid, extra, sensors.model_named("rpc"))
 
 
 def _image_path(base_dir: Path, image: str, key: str, fail) -> Path:

@@ -5,7 +5,7 @@ Plain Python. Every edit goes through a method, bumps :attr:`Project.revision` a
 :attr:`Project.changed` with a :class:`Change` naming what changed; edits inside
 ``with project.batch():`` emit one merged :class:`Change` at the end. Only :class:`Project`
 changes its revision. Solving is separate (:meth:`point_obs` feeds
-:func:`prismstation.core.solve.solve`).
+:func:`prismstation.core.solution.solve`).
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
 from prismstation.core.scene import Scene
-from prismstation.core.solve import PointObs, Settings
+from prismstation.core.solution import PointObs, Settings
 from prismstation.errors import InputError
 from prismstation.model.points import KINDS, GroundPoint, Measurement
 from prismstation.model.signal import Signal

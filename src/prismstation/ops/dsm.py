@@ -26,7 +26,7 @@ import numpy as np
 from prismstation.core.dsm_grid import (BRIDGE_STRIP, bridge, cell_centres, drop_unconfirmed,
                                         fill_voids, grid_over, regrid, seen_by_all)
 from prismstation.core.dsm_heights import HEIGHT_MODELS, choose_heights, model_height_correction
-from prismstation.core.solve import Solution
+from prismstation.core.solution import Solution
 from prismstation.errors import InputError
 from prismstation.ops.dsm_tiles import TileSpec, return_freed_memory, run_tiles
 from prismstation.ops.progress import checkpoint, scaled
@@ -258,7 +258,7 @@ def plan_dsm(sol: Solution, window, posting_m: float, with_reference: bool,
     """The levels and the footprint (module docstring): the coarsest level is the first whose
     F–B search of ±R fits in ±24 px; the level at 2·g_fine is skipped."""
     sc = sol.scene
-    if not sc.is_triplet or sol.parallax is None:
+    if not sc.is_triplet or getattr(sol.model, "parallax", None) is None:
         raise InputError("a DSM needs an oriented N, F, B triplet")
     if not (posting_m > 0 and math.isfinite(posting_m)):
         raise InputError(f"the posting must be a positive number of metres, got {posting_m}")

@@ -25,7 +25,7 @@ import numpy as np
 from prismstation.errors import PrismError, RasterReadError
 from prismstation.io.raster import gdal_env
 from prismstation.io.windows import ImageWindows
-from prismstation.core.solve import Solution
+from prismstation.core.solution import Solution
 from prismstation.core.stereo_tile import frame_over, tile_dsm
 from prismstation.ops.progress import checkpoint
 

@@ -7,8 +7,8 @@ import time
 import numpy as np
 import pytest
 
-from prismstation.core.solve import solve
 from prismstation.gui.plot_figures import figure_widget, render_images
+from prismstation.core.solution import solve
 from prismstation.gui.plots import PlotData, PlotsWidget
 from tests.core.synth import make_points, make_scene
 from tests.gui.parts.conftest import BLUNDER_ID
@@ -43,7 +43,7 @@ def test_height_plots_hold_parallax_and_known_heights(widget, fitted):
         x5, y5 = _xy(item5)
         np.testing.assert_allclose(x5, x)
         np.testing.assert_allclose(y5, y - c1t * x, atol=1e-6)
-    par = sol.parallax
+    par = sol.model.parallax
     x, y = _xy(widget.fit_line)
     np.testing.assert_allclose(y, par.c0 + par.c1 * x)
     x, y = _xy(widget.theory_line)

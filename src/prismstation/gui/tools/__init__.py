@@ -132,9 +132,14 @@ class ToolContext:
         return answer == b.Yes
 
     def shutdown(self) -> None:
-        """Cancel and join the tools' running jobs (the window is closing)."""
+        """Cancel and join the tools' running jobs, then let each tool with a ``shutdown()``
+        release what it holds (the window is closing)."""
         from prismstation.gui.tools._worker import stop_jobs_of
         stop_jobs_of(self.widget)
+        for tool in self.tools.values():
+            stop = getattr(tool, "shutdown", None)
+            if callable(stop):
+                stop()
 
 
 def install_tools(window) -> ToolContext:

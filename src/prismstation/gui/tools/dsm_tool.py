@@ -1,7 +1,7 @@
 """Tools ▸ Export DSM…: the project's DSM as a GeoTIFF (a PRISM triplet's, or that of images
 with RPCs: every pair matched and fused through the fitted biases,
-:func:`prismstation.ops.rpc_project.export_rpc_dsm`, the sensor model's export looked up in
-:mod:`prismstation.ops.workflows`).
+:func:`prismstation.ops.rpc_project.export_dsm`; the sensor model's export,
+:func:`prismstation.ops.sensors.workflows_of`).
 
 The whole N image or the area visible in the N view (images with RPCs: the ground every image
 sees), at a chosen posting (twice the images' pixel on the ground unless changed), with ellipsoidal or
@@ -26,18 +26,19 @@ from prismstation.gui import settings as st
 from prismstation.gui.tools._worker import run_with_progress
 from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest
 from prismstation.gui.plain import plain
+from prismstation.ops.sensors import workflows_of
 
 #: the height models as the dialog names them (``prismstation dsm --heights``)
 HEIGHT_MODEL_NAMES = {"auto": "automatic (the one the GCPs predict better)",
                       "line": "the model's parallax line", "rays": "the rays through the biases"}
 
-def visible_window(ctx) -> tuple | None:
-    """The N-image window ``(col0, row0, cols, rows)`` visible in the N view, clipped to the
-    image (None if nothing of the image is visible). ``ctx``: the :class:`~prismstation.gui.tools.ToolContext`."""
-    iv = ctx.views.views.get("N")
+def visible_window(ctx, view: str = "N") -> tuple | None:
+    """The window ``(col0, row0, cols, rows)`` of ``view``'s image visible in its view, clipped
+    to the image (None if nothing of the image is visible). ``ctx``: the :class:`~prismstation.gui.tools.ToolContext`."""
+    iv = ctx.views.views.get(view)
     if iv is None or ctx.project is None:
         return None
-    rows, cols = ctx.project.scene.views["N"].shape
+    rows, cols = ctx.project.scene.views[view].shape
     x, y, w, h = iv.visible_rect()
     c0, r0 = max(int(x), 0), max(int(y), 0)
     c1, r1 = min(int(x + w) + 1, cols), min(int(y + h) + 1, rows)
@@ -253,7 +254,6 @@ class DsmTool:
         """Compute and write the DSM of ``req`` in a worker, with the loaded reference DEM as
         the prior when ``use_reference``; returns the Job (result: the
         :class:`~prismstation.ops.dsm_export.DsmExport`)."""
-        from prismstation.ops.workflows import workflows
         sol, p = self.ctx.solver.solution, self.ctx.project
         if sol is None or p is None:
             self.ctx.status("A DSM needs a fitted model", 8000)
@@ -264,7 +264,7 @@ class DsmTool:
         ref = self.reference() if use_reference else None
 
         def work(progress):
-            return workflows(p).export_dsm(sol, p, req, reference=ref, progress=progress)
+            return workflows_of(p).export_dsm(sol, p, req, reference=ref, progress=progress)
 
         def done(out):
             self.ctx.outputs["dsm"] = str(out.path)  # (Validate DSM offers it next)
