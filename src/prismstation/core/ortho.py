@@ -27,7 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
 #: the largest error (image pixels) the interpolated positions may have against the model

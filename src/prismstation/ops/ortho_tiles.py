@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from types import SimpleNamespace
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
 from prismstation.core.ortho import KERNEL_REACH, fit_lattice, positions, resample
