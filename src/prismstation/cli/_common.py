@@ -13,13 +13,17 @@ from prismstation.ops.predict import DEFAULT_DEM_SIGMA_M
 from prismstation.ops.reference_heights import load_for_scene
 
 
-def add_model_options(p) -> None:
+def add_model_options(p, *, reference: bool = True) -> None:
+    """The fit's options: ``--bias``, ``--parallax``, ``--fixed-view`` and (``reference``) the
+    reference DEM of the fit's heights, ``--dem`` and ``--dem-sigma``."""
     p.add_argument("--bias", choices=list(BIAS_MODELS),
                    help="bias compensation model (default: the project's; PRISM: shift, similarity, affine; "
                         "RPC: none, shift, shift_drift, affine)")
     p.add_argument("--parallax", choices=list(PARALLAX_MODELS), help="height–parallax relation (default: the project's)")
     p.add_argument("--fixed-view", metavar="VIEW",
                    help="RPC images: the view held fixed (zero bias) as the datum when there is no GCP")
+    if not reference:
+        return
     p.add_argument("--dem", metavar="DEM",
                    help="reference DEM (GeoTIFF or SRTM .hgt, orthometric through the project's geoid): heights of "
                         "points seen in one view; for RPC images also the heights tie points are held to "

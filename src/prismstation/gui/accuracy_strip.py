@@ -15,6 +15,7 @@ from prismstation.gui.palette import html
 from prismstation.io.formatting import fixed
 from prismstation.gui.sensors import parts_of
 from prismstation.gui.text_label import TextLabel
+from prismstation.gui.plain import plain
 
 FIELDS = (("E", "ICP RMSE of easting, estimated − known ground position (m)"),
           ("N", "ICP RMSE of northing, estimated − known ground position (m)"),
@@ -50,12 +51,12 @@ def accuracy_values(sol) -> dict:
     return out
 
 
-def accuracy_warning(sol) -> tuple[str, str]:
-    """``(short text, full text)`` of what the strip's figures stand on that does not hold
-    (the sensor model's own check: the PRISM parallax model does not fit the GCPs); empty
-    strings when nothing."""
+def accuracy_warning(sol) -> tuple[tuple[str, ...], str]:
+    """``(wordings, full text)`` of what the strip's figures stand on that does not hold (the
+    sensor model's own check: the PRISM parallax model does not fit the GCPs), longest wording
+    first; ``((), "")`` when nothing."""
     if sol is None:
-        return "", ""
+        return (), ""
     return parts_of(sol.scene.sensor).fit_warning(sol)
 
 
@@ -117,11 +118,11 @@ class AccuracyStrip(QFrame):
             unit = "" if vals[f] == "—" else (" px" if f == "σ0" else " m")
             lab.setText(vals[f] + unit)
         self.count.setText(vals["count"])
-        short, full = accuracy_warning(sol)
-        self.warning.setText(short)
-        if self.warning.toolTip() != full:
-            self.warning.setToolTip(full)
-        self.values["h"].set_color(WARN_COLOR if short else None)
+        wordings, full = accuracy_warning(sol)
+        self.warning.setText(*(wordings or ("",)))
+        if self.warning.toolTip() != plain(full):
+            self.warning.setToolTip(plain(full))
+        self.values["h"].set_color(WARN_COLOR if wordings else None)
 
     def text(self) -> str:
         """What the strip shows, one line (tests)."""

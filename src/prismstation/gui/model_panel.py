@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from PySide6.QtCore import QRect, QSize, Qt, Signal
+from PySide6.QtCore import QEvent, QRect, QSize, Qt, Signal
 from PySide6.QtGui import QColor, QFont, QFontMetrics, QPainter, QPalette
 from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QHBoxLayout, QLabel,
                                QPushButton, QScrollArea, QSizePolicy, QVBoxLayout, QWidget)
@@ -185,10 +185,25 @@ class _Sections(QWidget):
     def _row_height(self) -> int:
         return self.fontMetrics().height() + 2
 
+    def _note_width(self) -> int:
+        """The width notes wrap to: what the scroll area shows of the panel (tables wider
+        than that scroll sideways, a note read across them was cut at its edge)."""
+        seen = self.parentWidget().width() if self.parentWidget() is not None else self.width()
+        return max(min(seen, max(self.width(), sum(self._widths))) - 2 * self.PAD - 4, 50)
+
+    def eventFilter(self, obj, ev) -> bool:
+        """The scroll area's viewport (installed by :class:`ModelPanel`) changed width: the
+        notes wrap anew."""
+        if ev.type() == QEvent.Type.Resize and self._notes:
+            self._line_cache = None
+            self._update_hint()
+            self.update()
+        return False
+
     def _note_rect(self, text, bold) -> QRect:
         """The wrapped rectangle of a note (remembered per text and width: a refit asks for
         the same notes several times)."""
-        width = max(max(self.width(), sum(self._widths)) - 2 * self.PAD, 50)
+        width = self._note_width()
         key = (text, bold, width)
         r = self._note_rects.get(key)
         if r is None:
@@ -350,6 +365,7 @@ class ModelPanel(QWidget):
         self.text = QScrollArea()
         self.text.setWidgetResizable(True)
         self.text.setWidget(self.sections)
+        self.text.viewport().installEventFilter(self.sections)  # (its width wraps the notes)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(4, 4, 4, 4)
         lay.addLayout(form)

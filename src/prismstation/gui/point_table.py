@@ -17,6 +17,7 @@ from PySide6.QtGui import QBrush, QColor
 
 from prismstation.core.scene import reference_view
 from prismstation.gui.overlays import KIND_COLORS
+from prismstation.gui.plain import plain
 from prismstation.gui.static_text import ALIGN_LEFT, ALIGN_RIGHT
 
 COLUMNS = ("ID", "Kind", "Views", "vx (px)", "vy (px)", "|v| max (px)", "E est (m)", "N est (m)",
@@ -300,9 +301,9 @@ class PointTableModel(QAbstractTableModel):
         if role == _ALIGN and c not in TEXT:
             return ALIGN_RIGHT
         if role == _TOOLTIP and c == HEIGHT and row[ODD_HEIGHT]:
-            return odd_height_text(row[0], row[HEIGHT], self.project.height_kind())
+            return plain(odd_height_text(row[0], row[HEIGHT], self.project.height_kind()))
         if role == _TOOLTIP and row[BLUNDER]:
-            return f"{row[0]}: standardised residual {_fmt(row[10])} above the blunder threshold"
+            return plain(f"{row[0]}: standardised residual {_fmt(row[10])} above the blunder threshold")
         return None
 
     def flags(self, index):

@@ -14,6 +14,7 @@ from scipy import special
 
 from prismstation.core.conditioning import SigmaSummary
 from prismstation.gui.fit_checks import alpha_of
+from prismstation.gui.plain import counted
 from prismstation.io.formatting import fixed
 from prismstation.io.jsonfile import number
 from prismstation.ops.orientation import OrientRequest
@@ -40,14 +41,17 @@ def panel_sections(sol) -> tuple[list, list]:
     return sections, notes
 
 
-def fit_warning(sol) -> tuple[str, str]:
-    """``(short text, full text)`` of what the accuracy strip's heights stand on that does not
-    hold (the parallax model does not fit the GCPs); empty strings when nothing."""
+def fit_warning(sol) -> tuple[tuple[str, ...], str]:
+    """``(wordings, full text)`` of what the accuracy strip's heights stand on that does not
+    hold (the parallax model does not fit the GCPs): the strip shows the longest wording it has
+    room for, the full text in its tool tip; ``((), "")`` when nothing."""
     check = parallax_check(sol)
     if check is None or check.fits:
-        return "", ""
-    return (f"⚠ h from the '{check.model}' parallax model, which does not fit the GCPs "
-            f"({check.rms_model:.3g} m RMS)", check.text())
+        return (), ""
+    return ((f"⚠ h from the '{check.model}' parallax model, which does not fit the GCPs "
+             f"({check.rms_model:.3g} m RMS)",
+             f"⚠ h: the '{check.model}' parallax model does not fit the GCPs",
+             "⚠ h: the parallax model does not fit", "⚠ h: model off", "⚠ h"), check.text())
 
 
 def orientable(scene) -> bool:
@@ -71,7 +75,7 @@ def orientation_text(record: dict, state: str, scale: float | None = None) -> st
     vec = f"; vectors on N × {scale:.0f}" if scale else ""
     ref = str(record.get("reference", "?"))
     return (f"Reference {ref.replace(chr(92), '/').rsplit('/', 1)[-1]} — {state}. A-priori geolocation σ "
-            f"{number(record.get('sigma_apriori_m')):.0f} m per view. {used} of {len(patches)} patches used; "
+            f"{number(record.get('sigma_apriori_m')):.0f} m per view. {used} of {counted(len(patches), 'patch', 'patches')} used; "
             f"from the ancillary model F−N ({off.get('F', nan2)[0]:+.1f}, {off.get('F', nan2)[1]:+.1f}) px, "
             f"B−N ({off.get('B', nan2)[0]:+.1f}, {off.get('B', nan2)[1]:+.1f}) px{vec}.")
 

@@ -39,6 +39,7 @@ from prismstation.io.lock import ProjectLock, describe_holder
 from prismstation.io.recovery import Journal
 from prismstation.io.scene import read_scene
 from prismstation.model.project import Project
+from prismstation.gui.plain import plain
 
 FILTER = f"prismstation projects (*{SUFFIX});;All files (*)"
 
@@ -85,7 +86,7 @@ class ProjectFiles(QObject):
         if not self.interactive:
             return b.No
         buttons = buttons or (b.Yes | b.No)
-        return QMessageBox.question(self.widget, title, text, buttons, default or b.Yes)
+        return QMessageBox.question(self.widget, title, plain(text), buttons, default or b.Yes)
 
     def warn(self, title: str, text: str) -> None:
         self.message.emit(f"{title}: {text}")
@@ -93,7 +94,7 @@ class ProjectFiles(QObject):
             import sys
             print(f"{title}: {text}", file=sys.stderr)
             return
-        QMessageBox.warning(self.widget, title, text)
+        QMessageBox.warning(self.widget, title, plain(text))
 
     def choose_open(self, title=None, filt=FILTER) -> str:
         path, _ = QFileDialog.getOpenFileName(self.widget, title or "Open project",

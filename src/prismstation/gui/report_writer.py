@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from prismstation.errors import InputError, WriteError
+from prismstation.gui.plot_figures import render_images
 from prismstation.gui.plots import PlotsWidget
 from prismstation.io.atomic import write_atomic
 from prismstation.io.report_html import MAX_DOCUMENT_POINTS, format_when, report_html
@@ -40,9 +41,10 @@ def render_figures(report: dict, size=(840, 540)) -> dict:
     w = PlotsWidget()
     try:
         w.set_report(report)
-        return w.render_images(size)
+        return render_images(w, size)
     finally:
-        w.deleteLater()
+        import shiboken6
+        shiboken6.delete(w)  # now, not from an event loop a script may not run
 
 
 def _png_bytes(image) -> bytes:

@@ -13,9 +13,9 @@ def panel_sections(sol) -> tuple[list, list]:
     return [], []
 
 
-def fit_warning(sol) -> tuple[str, str]:
+def fit_warning(sol) -> tuple[tuple[str, ...], str]:
     """Nothing beyond the fit's messages."""
-    return "", ""
+    return (), ""
 
 
 def plot_line(sol) -> None:

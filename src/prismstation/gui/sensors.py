@@ -7,7 +7,7 @@ A model's parts (:class:`SensorParts`, a module that has these functions; no Qt)
 
 ``panel_sections(sol) → (sections, notes)``
     the model panel's sections of the model's own (the PRISM parallax line) and their notes;
-``fit_warning(sol) → (short, full)``
+``fit_warning(sol) → (wordings, full)``
     what the accuracy strip's figures stand on that does not hold ("" when nothing);
 ``plot_line(sol)``
     ``(c0, c1, c1 theoretical)`` of a height–parallax line the plots draw, or None;
@@ -30,7 +30,7 @@ class SensorParts(Protocol):
 
     def panel_sections(self, sol) -> tuple[list, list]: ...
 
-    def fit_warning(self, sol) -> tuple[str, str]: ...
+    def fit_warning(self, sol) -> tuple[tuple[str, ...], str]: ...
 
     def plot_line(self, sol): ...
 

@@ -11,13 +11,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pyproj
 import rasterio
 from rasterio._err import CPLE_BaseError
 from rasterio.crs import CRS
 from rasterio.enums import Resampling
 from rasterio.errors import RasterioError
 from rasterio.transform import Affine
-from rasterio.warp import calculate_default_transform, reproject
+from rasterio.vrt import WarpedVRT
+from rasterio.warp import calculate_default_transform, reproject, transform_bounds
+from rasterio.windows import Window
 
 from prismstation.errors import InputError, RasterReadError
 from prismstation.io.atomic import atomic_path, cause_text, raster_check
@@ -265,3 +268,118 @@ def local_metric_transform(crs, transform, shape) -> tuple[float, ...]:
         return (t.a * kx, t.b * kx, 0.0, t.d * ky, t.e * ky, 0.0)
     unit = pc.axis_info[0].unit_conversion_factor if pc.axis_info else 1.0
     return (t.a * unit, t.b * unit, 0.0, t.d * unit, t.e * unit, 0.0)
+
+
+# ------------------------------------------------------------ a DEM read window by window
+#: the largest error (source pixels) the warper's approximate transformer may leave in the
+#: source position of a target cell (GDAL's default, 0.125, moves a 3″ grid on UTM by metres)
+WARP_ERROR_PX = 0.001
+
+
+def dem_height_kind(path) -> str | None:
+    """The height kind a DEM file states: a DSM of prismstation's own says it in its
+    ``HEIGHTS`` tag; another file in the vertical part of a compound CRS (a vertical datum
+    named after an ellipsoid: ``"ellipsoidal"``, any other: ``"orthometric"``). None when the
+    file says nothing (a plain SRTM or Copernicus GeoTIFF: orthometric by convention)."""
+    with rasterio.Env(GTIFF_REPORT_COMPD_CS="YES"), open_raster(path, "DEM") as ds:
+        kind = (ds.tags().get("HEIGHTS") or "").lower()
+        if kind in ("ellipsoidal", "orthometric"):
+            return kind
+        if ds.crs is None:
+            return None
+        try:
+            crs = pyproj.CRS.from_wkt(ds.crs.to_wkt())
+        except pyproj.exceptions.CRSError:
+            return None
+    if not crs.is_compound:
+        return None
+    vertical = crs.sub_crs_list[-1]
+    names = f"{vertical.name} {vertical.datum.name if vertical.datum else ''}".lower()
+    return "ellipsoidal" if "ellipsoid" in names else "orthometric"
+
+
+def read_dem_window(path, crs, transform, shape, *, resampling: str = "bilinear",
+                    what: str = "DEM") -> np.ndarray:
+    """Band 1 of the DEM ``path`` on the grid ``(crs, transform, shape)``: float32 metres as the
+    file holds them, NaN where void or outside it. Only the part of the file the grid needs is
+    read (GDAL's warper; positions exact to :data:`WARP_ERROR_PX` of a source cell), so a tile
+    of a large DSM costs a tile's memory. ``resampling``: a ``rasterio.enums.Resampling`` name
+    (``"min"`` and ``"max"`` give a height range)."""
+    path = Path(path)
+    with open_raster(path, what) as ds:
+        if ds.crs is None:
+            raise InputError(f"{what} has no coordinate reference system", file=path)
+        nodata = ds.nodata
+        if nodata is None and ds.dtypes[0] == "int16":
+            nodata = SRTM_VOID                  # SRTM voids even without a nodata tag
+        rows, cols = (int(v) for v in shape)
+        try:
+            with WarpedVRT(ds.dataset, crs=CRS.from_user_input(crs), transform=Affine(*tuple(transform)[:6]),
+                           width=cols, height=rows, resampling=Resampling[resampling],
+                           tolerance=WARP_ERROR_PX, src_nodata=nodata, nodata=np.nan,
+                           dtype="float32") as vrt:
+                out = vrt.read(1)
+        except (RasterioError, CPLE_BaseError, KeyError) as exc:
+            raise RasterReadError(f"{path}: cannot read {what} onto a grid "
+                                  f"({cause_text(exc, str(path))})") from None
+        out *= np.float32(height_metres_per_unit(ds.crs.to_wkt(), path))
+    out[~np.isfinite(out)] = np.nan
+    return out
+
+
+def dem_bounds(path, crs, what: str = "DEM") -> tuple[float, float, float, float]:
+    """``(x0, y0, x1, y1)``: the extent of the DEM ``path`` in ``crs`` (its corners and edges
+    transformed)."""
+    from rasterio.warp import transform_bounds
+    with open_raster(path, what) as ds:
+        if ds.crs is None:
+            raise InputError(f"{what} has no coordinate reference system", file=path)
+        return tuple(transform_bounds(ds.crs, CRS.from_user_input(crs), *ds.bounds, densify_pts=21))
+
+
+def _same_horizontal(file_crs, crs) -> bool:
+    """Whether the file's CRS (its horizontal part, when compound) is ``crs``."""
+    try:
+        a = pyproj.CRS.from_wkt(file_crs.to_wkt())
+        b = pyproj.CRS.from_user_input(crs.to_wkt() if hasattr(crs, "to_wkt") else crs)
+    except pyproj.exceptions.CRSError:
+        return False
+    if a.is_compound:
+        a = a.sub_crs_list[0]
+    return a.equals(b, ignore_axis_order=True)
+
+
+def read_dem_cells(path, crs, bounds, *, min_cell: float = 0.0, what: str = "DEM") -> tuple[np.ndarray, tuple]:
+    """The DEM's heights over ``bounds`` ``(x0, y0, x1, y1)`` of ``crs`` and one cell beyond, on
+    a north-up grid of ``crs``: ``(array, transform)``, float32 as the file holds them, NaN in
+    voids and outside the file. A file that is a north-up grid of ``crs`` gives its own cells (a
+    window read: nothing resampled, so a bilinear sample of the result is a bilinear sample of
+    the file); another is warped (bilinear, :func:`read_dem_window`) onto a grid of its own cell
+    size in metres, or ``min_cell`` if coarser."""
+    path = Path(path)
+    x0, y0, x1, y1 = bounds
+    with open_raster(path, what) as ds:
+        if ds.crs is None:
+            raise InputError(f"{what} has no coordinate reference system", file=path)
+        t = ds.transform
+        if t.b == 0 and t.d == 0 and t.a > 0 and t.e < 0 and _same_horizontal(ds.crs, crs):
+            c0 = int(np.floor((x0 - t.c) / t.a)) - 1
+            c1 = int(np.ceil((x1 - t.c) / t.a)) + 1
+            r0 = int(np.floor((y1 - t.f) / t.e)) - 1
+            r1 = int(np.ceil((y0 - t.f) / t.e)) + 1
+            out = np.full((r1 - r0, c1 - c0), np.nan, np.float32)
+            a0, b0, a1, b1 = max(c0, 0), max(r0, 0), min(c1, ds.width), min(r1, ds.height)
+            if a1 > a0 and b1 > b0:
+                v = ds.read(1, window=Window(a0, b0, a1 - a0, b1 - b0), masked=True)
+                v = v.astype(np.float32).filled(np.nan)
+                if ds.dtypes[0] == "int16":
+                    v[v <= SRTM_VOID] = np.nan
+                out[b0 - r0:b1 - r0, a0 - c0:a1 - c0] = v * np.float32(height_metres_per_unit(ds.crs.to_wkt(), path))
+            out[~np.isfinite(out)] = np.nan
+            return out, (t.a, 0.0, t.c + t.a * c0, 0.0, t.e, t.f + t.e * r0)
+        a, b, _, d, e, _ = local_metric_transform(ds.crs, t, (ds.height, ds.width))
+    cell = max(min(float(np.hypot(a, d)), float(np.hypot(b, e))), min_cell)
+    c0, r0 = np.floor(x0 / cell) - 1, np.ceil(y1 / cell) + 1
+    shape = (int(r0 - np.floor(y0 / cell)) + 1, int(np.ceil(x1 / cell) - c0) + 1)
+    transform = (cell, 0.0, c0 * cell, 0.0, -cell, r0 * cell)
+    return read_dem_window(path, crs, transform, shape, what=what), transform

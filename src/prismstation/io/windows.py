@@ -72,6 +72,11 @@ class CheckedRaster:
                                                               out_dtype="float32")
         return out
 
+    @property
+    def dataset(self):
+        """The rasterio dataset itself, for GDAL calls that need one (a warp)."""
+        return self._ds
+
     def __getattr__(self, name):
         if name == "_ds":  # not opened
             raise AttributeError(name)

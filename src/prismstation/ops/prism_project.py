@@ -36,7 +36,7 @@ def orient(project: Project, reference, request: OrientRequest = OrientRequest()
     record = result.to_dict()
     used = sum(1 for p in result.patches if p.used)
     return Orientation(result.verdict, record, tuple(orientation_lines(project, result, gcps is not None)),
-                       {"dem_control": record}, f"{used} patches", result)
+                       {"dem_control": record}, f"{used} patch{'' if used == 1 else 'es'}", result)
 
 
 def orientation_lines(project: Project, result: DemOrientation, with_gcps: bool = False) -> list[str]:

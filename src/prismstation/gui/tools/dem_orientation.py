@@ -37,6 +37,7 @@ from PySide6.QtWidgets import (QDialog, QDialogButtonBox, QDoubleSpinBox, QFileD
 from prismstation.core.conditioning import MIN_PATCHES, TARGET_M
 from prismstation.core.dem_orient import patch_windows
 from prismstation.gui import settings as st
+from prismstation.gui.plain import plain
 from prismstation.gui.sensors import parts_of
 from prismstation.gui.solver import snapshot
 from prismstation.gui.titles import fit_title
@@ -176,6 +177,8 @@ class PatchTable(QWidget):
         self.summary.setWordWrap(True)
         self.verdict = QLabel("")
         self.verdict.setWordWrap(True)
+        for lab in (self.summary, self.verdict):
+            lab.setTextFormat(Qt.TextFormat.PlainText)  # (the reference's file name)
         self.apply_button = QPushButton("Apply this orientation anyway")
         self.apply_button.setToolTip("Make this untrusted orientation the project's (undoable)")
         self.apply_button.hide()
@@ -224,7 +227,7 @@ class PatchTable(QWidget):
             return
         state = ("NOT APPLIED (not trusted; the GCP orientation stays)" if not applied
                  else "in use" if active else "not in use (GCP orientation)")
-        self.summary.setToolTip(str(record.get("reference", "?")))
+        self.summary.setToolTip(plain(str(record.get("reference", "?"))))
         self.summary.setText(parts.orientation_text(record, state, scale))
         self.verdict.setText(parts.verdict_text(record))
         verdict = record.get("verdict") or {}
@@ -332,12 +335,17 @@ class DemOrientationTool:
         if not self.ctx.interactive:
             return False
         v = record.get("verdict") or {}
+        p = self.ctx.project
+        if p is not None and p.settings.orientation == "dem":
+            now = ("the orientation from the reference DEM applied before (Edit ▸ Undo returns to "
+                   "it; Tools ▸ Back to GCP orientation to the GCPs)")
+        else:
+            now = "the GCP orientation (Edit ▸ Undo or Tools ▸ Back to GCP orientation return to it)"
         box = QMessageBox(QMessageBox.Icon.Warning, "Orientation from the reference DEM",
-                          f"The orientation from the reference DEM is NOT TRUSTED ({v.get('status')}): "
-                          f"{v.get('message', '')}."
-                          + (f"\n\nWhat would help: {v['advice']}." if v.get("advice") else "")
-                          + "\n\nApply it anyway? It would replace the GCP "
-                          "orientation (Edit ▸ Undo or Tools ▸ Back to GCP orientation return to it).",
+                          plain(f"The orientation from the reference DEM is NOT TRUSTED ({v.get('status')}): "
+                                f"{v.get('message', '')}."
+                                + (f"\n\nWhat would help: {v['advice']}." if v.get("advice") else "")
+                                + f"\n\nApply it anyway? It would replace {now}."),
                           QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, self.ctx.widget)
         box.setDefaultButton(QMessageBox.StandardButton.No)
         fit_title(box)
