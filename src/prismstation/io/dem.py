@@ -1,5 +1,7 @@
 """DEMs and DSMs: the one reader (SRTM ``.hgt``, GeoTIFF or any single-band raster with a CRS,
 on its own grid or resampled onto a target grid, optionally made ellipsoidal) and a writer.
+Resampling onto another grid goes through :mod:`prismstation.io.reproject` (positions exact to
+:data:`~prismstation.io.reproject.ERROR_PX` of a source cell).
 
 Grids are ``(crs, transform, shape)``: ``transform`` a rasterio ``Affine`` from pixel
 ``(col, row)`` (docs/model.md §1, origin at the top-left corner of the top-left pixel) to CRS
@@ -14,14 +16,13 @@ import numpy as np
 import rasterio
 from rasterio._err import CPLE_BaseError
 from rasterio.crs import CRS
-from rasterio.enums import Resampling
 from rasterio.errors import RasterioError
 from rasterio.transform import Affine
-from rasterio.warp import calculate_default_transform, reproject
 
 from prismstation.errors import InputError, RasterReadError
 from prismstation.io.atomic import atomic_path, cause_text, raster_check
 from prismstation.io.geoid import to_ellipsoidal
+from prismstation.io.reproject import warp_array, warp_band
 from prismstation.io.windows import CheckedRaster
 
 SRTM_VOID = -32768
@@ -93,16 +94,13 @@ def _read_source(path: Path, what: str):
         return arr, ds.crs, ds.transform
 
 
-def _auto_resampling(src, src_crs, src_transform, crs, transform) -> str:
-    """``"average"`` when the source cells are finer than half the target cells, else bilinear."""
-    rows, cols = src.shape
-    left, top = src_transform * (0, 0)
-    right, bottom = src_transform * (cols, rows)
-    t, _, _ = calculate_default_transform(src_crs, crs, cols, rows, min(left, right),
-                                          min(top, bottom), max(left, right), max(top, bottom))
-    src_cell = np.sqrt(abs(t.a * t.e - t.b * t.d))
-    dst_cell = np.sqrt(abs(transform.a * transform.e - transform.b * transform.d))
-    return "average" if src_cell < 0.5 * dst_cell else "bilinear"
+def _auto_resampling(src_crs, src_transform, src_shape, crs, transform, shape) -> str:
+    """``"average"`` when the source cells are finer than half the target cells, else bilinear
+    (cell sizes in metres, :func:`local_metric_transform`)."""
+    def cell(c, t, s):
+        a, b, _, d, e, _ = local_metric_transform(c, t, s)
+        return np.sqrt(abs(a * e - b * d))
+    return "average" if cell(src_crs, src_transform, src_shape) < 0.5 * cell(crs, transform, shape) else "bilinear"
 
 
 def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
@@ -136,13 +134,11 @@ def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
         raise ValueError("give the target grid's crs, transform and shape together, or none")
     else:
         out_crs, out_t = CRS.from_user_input(crs), Affine(*tuple(transform)[:6])
-        heights = np.full(tuple(shape), np.nan)
         try:
             if resampling == "auto":
-                resampling = _auto_resampling(src, src_crs, src_transform, out_crs, out_t)
-            reproject(src, heights, src_transform=src_transform, src_crs=src_crs,
-                      src_nodata=np.nan, dst_transform=out_t, dst_crs=out_crs, dst_nodata=np.nan,
-                      resampling=Resampling[resampling])
+                resampling = _auto_resampling(src_crs, src_transform, src.shape, out_crs, out_t, shape)
+            heights = warp_array(src, src_crs, src_transform, out_crs, out_t, shape,
+                                 resampling=resampling)
         except (RasterioError, CPLE_BaseError, KeyError) as exc:
             raise RasterReadError(f"{path}: cannot resample {what} ({cause_text(exc, str(path))})") from None
     kind = "orthometric"
@@ -164,11 +160,9 @@ def resample_to_grid(path, grid: DemGrid, *, resampling: str = "bilinear",
     with open_raster(path, what) as ds:
         if ds.crs is None:
             raise InputError(f"{what} has no coordinate reference system", file=path)
-        out = np.full(grid.shape, fill, dtype=dtype)
         try:
-            reproject(source=ds.read(1), destination=out, src_transform=ds.transform,
-                      src_crs=ds.crs, src_nodata=ds.nodata, dst_transform=grid.transform,
-                      dst_crs=grid.crs, dst_nodata=fill, resampling=Resampling[resampling])
+            out = warp_band(ds.dataset, grid.crs, grid.transform, grid.shape, resampling=resampling,
+                            fill=fill, dtype=dtype)
         except Exception as exc:
             raise RasterReadError(f"{path}: cannot read or resample {what} onto the DSM grid "
                                   f"({cause_text(exc, str(path))})") from None

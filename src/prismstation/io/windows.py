@@ -62,6 +62,11 @@ class CheckedRaster:
         except Exception as exc:
             raise read_error(self.name, f"{self.what}, {describe_window(window)}", exc) from None
 
+    @property
+    def dataset(self):
+        """The rasterio dataset itself, for GDAL calls that need one (a warp)."""
+        return self._ds
+
     def __getattr__(self, name):
         if name == "_ds":  # not opened
             raise AttributeError(name)
