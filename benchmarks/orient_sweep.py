@@ -80,23 +80,27 @@ def coarse_error(sim: Path, scene_file: Path, errors: dict, dem_control: dict) -
 
 
 def run_case(sim: Path, ref: Path, errors: dict, work: Path, patch_km: float,
-             sigma_m: float = 50.0, geoid: str | None = None) -> dict:
+             sigma_m: float = 50.0, geoid: str | None = None, reuse: bool = False) -> dict:
     """One case: perturb, ``new`` (``--geoid geoid`` if given), ``orient-dem
     --geolocation-sigma-m sigma_m`` (exit 3 = a verdict that is not ok, still measured), then
-    the check points against the truth."""
+    the check points against the truth. ``reuse``: a report already in ``work`` (a sweep
+    stopped and run again) is scored instead of running the case again (its time: NaN)."""
     scene = perturb_geolocation(sim, errors, work / "scene.json")
     proj = work / "p.prismproj"
     out = work / "dem.json"
-    out.unlink(missing_ok=True)
     err = io.StringIO()
     t0 = time.perf_counter()
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-        code = main(["new", str(proj), "--force", "--scene", str(scene), "--points", str(sim / "points.csv"),
-                     "--measurements", str(sim / "measurements.csv"),
-                     *(["--geoid", geoid] if geoid else [])])
-        if code == 0:
-            code = main(["orient-dem", str(proj), str(ref), "--patch-km", str(patch_km),
-                         "--json", str(out), "--geolocation-sigma-m", str(sigma_m)])
+    if reuse and out.exists():
+        code, t0 = None, float("nan")
+    else:
+        out.unlink(missing_ok=True)
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+            code = main(["new", str(proj), "--force", "--scene", str(scene), "--points",
+                         str(sim / "points.csv"), "--measurements", str(sim / "measurements.csv"),
+                         *(["--geoid", geoid] if geoid else [])])
+            if code == 0:
+                code = main(["orient-dem", str(proj), str(ref), "--patch-km", str(patch_km),
+                             "--json", str(out), "--geolocation-sigma-m", str(sigma_m)])
     seconds = time.perf_counter() - t0
     row = {"seconds": seconds, "exit": code}
     if not out.exists():
@@ -170,6 +174,9 @@ def main_sweep(argv=None) -> int:
                     choices=["projected", "geographic"],
                     help="the SRTM-like references every case runs against (default both)")
     ap.add_argument("--keep", metavar="DIR", help="keep the scenes in DIR")
+    ap.add_argument("--reuse", action="store_true",
+                    help="score the reports a stopped sweep left in --keep's cases instead of "
+                         "running those cases again")
     a = ap.parse_args(argv)
     if "dem" in a.terrains and not a.terrain_dem:
         ap.error("--terrains dem needs --terrain-dem")
@@ -212,7 +219,7 @@ def main_sweep(argv=None) -> int:
                 work.mkdir(exist_ok=True)
                 ref, geoid = ((sim / "srtm.tif", None) if kind == "projected"
                               else (sim / "srtm_geo.tif", str(egm96)))
-                r = run_case(sim, ref, errors, work, patch_km, a.sigma_m, geoid)
+                r = run_case(sim, ref, errors, work, patch_km, a.sigma_m, geoid, a.reuse)
                 r.update(size=size, terrain=terrain, terrain_statistics=stats, pass_=pas, seed=seed,
                          scene_seed=scene_seed, error=m, reference=kind,
                          plan_ratio=_ratio(r.get("plan", np.nan), r.get("sigma_plan_check", np.nan)),
