@@ -22,7 +22,9 @@ from __future__ import annotations
 import numpy as np
 import pyproj
 import rasterio
+from rasterio._err import CPLE_BaseError
 from rasterio.crs import CRS
+from rasterio.errors import RasterioError
 from rasterio.transform import Affine
 from rasterio.windows import Window
 
