@@ -72,16 +72,16 @@ def test_new_images_names_views_by_stem_and_refuses_twins(shared_data, tmp_path)
     for d in (a, b):
         shutil.copy(shared_data / PAIR[0], d / "img.tif")
     assert main(["new", str(tmp_path / "p.prismproj"), "--images", str(a / "img.tif"), str(b / "img.tif")]) == 2
-    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *(str(shared_data / f) for f in PAIR)]) == 0
+    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *(str(shared_data / f) for f in PAIR), "--no-ties"]) == 0
     project = load_project(tmp_path / "p.prismproj")
     assert project.scene.sensor is RpcModel and project.settings.bias_model == "shift"
-    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *(str(shared_data / f) for f in PAIR)]) == 2
+    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *(str(shared_data / f) for f in PAIR), "--no-ties"]) == 2
     assert main(["new", str(tmp_path / "q.prismproj"), "--images", str(tmp_path / "none.tif"),
                  str(shared_data / PAIR[0])]) == 2
 
 
 def test_project_settings_are_checked_against_the_sensor_model(shared_data, tmp_path):
-    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *(str(shared_data / f) for f in PAIR)]) == 0
+    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *(str(shared_data / f) for f in PAIR), "--no-ties"]) == 0
     path = tmp_path / "p.prismproj"
     data = json.loads(path.read_text())
     data["settings"]["bias_model"] = "similarity"
@@ -103,7 +103,7 @@ def test_a_command_the_model_does_not_list_is_refused_in_one_line(shared_data, t
     from prismstation.core.rpc_model import RpcModel
     monkeypatch.setattr(RpcModel, "workflows", frozenset({"fit", "report"}))
     proj = tmp_path / "p.prismproj"
-    assert main(["new", str(proj), "--images", *(str(shared_data / f) for f in PAIR)]) == 0
+    assert main(["new", str(proj), "--images", *(str(shared_data / f) for f in PAIR), "--no-ties"]) == 0
     capsys.readouterr()
     assert main(["orient-dem", str(proj), str(shared_data / PAIR[0])]) == 2
     assert main(["dsm", str(proj), "-o", str(tmp_path / "dsm.tif")]) == 2
