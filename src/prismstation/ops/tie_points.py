@@ -20,9 +20,11 @@ from prismstation.core.solve import Solution
 from prismstation.core.stats import nmad
 from prismstation.io.windows import ImageWindows
 from prismstation.model.points import GroundPoint, Measurement
+from prismstation.model.project import Project
 from prismstation.ops.fit import solve_project
-from prismstation.ops.progress import ProgressFn, checkpoint
-from prismstation.ops.transfer import search_sigmas, transfer
+from prismstation.ops.progress import ProgressFn, checkpoint, scaled
+from prismstation.ops.predict import height_spread
+from prismstation.ops.transfer import known_ground, search_sigmas, transfer
 
 
 #: a lattice point this close (px) to a point measured in the reference view already is not
@@ -30,13 +32,22 @@ from prismstation.ops.transfer import search_sigmas, transfer
 EXISTING_PX = 2.0
 
 
+def lattice(scene, grid: int, margin: float = 0.05) -> np.ndarray:
+    """``(grid², 2)`` px: the centres of a ``grid × grid`` division of the reference view's
+    image less ``margin`` of it on every side, row by row."""
+    rows, cols = scene.views[scene.reference_view].shape
+    g = margin + (1 - 2 * margin) * (np.arange(grid) + 0.5) / grid
+    return np.array([(cx * cols, cy * rows) for cy in g for cx in g])
+
+
 def auto_tie_points(sol: Solution, images: ImageWindows, *, grid: int = 8, margin: float = 0.05,
                     height_of=None, progress: ProgressFn | None = None,
-                    summary: dict | None = None, existing=None) -> list[dict]:
+                    summary: dict | None = None, existing=None, nodes=None) -> list[dict]:
     """Tie points on a ``grid × grid`` lattice of the reference view's image (N for a
-    triplet, else the scene's first view), transferred to every other view; lattice points
-    within :data:`EXISTING_PX` of ``existing`` (``(n, 2)`` px of the reference view: points
-    measured there already) are left out.
+    triplet, else the scene's first view; :func:`lattice`, or the points ``nodes`` ``(n, 2)``
+    px), transferred to every other view; lattice points within :data:`EXISTING_PX` of
+    ``existing`` (``(n, 2)`` px of the reference view: points measured there already) are
+    left out.
 
     Returns ``[{view: (x, y), …, "score": s, "sigma": {view: σ}}]`` for the points found in
     every other view whose rays meet (:func:`transfer`; ``score`` the lowest fitted
@@ -54,11 +65,12 @@ def auto_tie_points(sol: Solution, images: ImageWindows, *, grid: int = 8, margi
     sc = sol.scene
     source = sc.reference_view
     targets = [v for v in sc.views if v != source]
-    rows, cols = sc.views[source].shape
-    g = margin + (1 - 2 * margin) * (np.arange(grid) + 0.5) / grid
     sigma_dem, sigma_mean = search_sigmas(sol, height_of)
+    if not known_ground(sol):
+        sigma_mean = tie_height_spread(sol, sigma_mean)
     found, failed = [], {}
-    nodes = np.array([(cx * cols, cy * rows) for cy in g for cx in g])
+    nodes = lattice(sc, grid, margin) if nodes is None else np.asarray(nodes, float).reshape(-1, 2)
+    n_nodes = len(nodes)
     if existing is not None and len(existing):
         ex = np.asarray(existing, float).reshape(-1, 2)
         d = np.hypot(nodes[:, None, 0] - ex[None, :, 0], nodes[:, None, 1] - ex[None, :, 1])
@@ -76,7 +88,7 @@ def auto_tie_points(sol: Solution, images: ImageWindows, *, grid: int = 8, margi
             failed[bad[0]] = failed.get(bad[0], 0) + 1
     if summary is not None:
         summary.update(tried=len(nodes), failed=failed, blunders=0, rms_px=math.nan,
-                       existing=grid**2 - len(nodes))
+                       existing=n_nodes - len(nodes))
     if len(found) < 4:
         return found
     keep = np.ones(len(found), bool)
@@ -92,6 +104,19 @@ def auto_tie_points(sol: Solution, images: ImageWindows, *, grid: int = 8, margi
         summary.update(blunders=int((~keep).sum()),
                        rms_px=float(np.sqrt(np.mean(np.concatenate([e[keep] for e in dev]) ** 2))))
     return [p for p, k in zip(found, keep) if k]
+
+
+#: tie points a fit must have intersected before their heights' spread stands for the
+#: spread of the terrain's (fewer: the a-priori spread)
+MIN_TIE_HEIGHTS = 5
+
+
+def tie_height_spread(sol: Solution, default: float) -> float:
+    """σ (m) of the height of a point nothing places, from the heights of the fit's
+    intersected tie points when it has :data:`MIN_TIE_HEIGHTS` or more (a project without
+    known ground; :func:`prismstation.ops.predict.height_spread`), else ``default``."""
+    h = [p.ground_est[2] for p in sol.points if p.ground_est is not None]
+    return height_spread(h) if len(h) >= MIN_TIE_HEIGHTS else default
 
 
 def measurement_sigmas(source: str, covs: dict) -> dict:
@@ -172,25 +197,65 @@ class TieRun:
         return s
 
 
+#: lattice points a first pass searches (every other one along both axes) before the
+#: refit narrows the searches of the others, when the project's fit has not placed every
+#: view yet: the a-priori searches cost about three times as much per point
+FIRST_PASS_STRIDE = 2
+
+
 def add_tie_points(project, *, grid: int = 8, height_of=None, height_sigma_m: float | None = None,
                    progress: ProgressFn | None = None) -> TieRun:
-    """Match tie points on ``project``'s images through its current fit and add them to it
-    (one change; nothing added when cancelled: :class:`~prismstation.errors.Cancelled`).
+    """Match tie points on ``project``'s images through its fit and add them to it (one
+    change; nothing added when cancelled: :class:`~prismstation.errors.Cancelled`).
 
     The fit is :func:`prismstation.ops.fit.solve_project` of the project as it is (with no
-    point, the products' own geometry; with tie points or GCPs, their fitted biases, which
-    narrow the searches); ``height_of``, ``height_sigma_m``: a reference DEM's heights, given
-    to the fit and to the searches; ``grid`` points per side of the lattice."""
+    point, the products' own geometry; with tie points or GCPs, their fitted biases and
+    heights, which narrow the searches). When it has not placed every view, every other
+    lattice point along both axes is searched first, the project refitted with what they
+    found (in a copy), and the rest searched through that fit. ``height_of``,
+    ``height_sigma_m``: a reference DEM's heights, given to the fits and to the searches;
+    ``grid`` points per side of the lattice; lattice points measured already (within
+    :data:`EXISTING_PX`) are left out."""
     sol = solve_project(project, height_of=height_of, height_sigma_m=height_sigma_m)
-    summary: dict = {}
-    source = project.scene.reference_view
+    scene = project.scene
+    source = scene.reference_view
     existing = [(m.x, m.y) for m in project.measurements.values() if m.view == source]
-    with ImageWindows(project.scene) as im:
-        ties = auto_tie_points(sol, im, grid=grid, height_of=height_of, progress=progress, summary=summary,
-                               existing=existing)
+    nodes = lattice(scene, grid)
+    i, j = np.divmod(np.arange(len(nodes)), grid)
+    first = (i % FIRST_PASS_STRIDE == 0) & (j % FIRST_PASS_STRIDE == 0)
+    if all(sol.model.fitted(v) for v in scene.views) or first.all():
+        first[:] = True
+    summary: dict = {}
+    with ImageWindows(scene) as im:
+        ties = auto_tie_points(sol, im, nodes=nodes[first], height_of=height_of, summary=summary,
+                               existing=existing, progress=scaled(progress, 0.0, 1.0 if first.all() else 0.4))
+        if not first.all():
+            _, points, ms = tie_point_edits(project, ties)
+            trial = Project(scene, project.scene_path, settings=project.settings, geoid=project.geoid,
+                            points=[*project.points.values(), *points],
+                            measurements=[*project.measurements.values(), *ms],
+                            dem_control=project.dem_control)
+            refit = solve_project(trial, height_of=height_of, height_sigma_m=height_sigma_m)
+            more: dict = {}
+            ties += auto_tie_points(refit if refit.ok else sol, im, nodes=nodes[~first], height_of=height_of,
+                                    summary=more, existing=existing, progress=scaled(progress, 0.4, 1.0))
+            summary = _merged(summary, more)
     ids, points, ms = tie_point_edits(project, ties)
     project.load(points, ms)
     return TieRun(tuple(ids), summary, tuple(m.sigma_px for m in ms if m.sigma_px is not None))
+
+
+def _merged(a: dict, b: dict) -> dict:
+    """Two passes' summaries as one (the RMS over both passes' kept points)."""
+    kept = [a["tried"] - sum(a["failed"].values()) - a["blunders"],
+            b["tried"] - sum(b["failed"].values()) - b["blunders"]]
+    rms = [(k, r) for k, r in zip(kept, (a["rms_px"], b["rms_px"])) if k > 0 and math.isfinite(r)]
+    failed = dict(a["failed"])
+    for k, n in b["failed"].items():
+        failed[k] = failed.get(k, 0) + n
+    return {"tried": a["tried"] + b["tried"], "failed": failed, "blunders": a["blunders"] + b["blunders"],
+            "existing": a.get("existing", 0) + b.get("existing", 0),
+            "rms_px": math.sqrt(sum(k * r * r for k, r in rms) / sum(k for k, _ in rms)) if rms else math.nan}
 
 
 def _across_parallax(sol: Solution, source: str, xs: np.ndarray, view: str, xt: np.ndarray) -> np.ndarray:
