@@ -3,9 +3,10 @@ every other view (:func:`prismstation.ops.transfer.transfer`: shape-aware matchi
 fitted model, the rays' consistency checked), then the points that disagree with the others
 across the parallax rejected. Image (x, y) = (column, row) px, pixel centre at +0.5.
 
-:func:`auto_tie_points` is the matcher (the window's Tools ▸ Automatic tie points…);
-:func:`add_tie_points` runs it on a project and adds what it keeps, each measurement with its
-σ (``prismstation ties`` and ``new --images``); :func:`ties_summary` says what it did.
+:func:`auto_tie_points` is the matcher; :func:`find_tie_points` runs it on a project (in two
+passes when the fit has not placed every view yet: the window's Tools ▸ Automatic tie
+points…), :func:`add_tie_points` also adds what it keeps (``prismstation ties``, ``new
+--images``), each measurement with its σ; :func:`ties_summary` says what it did.
 """
 from __future__ import annotations
 
@@ -199,24 +200,25 @@ class TieRun:
 
 #: lattice points a first pass searches (every other one along both axes) before the
 #: refit narrows the searches of the others, when the project's fit has not placed every
-#: view yet: the a-priori searches cost about three times as much per point
+#: view yet (:func:`find_tie_points`): the a-priori searches cost about three times as much
+#: per point
 FIRST_PASS_STRIDE = 2
 
 
-def add_tie_points(project, *, grid: int = 8, height_of=None, height_sigma_m: float | None = None,
-                   progress: ProgressFn | None = None) -> TieRun:
-    """Match tie points on ``project``'s images through its fit and add them to it (one
-    change; nothing added when cancelled: :class:`~prismstation.errors.Cancelled`).
+def find_tie_points(project, *, grid: int = 8, height_of=None, height_sigma_m: float | None = None,
+                    progress: ProgressFn | None = None, sol: Solution | None = None) -> tuple[list, dict]:
+    """:func:`auto_tie_points` on ``project``'s images (the project is not changed): the
+    tie points and the summary, as :func:`auto_tie_points` returns and fills them.
 
-    The fit is :func:`prismstation.ops.fit.solve_project` of the project as it is (with no
-    point, the products' own geometry; with tie points or GCPs, their fitted biases and
-    heights, which narrow the searches). When it has not placed every view, every other
-    lattice point along both axes is searched first, the project refitted with what they
-    found (in a copy), and the rest searched through that fit. ``height_of``,
-    ``height_sigma_m``: a reference DEM's heights, given to the fits and to the searches;
-    ``grid`` points per side of the lattice; lattice points measured already (within
-    :data:`EXISTING_PX`) are left out."""
-    sol = solve_project(project, height_of=height_of, height_sigma_m=height_sigma_m)
+    The fit is ``sol`` or :func:`prismstation.ops.fit.solve_project` of the project as it is
+    (with no point, the products' own geometry; with tie points or GCPs, their fitted biases
+    and heights, which narrow the searches). When it has not placed every view, every other
+    lattice point along both axes is searched first, a copy of the project refitted with what
+    they found, and the rest searched through that fit. ``height_of``, ``height_sigma_m``: a
+    reference DEM's heights, given to the fits and to the searches; ``grid`` points per side
+    of the lattice; lattice points measured already (within :data:`EXISTING_PX`) are left out."""
+    if sol is None:
+        sol = solve_project(project, height_of=height_of, height_sigma_m=height_sigma_m)
     scene = project.scene
     source = scene.reference_view
     existing = [(m.x, m.y) for m in project.measurements.values() if m.view == source]
@@ -240,6 +242,15 @@ def add_tie_points(project, *, grid: int = 8, height_of=None, height_sigma_m: fl
             ties += auto_tie_points(refit if refit.ok else sol, im, nodes=nodes[~first], height_of=height_of,
                                     summary=more, existing=existing, progress=scaled(progress, 0.4, 1.0))
             summary = _merged(summary, more)
+    return ties, summary
+
+
+def add_tie_points(project, *, grid: int = 8, height_of=None, height_sigma_m: float | None = None,
+                   progress: ProgressFn | None = None) -> TieRun:
+    """:func:`find_tie_points` and add what it keeps to ``project`` (one change; nothing
+    added when cancelled: :class:`~prismstation.errors.Cancelled`)."""
+    ties, summary = find_tie_points(project, grid=grid, height_of=height_of, height_sigma_m=height_sigma_m,
+                                    progress=progress)
     ids, points, ms = tie_point_edits(project, ties)
     project.load(points, ms)
     return TieRun(tuple(ids), summary, tuple(m.sigma_px for m in ms if m.sigma_px is not None))

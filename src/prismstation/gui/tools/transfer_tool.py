@@ -19,7 +19,8 @@ on, or whose transfer was rejected.
 
 *Automatic tie points…*: a grid over the N image (the first of other scenes) transferred to
 the other views, blunders rejected
-(:func:`prismstation.ops.tie_points.auto_tie_points`, with the reference DEM when one is loaded),
+(:func:`prismstation.ops.tie_points.find_tie_points`, as ``prismstation ties`` does, with the
+reference DEM when one is loaded),
 added as new tie points in one undoable step; a summary (how many added, not found and why,
 rejected as blunders, the across-track RMS) on the status line and, interactively, in a box.
 """
@@ -302,14 +303,11 @@ class TransferTool:
             return None
         height_of = self.ctx.views.height_of
 
+        snapshot = project.snapshot()
+
         def work(progress):
-            from prismstation.io.windows import ImageWindows
-            from prismstation.ops.tie_points import auto_tie_points
-            summary: dict = {}
-            with ImageWindows(project.scene) as im:
-                ties = auto_tie_points(sol, im, grid=grid, height_of=height_of, progress=progress,
-                                       summary=summary)
-            return ties, summary
+            from prismstation.ops.tie_points import find_tie_points
+            return find_tie_points(snapshot, grid=grid, height_of=height_of, progress=progress, sol=sol)
 
         self.job = run_with_progress(self.ctx, "Automatic tie points", work,
                                      lambda out: self._add_ties(project, *out))
