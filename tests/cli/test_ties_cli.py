@@ -153,3 +153,21 @@ def test_real_blocks(shared_data, tmp_path, capsys, block):
     assert rms and max(rms) < 0.2, out
     data = json.loads(proj.read_text())
     assert all(m.get("sigma_px", 0) > 0 for m in data["measurements"])
+
+
+def test_ties_with_a_reference_dem(synthetic, tmp_path, capsys):
+    """``--dem``: the searches around the reference's heights (here the true terrain); the
+    points found as without it, against the truth."""
+    from tests.ops.test_rpc_dsm import write_reference
+    d, world, rpcs, paths = synthetic
+    write_reference(tmp_path / "ref.tif", world)
+    proj = tmp_path / "p.prismproj"
+    assert main(["new", str(proj), "--images", *map(str, paths), "--no-ties"]) == 0
+    assert main(["ties", str(proj), "--grid", "3", "--dem", str(tmp_path / "ref.tif")]) == 0
+    project = load_project(proj)
+    ties = list(project.points)
+    assert len(ties) >= 6, capsys.readouterr().out
+    src = np.array([[project.measurement(p, "img0").x, project.measurement(p, "img0").y] for p in ties])
+    truth = true_positions(world, rpcs, src)
+    got = np.array([[project.measurement(p, "img2").x, project.measurement(p, "img2").y] for p in ties])
+    assert np.hypot(*(got - truth[2]).T).max() < 0.5
