@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from prismstation.core import prism
-from prismstation.core.solve import Solution
+from prismstation.core.solution import Solution
 from prismstation.core.stats import nmad
 from prismstation.io.windows import ImageWindows
 from prismstation.model.points import GroundPoint, Measurement

@@ -5,7 +5,7 @@ terrain intersection → ground texture; then a Gaussian sensor PSF and Gaussian
 """
 from __future__ import annotations
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
 from prismstation.sim import geometry as geo

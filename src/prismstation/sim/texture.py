@@ -6,7 +6,7 @@ all multiplied by hill shading from a sun direction. Generated in row blocks (bo
 """
 from __future__ import annotations
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
 from prismstation.sim.terrain import Grid
