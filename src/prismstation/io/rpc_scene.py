@@ -196,11 +196,12 @@ def rpc_view(name: str, rpc: Rpc, projection: LonLatProjection, image: str | Non
 
 
 def _shape(image: Path) -> tuple[int, int]:
+    """``(rows, cols)`` of an image, opened through :func:`open_raster_file`."""
     try:
-        with rasterio.open(image) as ds:
+        with open_raster_file(image, "image") as ds:
             return ds.height, ds.width
-    except rasterio.errors.RasterioError as exc:
-        raise InputError(f"cannot be read as a raster ({exc})", image) from None
+    except RasterReadError as exc:
+        raise InputError(str(exc).removeprefix(f"{image}: "), image) from None
 
 
 def scene_dict_for_images(images, out_dir) -> dict:
