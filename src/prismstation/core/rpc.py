@@ -28,7 +28,7 @@ POLYNOMIALS = ("line_num", "line_den", "samp_num", "samp_den")
 #: the range each offset and scale may take on Earth (degrees, metres, pixels); outside it an
 #: RPC is refused: heights from below the Dead Sea to above Everest with margin, images of up to
 #: ten million pixels a side
-PLAUSIBLE = {"lat_off": (-90.0, 90.0), "lon_off": (-180.0, 360.0), "lat_scale": (-90.0, 90.0),
+PLAUSIBLE = {"lat_off": (-90.0, 90.0), "lon_off": (-360.0, 360.0), "lat_scale": (-90.0, 90.0),
              "lon_scale": (-180.0, 180.0), "h_off": (-1000.0, 10000.0), "h_scale": (-10000.0, 10000.0),
              "line_off": (-1e7, 1e7), "samp_off": (-1e7, 1e7), "line_scale": (-1e7, 1e7),
              "samp_scale": (-1e7, 1e7)}
