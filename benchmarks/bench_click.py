@@ -64,7 +64,7 @@ def main(argv=None) -> int:
     from PySide6.QtCore import Qt
     from PySide6.QtTest import QTest
 
-    from tests.gui.project_factory import make_project
+    from prismstation.sim.small_project import make_project
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-click-"))
     os.environ["PRISMSTATION_SETTINGS_DIR"] = str(tmp / "settings")

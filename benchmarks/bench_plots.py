@@ -27,7 +27,7 @@ from prismstation.core.solution import solve  # noqa: E402
 from prismstation.gui.plots import PlotsWidget  # noqa: E402
 from prismstation.gui.report_writer import write_document  # noqa: E402
 from prismstation.io.report import report_dict  # noqa: E402
-from tests.core.synth import make_points, make_scene  # noqa: E402
+from prismstation.sim.model_triplet import make_points, make_scene  # noqa: E402
 
 
 def solutions(n_gcp, n_icp, seeds=(1, 2)):

@@ -105,3 +105,15 @@ def test_imports_inside_functions_only_keep_start_up_short():
     bad = [f"{p.relative_to(SRC)}:{line}: {mod}" for p in sorted(SRC.rglob("*.py"))
            for line, mod in function_imports(p)]
     assert not bad, "imports inside functions without a start-up reason:\n" + "\n".join(bad)
+
+
+def test_benchmarks_use_the_package_not_the_tests():
+    """A benchmark measures what the package does with what the package offers: it never
+    imports from ``tests/`` (its simulated projects are :mod:`prismstation.sim`'s)."""
+    bad = []
+    for p in sorted((ROOT / "benchmarks").glob("*.py")):
+        for node in ast.walk(ast.parse(p.read_text(encoding="utf-8"))):
+            names = ([node.module or ""] if isinstance(node, ast.ImportFrom) and node.level == 0
+                     else [a.name for a in node.names] if isinstance(node, ast.Import) else [])
+            bad += [f"{p.name}:{node.lineno}: {n}" for n in names if n == "tests" or n.startswith("tests.")]
+    assert not bad, "benchmarks importing from tests/:\n" + "\n".join(bad)

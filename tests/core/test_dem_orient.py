@@ -6,7 +6,7 @@ from prismstation.core.dem_orient import (PatchShift, affine_field, control_from
                                           grid_points, patch_windows, smooth_like_reference)
 from prismstation.core.solution import PointObs, solve
 from prismstation.core import view_offsets as vo
-from tests.core.synth import make_scene
+from prismstation.sim.model_triplet import make_scene
 
 
 def _shift(x, y):  # an affine field of shifts (m) over the N image, like the ~50 m Gonçalves reports

@@ -9,7 +9,7 @@ from prismstation.core.dsm_heights import choose_heights, loo_height_errors, mod
 from prismstation.core.prism import FixedPrism
 from prismstation.core.solution import Control, solve
 
-from tests.core.synth import make_points, make_scene
+from prismstation.sim.model_triplet import make_points, make_scene
 
 
 def _drifting(points, size, drift_px):

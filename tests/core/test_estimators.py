@@ -17,7 +17,7 @@ from prismstation.core.shift_field import ShiftField
 from prismstation.core.solution import PointObs, Settings, solve
 from prismstation.errors import DegenerateGeometry, ModelError
 
-from .synth import make_scene
+from prismstation.sim.model_triplet import make_scene
 
 DRAWS = 200
 E0, N0 = 512000.0, 4601000.0

@@ -13,7 +13,7 @@ from prismstation.core.scene import Scene
 from prismstation.core.sensor import SensorModel
 from prismstation.core.solution import solve
 from prismstation.io.rpc_scene import LonLatProjection
-from tests.core.synth import make_points, make_scene
+from prismstation.sim.model_triplet import make_points, make_scene
 from tests.ops.rpc_synth import make_rpc
 
 LON0, LAT0 = 3.0, 43.3   # the synthetic RPC images' centre (UTM 31)

@@ -11,7 +11,7 @@ from prismstation.errors import InputError
 from prismstation.gui import commands as cmd
 from prismstation.model.points import GroundPoint, Measurement
 from prismstation.model.project import Project
-from tests.core.synth import make_scene
+from prismstation.sim.model_triplet import make_scene
 
 
 def state(p: Project):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from prismstation.cli import main
-from tests.core.synth import make_points, make_scene
+from prismstation.sim.model_triplet import make_points, make_scene
 
 
 def write_triplet(tmp_path, scene, pts, geoid=None, ortho=False):

@@ -11,7 +11,7 @@ from prismstation.io.points import read_ground_points, read_measurements
 from prismstation.io.project import load_project, save_project
 from prismstation.ops.fit import solve_project
 from prismstation.model.points import Measurement
-from tests.core.synth import make_points, make_scene
+from prismstation.sim.model_triplet import make_points, make_scene
 from tests.io.test_cli_pipeline import write_triplet
 
 

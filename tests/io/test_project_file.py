@@ -12,7 +12,7 @@ from prismstation.io.project import load_project, save_project
 from prismstation.io.recovery import Journal, recover
 from prismstation.model.points import GroundPoint, Measurement
 from prismstation.model.project import Project
-from tests.core.synth import make_scene
+from prismstation.sim.model_triplet import make_scene
 from tests.io.test_cli_pipeline import write_triplet
 
 RECORD = {"reference": "srtm.tif", "mean_height": 312.5, "offsets_px": {"F": [0.5, -1.0]},

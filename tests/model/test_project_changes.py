@@ -9,7 +9,7 @@ from prismstation.core.solution import Settings
 from prismstation.errors import InputError
 from prismstation.model.points import GroundPoint, Measurement
 from prismstation.model.project import Change, Project
-from tests.core.synth import make_scene
+from prismstation.sim.model_triplet import make_scene
 
 
 @pytest.fixture

@@ -29,7 +29,7 @@ def test_the_prior_is_taken_where_the_field_puts_n():
     from types import SimpleNamespace
     from prismstation.core import prism
     from prismstation.ops.dem_patches import ReferenceGrid
-    from tests.core.synth import make_scene
+    from prismstation.sim.model_triplet import make_scene
 
     sc = make_scene(size=2000)
     posting = 30.0

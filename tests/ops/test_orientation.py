@@ -14,7 +14,7 @@ from prismstation.gui import sensors as gui_sensors
 from prismstation.model.project import Project
 from prismstation.ops import sensors as ops_sensors
 from prismstation.ops.orientation import Orientation, apply_orientation
-from tests.core.synth import make_scene
+from prismstation.sim.model_triplet import make_scene
 
 
 def test_every_model_has_workflows_and_window_parts_of_one_signature():

@@ -10,7 +10,7 @@ import pytest
 from prismstation.core.solution import PointObs, solve
 from prismstation.ops.predict import (CHI2_95_2D, DEFAULT_DEM_SIGMA_M, PointInput, dem_sigma,
                                       height_spread, predict_point)
-from tests.core.synth import make_points, make_scene
+from prismstation.sim.model_triplet import make_points, make_scene
 
 NOISE_PX = 0.3
 

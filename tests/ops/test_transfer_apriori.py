@@ -44,7 +44,7 @@ def test_fitted_model_searches_narrow():
 
     from prismstation.core.prism import BiasFit
     from prismstation.core.prism_model import PrismModel
-    from tests.core.synth import make_scene
+    from prismstation.sim.model_triplet import make_scene
     sc = make_scene()
     sol = solve(sc, [], control=identity_control(sc, 500.0))
     xy0 = np.random.default_rng(0).uniform(0, 1e4, (8, 2))

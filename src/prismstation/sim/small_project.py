@@ -1,6 +1,6 @@
 """Small triplet projects with pictures for the window's tests, benchmark and screenshots.
 
-The geometry is the empirical model itself (tests/core/synth.py) with the paper's N bias and an
+The geometry is the empirical model itself (sim/model_triplet.py) with the paper's N bias and an
 F/B offset; the images are rendered through that geometry from a terrain (hillshade plus a
 multi-scale texture), so that one ground point shows the same detail in N, F and B and the
 known image position of every point is exact (before the operator-like noise).
@@ -22,7 +22,7 @@ from prismstation.io.project import save_project
 from prismstation.io.scene import read_scene
 from prismstation.model.points import GroundPoint, Measurement
 from prismstation.model.project import Project
-from tests.core.synth import PAPER_B, PAPER_M, make_scene
+from prismstation.sim.model_triplet import PAPER_B, PAPER_M, make_scene
 
 FB_BIAS = {"F": np.array([3.0 - 4.0, -5.0]), "B": np.array([3.0, -5.0])}
 
