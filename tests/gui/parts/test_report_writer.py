@@ -171,7 +171,7 @@ def prism_project(tmp_path_factory):
     acquisition times and its source (as a JAXA product gives them), heights orthometric."""
     from prismstation.cli import main
     from prismstation.sim.model_triplet import make_points, make_scene
-    from tests.io.test_cli_pipeline import write_triplet
+    from tests.cli.test_fit import write_triplet
     d = tmp_path_factory.mktemp("prism")
     sc = make_scene()
     write_triplet(d, sc, make_points(sc, n_gcp=9, n_icp=12, noise_px=0.3, seed=5), geoid=55.0, ortho=True)
