@@ -183,7 +183,7 @@ def main(argv=None) -> int:
     target = 33.0 if args.points <= 200 else 50.0
     line("first frame (target ≤ 16 ms)", first)
     line(f"whole round (target ≤ {target:g} ms)", total)
-    line("  fit (core.solution.solve)", fit)
+    line("  fit (core.models.solution.solve)", fit)
     line("  fit published → last paint", gui_ms)
     line("CPU time of the process per round", cpu)
     print(f"  open to settled images and first fit      {t_open * 1000:7.0f} ms")

@@ -37,7 +37,7 @@ import numpy as np
 import rasterio
 
 from prismstation.ops.project import create
-from prismstation.core.stats import nmad
+from prismstation.core.adjustment.stats import nmad
 from prismstation.io.dem import read_dem
 from prismstation.io.raster import gdal_env
 from prismstation.io.project import load_project

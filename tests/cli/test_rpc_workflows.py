@@ -19,8 +19,8 @@ import rasterio
 from rasterio.rpc import RPC
 
 from prismstation.cli import main
-from prismstation.core.rpc_bias import metres_per_degree
-from prismstation.core.stats import nmad
+from prismstation.core.models.rpc_bias import metres_per_degree
+from prismstation.core.adjustment.stats import nmad
 from prismstation.io.project import load_project
 from prismstation.io.rpc_scene import to_lonlat
 from tests.ops.rpc_synth import World, analytic_terrain, make_rpc, render

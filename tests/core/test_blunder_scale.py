@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from prismstation.core.solution import PointObs, Settings, critical_value, normal_equivalent, solve
+from prismstation.core.models.solution import PointObs, Settings, critical_value, normal_equivalent, solve
 from prismstation.sim.model_triplet import make_points, make_scene
 
 

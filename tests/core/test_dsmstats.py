@@ -7,7 +7,7 @@ import pytest
 import rasterio
 
 from prismstation.cli import main
-from prismstation.core.dsmstats import residual_sd_by_view, sample_stats, validate_dsm
+from prismstation.core.surfaces.dsmstats import residual_sd_by_view, sample_stats, validate_dsm
 from prismstation.errors import InputError
 from prismstation.io.dem import DemGrid, read_dem, resample_to_grid
 from prismstation.io.geoid import undulation_on_grid
@@ -204,7 +204,7 @@ def test_validate_dsm_command_bad_input(shared_data, tmp_path, capsys):
 
 
 def test_hillshade_and_histogram_by_hand():
-    from prismstation.core.dsmstats import hillshade, histogram
+    from prismstation.core.surfaces.dsmstats import hillshade, histogram
 
     rows, cols = np.mgrid[0:20, 0:30]
     flat = np.zeros((20, 30))

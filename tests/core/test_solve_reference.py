@@ -11,9 +11,9 @@ import math
 import numpy as np
 import pytest
 
-from prismstation.core import prism
-from prismstation.core.results import PointColumns
-from prismstation.core.solution import PointObs, Settings, normal_equivalent, solve, statistics
+from prismstation.core.models import prism
+from prismstation.core.models.results import PointColumns
+from prismstation.core.models.solution import PointObs, Settings, normal_equivalent, solve, statistics
 
 from prismstation.sim.model_triplet import make_points, make_scene
 

@@ -27,7 +27,7 @@ def test_the_prior_is_taken_where_the_field_puts_n():
     looks (at the ancillary point plus (dE, dN)), minus dh: in the ancillary frame, the frame of
     the relative DEM's heights. Without it, where the ancillary model puts N."""
     from types import SimpleNamespace
-    from prismstation.core import prism
+    from prismstation.core.models import prism
     from prismstation.ops.dem_patches import ReferenceGrid
     from prismstation.sim.model_triplet import make_scene
 

@@ -8,8 +8,8 @@ import inspect
 
 import pytest
 
-from prismstation.core import sensors
-from prismstation.core.conditioning import FAILED, OK, OrientVerdict
+from prismstation.core.models import sensors
+from prismstation.core.orientation.conditioning import FAILED, OK, OrientVerdict
 from prismstation.gui import sensors as gui_sensors
 from prismstation.model.project import Project
 from prismstation.ops import sensors as ops_sensors

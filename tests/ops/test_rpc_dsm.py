@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import rasterio
 
-from prismstation.core.rpc_bias import BiasedRpc, metres_per_degree
-from prismstation.core.stats import nmad
+from prismstation.core.models.rpc_bias import BiasedRpc, metres_per_degree
+from prismstation.core.adjustment.stats import nmad
 from prismstation.errors import Cancelled, InputError
 from prismstation.io.dsm import read_dsm_info, write_dsm
 from prismstation.io.rpc_scene import to_lonlat

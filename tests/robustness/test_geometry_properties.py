@@ -10,11 +10,11 @@ import numpy as np
 from hypothesis import assume, example, given
 from hypothesis import strategies as st
 
-from prismstation.core import prism
-from prismstation.core.affine import Affine2D
-from prismstation.core.prism import BIAS_MODELS, BiasFit, fit_bias
-from prismstation.core.rectify import fit_transform
-from prismstation.core.solution import Settings, solve
+from prismstation.core.models import prism
+from prismstation.core.adjustment.affine import Affine2D
+from prismstation.core.models.prism import BIAS_MODELS, BiasFit, fit_bias
+from prismstation.core.models.rectify import fit_transform
+from prismstation.core.models.solution import Settings, solve
 from prismstation.sim.model_triplet import make_points, make_scene
 from tests.robustness.fuzzlib import fuzz_settings
 

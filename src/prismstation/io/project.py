@@ -16,8 +16,8 @@ from functools import lru_cache
 from pathlib import Path
 
 from prismstation import __version__
-from prismstation.core.prism import PARALLAX_MODELS
-from prismstation.core.solution import Settings
+from prismstation.core.models.prism import PARALLAX_MODELS
+from prismstation.core.models.solution import Settings
 from prismstation.errors import InputError
 from prismstation.io import geoid as geoid_mod
 from prismstation.io.atomic import write_atomic

@@ -13,7 +13,7 @@ import itertools
 import re
 from pathlib import Path
 
-from prismstation.core.scene import reference_view
+from prismstation.core.models.scene import reference_view
 from prismstation.io.formatting import fixed
 
 FIGURE_CAPTIONS = {

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 from pyproj import CRS, Transformer
 
-from prismstation.core.rpc import POLYNOMIALS, SCALARS, Rpc, wrap180
-from prismstation.core.rpc_model import RpcModel, RpcView, ground_sample_distance
+from prismstation.core.models.rpc import POLYNOMIALS, SCALARS, Rpc, wrap180
+from prismstation.core.models.rpc_model import RpcModel, RpcView, ground_sample_distance
 from prismstation.errors import InputError, ModelError, RasterReadError
 from prismstation.io.inputs import open_raster_file
 from prismstation.io.jsonfile import write_json
@@ -172,7 +172,7 @@ def common_footprint(footprints: dict) -> tuple[float, float]:
 
 def rpc_to_dict(rpc: Rpc) -> dict:
     """The RPC as a scene file stores it: the ten offsets and scales and the four polynomials
-    under :data:`prismstation.core.rpc.SCALARS` / ``POLYNOMIALS`` names (GDAL's conventions:
+    under :data:`prismstation.core.models.rpc.SCALARS` / ``POLYNOMIALS`` names (GDAL's conventions:
     0-based offsets, the first pixel's centre at 0)."""
     d = {k: float(getattr(rpc, k)) for k in SCALARS}
     d.update({k: [float(c) for c in getattr(rpc, k)] for k in POLYNOMIALS})

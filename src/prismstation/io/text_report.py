@@ -2,7 +2,7 @@
 report dict (:func:`prismstation.io.report.report_dict`); the points are in its other formats."""
 from __future__ import annotations
 
-from prismstation.core.scene import reference_view
+from prismstation.core.models.scene import reference_view
 from prismstation.io.formatting import fixed
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from rasterio.windows import Window
 
-from prismstation.core.affine import Affine2D
+from prismstation.core.adjustment.affine import Affine2D
 from prismstation.errors import InputError, RasterReadError
 from prismstation.io.atomic import cause_text
 from prismstation.io.inputs import open_raster_file

@@ -2,7 +2,7 @@
 
 :func:`coarse_view_offsets` reads the reference DEM (ellipsoidal through ``geoid``) over N's
 footprint, cuts N into a 3 × 3 lattice of windows, and for each window and view calls
-:func:`prismstation.core.view_offsets.view_offset` over the radius the a-priori σ allows; the
+:func:`prismstation.core.orientation.view_offsets.view_offset` over the radius the a-priori σ allows; the
 windows are combined per view with a consistency verdict. The result's ``offsets_px`` are
 N-space pixels from the ancillary prediction to where the view sees the point, at N's centre,
 and ``gradients_px`` how they vary over N (attitude drift): the DEM orientation
@@ -19,9 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from prismstation.core import view_offsets as vo
-from prismstation.core.coarse import K_SIGMA, search_radius_px
-from prismstation.core.scene import Scene
+from prismstation.core.orientation import view_offsets as vo
+from prismstation.core.matching.coarse import K_SIGMA, search_radius_px
+from prismstation.core.models.scene import Scene
 from prismstation.errors import InputError
 from prismstation.io.dem import read_dem
 from prismstation.io.windows import open_image
@@ -34,7 +34,7 @@ SIGMA_APRIORI_M = 50.0
 class CoarseOffsets:
     """Per view (F, B): the N-space offset (px) at the N image's centre, its σ, the verdict,
     the windows, and the offset's gradient over N (px per N pixel, 2 × 2,
-    :func:`prismstation.core.view_offsets.gradient`)."""
+    :func:`prismstation.core.orientation.view_offsets.gradient`)."""
 
     offsets_px: dict
     sigma_px: dict
@@ -66,7 +66,7 @@ def coarse_view_offsets(scene: Scene, reference_path, geoid, *, sigma_apriori_m:
                         k: float = K_SIGMA, window_px: int = 512, grid: int = 3,
                         posting_m: float = 30.0, n_shift=None, progress=None) -> CoarseOffsets:
     """F and B offsets relative to N over the a-priori range (module docstring); ``n_shift``
-    as in :func:`prismstation.core.view_offsets.n_heights` (N's error, once known)."""
+    as in :func:`prismstation.core.orientation.view_offsets.n_heights` (N's error, once known)."""
     if not scene.is_triplet:
         raise InputError("the coarse view offsets need an N, F, B triplet")
     N = scene.views["N"]

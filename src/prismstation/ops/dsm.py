@@ -23,10 +23,10 @@ from dataclasses import dataclass, field
 from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
-from prismstation.core.dsm_grid import (BRIDGE_STRIP, bridge, cell_centres, drop_unconfirmed,
+from prismstation.core.surfaces.dsm_grid import (BRIDGE_STRIP, bridge, cell_centres, drop_unconfirmed,
                                         fill_voids, grid_over, regrid, seen_by_all)
-from prismstation.core.dsm_heights import HEIGHT_MODELS, choose_heights, model_height_correction
-from prismstation.core.solution import Solution
+from prismstation.core.surfaces.dsm_heights import HEIGHT_MODELS, choose_heights, model_height_correction
+from prismstation.core.models.solution import Solution
 from prismstation.errors import InputError
 from prismstation.ops.dsm_tiles import TileSpec, return_freed_memory, run_tiles
 from prismstation.ops.progress import checkpoint, scaled
@@ -242,7 +242,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, orthometric
     ``fill``: fill voids by interpolation (mask 2). ``refine``: ZNCC subpixel refinement
     after SGBM. ``scheduler``, ``workers``: see :mod:`prismstation.ops.dsm_tiles`.
     ``progress(fraction, message)`` returning False cancels (:class:`Cancelled`).
-    ``heights_model``: ``auto``, ``line`` or ``rays`` (:mod:`prismstation.core.dsm_heights`);
+    ``heights_model``: ``auto``, ``line`` or ``rays`` (:mod:`prismstation.core.surfaces.dsm_heights`);
     the choice and its reason are in ``info["heights"]``.
 
     The steps: :func:`plan_dsm`, :func:`starting_prior`, :func:`match_levels`,

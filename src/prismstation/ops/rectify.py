@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prismstation.core.rectify import KINDS, TransformReport, compare_transforms, format_rmse_table
+from prismstation.core.models.rectify import KINDS, TransformReport, compare_transforms, format_rmse_table
 from prismstation.errors import InputError, ModelError
 from prismstation.io.georef import Reprojection
 from prismstation.io.geotiff import block_writer
@@ -111,7 +111,7 @@ def rectify_raster(image, transform, out_path, *, points_crs, out_crs=None,
     Parameters
     ----------
     image : path of any raster rasterio opens (its own georeferencing is ignored).
-    transform : a :class:`prismstation.core.rectify.FittedTransform` (pixels → ``points_crs``).
+    transform : a :class:`prismstation.core.models.rectify.FittedTransform` (pixels → ``points_crs``).
     points_crs : CRS of the ground points the transform was fitted to.
     out_crs : output CRS (default ``points_crs``); pyproj converts between the two.
     resolution : output cell size in ``out_crs`` units (default: the image's own, mapped).

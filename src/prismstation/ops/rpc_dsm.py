@@ -2,9 +2,9 @@
 
 For every pair of images and every tile of the output grid (north-up, a UTM zone by default,
 ellipsoidal heights), the left image's window seeing the tile is rectified with the right
-image (:func:`prismstation.core.rpc_epipolar.rectify_pair`, through the biased RPCs), matched
+image (:func:`prismstation.core.surfaces.rpc_epipolar.rectify_pair`, through the biased RPCs), matched
 by OpenCV's StereoSGBM with the ZNCC subpixel refinement of the PRISM DSM
-(:mod:`prismstation.core.sgm`), triangulated through the RPCs and binned into the tile's cells.
+(:mod:`prismstation.core.matching.sgm`), triangulated through the RPCs and binned into the tile's cells.
 Each tile matches every pair and fuses them in one Dask task
 (:mod:`prismstation.ops.rpc_dsm_tiles`, run by :func:`prismstation.ops.dsm_tiles.run_tiles`);
 it reads its own windows, so it runs in a thread, a process or on a ``dask.distributed``
@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from prismstation.core.rpc_bias import as_biased
-from prismstation.core.stats import nmad
+from prismstation.core.models.rpc_bias import as_biased
+from prismstation.core.adjustment.stats import nmad
 from prismstation.errors import InputError, ModelError
 from prismstation.io.dem import read_dem
 from prismstation.io.rpc_scene import to_map, utm_crs
@@ -331,7 +331,7 @@ def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=Non
     file; ``geoid`` makes an orthometric one ellipsoidal): the module docstring.
 
     Each tile matches every pair and fuses them as the PRISM DSM does
-    (:func:`prismstation.core.sgm.fuse`): the pair heights within ``tau`` σ of their median,
+    (:func:`prismstation.core.matching.sgm.fuse`): the pair heights within ``tau`` σ of their median,
     σ-weighted; a cell with one height (or two that disagree) keeps the one nearest its
     neighbours' fused surface within 3σ or three postings. The
     :class:`~prismstation.ops.dsm.Dsm` holds ellipsoidal heights on ``grid``, ``quality``

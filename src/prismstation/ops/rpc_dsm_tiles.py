@@ -13,9 +13,9 @@ from dataclasses import dataclass
 from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
-from prismstation.core import sgm
-from prismstation.core.rpc_bias import as_biased
-from prismstation.core.rpc_epipolar import (grid_heights, ray_lattice, rectify_pair, source_window,
+from prismstation.core.matching import sgm
+from prismstation.core.models.rpc_bias import as_biased
+from prismstation.core.surfaces.rpc_epipolar import (grid_heights, ray_lattice, rectify_pair, source_window,
                                             triangulate, warp)
 from prismstation.errors import ModelError
 from prismstation.io.raster import gdal_env

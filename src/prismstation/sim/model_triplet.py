@@ -1,11 +1,11 @@
 """Triplets made with the empirical model itself (for exact-recovery tests of the core)."""
 import numpy as np
 
-from prismstation.core.affine import Affine2D
-from prismstation.core.prism_model import PrismModel
-from prismstation.core.scene import GroundTrack, Scene, View
-from prismstation.core.solution import PointObs
-from prismstation.core import prism
+from prismstation.core.adjustment.affine import Affine2D
+from prismstation.core.models.prism_model import PrismModel
+from prismstation.core.models.scene import GroundTrack, Scene, View
+from prismstation.core.models.solution import PointObs
+from prismstation.core.models import prism
 
 HS = 691650.0
 

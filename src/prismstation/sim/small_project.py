@@ -17,7 +17,7 @@ import rasterio
 from rasterio.errors import NotGeoreferencedWarning
 from scipy import ndimage
 
-from prismstation.core import prism
+from prismstation.core.models import prism
 from prismstation.io.project import save_project
 from prismstation.io.scene import read_scene
 from prismstation.model.points import GroundPoint, Measurement

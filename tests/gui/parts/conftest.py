@@ -5,7 +5,7 @@ from dataclasses import replace
 
 import pytest
 
-from prismstation.core.solution import solve
+from prismstation.core.models.solution import solve
 from prismstation.sim.model_triplet import make_points, make_scene
 
 BLUNDER_ID = "P4"

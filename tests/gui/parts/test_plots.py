@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from prismstation.gui.plot_figures import figure_widget, render_images
-from prismstation.core.solution import solve
+from prismstation.core.models.solution import solve
 from prismstation.gui.plots import PlotData, PlotsWidget
 from prismstation.sim.model_triplet import make_points, make_scene
 from tests.gui.parts.conftest import BLUNDER_ID

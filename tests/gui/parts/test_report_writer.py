@@ -280,7 +280,7 @@ def test_cli_report_every_format_holds_the_same_report(tmp_path, prism_project, 
 
 def test_single_view_and_empty_reports(tmp_path, qtbot):
     from dataclasses import replace
-    from prismstation.core.solution import solve
+    from prismstation.core.models.solution import solve
     from prismstation.sim.model_triplet import make_points, make_scene
     sc = make_scene()
     single = replace(sc, views={"N": sc.views["N"]})

@@ -23,7 +23,7 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpin
                                QPushButton, QSplitter, QStackedWidget, QTableWidget, QTableWidgetItem, QTabWidget,
                                QVBoxLayout, QWidget)
 
-from prismstation.core.dsmstats import hillshade, histogram, residual_sd_by_view
+from prismstation.core.surfaces.dsmstats import hillshade, histogram, residual_sd_by_view
 from prismstation.errors import PrismError
 from prismstation.gui.titles import fit_title
 from prismstation.gui.tools._worker import Job, run_with_progress

@@ -17,7 +17,7 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpin
                                QFormLayout, QHBoxLayout, QLabel, QLineEdit, QMessageBox,
                                QPushButton, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
 
-from prismstation.core.rectify import KINDS, compare_transforms, min_points, n_params
+from prismstation.core.models.rectify import KINDS, compare_transforms, min_points, n_params
 from prismstation.gui import settings as st
 from prismstation.gui.titles import fit_title
 from prismstation.gui.tools._rect_common import view_points, watch_project

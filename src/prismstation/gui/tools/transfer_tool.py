@@ -36,7 +36,7 @@ from PySide6.QtWidgets import (QDialog, QDialogButtonBox, QFormLayout, QHBoxLayo
                                QMessageBox, QPushButton, QSpinBox, QTableWidget, QTableWidgetItem,
                                QVBoxLayout, QWidget)
 
-from prismstation.core.scene import reference_view
+from prismstation.core.models.scene import reference_view
 from prismstation.gui import commands as cmd
 from prismstation.gui.tools._worker import Job, run_with_progress
 from prismstation.gui.views import DRIVE_TO_MAX_SCALE
