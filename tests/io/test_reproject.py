@@ -32,7 +32,7 @@ UTM31 = "EPSG:32631"         # central meridian 3° E; the zone spans 0–6° E
 PLACES = [(0.0, 0.0), (0.0, 2.95), (20.0, -2.95), (41.0, 0.0), (41.0, 2.95), (60.0, 0.0),
           (70.0, 0.0), (70.0, -2.95)]
 #: the costlier checks (whole coregistrations, whole validations) at a zone's edge low, mid and
-#: high: GDAL's default fails each of them there; the warp itself is checked at every place
+#: high (GDAL's default fails them at 41° and 70°); the warp itself is checked at every place
 EDGES = [(0.0, 2.95), (41.0, 2.95), (70.0, -2.95)]
 
 
