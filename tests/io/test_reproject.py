@@ -19,6 +19,10 @@ from prismstation.ops.coregister import coregister_dems
 from prismstation.ops.validate import validate_dsm_files
 from prismstation.sim.hills import PLACES, TOLERANCE_M, UTM31, Place, shift_m, surface, write
 
+#: the costlier checks (whole coregistrations, whole validations) at a zone's edge low, mid and
+#: high (GDAL's default fails them at 41° and 70°); the warp itself is checked at every place
+EDGES = [(0.0, 2.95), (41.0, 2.95), (70.0, -2.95)]
+
 
 @pytest.mark.parametrize("lat,dlon", PLACES)
 def test_warp_finds_every_target_cell_where_pyproj_puts_it(lat, dlon):
@@ -46,7 +50,7 @@ def test_read_dem_lays_each_grid_on_the_other_where_it_is(tmp_path, lat, dlon):
     assert np.hypot(*s) <= TOLERANCE_M, s
 
 
-@pytest.mark.parametrize("lat,dlon", PLACES)
+@pytest.mark.parametrize("lat,dlon", EDGES)
 def test_coregister_finds_no_shift_between_the_two_grids(tmp_path, lat, dlon):
     p = Place(lat, dlon).write(tmp_path)
     for ref, dem in ((p.utm, p.geo), (p.geo, p.utm)):
@@ -55,7 +59,7 @@ def test_coregister_finds_no_shift_between_the_two_grids(tmp_path, lat, dlon):
         assert np.hypot(c.result.dx, c.result.dy) <= TOLERANCE_M, (ref.name, c.result)
 
 
-@pytest.mark.parametrize("lat,dlon", PLACES)
+@pytest.mark.parametrize("lat,dlon", EDGES)
 def test_validate_dsm_compares_each_cell_with_the_same_ground(tmp_path, lat, dlon):
     p = Place(lat, dlon).write(tmp_path)
     diff = tmp_path / "diff.tif"
