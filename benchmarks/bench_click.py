@@ -1,14 +1,22 @@
-"""Click → refit → table, statistics and plots repainted, with 200 points.
+"""Click → first frame → refit → table, statistics and plots repainted, with 200 points.
 
 A real main window (offscreen unless a display is set) on a rendered triplet with 20 GCPs and
 180 ICPs. Each round is one mouse click on the N view (QTest) that moves the current GCP's
 measurement (the cursor is moved there first and the window settles: an operator points, then
-clicks); the time runs from the press until the new Solution has been published and the event
-loop has painted everything it had to (the last pass that painted; the table, the model panel,
-the plots and the N view must be among what was painted, else the round fails). Printed: median and spread of the
-whole round, and its parts (the fit, the GUI update); ``--trace`` adds the stages. Also printed:
-what a full garbage collection costs the GUI thread after the clicks, the window's way (the
-survivors of the last one frozen) beside Python's default (every object scanned).
+clicks). Two times run from the press:
+
+* **first frame** — until the N view has painted the measurement's marker where the click put
+  it, with the loupe there (the end of the event-loop pass, or of the click's own handling,
+  in which that paint happened);
+* **whole round** — until the new Solution has been published and the event loop has painted
+  everything it had to (the last pass that painted; the table, the model panel, the plots and
+  the N view must be among what was painted, else the round fails).
+
+Printed: median and spread of both, the parts of the whole round (the fit, the GUI update);
+``--trace`` adds the stages. Also printed: what a full garbage collection costs the GUI thread
+after the clicks, the window's way (the survivors of the last one frozen) beside Python's
+default (every object scanned), and the machine's speed on a fixed workload (the yardstick every
+figure scales with: compare runs of different days or code beside it, in alternated blocks).
 
 Each click starts from an idle window: the recovery journal of the previous edit (handed to
 its writer thread 40 ms after it, serialised and written there) has been written, as it has
@@ -17,8 +25,9 @@ between an operator's clicks.
 The first ``--warmup`` clicks are not counted: the first dozen clicks of a session run ~1.5×
 slower (the interpreter specialises, caches fill), which an operator meets once, not per click.
 
-Run: ``.venv/bin/python benchmarks/bench_click.py [--rounds 40] [--points 200]``. Targets: median
-≤ 16 ms at 200 points (one frame at 60 Hz), ≤ 30 ms at 1,000 points.
+Run: ``.venv/bin/python benchmarks/bench_click.py [--rounds 40] [--points 200]``. Targets
+(medians): the first frame ≤ 16 ms (one frame at 60 Hz) at 200 and at 1,000 points; the whole
+round ≤ 33 ms at 200 points (the frame after), ≤ 50 ms at 1,000.
 """
 from __future__ import annotations
 
@@ -98,12 +107,21 @@ def main(argv=None) -> int:
     win.solver.solution_changed.connect(on_solution)
 
     stages = _trace(win) if args.trace else None
-    watch = _PaintWatch()
+    loupe = win.loupes["N"]
+    expect = {"xy": None}
+
+    def first_frame_painted() -> bool:  # (at a paint of the N view) the click's marker is drawn
+        xy = expect["xy"]
+        pos = win.views.overlays["N"].measured_current._xy if xy is not None else ()
+        return (len(pos) == 1 and abs(pos[0][0] - xy[0]) < 1e-6 and abs(pos[0][1] - xy[1]) < 1e-6
+                and loupe.position is not None and abs(loupe.position[0] - xy[0]) < 1e-6)
+
+    watch = _PaintWatch(vp, first_frame_painted)
     QCoreApplication.instance().installEventFilter(watch)
     must_paint = {"point table": win.table.viewport(), "model panel": win.panel.sections,
                   **{f"plot {n}": win.plots.plots[n].viewport() for n in ("vectors", "std_residuals")},
                   "N view": vp}
-    total, fit, cpu = [], [], []
+    total, first, fit, cpu = [], [], [], []
     from prismstation.gui.workers import collect_everything
     collect_everything()  # (as the window's first full collection does: survivors frozen)
     prof = None
@@ -118,23 +136,30 @@ def main(argv=None) -> int:
         wait_settled(win)
         _until_journaled(win)
         done["t"] = None
+        p = iv.map_from_viewport(pos)
+        expect["xy"] = tuple(map(float, p))
+        watch.first = None
         c0 = time.process_time()
         if i >= 0 and prof is not None:  # the rounds only, not the settling between them
             prof.enable()
         t0 = time.perf_counter()
         QTest.mouseClick(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, pos)
         t_click = time.perf_counter()
+        if watch.first is not None:  # painted by the click's own handling
+            watch.first = t_click
         t_end = _until_painted(watch, done)
         c_end = time.process_time()
         if prof is not None:
             prof.disable()
         missing = [n for n, w in must_paint.items() if w not in watch.painted]
         assert not missing, f"not repainted after the fit: {missing}"
+        assert watch.first is not None, "the click's marker was never painted"
         if i < 0:  # warm-up
             if stages is not None:
                 stages.now = {}
             continue
         total.append((t_end - t0) * 1000)
+        first.append((watch.first - t0) * 1000)
         cpu.append((c_end - c0) * 1000)
         gui_ms.append((t_end - t_gui_start["t"]) * 1000)
         if stages is not None:
@@ -155,9 +180,10 @@ def main(argv=None) -> int:
     where = f"CPU {args.cpu}" if args.cpu is not None else f"CPUs {sorted(os.sched_getaffinity(0))}"
     print(f"click → refit → repaint ({where}), {len(win.project.points)} points "
           f"({n_gcp} GCP), {args.rounds} clicks after {args.warmup} not counted, images {args.size} px")
-    target = 16.0 if args.points <= 200 else 30.0
+    target = 33.0 if args.points <= 200 else 50.0
+    line("first frame (target ≤ 16 ms)", first)
     line(f"whole round (target ≤ {target:g} ms)", total)
-    line("  fit (core.solve)", fit)
+    line("  fit (core.solution.solve)", fit)
     line("  fit published → last paint", gui_ms)
     line("CPU time of the process per round", cpu)
     print(f"  open to settled images and first fit      {t_open * 1000:7.0f} ms")
@@ -166,7 +192,8 @@ def main(argv=None) -> int:
     print(f"  machine speed: a fixed workload (no prismstation code) {ref_ms:.2f} ms before, "
           f"{_machine_ms():.2f} ms after ({QUIET_MACHINE_MS:g} in this VM's fast spells; every "
           f"figure above scales with it)")
-    print("target met" if np.median(total) <= target else f"TARGET MISSED: median above {target:g} ms")
+    for name, v, t in (("first frame", first, 16.0), ("whole round", total, target)):
+        print(f"{name}: target met" if np.median(v) <= t else f"{name}: TARGET MISSED: median above {t:g} ms")
     if prof is not None:
         import pstats
         prof.dump_stats(args.profile)
@@ -220,19 +247,24 @@ def _full_collections() -> tuple[float, float]:
 
 
 class _PaintWatch(QObject):
-    """Sees every paint of the application: which widgets, and whether an event-loop pass
-    painted anything."""
+    """Sees every paint of the application: which widgets, whether an event-loop pass painted
+    anything, and whether a paint of ``view`` showed the first frame (``first_ok()`` true then:
+    :attr:`first` becomes not None, the time its pass ends is put there)."""
 
-    def __init__(self):
+    def __init__(self, view=None, first_ok=None):
         super().__init__()
         self.active = False
         self.painted: set = set()
+        self.view, self.first_ok = view, first_ok
+        self.first = None
 
     def eventFilter(self, obj, ev) -> bool:
         t = ev.type()
         if t == QEvent.Type.Paint:
             self.painted.add(obj)
             self.active = True
+            if self.first is None and obj is self.view and self.first_ok():
+                self.first = 0.0  # (the end of this pass: set by who runs it)
         elif t == QEvent.Type.UpdateRequest:
             self.active = True
         return False
@@ -262,6 +294,8 @@ def _until_painted(watch: _PaintWatch, done: dict, quiet_passes: int = 3) -> flo
     while time.perf_counter() < deadline:
         watch.active = False
         QCoreApplication.processEvents()
+        if watch.first == 0.0:
+            watch.first = time.perf_counter()
         if watch.active:
             t_end, quiet = time.perf_counter(), 0
         elif done["t"] is not None:

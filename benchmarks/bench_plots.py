@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 from PySide6.QtWidgets import QApplication  # noqa: E402
 
-from prismstation.core.solve import solve  # noqa: E402
+from prismstation.core.solution import solve  # noqa: E402
 from prismstation.gui.plots import PlotsWidget  # noqa: E402
 from prismstation.gui.report_writer import write_document  # noqa: E402
 from prismstation.io.report import report_dict  # noqa: E402

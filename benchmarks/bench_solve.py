@@ -4,7 +4,8 @@ each click of the operator in the workstation window).
 Triplet projects made by ``tests/gui/project_factory.make_project`` (no images) with 10 % GCPs
 and 90 % ICPs, all measured in N, F and B. Between two fits one GCP's N measurement moves by
 a pixel, as a click moves it (the fit reuses what the click cannot have changed: the other
-views' bias fits, the parallax line, the heights). Printed per project size: median, p10 and
+views' bias fits, the parallax line, the heights — kept in a ``FitMemo`` as the window's
+solver keeps them). Printed per project size: median, p10 and
 p90 of the wall time of one ``solve_project`` in milliseconds.
 
 Run: ``.venv/bin/python benchmarks/bench_solve.py [--rounds 200] [--points 50 200 1000]``.
@@ -48,7 +49,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from prismstation.io.project import load_project
-    from prismstation.ops.fit import solve_project
+    from prismstation.ops.fit import FitMemo, solve_project
     from tests.gui.project_factory import make_project
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-solve-"))
@@ -58,15 +59,16 @@ def main(argv=None) -> int:
         demo = make_project(tmp / f"p{n}", n_gcp=n_gcp, n_icp=n - n_gcp, size=1500, p=20.0,
                             seed=9, images=False)
         project = load_project(demo.path)
+        memo = FitMemo()  # what the window's solver keeps between its fits
         for _ in range(10):  # warm up (imports, caches)
-            solve_project(project)
+            solve_project(project, memo=memo)
         gcp = next(p for p in project.points.values() if p.kind == "GCP").id
         m = project.measurement(gcp, "N")
         times = []
         for i in range(args.rounds):
             project.set_measurement(replace(m, x=m.x + (i % 2)))  # a click
             t0 = time.perf_counter()
-            solve_project(project)
+            solve_project(project, memo=memo)
             times.append((time.perf_counter() - t0) * 1e3)
         q = statistics.quantiles(times, n=10)
         print(f"{n:>6}  {n_gcp:>4}  {statistics.median(times):8.2f}  {q[0]:8.2f}  {q[-1]:8.2f}")

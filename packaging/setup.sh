@@ -19,10 +19,10 @@ libxcb-render-util0 libxcb-shape0 libxcb-xkb1 proj-data fonts-dejavu-core"
 missing=""
 for p in $debs; do dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"; done
 if [ -n "$missing" ] && command -v apt-get >/dev/null; then
-  sudo=""; [ "$(id -u)" = 0 ] || sudo="sudo"
+  . packaging/apt_wait.sh  # apt_get: waits for another apt's locks
   echo "installing system packages:$missing"
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends $missing >/dev/null
+  apt_get update -qq
+  apt_get install -y -qq --no-install-recommends $missing
 fi
 
 py=${PYTHON:-python3}

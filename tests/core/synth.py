@@ -2,8 +2,9 @@
 import numpy as np
 
 from prismstation.core.affine import Affine2D
+from prismstation.core.prism_model import PrismModel
 from prismstation.core.scene import GroundTrack, Scene, View
-from prismstation.core.solve import PointObs
+from prismstation.core.solution import PointObs
 from prismstation.core import prism
 
 HS = 691650.0
@@ -28,7 +29,7 @@ def make_scene(heading_deg=192.0, path_oriented=True, size=14000, p=2.5):
         img_to_map = Affine2D(np.column_stack([lin, origin]))
         views[name] = View(name, img_to_map.inverse(), p, ang, None, (size, size))
     track = GroundTrack(np.array([c - 3000 * across - 40000 * t, c - 3000 * across + 40000 * t]))
-    return Scene("EPSG:32629", HS, track, views)
+    return Scene("EPSG:32629", HS, track, views, sensor=PrismModel)
 
 
 PAPER_M = np.array([[0.000073, 0.000048], [-0.000551, 0.000052]])

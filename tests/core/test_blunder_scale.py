@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from prismstation.core.solve import PointObs, Settings, critical_value, normal_equivalent, solve
+from prismstation.core.solution import PointObs, Settings, critical_value, normal_equivalent, solve
 from tests.core.synth import make_points, make_scene
 
 

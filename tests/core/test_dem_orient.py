@@ -4,7 +4,7 @@ import pytest
 from prismstation.core import prism
 from prismstation.core.dem_orient import (PatchShift, affine_field, control_from_field, gcp_field_obs,
                                           grid_points, patch_windows, smooth_like_reference)
-from prismstation.core.solve import PointObs, solve
+from prismstation.core.solution import PointObs, solve
 from prismstation.core import view_offsets as vo
 from tests.core.synth import make_scene
 
@@ -34,7 +34,7 @@ def test_control_from_field_recovers_truth():
     g = np.array([p.ground_residual for p in sol.points])
     # the ±3.5 m tilt of dh over the image is in the parallax line's tilt, not in the heights
     # (through the relief term h·d/Hs, a few cm stay in planimetry)
-    assert ctl.parallax.tilt[0] == pytest.approx(-5e-4, rel=1e-6) and abs(ctl.parallax.tilt[1]) < 1e-9
+    assert ctl.part.parallax.tilt[0] == pytest.approx(-5e-4, rel=1e-6) and abs(ctl.part.parallax.tilt[1]) < 1e-9
     assert np.abs(g[:, :2]).max() < 0.15 and np.abs(g[:, 2]).max() < 0.05, np.abs(g).max(0)
 
 

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from prismstation.core.dsm_heights import choose_heights, loo_height_errors, model_height_correction
-from prismstation.core.solve import Control, solve
+from prismstation.core.prism import FixedPrism
+from prismstation.core.solution import Control, solve
 
 from tests.core.synth import make_points, make_scene
 
@@ -57,7 +58,7 @@ def test_an_orientation_without_gcps_keeps_its_line():
     sc = make_scene(size=6000)
     sol = solve(sc, make_points(sc, n_gcp=9, n_icp=5, seed=4))
     dem = solve(sc, make_points(sc, n_gcp=0, n_icp=5, seed=4),
-                control=Control(sol.bias, sol.parallax, "a reference DEM", sol.mean_height))
+                control=Control("a reference DEM", FixedPrism(sol.bias, sol.model.parallax), sol.mean_height))
     assert choose_heights(dem).model == "line" and not dem.observations
 
 

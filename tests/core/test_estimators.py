@@ -14,7 +14,7 @@ from prismstation.core.prism import BiasFit
 from prismstation.core.rectify import FittedTransform, compare_transforms, fit_transform
 from prismstation.core.resection import FrameCamera, resect
 from prismstation.core.shift_field import ShiftField
-from prismstation.core.solve import PointObs, Settings, solve
+from prismstation.core.solution import PointObs, Settings, solve
 from prismstation.errors import DegenerateGeometry, ModelError
 
 from .synth import make_scene

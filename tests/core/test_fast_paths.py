@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from prismstation.core.scene import GroundTrack
-from prismstation.core.solve import critical_value
+from prismstation.core.solution import critical_value
 from prismstation.core.stats import ComponentStats, VectorStats
 
 

@@ -5,7 +5,7 @@ import pytest
 
 from prismstation.core import prism
 from prismstation.core.affine import Affine2D
-from prismstation.core.solve import PointObs, Settings, solve
+from prismstation.core.solution import PointObs, Settings, solve
 from prismstation.errors import ModelError
 
 from tests.core.synth import PAPER_B, PAPER_M, make_points, make_scene
@@ -56,7 +56,7 @@ def test_exact_recovery_of_paper_coefficients(heading, path):  # docs/model.md Â
     sol = solve(sc, make_points(sc), Settings("affine", "line"))
     fit = sol.bias["N"]
     assert np.allclose(fit.M, PAPER_M, atol=1e-9) and np.allclose(fit.b, PAPER_B, atol=1e-6)
-    assert sol.parallax.c1 == pytest.approx(prism.theoretical_c1(sc), rel=1e-9)
+    assert sol.model.parallax.c1 == pytest.approx(prism.theoretical_c1(sc), rel=1e-9)
     g = np.array([p.ground_residual for p in sol.points])
     assert np.abs(g).max() < 1e-4
     if path:  # image x is across track in a path-oriented image: Fâˆ’N is the x difference

@@ -2,7 +2,7 @@
 different bytes compute again, and it forgets the oldest beyond its size."""
 import numpy as np
 
-from prismstation.core import solve as solve_mod
+from prismstation.core.prism_model import PrismModel
 from prismstation.core.recent import Recent, key_of
 
 
@@ -31,17 +31,19 @@ def test_key_tells_shapes_and_none_apart():
     assert key_of([0.5, 1.0]) == key_of(np.array([0.5, 1.0]))
 
 
-def test_fit_with_memo_equals_fit_without(monkeypatch):
+def test_fit_with_memo_equals_fit_without():
     from tests.core.test_solve_reference import _project  # a full triplet with GCPs and ICPs
 
     scene, points = _project()
-    memo = solve_mod.solve_prism(scene, points)
-    again = solve_mod.solve_prism(scene, points)          # from the memo
-    monkeypatch.setattr(solve_mod, "_RECENT", Recent(size=0))
-    plain = solve_mod.solve_prism(scene, points)
+    recent = Recent()                                     # the caller's, not a module's
+    memo = PrismModel.fit(scene, points, recent=recent)
+    again = PrismModel.fit(scene, points, recent=recent)  # from the memo
+    plain = PrismModel.fit(scene, points)                 # no memo: computed again
+    other = PrismModel.fit(scene, points, recent=Recent())
     for v in scene.views:
-        assert again.bias[v] is memo.bias[v]
+        assert again.bias[v] is memo.bias[v] and plain.bias[v] is not memo.bias[v]
+        assert other.bias[v] is not memo.bias[v]
         np.testing.assert_array_equal(plain.bias[v].params, memo.bias[v].params)
         np.testing.assert_array_equal(plain.bias[v].cov, memo.bias[v].cov)
-    assert again.parallax is memo.parallax
-    assert (plain.parallax.c0, plain.parallax.c1) == (memo.parallax.c0, memo.parallax.c1)
+    assert again.model.parallax is memo.model.parallax
+    assert (plain.model.parallax.c0, plain.model.parallax.c1) == (memo.model.parallax.c0, memo.model.parallax.c1)

@@ -6,7 +6,7 @@ import math
 import numpy as np
 
 from prismstation.core.results import PointColumns
-from prismstation.core.solve import solve
+from prismstation.core.solution import solve
 from tests.core.test_solve_reference import _project
 
 

@@ -13,7 +13,7 @@ import pytest
 
 from prismstation.core import prism
 from prismstation.core.results import PointColumns
-from prismstation.core.solve import PointObs, Settings, normal_equivalent, solve, statistics
+from prismstation.core.solution import PointObs, Settings, normal_equivalent, solve, statistics
 
 from tests.core.synth import make_points, make_scene
 
@@ -54,7 +54,7 @@ def _bias_by_plain_lsq(xy0, xy, sigma):
 
 def _expected_point(sc, sol, p):
     """One point's results computed on their own (no vectorisation over points)."""
-    views, bias, par = sc.views, sol.bias, sol.parallax
+    views, bias, par = sc.views, sol.bias, sol.model.parallax
     measured = {v: tuple(map(float, p.image[v])) for v in views if v in p.image}
     py = mid = None
     if "F" in measured and "B" in measured:
@@ -134,10 +134,10 @@ def test_bias_parallax_and_adjustment_match_plain_least_squares():
     fb = [p for p in pts if p.kind == "GCP" and "F" in p.image and "B" in p.image]
     py = prism.fb_parallax(sc, [p.image["F"] for p in fb], [p.image["B"] for p in fb])[0]
     c1, c0 = np.polyfit(py, [p.ground[2] for p in fb], 1)
-    assert (sol.parallax.c0, sol.parallax.c1) == pytest.approx((c0, c1), rel=1e-9)
+    assert (sol.model.parallax.c0, sol.model.parallax.c1) == pytest.approx((c0, c1), rel=1e-9)
     # each GCP's largest standardised residual over its N x, N y and parallax observations
     std = {}
-    for fit_, ids, per in ((fit.lsq, [p.id for p in gcps], 2), (sol.parallax.lsq, [p.id for p in fb], 1)):
+    for fit_, ids, per in ((fit.lsq, [p.id for p in gcps], 2), (sol.model.parallax.lsq, [p.id for p in fb], 1)):
         w = normal_equivalent(fit_.std_residuals, fit_.dof)
         for i, pid in enumerate(ids):
             std.setdefault(pid, []).extend(w[per * i:per * i + per])

@@ -6,7 +6,7 @@ import math
 import pytest
 from PySide6.QtGui import QUndoStack
 
-from prismstation.core.solve import Settings
+from prismstation.core.solution import Settings
 from prismstation.errors import InputError
 from prismstation.gui import commands as cmd
 from prismstation.model.points import GroundPoint, Measurement

@@ -143,6 +143,7 @@ def test_deleting_a_points_only_measurement_leaves_no_ghost(qtbot, window):
 # ---------------------------------------------------------------------------- status bar (bug 7)
 def test_status_bar_shows_whole_coordinates_even_of_16000_row_images(qtbot, window):
     win = window
+    win.statusBar().clearMessage()  # (a message in the status bar has the views' fields' room)
     for size in ((1280, 720), (1600, 1000), (1920, 1080)):
         win.resize(*size)
         qtbot.wait(30)
@@ -427,3 +428,26 @@ def test_enter_in_a_cell_commits_the_edit_even_with_a_transfer_pending(qtbot, wi
     assert win.project.points["I2"].sigma_xy_m == 0.3 and fired == []
     choose_kind(qtbot, win, "I2", "GCP")
     assert win.project.points["I2"].kind == "GCP" and fired == []
+
+
+def test_insert_then_a_click_on_another_marker_leaves_no_empty_point(qtbot, window):
+    win = window
+    n0 = win.undo_stack.count()
+    key(qtbot, win, "Insert")
+    pid = win.current
+    assert pid in win.project.points and win.undo_stack.count() == n0 + 1
+    m = win.project.measurement("G3", "N")
+    win.views.views["N"].center_on(m.x, m.y, 1.0)
+    qtbot.wait(20)
+    click_image(qtbot, win, "N", m.x + 1, m.y)  # on G3's marker: picks G3
+    assert win.current == "G3"
+    assert pid not in win.project.points and win.undo_stack.index() == n0
+    settle(qtbot, win)
+    assert win.table_model.row_of(pid) < 0
+    # a point given something before it is left stays
+    key(qtbot, win, "Insert")
+    kept = win.current
+    settle(qtbot, win)
+    type_into_cell(qtbot, win, kept, "E (m)", "1000")
+    win.set_current("G3", drive=False)
+    assert kept in win.project.points

@@ -64,6 +64,10 @@ def test_ctrl_e_writes_the_report(window, qtbot, answered, tmp_path):
 
 def test_the_export_proposes_a_file_in_the_project_folder_and_asks_the_operator_once(window, qtbot, answered,
                                                                                      tmp_path, monkeypatch):
+    """The first export starts in the project's folder, the next ones in the folder the last
+    report went to."""
+    from pathlib import Path
+
     from PySide6.QtWidgets import QFileDialog
     win = window
     offered = []
@@ -81,6 +85,7 @@ def test_the_export_proposes_a_file_in_the_project_folder_and_asks_the_operator_
     answered.path = str(tmp_path / "second.json")
     win.a_export.trigger()                                 # the operator is remembered: not asked
     assert [k for k, _ in answered.asked] == ["file"]
+    assert offered[-1] == str(Path(answered.path).with_name(f"{win.demo.path.stem}_report.pdf"))  # its folder too
     rep = _written(win, qtbot, answered.path)
     assert rep["header"]["operator"] == "A. Operator"
     assert "operator A. Operator" in win.statusBar().currentMessage()
@@ -149,3 +154,13 @@ def test_an_edit_just_made_is_in_the_report(window, qtbot, answered):
     assert next(p for p in rep["points"] if p["id"] == gcp)["kind"] == "ICP"
     assert rep["statistics"]["ground"]["ICP"]["x"]["n"] == \
         sum(1 for p in win.solver.solution.points if p.kind == "ICP" and p.ground_residual is not None)
+
+
+def test_the_reports_figures_are_freed_at_once(window, answered, tmp_path):
+    """Each PDF export left its figures' widgets (~26 MB) until an event loop deleted them
+    later: a script's exports, or the window's in a loop that does not return, piled up."""
+    from PySide6.QtWidgets import QApplication
+    before = len(QApplication.allWidgets())
+    for k in range(2):
+        assert window.export_report(str(tmp_path / f"r{k}.pdf"))
+    assert len(QApplication.allWidgets()) == before

@@ -7,7 +7,7 @@ import pyqtgraph as pg
 import pytest
 from PySide6.QtCore import Qt
 
-from prismstation.core.solve import critical_value
+from prismstation.core.solution import critical_value
 from prismstation.gui.accuracy_strip import WARN_COLOR
 from tests.gui.test_operator import click_image, key, settle
 from tests.qt_windows import close_windows, open_window
@@ -39,13 +39,25 @@ def test_a_parallax_model_that_does_not_fit_the_gcps_is_said_so(qtbot, demo_wind
     assert strip.warning.text() == "" and "does not fit" not in win.panel.plain_text()
     choose(qtbot, win.panel.parallax, "theoretical")
     settle(qtbot, win)
-    assert win.solver.solution.parallax.used == "theoretical"
+    assert win.solver.solution.model.parallax.used == "theoretical"
     text = win.panel.plain_text()
     assert "The 'theoretical' parallax model does not fit the GCPs" in text, text
     assert "— does not fit the GCPs" in text                       # in the parallax section's title
-    assert strip.warning.isVisible() and strip.warning.shown_text().startswith("⚠ h from the 'theoretical'")
+    assert strip.warning.isVisible() and strip.warning.text().startswith("⚠ h from the 'theoretical'")
+    assert "parallax model does not fit" in strip.warning.shown_text()  # (the wording that fits)
     assert "does not fit the GCPs" in strip.warning.toolTip()
     assert strip.values["h"]._color.name() == WARN_COLOR
+    sections = win.panel.sections
+    for size in ((1280, 720), (1600, 1000), (1920, 1080)):          # said whole at every size
+        win.resize(*size)
+        win.default_layout()
+        qtbot.wait(50)
+        assert "…" not in strip.warning.shown_text() and strip.warning.shown_text().startswith("⚠ h"), size
+        seen = win.panel.text.viewport().width()
+        for text, sev in sections._notes:                           # wrapped inside what shows
+            r = sections._note_rect(text, sev == "bad")
+            assert 4 + sections.PAD + r.width() <= seen, (size, text, r.width(), seen)
+    win.resize(1600, 1000)
     choose(qtbot, win.panel.parallax, "offset")                     # c1 from the geometry fits
     settle(qtbot, win)
     assert strip.warning.text() == "" and strip.values["h"]._color is None
@@ -53,7 +65,7 @@ def test_a_parallax_model_that_does_not_fit_the_gcps_is_said_so(qtbot, demo_wind
     key(qtbot, win, "Ctrl+Z")
     key(qtbot, win, "Ctrl+Z")
     settle(qtbot, win)
-    assert win.solver.solution.parallax.used == "line" and strip.warning.text() == ""
+    assert win.solver.solution.model.parallax.used == "line" and strip.warning.text() == ""
     assert "parallax model fits" not in win.panel.plain_text()
 
 

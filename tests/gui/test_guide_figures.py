@@ -53,7 +53,7 @@ def demo_figures(project_path) -> dict:
     fn, bn = st["F-N"], st["B-N"]
     s4.append(f"F − N has mean **{_f(fn.mean, '.2f')} px** (sd {fn.std:.2f}) and B − N "
               f"**{_f(bn.mean, '.2f')} px** (sd {bn.std:.2f})")
-    par = sol.parallax
+    par = sol.model.parallax
     views = sol.scene.views
     s4.append(f"`h = {_f(par.c0, '.2f')} + {par.c1:.4f}·py` (theoretical c1 = {theoretical_c1(sol.scene):.4f} "
               f"for {views['F'].along_track_angle_deg:.1f}° and {views['B'].along_track_angle_deg:.1f}°")

@@ -2,6 +2,8 @@
 every dock in View ▸ Panels, a window that stays on the screen as panels open and close."""
 from __future__ import annotations
 
+from pathlib import Path
+
 from PySide6.QtWidgets import QDialog, QDockWidget
 
 from tests.gui.test_every_action import every_action
@@ -81,3 +83,45 @@ def test_1280x720_keeps_its_size_the_model_readable_and_the_toolbar_whole(qtbot,
     tb = win.toolbar
     assert tb.sizeHint().width() <= tb.width()  # no overflow (») button
     assert win.accuracy.isVisible() and win.accuracy.height() < 40
+
+
+def test_rectify_with_no_output_file_says_so_and_stays_open(qtbot, window, tmp_path):
+    """The real dialog, driven by its OK button: a file is suggested beside the project; with
+    the name cleared, OK says a file is needed and the dialog stays (it closed, writing nothing)."""
+    from PySide6.QtCore import QTimer
+    from PySide6.QtWidgets import QApplication, QDialogButtonBox, QMessageBox
+
+    from prismstation.gui.tools.rectification import RectifyDialog
+    win = window
+    out = tmp_path / "rect.tif"
+    seen = {}
+
+    def drive():
+        dlg = QApplication.activeModalWidget()
+        if not isinstance(dlg, RectifyDialog):
+            QTimer.singleShot(20, drive)
+            return
+        dlg.view.setCurrentText("N")
+        seen["suggested"], seen["kind"] = dlg.out.text(), dlg.kind.currentText()
+        ok = dlg.findChild(QDialogButtonBox).button(QDialogButtonBox.StandardButton.Ok)
+        dlg.out.clear()
+
+        def answer():
+            box = QApplication.activeModalWidget()
+            if isinstance(box, QMessageBox):
+                seen["said"] = (box.windowTitle(), box.text())
+                box.accept()
+            else:
+                QTimer.singleShot(20, answer)
+        QTimer.singleShot(0, answer)
+        ok.click()                                  # (the box's own loop runs in here)
+        seen["open after"] = dlg.isVisible()
+        dlg.out.setText(str(out))
+        ok.click()
+    QTimer.singleShot(0, drive)
+    action(win, "Tools ▸ Rectify…").trigger()
+    project = Path(win.files.path)
+    assert seen["suggested"] == str(project.with_name(f"{project.stem}_N_{seen['kind']}.tif"))
+    assert seen["said"] == ("Rectify", "Choose the output GeoTIFF: a file name is needed.")
+    assert seen["open after"]
+    qtbot.waitUntil(lambda: out.is_file(), timeout=30000)

@@ -121,3 +121,48 @@ def test_the_guide_viewer_shows_its_pictures(qtbot, window):
         assert height > 0.5 * min(pic.height(), viewer.browser.viewport().width() * pic.height() / pic.width()), name
     assert viewer.browser.horizontalScrollBar().maximum() == 0
     viewer.close()
+
+
+def _two_rasters(folder, crs):
+    """A small DSM and a reference 2 m below it, 10 m cells, on the project's CRS."""
+    import numpy as np
+    import rasterio
+    from rasterio.transform import from_origin
+    y, x = np.mgrid[0:60, 0:80]
+    h = (300 + 20 * np.sin(x / 9.0) * np.cos(y / 7.0)).astype("float32")
+    paths = []
+    for name, arr in (("dsm.tif", h), ("ref.tif", h - 2.0)):
+        with rasterio.open(folder / name, "w", driver="GTiff", width=80, height=60, count=1,
+                           dtype="float32", crs=crs, transform=from_origin(540000, 4563000, 10, 10)) as ds:
+            ds.write(arr, 1)
+        paths.append(str(folder / name))
+    return paths
+
+
+@pytest.mark.parametrize("size", SIZES)
+def test_the_validation_and_residual_sd_docks_are_whole(qtbot, window, size, tmp_path):
+    """The residual-SD title was cut at the dock's edge; the validation's difference map and
+    histogram were squeezed to nothing in a laptop's bottom dock. Each part shows whole and
+    the plots keep a readable size (one tab each where the dock is short)."""
+    win = window
+    lay_out(qtbot, win, size)
+    action(win, "Tools ▸ Residual SD").trigger()
+    qtbot.wait(50)
+    tool = win.tools["dsm_validation"]
+    title = tool.sd_panel.findChild(type(tool.panel.title))
+    assert whole(title) and title.height() >= title.heightForWidth(title.width()), title.text()
+    dsm, ref = _two_rasters(tmp_path, win.project.scene.crs)
+    job = tool.start(dsm, ref, progress_dialog=False)
+    qtbot.waitUntil(lambda: tool.panel.validation is not None, timeout=30000)
+    assert job is not None
+    qtbot.wait(100)
+    panel = tool.panel
+    parts = {"Statistics": panel.table, "Difference map": panel.map, "Histogram": panel.hist}
+    for name, w in parts.items():
+        if panel._compact:
+            click_tab(qtbot, win, name)
+        assert whole(w), (size, name, w.geometry())
+        if w is not panel.table:
+            assert w.width() >= 160 and w.height() >= 130, (size, name, w.size())
+    assert abs(panel.validation.overall.bias - 2.0) < 1e-3
+    assert (win.width(), win.height()) == size

@@ -6,6 +6,7 @@ import shutil
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from tests.gui.xdesktop import App, Desktop, missing_tools
@@ -85,5 +86,34 @@ def test_a_first_start_fits_the_screen(desktop, demo, tmp_path):
         assert x >= 0 and y >= 0 and x + w <= sw and y + h <= sh, (x, y, w, h)
         assert w >= min(1600, sw - 100) and h >= min(1000, sh - 100)
         assert app.quit()[0] == 0
+    finally:
+        app.kill()
+
+
+def crosshair_pixels(desktop, box) -> int:
+    """Pixels of the linked cursor's green (drawn blended: green well above red and blue) in
+    ``box`` ``(x, y, w, h)`` of the screen (the images are grey; the plots' green lies outside)."""
+    x, y, w, h = box
+    px = desktop.screenshot()[y:y + h, x:x + w].astype(int)
+    return int((px[..., 1] - np.maximum(px[..., 0], px[..., 2]) > 80).sum())
+
+
+def test_the_linked_cursor_goes_when_the_mouse_leaves_the_view(desktop, demo, tmp_path):
+    """The mouse over N draws the linked crosshair in F and B; moved out of the view (onto the
+    table) the crosshairs go — they stayed where the mouse left."""
+    app = App(desktop, demo.path, tmp_path / "s")
+    try:
+        x, y, w, h = app.geometry()
+        views = (x, y + int(0.13 * h), int(0.75 * w), int(0.42 * h))  # below the toolbar, above the table, left of the docks
+        desktop.run("xdotool", "windowactivate", "--sync", app.wid)
+        assert app.alive_for(2)  # (images loaded)
+        for k in range(5):  # over the middle of N (the left third of the views)
+            desktop.run("xdotool", "mousemove", str(x + w // 8 + 3 * k), str(y + h // 3 + 2 * k))
+        shown = desktop.wait(lambda: crosshair_pixels(desktop, views) > 30, 10, "the crosshairs in F and B")
+        assert shown
+        desktop.run("xdotool", "mousemove", str(x + w // 8), str(y + h - 60))  # the table
+        desktop.wait(lambda: crosshair_pixels(desktop, views) == 0, 10, "the crosshairs to go")
+        rc, out = app.quit()
+        assert rc == 0, out
     finally:
         app.kill()

@@ -134,3 +134,43 @@ def test_a_second_instance_does_not_recover_the_first_ones_journal(desktop, proj
         for a in (second, first):
             if a is not None:
                 a.kill()
+
+
+
+def start_dsm(desktop, app):
+    """Tools ▸ Export DSM… by keys (Alt+T, the third item: the second, Back to GCP orientation, is
+    disabled), OK with the dialog's defaults."""
+    desktop.run("xdotool", "windowactivate", "--sync", app.wid)
+    desktop.run("xdotool", "key", "alt+t")
+    desktop.run("xdotool", "key", "Down")
+    desktop.run("xdotool", "key", "Down")
+    desktop.run("xdotool", "key", "Return")
+    dlg = window_named(desktop, app, "Export DSM")
+    desktop.run("xdotool", "windowactivate", "--sync", dlg)
+    desktop.run("xdotool", "key", "Return")
+    return window_named(desktop, app, "DSM")
+
+
+def test_the_quit_question_closes_when_the_job_ends(desktop, project, tmp_path):
+    """Ctrl+Q while the DSM is made, the question left open: when the job ends the question
+    goes (it said a job ran under the job's own "Wrote …" box), the window stays and shows the
+    outcome; then Ctrl+Q quits without a question."""
+    before = set(project.parent.glob("*.tif"))
+    app = App(desktop, project, tmp_path / "s")
+    try:
+        start_dsm(desktop, app)
+        desktop.run("xdotool", "windowactivate", "--sync", app.wid)
+        desktop.run("xdotool", "key", "ctrl+q")
+        window_named(desktop, app, "Quit", 10)
+        desktop.wait(lambda: gone(desktop, app, "Quit"), 120, "the question to go when the job ends")
+        assert app.alive_for(0.5)
+        done = window_named(desktop, app, "DSM", 10)              # "Wrote …": the outcome
+        assert gone(desktop, app, "Quit")
+        desktop.run("xdotool", "windowactivate", "--sync", done)
+        desktop.run("xdotool", "key", "Return")
+        desktop.wait(lambda: gone(desktop, app, "DSM"), 10, "the outcome to be read")
+        rc, out = app.quit()                                        # no job: no question
+        assert rc == 0 and not any(t in out for t in TROUBLE), out
+        assert len(set(project.parent.glob("*.tif")) - before) == 1  # the DSM
+    finally:
+        app.kill()

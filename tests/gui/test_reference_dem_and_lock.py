@@ -105,7 +105,7 @@ def test_a_file_that_is_no_dem_is_a_message_box(qtbot, sim, monkeypatch):
 
 HOLD = """
 import sys, time
-from prismstation.io.recovery import ProjectLock
+from prismstation.io.lock import ProjectLock
 ProjectLock(sys.argv[1]).acquire()
 print("held", flush=True)
 time.sleep(60)

@@ -378,3 +378,60 @@ def test_a_pair_opens_with_two_views(qtbot, shared_data, tmp_path, windows):
         b = sol.bias[v]
         assert np.all(np.abs(np.asarray(b.params) - TRUE_SHIFT[v]) < 4 * np.asarray(b.std) + 1e-3)
     assert w.tool_context.tools["transfer"].a_ties.isEnabled()
+
+
+def test_the_vector_plot_shows_any_image_and_not_one_held_fixed(qtbot, win):
+    """The residual vectors of the first image by default; held fixed (nothing fitted there),
+    the first fitted one; any image chosen in the plots' bar, by the keyboard."""
+    plots, panel = win.plots, win.panel
+    box = plots.view_box
+    assert box.isVisible() and [box.itemText(i) for i in range(box.count())] == list(VIEWS)
+    assert plots._data.view == "img_01" and box.currentText() == "img_01"
+    panel.fixed.setFocus()
+    with qtbot.waitSignal(win.solver.solution_changed, timeout=20000):
+        QTest.keyClick(panel.fixed, Qt.Key.Key_Down)             # auto -> img_01 held fixed
+    qtbot.waitUntil(lambda: win.solver.solution.settings.fixed_view == "img_01", timeout=20000)
+    assert plots._data.view == "img_02" and box.currentText() == "img_02"
+    assert "view img_02" in plots._titles["vectors"] and "in img_02" in plots.summary.text()
+    box.setFocus()
+    QTest.keyClick(box, Qt.Key.Key_Down)                          # the operator's choice: img_03
+    assert plots._data.view == "img_03" and "view img_03" in plots._titles["vectors"]
+    assert len(plots._data.vec_gcp_ids) == 5
+    win.undo_stack.undo()                                         # (a refit keeps the choice)
+    qtbot.waitUntil(lambda: win.solver.solution.settings.fixed_view is None, timeout=20000)
+    assert plots._data.view == "img_03"
+
+
+def test_the_dsm_dialog_of_an_rpc_project(qtbot, win, monkeypatch):
+    """Posting twice the images' 0.5 m pixel (it offered PRISM's 5 m); no "visible N area"."""
+    from PySide6.QtWidgets import QDialog
+
+    from prismstation.gui.tools import dsm_tool
+    seen = {}
+
+    def look(dlg):
+        seen.update(posting=dlg.posting.value(), whole=dlg.whole.text(), area=dlg.area.isVisible(),
+                    checked=dlg.whole.isChecked(), tip=dlg.posting.toolTip(), window=dlg.request().window)
+        return QDialog.DialogCode.Rejected
+    monkeypatch.setattr(dsm_tool.DsmDialog, "exec", look)
+    win.tool_context.tools["dsm"].action.trigger()
+    gsd = max(v.pixel_size_m for v in win.project.scene.views.values())
+    assert 0.3 < gsd < 1.0                                   # (Pléiades)
+    assert seen["posting"] == round(2 * gsd, 1) and "2 × the images'" in seen["tip"]
+    assert seen["whole"] == "the ground every image sees" and seen["checked"]
+    assert not seen["area"] and seen["window"] is None
+
+
+def test_a_status_message_is_shown_whole(qtbot, win, rpc_path):
+    """Three views named img_0…: the message was cut where the mode's label begins; now the
+    views' cursor positions step aside while it needs their room, and come back after."""
+    sb = win.statusBar()
+    win.load_reference_dem(rpc_path.parent / "dem.tif", wait=True)
+    qtbot.waitUntil(lambda: sb.currentMessage().startswith("Reference DEM: "), timeout=5000)
+    msg = sb.currentMessage()
+    qtbot.wait(20)
+    assert sb.fontMetrics().horizontalAdvance(msg) <= win.status.message_room(), msg
+    assert win.measure_mode.label.isVisible() and win.status_fit.isVisible()
+    assert not all(lab.isVisible() for lab in win.status_xy.values())
+    sb.clearMessage()
+    assert all(lab.isVisible() for lab in win.status_xy.values()) and win.status_ground.isVisible()

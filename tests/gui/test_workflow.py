@@ -178,3 +178,40 @@ def test_dsm_validation_prefills_the_projects_files_and_names_the_crs(qtbot, win
     qtbot.waitUntil(lambda: tool.panel.validation is not None, timeout=60000)
     title = tool.panel.title.text()
     assert "WGS 84 / UTM zone 29N (EPSG:32629)" in title and "PROJCRS" not in title, title
+
+
+def test_validate_dsm_offers_the_dsm_just_exported_with_the_heights_it_records(qtbot, win, monkeypatch):
+    """Export DSM (orthometric: the project's points are), then Tools ▸ Validate DSM…: the
+    dialog offers that DSM, its heights orthometric as the file records them (not asked), and
+    the bias against the reference is the terrain's, not the geoid's 55 m (it was −54.7 m)."""
+    from prismstation.gui.tools import dsm_tool, dsm_validation
+    win.load_reference_dem(win.sim / "srtm.tif", wait=True)
+    out = win.sim / "exported.tif"
+
+    def export_exec(dlg):
+        assert dlg.orthometric.isChecked()                         # the project's points' kind
+        dlg.path.setText(str(out))
+        dlg.whole.setChecked(True)
+        dlg.posting.setValue(20.0)
+        return QDialog.DialogCode.Accepted
+    monkeypatch.setattr(dsm_tool.DsmDialog, "exec", export_exec)
+    next(a for a in win.tools_menu.actions() if a.text() == "Export &DSM…").trigger()
+    qtbot.waitUntil(lambda: win.statusBar().currentMessage().startswith("Wrote"), timeout=120000)  # its end
+    offered = {}
+
+    def validate_exec(dlg):
+        offered.update(dlg.values())
+        offered["asked"] = {k: c.isEnabled() for k, c in dlg.kinds.items()}
+        offered["notes"] = {k: n.text() for k, n in dlg.kind_notes.items()}
+        return QDialog.DialogCode.Accepted
+    monkeypatch.setattr(dsm_validation.DsmDialog, "exec", validate_exec)
+    tool = win.tools["dsm_validation"]
+    next(a for a in win.tools_menu.actions() if a.text() == "Validate DSM…").trigger()
+    assert offered["dsm"] == str(out)
+    assert offered["dsm_height"] == "orthometric" and offered["asked"]["dsm_height"] is False
+    assert offered["notes"]["dsm_height"] == "recorded in the file"
+    # the reference (an SRTM-like GeoTIFF with a 2-D CRS) does not say: asked, orthometric offered
+    assert offered["reference_height"] == "orthometric" and offered["asked"]["reference_height"]
+    assert offered["notes"]["reference_height"] == "the file does not say: choose"
+    qtbot.waitUntil(lambda: tool.panel.validation is not None, timeout=60000)
+    assert abs(tool.panel.validation.overall.bias) < 10.0, tool.panel.validation.overall

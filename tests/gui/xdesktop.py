@@ -93,6 +93,25 @@ class Desktop:
             raise AssertionError(f"{' '.join(cmd)} exited with {r.returncode}: {r.stderr.strip()}")
         return r
 
+    def screenshot(self) -> "np.ndarray":
+        """The screen as the X server has it now, ``(height, width, 3)`` RGB (taken by a Qt client
+        of this display: the pixels the windows put there, not a fresh render of them)."""
+        import numpy as np
+        code = ("import sys\n"
+                "from PySide6.QtGui import QGuiApplication, QImage\n"
+                "app = QGuiApplication([])\n"
+                "im = app.primaryScreen().grabWindow(0).toImage().convertToFormat(QImage.Format.Format_RGB888)\n"
+                "w, h, bpl = im.width(), im.height(), im.bytesPerLine()\n"
+                "raw = bytes(im.constBits())\n"
+                "sys.stdout.buffer.write(b'%d %d\\n' % (w, h))\n"
+                "sys.stdout.buffer.write(b''.join(raw[y * bpl:y * bpl + 3 * w] for y in range(h)))\n")
+        r = subprocess.run([sys.executable, "-c", code], env=self.env, capture_output=True, timeout=30)
+        if r.returncode:
+            raise AssertionError(f"screenshot failed: {r.stderr.decode(errors='replace')[-500:]}")
+        head, data = r.stdout.split(b"\n", 1)
+        w, h = map(int, head.split())
+        return np.frombuffer(data, np.uint8).reshape(h, w, 3)
+
     @staticmethod
     def wait(cond, seconds: float, what: str):
         t = time.monotonic() + seconds

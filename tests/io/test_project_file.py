@@ -16,7 +16,8 @@ from tests.core.synth import make_scene
 from tests.io.test_cli_pipeline import write_triplet
 
 RECORD = {"reference": "srtm.tif", "mean_height": 312.5, "offsets_px": {"F": [0.5, -1.0]},
-          "patches": [{"window": [0, 0, 10, 10], "dE": None, "used": False}]}
+          "patches": [{"window": [0, 0, 10, 10], "x": 5.0, "y": 5.0, "dE": None, "dN": None, "dh": 1.5,
+                       "sigma_E": None, "sigma_N": None, "sigma_h": 0.5, "used": False}]}
 
 
 @pytest.fixture
@@ -56,14 +57,16 @@ def test_a_malformed_record_is_an_input_error_with_its_line(tmp_path, scene_path
 def test_the_project_file_holds_null_where_numbers_are_nan(tmp_path, scene_path):
     from prismstation.io.scene import read_scene
     p = Project(read_scene(scene_path), str(scene_path),
-                dem_control={"patches": [{"dE": float("nan"), "sigma": np.float32(np.inf)}]})
+                dem_control={"patches": [{**dict.fromkeys(("x", "y", "dN", "dh", "sigma_E", "sigma_N", "sigma_h"), 1.0),
+                                          "dE": float("nan"), "sigma": np.float32(np.inf)}]})
     p.add_tie("T1")
     p.set_measurement(Measurement("T1", "N", 1.0, 2.0))
     save_project(p, tmp_path / "p.prismproj")
     text = (tmp_path / "p.prismproj").read_text()
     assert "NaN" not in text and "Infinity" not in text
     doc = json.loads(text)
-    assert doc["points"][0]["E"] is None and doc["dem_control"]["patches"][0] == {"dE": None, "sigma": None}
+    patch = doc["dem_control"]["patches"][0]
+    assert doc["points"][0]["E"] is None and patch["dE"] is None and patch["sigma"] is None
     assert math.isnan(load_project(tmp_path / "p.prismproj").points["T1"].E)
 
 

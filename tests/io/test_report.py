@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from pyproj import Transformer
 
-from prismstation.core.solve import solve
+from prismstation.core.solution import solve
 from prismstation.io import report as rp
 from prismstation.io.text_report import format_report
 from tests.core.synth import make_points, make_scene

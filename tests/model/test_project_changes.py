@@ -5,7 +5,7 @@ from dataclasses import replace
 
 import pytest
 
-from prismstation.core.solve import Settings
+from prismstation.core.solution import Settings
 from prismstation.errors import InputError
 from prismstation.model.points import GroundPoint, Measurement
 from prismstation.model.project import Change, Project

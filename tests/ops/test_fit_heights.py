@@ -1,12 +1,13 @@
-"""The ellipsoidal heights of a project's points, kept between fits: the same points, geoid
-and scene give the same heights again; a changed point, geoid or scene gives new ones."""
+"""The ellipsoidal heights of a project's points, kept between fits by the caller's memo: the
+same points, geoid and scene give the same heights again; a changed point, geoid or scene gives
+new ones; another memo keeps its own."""
 from dataclasses import replace
 
 import pytest
 
 from prismstation.model.points import GroundPoint, Measurement
 from prismstation.model.project import Project
-from prismstation.ops.fit import ellipsoidal_heights
+from prismstation.ops.fit import FitMemo, ellipsoidal_heights
 from tests.core.synth import make_scene
 
 
@@ -20,16 +21,18 @@ def project():
 
 
 def test_heights_follow_points_geoid_and_scene_not_measurements(project):
-    h = ellipsoidal_heights(project)
-    assert h == {"A": 130.0, "B": 200.0}
+    memo = FitMemo()
+    h = memo.heights(project)
+    assert h == {"A": 130.0, "B": 200.0} == ellipsoidal_heights(project)
     project.set_measurement(Measurement("A", "N", 11.0, 20.0))   # a click: the same heights
-    assert ellipsoidal_heights(project) is h
-    assert ellipsoidal_heights(project.snapshot()) is h
+    assert memo.heights(project) is h
+    assert memo.heights(project.snapshot()) is h
+    assert FitMemo().heights(project) is not h and ellipsoidal_heights(project) is not h  # not shared
     project.replace_point(replace(project.points["A"], H=101.0))
-    assert ellipsoidal_heights(project) == {"A": 131.0, "B": 200.0}
+    assert memo.heights(project) == {"A": 131.0, "B": 200.0}
     project.set_geoid({"kind": "constant", "value": 10.0})
-    assert ellipsoidal_heights(project) == {"A": 111.0, "B": 200.0}
+    assert memo.heights(project) == {"A": 111.0, "B": 200.0}
     other = Project(make_scene(size=3000), geoid=dict(project.geoid))
     other.load(list(project.points.values()), [])
-    assert ellipsoidal_heights(other) == {"A": 111.0, "B": 200.0}
-    assert ellipsoidal_heights(other) is not ellipsoidal_heights(project)  # another scene
+    assert memo.heights(other) == {"A": 111.0, "B": 200.0}
+    assert memo.heights(other) is not memo.heights(project)  # another scene

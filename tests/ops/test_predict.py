@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from prismstation.core.solve import PointObs, solve
+from prismstation.core.solution import PointObs, solve
 from prismstation.ops.predict import (CHI2_95_2D, DEFAULT_DEM_SIGMA_M, PointInput, dem_sigma,
                                       height_spread, predict_point)
 from tests.core.synth import make_points, make_scene

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from prismstation.core.dem_orient import identity_control
-from prismstation.core.solve import solve
+from prismstation.core.solution import solve
 from prismstation.io.scene import read_scene
 from prismstation.io.windows import ImageWindows
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
@@ -43,9 +43,11 @@ def test_fitted_model_searches_narrow():
     from dataclasses import replace
 
     from prismstation.core.prism import BiasFit
+    from prismstation.core.prism_model import PrismModel
     from tests.core.synth import make_scene
     sc = make_scene()
     sol = solve(sc, [], control=identity_control(sc, 500.0))
     xy0 = np.random.default_rng(0).uniform(0, 1e4, (8, 2))
-    fitted = replace(sol, bias={v: BiasFit.fit(xy0, xy0 + 3.0, "shift") for v in sc.views})
+    fitted = replace(sol, model=PrismModel(sc, {v: BiasFit.fit(xy0, xy0 + 3.0, "shift") for v in sc.views},
+                                         sol.model.parallax))
     assert model_sigma_m(sol) == SIGMA_APRIORI_M and model_sigma_m(fitted) == FITTED_SIGMA_M

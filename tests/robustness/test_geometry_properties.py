@@ -14,7 +14,7 @@ from prismstation.core import prism
 from prismstation.core.affine import Affine2D
 from prismstation.core.prism import BIAS_MODELS, BiasFit, fit_bias
 from prismstation.core.rectify import fit_transform
-from prismstation.core.solve import Settings, solve
+from prismstation.core.solution import Settings, solve
 from tests.core.synth import make_points, make_scene
 from tests.robustness.fuzzlib import fuzz_settings
 
@@ -142,7 +142,7 @@ def _fit_signature(sol):
     out = {}
     for v, fit in sol.bias.items():
         out[f"bias {v}"] = (np.asarray(fit.params, float), np.asarray(fit.std, float))
-    par = sol.parallax
+    par = sol.model.parallax
     out["parallax"] = (np.array([par.c0, par.c1]), np.array([par.std_c0 or 0.0, par.std_c1 or 0.0]))
     for p in sol.points:
         if p.ground_est is not None:

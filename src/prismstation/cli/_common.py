@@ -5,17 +5,22 @@ import sys
 from pathlib import Path
 
 from prismstation.errors import InputError
+from prismstation.io.inputs import local_file
 from prismstation.ops.fit import BIAS_MODELS, PARALLAX_MODELS
 from prismstation.ops.predict import DEFAULT_DEM_SIGMA_M
 
 
-def add_model_options(p) -> None:
+def add_model_options(p, *, reference: bool = True) -> None:
+    """The fit's options: ``--bias``, ``--parallax``, ``--fixed-view`` and (``reference``) the
+    reference DEM of the fit's heights, ``--dem`` and ``--dem-sigma``."""
     p.add_argument("--bias", choices=list(BIAS_MODELS),
                    help="bias compensation model (default: the project's; PRISM: shift, similarity, affine; "
                         "RPC: none, shift, shift_drift, affine)")
     p.add_argument("--parallax", choices=list(PARALLAX_MODELS), help="height–parallax relation (default: the project's)")
     p.add_argument("--fixed-view", metavar="VIEW",
                    help="RPC images: the view held fixed (zero bias) as the datum when there is no GCP")
+    if not reference:
+        return
     p.add_argument("--dem", metavar="DEM",
                    help="reference DEM (GeoTIFF or SRTM .hgt, orthometric through the project's geoid): heights of "
                         "points seen in one view; for RPC images also the heights tie points are held to "
@@ -87,7 +92,5 @@ def end_progress() -> None:
 
 
 def existing(path: str, what: str = "file") -> Path:
-    p = Path(path)
-    if not p.exists():
-        raise InputError(f"{what} not found", p)
-    return p
+    """``path`` when it is a regular local file (:func:`prismstation.io.inputs.local_file`)."""
+    return local_file(path, what)

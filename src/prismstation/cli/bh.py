@@ -5,8 +5,11 @@ the JSON a ``prismstation resection --json`` wrote (``--left-resection`` / ``--r
 """
 from __future__ import annotations
 
+import math
+
 from prismstation.errors import InputError
 from prismstation.io.jsonfile import write_json
+from prismstation.io.ranges import MAP_M
 from prismstation.ops.resection import base_height
 
 
@@ -38,6 +41,10 @@ def _from_resection(path) -> list[float]:
 def run(args) -> int:
     left = args.left or _from_resection(args.left_resection)
     right = args.right or _from_resection(args.right_resection)
+    for side, xyz in (("left", left), ("right", right)):
+        if not all(math.isfinite(v) and abs(v) <= MAP_M for v in xyz):
+            raise InputError(f"--{side} {' '.join(f'{v:g}' for v in xyz)}: a camera position needs three "
+                             f"finite coordinates within ±{MAP_M:g} m")
     bh = base_height(left, right)
     print(f"B   = {bh.base_m:.1f} m")
     print(f"H   = {bh.height_m:.2f} m")

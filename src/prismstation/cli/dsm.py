@@ -1,10 +1,10 @@
 """``prismstation dsm PROJECT -o dsm.tif [--posting m] [--window c r w h] [--reference DEM]
 [--orthometric] [--fill] [--min-fill %] [--heights auto|line|rays] [--scheduler ADDRESS]``: the project's DSM as a COG GeoTIFF.
 
-The export is the sensor model's (:mod:`prismstation.ops.workflows`: a PRISM triplet's
-:func:`prismstation.ops.dsm_export.export_dsm`, images with RPCs
-:func:`prismstation.ops.rpc_project.export_rpc_dsm`, which prints the pairs' agreement), the
-same as the window's. Exit status 3 (after writing the file) when fewer than ``--min-fill``
+The export is the sensor model's (:func:`prismstation.ops.sensors.workflows_of`: a PRISM
+triplet's :func:`prismstation.ops.dsm_export.export_dsm`, images with RPCs
+:func:`prismstation.ops.rpc_project.export_dsm`, which prints the pairs' agreement), the same
+as the window's. Exit status 3 (after writing the file) when fewer than ``--min-fill``
 percent of the cells all images see got a matched height.
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest
 from prismstation.ops.fit import solve_project
 from prismstation.ops.project import require_workflow
 from prismstation.ops.reference_heights import load_for_scene
-from prismstation.ops.workflows import workflows
+from prismstation.ops.sensors import workflows_of
 
 LOW_FILL_STATUS = 3
 
@@ -56,7 +56,7 @@ def run(args) -> int:
     request = DsmRequest(args.output, tuple(args.window) if args.window else None, args.posting,
                          args.orthometric, args.height_uncertainty, args.fill, args.min_fill,
                          args.heights, args.scheduler, args.workers)
-    out = workflows(project).export_dsm(sol, project, request, reference=reference, progress=progress_printer())
+    out = workflows_of(project).export_dsm(sol, project, request, reference=reference, progress=progress_printer())
     dsm = out.dsm
     end_progress()
     fill = out.fill_percent

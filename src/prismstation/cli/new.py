@@ -32,18 +32,19 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    scene_path = args.scene
+    if Path(args.project).exists() and not args.force:  # before anything is read or written
+        raise InputError("already exists (use --force to overwrite)", args.project)
+    scene_path, scene_doc = args.scene, None
     if args.product:
-        from prismstation.io.products import write_scene_for_product
-        scene_path = write_scene_for_product(args.product, Path(args.project).parent)
+        from prismstation.io.products import scene_dict_for_folder
+        scene_path = Path(args.project).parent / "scene.json"
+        scene_doc = scene_dict_for_folder(args.product, scene_path.parent)
     elif args.images:
-        from prismstation.io.rpc_scene import write_scene_for_images
+        from prismstation.io.rpc_scene import scene_dict_for_images
         scene_path = Path(args.project).with_suffix(".scene.json")
-        if Path(args.project).exists() and not args.force:
-            raise InputError("already exists (use --force to overwrite)", args.project)
-        write_scene_for_images(args.images, scene_path)
+        scene_doc = scene_dict_for_images(args.images, scene_path.parent)
     project = create(args.project, scene_path, args.points, args.measurements, crs=args.crs,
-                     height=args.height, geoid=args.geoid, force=args.force)
+                     height=args.height, geoid=args.geoid, force=args.force, scene_doc=scene_doc)
     n_ms = len(project.measurements)
     kinds = [p.kind for p in project.points.values()]
     print(f"{args.project}: {kinds.count('GCP')} GCP, {kinds.count('ICP')} ICP, "

@@ -7,14 +7,13 @@ its extension and content, the output format from the output's extension (``.txt
 """
 from __future__ import annotations
 
-import csv
-import io
 import sys
 from dataclasses import replace
 
 from prismstation.errors import InputError
 from prismstation.io import pointfiles as pfm
 from prismstation.io.atomic import write_atomic
+from prismstation.io.points import measurements_csv
 
 
 def register(subparsers) -> None:
@@ -37,17 +36,6 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def measurements_csv(pf) -> str:
-    """Text of the docs/formats.md measurement CSV: ``id,view,x,y,sigma_px`` (docs/model.md pixels)."""
-    out = io.StringIO()
-    w = csv.writer(out, lineterminator="\n")
-    w.writerow(["id", "view", "x", "y", "sigma_px"])
-    for m in pf.measurements:
-        w.writerow([m.id, m.view, repr(round(m.x, 9)), repr(round(m.y, 9)),
-                    "" if m.sigma_px is None else repr(m.sigma_px)])
-    return out.getvalue()
-
-
 def run(args) -> int:
     pf = pfm.read_point_file(args.input, args.fmt_in, height=args.height)
     for text in pf.warnings:
@@ -63,7 +51,7 @@ def run(args) -> int:
             raise InputError(exc.problem, exc.file or args.input, exc.line) from None
     pfm.write_point_file(pf, args.output, args.fmt_out, view=args.view)
     if args.measurements:
-        write_atomic(args.measurements, measurements_csv(pf), keep_backup=False)
+        write_atomic(args.measurements, measurements_csv(pf.measurements), keep_backup=False)
     print(f"{len(pf.points)} points, {len(pf.measurements)} measurements -> {args.output}")
     if str(args.output).lower().endswith(".csv") and pf.crs:
         print(f"note: the CSV states no CRS; its E, N are in {pf.crs}")

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prismstation.errors import InputError, ModelError
+from prismstation.errors import InputError, ModelError, RasterReadError
+from prismstation.io.inputs import local_file, open_raster_file
 from prismstation.cli._common import end_progress, progress_printer
 from prismstation.io.jsonfile import write_json
 from prismstation.io.rectify_io import read_point_pairs
@@ -37,25 +38,18 @@ def _points_crs(args):
         return args.points_crs
     if args.crs:
         return args.crs
-    import warnings
-
-    import rasterio
-
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            with rasterio.open(args.image) as ds:
-                if ds.crs is not None:
-                    return ds.crs.to_wkt()
-    except rasterio.errors.RasterioIOError as exc:
-        raise InputError(f"cannot open as a raster ({exc})", file=args.image) from None
+        with open_raster_file(args.image, "image") as ds:
+            if ds.crs is not None:
+                return ds.crs.to_wkt()
+    except RasterReadError as exc:
+        raise InputError(str(exc).removeprefix(f"{args.image}: "), file=args.image) from None
     raise InputError("the image has no CRS: give the points' CRS with --points-crs or --crs",
                      file=args.image)
 
 
 def run(args) -> int:
-    if not Path(args.image).exists():
-        raise InputError("image not found", file=args.image)
+    local_file(args.image, "image")
     pairs = read_point_pairs(args.points, args.measurements, args.view)
     reports = fit_transforms(pairs)
     name = pairs.view or Path(args.image).stem

@@ -7,11 +7,10 @@ deviations and each iteration's corrections; ``--json`` writes all of it.
 """
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from prismstation.errors import InputError
+from prismstation.errors import InputError, RasterReadError
+from prismstation.io.inputs import open_raster_file
 from prismstation.io.jsonfile import write_json
 from prismstation.io.rectify_io import read_point_pairs
 from prismstation.ops.resection import PARAM_NAMES, resect_points
@@ -43,19 +42,11 @@ def _principal_point(args) -> tuple[float, float]:
     if args.image_size:
         w, h = args.image_size
         return w / 2.0, h / 2.0
-    import warnings
-
-    import rasterio
-
-    if not Path(args.image).exists():
-        raise InputError("image not found", file=args.image)
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            with rasterio.open(args.image) as ds:
-                return ds.width / 2.0, ds.height / 2.0
-    except rasterio.errors.RasterioIOError as exc:
-        raise InputError(f"cannot open as a raster ({exc})", file=args.image) from None
+        with open_raster_file(args.image, "image") as ds:
+            return ds.width / 2.0, ds.height / 2.0
+    except RasterReadError as exc:
+        raise InputError(str(exc).removeprefix(f"{args.image}: "), file=args.image) from None
 
 
 def run(args) -> int:

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 from dataclasses import replace
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 from scipy import ndimage
 

@@ -16,10 +16,11 @@ import numpy as np
 from scipy import ndimage
 
 from prismstation.core import prism
-from prismstation.core.prism import BiasFit, ParallaxLine
+from prismstation.core.field_adjust import Basis, FieldObs
+from prismstation.core.prism import BiasFit, FixedPrism, ParallaxLine
 from prismstation.core.scene import Scene
 from prismstation.core.shift_field import ShiftField
-from prismstation.core.solve import Control
+from prismstation.core.solution import Control
 from prismstation.core.view_offsets import offset_at
 
 
@@ -180,7 +181,6 @@ def gcp_field_obs(scene: Scene, xy_f, xy_b, ground, sigma_m, offset_of, n_weight
     offsets removed, ``pF``, ``pB``; parallax ``py = (pF − pB)·d`` (``d`` the N-space flight
     direction), relative height ``c1·py``, N position ``pF − w·py·d`` (``w = n_weight``), placed
     by the ancillary N model; the shift is the ground point minus that."""
-    from prismstation.core.field_adjust import FieldObs
     N = scene.views["N"]
     xy_f, xy_b = np.atleast_2d(np.asarray(xy_f, float)), np.atleast_2d(np.asarray(xy_b, float))
     ground = np.atleast_2d(np.asarray(ground, float))
@@ -247,11 +247,33 @@ def control_from_field(scene: Scene, field, mean_height: float, view_offsets: di
                             f"from reference-DEM control: c0 follows the patches' dh over the image "
                             f"({dh.min():+.1f} to {dh.max():+.1f} m); c1 theoretical",
                             (float(dx), float(dy)))
-    return Control(bias, parallax, source, float(mean_height))
+    return Control(source, FixedPrism(bias, parallax), float(mean_height))
 
 
 def identity_control(scene: Scene, mean_height: float) -> Control:
     """The ancillary model alone (docs/model.md §3 step 1)."""
     c1 = prism.theoretical_c1(scene)
-    return Control({v: BiasFit.identity() for v in scene.views},
-                   ParallaxLine("theoretical", "theoretical", 0.0, c1, c1), "ancillary data", mean_height)
+    return Control("ancillary data", FixedPrism({v: BiasFit.identity() for v in scene.views},
+                                                ParallaxLine("theoretical", "theoretical", 0.0, c1, c1)),
+                   mean_height)
+
+
+def field_of_record(record: dict):
+    """The shift field ``(x, y) → (..., 3)`` of a saved ``dem_control`` record (a record made
+    before the joint adjustment: its used patches' affine fit)."""
+    f = record.get("field")
+    if f:
+        basis = Basis(tuple(f["centre"]), float(f["scale"]), tuple(f["terms"]))
+        theta = np.asarray(f["theta"], float)
+        return lambda x, y: basis.predict(theta, x, y)
+    patches = [PatchShift(**{**p, "window": tuple(p["window"])}) for p in record["patches"]]
+    return affine_field(patches)
+
+
+def control_from_record(scene: Scene, record: dict) -> Control:
+    """The model of a project's saved ``dem_control`` record (``DemOrientation.to_dict()``):
+    :func:`control_from_field` of its field; a malformed record is a ``KeyError``,
+    ``TypeError`` or ``ValueError``."""
+    return control_from_field(scene, field_of_record(record), record["mean_height"], record.get("offsets_px"),
+                              offset_gradients=record.get("offset_gradients_px"),
+                              source=(record.get("field") or {}).get("source", "reference DEM"))

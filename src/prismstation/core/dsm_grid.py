@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import math
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 from scipy import ndimage
 
-from prismstation.core.solve import Solution
+from prismstation.core.solution import Solution
 from prismstation.core.stereo_tile import Frame, relief_rate, view_affine
 from prismstation.errors import InputError
 

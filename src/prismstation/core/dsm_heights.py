@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from prismstation.core import prism
-from prismstation.core.solve import Solution, solve
+from prismstation.core.solution import Solution, solve
 
 HEIGHT_MODELS = ("auto", "line", "rays")
 #: fewer GCPs measured in N, F and B than this: leave-one-out says nothing, the line is kept
@@ -67,7 +67,7 @@ def model_height_correction(sol: Solution, h_lo: float, h_hi: float, n: int = 9)
         origin = en.mean(axis=0) if origin is None else origin
         py, mid = prism.fb_parallax(sc, sol.ground_to_image("F", en, hh), sol.ground_to_image("B", en, hh))
         A.append(np.column_stack([np.ones(len(en)), en - origin, hh]))
-        y.append(sol.parallax.height(py, mid) - hh)
+        y.append(sol.model.parallax.height(py, mid) - hh)
     coef, *_ = np.linalg.lstsq(np.vstack(A), np.concatenate(y), rcond=None)
     return HeightCorrection(tuple(float(v) for v in origin), tuple(float(v) for v in coef))
 
@@ -101,7 +101,7 @@ def loo_height_errors(sol: Solution) -> tuple[np.ndarray, np.ndarray]:
         rest = obs[:k] + [dataclasses.replace(o, kind="ICP")] + obs[k + 1:]
         fit = solve(sol.scene, rest, sol.settings)
         p = fit.point(o.id)
-        if not fit.ok or fit.parallax is None or p is None or p.ground_est is None:
+        if not fit.ok or fit.model.parallax is None or p is None or p.ground_est is None:
             continue
         e, n, h = p.ground_est
         corr = model_height_correction(fit, h - 100.0, h + 100.0)

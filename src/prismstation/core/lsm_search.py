@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 from scipy import ndimage
 

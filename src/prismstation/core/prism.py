@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -295,6 +296,15 @@ class ParallaxLine:
     def sigma0(self) -> float | None:
         return None if self.lsq is None else self.lsq.sigma0
 
+
+
+class FixedPrism(NamedTuple):
+    """The PRISM model as an orientation made elsewhere fixes it (the ``part`` of a
+    :class:`~prismstation.core.solution.Control`): ``bias`` view → :class:`BiasFit` and the
+    ``parallax`` line; the fit then only evaluates the points."""
+
+    bias: dict
+    parallax: ParallaxLine | None
 
 def fit_parallax(py, h, mode: str, c1_theory: float) -> ParallaxLine:
     """Fit the height–parallax relation over GCPs (``py`` pixels, ``h`` metres, ``(n,)``).

@@ -23,6 +23,13 @@ SCALARS = ("line_off", "samp_off", "lat_off", "lon_off", "h_off",
            "line_scale", "samp_scale", "lat_scale", "lon_scale", "h_scale")
 #: the four 20-coefficient polynomials
 POLYNOMIALS = ("line_num", "line_den", "samp_num", "samp_den")
+#: the range each offset and scale may take on Earth (degrees, metres, pixels); outside it an
+#: RPC is refused: heights from below the Dead Sea to above Everest with margin, images of up to
+#: ten million pixels a side
+PLAUSIBLE = {"lat_off": (-90.0, 90.0), "lon_off": (-180.0, 360.0), "lat_scale": (-90.0, 90.0),
+             "lon_scale": (-180.0, 180.0), "h_off": (-1000.0, 10000.0), "h_scale": (-10000.0, 10000.0),
+             "line_off": (-1e7, 1e7), "samp_off": (-1e7, 1e7), "line_scale": (-1e7, 1e7),
+             "samp_scale": (-1e7, 1e7)}
 
 
 def _terms(L, P, H):
@@ -86,6 +93,18 @@ class Rpc:
             object.__setattr__(self, name, v)
         if not np.any(self.line_den) or not np.any(self.samp_den):
             raise ModelError("RPC denominator is all zeros")
+        for name, (lo, hi) in PLAUSIBLE.items():
+            v = getattr(self, name)
+            if not lo <= v <= hi:
+                raise ModelError(f"RPC {name} = {v:g} is outside [{lo:g}, {hi:g}]"
+                                 + (" (latitude and longitude swapped?)" if name in ("lat_off", "lon_off") else ""))
+        g = np.linspace(-1.0, 1.0, 5)  # the denominators over the normalised domain [-1, 1]³
+        t = _terms(*np.meshgrid(g, g, g, indexing="ij"))
+        for name in ("line_den", "samp_den"):
+            den = np.tensordot(getattr(self, name), t, axes=1)
+            if not (np.all(den > 0) or np.all(den < 0)):
+                where = "at its centre" if getattr(self, name)[0] == 0 else "within its domain"
+                raise ModelError(f"RPC {name} is zero {where}: the model divides by zero there")
 
     # ------------------------------------------------------------------ conversions
     def offsets_scales(self) -> tuple[float, ...]:

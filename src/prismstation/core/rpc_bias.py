@@ -25,6 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
+from prismstation.core import lsq
 from prismstation.core.rpc import Rpc
 from prismstation.errors import ModelError
 
@@ -253,3 +254,60 @@ def _inv3(N):
         i = int(np.flatnonzero(~(np.abs(det) > 1e-12 * scale))[0])
         raise ModelError(f"point {i}: its rays do not determine it (parallel rays or too few)")
     return np.linalg.inv(N)
+
+
+@dataclass(frozen=True, eq=False)
+class RpcBias:
+    """A view's fitted image-space bias (:mod:`~prismstation.core.rpc_bias`): ``model`` its
+    name, ``params`` ``(p,)`` (``a0, b0`` px, the others px per 1,000 px), ``cov`` ``(p, p)``,
+    ``x0, y0`` its reference point (px); ``fixed`` the view is the datum, held at zero bias;
+    ``lsq`` this view's share of the adjustment (its observations' residuals, redundancy
+    numbers and studentised residuals; the adjustment's σ0 and dof)."""
+
+    model: str = "none"
+    params: np.ndarray = None
+    cov: np.ndarray = None
+    x0: float = 0.0
+    y0: float = 0.0
+    fixed: bool = False
+    lsq: lsq.LsqResult | None = None
+
+    def __post_init__(self):
+        p = BIAS_MODELS[self.model]
+        object.__setattr__(self, "params", np.zeros(p) if self.params is None else np.asarray(self.params, float))
+        object.__setattr__(self, "cov", np.zeros((p, p)) if self.cov is None else np.asarray(self.cov, float))
+
+    @property
+    def names(self) -> tuple:
+        return BIAS_NAMES[self.model]
+
+    @property
+    def std(self) -> np.ndarray:
+        return np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
+
+    @property
+    def sigma0(self) -> float | None:
+        return None if self.lsq is None else self.lsq.sigma0
+
+    @property
+    def dof(self) -> int:
+        return 0 if self.lsq is None else self.lsq.dof
+
+    @property
+    def reference_px(self) -> tuple[float, float]:
+        """``(x0, y0)`` px: the image point the parameters ``a0, b0`` are the bias at."""
+        return float(self.x0), float(self.y0)
+
+    def biased(self, rpc: Rpc) -> BiasedRpc:
+        return BiasedRpc(rpc, self.model, self.params, self.x0, self.y0)
+
+    @property
+    def M(self) -> np.ndarray:
+        """``(2, 2)``: the bias written as ``Δxy = M·xy + b`` (px per px)."""
+        return bias_linear(self.model, self.params, self.x0, self.y0)[1]
+
+    @property
+    def b(self) -> np.ndarray:
+        """``(2,)`` px: the constant of ``Δxy = M·xy + b``."""
+        c, M = bias_linear(self.model, self.params, self.x0, self.y0)
+        return c - M @ np.array([self.x0, self.y0])

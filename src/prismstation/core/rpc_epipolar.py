@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
 from prismstation.core.rpc_bias import as_biased
@@ -157,12 +157,15 @@ def rectify_pair(model_a, model_b, window, height_range, *, margin_px: float = 4
     return PairRectification(L, R, (rows, cols), (dlo, dhi), (d_min, n_disp), (lo, hi), err, px_per_m)
 
 
-def warp(array: np.ndarray, origin, affine: np.ndarray, shape, *, interpolation=cv2.INTER_CUBIC) -> np.ndarray:
+def warp(array: np.ndarray, origin, affine: np.ndarray, shape, *, interpolation=None) -> np.ndarray:
     """Resample an image array onto the rectified grid (float32, NaN outside the array).
 
     ``array`` holds image pixels whose top-left corner is at image point ``origin`` = (x, y)
-    (a window read from the image); ``affine`` (2, 3) image → rectified.
+    (a window read from the image); ``affine`` (2, 3) image → rectified; ``interpolation`` an
+    OpenCV flag, default ``cv2.INTER_CUBIC``.
     """
+    if interpolation is None:
+        interpolation = cv2.INTER_CUBIC
     inv = invert_affine(affine)
     # rectified index (i, j) → coordinate (i + .5, j + .5) → image point → array index
     lin = inv[:, :2]

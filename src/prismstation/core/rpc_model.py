@@ -4,9 +4,11 @@
 A view is an image with its RPC (:class:`RpcView`); the model works in the scene's map frame
 through a :class:`MapProjection` the scene reader supplies (map metres ↔ WGS 84 longitude and
 latitude: this layer knows no CRS), so that every caller keeps ground ``(E, N)`` metres and
-ellipsoidal ``h`` — the RPC's own heights. The bias of each view (:class:`RpcBias`) is
-:mod:`prismstation.core.rpc_bias`'s, evaluated at the image point; the fit is
-:func:`prismstation.core.rpc_solve.solve_rpc`.
+ellipsoidal ``h`` — the RPC's own heights. The bias of each view
+(:class:`~prismstation.core.rpc_bias.RpcBias`) is :mod:`prismstation.core.rpc_bias`'s,
+evaluated at the image point; the fit (:meth:`RpcModel.fit`) is the bias-compensated block
+adjustment of :mod:`prismstation.core.rpc_solve`, and an orientation from a reference DEM
+becomes each view's a-priori bias (:meth:`RpcModel.control_from_record`).
 """
 from __future__ import annotations
 
@@ -15,10 +17,13 @@ from typing import Protocol
 
 import numpy as np
 
-from prismstation.core import lsq
+from prismstation.core import rpc_solve
+from prismstation.core.recent import Recent
+from prismstation.core.results import PointColumns
 from prismstation.core.rpc import Rpc
-from prismstation.core.rpc_bias import BIAS_MODELS, BIAS_NAMES, BiasedRpc, bias_design, bias_linear
+from prismstation.core.rpc_bias import BIAS_MODELS, RpcBias, bias_design
 from prismstation.core.sensor import STEP_M
+from prismstation.core.solution import Control, Settings, Solution, statistics
 
 
 class MapProjection(Protocol):
@@ -86,63 +91,6 @@ def _partials_en(project_with_partials, projection, E, N, h):
     return np.column_stack([x, y]), J
 
 
-@dataclass(frozen=True, eq=False)
-class RpcBias:
-    """A view's fitted image-space bias (:mod:`~prismstation.core.rpc_bias`): ``model`` its
-    name, ``params`` ``(p,)`` (``a0, b0`` px, the others px per 1,000 px), ``cov`` ``(p, p)``,
-    ``x0, y0`` its reference point (px); ``fixed`` the view is the datum, held at zero bias;
-    ``lsq`` this view's share of the adjustment (its observations' residuals, redundancy
-    numbers and studentised residuals; the adjustment's σ0 and dof)."""
-
-    model: str = "none"
-    params: np.ndarray = None
-    cov: np.ndarray = None
-    x0: float = 0.0
-    y0: float = 0.0
-    fixed: bool = False
-    lsq: lsq.LsqResult | None = None
-
-    def __post_init__(self):
-        p = BIAS_MODELS[self.model]
-        object.__setattr__(self, "params", np.zeros(p) if self.params is None else np.asarray(self.params, float))
-        object.__setattr__(self, "cov", np.zeros((p, p)) if self.cov is None else np.asarray(self.cov, float))
-
-    @property
-    def names(self) -> tuple:
-        return BIAS_NAMES[self.model]
-
-    @property
-    def std(self) -> np.ndarray:
-        return np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
-
-    @property
-    def sigma0(self) -> float | None:
-        return None if self.lsq is None else self.lsq.sigma0
-
-    @property
-    def dof(self) -> int:
-        return 0 if self.lsq is None else self.lsq.dof
-
-    @property
-    def reference_px(self) -> tuple[float, float]:
-        """``(x0, y0)`` px: the image point the parameters ``a0, b0`` are the bias at."""
-        return float(self.x0), float(self.y0)
-
-    def biased(self, rpc: Rpc) -> BiasedRpc:
-        return BiasedRpc(rpc, self.model, self.params, self.x0, self.y0)
-
-    @property
-    def M(self) -> np.ndarray:
-        """``(2, 2)``: the bias written as ``Δxy = M·xy + b`` (px per px)."""
-        return bias_linear(self.model, self.params, self.x0, self.y0)[1]
-
-    @property
-    def b(self) -> np.ndarray:
-        """``(2,)`` px: the constant of ``Δxy = M·xy + b``."""
-        c, M = bias_linear(self.model, self.params, self.x0, self.y0)
-        return c - M @ np.array([self.x0, self.y0])
-
-
 class RpcModel:
     """The RPC model of ``scene`` (views :class:`RpcView`) with ``bias`` (view →
     :class:`RpcBias`; a view without one is unbiased)."""
@@ -162,12 +110,28 @@ class RpcModel:
         self.models = {v: self.bias[v].biased(view.rpc) for v, view in scene.views.items()}
 
     @classmethod
-    def fit(cls, scene, points, settings, *, height_of=None, height_sigma_m=None, revision: int = 0,
-            control=None):
-        """:func:`prismstation.core.rpc_solve.solve_rpc`."""
-        from prismstation.core.rpc_solve import solve_rpc
-        return solve_rpc(scene, points, settings, height_of=height_of, height_sigma_m=height_sigma_m,
-                         revision=revision, control=control)
+    def fit(cls, scene, points, settings: Settings = Settings(), *, height_of=None,
+            height_sigma_m: float | None = None, revision: int = 0, control: Control | None = None,
+            recent: Recent | None = None) -> Solution:
+        """Every view's bias by the block adjustment of GCPs and tie points
+        (:func:`prismstation.core.rpc_solve.fit_block`: ``height_of`` and ``height_sigma_m``
+        hold tie points to the reference DEM where the GCPs are too few; ``control`` gives each
+        view's a-priori bias), then every point through the fitted model: intersected from its
+        rays, or where its one ray meets ``height_of``, else at the mean height (``recent`` is
+        not used: the adjustment takes every point at once)."""
+        fit = rpc_solve.fit_block(scene, points, settings, height_of=height_of, height_sigma_m=height_sigma_m,
+                                  control=control)
+        model = cls(scene, fit.bias)
+        results, mean_h = fit.block.evaluate(model, fit.result, height_of, settings)
+        columns = PointColumns.of(results, scene.views)
+        return Solution(scene, settings, model, columns, statistics(scene, columns), tuple(fit.messages), mean_h,
+                        revision, fit.failures, tuple(fit.block.points))
+
+    @staticmethod
+    def control_from_record(scene, record: dict) -> Control:
+        """Each view's a-priori bias from a project's saved ``dem_control`` record
+        (:func:`prismstation.core.rpc_solve.control_from_record`)."""
+        return rpc_solve.control_from_record(scene, record)
 
     def ground_to_image(self, view: str, en, h) -> np.ndarray:
         en = np.asarray(en, float)
@@ -214,3 +178,19 @@ class RpcModel:
     def ok(self) -> bool:
         """An RPC is a model before any fit: a failed fit is the solution's ``failures``."""
         return True
+
+    @property
+    def heights_fitted(self) -> bool:
+        """Points seen in two images or more are intersected: their heights are the model's."""
+        return True
+
+    def adjustments(self) -> tuple:
+        """``((label, LsqResult), ...)``: the block adjustment (its reference view's share),
+        whose residuals are tested for blunders."""
+        ref = self.scene.reference_view
+        lsq = self.bias[ref].lsq
+        return () if lsq is None else ((f"{ref} bias", lsq),)
+
+    def describe(self) -> dict:
+        """The model's own part of a report's ``model`` section: nothing beyond the biases."""
+        return {}

@@ -1,8 +1,8 @@
-"""The RPC model's fit of a project (:mod:`prismstation.core.sensor`): every image's bias by the
+"""The RPC model's fit of a project (:meth:`prismstation.core.rpc_model.RpcModel.fit`): every image's bias by the
 bias-compensated block adjustment of :mod:`prismstation.core.rpc_adjust` (Grodecki & Dial 2003;
 Fraser & Hanley 2003) on the GCPs and the tie points (and, after an orientation from a
 reference DEM, each bias's a-priori value: :class:`BiasPrior`), then every point evaluated as the
-:class:`~prismstation.core.solve.Solution` of the PRISM model is.
+PRISM model's fit evaluates them.
 
 What enters the adjustment: GCPs measured in one image or more (their known ground weighted
 by the survey's σ; exact — :data:`GCP_EXACT_SIGMA_M` — where none is given) and tie points
@@ -19,7 +19,7 @@ its ground residual checks the model; a tie point of the adjustment its adjusted
 bias's σ at that point added. Residuals (measured − predicted, px) are taken against the known
 ground of GCPs and check points and the estimated ground of tie points; every observation of
 the adjustment has its redundancy number and externally studentised residual; a point's largest,
-on the normal scale (:func:`~prismstation.core.solve.normal_equivalent`), beyond
+on the normal scale (:func:`~prismstation.core.solution.normal_equivalent`), beyond
 ``settings.blunder_threshold`` flags it as a blunder, as in the PRISM fit.
 """
 from __future__ import annotations
@@ -33,10 +33,9 @@ from prismstation.core.estimate import FailedFit
 from prismstation.core.lsq import LsqResult
 from prismstation.core.ray_dem import ray_meets_surface
 from prismstation.core.rpc_adjust import adjust
-from prismstation.core.rpc_bias import BIAS_MODELS, BIAS_NAMES, intersect_points
-from prismstation.core.rpc_model import RpcBias, RpcModel
-from prismstation.core.results import PointColumns, PointResult
-from prismstation.core.solve import Settings, Solution, normal_equivalent, statistics
+from prismstation.core.results import PointResult
+from prismstation.core.rpc_bias import BIAS_MODELS, BIAS_NAMES, RpcBias, intersect_points
+from prismstation.core.solution import Control, Settings, normal_equivalent
 from prismstation.errors import DegenerateGeometry, ModelError
 
 #: σ (m) of a GCP's ground when its survey gives none: taken as exact
@@ -68,14 +67,27 @@ def dem_needed(n_gcp: int, kind: str) -> bool:
     return BIAS_MODELS[kind] > 0 and n_gcp < max(1, math.ceil(BIAS_MODELS[kind] / 2))
 
 
-def solve_rpc(scene, points, settings: Settings = Settings(), *, height_of=None,
-              height_sigma_m: float | None = None, revision: int = 0, control=None) -> Solution:
-    """Fit every view's bias to ``points`` (:class:`~prismstation.core.solve.PointObs`) and
-    evaluate every point (module docstring). ``height_of``: the reference DEM's ellipsoidal
-    heights at map points ``(n, 2)`` → ``(n,)``, ``height_sigma_m`` their σ (without it tie
-    points are not held to them, and a message says so). ``control``: view →
-    :class:`BiasPrior`, each view's bias known a priori (an orientation from a reference DEM):
-    its parameters are observed at those values with their σ and no view is held fixed unless
+class BlockFit(NamedTuple):
+    """What :func:`fit_block` gives: the points as the adjustment took them (``block``, a
+    :class:`_Block`, which evaluates every point), each view's :class:`RpcBias`, the adjustment
+    (:class:`~prismstation.core.rpc_adjust.RpcAdjustment`, or None when nothing was fitted), the
+    messages and the failures (view → falsy ``FailedFit``)."""
+
+    block: "_Block"
+    bias: dict
+    result: object
+    messages: list
+    failures: dict
+
+
+def fit_block(scene, points, settings: Settings = Settings(), *, height_of=None,
+              height_sigma_m: float | None = None, control: Control | None = None) -> BlockFit:
+    """Fit every view's bias to ``points`` (:class:`~prismstation.core.solution.PointObs`;
+    module docstring). ``height_of``: the reference DEM's ellipsoidal heights at map points
+    ``(n, 2)`` → ``(n,)``, ``height_sigma_m`` their σ (without it tie points are not held to
+    them, and a message says so). ``control``: its ``part`` view → :class:`BiasPrior`, each
+    view's bias known a priori (an orientation from a reference DEM): its parameters are
+    observed at those values with their σ and no view is held fixed unless
     ``settings.fixed_view`` names one. Raises :class:`ModelError` only for settings this model
     does not have (an unknown bias model or view); data the operator can fix are messages."""
     kind = settings.bias_model
@@ -90,7 +102,7 @@ def solve_rpc(scene, points, settings: Settings = Settings(), *, height_of=None,
     messages: list[str] = []
     failures: dict = {}
     ref = scene.reference_view
-    prior = _priors(control, names, kind, messages)
+    prior = _priors(None if control is None else control.part, names, kind, messages)
     fixed_name = settings.fixed_view or (ref if not run.gcps and kind != "none" and not prior else None)
     fixed = () if fixed_name is None else (names.index(fixed_name),)
     if not run.gcps and settings.fixed_view is None and kind != "none" and run.block and not prior:
@@ -134,11 +146,7 @@ def solve_rpc(scene, points, settings: Settings = Settings(), *, height_of=None,
             if held.any():
                 messages.append(f"{int(held.sum())} tie points held to the reference DEM's heights "
                                 f"(σ {height_sigma_m:.1f} m): fewer GCPs than the {m} bias needs")
-    sol_model = RpcModel(scene, bias)
-    results, mean_h = run.evaluate(sol_model, result, height_of, settings)
-    columns = PointColumns.of(results, scene.views)
-    return Solution(scene, settings, bias, None, columns, statistics(scene, columns),
-                    tuple(messages), mean_h, revision, failures, tuple(points))
+    return BlockFit(run, bias, result, messages, failures)
 
 
 class _Block:
@@ -219,8 +227,9 @@ class _Block:
         return out
 
     # ------------------------------------------------------------------ every point
-    def evaluate(self, model: RpcModel, res, height_of, settings):
-        """The :class:`PointResult` of every point, and the mean height."""
+    def evaluate(self, model, res, height_of, settings):
+        """The :class:`PointResult` of every point through the fitted ``model`` (an
+        :class:`~prismstation.core.rpc_model.RpcModel`), and the mean height."""
         pts, names, proj = self.points, self.names, self.projection
         n = len(pts)
         est = np.full((n, 3), np.nan)
@@ -358,6 +367,23 @@ def _priors(control, names, kind, messages) -> dict:
             f"{v}: " + ", ".join(f"{n} {p:+.2f} ± {s:.2f}" for n, p, s in zip(BIAS_NAMES[b.model], b.params, b.sigma))
             for v, b in control.items()) + "); no view held fixed: the block's datum is the reference's")
     return {names.index(v): BiasPrior(*b) for v, b in control.items()}
+
+
+def control_from_record(scene, record: dict) -> Control:
+    """Each view's a-priori bias (:class:`BiasPrior`) from a project's saved ``dem_control``
+    record (``prismstation.ops.rpc_project.orientation_record``), as a :class:`Control`; a
+    malformed one is a ``KeyError``, ``TypeError`` or ``ValueError``."""
+    if record.get("sensor") != "rpc":
+        raise ValueError("not the record of an orientation of images with RPCs")
+    out = {}
+    for v, b in record["biases"].items():
+        if v not in scene.views or b["model"] not in BIAS_MODELS:
+            raise ValueError(f"view {v!r} or bias model {b['model']!r} unknown")
+        p, s = tuple(map(float, b["params"])), tuple(map(float, b["sigma"]))
+        if not (len(p) == len(s) == len(BIAS_NAMES[b["model"]])) or not all(map(math.isfinite, p + s)):
+            raise ValueError(f"view {v}: {len(p)} parameters for the {b['model']} bias")
+        out[v] = BiasPrior(b["model"], p, s, float(b["x0"]), float(b["y0"]))
+    return Control("the orientation on a reference DEM", out)
 
 
 def _prior_as(prior: dict, kind: str) -> dict:

@@ -1,15 +1,18 @@
 """Sampling a grid at many scattered points."""
 from __future__ import annotations
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
 
-def remap_points(src: np.ndarray, col, row, interpolation=cv2.INTER_LINEAR) -> np.ndarray:
+def remap_points(src: np.ndarray, col, row, interpolation=None) -> np.ndarray:
     """``src`` sampled at continuous indices (``col``, ``row``; cell centres at integers) of
     any shape, through ``cv2.remap`` (1/32-pixel weights: fine for rendering and for heights of
     a reference DEM); the border is replicated. The points are laid out in rows of 4,096 and
-    remapped 4,096 rows at a time (cv2 takes maps of fewer than 32,767 rows)."""
+    remapped 4,096 rows at a time (cv2 takes maps of fewer than 32,767 rows). ``interpolation``:
+    an OpenCV flag, default ``cv2.INTER_LINEAR``."""
+    if interpolation is None:
+        interpolation = cv2.INTER_LINEAR
     shape = np.shape(col)
     col = np.asarray(col, dtype=np.float32).ravel()
     row = np.asarray(row, dtype=np.float32).ravel()

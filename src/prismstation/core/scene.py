@@ -107,7 +107,7 @@ class Scene:
     pyproj, projected, metres) and, for the PRISM model, the ``track`` and the
     ``satellite_altitude_m`` (None for a model that needs neither). ``sensor`` is the class of
     the views' sensor model (:mod:`prismstation.core.sensor`; the reader of the scene file
-    chooses it): the PRISM model unless given."""
+    chooses it, :mod:`prismstation.core.sensors`)."""
 
     crs: str
     satellite_altitude_m: float | None
@@ -119,8 +119,7 @@ class Scene:
 
     def __post_init__(self):
         if self.sensor is None:
-            from prismstation.core.prism_model import PrismModel  # core.prism imports this module
-            object.__setattr__(self, "sensor", PrismModel)
+            raise TypeError("a Scene needs its sensor model (core/sensors.py: MODELS)")
 
     @property
     def reference_view(self) -> str:

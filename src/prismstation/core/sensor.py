@@ -1,20 +1,25 @@
 """The sensor-model seam: the one interface every sensor model implements.
 
 A sensor model maps ground to the images of a scene and back, with what its fit estimated.
-Two implement it: the empirical PRISM 1B2 model of Gonçalves (2008)
-(:class:`prismstation.core.prism_model.PrismModel`) and the rational function model with an
-image-space bias of Grodecki & Dial (2003) (:class:`prismstation.core.rpc_model.RpcModel`).
+Two implement it, each whole in its own module beside its class: the empirical PRISM 1B2
+model of Gonçalves (2008) (:class:`prismstation.core.prism_model.PrismModel`) and the rational
+function model with an image-space bias of Grodecki & Dial (2003)
+(:class:`prismstation.core.rpc_model.RpcModel`). ``core/sensors.py`` registers them by name;
+``ops/sensors.py`` holds each model's workflows (orientation from a reference DEM, the DSM)
+and ``gui/sensors.py`` its widgets, under the same name.
 
 Conventions: ground ``en`` ``(..., 2)`` is map metres (E, N) in the scene's CRS and ``h``
 ellipsoidal metres (broadcastable to ``en[..., 0]``); image ``xy`` ``(..., 2)`` is pixels,
-x = column, y = row, origin at the top-left corner of the top-left pixel.
+x = column, y = row, origin at the top-left corner of the top-left pixel (a pixel's centre at
+``+0.5``). Every geometry method takes arrays of any leading shape — a point, a list of
+points, a grid ``(rows, cols, 2)`` — and returns the same leading shape.
 
 **Where the model is chosen.** Once, where a scene is read (``io/scene.py``): the reader
 builds the views of one model and records its class as :attr:`Scene.sensor
-<prismstation.core.scene.Scene.sensor>`. From there :func:`prismstation.core.solve.solve`
+<prismstation.core.scene.Scene.sensor>`. From there :func:`prismstation.core.solution.solve`
 fits ``scene.sensor.fit(...)``, and the fitted instance travels in
-:attr:`Solution.model <prismstation.core.solve.Solution.model>`: predictions, linked cursors,
-transfer and reports call it and never ask which model it is.
+:attr:`Solution.model <prismstation.core.solution.Solution.model>`: predictions, linked cursors,
+transfer, reports and an orthoimage call it and never ask which model it is.
 
 **What the class offers** (the solver's and the front ends' side):
 
@@ -35,19 +40,28 @@ transfer and reports call it and never ask which model it is.
     what the images are, in words (``"images with RPCs"``), and the commands that work on a
     project of this model (``"fit"``, ``"report"``, ``"orient-dem"``, ``"dsm"``): the others
     refuse it in one place (:func:`prismstation.ops.project.require_workflow`);
-``fit(scene, points, settings, *, height_of, height_sigma_m, revision, control)``
-    the model fitted to :class:`~prismstation.core.solve.PointObs` → a
-    :class:`~prismstation.core.solve.Solution`: each view's bias with its covariance, every
+``fit(scene, points, settings, *, height_of, height_sigma_m, revision, control, recent)``
+    the model fitted to :class:`~prismstation.core.solution.PointObs` → a
+    :class:`~prismstation.core.solution.Solution`: each view's bias with its covariance, every
     point's ground estimate (how it is obtained from its measurements is the model's:
     parallax line or intersection, else the reference DEM, else the mean height), predictions,
     residuals (measured − predicted, px), blunder tests against
-    ``settings.blunder_threshold`` (:func:`prismstation.core.solve.critical_value`) and the
-    statistics. It never raises for data the operator can fix (messages say why).
+    ``settings.blunder_threshold`` (:func:`prismstation.core.solution.critical_value`) and the
+    statistics. ``control`` (:class:`~prismstation.core.solution.Control`) an orientation made
+    elsewhere; ``recent`` (:class:`~prismstation.core.recent.Recent`, owned by the caller) what
+    an earlier fit of the same inputs computed. It never raises for data the operator can fix
+    (messages say why);
+``control_from_record(scene, record)``
+    the :class:`~prismstation.core.solution.Control` of an orientation from a reference DEM
+    as a project stores it (``Project.dem_control``; a malformed record is a ``KeyError``,
+    ``TypeError`` or ``ValueError``).
 
 **What a fitted instance offers** (everyone else's side), per view name:
 
 ``ground_to_image(view, en, h)``, ``image_to_ground(view, xy, h)``
-    the model with its fitted bias (``image_to_ground`` is NaN where the model cannot invert);
+    the model with its fitted bias: ``(..., 2)`` arrays in and out (``image_to_ground`` is
+    NaN where the model cannot invert). An orthoimage resamples a view at
+    ``ground_to_image(view, en, dem(en))`` over its grid ``en`` ``(rows, cols, 2)``;
 ``partials(view, en, h)``
     ``(xy, J)``: ``xy`` ``(n, 2)`` and ``J`` ``(n, 2, 3)`` = ∂(x, y)/∂(E, N, h), pixels per metre;
 ``bias[view]``
@@ -56,8 +70,16 @@ transfer and reports call it and never ask which model it is.
     ``(..., 2, 2)`` px²: what the parameters' covariance adds to an image position ``xy``;
 ``fitted(view)``
     whether the view's geolocation is fitted (a bias estimated, or the view is the datum);
-``ok``
-    whether the fit succeeded (what :attr:`Solution.ok` reports).
+``ok``, ``heights_fitted``
+    whether the fit succeeded (what :attr:`Solution.ok` reports); whether points get heights
+    from the model's own rays (a PRISM triplet, images with RPCs: the height statistics mean
+    something);
+``adjustments()``
+    ``((label, LsqResult), ...)``: the adjustments whose residuals are tested for blunders
+    (the window lists their redundancy and critical value);
+``describe()``
+    the model's own part of a report's ``model`` section beyond the biases (a dict, e.g. the
+    PRISM model's parallax line).
 """
 from __future__ import annotations
 
@@ -114,7 +136,10 @@ class SensorModel(Protocol):
 
     @classmethod
     def fit(cls, scene, points, settings, *, height_of=None, height_sigma_m=None, revision: int = 0,
-            control=None): ...
+            control=None, recent=None): ...
+
+    @staticmethod
+    def control_from_record(scene, record: dict): ...
 
     def ground_to_image(self, view: str, en, h) -> np.ndarray: ...
 
@@ -128,6 +153,13 @@ class SensorModel(Protocol):
 
     @property
     def ok(self) -> bool: ...
+
+    @property
+    def heights_fitted(self) -> bool: ...
+
+    def adjustments(self) -> tuple: ...
+
+    def describe(self) -> dict: ...
 
 
 #: central-difference step of partials taken numerically (metres)

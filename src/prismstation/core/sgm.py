@@ -14,7 +14,7 @@ the agreeing values and the quality the number of them. Blunders are removed, no
 """
 from __future__ import annotations
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
 #: a-priori σ of one refined SGBM disparity (pixels): the fusion's tolerance is built from it.

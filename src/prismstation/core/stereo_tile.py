@@ -21,11 +21,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
 from prismstation.core import prism, sgm
-from prismstation.core.solve import Solution
+from prismstation.core.solution import Solution
 from prismstation.core.stats import nmad
 
 PAIRS = (("F", "N"), ("N", "B"), ("F", "B"))

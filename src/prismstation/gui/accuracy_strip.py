@@ -13,9 +13,10 @@ import math
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QDoubleSpinBox, QFrame, QHBoxLayout, QLabel
 
-from prismstation.gui.fit_checks import parallax_check
 from prismstation.gui.palette import html
+from prismstation.gui.sensors import parts_of
 from prismstation.gui.text_label import TextLabel
+from prismstation.gui.plain import plain
 
 FIELDS = (("E", "ICP RMSE of easting, estimated − known ground position (m)"),
           ("N", "ICP RMSE of northing, estimated − known ground position (m)"),
@@ -43,8 +44,7 @@ def accuracy_values(sol) -> dict:
     g = st.get("ground", {}).get("ICP")
     if g is not None:
         out.update(E=_m(g.x.rms), N=_m(g.y.rms), plan=_m(g.planimetric_rms))
-    heights = sol.scene.is_triplet or sol.scene.sensor.height_source != "parallax"
-    hgt = st.get("height", {}).get("ICP") if heights else None
+    hgt = st.get("height", {}).get("ICP") if sol.model.heights_fitted else None
     if hgt is not None:
         out["h"] = _m(hgt.rms)
     s0 = sol.bias[sol.reference_view].sigma0 if sol.reference_view in sol.bias else None
@@ -56,14 +56,13 @@ def accuracy_values(sol) -> dict:
     return out
 
 
-def accuracy_warning(sol) -> tuple[str, str]:
-    """``(short text, full text)`` of what the strip's figures stand on that does not hold
-    (the parallax model does not fit the GCPs); empty strings when nothing."""
-    check = parallax_check(sol)
-    if check is None or check.fits:
-        return "", ""
-    return (f"⚠ h from the '{check.model}' parallax model, which does not fit the GCPs "
-            f"({check.rms_model:.3g} m RMS)", check.text())
+def accuracy_warning(sol) -> tuple[tuple[str, ...], str]:
+    """``(wordings, full text)`` of what the strip's figures stand on that does not hold (the
+    sensor model's own check: the PRISM parallax model does not fit the GCPs), longest wording
+    first; ``((), "")`` when nothing."""
+    if sol is None:
+        return (), ""
+    return parts_of(sol.scene.sensor).fit_warning(sol)
 
 
 class AccuracyStrip(QFrame):
@@ -124,11 +123,11 @@ class AccuracyStrip(QFrame):
             unit = "" if vals[f] == "—" else (" px" if f == "σ0" else " m")
             lab.setText(vals[f] + unit)
         self.count.setText(vals["count"])
-        short, full = accuracy_warning(sol)
-        self.warning.setText(short)
-        if self.warning.toolTip() != full:
-            self.warning.setToolTip(full)
-        self.values["h"].set_color(WARN_COLOR if short else None)
+        wordings, full = accuracy_warning(sol)
+        self.warning.setText(*(wordings or ("",)))
+        if self.warning.toolTip() != plain(full):
+            self.warning.setToolTip(plain(full))
+        self.values["h"].set_color(WARN_COLOR if wordings else None)
 
     def text(self) -> str:
         """What the strip shows, one line (tests)."""

@@ -117,12 +117,22 @@ def run(project_path=None, screenshot=None, reference_dem=None, demo_maker=None,
         print("prismstation: no display (DISPLAY is not set); run it in a desktop session, or "
               "write a picture with --screenshot PNG", file=sys.stderr)
         return 2
+    settings_dir = None
     if screenshot_path is not None:
         if "PRISMSTATION_SETTINGS_DIR" not in os.environ:  # never the user's layout in a picture
-            os.environ["PRISMSTATION_SETTINGS_DIR"] = tempfile.mkdtemp(prefix="prismstation-settings-")
+            from prismstation.io.atomic import OWNER_TAG, clean_stale
+            clean_stale(tempfile.gettempdir(), "prismstation-settings-", folders=True)  # a killed run's
+            settings_dir = tempfile.mkdtemp(prefix=f"prismstation-settings-{OWNER_TAG}_")
+            os.environ["PRISMSTATION_SETTINGS_DIR"] = settings_dir
     from prismstation.io.raster import gdal_env
-    with gdal_env():                 # the window's GDAL settings, for as long as it runs
-        return _run_window(project_path, screenshot_path, reference_dem, demo_maker, open_demo)
+    try:
+        with gdal_env():                 # the window's GDAL settings, for as long as it runs
+            return _run_window(project_path, screenshot_path, reference_dem, demo_maker, open_demo)
+    finally:
+        if settings_dir is not None:  # the picture's settings folder goes with it
+            import shutil
+            shutil.rmtree(settings_dir, ignore_errors=True)
+            os.environ.pop("PRISMSTATION_SETTINGS_DIR", None)
 
 
 def _run_window(project_path, screenshot_path, reference_dem, demo_maker, open_demo) -> int:

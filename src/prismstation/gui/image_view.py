@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QPointF, QRectF, Qt, QTimer, Signal
+from PySide6.QtCore import QEvent, QPointF, QRectF, Qt, QTimer, Signal
 from PySide6.QtWidgets import QGraphicsItem, QVBoxLayout, QWidget
 
 from prismstation.gui.tiles import COARSE_KEY, TileLoader, tiles_for_rect
@@ -66,6 +66,8 @@ class ImageView(QWidget):
     -------
     cursor_moved(x, y)
         Image coordinates (pixels, continuous) under the mouse; may lie outside the image.
+    cursor_left()
+        The mouse has left the view.
     clicked(x, y, modifiers)
         Left click (not a drag) at image coordinates; ``modifiers`` is a Qt.KeyboardModifier.
     view_changed()
@@ -90,6 +92,7 @@ class ImageView(QWidget):
     """Tiles within this fraction of the view size around it are read ahead into the cache."""
 
     cursor_moved = Signal(float, float)
+    cursor_left = Signal()
     clicked = Signal(float, float, object)
     view_changed = Signal()
     levels_changed = Signal(float, float)
@@ -134,6 +137,7 @@ class ImageView(QWidget):
         # (~1 ms with a few hundred markers) are skipped
         scene.sendClickEvent = lambda ev: (scene.sigMouseClicked.emit(ev), ev.isAccepted())[1]
         scene.sendHoverEvents = lambda ev, exitOnly=False: None
+        self.graphics.viewport().installEventFilter(self)  # (its Leave: cursor_left)
 
     # ------------------------------------------------------------------ source
     def set_source(self, source: RasterSource | None, levels=None) -> None:
@@ -397,6 +401,11 @@ class ImageView(QWidget):
         self.tiles_settled.emit()
 
     # ------------------------------------------------------------------ mouse
+    def eventFilter(self, obj, ev) -> bool:
+        if ev.type() == QEvent.Type.Leave and obj is self.graphics.viewport():
+            self.cursor_left.emit()
+        return False
+
     def _on_mouse_moved(self, scene_pos) -> None:
         if self.source is None:
             return

@@ -13,6 +13,7 @@ column mapping; they return every bad line, each with its own message, file and 
 """
 from __future__ import annotations
 
+from html import escape
 from dataclasses import replace
 from pathlib import Path
 
@@ -31,6 +32,7 @@ from prismstation.io.mapped_csv import (DELIMITERS, GROUND_FIELDS, MEASUREMENT_F
                                         has_decimal_comma, is_point_file, read_mapped,
                                         split_lines)
 from prismstation.model.points import HEIGHT_KINDS
+from prismstation.gui.plain import plain
 
 __all__ = ["ImportDialog", "PreviewModel", "guess_delimiter", "guess_mapping", "GROUND_FIELDS",
            "MEASUREMENT_FIELDS", "read_mapped"]
@@ -365,7 +367,7 @@ class ImportDialog(QDialog):
         try:
             crs = pointfiles.parse_crs(text)
         except InputError as exc:
-            self.crs_status.setText(f'<span style="color:#c00">{exc.problem}</span>')
+            self.crs_status.setText(f'<span style="color:#c00">{escape(exc.problem)}</span>')
             raise
         self.crs_status.setText(crs.name)
         return crs
@@ -451,7 +453,7 @@ class ImportDialog(QDialog):
             self.status.setText(f'<span style="color:#c00">{len(errors)} problem'
                                 f'{"s" * (len(errors) > 1)}: fix the file or the choices</span>')
         else:
-            self.status.setText(ok_text or "nothing to import")
+            self.status.setText(plain(ok_text or "nothing to import"))
         self._set_ok(not errors and bool(self._result[0] or self._result[1]))
 
     def _set_ok(self, on: bool) -> None:

@@ -16,6 +16,7 @@ from PySide6.QtWidgets import QFileDialog, QInputDialog, QMessageBox
 from prismstation.errors import PrismError
 from prismstation.gui import commands as cmd
 from prismstation.gui import settings as st
+from prismstation.gui.plain import plain
 
 REPORT_FILTER = "HTML (*.html);;PDF (*.pdf);;CSV (*.csv);;JSON (*.json)"
 
@@ -57,10 +58,11 @@ def report_operator(window, ask: bool) -> str | None:
 
 
 def proposed_report_path(window) -> str:
-    """Where the export's file dialog starts: the project's folder (else the last export's)
-    and ``<project>_report.pdf``."""
+    """Where the export's file dialog starts: the folder of the last report exported (while it
+    exists), else the project's, else the home folder; ``<project>_report.pdf``."""
     path = window.files.path
-    folder = Path(path).parent if path else Path(st.value(st.Key.LAST_EXPORT_DIR) or Path.home())
+    last = st.value(st.Key.LAST_EXPORT_DIR)
+    folder = (Path(last) if last and Path(last).is_dir() else Path(path).parent if path else Path.home())
     return str(folder / f"{Path(path).stem if path else 'untitled'}_report.pdf")
 
 
@@ -93,7 +95,7 @@ def export_report(window, path: str | None = None) -> bool:
         else:
             write_report(rep, path)
     except (PrismError, OSError) as exc:
-        QMessageBox.warning(window, "Export report", str(exc))
+        QMessageBox.warning(window, "Export report", plain(str(exc)))
         return False
     st.set_value(st.Key.LAST_EXPORT_DIR, str(Path(path).parent))
     window.statusBar().showMessage(f"Report written to {path} (operator {operator}: File ▸ Report "

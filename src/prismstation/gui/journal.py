@@ -13,7 +13,8 @@ from PySide6.QtCore import QTimer
 
 from prismstation.gui import settings as st
 from prismstation.io.project import SUFFIX
-from prismstation.io.recovery import Journal, ProjectLock, recovery_path
+from prismstation.io.lock import ProjectLock
+from prismstation.io.recovery import Journal, recovery_path
 
 
 def untitled_path() -> Path:

@@ -31,7 +31,7 @@ from prismstation.gui.point_editor import PointEditor
 from prismstation.gui.point_table import PointTableModel
 from prismstation.gui.point_table_view import PointTableView
 from prismstation.gui.start_page import StartPage
-from prismstation.gui.text_label import TextLabel
+from prismstation.gui.status_fields import StatusFields
 from prismstation.gui.views import TripletViews
 from prismstation.gui.workspace import Workspace
 
@@ -88,7 +88,7 @@ class MainWindow(QMainWindow):
         self.docks["loupe"].raise_()
         self.splitDockWidget(self.docks["points"], self.docks["plots"], Qt.Orientation.Horizontal)
         own_docks = set(self.docks)
-        self._status_widgets()
+        self.status = StatusFields(self)
         menus.build_actions(self)
         menus.build_menus(self)
         self._fill_recent(st.value(st.Key.RECENT_FILES))
@@ -122,34 +122,6 @@ class MainWindow(QMainWindow):
         self.docks[key] = d
         return d
 
-    def _status_widgets(self) -> None:
-        sb = self.statusBar()
-        self.status_xy = {}
-        def label(text, widest):  # a new value must not relayout the window
-            lab = TextLabel(text, widest)
-            sb.addPermanentWidget(lab)
-            return lab
-        self._status_label = label
-        self._status_views(("N", "F", "B"))
-        self.status_ground = label("E —  N —  h —", "E 0000000.0  N 00000000.0  h -0000.0 m")
-        self.status_fit = label("", "fit 0000 ms · σ0 000.000")
-
-    def _status_views(self, views) -> None:
-        """One cursor-position label per view of the scene, then the ground's and the fit's."""
-        if list(self.status_xy) == list(views):
-            return
-        sb, after = self.statusBar(), [getattr(self, k) for k in ("status_ground", "status_fit") if hasattr(self, k)]
-        for lab in (*self.status_xy.values(), *after):
-            sb.removeWidget(lab)
-        for lab in self.status_xy.values():
-            lab.setParent(None)
-            lab.deleteLater()
-        self.status_xy = {v: self._status_label(f"{v}  —", f"{v}  x -00000.0  y -00000.0")  # to 99,999 px, and < 0
-                          for v in views}
-        for lab in after:
-            sb.addPermanentWidget(lab)
-            lab.show()
-
     def _connect(self) -> None:
         self.files.project_opened.connect(self.set_project)
         self.files.path_changed.connect(self._update_title)
@@ -161,7 +133,7 @@ class MainWindow(QMainWindow):
         self.solver.failed.connect(lambda m: self.statusBar().showMessage(m, 10000))
         self.views.place_requested.connect(self.place)
         self.views.move_requested.connect(self.move)
-        self.views.point_picked.connect(lambda pid: self.set_current(pid, drive=False))
+        self.views.point_picked.connect(self._on_marker_picked)
         self.views.cursor_info.connect(self.on_cursor)
         self.views.message.connect(lambda m: self.statusBar().showMessage(m, 10000))
         self.views.images_loaded.connect(self._on_images_loaded)
@@ -201,10 +173,10 @@ class MainWindow(QMainWindow):
         project.changed.connect(self._on_project_changed)
         self.views.height_of = None
         self.views.set_project(project)
-        self._status_views(project.scene.views)
+        self.status.set_views(project.scene.views)
         self.panel.set_sensor(project.scene.sensor, list(project.scene.views))
         self.plots.show_parallax(bool(project.scene.sensor.parallax_models))
-        self._clear_status()
+        self.status.clear()
         split = st.value(st.Key.SPLITTER)
         if split is not None and not split.isEmpty():
             self.views.splitter.restoreState(split)
@@ -290,6 +262,24 @@ class MainWindow(QMainWindow):
             self.views.drive_to(pid)
         self._update_actions()
 
+    def _on_marker_picked(self, pid: str) -> None:
+        """A click on another point's marker makes it current. The click was meant to place
+        the point just made by Insert, if that is current and still empty: it is dropped."""
+        left = self.current
+        self.set_current(pid, drive=False)
+        if left is not None and left != self.current:
+            self._drop_if_abandoned(left)
+
+    def _drop_if_abandoned(self, pid: str) -> None:
+        """Undo the creation of ``pid`` if it was the last edit (Insert) and the point is still
+        as made: no measurement, no coordinates, its id."""
+        st = self.undo_stack
+        top = st.command(st.index() - 1) if st.index() == st.count() and st.index() > 0 else None
+        p = self.project
+        if (isinstance(top, cmd.AddPoint) and top.pid == pid and pid in p.points
+                and p.points[pid] == top.point and not p.measurements_of(pid)):
+            st.undo()
+
     def _on_table_selection(self, *_) -> None:
         pid = self.table.current_id()
         if pid is not None and pid != self.current:
@@ -319,12 +309,26 @@ class MainWindow(QMainWindow):
         if c.pid != self.current:
             self.set_current(c.pid, drive=False)
         self.measure_mode.placed(c.pid)
+        self._first_frame(view, c)
 
     def move(self, pid: str, view: str, x: float, y: float, finished: bool) -> None:
         if self.project is not None and pid in self.project.points:
-            self.undo_stack.push(cmd.PlaceMeasurement(self.project, pid, view, x, y, merge=True))
+            c = cmd.PlaceMeasurement(self.project, pid, view, x, y, merge=True)
+            self.undo_stack.push(c)
             if pid != self.current:
                 self.set_current(pid, drive=False)
+            self._first_frame(view, c)
+
+    def _first_frame(self, view: str, c) -> None:
+        """Answer a click (or a drag's step) in the next frame: the marker, its label, the loupe
+        and the table's row painted now; the refit, which the solver starts from the event loop
+        once this returns, repaints what it changes in the frame after."""
+        xy = (c.new.x, c.new.y)
+        self.table_model.refresh()  # the row's views (its residuals follow the refit)
+        lp = self.loupes.get(view)
+        if lp is not None:
+            lp.set_position(*xy)
+        self.views.paint_edit(view, [xy] + ([(c.old.x, c.old.y)] if c.old is not None else []))
 
     def new_point(self) -> None:
         if self.project is None:
@@ -397,24 +401,18 @@ class MainWindow(QMainWindow):
             a.setEnabled(bool(has_c))
 
     # ------------------------------------------------------------------ cursor and status
-    def _clear_status(self) -> None:
-        """No figure of the previous project: cursor positions, ground, fit time, message."""
-        for v, lab in self.status_xy.items():
-            lab.setText(f"{v}  —")
-        self.status_ground.setText("E —  N —  h —")
-        self.status_fit.setText("")
-        self.statusBar().clearMessage()
-
     def on_cursor(self, view, x, y, linked, ground) -> None:
         pos = dict(linked)
         pos[view] = (x, y)
-        for v, lab in self.status_xy.items():
-            xy = pos.get(v)
-            lab.setText(f"{v}  x {xy[0]:.1f}  y {xy[1]:.1f}" if xy is not None else f"{v}  —")
-            if v != view and xy is not None and v in self.loupes:
+        self.status.show_cursor(pos, ground)
+        for v, xy in pos.items():
+            if v != view and v in self.loupes:
                 self.loupes[v].set_position(*xy)
-        if ground is not None:
-            self.status_ground.setText(f"E {ground[0]:.1f}  N {ground[1]:.1f}  h {ground[2]:.1f} m")
+
+    # the status bar's fields (tests, tools)
+    status_xy = property(lambda self: self.status.xy)
+    status_ground = property(lambda self: self.status.ground)
+    status_fit = property(lambda self: self.status.fit)
 
     # ------------------------------------------------------------------ import / export
     def import_points(self) -> None:

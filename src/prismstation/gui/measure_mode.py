@@ -8,7 +8,8 @@
   click never creates a point.
 * **Navigate** (V): clicks and drags only pan and pick; no marker is placed or moved.
 
-In every mode a click on another point's marker makes that point current. The mode shows in
+In every mode a click on another point's marker makes that point current (a point just made by
+Insert and not placed yet is then dropped: the click meant to place it). The mode shows in
 the cursor over the images (a cross with a plus, a cross, an open hand), in the status bar
 and in the checked button of the toolbar.
 """

@@ -4,23 +4,24 @@ as the paper's Tables 1–3, blunders and messages.
 The choices are the scene's sensor model's (:meth:`ModelPanel.set_sensor`,
 :mod:`prismstation.core.sensor`): its bias models; its height–parallax models, the row hidden
 where it has none (RPC images: points are intersected); the view held fixed where the model
-holds one as the datum. Reads a :class:`~prismstation.core.solve.Solution`; a change of the
-choices is emitted as new :class:`~prismstation.core.solve.Settings` (the window turns it into
+holds one as the datum. Reads a :class:`~prismstation.core.solution.Solution`; a change of the
+choices is emitted as new :class:`~prismstation.core.solution.Settings` (the window turns it into
 an undoable command).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
-from PySide6.QtCore import QRect, QSize, Qt, Signal
+from PySide6.QtCore import QEvent, QRect, QSize, Qt, Signal
 from PySide6.QtGui import QColor, QFont, QFontMetrics, QPainter, QPalette
 from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QHBoxLayout, QLabel,
                                QPushButton, QScrollArea, QSizePolicy, QVBoxLayout, QWidget)
 
 from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
-from prismstation.gui.fit_checks import blunder_test, parallax_check
+from prismstation.gui.fit_checks import blunder_test
+from prismstation.gui.sensors import parts_of
 from prismstation.gui.static_text import StaticTexts
+from prismstation.io.formatting import fixed
 
 SECTION_COLOR = QColor("#1d3c6e")
 HEAD_BG = QColor("#dde4ee")
@@ -29,15 +30,9 @@ WARN_COLOR = QColor("#a04000")
 AUTO_FIXED = "auto"  # the fixed-view choice that holds none fixed by name (the model decides)
 
 
-def _f(v, nd=2, sign=False) -> str:
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return "—"
-    return f"{v:+.{nd}f}" if sign else f"{v:.{nd}f}"
-
-
 def _stat_rows(cols, stats=("n", "min", "max", "mean", "rms")) -> list[list[str]]:
     """``cols``: ComponentStats per column."""
-    return [[s] + [str(c.n) if s == "n" else _f(getattr(c, s)) for c in cols] for s in stats]
+    return [[s] + [str(c.n) if s == "n" else fixed(getattr(c, s)) for c in cols] for s in stats]
 
 
 def solution_sections(sol) -> tuple[list, list]:
@@ -50,21 +45,12 @@ def solution_sections(sol) -> tuple[list, list]:
     for v, fit in sol.bias.items():
         s0 = fit.sigma0
         dof = fit.lsq.dof if fit.lsq is not None else None
-        title = f"Bias {v} ({fit.model})" + (f" — σ0 = {_f(s0, 3)} px, dof {dof}" if s0 is not None else "")
+        title = f"Bias {v} ({fit.model})" + (f" — σ0 = {fixed(s0, 3)} px, dof {dof}" if s0 is not None else "")
         rows = [[n, f"{p:+.6g}", f"{sd:.2g}" if sd == sd else "—"] for n, p, sd in zip(fit.names, fit.params, fit.std)]
         none = "held fixed (the datum)" if getattr(fit, "fixed", False) else "not fitted"
         sections.append((title, ["", "value", "σ"], rows or [[none, "", ""]]))
-    par = sol.parallax
-    check = parallax_check(sol)
-    if par is not None:
-        s0 = par.sigma0
-        sections.append((f"Parallax line h = c0 + c1·py ({par.used})" + (f" — σ0 = {_f(s0)} m" if s0 is not None else "")
-                         + (" — does not fit the GCPs" if check is not None and not check.fits else ""),
-                         ["", "value", "σ", "theory"],
-                         [["c0 (m)", _f(par.c0, 2, True), _f(par.std_c0), "0"],
-                          ["c1 (m/px)", _f(par.c1, 4), _f(par.std_c1, 4), _f(par.c1_theory, 4)]]
-                         + ([[f"c0 tilt {a} (m per 1000 px)", _f(1000 * t, 3, True), "—", "0"]
-                             for a, t in zip("xy", par.tilt)] if any(par.tilt) else [])))
+    own, own_notes = parts_of(sol.scene.sensor).panel_sections(sol)
+    sections += own
     st = sol.stats
     ref = sol.reference_view
     img = st.get("image", {}).get(ref, {})
@@ -73,32 +59,31 @@ def solution_sections(sol) -> tuple[list, list]:
     elif img:
         g, i = img["GCP"]["m"], img["ICP"]["m"]
         rows = _stat_rows([g.x, g.y, i.x, i.y])
-        rows.append(["plan. RMS", "", _f(g.planimetric_rms), "", _f(i.planimetric_rms)])
+        rows.append(["plan. RMS", "", fixed(g.planimetric_rms), "", fixed(i.planimetric_rms)])
         sections.append((f"Table 1 — image residuals, view {ref} (m)",
                          ["", "GCP Rx", "GCP Ry", "ICP Rx", "ICP Ry"], rows))
     if "F-N" in st:
         sections.append(("Table 2 — across-track differences to N (px)", ["", "F−N", "B−N"],
                          _stat_rows([st["F-N"], st["B-N"]], ("n", "min", "max", "mean", "std"))))
-    if "height" in st and (sol.scene.is_triplet or sol.scene.sensor.height_source != "parallax"):
+    if "height" in st and sol.model.heights_fitted:
         sections.append(("Table 3 — height residuals (m)", ["", "GCP Rh", "ICP Rh"],
                          _stat_rows([st["height"]["GCP"], st["height"]["ICP"]])))
     if "ground" in st:
         g, i = st["ground"]["GCP"], st["ground"]["ICP"]
         rows = _stat_rows([g.x, g.y, i.x, i.y], ("n", "mean", "rms"))
-        rows.append(["plan. RMS", "", _f(g.planimetric_rms), "", _f(i.planimetric_rms)])
+        rows.append(["plan. RMS", "", fixed(g.planimetric_rms), "", fixed(i.planimetric_rms)])
         sections.append(("Ground residuals, estimated − known (m)",
                          ["", "GCP dE", "GCP dN", "ICP dE", "ICP dN"], rows))
     test = blunder_test(sol)
-    thr = _f(test.threshold, 2)
+    thr = fixed(test.threshold, 2)
     if test.fits:
         sections.append((f"Blunder test — threshold {thr} (α = {test.alpha:.2g}) for every fit",
                          ["fit", "redundancy", "blunder at |w| >"],
-                         [[label, str(dof), _f(c, 2)] for label, dof, c in test.fits]))
+                         [[label, str(dof), fixed(c, 2)] for label, dof, c in test.fits]))
     cols = sol.columns
-    notes = [(f"Blunder: {cols.ids[i]} — standardised residual {_f(float(cols.std_residual[i]))} > {thr}", "bad")
+    notes = [(f"Blunder: {cols.ids[i]} — standardised residual {fixed(float(cols.std_residual[i]))} > {thr}", "bad")
              for i, b in enumerate(cols.blunder.tolist()) if b]
-    if check is not None:
-        notes.append((check.text(), "info" if check.fits else "bad"))
+    notes += own_notes
     notes += [(m, "warn") for m in sol.messages]
     if test.fits:
         notes.append((test.reason(), "info"))
@@ -109,8 +94,8 @@ def _per_view_table(image_stats: dict) -> tuple:
     """One row per view: n and RMS x, y (px) of the image residuals of each kind of point the
     fit has (GCP, ICP, tie points) — the table of a model with any number of views."""
     kinds = [k for k in ("GCP", "ICP", "TIE") if all(k in d for d in image_stats.values())]
-    rows = [[v] + [t for k in kinds for t in (str(d[k]["px"].x.n), _f(d[k]["px"].x.rms),
-                                             _f(d[k]["px"].y.rms))]
+    rows = [[v] + [t for k in kinds for t in (str(d[k]["px"].x.n), fixed(d[k]["px"].x.rms),
+                                             fixed(d[k]["px"].y.rms))]
             for v, d in image_stats.items()]
     return ("Image residuals per view (px)",
             ["view"] + [f"{k} {c}" for k in kinds for c in ("n", "RMS x", "RMS y")], rows)
@@ -200,10 +185,25 @@ class _Sections(QWidget):
     def _row_height(self) -> int:
         return self.fontMetrics().height() + 2
 
+    def _note_width(self) -> int:
+        """The width notes wrap to: what the scroll area shows of the panel (tables wider
+        than that scroll sideways, a note read across them was cut at its edge)."""
+        seen = self.parentWidget().width() if self.parentWidget() is not None else self.width()
+        return max(min(seen, max(self.width(), sum(self._widths))) - 2 * self.PAD - 4, 50)
+
+    def eventFilter(self, obj, ev) -> bool:
+        """The scroll area's viewport (installed by :class:`ModelPanel`) changed width: the
+        notes wrap anew."""
+        if ev.type() == QEvent.Type.Resize and self._notes:
+            self._line_cache = None
+            self._update_hint()
+            self.update()
+        return False
+
     def _note_rect(self, text, bold) -> QRect:
         """The wrapped rectangle of a note (remembered per text and width: a refit asks for
         the same notes several times)."""
-        width = max(max(self.width(), sum(self._widths)) - 2 * self.PAD, 50)
+        width = self._note_width()
         key = (text, bold, width)
         r = self._note_rects.get(key)
         if r is None:
@@ -365,6 +365,7 @@ class ModelPanel(QWidget):
         self.text = QScrollArea()
         self.text.setWidgetResizable(True)
         self.text.setWidget(self.sections)
+        self.text.viewport().installEventFilter(self.sections)  # (its width wraps the notes)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(4, 4, 4, 4)
         lay.addLayout(form)

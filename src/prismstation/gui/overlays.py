@@ -128,6 +128,7 @@ class LabelLayer(pg.GraphicsObject):
             st = self._static.get(text)
             if st is None:  # laid out once, drawn many times
                 st = self._static[text] = QStaticText(text)
+                st.setTextFormat(Qt.TextFormat.PlainText)  # an id is never markup
                 st.prepare(QTransform(), self.font)
             px, py = dx[i] + ox, dy[i] + oy
             p.setPen(shadow)
@@ -203,6 +204,7 @@ class ViewOverlay:
         self.labels.setZValue(24)
         vb.addItem(self.labels, ignoreBounds=True)
         self._label_state = None
+        self._predicted_labels: dict = {}  # id -> (x, y) of the predictions drawn (unmeasured here)
         self.ids = np.zeros(0, dtype=object)      # ids of measured markers, in order
         self.xy = np.zeros((0, 2))                 # their image positions
         self._measured_key = None
@@ -244,6 +246,7 @@ class ViewOverlay:
                                          pen=[_pen(KIND_COLORS.get(k, CURRENT_COLOR)) for k in sel[1]])
                         else:
                             item.clear()
+                self._update_labels(project)  # a new point's label comes with its marker
         flagged = set(solution.columns.blunder_ids()) if solution is not None else set()
         xy = ()
         if flagged and len(self.ids):
@@ -260,7 +263,7 @@ class ViewOverlay:
         v, points = self.name, project.points
         pred, pred_pens = [], []
         polys: dict = {k: [] for k in self.ellipses}
-        label_pos = dict(zip(self.ids.tolist(), map(tuple, self.xy.tolist())))
+        label_pos = {}
         residuals = np.zeros((0, 4))
         if solution is not None:
             c = solution.columns
@@ -281,7 +284,7 @@ class ViewOverlay:
                     kind = points[pid].kind
                     pred.append(xy)
                     pred_pens.append(_pen(KIND_COLORS.get(kind, CURRENT_COLOR), 1.5, True))
-                    label_pos.setdefault(pid, xy)
+                    label_pos[pid] = xy
                     if p is not None and kind in polys and np.all(np.isfinite(p.cov)):
                         polys[kind].append(p)
         key = (tuple(pred), tuple(id(p) for p in pred_pens))
@@ -294,7 +297,8 @@ class ViewOverlay:
         self._draw_ellipses(polys)
         self._residuals = residuals
         self._draw_vectors()
-        self._update_labels(project, label_pos)
+        self._predicted_labels = label_pos
+        self._update_labels(project)
 
     def _draw_ellipses(self, preds: dict) -> None:
         """The 95 % ellipses of ``preds`` (kind → [Prediction]), as closed polylines."""
@@ -342,10 +346,16 @@ class ViewOverlay:
             return np.zeros((0, 4))
         return np.column_stack([x[0::2], y[0::2], x[1::2], y[1::2]])
 
-    def _update_labels(self, project, label_pos: dict) -> None:
+    def _update_labels(self, project) -> None:
+        """A label beside each measured marker (at once, from the project) and each prediction
+        of the last solution."""
         state = None
         if self.show_labels:
             points = project.points
+            label_pos = dict(zip(self.ids.tolist(), map(tuple, self.xy.tolist())))
+            for pid, xy in self._predicted_labels.items():
+                if pid in points:
+                    label_pos.setdefault(pid, xy)
             state = [(x, y, pid, KIND_COLORS.get(points[pid].kind, CURRENT_COLOR))
                      for pid, (x, y) in label_pos.items()]
         if state == self._label_state:

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from prismstation.core.scene import reference_view
+from prismstation.gui.sensors import parts_of
 
 
 def _arr(values) -> np.ndarray:
@@ -18,6 +19,23 @@ def _arr(values) -> np.ndarray:
 
 def _xy(values) -> np.ndarray:
     return np.asarray(values, dtype=float).reshape(-1, 2)
+
+
+def vector_view(bias: dict, asked: str | None = None) -> str:
+    """The view whose residual vectors are drawn: ``asked`` when the fit has it, else the
+    reference view, unless that is held fixed (the datum of a fit without GCPs, as the first
+    of several images with RPCs): then the first view that is fitted. ``bias``: view → its fit
+    (an object with ``fixed``, or a report's dict with ``"fixed"``)."""
+    if asked in bias:
+        return asked
+
+    def fixed(v) -> bool:
+        b = bias[v]
+        return bool(b.get("fixed") if isinstance(b, dict) else getattr(b, "fixed", False))
+    ref = reference_view(bias)
+    if ref in bias and not fixed(ref):
+        return ref
+    return next((v for v in bias if not fixed(v)), ref)
 
 
 @dataclass(frozen=True)
@@ -31,7 +49,8 @@ class PlotData:
     gcp_ids, icp_ids : tuples of str, the ids of those points (same order).
     c0, c1, c1_theory : float or None
         Parallax line ``h = c0 + c1·py`` (metres, pixels); ``c1_theory`` of eq. 4.
-    view : str, the view of the residual vectors (the reference view, N for a triplet).
+    view : str, the view of the residual vectors (:func:`vector_view`: the reference view, N
+        for a triplet, unless it is held fixed; or the one asked for).
     vec_gcp_xy, vec_gcp_v, vec_icp_xy, vec_icp_v : (n, 2) arrays
         Measured image position (x column, y row, pixels) and residual (measured − predicted).
     vec_tie_xy, vec_tie_v, vec_tie_ids : the same for tie points, where the model fits them
@@ -96,14 +115,14 @@ class PlotData:
                    image_shape, xy[vt], v[vt], tuple(ids[vt]), bool(ties))
 
     @classmethod
-    def from_solution(cls, sol) -> "PlotData":
-        """From a :class:`~prismstation.core.solve.Solution` (``None`` gives empty plots)."""
+    def from_solution(cls, sol, view: str | None = None) -> "PlotData":
+        """From a :class:`~prismstation.core.solution.Solution` (``None`` gives empty plots); the
+        residual vectors of ``view`` (default: :func:`vector_view`)."""
         if sol is None:
             return cls()
-        view, c = sol.reference_view, sol.columns
+        view, c = vector_view(sol.bias, view), sol.columns
         nan2 = np.full((len(c), 2), np.nan)
-        par = sol.parallax
-        line = None if par is None else (par.c0, par.c1, par.c1_theory)
+        line = parts_of(sol.scene.sensor).plot_line(sol)
         v = sol.scene.views[view]
         return cls.from_columns(c.ids, c.kinds, c.parallax, c.ground_est[:, 2] - c.ground_residual[:, 2],
                                 c.measured.get(view, nan2), c.residual.get(view, nan2), c.std_residual,
@@ -115,7 +134,7 @@ class PlotData:
     def from_report(cls, report: dict) -> "PlotData":
         """From the dict of :func:`prismstation.io.report.report_dict` (or its JSON)."""
         bias = report.get("model", {}).get("bias", {})
-        view = reference_view(bias)
+        view = vector_view(bias)
         pts = report.get("points", [])
         nan = float("nan")
 

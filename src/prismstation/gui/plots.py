@@ -1,4 +1,4 @@
-"""Live plots of a fitted :class:`~prismstation.core.solve.Solution`.
+"""Live plots of a fitted :class:`~prismstation.core.solution.Solution`.
 
 Four pyqtgraph plots in a 2 × 2 grid, each a ``pg.PlotWidget`` whose items are created once and
 only get new data on :meth:`PlotsWidget.set_solution` (no rebuilding):
@@ -24,14 +24,15 @@ from __future__ import annotations
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt, QTimer, Signal
-from PySide6.QtGui import QFont, QImage
-from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QGridLayout, QHBoxLayout, QLabel,
+from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QGridLayout, QHBoxLayout, QLabel,
                                QStackedWidget, QTabWidget, QVBoxLayout, QWidget)
 
 from prismstation.gui.fit_checks import alpha_of
 from prismstation.gui.markers import Scatter
+from prismstation.gui.plain import plain_block
 from prismstation.gui.palette import BLUNDER_RGB, FIT_RGB, KIND_RGB, THEORY_RGB, qcolor
 from prismstation.gui.plot_data import PlotData, auto_exaggeration, data_ranges, line_x, segments
+from prismstation.gui.plot_figures import legend_below
 from prismstation.gui.text_label import TextLabel
 
 __all__ = ["PlotsWidget", "PlotData", "PLOT_NAMES", "auto_exaggeration"]
@@ -142,6 +143,14 @@ class PlotsWidget(QWidget):
         for w in (label, self.spin, self.auto_box):
             bar.addWidget(w)
             w.setVisible(own_exaggeration)
+        # the image whose residual vectors are drawn (several images: any of them)
+        self.view_box = QComboBox()
+        self.view_box.setToolTip("The image whose residual vectors the plot shows")
+        self.view_box.setSizeAdjustPolicy(QComboBox.SizeAdjustPolicy.AdjustToContents)
+        self.view_box.setVisible(False)
+        self.view_box.activated.connect(self._on_view_chosen)
+        self._solution, self._vector_view = None, None  # (None: the default view)
+        bar.addWidget(self.view_box)
         self.legend = QLabel(_LEGEND_HTML)
         self.legend.setVisible(not legends)
         bar.addWidget(self.legend)
@@ -195,7 +204,7 @@ class PlotsWidget(QWidget):
         brush = pg.mkBrush(*color) if filled else pg.mkBrush(255, 255, 255, 0)
         item = Scatter(pen=pg.mkPen(color, width=1.5), brush=brush, symbol=symbol, size=size,
                        name=name, hoverable=True,  # tool tip: id, values
-                       tip=lambda x, y, data: f"{data}: {x:.2f}, {y:.2f}")
+                       tip=lambda x, y, data: plain_block(f"{data}: {x:.2f}, {y:.2f}"))
         item.sigClicked.connect(self._on_clicked)
         pw.addItem(item)
         return item
@@ -211,8 +220,7 @@ class PlotsWidget(QWidget):
         for name in ("height", "height_minus_theory"):
             pi = p[name].getPlotItem()
             if self._legends:
-                pi.addLegend(offset=(8, 8), labelTextSize="8pt", labelTextColor=(30, 30, 30),
-                             brush=(255, 255, 255, 210))
+                legend_below(pi, labelTextSize="9pt", labelTextColor=(30, 30, 30))
             pi.setLabel("bottom", "F−B parallax", units="px")
         p["height"].setLabel("left", "h (ellipsoidal)", units="m")
         p["height_minus_theory"].setLabel("left", "h − c1ₜₕ·py", units="m")
@@ -235,8 +243,7 @@ class PlotsWidget(QWidget):
         pv.setLabel("bottom", "x (column)", units="px")
         pv.setLabel("left", "y (row)", units="px")
         if self._legends:
-            pv.addLegend(offset=(8, 8), labelTextSize="8pt", labelTextColor=(30, 30, 30),
-                         brush=(255, 255, 255, 210))
+            legend_below(pv, labelTextSize="9pt", labelTextColor=(30, 30, 30))
         self.v_gcp_seg = self._curve(pv, pg.mkPen(GCP_COLOR, width=2), connect="pairs")
         self.v_icp_seg = self._curve(pv, pg.mkPen(ICP_COLOR, width=2), connect="pairs")
         self.v_tie_seg = self._curve(pv, pg.mkPen(KIND_RGB["TIE"], width=2), connect="pairs")
@@ -287,8 +294,23 @@ class PlotsWidget(QWidget):
 
     # ------------------------------------------------------------------ public
     def set_solution(self, solution) -> None:
-        """Show ``solution`` (a :class:`~prismstation.core.solve.Solution` or None)."""
-        self.set_plot_data(PlotData.from_solution(solution))
+        """Show ``solution`` (a :class:`~prismstation.core.solution.Solution` or None), the residual
+        vectors of the image chosen in :attr:`view_box` (by default :func:`.plot_data.vector_view`)."""
+        self._solution = solution
+        data = PlotData.from_solution(solution, self._vector_view)
+        views = list(solution.bias) if solution is not None else []
+        box = self.view_box
+        if [box.itemText(i) for i in range(box.count())] != views:
+            box.clear()
+            box.addItems(views)
+        if box.currentText() != data.view:
+            box.setCurrentText(data.view)
+        box.setVisible(len(views) > 1)
+        self.set_plot_data(data)
+
+    def _on_view_chosen(self, index: int) -> None:
+        self._vector_view = self.view_box.itemText(index) or None
+        self.set_solution(self._solution)
 
     def set_report(self, report: dict) -> None:
         """Show a report dict (:func:`prismstation.io.report.report_dict`)."""
@@ -384,43 +406,6 @@ class PlotsWidget(QWidget):
     @property
     def exaggeration(self) -> float:
         return self._exaggeration
-
-    def render_images(self, size=(900, 560)) -> dict:
-        """Each plot as a QImage of ``size`` pixels (for reports): ``{name: QImage}``.
-
-        Drawn by a hidden copy of this widget laid out at that size, so a docked, visible
-        widget is not disturbed."""
-        from PySide6.QtWidgets import QApplication
-        smooth = pg.getConfigOption("antialias")
-        pg.setConfigOptions(antialias=True)  # items read it when created
-        try:
-            tmp = PlotsWidget(grid=True, legends=True)
-        finally:
-            pg.setConfigOptions(antialias=smooth)
-        try:
-            tmp.setAttribute(Qt.WidgetAttribute.WA_DontShowOnScreen, True)
-            if not self.auto_box.isChecked() and not self._screen_k:
-                tmp.set_exaggeration(self._exaggeration)
-            tmp.set_plot_data(self._data)
-            for name in tmp._titles:
-                tmp.plots[name].setTitle(tmp._titles[name], size="12pt", color=(30, 30, 30))
-            font = QFont()
-            font.setPointSizeF(10.5)
-            for pw in tmp.plots.values():
-                pw.setFixedSize(int(size[0]), int(size[1]))
-                for side, extent in (("left", 74), ("bottom", 46)):
-                    axis = pw.getPlotItem().getAxis(side)
-                    axis.setTickFont(font)
-                    axis.label.setFont(font)
-                    axis.setWidth(extent) if side == "left" else axis.setHeight(extent)
-            tmp.adjustSize()
-            tmp.show()
-            QApplication.processEvents()
-            return {name: pw.grab().toImage().convertToFormat(QImage.Format.Format_RGB32)
-                    for name, pw in tmp.plots.items()}
-        finally:
-            tmp.hide()
-            tmp.deleteLater()
 
     # ------------------------------------------------------------------ internals
     def _update_vectors(self) -> None:

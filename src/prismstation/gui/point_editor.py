@@ -35,6 +35,7 @@ from prismstation.gui import commands as cmd
 from prismstation.gui.point_table import COLUMNS, EDITABLE
 from prismstation.gui.titles import fit_title
 from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint
+from prismstation.gui.plain import plain
 
 _FIELD = {"E (m)": "E", "N (m)": "N", "H (m)": "H", "σ plan (m)": "sigma_xy_m", "σ h (m)": "sigma_h_m"}
 _NUMERIC = tuple(c for c in EDITABLE if c in _FIELD)
@@ -146,7 +147,7 @@ class PointEditor:
         t = self.w.table
         if t.isVisible():  # once the cell's editor has closed (closing it hides tooltips)
             QTimer.singleShot(0, t, lambda: QToolTip.showText(
-                t.viewport().mapToGlobal(t.visualRect(t.currentIndex()).bottomLeft()), text, t.viewport()))
+                t.viewport().mapToGlobal(t.visualRect(t.currentIndex()).bottomLeft()), plain(text), t.viewport()))
 
     # ------------------------------------------------------------------ one cell
     def edit(self, pid: str, column: str, text: str) -> bool:
@@ -365,7 +366,7 @@ class NewPointDialog(QDialog):
             if point.id in self.taken:
                 raise InputError(f"point {point.id!r} already exists")
         except PrismError as exc:
-            QMessageBox.warning(self, "New point", str(exc))
+            QMessageBox.warning(self, "New point", plain(str(exc)))
             return
         self.accepted_point = point
         super().accept()

@@ -1,7 +1,7 @@
 """The point table: one row per point with its kind, views, residuals and ground estimate.
 
 A ``QAbstractTableModel`` reading the project (ids, kinds, measurements) and the current
-:class:`~prismstation.core.solve.Solution` (residuals, estimates, standardised residuals).
+:class:`~prismstation.core.solution.Solution` (residuals, estimates, standardised residuals).
 GCPs flagged as blunders get a red background; residuals are in pixels of the reference view.
 A refit repaints the table on every click, so the model sorts itself (no proxy model in
 between), builds only the rows on screen and formats their texts once for the view's one-pass
@@ -17,6 +17,7 @@ from PySide6.QtGui import QBrush, QColor
 
 from prismstation.core.scene import reference_view
 from prismstation.gui.overlays import KIND_COLORS
+from prismstation.gui.plain import plain
 from prismstation.gui.static_text import ALIGN_LEFT, ALIGN_RIGHT
 
 COLUMNS = ("ID", "Kind", "Views", "vx (px)", "vy (px)", "|v| max (px)", "E est (m)", "N est (m)",
@@ -300,9 +301,9 @@ class PointTableModel(QAbstractTableModel):
         if role == _ALIGN and c not in TEXT:
             return ALIGN_RIGHT
         if role == _TOOLTIP and c == HEIGHT and row[ODD_HEIGHT]:
-            return odd_height_text(row[0], row[HEIGHT], self.project.height_kind())
+            return plain(odd_height_text(row[0], row[HEIGHT], self.project.height_kind()))
         if role == _TOOLTIP and row[BLUNDER]:
-            return f"{row[0]}: standardised residual {_fmt(row[10])} above the blunder threshold"
+            return plain(f"{row[0]}: standardised residual {_fmt(row[10])} above the blunder threshold")
         return None
 
     def flags(self, index):

@@ -10,7 +10,7 @@ of the last 40 ms and of the write in flight, never an earlier one.
 Saving, discarding or undoing back to the saved state clears the journal (cancelling what is
 pending first); closing, saving as and opening a project flush it. Opening a project with a
 journal (or starting with an untitled one) offers to recover it — unless another window holds
-the project (:class:`~prismstation.io.recovery.ProjectLock`, ``<project>.lock``: that journal
+the project (:class:`~prismstation.io.lock.ProjectLock`, ``<project>.lock``: that journal
 is the other window's, not a crash's). A second window on this host does not open a project
 another one has open; a lock from another host (a shared folder) is asked about. An untitled
 project whose usual journal another window writes gets a journal of its own
@@ -23,7 +23,6 @@ so that tests can answer them.
 """
 from __future__ import annotations
 
-import dataclasses
 import os
 from pathlib import Path
 
@@ -35,10 +34,12 @@ from prismstation.gui import settings as st
 from prismstation.gui import workers
 from prismstation.gui.journal import (WindowJournal, autosave_path, untitled_journals,  # noqa: F401
                                       untitled_path)
-from prismstation.io.project import SUFFIX, load_project, save_project
-from prismstation.io.recovery import Journal, ProjectLock, describe_holder
+from prismstation.io.project import SUFFIX, apply_relocations, load_project, save_project
+from prismstation.io.lock import ProjectLock, describe_holder
+from prismstation.io.recovery import Journal
 from prismstation.io.scene import read_scene
 from prismstation.model.project import Project
+from prismstation.gui.plain import plain
 
 FILTER = f"prismstation projects (*{SUFFIX});;All files (*)"
 
@@ -46,18 +47,6 @@ FILTER = f"prismstation projects (*{SUFFIX});;All files (*)"
 def missing_images(project) -> list[str]:
     """Views whose image file does not exist."""
     return [n for n, v in project.scene.views.items() if not v.image or not Path(v.image).is_file()]
-
-
-def apply_relocations(project) -> None:
-    """Point the scene's views at the image files recorded in ``project.relocations``."""
-    reloc = project.relocations
-    if not reloc:
-        return
-    views = dict(project.scene.views)
-    for name, path in reloc.items():
-        if name in views and Path(path).is_file():
-            views[name] = dataclasses.replace(views[name], image=str(path))
-    project.scene = dataclasses.replace(project.scene, views=views)
 
 
 class ProjectFiles(QObject):
@@ -97,7 +86,7 @@ class ProjectFiles(QObject):
         if not self.interactive:
             return b.No
         buttons = buttons or (b.Yes | b.No)
-        return QMessageBox.question(self.widget, title, text, buttons, default or b.Yes)
+        return QMessageBox.question(self.widget, title, plain(text), buttons, default or b.Yes)
 
     def warn(self, title: str, text: str) -> None:
         self.message.emit(f"{title}: {text}")
@@ -105,7 +94,7 @@ class ProjectFiles(QObject):
             import sys
             print(f"{title}: {text}", file=sys.stderr)
             return
-        QMessageBox.warning(self.widget, title, text)
+        QMessageBox.warning(self.widget, title, plain(text))
 
     def choose_open(self, title=None, filt=FILTER) -> str:
         path, _ = QFileDialog.getOpenFileName(self.widget, title or "Open project",
@@ -237,8 +226,7 @@ class ProjectFiles(QObject):
         except PrismError as exc:
             self.warn(title, str(exc))
             return None
-        apply_relocations(project)
-        missing = missing_images(project)
+        missing = missing_images(project)  # (relocations recorded earlier: applied by the load)
         if missing:
             self.relocate_images(project, missing)
         return project

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from prismstation.errors import InputError, WriteError
 from prismstation.io.atomic import write_atomic
-from prismstation.io.report_html import format_when, report_html
+from prismstation.io.report_html import MAX_DOCUMENT_POINTS, format_when, report_html
 
 _app = None  # a QApplication made here for the command line, kept alive
 
@@ -36,13 +36,15 @@ def _ensure_app():
 def render_figures(report: dict, size=(840, 540)) -> dict:
     """The four plots of ``report`` as QImages ``{name: QImage}`` (offscreen pyqtgraph)."""
     _ensure_app()
+    from prismstation.gui.plot_figures import render_images
     from prismstation.gui.plots import PlotsWidget
     w = PlotsWidget()
     try:
         w.set_report(report)
-        return w.render_images(size)
+        return render_images(w, size)
     finally:
-        w.deleteLater()
+        import shiboken6
+        shiboken6.delete(w)  # now, not from an event loop a script may not run
 
 
 def _png_bytes(image) -> bytes:
@@ -148,7 +150,8 @@ def _paint_pdf(report: dict, device, figures: dict) -> None:
     doc.documentLayout().setPaintDevice(writer)
     for name, im in figures.items():
         doc.addResource(QTextDocument.ResourceType.ImageResource, QUrl(f"figure-{name}.png"), im)
-    doc.setHtml(report_html(report, {name: f"figure-{name}.png" for name in figures}))
+    doc.setHtml(report_html(report, {name: f"figure-{name}.png" for name in figures},
+                            max_points=MAX_DOCUMENT_POINTS))  # pages bounded, Ctrl+C between them
     page = writer.pageLayout().paintRectPixels(writer.resolution())
     footer = 26.0
     width, body = float(page.width()), float(page.height()) - footer

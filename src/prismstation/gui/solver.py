@@ -19,7 +19,7 @@ from PySide6.QtCore import QObject, QTimer, Signal
 from prismstation.gui import workers
 
 from prismstation.errors import PrismError
-from prismstation.ops.fit import solve_project
+from prismstation.ops.fit import FitMemo, solve_project
 from prismstation.ops.predict import DEFAULT_DEM_SIGMA_M
 
 
@@ -29,15 +29,17 @@ def snapshot(project):
     return project.snapshot()
 
 
-def _fit(snap, height_of):
+def _fit(snap, height_of, memo=None):
     """``(solution or None, error text or None, seconds)``: a fit never raises — an error the
-    operator can fix is its message, anything else is named (the window must survive it)."""
+    operator can fix is its message, anything else is named (the window must survive it).
+    ``memo``: the solver's :class:`~prismstation.ops.fit.FitMemo`."""
     t0 = time.perf_counter()
     try:
         # the reference DEM's σ as the command line's default (a model that holds tie points
         # to the DEM weighs them with it; the PRISM model does not use it)
         sol, err = solve_project(snap, height_of=height_of,
-                                 height_sigma_m=None if height_of is None else DEFAULT_DEM_SIGMA_M), None
+                                 height_sigma_m=None if height_of is None else DEFAULT_DEM_SIGMA_M,
+                                 memo=memo), None
     except PrismError as exc:
         sol, err = None, str(exc)
     except Exception as exc:
@@ -45,8 +47,8 @@ def _fit(snap, height_of):
     return sol, err, time.perf_counter() - t0
 
 
-def _fit_job(on_done, snap, height_of, generation) -> None:  # worker thread
-    workers.post(on_done, *_fit(snap, height_of), generation)
+def _fit_job(on_done, snap, height_of, memo, generation) -> None:  # worker thread
+    workers.post(on_done, *_fit(snap, height_of, memo), generation)
 
 
 class Solver(QObject):
@@ -83,6 +85,7 @@ class Solver(QObject):
         self._ms_per_point = float("nan")
         self.threaded = threaded
         self.height_of = None  # reference DEM: (n, 2) map metres -> (n,) ellipsoidal metres
+        self.memo = FitMemo()  # what the next fit takes again from the last ones (a click moves one view)
         self._generation = 0  # bumped per project: fits of a previous project are dropped
         self._running = False
         self._dirty = False
@@ -127,7 +130,7 @@ class Solver(QObject):
         self._jobs.wait()
         self._dirty = False
         self._fit_points = max(len(self.project.points), 1)
-        self._publish(*_fit(snapshot(self.project), self.height_of))
+        self._publish(*_fit(snapshot(self.project), self.height_of, self.memo))
         return self.solution
 
     def _start(self) -> None:
@@ -138,10 +141,10 @@ class Solver(QObject):
         self._fit_points = max(len(snap.points), 1)
         expected = self._ms_per_point * self._fit_points  # (NaN at first: the worker)
         if not self.threaded or expected < self.inline_ms:
-            self._publish(*_fit(snap, self.height_of))
+            self._publish(*_fit(snap, self.height_of, self.memo))
             return
         self._running = True
-        self._jobs.start(_fit_job, self._on_done, snap, self.height_of, self._generation)
+        self._jobs.start(_fit_job, self._on_done, snap, self.height_of, self.memo, self._generation)
 
     def _on_done(self, sol, err, seconds, generation) -> None:
         self._running = False

@@ -38,7 +38,7 @@ class TextLabel(QWidget):
                  bold: bool = False, stretch: bool = False, align=Qt.AlignmentFlag.AlignLeft,
                  parent=None):
         super().__init__(parent)
-        self._text = text
+        self._text, self._shorter = text, ()
         if bold:
             f = QFont(self.font())
             f.setBold(True)
@@ -63,9 +63,11 @@ class TextLabel(QWidget):
     def text(self) -> str:
         return self._text
 
-    def setText(self, text: str) -> None:
-        if text != self._text:
-            self._text = text
+    def setText(self, text: str, *shorter: str) -> None:
+        """Show ``text``; where the label is narrower than it, the first of the ``shorter``
+        wordings that fits (else the last, elided)."""
+        if text != self._text or shorter != self._shorter:
+            self._text, self._shorter = text, shorter
             self.update()
 
     def set_color(self, color) -> None:
@@ -82,9 +84,13 @@ class TextLabel(QWidget):
         return QSize(0, self._hint.height())
 
     def shown_text(self) -> str:
-        """The text as painted: elided ("…") when it is wider than the label."""
-        r = self.rect().adjusted(self.PAD_X, 0, -self.PAD_X, 0)
-        return self.fontMetrics().elidedText(self._text, Qt.TextElideMode.ElideRight, r.width())
+        """The text as painted: the longest wording that fits, else the shortest elided ("…")."""
+        width = self.rect().adjusted(self.PAD_X, 0, -self.PAD_X, 0).width()
+        fm = self.fontMetrics()
+        for text in (self._text, *self._shorter):
+            if fm.horizontalAdvance(text) <= width:
+                return text
+        return fm.elidedText((self._text, *self._shorter)[-1], Qt.TextElideMode.ElideRight, width)
 
     def paintEvent(self, event) -> None:
         p = QPainter(self)

@@ -6,7 +6,7 @@ each with its 95 % error ellipse; ``navigated`` tells
 :class:`~prismstation.gui.linked_nav.LinkedNavigation` of a zoom or pan made by hand.
 
 Views of different images are not linked by pyqtgraph's ``setXLink`` (their geometries differ):
-the cursor in one view goes through the current :class:`~prismstation.core.solve.Solution`
+the cursor in one view goes through the current :class:`~prismstation.core.solution.Solution`
 (pixel → ground at a height → pixel) to the others (docs/architecture.md). The height is that of the
 point under the cursor when there is one (its estimated or known height), else the mean scene
 height of the solution.
@@ -19,7 +19,8 @@ from __future__ import annotations
 import weakref
 
 import numpy as np
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import QRect, Qt, Signal
+from PySide6.QtGui import QRegion
 from PySide6.QtWidgets import QSplitter, QVBoxLayout, QWidget
 
 from prismstation.core.ray_dem import ray_meets_surface
@@ -34,6 +35,9 @@ from prismstation.io.raster import RasterSource
 
 VIEW_TITLES = {"N": "N — nadir", "F": "F — forward", "B": "B — backward"}
 PICK_TOLERANCE_SCREEN_PX = 8.0
+EDIT_REACH = QRect(-40, -40, 160, 80)
+"""What a marker drawn at a screen point covers, screen px: its symbol (27 px at most, the
+current point's square) and its label (:attr:`.overlays.LabelLayer.REACH`)."""
 DRIVE_TO_MAX_SCALE = 1.0  # image px per screen px at most after a drive-to (zooms in to detail)
 TILE_CACHE_MB = 32  # read tiles kept per view: 128 tiles, a 5,800 px square at full resolution
 
@@ -142,6 +146,7 @@ class TripletViews(QWidget):
             iv.vb.drag_handler = _MarkerDrag(self, name)
             iv.clicked.connect(lambda x, y, mods, n=name: self._on_clicked(n, x, y, mods))
             iv.cursor_moved.connect(lambda x, y, n=name: self.on_cursor(n, x, y))
+            iv.cursor_left.connect(self.hide_crosshairs)
             iv.view_changed.connect(lambda n=name: self._on_view_changed(n))
             iv.read_failed.connect(lambda m, n=name: self.message.emit(f"view {n}: {m}"))
             iv.vb.sigRangeChangedManually.connect(lambda *_, n=name: self.navigated.emit(n))
@@ -223,6 +228,21 @@ class TripletViews(QWidget):
         for ov in self.overlays.values():
             ov.update_measured(self.project, self.solution, self.current, mine.get(ov.name, ((), ())))
         self._update_current()
+
+    def paint_edit(self, view: str, positions) -> None:
+        """The first frame of an edit made in ``view`` by a click or a drag: markers, labels and
+        the current point redrawn from the project, and painted now around image ``positions``
+        (where the marker was and is) — with whatever else of the window waits to be painted
+        (the table's row, the loupe). The refit and what it changes follow in later frames."""
+        self.refresh_measured()
+        iv = self.views.get(view)
+        if iv is None or not iv.isVisible():
+            return
+        region = QRegion()
+        for x, y in positions:
+            c = iv.map_to_viewport(x, y).toPoint()
+            region += EDIT_REACH.translated(c)
+        iv.graphics.viewport().repaint(region)
 
     def _by_view(self) -> dict:
         """The project's measurements and kinds per view (once per revision)."""
@@ -389,6 +409,11 @@ class TripletViews(QWidget):
         for v, ov in self.overlays.items():
             ov.set_crosshair(positions.get(v) if v != name else None)
         self.cursor_info.emit(name, x, y, positions, ground)
+
+    def hide_crosshairs(self) -> None:
+        """The mouse left a view: no linked cursor in the others."""
+        for ov in self.overlays.values():
+            ov.set_crosshair(None)
 
     def shutdown(self) -> None:
         """End every job reading the images and close them (the window is closing)."""

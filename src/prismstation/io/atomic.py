@@ -11,7 +11,11 @@ prismstation's own (a cancel, a read that failed) pass through unchanged.
 
 The permissions of a new file are those of a plain new file (0666 less the umask); a file
 written over keeps its previous mode. With ``keep_backup`` the previous version is kept as
-``NAME.bak``.
+``NAME.bak``, made *before* the one rename that puts the new file in place (a hard link to the
+previous version, or a copy where the file system has no links, itself put in place by a rename):
+the target is replaced by exactly one ``os.replace``, so at every moment — a crash, a
+``kill -9``, an I/O error at any step — the target's path holds either its previous version or
+the new one, whole.
 """
 from __future__ import annotations
 
@@ -86,6 +90,40 @@ def free_bytes(folder) -> int | None:
     return st.f_bavail * st.f_frsize
 
 
+class FreeSpaceWatch:
+    """The least free space seen on ``folder``'s file system while the block runs
+    (``with FreeSpaceWatch(folder) as w: …; w.least``), sampled every ``interval`` s on a
+    thread and once more at the end: a writer that fails on a full disk and cleans up after
+    itself (GDAL removes a temporary overview file before it raises) leaves more space free
+    than there was when it failed, and a message must say the latter."""
+
+    def __init__(self, folder, interval: float = 0.05):
+        self.folder, self.interval = folder, interval
+        self.least: int | None = None
+
+    def _sample(self) -> None:
+        free = free_bytes(self.folder)
+        if free is not None and (self.least is None or free < self.least):
+            self.least = free
+
+    def __enter__(self):
+        import threading
+        self._stop = threading.Event()
+        self._sample()
+
+        def run():
+            while not self._stop.wait(self.interval):
+                self._sample()
+        self._thread = threading.Thread(target=run, daemon=True, name="free space")
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join()
+        return False
+
+
 def write_error(target, exc: BaseException, what: str = "cannot write",
                 free: int | None = None) -> WriteError:
     """The :class:`WriteError` for ``exc`` met while writing ``target``. GDAL says only "write
@@ -119,12 +157,81 @@ def _fsync(path: Path, directory: bool = False) -> None:
         os.close(fd)
 
 
+# ---------------------------------------------------------------------- stale temporaries
+def _host_tag() -> str:
+    import hashlib
+    import socket
+    return hashlib.sha1(socket.gethostname().encode("utf-8", "replace")).hexdigest()[:8]
+
+
+#: ``<host>-<pid>`` in the name of every temporary file this process makes: a file whose
+#: process is gone (a ``kill -9``, a crash) is known to be stale and is removed by the next run
+OWNER_TAG = f"{_host_tag()}-{os.getpid()}"
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process: it exists
+        return True
+    return True
+
+
+def clean_stale(folder, prefix: str, folders: bool = False) -> list[Path]:
+    """Remove the files in ``folder`` whose names start with ``prefix`` followed by an owner tag
+    (:data:`OWNER_TAG`) of a process of this host that no longer runs and that belong to this
+    user — the temporaries of a killed run (``.part.tif``, GDAL's ``.ovr.tmp`` beside them, a
+    scratch copy; with ``folders``, folders too). A live process's files, another host's (a
+    shared folder) and other users' are left alone. Returns what was removed; never raises."""
+    host, me, removed = _host_tag(), os.getpid(), []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for e in entries:
+        if not e.name.startswith(prefix):
+            continue
+        tag = e.name[len(prefix):].split(".", 1)[0].split("_", 1)[0]
+        h, _, pid = tag.partition("-")
+        if h != host or not pid.isdigit() or int(pid) == me or _pid_alive(int(pid)):
+            continue
+        try:
+            if e.stat(follow_symlinks=False).st_uid != os.getuid():
+                continue
+            if e.is_file(follow_symlinks=False):
+                os.unlink(e.path)
+            elif folders and e.is_dir(follow_symlinks=False):
+                import shutil
+                shutil.rmtree(e.path, ignore_errors=True)
+            else:
+                continue
+            removed.append(Path(e.path))
+        except OSError:
+            pass
+    return removed
+
+
+def scratch_file(kind: str, suffix: str) -> Path:
+    """A new empty file ``prismstation-<kind>-<owner tag>_XXXX<suffix>`` in the temporary
+    folder, the stale ones of earlier killed runs removed first (:func:`clean_stale`). The
+    caller removes it when done."""
+    prefix = f"prismstation-{kind}-"
+    clean_stale(tempfile.gettempdir(), prefix)
+    fd, name = tempfile.mkstemp(prefix=f"{prefix}{OWNER_TAG}_", suffix=suffix)
+    os.close(fd)
+    return Path(name)
+
+
 def _temporary_beside(target: Path) -> Path:
-    """A new empty temporary file beside ``target`` (its folder made if absent); a
+    """A new empty temporary file beside ``target`` (its folder made if absent), named
+    ``.NAME.<owner tag>.XXXX.partEXT``, the stale ones of killed runs removed first; a
     :class:`WriteError` naming ``target`` when the folder cannot be written."""
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{target.suffix}",
+        clean_stale(target.parent, f".{target.name}.")
+        fd, name = tempfile.mkstemp(prefix=f".{target.name}.{OWNER_TAG}.", suffix=f".part{target.suffix}",
                                     dir=target.parent)
         os.close(fd)
     except OSError as exc:
@@ -134,6 +241,101 @@ def _temporary_beside(target: Path) -> Path:
             raise WriteError(f"cannot write: {blocker} is a file, not a folder", target) from None
         raise write_error(target, exc) from None
     return Path(name)
+
+
+def _backup(target: Path) -> None:
+    """``target`` kept as ``target.bak``, ``target`` itself untouched (:func:`_link_or_copy`)."""
+    _link_or_copy(target, target.with_name(target.name + ".bak"))
+
+
+def _link_or_copy(source: Path, dest: Path) -> None:
+    """``dest`` made the same file as ``source`` (``source`` untouched): a hard link to it
+    (or, where links cannot be made, a copy flushed to the disk) made under a temporary name,
+    then renamed onto ``dest`` (a previous ``dest`` stays whole until then)."""
+    tmp = _temporary_beside(dest)
+    try:
+        try:
+            os.unlink(tmp)
+            os.link(source, tmp)
+        except OSError:  # no hard links here (some network and FAT file systems): a copy
+            import shutil
+            shutil.copyfile(source, tmp)
+            _fsync(tmp)
+        os.replace(tmp, dest)
+    except BaseException:
+        _remove(tmp)
+        raise
+
+
+def _encoded(data: str | bytes) -> bytes:
+    return data.encode("utf-8") if isinstance(data, str) else bytes(data)
+
+
+def write_together(files: dict, keep_backup: bool = True) -> None:
+    """Write several files (path → text or bytes) as one change: every file is written,
+    checked and flushed beside its target first, the previous version of every target kept
+    (``NAME.bak`` with ``keep_backup``, else a temporary link), and only then is each renamed
+    onto its target, in the order given (the last is the one the others belong to: a project
+    after its scene). A failure at any step puts the targets already replaced back as they were
+    and leaves no file behind; a file whose bytes are already those at its target is not
+    written. A ``kill -9`` between two renames leaves the earlier targets new and the later
+    ones as they were (their previous versions in ``.bak``). A failure is a
+    :class:`WriteError` naming the file it met."""
+    staged: list[tuple[Path, Path]] = []     # (target, temporary)
+    kept: dict[Path, Path | None] = {}       # target → its previous version
+    done: list[Path] = []
+    target = None
+    try:
+        for path, data in files.items():
+            target, raw = Path(path), _encoded(data)
+            try:
+                if target.is_file() and target.stat().st_size == len(raw) and target.read_bytes() == raw:
+                    continue
+            except OSError:
+                pass
+            tmp = _temporary_beside(target)
+            staged.append((target, tmp))
+            with open(tmp, "wb") as fh:
+                fh.write(raw)
+            check_size(len(raw))(tmp)
+            os.chmod(tmp, target.stat().st_mode & 0o7777 if target.exists() else _new_file_mode())
+            _fsync(tmp)
+        for target, _ in staged:
+            prev = None
+            if target.exists():
+                prev = (target.with_name(target.name + ".bak") if keep_backup
+                        else _temporary_beside(target))
+                _link_or_copy(target, prev)
+            kept[target] = prev
+        for target, tmp in staged:
+            os.replace(tmp, target)
+            done.append(target)
+    except BaseException as exc:
+        for t in reversed(done):  # as they were
+            try:
+                if kept.get(t) is None:
+                    os.unlink(t)
+                else:
+                    _link_or_copy(kept[t], t)
+            except OSError:  # pragma: no cover - nothing more can be done
+                pass
+        for _, tmp in staged:
+            _remove(tmp)
+        if not keep_backup:
+            for prev in kept.values():
+                if prev is not None:
+                    _remove(prev)
+        if isinstance(exc, WriteError) and target is not None and exc.file is None:
+            raise WriteError(exc.problem, target, exc.errno) from None
+        if isinstance(exc, PrismError) or not isinstance(exc, OSError) or target is None:
+            raise
+        raise write_error(target, exc) from exc
+    if not keep_backup:
+        for prev in kept.values():
+            if prev is not None:
+                _remove(prev)
+    for folder in {t.parent for t in done}:
+        _fsync(folder, directory=True)
 
 
 def check_writable(path) -> None:
@@ -160,8 +362,8 @@ def atomic_path(path, *, keep_backup: bool = False,
         os.chmod(tmp, mode)
         _fsync(tmp)
         if keep_backup and target.exists():
-            os.replace(target, target.with_name(target.name + ".bak"))
-        os.replace(tmp, target)
+            _backup(target)
+        os.replace(tmp, target)  # the one step that changes the target
         for s in SIDE_FILES:  # a side file GDAL wrote goes with its raster
             if os.path.exists(str(tmp) + s):
                 os.replace(str(tmp) + s, str(target) + s)
@@ -190,7 +392,7 @@ def write_atomic(path, data: str | bytes, keep_backup: bool = True) -> None:
     """Write ``data`` (text as UTF-8 with ``\\n`` line ends, or bytes) to ``path`` atomically;
     with ``keep_backup`` the previous version is kept as ``path + '.bak'``. A failure is a
     :class:`WriteError`."""
-    raw = data.encode("utf-8") if isinstance(data, str) else bytes(data)
+    raw = _encoded(data)
     with atomic_path(path, keep_backup=keep_backup, check=check_size(len(raw))) as tmp:
         with open(tmp, "wb") as fh:
             fh.write(raw)

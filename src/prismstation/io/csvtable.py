@@ -4,7 +4,8 @@ Rules, the same for every table prismstation reads (ground points, measurements,
 the import dialog, other tools' point files): UTF-8 text (a byte-order mark is dropped); blank
 lines and lines starting with ``#`` are skipped; the delimiter is the one of ``, ; tab |`` that
 splits the first line and most of the next twenty into the same number of fields, else blanks;
-cells are stripped; header names match field names case-insensitively.
+cells are stripped; header names match field names case-insensitively; a cell written by
+:func:`text_cell` (``'=…``: a leading ``'`` before ``= + - @``, tab or CR) is read back as it was.
 
 A bad data line never stops the reading: :func:`records` returns the good rows and one
 :class:`~prismstation.errors.InputError` (file, 1-based line, problem) per bad line; readers
@@ -16,9 +17,8 @@ from __future__ import annotations
 import csv
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
-
 from prismstation.errors import InputError
+from prismstation.io.inputs import local_file
 
 
 def guess_delimiter(lines) -> str:
@@ -57,10 +57,34 @@ class Table:
     comments: list = field(default_factory=list)  # [(line, text)] of the '#' lines
 
 
+#: first characters that make a spreadsheet take a cell for a formula (and run it)
+FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def text_cell(value) -> str:
+    """``value`` (an id, a view, a label) as a CSV cell a spreadsheet shows and never runs: a
+    cell starting with ``= + - @``, tab or CR that is not a plain number gets a leading ``'``,
+    which spreadsheets take as "this is text" (``=cmd|' /C calc'!A0`` → ``'=cmd|' /C calc'!A0``;
+    ``-12.5`` stays a number). Every writer of a CSV prismstation makes passes its text cells
+    through here; :func:`_split` — every reader — takes the ``'`` off again."""
+    text = "" if value is None else str(value)
+    if text.startswith(FORMULA_START):
+        try:
+            float(text)
+        except ValueError:
+            return "'" + text
+    return text
+
+
+def _plain(cell: str) -> str:
+    """A cell as written before :func:`text_cell` guarded it."""
+    return cell[1:] if cell[:1] == "'" and cell[1:2] in FORMULA_START and cell[1:2] else cell
+
+
 def _split(line: str, delimiter: str) -> list:
     if delimiter == " ":
-        return line.split()
-    return [c.strip() for c in next(csv.reader([line], delimiter=delimiter, skipinitialspace=True), [])]
+        return [_plain(c) for c in line.split()]
+    return [_plain(c.strip()) for c in next(csv.reader([line], delimiter=delimiter, skipinitialspace=True), [])]
 
 
 def split_text(text: str, delimiter: str | None = None, header: bool = True, path=None) -> Table:
@@ -74,7 +98,10 @@ def split_text(text: str, delimiter: str | None = None, header: bool = True, pat
         if ln.lstrip().startswith("#"):
             comments.append((no, ln.strip()))
             continue
-        rows.append((no, _split(ln, d)))
+        try:
+            rows.append((no, _split(ln, d)))
+        except csv.Error as exc:  # a field past the csv module's limit (131,072 characters)
+            raise InputError(f"unreadable line ({exc})", path, no) from None
     path = None if path is None else str(path)
     if not rows:
         return Table(path, [], None, [], d, comments)
@@ -89,7 +116,7 @@ def split_text(text: str, delimiter: str | None = None, header: bool = True, pat
 def read_text(path) -> str:
     """The UTF-8 text of ``path``; :class:`InputError` naming the file when it cannot be read."""
     try:
-        return Path(path).read_text(encoding="utf-8-sig")
+        return local_file(path).read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise InputError("file not found", path) from None
     except UnicodeDecodeError:

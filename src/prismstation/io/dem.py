@@ -11,17 +11,21 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pyproj
 import rasterio
 from rasterio._err import CPLE_BaseError
 from rasterio.crs import CRS
 from rasterio.enums import Resampling
 from rasterio.errors import RasterioError
 from rasterio.transform import Affine
-from rasterio.warp import calculate_default_transform, reproject
+from rasterio.vrt import WarpedVRT
+from rasterio.warp import calculate_default_transform, reproject, transform_bounds
+from rasterio.windows import Window
 
 from prismstation.errors import InputError, RasterReadError
 from prismstation.io.atomic import atomic_path, cause_text, raster_check
 from prismstation.io.geoid import to_ellipsoidal
+from prismstation.io.georef import height_metres_per_unit
 from prismstation.io.windows import CheckedRaster
 
 SRTM_VOID = -32768
@@ -82,15 +86,48 @@ def open_raster(path, what: str = "raster") -> CheckedRaster:
         raise InputError(str(exc).removeprefix(f"{p}: "), file=p) from None
 
 
-def _read_source(path: Path, what: str):
+#: the most cells one DEM read may hold (2 GiB as float64): a file declaring more is refused
+MAX_READ_CELLS = 1 << 28
+
+
+def _needed_window(ds, target):
+    """The window of ``ds`` that covers the target grid ``(crs, transform, shape)`` with a
+    margin of two cells (None: the whole file), so that a DEM is read only where it is used."""
+    if target is None:
+        return None
+    from rasterio.warp import transform_bounds
+    from rasterio.windows import Window, from_bounds
+    crs, t, (rows, cols) = target
+    xs, ys = zip(*(t * (c, r) for c, r in ((0, 0), (cols, 0), (0, rows), (cols, rows))))
+    try:
+        b = transform_bounds(crs, ds.crs, min(xs), min(ys), max(xs), max(ys), densify_pts=21)
+        w = from_bounds(*b, transform=ds.transform)
+    except Exception:  # bounds GDAL cannot transform: the whole file (its size checked below)
+        return None
+    c0, r0 = max(int(np.floor(w.col_off)) - 2, 0), max(int(np.floor(w.row_off)) - 2, 0)
+    c1 = min(int(np.ceil(w.col_off + w.width)) + 2, ds.width)
+    r1 = min(int(np.ceil(w.row_off + w.height)) + 2, ds.height)
+    return Window(c0, r0, max(c1 - c0, 1), max(r1 - r0, 1)) if c1 > c0 and r1 > r0 else Window(0, 0, 1, 1)
+
+
+def _read_source(path: Path, what: str, target=None):
+    """Band 1 of the DEM in metres (NaN: no data), its CRS and transform; with ``target``
+    (the grid it will be resampled onto) only the window that grid needs is read."""
     with open_raster(path, what) as ds:
         if ds.crs is None:
             raise InputError(f"{what} has no coordinate reference system", file=path)
-        arr = ds.read(1, masked=True).astype(np.float64).filled(np.nan)  # RasterReadError
+        window = _needed_window(ds, target)
+        rows, cols = (window.height, window.width) if window is not None else ds.shape
+        if rows * cols > MAX_READ_CELLS:
+            raise InputError(f"{what} of {ds.width:,} × {ds.height:,} cells: the part needed, {cols:,} × "
+                             f"{rows:,}, is too large to read (at most {MAX_READ_CELLS:,} cells)", file=path)
+        arr = ds.read(1, masked=True, window=window).astype(np.float64).filled(np.nan)  # RasterReadError
+        transform = ds.transform if window is None else ds.window_transform(window)
         if ds.dtypes[0] == "int16":
             arr[arr <= SRTM_VOID] = np.nan        # SRTM voids even without a nodata tag
         arr[~np.isfinite(arr)] = np.nan
-        return arr, ds.crs, ds.transform
+        arr *= height_metres_per_unit(ds.crs.to_wkt(), path)  # heights in feet: refused or converted
+        return arr, ds.crs, transform
 
 
 def _auto_resampling(src, src_crs, src_transform, crs, transform) -> str:
@@ -129,7 +166,9 @@ def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
     DemGrid
     """
     path = Path(path)
-    src, src_crs, src_transform = _read_source(path, what)
+    target = None if crs is None or transform is None or shape is None else \
+        (CRS.from_user_input(crs), Affine(*tuple(transform)[:6]), tuple(shape))
+    src, src_crs, src_transform = _read_source(path, what, target)
     if crs is None and transform is None and shape is None:
         heights, out_crs, out_t = src, src_crs, src_transform
     elif crs is None or transform is None or shape is None:
@@ -165,8 +204,10 @@ def resample_to_grid(path, grid: DemGrid, *, resampling: str = "bilinear",
         if ds.crs is None:
             raise InputError(f"{what} has no coordinate reference system", file=path)
         out = np.full(grid.shape, fill, dtype=dtype)
+        window = _needed_window(ds, (CRS.from_user_input(grid.crs), Affine(*tuple(grid.transform)[:6]), grid.shape))
         try:
-            reproject(source=ds.read(1), destination=out, src_transform=ds.transform,
+            reproject(source=ds.read(1, window=window), destination=out,
+                      src_transform=ds.transform if window is None else ds.window_transform(window),
                       src_crs=ds.crs, src_nodata=ds.nodata, dst_transform=grid.transform,
                       dst_crs=grid.crs, dst_nodata=fill, resampling=Resampling[resampling])
         except Exception as exc:
@@ -227,3 +268,118 @@ def local_metric_transform(crs, transform, shape) -> tuple[float, ...]:
         return (t.a * kx, t.b * kx, 0.0, t.d * ky, t.e * ky, 0.0)
     unit = pc.axis_info[0].unit_conversion_factor if pc.axis_info else 1.0
     return (t.a * unit, t.b * unit, 0.0, t.d * unit, t.e * unit, 0.0)
+
+
+# ------------------------------------------------------------ a DEM read window by window
+#: the largest error (source pixels) the warper's approximate transformer may leave in the
+#: source position of a target cell (GDAL's default, 0.125, moves a 3″ grid on UTM by metres)
+WARP_ERROR_PX = 0.001
+
+
+def dem_height_kind(path) -> str | None:
+    """The height kind a DEM file states: a DSM of prismstation's own says it in its
+    ``HEIGHTS`` tag; another file in the vertical part of a compound CRS (a vertical datum
+    named after an ellipsoid: ``"ellipsoidal"``, any other: ``"orthometric"``). None when the
+    file says nothing (a plain SRTM or Copernicus GeoTIFF: orthometric by convention)."""
+    with rasterio.Env(GTIFF_REPORT_COMPD_CS="YES"), open_raster(path, "DEM") as ds:
+        kind = (ds.tags().get("HEIGHTS") or "").lower()
+        if kind in ("ellipsoidal", "orthometric"):
+            return kind
+        if ds.crs is None:
+            return None
+        try:
+            crs = pyproj.CRS.from_wkt(ds.crs.to_wkt())
+        except pyproj.exceptions.CRSError:
+            return None
+    if not crs.is_compound:
+        return None
+    vertical = crs.sub_crs_list[-1]
+    names = f"{vertical.name} {vertical.datum.name if vertical.datum else ''}".lower()
+    return "ellipsoidal" if "ellipsoid" in names else "orthometric"
+
+
+def read_dem_window(path, crs, transform, shape, *, resampling: str = "bilinear",
+                    what: str = "DEM") -> np.ndarray:
+    """Band 1 of the DEM ``path`` on the grid ``(crs, transform, shape)``: float32 metres as the
+    file holds them, NaN where void or outside it. Only the part of the file the grid needs is
+    read (GDAL's warper; positions exact to :data:`WARP_ERROR_PX` of a source cell), so a tile
+    of a large DSM costs a tile's memory. ``resampling``: a ``rasterio.enums.Resampling`` name
+    (``"min"`` and ``"max"`` give a height range)."""
+    path = Path(path)
+    with open_raster(path, what) as ds:
+        if ds.crs is None:
+            raise InputError(f"{what} has no coordinate reference system", file=path)
+        nodata = ds.nodata
+        if nodata is None and ds.dtypes[0] == "int16":
+            nodata = SRTM_VOID                  # SRTM voids even without a nodata tag
+        rows, cols = (int(v) for v in shape)
+        try:
+            with WarpedVRT(ds.dataset, crs=CRS.from_user_input(crs), transform=Affine(*tuple(transform)[:6]),
+                           width=cols, height=rows, resampling=Resampling[resampling],
+                           tolerance=WARP_ERROR_PX, src_nodata=nodata, nodata=np.nan,
+                           dtype="float32") as vrt:
+                out = vrt.read(1)
+        except (RasterioError, CPLE_BaseError, KeyError) as exc:
+            raise RasterReadError(f"{path}: cannot read {what} onto a grid "
+                                  f"({cause_text(exc, str(path))})") from None
+        out *= np.float32(height_metres_per_unit(ds.crs.to_wkt(), path))
+    out[~np.isfinite(out)] = np.nan
+    return out
+
+
+def dem_bounds(path, crs, what: str = "DEM") -> tuple[float, float, float, float]:
+    """``(x0, y0, x1, y1)``: the extent of the DEM ``path`` in ``crs`` (its corners and edges
+    transformed)."""
+    from rasterio.warp import transform_bounds
+    with open_raster(path, what) as ds:
+        if ds.crs is None:
+            raise InputError(f"{what} has no coordinate reference system", file=path)
+        return tuple(transform_bounds(ds.crs, CRS.from_user_input(crs), *ds.bounds, densify_pts=21))
+
+
+def _same_horizontal(file_crs, crs) -> bool:
+    """Whether the file's CRS (its horizontal part, when compound) is ``crs``."""
+    try:
+        a = pyproj.CRS.from_wkt(file_crs.to_wkt())
+        b = pyproj.CRS.from_user_input(crs.to_wkt() if hasattr(crs, "to_wkt") else crs)
+    except pyproj.exceptions.CRSError:
+        return False
+    if a.is_compound:
+        a = a.sub_crs_list[0]
+    return a.equals(b, ignore_axis_order=True)
+
+
+def read_dem_cells(path, crs, bounds, *, min_cell: float = 0.0, what: str = "DEM") -> tuple[np.ndarray, tuple]:
+    """The DEM's heights over ``bounds`` ``(x0, y0, x1, y1)`` of ``crs`` and one cell beyond, on
+    a north-up grid of ``crs``: ``(array, transform)``, float32 as the file holds them, NaN in
+    voids and outside the file. A file that is a north-up grid of ``crs`` gives its own cells (a
+    window read: nothing resampled, so a bilinear sample of the result is a bilinear sample of
+    the file); another is warped (bilinear, :func:`read_dem_window`) onto a grid of its own cell
+    size in metres, or ``min_cell`` if coarser."""
+    path = Path(path)
+    x0, y0, x1, y1 = bounds
+    with open_raster(path, what) as ds:
+        if ds.crs is None:
+            raise InputError(f"{what} has no coordinate reference system", file=path)
+        t = ds.transform
+        if t.b == 0 and t.d == 0 and t.a > 0 and t.e < 0 and _same_horizontal(ds.crs, crs):
+            c0 = int(np.floor((x0 - t.c) / t.a)) - 1
+            c1 = int(np.ceil((x1 - t.c) / t.a)) + 1
+            r0 = int(np.floor((y1 - t.f) / t.e)) - 1
+            r1 = int(np.ceil((y0 - t.f) / t.e)) + 1
+            out = np.full((r1 - r0, c1 - c0), np.nan, np.float32)
+            a0, b0, a1, b1 = max(c0, 0), max(r0, 0), min(c1, ds.width), min(r1, ds.height)
+            if a1 > a0 and b1 > b0:
+                v = ds.read(1, window=Window(a0, b0, a1 - a0, b1 - b0), masked=True)
+                v = v.astype(np.float32).filled(np.nan)
+                if ds.dtypes[0] == "int16":
+                    v[v <= SRTM_VOID] = np.nan
+                out[b0 - r0:b1 - r0, a0 - c0:a1 - c0] = v * np.float32(height_metres_per_unit(ds.crs.to_wkt(), path))
+            out[~np.isfinite(out)] = np.nan
+            return out, (t.a, 0.0, t.c + t.a * c0, 0.0, t.e, t.f + t.e * r0)
+        a, b, _, d, e, _ = local_metric_transform(ds.crs, t, (ds.height, ds.width))
+    cell = max(min(float(np.hypot(a, d)), float(np.hypot(b, e))), min_cell)
+    c0, r0 = np.floor(x0 / cell) - 1, np.ceil(y1 / cell) + 1
+    shape = (int(r0 - np.floor(y0 / cell)) + 1, int(np.ceil(x1 / cell) - c0) + 1)
+    transform = (cell, 0.0, c0 * cell, 0.0, -cell, r0 * cell)
+    return read_dem_window(path, crs, transform, shape, what=what), transform

@@ -10,7 +10,7 @@ Bands (float32, nodata NaN):
 CRS: compound, the scene's projected CRS + a vertical CRS: ellipsoidal height on the datum's
 ellipsoid, or, for orthometric heights, the geoid's (EGM96 → EPSG:5773, EGM2008 → EPSG:3855,
 any other geoid a named one). All of it lives in the GeoTIFF keys (GeoTIFF 1.1), none in a side
-file. Tiled 256 × 256, deflate, internal overviews (COG driver).
+file. Tiled 256 × 256, deflate, internal overviews (COG driver, :mod:`prismstation.io.cog`).
 Tags: ``FILL_PERCENT`` (matched share of the seen cells), ``SEEN_CELLS``, ``POSTING_M``,
 ``HEIGHTS``. The file is written beside the target, read back and renamed over it
 (:mod:`prismstation.io.atomic`: a failure leaves no file and raises a ``WriteError``); the
@@ -19,22 +19,17 @@ uncompressed GeoTIFF the COG is copied from (12 bytes a cell: ~0.6 GB for a 14,0
 """
 from __future__ import annotations
 
-import os
-import tempfile
-from pathlib import Path
-
 import numpy as np
 import pyproj
 import rasterio
-from rasterio.crs import CRS
 from rasterio._err import CPLE_BaseError
+from rasterio.crs import CRS
 from rasterio.errors import RasterioError
-from rasterio.shutil import copy as rio_copy
 from rasterio.transform import Affine
 from rasterio.windows import Window
 
-from prismstation.errors import WriteError
-from prismstation.io.atomic import atomic_path, free_bytes, raster_check, write_error
+from prismstation.errors import PrismError
+from prismstation.io.cog import write_cog
 
 NODATA = float("nan")   # what a plain read of band 1 shows as no height
 BANDS = ("height", "mask", "pairs_agreeing")
@@ -71,18 +66,17 @@ STRIP_ROWS = 1024
 
 def write_dsm(path, dsm, *, before_keep=None) -> None:
     """Write ``dsm`` (:class:`prismstation.ops.dsm.Dsm`) as a COG GeoTIFF at ``path``,
-    atomically; a failure is a :class:`~prismstation.errors.WriteError` (naming the scratch
-    copy when the temporary folder is what failed). ``before_keep()``, when given, is called
-    once the whole file is written and checked, before it replaces ``path``: whatever it
-    raises (a cancel) leaves ``path`` as it was and no temporary file."""
-    path = Path(path)
+    atomically (:func:`prismstation.io.cog.write_cog`); a failure is a
+    :class:`~prismstation.errors.WriteError` (naming the scratch copy when the temporary folder
+    is what failed). ``before_keep()``, when given, is called once the whole file is written and
+    checked, before it replaces ``path``: whatever it raises (a cancel) leaves ``path`` as it was
+    and no temporary file."""
     h = np.asarray(dsm.heights, np.float32)
     rows, cols = h.shape
     seen = np.isfinite(h) if dsm.seen is None else dsm.seen
-    profile = dict(driver="GTiff", width=cols, height=rows, count=3, dtype="float32",
+    profile = dict(width=cols, height=rows, count=3, dtype="float32",
                    crs=vertical_crs(dsm.crs, dsm.height_kind, dsm.geoid),
-                   transform=Affine(*tuple(dsm.transform)[:6]), nodata=NODATA,
-                   tiled=True, blockxsize=256, blockysize=256, GEOTIFF_VERSION="1.1")
+                   transform=Affine(*tuple(dsm.transform)[:6]), nodata=NODATA, GEOTIFF_VERSION="1.1")
     matched = int(((dsm.mask == 1) & seen).sum()) if dsm.mask is not None else int(np.isfinite(h).sum())
     n_seen = int(seen.sum())
     tags = {"FILL_PERCENT": f"{100.0 * matched / n_seen if n_seen else 0.0:.2f}",
@@ -90,59 +84,26 @@ def write_dsm(path, dsm, *, before_keep=None) -> None:
     hm = dsm.info.get("heights")
     if hm:
         tags["HEIGHT_MODEL"] = f"{hm['model']} ({hm['reason']})"
-    # the plain copy is written in strips of rows (no grid-sized copy in memory), then copied
-    # into the COG: a scratch file, in the temporary folder
-    plain = None
-    try:
-        with rasterio.Env(GDAL_PAM_ENABLED="NO"), atomic_path(path, check=_check_then(raster_check(cols, rows, 3), before_keep)) as tmp:
-            try:
-                fd, plain = tempfile.mkstemp(prefix="prismstation-dsm-", suffix=".tif")
-                os.close(fd)
-                _write_plain(plain, profile, h, seen, dsm, tags)
-                raster_check(cols, rows, 3)(Path(plain))
-            except WriteError as exc:  # the scratch copy is not whole
-                raise WriteError(f"cannot write the scratch copy of {path.name}: "
-                                 f"{exc.problem.removeprefix('cannot write: ')}", plain) from None
-            except (RasterioError, CPLE_BaseError, OSError) as exc:
-                scratch = plain or tempfile.gettempdir()
-                raise write_error(scratch, exc, f"cannot write the scratch copy of {path.name}",
-                                  free=free_bytes(tempfile.gettempdir())) from None
-            with rasterio.open(plain) as src:
-                rio_copy(src, tmp, driver="COG", COMPRESS="DEFLATE", PREDICTOR="YES", BLOCKSIZE=256,
-                         OVERVIEWS="AUTO", OVERVIEW_RESAMPLING="AVERAGE", GEOTIFF_VERSION="1.1")
-    finally:
-        for f in (plain, f"{plain}.aux.xml") if plain else ():
-            if os.path.exists(f):
-                os.unlink(f)
+    # the plain copy is written in strips of rows (no grid-sized copy in memory)
+    write_cog(path, profile, lambda ds: _write_plain(ds, h, seen, dsm, tags), before_keep=before_keep,
+              what="dsm")
 
 
-def _check_then(check, before_keep):
-    """``check``, then ``before_keep()`` (if given): the last step before the rename."""
-    if before_keep is None:
-        return check
-
-    def both(tmp: Path) -> None:
-        check(tmp)
-        before_keep()
-    return both
-
-
-def _write_plain(plain, profile, h, seen, dsm, tags) -> None:
+def _write_plain(ds, h, seen, dsm, tags) -> None:
     """The uncompressed GeoTIFF the COG is copied from, written in strips of rows."""
     rows, cols = h.shape
-    with rasterio.open(plain, "w", **profile) as ds:
-        for r0 in range(0, rows, STRIP_ROWS):
-            window = Window(0, r0, cols, min(STRIP_ROWS, rows - r0))
-            hs, ss = h[r0:r0 + STRIP_ROWS], seen[r0:r0 + STRIP_ROWS]
-            ds.write(np.where(np.isfinite(hs), hs, NODATA).astype(np.float32), 1, window=window)
-            for i, band in ((2, dsm.mask), (3, dsm.quality)):
-                v = (np.zeros(hs.shape, np.float32) if band is None
-                     else band[r0:r0 + STRIP_ROWS].astype(np.float32))
-                v[~ss] = NODATA
-                ds.write(v, i, window=window)
-        ds.update_tags(**tags)
-        for i, name in enumerate(BANDS, 1):
-            ds.set_band_description(i, name)
+    for r0 in range(0, rows, STRIP_ROWS):
+        window = Window(0, r0, cols, min(STRIP_ROWS, rows - r0))
+        hs, ss = h[r0:r0 + STRIP_ROWS], seen[r0:r0 + STRIP_ROWS]
+        ds.write(np.where(np.isfinite(hs), hs, NODATA).astype(np.float32), 1, window=window)
+        for i, band in ((2, dsm.mask), (3, dsm.quality)):
+            v = (np.zeros(hs.shape, np.float32) if band is None
+                 else band[r0:r0 + STRIP_ROWS].astype(np.float32))
+            v[~ss] = NODATA
+            ds.write(v, i, window=window)
+    ds.update_tags(**tags)
+    for i, name in enumerate(BANDS, 1):
+        ds.set_band_description(i, name)
 
 
 def read_dsm_info(path) -> dict:
@@ -151,3 +112,30 @@ def read_dsm_info(path) -> dict:
         return {"tags": ds.tags(), "bands": ds.descriptions, "crs": pyproj.CRS.from_wkt(ds.crs.to_wkt()),
                 "blocks": ds.block_shapes[0], "overviews": ds.overviews(1), "nodata": ds.nodata,
                 "shape": (ds.height, ds.width)}
+
+
+def recorded_height_kind(path) -> str | None:
+    """The kind of heights a raster says it holds — ``"ellipsoidal"``, ``"orthometric"`` — or
+    None where it does not say (or cannot be read). A DSM written here says it twice (the
+    ``HEIGHTS`` tag, the vertical CRS of :func:`vertical_crs`); another raster through its CRS:
+    a vertical CRS is gravity-related (orthometric) unless its name or datum names an ellipsoid
+    (GeoTIFF keys keep those, not the axis), a 3-D CRS with an ellipsoidal height axis is
+    ellipsoidal; a 2-D CRS says nothing."""
+    from prismstation.io.inputs import open_raster_file
+    try:
+        with open_raster_file(path, "DSM") as ds:  # (a typed path: a FIFO would hang the reader)
+            tag, wkt = ds.tags().get("HEIGHTS"), ds.crs.to_wkt() if ds.crs else None
+    except (PrismError, RasterioError, CPLE_BaseError, OSError):
+        return None
+    if tag in ("ellipsoidal", "orthometric"):
+        return tag
+    if not wkt:
+        return None
+    crs = pyproj.CRS.from_wkt(wkt)
+    for part in crs.sub_crs_list if crs.is_compound else [crs]:
+        if part.is_vertical:
+            names = f"{part.name} {part.datum.name if part.datum else ''}".lower()
+            return "ellipsoidal" if "ellipsoid" in names else "orthometric"
+        if any("ellipsoidal height" in a.name.lower() for a in part.axis_info):
+            return "ellipsoidal"
+    return None

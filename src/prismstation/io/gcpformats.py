@@ -6,11 +6,12 @@ every bad line is collected and the first raised with the count of the others.
 """
 from __future__ import annotations
 
+import csv
 import io
 import re
 
 from prismstation.errors import InputError
-from prismstation.io.csvtable import raise_errors, read_text, split_text
+from prismstation.io.csvtable import raise_errors, read_text, split_text, text_cell
 from prismstation.io.georef import (PointFile, convert_point_file, latitude_first, lonlat_order,
                                     metres_per_unit, parse_crs)
 from prismstation.model.points import GroundPoint, Measurement
@@ -107,14 +108,15 @@ def format_qgis_points(pf: PointFile, *, view: str | None = None) -> str:
         else:
             out.write("#CRS: " + parse_crs(pf.crs).to_wkt() + "\n")
     out.write(",".join(QGIS_COLUMNS + ["id", "H"]) + "\n")
+    rows = csv.writer(out, lineterminator="\n")
     for p in pf.points:
         m = by_id.get(p.id)
         if m is None:
             continue
         enable = "0" if p.kind == "ICP" else "1"
         sy = -m.y if m.y != 0 else 0.0
-        out.write(",".join([fmt(p.E), fmt(p.N), _fmt_px(m.x), _fmt_px(sy), enable,
-                            "0", "0", "0", p.id, fmt(p.H)]) + "\n")
+        rows.writerow([fmt(p.E), fmt(p.N), _fmt_px(m.x), _fmt_px(sy), enable, "0", "0", "0",
+                       text_cell(p.id), fmt(p.H)])
     return out.getvalue()
 
 

@@ -15,7 +15,8 @@ import pyproj
 import rasterio
 from scipy.ndimage import map_coordinates
 
-from prismstation.errors import InputError
+from prismstation.errors import InputError, RasterReadError
+from prismstation.io.inputs import open_raster_file
 
 GRID_NAMES = ("egm96_15.gtx", "us_nga_egm96_15.tif", "egm08_25.gtx", "us_nga_egm08_25.tif")
 
@@ -61,13 +62,14 @@ class GridGeoid:
     def __init__(self, path):
         self.path = Path(path)
         try:
-            with rasterio.open(self.path) as ds:
+            with open_raster_file(self.path, "geoid grid") as ds:
                 if ds.crs is not None and not ds.crs.is_geographic:
                     raise InputError("a geoid grid must be in geographic coordinates", self.path)
                 grid = ds.read(1, masked=True).astype(float).filled(np.nan)
                 t = ds.transform
-        except rasterio.errors.RasterioError as exc:
-            raise InputError(f"cannot read the geoid grid: {exc}", self.path) from None
+        except (rasterio.errors.RasterioError, RasterReadError) as exc:
+            raise InputError(f"cannot read the geoid grid: {str(exc).removeprefix(f'{self.path}: ')}",
+                             self.path) from None
         if t.b or t.d:
             raise InputError("a rotated geoid grid is not supported", self.path)
         self._grid = grid

@@ -85,6 +85,25 @@ def metres_per_unit(crs_text: str | None) -> float:
     return float(factor or 1.0)
 
 
+def height_metres_per_unit(crs_text: str, source=None) -> float:
+    """Metres per unit of the heights of a raster whose CRS is ``crs_text`` (WKT): its vertical
+    CRS's unit when it has one (a compound CRS), else 1 — unless its map unit is not the metre
+    (US survey feet…): such a DEM says nothing of its heights' unit (usually feet, not always),
+    and a guess would bias every height by a factor of 3.28, so it is an :class:`InputError`
+    naming ``source``."""
+    crs = CRS.from_user_input(crs_text)
+    if crs.is_compound and len(crs.sub_crs_list) > 1 and crs.sub_crs_list[1].axis_info:
+        return float(crs.sub_crs_list[1].axis_info[0].unit_conversion_factor or 1.0)
+    if crs.is_geographic or not crs.axis_info:
+        return 1.0
+    axis = crs.axis_info[0]
+    if abs((axis.unit_conversion_factor or 1.0) - 1.0) > 1e-12:
+        raise InputError(f"the CRS is in {axis.unit_name} and the file does not say in what unit its heights "
+                         "are (no vertical CRS): give a DEM in metres, or one whose CRS names its vertical unit",
+                         source)
+    return 1.0
+
+
 def lonlat_order(points, lines, path, crs_text, names=("x", "y")):
     """``(points, warnings)``: geographic ``points`` (E = longitude, N = latitude) with the two
     columns swapped when the values say the file has them the other way round.

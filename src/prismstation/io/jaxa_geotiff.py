@@ -11,10 +11,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-import rasterio
-from rasterio.errors import RasterioError
-
-from prismstation.errors import InputError
+from prismstation.errors import InputError, RasterReadError
+from prismstation.io.inputs import open_raster_file
 from prismstation.io.ceos import read_summary, summary_time, view_letter
 
 
@@ -56,10 +54,10 @@ def read_geotiff_view(tif_path, summary_path=None) -> dict:
     """
     tif_path = Path(tif_path)
     try:
-        with rasterio.open(tif_path) as ds:
+        with open_raster_file(tif_path, "image") as ds:
             transform, crs, width, height = ds.transform, ds.crs, ds.width, ds.height
-    except RasterioError as exc:
-        raise InputError(f"cannot be read as a raster ({exc})", tif_path) from None
+    except RasterReadError as exc:
+        raise InputError(str(exc).removeprefix(f"{tif_path}: "), tif_path) from None
     if crs is None or not crs.is_projected:
         raise InputError("the GeoTIFF has no projected CRS (expected UTM)", tif_path)
     if transform.is_identity or abs(transform.determinant) < 1e-12:

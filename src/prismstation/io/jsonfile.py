@@ -9,12 +9,12 @@ from __future__ import annotations
 import json
 import math
 import re
-from pathlib import Path
 
 import numpy as np
 
 from prismstation.errors import InputError
 from prismstation.io.atomic import write_atomic
+from prismstation.io.inputs import local_file
 
 
 def plain(v):
@@ -42,6 +42,11 @@ def plain(v):
     return v
 
 
+def number(v) -> float:
+    """A JSON number as a float, NaN where :func:`plain` wrote None (a value not there)."""
+    return math.nan if v is None else float(v)
+
+
 def dumps(obj, indent: int | None = None) -> str:
     """JSON text of ``obj`` (through :func:`plain`: no NaN, no numpy), UTF-8 characters kept."""
     return json.dumps(plain(obj), indent=indent, ensure_ascii=False, allow_nan=False)
@@ -55,7 +60,7 @@ def write_json(path, obj, indent: int = 2, keep_backup: bool = False) -> None:
 
 def read_json(path) -> tuple[dict, str]:
     """Parse a JSON object; returns ``(data, text)``. Bad JSON → InputError with its line."""
-    path = Path(path)
+    path = local_file(path)  # not a FIFO, a device, a folder, a link loop (it would hang or fail)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -66,6 +71,8 @@ def read_json(path) -> tuple[dict, str]:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"not valid JSON: {exc.msg}", path, exc.lineno) from None
+    except RecursionError:  # [[[[… a hundred thousand deep
+        raise InputError("not a usable JSON document: nested too deep", path) from None
     if not isinstance(data, dict):
         raise InputError("expected a JSON object at the top level", path, 1)
     return data, text

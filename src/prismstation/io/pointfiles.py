@@ -42,7 +42,7 @@ from pathlib import Path
 
 from prismstation.errors import InputError
 from prismstation.io.atomic import write_atomic
-from prismstation.io.csvtable import raise_errors, read_table, read_text
+from prismstation.io.csvtable import raise_errors, read_table, read_text, text_cell
 from prismstation.io.gcpformats import (QGIS_COLUMNS, fmt, format_asp_gcp, format_odm_gcp,
                                         format_qgis_points, read_asp_gcp, read_odm_gcp,
                                         read_qgis_points)
@@ -146,10 +146,10 @@ def format_ground_csv(pf: PointFile) -> str:
                    and k not in ("sigma_lat", "sigma_lon", "odm_extra")]
     out = io.StringIO()
     w = csv.writer(out, lineterminator="\n")
-    w.writerow(list(POINT_COLUMNS) + extras)
+    w.writerow(list(POINT_COLUMNS) + [text_cell(k) for k in extras])
     for p in pf.points:
-        w.writerow([p.id, fmt(p.E), fmt(p.N), fmt(p.H), p.kind, p.height_kind,
+        w.writerow([text_cell(p.id), fmt(p.E), fmt(p.N), fmt(p.H), p.kind, p.height_kind,
                     "" if p.sigma_xy_m is None else fmt(p.sigma_xy_m),
                     "" if p.sigma_h_m is None else fmt(p.sigma_h_m)]
-                   + [str(p.extra.get(k, "")) for k in extras])
+                   + [text_cell(p.extra.get(k, "")) for k in extras])
     return out.getvalue()

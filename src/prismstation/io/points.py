@@ -18,7 +18,8 @@ from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError, ProjError
 
 from prismstation.errors import InputError
-from prismstation.io.csvtable import Row, Table, raise_errors, read_table, records
+from prismstation.io.csvtable import Row, Table, raise_errors, read_table, records, text_cell
+from prismstation.io.ranges import SIGMA_M, SIGMA_PX, check_image, check_map, check_sigma
 from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint, Measurement
 
 POINT_COLUMNS = ("id", "E", "N", "H", "kind", "height", "sigma_xy_m", "sigma_h_m")
@@ -86,6 +87,9 @@ def _ground_point(row: Row, seen, default_kind, tr, crs, to_crs) -> GroundPoint:
         if not (math.isfinite(e2) and math.isfinite(n2)):
             raise row.error(f"coordinates ({e}, {n}) cannot be converted from {crs} to {to_crs}")
         e, n = e2, n2
+    why = check_map(e, n, h) or check_sigma("sigma_xy_m", sxy, SIGMA_M, "m") or check_sigma("sigma_h_m", sh, SIGMA_M, "m")
+    if why:
+        raise row.error(why)
     extra = {k: v for k, v in row.values.items() if k not in POINT_COLUMNS}
     return GroundPoint(pid, e, n, h, hk, kind, sxy, sh, extra)
 
@@ -134,6 +138,9 @@ def _measurement(row: Row, seen, views) -> Measurement:
     s = row.number("sigma_px", optional=True)
     if s is not None and s <= 0:
         raise row.error("column sigma_px must be positive")
+    why = check_image(x, y) or check_sigma("sigma_px", s, SIGMA_PX, "px")
+    if why:
+        raise row.error(why)
     return Measurement(pid, view, x, y, s)
 
 
@@ -154,10 +161,10 @@ def ground_points_csv(points) -> str:
     extras = sorted({k for p in points for k in p.extra})
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(list(POINT_COLUMNS) + extras)
+    w.writerow(list(POINT_COLUMNS) + [text_cell(k) for k in extras])
     for p in points:
-        w.writerow([p.id, _fmt(p.E), _fmt(p.N), _fmt(p.H), p.kind, p.height_kind,
-                    _fmt(p.sigma_xy_m), _fmt(p.sigma_h_m)] + [p.extra.get(k, "") for k in extras])
+        w.writerow([text_cell(p.id), _fmt(p.E), _fmt(p.N), _fmt(p.H), p.kind, p.height_kind,
+                    _fmt(p.sigma_xy_m), _fmt(p.sigma_h_m)] + [text_cell(p.extra.get(k, "")) for k in extras])
     return buf.getvalue()
 
 
@@ -166,5 +173,5 @@ def measurements_csv(measurements) -> str:
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(MEASUREMENT_COLUMNS)
     for m in measurements:
-        w.writerow([m.id, m.view, _fmt(m.x), _fmt(m.y), _fmt(m.sigma_px)])
+        w.writerow([text_cell(m.id), text_cell(m.view), _fmt(m.x), _fmt(m.y), _fmt(m.sigma_px)])
     return buf.getvalue()

@@ -213,9 +213,9 @@ def scene_dict_from_product(path, image_dir=None) -> dict:
                      "here or one folder down", folder)
 
 
-def write_scene_for_product(product, out_dir) -> Path:
-    """Write ``scene.json`` for ``product`` into ``out_dir`` and return its path (image paths
-    relative to it where possible)."""
+def scene_dict_for_folder(product, out_dir) -> dict:
+    """:func:`scene_dict_from_product` with the image paths relative to ``out_dir`` where
+    possible (the scene.json is to be written there)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     scene = scene_dict_from_product(product)
@@ -224,6 +224,12 @@ def write_scene_for_product(product, out_dir) -> Path:
             v["image"] = os.path.relpath(v["image"], out_dir.resolve())
         except ValueError:  # another drive on Windows
             pass
-    target = out_dir / "scene.json"
-    write_atomic(target, dumps(scene, indent=2) + "\n", keep_backup=False)
+    return scene
+
+
+def write_scene_for_product(product, out_dir) -> Path:
+    """Write ``scene.json`` for ``product`` into ``out_dir`` and return its path (image paths
+    relative to it where possible)."""
+    target = Path(out_dir) / "scene.json"
+    write_atomic(target, dumps(scene_dict_for_folder(product, out_dir), indent=2) + "\n", keep_backup=False)
     return target

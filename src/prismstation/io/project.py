@@ -17,11 +17,14 @@ from pathlib import Path
 
 from prismstation import __version__
 from prismstation.core.prism import PARALLAX_MODELS
-from prismstation.core.solve import Settings
+from prismstation.core.rpc_model import RpcModel
+from prismstation.core.solution import Settings
 from prismstation.errors import InputError
 from prismstation.io import geoid as geoid_mod
 from prismstation.io.atomic import write_atomic
+from prismstation.io.lock import refuse_if_held
 from prismstation.io.jsonfile import dumps, line_of, read_json
+from prismstation.io.ranges import SIGMA_M, check_map, check_sigma, outside_images
 from prismstation.io.scene import read_scene
 from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint, Measurement
 from prismstation.model.project import Project, has_ground
@@ -90,10 +93,17 @@ def settings_dict(settings: Settings) -> dict:
     return d
 
 
+def project_json(project: Project, path) -> str:
+    """The text of ``project`` saved at ``path``."""
+    return dumps(project_to_dict(project, path), indent=1) + "\n"
+
+
 def save_project(project: Project, path) -> None:
     """Save atomically (temporary file, fsync, rename), keeping the previous version as ``.bak``;
-    a failure is a :class:`~prismstation.errors.WriteError` and leaves the file as it was."""
-    write_atomic(path, dumps(project_to_dict(project, path), indent=1) + "\n", keep_backup=True)
+    a failure is a :class:`~prismstation.errors.WriteError` and leaves the file as it was. A
+    project another process (a window) holds is refused (:func:`prismstation.io.lock.refuse_if_held`)."""
+    refuse_if_held(path)
+    write_atomic(path, project_json(project, path), keep_backup=True)
 
 
 def load_project(path, *, scene_override=None) -> Project:
@@ -120,13 +130,16 @@ def load_project(path, *, scene_override=None) -> Project:
     try:
         scene_path = (path.parent / scene_rel).resolve() if scene_override is None else Path(scene_override).resolve()
         found = scene_path.is_file()
-    except (OSError, ValueError) as exc:  # a NUL byte, a name too long...
+    except (OSError, ValueError, RuntimeError) as exc:  # a NUL byte, a name too long, a link loop
         raise InputError(f'"scene": {scene_rel[:60]!r} is not a usable file path ({exc.__class__.__name__})',
                          path, line_of(text, "scene")) from None
     if not found:
         raise InputError(f"scene file not found: {scene_path} (moved? open it with the scene relocated)",
                          path, line_of(text, "scene"))
-    scene = read_scene(scene_path)
+    reloc = data.get(RELOCATED)
+    if reloc is not None and not (isinstance(reloc, dict) and all(isinstance(v, str) for v in reloc.values())):
+        raise InputError(f'"{RELOCATED}": expected an object view → path', path, line_of(text, RELOCATED))
+    scene = read_scene(scene_path, images=relocated_images(reloc, path.parent))
     settings = _settings(data.get("settings", {}), path, text, scene)
     geoid = _geoid(data.get("geoid"), path, text)
     points, measurements = [], []
@@ -148,9 +161,14 @@ def load_project(path, *, scene_override=None) -> Project:
                             extra=d.get("extra", {}))
             if kind != "TIE" and not has_ground(p):
                 raise ValueError("a GCP or ICP needs E, N and H")
+            why = check_map(p.E, p.N, p.H) or check_sigma("sigma_xy_m", p.sigma_xy_m, SIGMA_M, "m") \
+                or check_sigma("sigma_h_m", p.sigma_h_m, SIGMA_M, "m")
+            if why:
+                raise ValueError(why)
         except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
             raise InputError(f"{where}: malformed point ({exc})", path, _line_of_id(text, d)) from None
         points.append(p)
+    seen = {}
     for i, d in enumerate(_list(data, "measurements", path, text)):
         try:
             m = Measurement(str(d["id"]), str(d["view"]), float(d["x"]), float(d["y"]),
@@ -159,29 +177,80 @@ def load_project(path, *, scene_override=None) -> Project:
                 raise ValueError("non-finite coordinates")
             if m.sigma_px is not None and not _number(m.sigma_px, minimum=0.0, strict=True):
                 raise ValueError("sigma_px must be a positive number")
+            if (m.id, m.view) in seen:  # as the measurement CSV's reader refuses it
+                raise ValueError(f"point {m.id!r} is measured twice in view {m.view} "
+                                 f'(first: "measurements"[{seen[m.id, m.view]}])')
+            seen[m.id, m.view] = i
         except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
             raise InputError(f'"measurements"[{i}]: malformed measurement ({exc})', path,
                              _line_of_id(text, d)) from None
         measurements.append(m)
-    control, reloc, product = data.get(DEM_CONTROL), data.get(RELOCATED), data.get(PRODUCT)
+    control, product = data.get(DEM_CONTROL), data.get(PRODUCT)
     dem = data.get(REFERENCE_DEM) if version >= 2 else None
     if dem is not None and not (isinstance(dem, str) and dem and "\0" not in dem):
         raise InputError(f'"{REFERENCE_DEM}": expected the path of a DEM file', path, line_of(text, REFERENCE_DEM))
-    if control is not None and not (isinstance(control, dict) and (isinstance(control.get("patches"), list)
-                                                                   or isinstance(control.get("biases"), dict))):
-        raise InputError(f'"{DEM_CONTROL}": expected an object with "patches" (a PRISM triplet) or "biases" '
-                         '(images with RPCs)', path, line_of(text, DEM_CONTROL))
-    if reloc is not None and not (isinstance(reloc, dict) and all(isinstance(v, str) for v in reloc.values())):
-        raise InputError(f'"{RELOCATED}": expected an object view → path', path, line_of(text, RELOCATED))
+    if control is not None and not _dem_control_ok(control, scene):
+        raise InputError(f'"{DEM_CONTROL}": expected an object with "patches" (a PRISM triplet: each with '
+                         'numbers x, y, dE, dN, dh and their σ) or "biases" (images with RPCs: view → model, params)',
+                         path, line_of(text, DEM_CONTROL))
     if product is not None and not isinstance(product, str):
         raise InputError(f'"{PRODUCT}": expected a folder path', path, line_of(text, PRODUCT))
     try:
-        return Project(scene, str(scene_path), settings=settings, geoid=geoid, points=points,
-                       measurements=measurements, dem_control=control, relocations=reloc, product=product,
-                       other={k: v for k, v in data.items() if k not in _KNOWN},
-                       reference_dem=None if dem is None else str((path.parent / dem).resolve()))
+        project = Project(scene, str(scene_path), settings=settings, geoid=geoid, points=points,
+                          measurements=measurements, dem_control=control, relocations=reloc, product=product,
+                          other={k: v for k, v in data.items() if k not in _KNOWN},
+                          reference_dem=None if dem is None else str((path.parent / dem).resolve()))
     except InputError as exc:
         raise InputError(exc.problem, path) from None
+    bad = outside_images(project.scene, project.points, project.measurements.values())
+    if bad is not None:
+        raise InputError(f"point {bad[0]!r}: {bad[1]}", path, _line_of_id(text, {"id": bad[0]}))
+    return project
+
+
+def relocated_images(relocations: dict | None, base=None) -> dict:
+    """View → image file of the ``relocated_images`` that are there (a relative path: from
+    ``base``, the project's folder); a view whose recorded file is not there keeps the scene's."""
+    out = {}
+    for name, path in (relocations or {}).items():
+        p = Path(path)
+        if not p.is_absolute() and base is not None:
+            p = Path(base) / p
+        try:
+            if p.is_file():
+                out[name] = str(p.resolve())
+        except (OSError, ValueError):  # a NUL byte, a name too long: not there
+            pass
+    return out
+
+
+def apply_relocations(project: Project, base=None) -> None:
+    """The project's scene read again with the image files recorded in
+    ``project.relocations`` (:func:`relocated_images`). :func:`load_project` reads the scene
+    so, for the window and the command line alike; the window calls this after the operator
+    relocated images."""
+    images = relocated_images(project.relocations, base)
+    if images and project.scene_path:
+        project.scene = read_scene(project.scene_path, images=images)
+
+
+def _dem_control_ok(control, scene) -> bool:
+    """The ``dem_control`` record has the shape its readers (the fit, the window's vectors)
+    take for granted: a PRISM triplet's ``patches`` of numbers, an RPC block's ``biases``."""
+    if not isinstance(control, dict):
+        return False
+    patches, biases = control.get("patches"), control.get("biases")
+    if scene.sensor is RpcModel:
+        return isinstance(biases, dict) and all(
+            isinstance(b, dict) and isinstance(b.get("model"), str) and isinstance(b.get("params"), list)
+            for b in biases.values())
+    return isinstance(patches, list) and all(
+        isinstance(q, dict) and all(k in q and (q[k] is None or _number(q[k])) for k in _PATCH_NUMBERS)
+        for q in patches)
+
+
+#: the numbers (or nulls) every saved patch holds
+_PATCH_NUMBERS = ("x", "y", "dE", "dN", "dh", "sigma_E", "sigma_N", "sigma_h")
 
 
 def _number(v, minimum=None, strict=False) -> bool:

@@ -26,8 +26,8 @@ from rasterio.enums import Resampling
 from rasterio.errors import RasterioError
 from rasterio.windows import Window
 
-from prismstation.errors import RasterReadError
-from prismstation.io.atomic import cause_text
+from prismstation.errors import InputError, RasterReadError
+from prismstation.io.inputs import GDAL_SAFE_OPTIONS, open_raster_file
 from prismstation.io.windows import describe_window, read_error
 
 TILE_SIZE = 512
@@ -47,9 +47,14 @@ def gdal_env(**options) -> rasterio.Env:
     """The GDAL configuration of an entry point, scoped (``with gdal_env(): ...``): the block
     cache bounded to :data:`GDAL_CACHE_MB` unless ``GDAL_CACHEMAX`` is set in the environment,
     and ``options``. Entered by the command line's ``main``, the window's ``run`` and each DSM
-    tile (a Dask worker may be another process); reading a raster changes no setting."""
+    tile (a Dask worker may be another process); reading a raster changes no setting. GDAL is
+    kept off the network and from running code a file holds
+    (:data:`prismstation.io.inputs.GDAL_SAFE_OPTIONS`, each unless set in the environment)."""
     if "GDAL_CACHEMAX" not in os.environ:
         options.setdefault("GDAL_CACHEMAX", GDAL_CACHE_MB * 1024 * 1024)
+    for key, value in GDAL_SAFE_OPTIONS.items():
+        if key not in os.environ:
+            options.setdefault(key, value)
     return rasterio.Env(**options)
 
 
@@ -204,10 +209,9 @@ class RasterSource:
             if ds is not None:
                 ds.close()
             try:
-                ds = rasterio.open(self._name)
-            except (RasterioError, CPLE_BaseError, OSError) as exc:
-                raise RasterReadError(f"{self.path}: cannot open as a raster "
-                                      f"({cause_text(exc, self._name)})") from None
+                ds = open_raster_file(self._name, "image")
+            except InputError as exc:  # not a local file: as a file that cannot be opened
+                raise RasterReadError(str(exc)) from None
             self._local.ds = ds
             self._local.generation = self._generation
             with self._handles_lock:

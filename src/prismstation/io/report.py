@@ -25,9 +25,10 @@ from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
 
 from prismstation import __version__
-from prismstation.core.solve import Solution
+from prismstation.core.solution import Solution
 from prismstation.errors import InputError
 from prismstation.io.atomic import write_atomic
+from prismstation.io.csvtable import text_cell
 from prismstation.io.jsonfile import plain, read_json, write_json
 
 REPORT_FORMAT = "prismstation-report/1"
@@ -142,15 +143,9 @@ def report_dict(sol: Solution, *, project_path=None, geoid: str | None = None,
     ellipsoidal, ``H`` as given); without it the known coordinates are recovered as estimate −
     ground residual (ellipsoidal only).
     """
-    par = sol.parallax
     sensor = sol.scene.sensor
     model = {"sensor": sensor.name, "height_source": sensor.height_source,
-             "bias": {v: _bias_dict(f) for v, f in sol.bias.items()}}
-    if par is not None:
-        model["parallax"] = {"requested": par.requested, "used": par.used, "c0": par.c0, "c1": par.c1,
-                             "std_c0": par.std_c0, "std_c1": par.std_c1, "c1_theoretical": par.c1_theory,
-                             "sigma0_m": par.sigma0, "dof": None if par.lsq is None else par.lsq.dof,
-                             "note": par.note, "tilt_m_per_px": [float(par.tilt[0]), float(par.tilt[1])]}
+             "bias": {v: _bias_dict(f) for v, f in sol.bias.items()}, **sol.model.describe()}
     stats = {k: v for k, v in sol.stats.items() if k != "reference_view"}
     est = np.array([p.ground_est[:2] if p.ground_est is not None else (np.nan, np.nan)
                     for p in sol.points], float).reshape(-1, 2)
@@ -227,7 +222,8 @@ def report_csv(report: dict) -> str:
                     row["x_pred"], row["y_pred"] = p["predicted"][v]
                 if v in p["residual_px"]:
                     row["vx_px"], row["vy_px"] = p["residual_px"][v]
-            w.writerow([_cell(row[k], nd) for k, nd in CSV_COLUMNS.items()])
+            w.writerow([_cell(row[k], nd) if nd is not None else text_cell(_cell(row[k], nd))
+                        for k, nd in CSV_COLUMNS.items()])
     return buf.getvalue()
 
 

@@ -254,9 +254,31 @@ def _statistics(r: dict, ref: str) -> list:
     return parts
 
 
-def _points(r: dict, ref: str, views: list) -> list:
-    """Three tables: known coordinates beside ground residuals; image residuals; estimates."""
-    pts = r.get("points", [])
+#: the points a paged document (the PDF) lists at most: a page holds about 50 rows and each
+#: point is in three tables, so 50,000 points would be 3,000 pages and minutes of layout
+MAX_DOCUMENT_POINTS = 1000
+
+
+def listed_points(points: list, limit: int | None) -> tuple[list, str | None]:
+    """The points a document lists, at most ``limit`` (None: all): every GCP and ICP and every
+    flagged blunder first, then tie points, in the report's order; and the note saying what was
+    left out (None when nothing was)."""
+    if limit is None or len(points) <= limit:
+        return points, None
+    first = {i for i, p in enumerate(points) if p.get("kind") in ("GCP", "ICP") or p.get("blunder")}
+    rest = [i for i in range(len(points)) if i not in first]
+    keep = sorted(first)[:limit]
+    keep = sorted(keep + rest[:max(0, limit - len(keep))])
+    return [points[i] for i in keep], (
+        f"The point tables list {len(keep):,} of the {len(points):,} points (every GCP, ICP and flagged "
+        "blunder first, then tie points); the statistics and figures use them all. Every point is in "
+        "the CSV or JSON report (prismstation report PROJECT -o report.csv).")
+
+
+def _points(r: dict, ref: str, views: list, limit: int | None = None) -> list:
+    """Three tables: known coordinates beside ground residuals; image residuals; estimates
+    (at most ``limit`` points: :func:`listed_points`)."""
+    pts, cut = listed_points(r.get("points", []), limit)
     known = [p for p in pts if p.get("E_known") is not None]
     ortho = any(p.get("height_kind") == "orthometric" for p in known)
     head = ["id", "kind", "E", "N", "h"] + (["H given"] if ortho else []) + ["dE", "dN", "dh", "|w|", "blunder"]
@@ -297,11 +319,14 @@ def _points(r: dict, ref: str, views: list) -> list:
                                      "longitude WGS 84, degrees)",
                         ["id", "kind", "E est", "N est", "h est", "h from", "lat", "lon"],
                         rows, small=True))
+    if cut:
+        parts.insert(0, f"<p><i>{_esc(cut)}</i></p>")
     return parts
 
 
-def report_html(report: dict, images: dict | None = None) -> str:
-    """The report as HTML; ``images`` maps plot names (``plots.PLOT_NAMES``) to ``src`` URLs."""
+def report_html(report: dict, images: dict | None = None, max_points: int | None = None) -> str:
+    """The report as HTML; ``images`` maps plot names (``plots.PLOT_NAMES``) to ``src`` URLs;
+    ``max_points``: the most points the point tables list (:func:`listed_points`)."""
     r = report
     bias = r.get("model", {}).get("bias", {})
     ref = reference_view(bias)
@@ -322,7 +347,7 @@ def report_html(report: dict, images: dict | None = None) -> str:
             parts.append(f'<p align="center"><img src="{_esc(src)}" width="620"></p>'
                          f'<p class="caption">Figure {k}. {_esc(caption)}</p>')
     parts.append(f"<h2{_NEW_PAGE}>{5 if images else 4}. Points</h2>")
-    parts += _points(r, ref, list(bias))
+    parts += _points(r, ref, list(bias), max_points)
     notes = list(r.get("messages") or [])
     notes += [f"{p['id']}: {p['note']}" for p in r.get("points", []) if p.get("note")]
     if notes:

@@ -25,7 +25,8 @@ from dataclasses import replace
 from pathlib import Path
 
 from prismstation.core.rpc import Rpc
-from prismstation.errors import InputError, ModelError
+from prismstation.errors import InputError, ModelError, RasterReadError
+from prismstation.io.inputs import local_file, open_raster_file
 from prismstation.io import rpc_formats as fmt
 
 __all__ = ["read_rpc", "read_rpc_file", "find_rpc_files", "rpc_from_rasterio"]
@@ -101,13 +102,10 @@ def rpc_from_rasterio(rpcs, source: str = "") -> Rpc:
 def _crop_offset(image: Path) -> tuple[float, float] | None:
     """Full-image position ``(c, f)`` of a crop's top-left corner from a translation-only
     geotransform without CRS, else None."""
-    import rasterio
-    from rasterio.errors import RasterioError
-
     try:
-        with rasterio.open(image) as ds:
+        with open_raster_file(image, "image") as ds:
             t, crs = ds.transform, ds.crs
-    except (RasterioError, OSError):
+    except (RasterReadError, InputError):
         return None
     if crs is None and (t.a, t.b, t.d, t.e) == (1.0, 0.0, 0.0, 1.0) and (t.c, t.f) != (0.0, 0.0):
         return float(t.c), float(t.f)
@@ -120,12 +118,7 @@ def read_rpc(path) -> Rpc:
     Raises :class:`InputError` naming the file and, for side files, the line, when the RPCs
     are missing or bad.
     """
-    import rasterio
-    from rasterio.errors import RasterioError
-
-    path = Path(path)
-    if not path.exists():
-        raise InputError("no such file", path)
+    path = local_file(path, "image")
     if _kind_of(path) is not None:
         return read_rpc_file(path)
     for side in find_rpc_files(path):
@@ -137,11 +130,11 @@ def read_rpc(path) -> Rpc:
                               f"({off[0]:g}, {off[1]:g}) of the product")
         return rpc
     try:
-        with rasterio.open(path) as ds:
+        with open_raster_file(path, "image") as ds:
             rpcs = ds.rpcs
             driver = ds.driver
-    except (RasterioError, OSError) as exc:
-        raise InputError(f"cannot open as a raster ({exc})", path) from None
+    except RasterReadError as exc:
+        raise InputError(str(exc).removeprefix(f"{path}: "), path) from None
     if rpcs is None:
         raise InputError("no RPCs found: none in the file's metadata (GeoTIFF tags, NITF "
                          "RPC00B) and no side file (.geom, .RPB, _RPC.TXT, RPC_*.XML, "

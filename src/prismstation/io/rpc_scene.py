@@ -13,12 +13,12 @@ import os
 from pathlib import Path
 
 import numpy as np
-import rasterio
 from pyproj import CRS, Transformer
 
 from prismstation.core.rpc import POLYNOMIALS, SCALARS, Rpc
 from prismstation.core.rpc_model import RpcModel, RpcView, ground_sample_distance
-from prismstation.errors import InputError, ModelError
+from prismstation.errors import InputError, ModelError, RasterReadError
+from prismstation.io.inputs import open_raster_file
 from prismstation.io.jsonfile import write_json
 from prismstation.io.rpc import read_rpc
 
@@ -91,12 +91,12 @@ def rpc_view(name: str, rpc: Rpc, projection: LonLatProjection, image: str | Non
     """An :class:`RpcView`: the image's shape read through rasterio when the file is there,
     the ground sample distance at its centre computed unless given."""
     shape = None
-    if image is not None and Path(image).is_file():
+    if image is not None and Path(image).exists():
         try:
-            with rasterio.open(image) as ds:
+            with open_raster_file(image, f"view {name}") as ds:
                 shape = (ds.height, ds.width)
-        except rasterio.errors.RasterioError as exc:
-            raise InputError(f"cannot be read as a raster ({exc})", image) from None
+        except RasterReadError as exc:
+            raise InputError(str(exc).removeprefix(f"{image}: "), image) from None
     view = RpcView(name, rpc, projection, 1.0, image, shape)
     if pixel_size_m is None:
         try:

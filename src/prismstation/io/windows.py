@@ -12,16 +12,14 @@ naming the file, what it is (``view N``), the window in image pixels and GDAL's 
 """
 from __future__ import annotations
 
-import warnings
 
 import numpy as np
-import rasterio
-from rasterio.errors import NotGeoreferencedWarning
 from rasterio.windows import Window
 
 from prismstation.core.affine import Affine2D
-from prismstation.errors import RasterReadError
+from prismstation.errors import InputError, RasterReadError
 from prismstation.io.atomic import cause_text
+from prismstation.io.inputs import open_raster_file
 
 
 def describe_window(window) -> str:
@@ -49,18 +47,20 @@ class CheckedRaster:
     def __init__(self, path, what: str = "raster"):
         self.name, self.what = str(path), what
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", NotGeoreferencedWarning)
-                self._ds = rasterio.open(self.name)
-        except Exception as exc:  # rasterio's and GDAL's errors, OSError: the file is unusable
-            raise RasterReadError(f"{self.name}: cannot open {what} as a raster "
-                                  f"({cause_text(exc, self.name)})") from None
+            self._ds = open_raster_file(self.name, what)  # a local file only (io.inputs)
+        except InputError as exc:
+            raise RasterReadError(str(exc)) from None
 
     def read(self, indexes=None, *, window=None, **kw) -> np.ndarray:
         try:
             return self._ds.read(indexes, window=window, **kw)
         except Exception as exc:
             raise read_error(self.name, f"{self.what}, {describe_window(window)}", exc) from None
+
+    @property
+    def dataset(self):
+        """The rasterio dataset itself, for GDAL calls that need one (a warp)."""
+        return self._ds
 
     def __getattr__(self, name):
         if name == "_ds":  # not opened

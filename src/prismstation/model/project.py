@@ -5,7 +5,7 @@ Plain Python. Every edit goes through a method, bumps :attr:`Project.revision` a
 :attr:`Project.changed` with a :class:`Change` naming what changed; edits inside
 ``with project.batch():`` emit one merged :class:`Change` at the end. Only :class:`Project`
 changes its revision. Solving is separate (:meth:`point_obs` feeds
-:func:`prismstation.core.solve.solve`).
+:func:`prismstation.core.solution.solve`).
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
 from prismstation.core.scene import Scene
-from prismstation.core.solve import PointObs, Settings
+from prismstation.core.solution import PointObs, Settings
 from prismstation.errors import InputError
 from prismstation.model.points import KINDS, GroundPoint, Measurement
 from prismstation.model.signal import Signal
@@ -241,11 +241,16 @@ class Project:
         self._touch([p.id for p in points] + [m.id for m in measurements], [m.view for m in measurements])
 
     def _put_all(self, points, measurements) -> None:
-        for p in points:
-            if p.id in self.points and has_ground(self.points[p.id]) and has_ground(p):
-                raise InputError(f"point {p.id!r} already exists")
+        for p in points:  # a tie point may gain ground coordinates; nothing may lose them
+            if p.id in self.points and has_ground(self.points[p.id]):
+                raise InputError(f"point {p.id!r} already exists" + (
+                    f" as a {self.points[p.id].kind}: a tie point of that id would replace it" if p.kind == "TIE" else ""))
             self.points[p.id] = p
+        seen = set()
         for m in measurements:
+            if (m.id, m.view) in seen:
+                raise InputError(f"point {m.id!r} is measured twice in view {m.view}")
+            seen.add((m.id, m.view))
             if m.view not in self.scene.views:
                 raise InputError(f"measurement of {m.id}: view {m.view!r} is not in the scene")
             if m.id not in self.points:

@@ -20,13 +20,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
 from prismstation.core.dsm_grid import (BRIDGE_STRIP, bridge, cell_centres, drop_unconfirmed,
                                         fill_voids, grid_over, regrid, seen_by_all)
 from prismstation.core.dsm_heights import HEIGHT_MODELS, choose_heights, model_height_correction
-from prismstation.core.solve import Solution
+from prismstation.core.solution import Solution
 from prismstation.errors import InputError
 from prismstation.ops.dsm_tiles import TileSpec, return_freed_memory, run_tiles
 from prismstation.ops.progress import checkpoint, scaled
@@ -258,7 +258,7 @@ def plan_dsm(sol: Solution, window, posting_m: float, with_reference: bool,
     """The levels and the footprint (module docstring): the coarsest level is the first whose
     F–B search of ±R fits in ±24 px; the level at 2·g_fine is skipped."""
     sc = sol.scene
-    if not sc.is_triplet or sol.parallax is None:
+    if not sc.is_triplet or getattr(sol.model, "parallax", None) is None:
         raise InputError("a DSM needs an oriented N, F, B triplet")
     if not (posting_m > 0 and math.isfinite(posting_m)):
         raise InputError(f"the posting must be a positive number of metres, got {posting_m}")
@@ -274,12 +274,37 @@ def plan_dsm(sol: Solution, window, posting_m: float, with_reference: bool,
         levels += 1
     c0, r0, w, h = window
     corners = np.array([[c0, r0], [c0 + w, r0], [c0, r0 + h], [c0 + w, r0 + h]], float)
-    foot = np.concatenate([sol.image_to_ground("N", corners, sol.mean_height + d) for d in (-R, R)])
+    foot = _shared_ground(sol, np.concatenate([sol.image_to_ground("N", corners, sol.mean_height + d)
+                                               for d in (-R, R)]), R)
     # steps of 2 down to 4·g_fine, then straight to g_fine: the level at 2·g_fine cost a
     # quarter of the finest and changed nothing measurable (2000 px, 5 m: NMAD 0.97 → 0.99 m,
     # RMSE 1.34 → 1.36 m, time −27 %)
     order = tuple(L for L in range(levels, -1, -1) if not (L == 1 and levels >= 2))
+    size = np.ptp(foot, axis=0) / g_fine
+    if size[0] * size[1] > MAX_DSM_CELLS:
+        raise InputError(f"a DSM of {size[0]:,.0f} × {size[1]:,.0f} cells at {g_fine:g} m is too large "
+                         f"(at most {MAX_DSM_CELLS:,}): choose a window or a coarser posting")
     return DsmPlan(sol, window, posting_m, g_fine, R, order, foot, tile_px, overlap_m or 10 * g_fine)
+
+
+#: the most cells a DSM grid may have (a 150 km square at 5 m): more is refused, not allocated
+MAX_DSM_CELLS = 9 * 10 ** 8
+
+
+def _shared_ground(sol: Solution, foot: np.ndarray, R: float) -> np.ndarray:
+    """The corners of the map box of ``foot`` (N's window on the ground, ``(n, 2)``) cut to the
+    boxes of F's and B's whole images at the mean height ± ``R``: the DSM's grid covers only
+    ground the three images can share, whatever size N declares. No shared ground, or a grid
+    that would still be too large, is an :class:`InputError`."""
+    lo, hi = foot.min(axis=0), foot.max(axis=0)
+    for v in ("F", "B"):
+        rows, cols = sol.scene.views[v].shape
+        px = np.array([[0, 0], [cols, 0], [0, rows], [cols, rows]], float)
+        g = np.concatenate([sol.image_to_ground(v, px, sol.mean_height + d) for d in (-R, R)])
+        lo, hi = np.maximum(lo, g.min(axis=0)), np.minimum(hi, g.max(axis=0))
+    if not np.all(hi > lo):
+        raise InputError("N (in the window asked for), F and B share no ground: there is no DSM to make")
+    return np.array([lo, [hi[0], lo[1]], [lo[0], hi[1]], hi])
 
 
 def starting_prior(plan: DsmPlan, reference) -> tuple[np.ndarray, tuple]:

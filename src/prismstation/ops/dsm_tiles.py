@@ -19,13 +19,13 @@ import sys
 from dataclasses import dataclass
 from functools import partial
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
 from prismstation.errors import PrismError, RasterReadError
 from prismstation.io.raster import gdal_env
 from prismstation.io.windows import ImageWindows
-from prismstation.core.solve import Solution
+from prismstation.core.solution import Solution
 from prismstation.core.stereo_tile import frame_over, tile_dsm
 from prismstation.ops.progress import checkpoint
 

@@ -26,17 +26,16 @@ a cancel raises :class:`~prismstation.errors.Cancelled`.
 from __future__ import annotations
 
 import os
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from prismstation.core import conditioning as cond
 from prismstation.core import prism
 from prismstation.core.coarse import K_SIGMA, dem_offset
-from prismstation.core.dem_orient import (ControlPoints, PatchShift, affine_field, control_from_field,
-                                          gcp_field_obs)
+from prismstation.core.dem_orient import ControlPoints, PatchShift, control_from_field, gcp_field_obs
 from prismstation.core.field_adjust import Basis, Cells, Distortion, adjust_field
-from prismstation.core.solve import Control
+from prismstation.core.solution import Control
 from prismstation.core.view_offsets import SIGMA_FIELD_PX, SIGMA_HEIGHT_M, n_along_sigma_px, offset_at
 from prismstation.errors import InputError
 from prismstation.io.jsonfile import plain
@@ -44,6 +43,7 @@ from prismstation.io.project import project_geoid
 from prismstation.model.project import Project
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M, coarse_view_offsets
 from prismstation.ops.dem_patches import ReferenceGrid, match_patches, read_reference
+from prismstation.ops.fit import ellipsoidal_heights
 from prismstation.ops.progress import ProgressFn, checkpoint, scaled
 
 TARGET_M = cond.TARGET_M            # the front ends' default target σ (m)
@@ -87,32 +87,6 @@ class DemOrientation:
                       "verdict": self.verdict.to_dict(), "sigma_m": self.sigma_m,
                       "expected_sigma_m": self.expected_sigma_m, "field": self.field,
                       "adjustment": self.adjustment, "patches": [asdict(p) for p in self.patches]})
-
-
-def apply_orientation(project: Project, result: DemOrientation) -> None:
-    """Make ``result`` the project's control and its orientation "dem" (one change event)."""
-    with project.batch():
-        project.set_dem_control(result.to_dict())
-        project.set_settings(replace(project.settings, orientation="dem"))
-
-
-def field_of_record(record: dict):
-    """The shift field ``(x, y) → (..., 3)`` of a saved ``dem_control`` record (a record made
-    before the joint adjustment: its used patches' affine fit)."""
-    f = record.get("field")
-    if f:
-        basis = Basis(tuple(f["centre"]), float(f["scale"]), tuple(f["terms"]))
-        theta = np.asarray(f["theta"], float)
-        return lambda x, y: basis.predict(theta, x, y)
-    patches = [PatchShift(**{**p, "window": tuple(p["window"])}) for p in record["patches"]]
-    return affine_field(patches)
-
-
-def control_from_record(scene, record: dict) -> Control:
-    """Rebuild the model from a project's saved ``dem_control`` record."""
-    return control_from_field(scene, field_of_record(record), record["mean_height"], record.get("offsets_px"),
-                              offset_gradients=record.get("offset_gradients_px"),
-                              source=(record.get("field") or {}).get("source", "reference DEM"))
 
 
 @dataclass
@@ -317,7 +291,6 @@ def control_points(project: Project, ids=None, sigma_px: float = 0.3, survey_sig
     project's geoid; σ of each shift: its survey σ (``sigma_xy_m``, ``sigma_h_m``; where the
     point states none, ``survey_sigma_m`` (planimetric per component, height)) and its image
     measurements' (their ``sigma_px``, else ``sigma_px``) in quadrature."""
-    from prismstation.ops.fit import ellipsoidal_heights  # ops.fit rebuilds models from this module
     scene = project.scene
     h = ellipsoidal_heights(project)
     gsd, c1 = scene.views["N"].pixel_size_m, prism.theoretical_c1(scene)

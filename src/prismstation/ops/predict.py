@@ -40,7 +40,7 @@ import numpy as np
 
 from prismstation.core.ray_dem import ray_meets_surface
 from prismstation.core.sensor import STEP_M
-from prismstation.core.solve import Solution
+from prismstation.core.solution import Solution
 
 CHI2_95_2D = 5.991464547107979
 """χ² with 2 degrees of freedom at 95 %: the 95 % ellipse has semi-axes ``sqrt(5.99·λ)``."""

@@ -10,8 +10,12 @@ from pathlib import Path
 
 from prismstation.errors import InputError
 from prismstation.io.points import read_ground_points, read_measurements
-from prismstation.io.project import save_project
-from prismstation.io.scene import read_scene
+from prismstation.io.atomic import write_together
+from prismstation.io.jsonfile import dumps
+from prismstation.io.lock import refuse_if_held
+from prismstation.io.project import project_json
+from prismstation.io.ranges import outside_images
+from prismstation.io.scene import read_scene, scene_from_dict
 from prismstation.model.project import Project
 
 
@@ -31,22 +35,37 @@ def geoid_setting(value: str | None, scene) -> dict:
 
 
 def create(project_path, scene_path, points=None, measurements=None, *, crs=None, height=None,
-           geoid=None, force=False) -> Project:
+           geoid=None, force=False, scene_doc: dict | None = None) -> Project:
     """Build the project of ``scene_path`` (scene.json) with the ground points CSV ``points``
     (in ``crs``, default the scene's; ``height`` the kind of heights without a column) and the
     measurements CSV ``measurements``, save it at ``project_path`` and return it. An existing
-    file is an :class:`~prismstation.errors.InputError` unless ``force``."""
+    file is an :class:`~prismstation.errors.InputError` unless ``force``.
+
+    ``scene_doc``: the scene as a dict, written at ``scene_path`` together with the project.
+    Every input is read and checked before anything is written, and the files are written as
+    one change (:func:`prismstation.io.atomic.write_together`): a command that fails leaves
+    the previous files as they were and no new file behind."""
     project_path = Path(project_path)
     if project_path.exists() and not force:
         raise InputError("already exists (use --force to overwrite)", project_path)
-    scene = read_scene(scene_path)
+    refuse_if_held(project_path)
+    if scene_doc is None:
+        scene = read_scene(scene_path)
+    else:
+        scene = scene_from_dict(scene_doc, Path(scene_path).parent, str(scene_path))
     project = Project(scene, str(Path(scene_path).resolve()), geoid=geoid_setting(geoid, scene))
     if project.settings.bias_model != scene.sensor.default_bias:
         project.set_settings(replace(project.settings, bias_model=scene.sensor.default_bias))
     pts = read_ground_points(points, crs=crs, to_crs=scene.crs, height=height) if points else []
     ms = read_measurements(measurements, views=list(scene.views)) if measurements else []
     project.load(pts, ms)
-    save_project(project, project_path)
+    bad = outside_images(scene, project.points, ms)
+    if bad is not None:
+        source = measurements if any(m.id == bad[0] for m in ms) and "view " in bad[1] else points
+        raise InputError(f"point {bad[0]!r}: {bad[1]}", source)
+    files = {} if scene_doc is None else {Path(scene_path): dumps(scene_doc, indent=1) + "\n"}
+    files[project_path] = project_json(project, project_path)
+    write_together(files, keep_backup=True)
     return project
 
 

@@ -8,15 +8,13 @@ projected CRS; heights ellipsoidal metres.
 from __future__ import annotations
 
 import time
-import warnings
 from dataclasses import dataclass
 from functools import lru_cache
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 import pyproj
 import rasterio
-from rasterio.errors import NotGeoreferencedWarning
 from rasterio.windows import Window
 
 from prismstation.core import sgm
@@ -24,6 +22,7 @@ from prismstation.core.rpc_bias import as_biased
 from prismstation.core.rpc_epipolar import (grid_heights, ray_lattice, rectify_pair, source_window,
                                             triangulate, warp)
 from prismstation.errors import InputError, ModelError
+from prismstation.io.inputs import open_raster_file
 from prismstation.io.raster import gdal_env
 
 
@@ -47,9 +46,7 @@ def to_lonlat(crs: str):
 def _open(path):
     """rasterio's dataset of an image; an image whose RPCs are in a side file is not
     georeferenced in GDAL's sense, which is no reason for a warning."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", NotGeoreferencedWarning)
-        return rasterio.open(path)
+    return open_raster_file(path, "image")
 
 
 def image_shape(path) -> tuple[int, int]:

@@ -1,28 +1,34 @@
-"""The DSM and the orientation from a reference DEM of a project of images with RPCs.
+"""The RPC model's workflows on a project (:mod:`prismstation.ops.sensors`): its DSM
+(:func:`export_dsm`) and its orientation from a reference DEM (:func:`orient`) as an
+:class:`~prismstation.ops.orientation.Orientation`.
 
 The project-level side of :func:`prismstation.ops.rpc_dsm.rpc_dsm` and
 :func:`prismstation.ops.rpc_orient.orient_rpc_from_dem`: the fitted model's biased RPCs
 (``Solution.model.models``), the fit's intersected tie points for the search ranges, the
 project's geoid for an orthometric reference and for orthometric output, and the record an
 orientation leaves in the project (``Project.dem_control``) for the fit to read back as each
-image's a-priori bias (:class:`prismstation.core.rpc_solve.BiasPrior`).
+image's a-priori bias (:func:`prismstation.core.rpc_solve.control_from_record`).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
 from rasterio.transform import Affine
 
-from prismstation.core.rpc_bias import BIAS_MODELS, BIAS_NAMES
-from prismstation.core.rpc_solve import BiasPrior
+from prismstation.core import conditioning as cond
+from prismstation.core.rpc_bias import BIAS_NAMES
 from prismstation.errors import InputError, ModelError
+from prismstation.io.atomic import check_writable
 from prismstation.io.dsm import write_dsm
 from prismstation.io.geoid import undulation_on_grid
+from prismstation.io.jsonfile import plain
 from prismstation.io.project import project_geoid
+from prismstation.ops.coregister import result_dict
 from prismstation.ops.dsm_export import COMPUTE_SHARE, DsmExport, DsmRequest
+from prismstation.ops.fit import solve_project
+from prismstation.ops.orientation import Orientation, OrientRequest
 from prismstation.ops.progress import checkpoint, scaled
 from prismstation.ops.rpc_dsm import rpc_dsm
 from prismstation.ops.rpc_orient import DEFAULT_MAX_SHIFT_M, orient_rpc_from_dem
@@ -64,20 +70,7 @@ def height_range(points, margin_m: float | None) -> tuple | None:
     return lo - m, hi + m
 
 
-def json_safe(value):
-    """``value`` with every non-finite float as None and tuples as lists (JSON holds no NaN)."""
-    if isinstance(value, dict):
-        return {str(k): json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [json_safe(v) for v in value]
-    if isinstance(value, (float, np.floating)):
-        return float(value) if math.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    return value
-
-
-def export_rpc_dsm(sol, project, request: DsmRequest, *, reference=None, progress=None) -> DsmExport:
+def export_dsm(sol, project, request: DsmRequest, *, reference=None, progress=None) -> DsmExport:
     """:func:`prismstation.ops.dsm_export.export_dsm` for images with RPCs: every pair matched
     and fused (:func:`~prismstation.ops.rpc_dsm.rpc_dsm`) through the fitted biases over the
     images' common footprint, the search from the fit's tie points (± the request's height
@@ -95,7 +88,6 @@ def export_rpc_dsm(sol, project, request: DsmRequest, *, reference=None, progres
         raise InputError("images with RPCs have one height model, the rays' intersection (--heights auto)")
     if not sol.ok and project.settings.orientation != "dem":
         raise ModelError("; ".join(sol.messages) or "the model could not be fitted")
-    from prismstation.io.atomic import check_writable
     check_writable(request.output)
     paths, models = images_and_models(sol, project)
     points = tie_points(sol, project)
@@ -105,7 +97,7 @@ def export_rpc_dsm(sol, project, request: DsmRequest, *, reference=None, progres
                      reference=None if reference is None else reference.path, geoid=geoid,
                      scheduler=request.scheduler, workers=request.workers,
                      progress=scaled(progress, 0.0, COMPUTE_SHARE))
-    dsm = replace(dsm, info=json_safe(dsm.info))
+    dsm = replace(dsm, info=plain(dsm.info))
     if request.orthometric:
         grid = SimpleNamespace(shape=dsm.heights.shape, transform=Affine(*tuple(dsm.transform)[:6]), crs=dsm.crs)
         dsm = replace(dsm, heights=dsm.heights - undulation_on_grid(geoid, grid).astype(np.float32),
@@ -150,26 +142,35 @@ def orientation_biases(project, orientation) -> dict:
                                   orientation.bias_sigma)}
 
 
-def apply_rpc_orientation(project, orientation, reference) -> None:
-    """Make ``orientation``'s biases the project's a-priori biases (its ``dem_control``) and
-    its orientation "dem" (one change event): the fit then holds no view fixed."""
-    with project.batch():
-        project.set_dem_control(orientation_record(project, orientation, reference))
-        project.set_settings(replace(project.settings, orientation="dem"))
-
-
-def control_from_record(scene, record: dict) -> dict:
-    """Each view's a-priori bias (:class:`~prismstation.core.rpc_solve.BiasPrior`) from a saved
-    ``dem_control`` record (:func:`orientation_record`); a malformed one is a ``KeyError``,
-    ``TypeError`` or ``ValueError``."""
-    if record.get("sensor") != "rpc":
-        raise ValueError("not the record of an orientation of images with RPCs")
-    out = {}
-    for v, b in record["biases"].items():
-        if v not in scene.views or b["model"] not in BIAS_MODELS:
-            raise ValueError(f"view {v!r} or bias model {b['model']!r} unknown")
-        p, s = tuple(map(float, b["params"])), tuple(map(float, b["sigma"]))
-        if not (len(p) == len(s) == len(BIAS_NAMES[b["model"]])) or not all(map(math.isfinite, p + s)):
-            raise ValueError(f"view {v}: {len(p)} parameters for the {b['model']} bias")
-        out[v] = BiasPrior(b["model"], p, s, float(b["x0"]), float(b["y0"]))
-    return out
+def orient(project, reference, request: OrientRequest = OrientRequest(), *, solution=None,
+           progress=None) -> Orientation:
+    """The images' relative DSM laid on the reference DEM file ``reference``
+    (:func:`orient_rpc_project` on ``solution``, default the project fitted now): each image's
+    new bias with its σ, to become the fit's a-priori biases. The search bound is 3 ×
+    ``request.sigma_apriori_m`` (default :data:`~prismstation.ops.rpc_orient.DEFAULT_MAX_SHIFT_M`).
+    A co-registration that failed is refused (verdict ``failed``, nothing to apply)."""
+    sol = solve_project(project) if solution is None else solution
+    sigma = request.sigma_apriori_m
+    o, dsm = orient_rpc_project(sol, project, reference, posting_m=request.posting_m,
+                                max_shift_m=None if sigma is None else 3.0 * sigma, progress=progress)
+    doc = {"coregistration": result_dict(o.coreg, str(reference), "relative DSM",
+                                         crs_transform=tuple(dsm.transform)[:6]),
+           "posting_m": dsm.posting_m, "fill": dsm.fill_fraction}
+    if not o:
+        verdict = cond.OrientVerdict(cond.FAILED, f"the images' DSM could not be laid on the reference: "
+                                     f"{o.coreg.reason}", "", request.target_m)
+        return Orientation(verdict, None, (), plain(doc), "RPC biases", o, "report")
+    s, sg = o.shift_m, o.sigma_m
+    doc["biases"] = orientation_biases(project, o)
+    lines = [f"relative DSM at {dsm.posting_m:.1f} m ({100 * dsm.fill_fraction:.0f} % matched) laid on "
+             f"{reference}: the block moves dE {s[0]:+.2f} ± {sg[0]:.2f}, dN {s[1]:+.2f} ± {sg[1]:.2f}, "
+             f"dh {s[2]:+.2f} ± {sg[2]:.2f} m"]
+    for v, b in doc["biases"].items():
+        lines.append(f"  {v}: {b['model']} bias " + ", ".join(f"{n} {p:+.3f} ± {q:.3f}" for n, p, q in
+                                                             zip(b["names"], b["params"], b["sigma"]))
+                     + " (change " + ", ".join(f"{x:+.3f}" for x in b["change"]) + ")")
+    verdict = cond.OrientVerdict(cond.OK, f"the images' DSM laid on the reference: the block moves by "
+                                 f"({s[0]:+.2f}, {s[1]:+.2f}, {s[2]:+.2f}) ± ({sg[0]:.2f}, {sg[1]:.2f}, "
+                                 f"{sg[2]:.2f}) m", "", request.target_m)
+    return Orientation(verdict, orientation_record(project, o, reference), tuple(lines), plain(doc), "RPC biases",
+                       o, "report")

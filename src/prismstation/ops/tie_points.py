@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from prismstation.core import prism
-from prismstation.core.solve import Solution
+from prismstation.core.solution import Solution
 from prismstation.core.stats import nmad
 from prismstation.io.windows import ImageWindows
 from prismstation.ops.progress import ProgressFn, checkpoint

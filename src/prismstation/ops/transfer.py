@@ -41,7 +41,7 @@ from prismstation.core.coarse import search_radius_px
 from prismstation.core.lsm import LsmResult
 from prismstation.core.lsm_sigma import texture_sigma
 from prismstation.core.lsm_search import best_score, match
-from prismstation.core.solve import Solution
+from prismstation.core.solution import Solution
 from prismstation.io.windows import ImageWindows
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 from prismstation.ops.predict import DEFAULT_HEIGHT_SPREAD_M, dem_sigma, ground_jacobian, height_spread

@@ -6,7 +6,7 @@ Gaussian noise, and optionally JPEG block noise (:func:`jpeg_blocks`).
 """
 from __future__ import annotations
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
 from prismstation.sim import geometry as geo

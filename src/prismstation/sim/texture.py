@@ -9,7 +9,7 @@ of map position with no grid, so that pixels sampled without a point spread alia
 """
 from __future__ import annotations
 
-import cv2
+from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
 from prismstation.sim.terrain import Grid

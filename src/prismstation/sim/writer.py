@@ -17,6 +17,7 @@ from rasterio.transform import Affine
 from rasterio.windows import Window
 
 from prismstation.io.atomic import atomic_path, raster_check, write_atomic
+from prismstation.io.csvtable import text_cell
 from prismstation.sim.terrain import Grid
 
 TILE = 512
@@ -84,5 +85,5 @@ def write_csv(path: Path, header: list[str], rows) -> None:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(header)
-    w.writerows(rows)
+    w.writerows([text_cell(c) if isinstance(c, str) else c for c in row] for row in rows)
     write_atomic(path, buf.getvalue(), keep_backup=False)

@@ -286,7 +286,7 @@ def test_dsm_heights_follow_the_fitted_models_parallax_line(triplet):
     T = {v: prism.to_nadir_space(sc, sc.views[v]) for v in "FB"}
     f, b = T["F"](sol.ground_to_image("F", en, hh)), T["B"](sol.ground_to_image("B", en, hh))
     py = np.einsum("ij,ij->i", f - b, prism.along_track_unit(sc, prism.image_to_map(sc.views["N"])((f + b) / 2)))
-    line = sol.parallax.height(py)
+    line = sol.model.parallax.height(py)
     assert np.abs(hh + corr(en, hh) - line).max() < 0.01
     assert np.abs(line - hh).max() > 0.05          # the two geometries do differ on this scene
 

@@ -5,7 +5,7 @@ from dataclasses import replace
 
 import pytest
 
-from prismstation.core.solve import solve
+from prismstation.core.solution import solve
 from tests.core.synth import make_points, make_scene
 
 BLUNDER_ID = "P4"

@@ -7,7 +7,8 @@ import time
 import numpy as np
 import pytest
 
-from prismstation.core.solve import solve
+from prismstation.gui.plot_figures import figure_widget, render_images
+from prismstation.core.solution import solve
 from prismstation.gui.plots import PlotData, PlotsWidget
 from tests.core.synth import make_points, make_scene
 from tests.gui.parts.conftest import BLUNDER_ID
@@ -42,7 +43,7 @@ def test_height_plots_hold_parallax_and_known_heights(widget, fitted):
         x5, y5 = _xy(item5)
         np.testing.assert_allclose(x5, x)
         np.testing.assert_allclose(y5, y - c1t * x, atol=1e-6)
-    par = sol.parallax
+    par = sol.model.parallax
     x, y = _xy(widget.fit_line)
     np.testing.assert_allclose(y, par.c0 + par.c1 * x)
     x, y = _xy(widget.theory_line)
@@ -127,7 +128,7 @@ def test_tabs_layout_and_report_images(qtbot, fitted):
     qtbot.addWidget(w)
     w.set_solution(fitted[2])
     assert w.tabs.count() == 4 and w.tabs.widget(2) is w.plots["vectors"]
-    images = w.render_images((320, 200))
+    images = render_images(w, (320, 200))
     assert sorted(images) == sorted(w.plots)
     assert all(im.width() == 320 and im.height() == 200 for im in images.values())
     assert len(_xy(w.h_gcp)[0]) == 12  # the widget itself is untouched by the rendering
@@ -151,7 +152,7 @@ def test_live_lines_plain_report_lines_antialiased(qtbot, fitted, monkeypatch):
     qtbot.addWidget(w)
     w.set_solution(fitted[2])
     assert not w.fit_line.opts["antialias"]
-    assert sorted(w.render_images((300, 200))) == sorted(plots.PLOT_NAMES)
+    assert sorted(render_images(w, (300, 200))) == sorted(plots.PLOT_NAMES)
     assert made[-1] is not w and made[-1].fit_line.opts["antialias"]
     assert pg.getConfigOption("antialias") is False
 
@@ -190,3 +191,25 @@ def test_plot_data_from_columns_equals_the_report_path():
         elif f.name not in ("image_shape", "c0", "c1", "c1_theory"):  # (the report rounds)
             assert x == y, f.name
     assert a.vec_gcp_ids and a.vec_icp_ids and a.std_ids and a.blunders and len(a.gcp_py)
+
+
+def test_report_figures_list_what_they_draw_under_the_plot(qtbot, fitted):
+    """The figures' legends sat over the data (the PDF's Fig. 2: over the points near the top);
+    they go under the axis, and name only what the figure draws (no "TIE" on a triplet)."""
+    w = PlotsWidget()
+    qtbot.addWidget(w)
+    w.set_solution(fitted[2])
+    fig = figure_widget(w)
+    qtbot.addWidget(fig)
+    fig.resize(1200, 800)
+    fig.show()
+    qtbot.wait(20)
+    for name, pw in fig.plots.items():
+        pi = pw.getPlotItem()
+        assert (pi.legend is not None) == (name != "std_residuals"), name  # (that one needs none)
+        if pi.legend is not None:
+            assert not pi.legend.sceneBoundingRect().intersects(pi.vb.sceneBoundingRect()), name
+    names = {n: [label.text for _, label in pw.getPlotItem().legend.items] for n, pw in fig.plots.items()
+             if pw.getPlotItem().legend is not None}
+    assert names["vectors"] == ["GCP", "ICP"], names
+    assert names["height_minus_theory"] == ["fitted − theoretical", "GCP", "ICP"], names

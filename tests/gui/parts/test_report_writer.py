@@ -280,11 +280,10 @@ def test_cli_report_every_format_holds_the_same_report(tmp_path, prism_project, 
 
 def test_single_view_and_empty_reports(tmp_path, qtbot):
     from dataclasses import replace
-    from prismstation.core.scene import Scene
-    from prismstation.core.solve import solve
+    from prismstation.core.solution import solve
     from tests.core.synth import make_points, make_scene
     sc = make_scene()
-    single = Scene(sc.crs, sc.satellite_altitude_m, sc.track, {"N": sc.views["N"]})
+    single = replace(sc, views={"N": sc.views["N"]})
     pts = [replace(p, image={"N": p.image["N"]}) for p in make_points(sc, n_gcp=6, n_icp=5)]
     rep = report_dict(solve(single, pts))
     page = parse(report_html(rep))

@@ -200,3 +200,19 @@ def test_an_untrusted_orientation_is_applied_only_on_the_operators_yes(qtbot, wi
     assert record["sigma_apriori_m"] == 60.0 and record["verdict"]["status"] == "too_smooth"
     assert not tool.panel.apply_button.isVisible() and "in use" in tool.panel.summary.text()
     assert "NOT TRUSTED" in window.statusBar().currentMessage()
+    used = sum(1 for q in record["patches"] if q.get("used"))
+    assert window.undo_stack.undoText() == f"Orient from DEM ({used} patch{'' if used == 1 else 'es'})"
+    assert "Reference srtm.tif" in tool.panel.summary.text()
+    assert f"patch{'' if len(record['patches']) == 1 else 'es'} used" in tool.panel.summary.text()
+
+    # another untrusted result now: the question names what it would replace — this one
+    window.interactive = True
+    try:
+        asked.clear()
+        answer_next_box(asked, QMessageBox.StandardButton.No)
+        tool._apply(window.project, tool.result)           # (what the next run's end does)
+    finally:
+        window.interactive = False
+    text = asked[0][1]
+    assert "It would replace the orientation from the reference DEM applied before" in text
+    assert "GCP orientation (" not in text and window.project.settings.orientation == "dem"

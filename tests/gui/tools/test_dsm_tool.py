@@ -130,13 +130,13 @@ def test_dialog_prefilled_from_the_project_and_a_fine_posting_kept(qtbot, window
     --heights in the window); the scratch copy of the GeoTIFF is not written beside the output."""
     import tempfile
 
-    import prismstation.io.dsm as dsm_io
+    import prismstation.io.cog as cog_io
     import prismstation.ops.dsm as ops_dsm
     from prismstation.model.project import has_ground
     tool = window.tools["dsm"]
     p = window.project
     seen, calls, beside = [], [], []
-    real, real_copy = ops_dsm.make_dsm, dsm_io.rio_copy
+    real, real_copy = ops_dsm.make_dsm, cog_io.rio_copy
     monkeypatch.setattr(ops_dsm, "make_dsm", lambda *a, **k: calls.append(k) or real(*a, **k))
     out = tmp_path / "out" / "fine.tif"
     out.parent.mkdir()
@@ -148,7 +148,7 @@ def test_dialog_prefilled_from_the_project_and_a_fine_posting_kept(qtbot, window
         beside.append(sorted(f.name for f in out.parent.iterdir()))
         beside.append(sorted(f.name for f in scratch.iterdir()))
         return real_copy(src, dst, **kw)
-    monkeypatch.setattr(dsm_io, "rio_copy", copy)
+    monkeypatch.setattr(cog_io, "rio_copy", copy)
     iv = window.views.views["N"]
     iv.center_on(500, 500, 160 / iv.width())
     qtbot.wait(50)

@@ -56,17 +56,17 @@ def test_constant_geoid_is_one_undo_step_and_heights_refit(ortho_window):
     from prismstation.gui.tools.geoid_tool import apply_geoid
     win = ortho_window
     assert "constant 30 m" in win.panel.plain_text().splitlines()[0]
-    c0 = win.solver.solution.parallax.c0
+    c0 = win.solver.solution.model.parallax.c0
     steps = win.undo_stack.count()
     assert apply_geoid(win.tool_context, {"kind": "constant", "value": N0 + 10.0})
     sol = _settle(win)
     # every ellipsoidal height is 10 m higher: the parallax line moves by exactly 10 m
-    assert sol.parallax.c0 == pytest.approx(c0 + 10.0, abs=1e-6)
+    assert sol.model.parallax.c0 == pytest.approx(c0 + 10.0, abs=1e-6)
     assert win.panel.geoid.text() == "constant 40 m"
     assert win.undo_stack.count() == steps + 1
     win.undo_stack.undo()
     sol = _settle(win)
-    assert sol.parallax.c0 == pytest.approx(c0, abs=1e-6)
+    assert sol.model.parallax.c0 == pytest.approx(c0, abs=1e-6)
     assert win.project.geoid == {"kind": "constant", "value": N0}
     assert win.panel.geoid.text() == "constant 30 m"
 
@@ -92,7 +92,7 @@ def test_found_grid_listed_chosen_and_fitted_like_the_solver(ortho_window, monke
     assert "Geoid: grid" in win.panel.plain_text()
     # the same fit as the io layer's on the same setting (an independent call, no window)
     ref = solve_project(win.project)
-    assert sol.parallax.c0 == pytest.approx(ref.parallax.c0, abs=1e-9)
+    assert sol.model.parallax.c0 == pytest.approx(ref.model.parallax.c0, abs=1e-9)
     # the dialog reopened on this project shows the grid chosen
     again = gt.GeoidDialog(win.project.geoid, grids, win)
     assert again.r_found.isChecked() and again.setting() == win.project.geoid
@@ -124,7 +124,7 @@ def test_other_grid_file_through_the_dialog(ortho_window, tmp_path):
     with rasterio.open(g, "w", driver="GTiff", width=360, height=180, count=1, dtype="float32",
                        crs="EPSG:4326", transform=from_origin(-180, 90, 1, 1)) as ds:
         ds.write(np.full((1, 180, 360), 12.0, np.float32))
-    c0 = win.solver.solution.parallax.c0
+    c0 = win.solver.solution.model.parallax.c0
     dlg = GeoidDialog(win.project.geoid, [], win)
     dlg.file.setText(str(g))
     dlg.file.textEdited.emit(str(g))
@@ -132,7 +132,7 @@ def test_other_grid_file_through_the_dialog(ortho_window, tmp_path):
     assert apply_geoid(win.tool_context, dlg.setting())
     sol = _settle(win)
     assert win.panel.geoid.text() == "grid flat12.tif"
-    assert sol.parallax.c0 == pytest.approx(c0 + (12.0 - N0), abs=1e-4)
+    assert sol.model.parallax.c0 == pytest.approx(c0 + (12.0 - N0), abs=1e-4)
 
 
 def test_new_project_from_a_ceos_product(window, tmp_path):

@@ -197,6 +197,11 @@ def test_resection_dialog_converges_on_a_frame_camera(frame_window, qtbot):
     # the history is plotted: three curves per plot, one point per iteration
     curves = d.plot_angles.getPlotItem().listDataItems()
     assert len(curves) == 3 and len(curves[0].xData) == len(res.corrections)
+    qtbot.wait(50)  # (laid out)
+    for pw in (d.plot_angles, d.plot_pos):  # the legend under the axis, not over the curves
+        pi = pw.getPlotItem()
+        assert len(pi.legend.items) == 3
+        assert not pi.legend.sceneBoundingRect().intersects(pi.vb.sceneBoundingRect())
     assert "approximation for a pushbroom" in " ".join(
         w.text() for w in d.findChildren(type(d.bh_label)))
     # B/H from typed positions (docs/model.md §6 arithmetic, by hand)

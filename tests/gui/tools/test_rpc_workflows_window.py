@@ -52,8 +52,9 @@ def test_dsm_and_orientation_from_the_menu(block_window, tmp_path, job_outcome, 
     monkeypatch.setattr(dem_orientation.OrientDialog, "exec", orient_dialog)
     orient.trigger()
     tool = win.tools["dem_orientation"]
-    kind, (o, _) = job_outcome(tool.job, timeout=120000)
-    assert kind == "result" and o
+    kind, result = job_outcome(tool.job, timeout=120000)
+    assert kind == "result" and result.ok and result.record is not None
+    o = result.detail
     assert np.all(np.abs(np.array(o.shift_m) - SHIFT) < np.maximum(4 * np.array(o.sigma_m), [1.5, 1.5, 0.75]))
     p = win.project
     assert p.settings.orientation == "dem" and set(p.dem_control["biases"]) == {"img0", "img1", "img2"}

@@ -31,6 +31,8 @@ class ToolContext:
     model_panel : ModelPanel
     tools : dict
         The installed tools by name.
+    outputs : dict
+        The last file a tool wrote, by what it is (``"dsm"``), for another tool to offer.
     """
 
     def __init__(self, window):
@@ -42,6 +44,7 @@ class ToolContext:
         self.open_action = window.a_open
         self.model_panel = window.panel
         self.tools: dict = {}
+        self.outputs: dict = {}
         self._docks = window.docks
 
     @property
@@ -85,20 +88,58 @@ class ToolContext:
 
     def may_close(self) -> bool:
         """The window is asked to close (X, Ctrl+Q): with a tool's job running, ask whether to
-        cancel it and quit (a window that asks nothing — tests, screenshots — says yes)."""
+        cancel it and quit (a window that asks nothing — tests, screenshots — says yes). The
+        question follows the jobs while it is open: their progress, and when the last one ends
+        it closes unanswered — nothing is left to cancel, the window stays and shows the outcome
+        (the operator quits again if they still want to)."""
         from prismstation.gui.tools._worker import running_jobs_of
         jobs = [job for job in running_jobs_of(self.widget) if not job.is_cancelled()]  # (cancelled: ending)
         if not jobs or not self.interactive:
             return True
-        what = "; ".join(job.describe() for job in jobs)
         b = QMessageBox.StandardButton
-        return QMessageBox.question(self.widget, "Quit", f"A job is running — {what}.\n\nCancel it and quit?",
-                                    b.Yes | b.No, b.No) == b.Yes
+        box = QMessageBox(QMessageBox.Icon.Question, "Quit", "", b.Yes | b.No, self.widget)
+        box.setTextFormat(Qt.TextFormat.PlainText)  # (file names, ids)
+        box.setDefaultButton(b.No)
+        ended = []
+
+        def say(*_):
+            live = [job for job in jobs if job.isRunning() and not job.is_cancelled()]
+            if not live:
+                ended.append(True)
+                box.done(b.No)
+                return
+            n = len(live)
+            box.setText(f"{'A job is' if n == 1 else f'{n} jobs are'} running — "
+                        f"{'; '.join(job.describe() for job in live)}.\n\n"
+                        f"Cancel {'it' if n == 1 else 'them'} and quit?")
+        say()
+        for job in jobs:
+            job.progress.connect(say)
+            job.ended.connect(say)
+        try:
+            answer = box.exec()
+        finally:
+            for job in jobs:
+                for sig in (job.progress, job.ended):
+                    try:
+                        sig.disconnect(say)
+                    except (RuntimeError, TypeError):  # (a job already gone)
+                        pass
+            box.deleteLater()
+        if ended:
+            self.status("The job ended while the quit question was open: nothing was cancelled", 15000)
+            return False
+        return answer == b.Yes
 
     def shutdown(self) -> None:
-        """Cancel and join the tools' running jobs (the window is closing)."""
+        """Cancel and join the tools' running jobs, then let each tool with a ``shutdown()``
+        release what it holds (the window is closing)."""
         from prismstation.gui.tools._worker import stop_jobs_of
         stop_jobs_of(self.widget)
+        for tool in self.tools.values():
+            stop = getattr(tool, "shutdown", None)
+            if callable(stop):
+                stop()
 
 
 def install_tools(window) -> ToolContext:

@@ -24,6 +24,7 @@ from PySide6.QtWidgets import QMessageBox, QProgressDialog
 from prismstation.errors import PrismError
 from prismstation.gui import workers
 from prismstation.gui.titles import fit_title
+from prismstation.gui.plain import plain
 
 _LIVE: set = set()  # running jobs are kept alive here until they end
 STOP_WAIT_MS = 60000  # how long a closing window or quitting application waits for a job
@@ -33,6 +34,7 @@ class Job(QObject):
     """Run ``fn(progress)`` in a worker thread (see module doc)."""
 
     progress = Signal(float, str)
+    ended = Signal()  # the thread has ended (before the outcome is emitted)
     result = Signal(object)
     failed = Signal(str)
     cancelled = Signal()
@@ -100,6 +102,7 @@ class Job(QObject):
         it has let go of everything it held before this job is released."""
         self.wait()
         _LIVE.discard(self)
+        self.ended.emit()
         if self._window is not None and shiboken6.isValid(self._window):
             self._window.removeEventFilter(self)
         app = QCoreApplication.instance()
@@ -221,7 +224,7 @@ def run_with_progress(window, title: str, fn, on_result, *, on_failed=None, dial
         if on_failed is not None:
             on_failed(msg)
         if getattr(window, "interactive", False):
-            box = QMessageBox(QMessageBox.Icon.Warning, title, msg, QMessageBox.StandardButton.Ok, window)
+            box = QMessageBox(QMessageBox.Icon.Warning, title, plain(msg), QMessageBox.StandardButton.Ok, window)
             fit_title(box)
             box.exec()
 

@@ -1,15 +1,19 @@
 """Tools ▸ Orient from reference DEM…: orientation with no GCP (Gonçalves, SRTM as ground control).
 
 The dialog asks for the reference (SRTM ``.hgt`` or GeoTIFF, orthometric), the patch size and
-the a-priori geolocation σ per view, which sets every search range of the engine
-(:func:`prismstation.ops.orient_dem.orient_from_dem`, run in a worker with a cancellable
-progress dialog). The result becomes the project's orientation in one undoable step
-(``project.dem_control`` plus ``Settings.orientation = "dem"``); the solver then reports it like
-a GCP orientation (model panel, ICP statistics, plots). A *Reference DEM patches* dock shows the
-a-priori σ, the view offsets, the consistency verdict of the patch field (in red, and in a
-message box and the status bar, when the patches do not agree with their σ or are too few) and
-the patch shifts, which are also drawn as exaggerated vectors on the N view. *Back to GCP
-orientation* is undoable too.
+the a-priori geolocation σ per view, which sets every search range of the engine. The
+orientation is the project's sensor model's (:func:`prismstation.ops.sensors.workflows_of`:
+``orient(project, reference, request)``, the request made by the model's widgets,
+:mod:`prismstation.gui.sensors`), run in a worker with a cancellable progress dialog. The
+result becomes the project's orientation in one undoable step (``project.dem_control`` plus
+``Settings.orientation = "dem"``); the solver then reports it like a GCP orientation (model
+panel, ICP statistics, plots). A *Reference DEM patches* dock shows the orientation in the
+model's words: for a PRISM triplet the a-priori σ, the view offsets, the consistency verdict of
+the patch field (in red, and in a message box and the status bar, when the patches do not
+agree with their σ or are too few) and the patch shifts, which are also drawn as exaggerated
+vectors on the N view; for images with RPCs the block's shift and each image's bias. An
+orientation with nothing to apply (images with RPCs whose DSM could not be laid on the
+reference) is not applied, the status bar says why. *Back to GCP orientation* is undoable too.
 
 An orientation whose verdict is not *trusted* is never applied without the operator's yes: a
 question states the verdict and why (a window that asks nothing — tests, scripts — does not
@@ -30,20 +34,19 @@ from PySide6.QtWidgets import (QDialog, QDialogButtonBox, QDoubleSpinBox, QFileD
                                QHBoxLayout, QLabel, QLineEdit, QMessageBox, QPushButton, QTableWidget,
                                QTableWidgetItem, QVBoxLayout, QWidget)
 
-from prismstation.core.conditioning import MIN_PATCHES, TARGET_M, SigmaSummary
+from prismstation.core.conditioning import MIN_PATCHES, TARGET_M
 from prismstation.core.dem_orient import patch_windows
 from prismstation.gui import settings as st
+from prismstation.gui.plain import plain
+from prismstation.gui.sensors import parts_of
+from prismstation.gui.solver import snapshot
 from prismstation.gui.titles import fit_title
-from prismstation.gui.tools import _rpc_orientation as rpc_orientation
 from prismstation.gui.tools._worker import run_with_progress
+from prismstation.io.jsonfile import number
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
+from prismstation.ops.sensors import workflows_of
 
 VECTOR_FRACTION = 0.08  # the longest shift vector is drawn this fraction of the N image width
-
-
-def _num(v) -> float:
-    """A record's number (None where the engine had NaN) as a float."""
-    return float("nan") if v is None else float(v)
 
 
 class SetDemOrientation(QUndoCommand):
@@ -174,6 +177,8 @@ class PatchTable(QWidget):
         self.summary.setWordWrap(True)
         self.verdict = QLabel("")
         self.verdict.setWordWrap(True)
+        for lab in (self.summary, self.verdict):
+            lab.setTextFormat(Qt.TextFormat.PlainText)  # (the reference's file name)
         self.apply_button = QPushButton("Apply this orientation anyway")
         self.apply_button.setToolTip("Make this untrusted orientation the project's (undoable)")
         self.apply_button.hide()
@@ -190,21 +195,22 @@ class PatchTable(QWidget):
         lay.addLayout(row)
         lay.addWidget(self.table, 1)
 
-    def show_record(self, record, active: bool, scale: float | None = None, applied: bool = True) -> None:
+    def show_record(self, record, active: bool, scale: float | None = None, applied: bool = True,
+                    parts=None) -> None:
         """Show ``record``; ``active``: the project is oriented by it; ``applied`` False: a
-        result the operator declined (not the project's)."""
+        result the operator declined (not the project's); ``parts``: the project's sensor
+        model's widgets (:mod:`prismstation.gui.sensors`), which say it in words."""
         self.apply_button.setVisible(record is not None and not applied)
         self.table.setSortingEnabled(False)
         patches = (record or {}).get("patches", [])
-        verdict = (record or {}).get("verdict") or {}
         self.table.setRowCount(len(patches))
         for i, p in enumerate(patches):
             # each patch's χ² test against the other patches' field, per direction it fixes
-            t = _num(p.get("T")) / p["dof"] if p.get("dof") else None
+            t = number(p.get("T")) / p["dof"] if p.get("dof") else None
             vals = [p["x"], p["y"], p["dE"], p["dN"], p["dh"], p["sigma_E"], p["sigma_N"], p["sigma_h"], t]
             for j, v in enumerate(vals):
                 it = QTableWidgetItem()
-                v = _num(v)
+                v = number(v)
                 it.setData(Qt.ItemDataRole.DisplayRole, round(v, 0 if j < 2 else 2) if np.isfinite(v) else "—")
                 it.setTextAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
                 self.table.setItem(i, j, it)
@@ -215,47 +221,17 @@ class PatchTable(QWidget):
             self.table.setItem(i, len(vals), it)
         self.table.setSortingEnabled(True)
         self.table.resizeColumnsToContents()
-        if record is None or "biases" in record:   # none yet, or images with RPCs
-            self.summary.setText(rpc_orientation.summary(record) if record else
-                                 "No orientation from a reference DEM yet (Tools ▸ Orient from reference DEM…).")
+        if record is None or parts is None:
+            self.summary.setText("No orientation from a reference DEM yet (Tools ▸ Orient from reference DEM…).")
             self.verdict.setText("")
             return
-        used = sum(1 for p in patches if p.get("used"))
         state = ("NOT APPLIED (not trusted; the GCP orientation stays)" if not applied
                  else "in use" if active else "not in use (GCP orientation)")
-        off = {k: [_num(c) for c in v] for k, v in (record.get("offsets_px") or {}).items()}
-        nan2 = [float("nan")] * 2
-        vec = f"; vectors on N × {scale:.0f}" if scale else ""
-        ref = str(record.get("reference", "?"))
-        sigma = record.get("sigma_apriori_m")
-        self.summary.setToolTip(ref)
-        self.summary.setText(
-            f"Reference {ref.replace(chr(92), '/').rsplit('/', 1)[-1]} — {state}. A-priori geolocation σ "
-            f"{_num(sigma):.0f} m per view. {used} of {len(patches)} patches used; from the ancillary model "
-            f"F−N ({off.get('F', nan2)[0]:+.1f}, {off.get('F', nan2)[1]:+.1f}) px, "
-            f"B−N ({off.get('B', nan2)[0]:+.1f}, {off.get('B', nan2)[1]:+.1f}) px{vec}.")
-        self.verdict.setText(verdict_text(record))
+        self.summary.setToolTip(plain(str(record.get("reference", "?"))))
+        self.summary.setText(parts.orientation_text(record, state, scale))
+        self.verdict.setText(parts.verdict_text(record))
+        verdict = record.get("verdict") or {}
         self.verdict.setStyleSheet("" if verdict.get("status") == "ok" else "color: #c0392b; font-weight: bold")
-
-
-def verdict_text(record) -> str:
-    """Whether the stored orientation can be trusted: the σ the terrain was expected to allow
-    before the run, the σ stated after it, the verdict and what would help."""
-    v = (record or {}).get("verdict")
-    if not v:
-        return "No verdict (an orientation made by an earlier version): not tested."
-    def sigma(key, label):
-        d = (record or {}).get(key)
-        if not d:
-            return ""
-        s = SigmaSummary.from_dict(d)
-        return (f" {label}: planimetric {s.plan:.1f} m ({s.along:.1f} m along track, {s.across:.1f} m across), "
-                f"height {s.h:.1f} m.")
-    text = sigma("expected_sigma_m", "Expected from the terrain before the run") + sigma("sigma_m", "After the run")
-    if v.get("status") == "ok":
-        return f"Verdict: trusted ({v.get('message', '')}).{text}"
-    advice = f" What would help: {v['advice']}." if v.get("advice") else ""
-    return f"Verdict: NOT TRUSTED ({v.get('status')}) — {v.get('message', '')}.{text}{advice}"
 
 
 class DemOrientationTool:
@@ -265,6 +241,7 @@ class DemOrientationTool:
         self.ctx = ctx
         self.job = None
         self.result = None
+        self.message = ""
         self.patch_km = None  # None: chosen from the scene's size
         self.sigma_m = SIGMA_APRIORI_M
         self.target_m = TARGET_M
@@ -307,59 +284,68 @@ class DemOrientationTool:
 
     def start(self, reference_path, patch_m: float = 4000.0, posting_m: float = 30.0,
               sigma_m: float = SIGMA_APRIORI_M, target_m: float = TARGET_M):
-        """Orient the window's project from ``reference_path`` in a worker; returns the Job."""
-        from prismstation.gui.solver import snapshot
-        from prismstation.ops.orient_dem import orient_from_dem
+        """Orient the window's project from ``reference_path`` in a worker (the sensor model's
+        orientation, asked as its widgets make the request); returns the Job (its result: an
+        :class:`~prismstation.ops.orientation.Orientation`)."""
         project = self.ctx.project
         if project is None or (self.job is not None and self.job.isRunning()):
             return None
-        if not project.scene.is_triplet:   # images with RPCs: their own job
-            return rpc_orientation.start(self, reference_path)
-        snap = snapshot(project)
-        path = str(reference_path)
+        request = parts_of(project.scene.sensor).orient_request(patch_m, posting_m, sigma_m, target_m)
+        snap, sol, path = snapshot(project), self.ctx.solver.solution, str(reference_path)
+        orient = workflows_of(project).orient
 
         def work(progress):
-            return orient_from_dem(snap, path, sigma_apriori_m=sigma_m, patch_m=patch_m,
-                                   posting_m=posting_m, target_m=target_m, progress=lambda f, m="": progress(f, m))
+            return orient(snap, path, request, solution=sol, progress=lambda f, m="": progress(f, m))
 
         self.job = run_with_progress(self.ctx, "Orientation from the reference DEM", work,
                                      lambda res: self._apply(project, res))
         return self.job
 
     def _apply(self, project, result) -> None:
+        self.result = result
         if project is not self.ctx.project:
             return  # the project was closed meanwhile
-        self.result = result
-        record = result.to_dict()
+        if result.record is None:           # nothing to apply: the status bar says why
+            self.message = f"Not applied: {result.verdict.message}"
+            self.ctx.status(self.message, 30000)
+            return
+        record = result.record
         self.dock.show()
         self.dock.raise_()
-        if not result.verdict.ok and not self._operator_says_apply(record):
-            self.declined = (project, record)
-            self.ctx.status(f"Not applied: {verdict_text(record)}", 30000)
+        parts = parts_of(project.scene.sensor)
+        if not result.ok and not self._operator_says_apply(record):
+            self.declined = (project, record, result.title)
+            self.ctx.status(f"Not applied: {parts.verdict_text(record)}", 30000)
             self._shown = None
             self.refresh()
             return
-        self._push(project, record)
+        self._push(project, record, result.title)
 
-    def _push(self, project, record) -> None:
+    def _push(self, project, record, title: str) -> None:
         self.declined = None
         self._shown = None
-        used = sum(1 for p in record["patches"] if p.get("used"))
-        self.ctx.undo_stack.push(SetDemOrientation(project, record, "dem", f"Orient from DEM ({used} patches)"))
-        if record.get("verdict", {}).get("status") != "ok":
-            self.ctx.status(f"Applied, not trusted: {verdict_text(record)}", 30000)
+        self.ctx.undo_stack.push(SetDemOrientation(project, record, "dem", f"Orient from DEM ({title})"))
+        parts = parts_of(project.scene.sensor)
+        self.message = parts.applied_text(record)
+        if self.message:
+            self.ctx.status(self.message, 30000)
 
     def _operator_says_apply(self, record) -> bool:
         """The question for an untrusted orientation: its verdict and why; No by default."""
         if not self.ctx.interactive:
             return False
         v = record.get("verdict") or {}
+        p = self.ctx.project
+        if p is not None and p.settings.orientation == "dem":
+            now = ("the orientation from the reference DEM applied before (Edit ▸ Undo returns to "
+                   "it; Tools ▸ Back to GCP orientation to the GCPs)")
+        else:
+            now = "the GCP orientation (Edit ▸ Undo or Tools ▸ Back to GCP orientation return to it)"
         box = QMessageBox(QMessageBox.Icon.Warning, "Orientation from the reference DEM",
-                          f"The orientation from the reference DEM is NOT TRUSTED ({v.get('status')}): "
-                          f"{v.get('message', '')}."
-                          + (f"\n\nWhat would help: {v['advice']}." if v.get("advice") else "")
-                          + "\n\nApply it anyway? It would replace the GCP "
-                          "orientation (Edit ▸ Undo or Tools ▸ Back to GCP orientation return to it).",
+                          plain(f"The orientation from the reference DEM is NOT TRUSTED ({v.get('status')}): "
+                                f"{v.get('message', '')}."
+                                + (f"\n\nWhat would help: {v['advice']}." if v.get("advice") else "")
+                                + f"\n\nApply it anyway? It would replace {now}."),
                           QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, self.ctx.widget)
         box.setDefaultButton(QMessageBox.StandardButton.No)
         fit_title(box)
@@ -385,13 +371,15 @@ class DemOrientationTool:
             self.declined = None  # another project, or oriented since
         if self.declined is not None:
             record, applied = self.declined[1], False
-        self.a_orient.setEnabled(rpc_orientation.orientable(p))
+        self.a_orient.setEnabled(p is not None and "orient-dem" in p.scene.sensor.workflows
+                                 and parts_of(p.scene.sensor).orientable(p.scene))
         self.a_gcp.setEnabled(active)
         self._draw_vectors()
         shown = (record, active, self.scale, applied)
         if getattr(self, "_shown", None) is None or any(a is not b and a != b for a, b in zip(shown, self._shown)):
             self._shown = shown  # (an edit of a point leaves the record alone: no table rebuild)
-            self.panel.show_record(record, active, self.scale, applied)
+            self.panel.show_record(record, active, self.scale, applied,
+                                   None if p is None else parts_of(p.scene.sensor))
 
     def _clear_vectors(self) -> None:
         for vb, item in self._items:
@@ -406,12 +394,12 @@ class DemOrientationTool:
         iv = self.ctx.views.views.get("N")
         if p is None or iv is None or p.settings.orientation != "dem" or not p.dem_control:
             return
-        patches = p.dem_control["patches"]
+        patches = p.dem_control.get("patches")
         if not patches:
             return
         lin = p.scene.views["N"].map_to_image.apply_linear
-        xy = np.array([[_num(q["x"]), _num(q["y"])] for q in patches], float)
-        en = np.array([[_num(q["dE"]), _num(q["dN"])] for q in patches], float)
+        xy = np.array([[number(q["x"]), number(q["y"])] for q in patches], float)
+        en = np.array([[number(q["dE"]), number(q["dN"])] for q in patches], float)
         d = np.array([lin(e) if np.isfinite(e).all() else (0.0, 0.0) for e in en], float)
         longest = float(np.max(np.hypot(*d.T))) if len(d) else 0.0
         width = p.scene.views["N"].shape[1]

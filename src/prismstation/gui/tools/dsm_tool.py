@@ -1,9 +1,10 @@
 """Tools ▸ Export DSM…: the project's DSM as a GeoTIFF (a PRISM triplet's, or that of images
 with RPCs: every pair matched and fused through the fitted biases,
-:func:`prismstation.ops.rpc_project.export_rpc_dsm`, the sensor model's export looked up in
-:mod:`prismstation.ops.workflows`).
+:func:`prismstation.ops.rpc_project.export_dsm`; the sensor model's export,
+:func:`prismstation.ops.sensors.workflows_of`).
 
-The whole N image or the area visible in the N view, at a chosen posting, with ellipsoidal or
+The whole N image or the area visible in the N view (images with RPCs: the ground every image
+sees), at a chosen posting (twice the images' pixel on the ground unless changed), with ellipsoidal or
 orthometric heights (through the project's geoid), computed and written in a worker by the
 same export as ``prismstation dsm`` (:func:`prismstation.ops.dsm_export.export_dsm`) with the
 same options: the a-priori height uncertainty of the prior, the height model (``--heights``),
@@ -24,18 +25,20 @@ from PySide6.QtWidgets import (QAbstractSpinBox, QButtonGroup, QCheckBox, QCombo
 from prismstation.gui import settings as st
 from prismstation.gui.tools._worker import run_with_progress
 from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest
+from prismstation.gui.plain import plain
+from prismstation.ops.sensors import workflows_of
 
 #: the height models as the dialog names them (``prismstation dsm --heights``)
 HEIGHT_MODEL_NAMES = {"auto": "automatic (the one the GCPs predict better)",
                       "line": "the model's parallax line", "rays": "the rays through the biases"}
 
-def visible_window(ctx) -> tuple | None:
-    """The N-image window ``(col0, row0, cols, rows)`` visible in the N view, clipped to the
-    image (None if nothing of the image is visible). ``ctx``: the :class:`~prismstation.gui.tools.ToolContext`."""
-    iv = ctx.views.views.get("N")
+def visible_window(ctx, view: str = "N") -> tuple | None:
+    """The window ``(col0, row0, cols, rows)`` of ``view``'s image visible in its view, clipped
+    to the image (None if nothing of the image is visible). ``ctx``: the :class:`~prismstation.gui.tools.ToolContext`."""
+    iv = ctx.views.views.get(view)
     if iv is None or ctx.project is None:
         return None
-    rows, cols = ctx.project.scene.views["N"].shape
+    rows, cols = ctx.project.scene.views[view].shape
     x, y, w, h = iv.visible_rect()
     c0, r0 = max(int(x), 0), max(int(y), 0)
     c1, r1 = min(int(x + w) + 1, cols), min(int(y + h) + 1, rows)
@@ -48,10 +51,13 @@ class DsmDialog(QDialog):
     """File, extent, posting, height kind and the engine's options."""
 
     def __init__(self, parent, default_path: str, visible: tuple | None, reference: str | None = None,
-                 *, geoid: str | None = None, orthometric: bool = False, triplet: bool = True):
+                 *, geoid: str | None = None, orthometric: bool = False, triplet: bool = True,
+                 gsd_m: float = 2.5):
         """``geoid``: the project's geoid, described (None: it cannot be used, orthometric
         heights are off); ``orthometric``: the heights kind to preselect; ``triplet`` False
-        (images with RPCs): the height model and void filling, a triplet's, are off."""
+        (images with RPCs): the height model and void filling, a triplet's, are off, and the
+        extent is the ground every image sees (no N view to take a visible area from);
+        ``gsd_m``: the images' pixel on the ground (the coarsest), the default posting twice it."""
         super().__init__(parent)
         self.setWindowTitle("Export DSM")
         self.visible = visible
@@ -61,9 +67,12 @@ class DsmDialog(QDialog):
         row = QHBoxLayout()
         row.addWidget(self.path, 1)
         row.addWidget(browse)
-        self.whole = QRadioButton("whole image")
+        if not triplet:
+            visible = None
+        self.whole = QRadioButton("whole image" if triplet else "the ground every image sees")
         self.area = QRadioButton("visible N area" + (f" ({visible[2]} × {visible[3]} px)" if visible else ""))
         self.area.setEnabled(visible is not None)
+        self.area.setVisible(triplet)
         (self.area if visible is not None else self.whole).setChecked(True)
         ext = QHBoxLayout()
         ext.addWidget(self.whole)
@@ -85,8 +94,10 @@ class DsmDialog(QDialog):
         # detail); a value out of range is set to the nearest, never back to the previous one
         self.posting = QDoubleSpinBox(decimals=1, minimum=0.1, maximum=500.0, singleStep=5.0, suffix=" m")
         self.posting.setCorrectionMode(QAbstractSpinBox.CorrectionMode.CorrectToNearestValue)
-        self.posting.setValue(5.0)
-        self.posting.setToolTip("grid posting; 5 m = 2 × the images' 2.5 m pixel (a finer posting adds cells, not detail)")
+        posting = max(round(2.0 * gsd_m, 1), 0.1)
+        self.posting.setValue(posting)
+        self.posting.setToolTip(f"grid posting; {posting:g} m = 2 × the images' {gsd_m:.2g} m pixel "
+                                "(a finer posting adds cells, not detail)")
         self.uncertainty = QDoubleSpinBox(decimals=0, minimum=0.0, maximum=5000.0, singleStep=10.0, suffix=" m")
         self.uncertainty.setSpecialValueText("automatic")   # 0: from the points, or 40 m with a reference
         self.uncertainty.setToolTip("± a-priori height uncertainty of the prior: the coarsest search range")
@@ -123,8 +134,16 @@ class DsmDialog(QDialog):
         if p:
             self.path.setText(p)
 
+    def accept(self) -> None:
+        """OK with no file name says so and stays open (it used to close, writing nothing)."""
+        if not self.path.text().strip():
+            QMessageBox.warning(self, "Export DSM", "Choose the DSM GeoTIFF: a file name is needed.")
+            self.path.setFocus()
+            return
+        super().accept()
+
     def request(self) -> DsmRequest:
-        return DsmRequest(self.path.text(), self.visible if self.area.isChecked() else None,
+        return DsmRequest(self.path.text().strip(), self.visible if self.area.isChecked() else None,
                           self.posting.value(), self.orthometric.isChecked(),
                           self.uncertainty.value() or None, self.fill.isChecked(),
                           self.min_fill.value(), self.heights.currentData())
@@ -224,17 +243,17 @@ class DsmTool:
         from prismstation.model.project import has_ground
         kinds = [q.height_kind for q in self.ctx.project.points.values() if has_ground(q)]
         orthometric = bool(kinds) and kinds.count("orthometric") >= kinds.count("ellipsoidal")
+        sc = self.ctx.project.scene
         dlg = DsmDialog(self.ctx.widget, str(self.default_path()), visible_window(self.ctx), name,
-                        geoid=self.geoid(), orthometric=orthometric,
-                        triplet=self.ctx.project.scene.is_triplet)
-        if dlg.exec() == QDialog.DialogCode.Accepted and dlg.path.text():
+                        geoid=self.geoid(), orthometric=orthometric, triplet=sc.is_triplet,
+                        gsd_m=max(v.pixel_size_m for v in sc.views.values()))
+        if dlg.exec() == QDialog.DialogCode.Accepted:
             self.start(dlg.request(), use_reference=dlg.use_reference())
 
     def start(self, req: DsmRequest, *, use_reference: bool = False):
         """Compute and write the DSM of ``req`` in a worker, with the loaded reference DEM as
         the prior when ``use_reference``; returns the Job (result: the
         :class:`~prismstation.ops.dsm_export.DsmExport`)."""
-        from prismstation.ops.workflows import workflows
         sol, p = self.ctx.solver.solution, self.ctx.project
         if sol is None or p is None:
             self.ctx.status("A DSM needs a fitted model", 8000)
@@ -245,13 +264,14 @@ class DsmTool:
         ref = self.reference() if use_reference else None
 
         def work(progress):
-            return workflows(p).export_dsm(sol, p, req, reference=ref, progress=progress)
+            return workflows_of(p).export_dsm(sol, p, req, reference=ref, progress=progress)
 
         def done(out):
+            self.ctx.outputs["dsm"] = str(out.path)  # (Validate DSM offers it next)
             self.message, low = result_message(out)
             self.ctx.status(self.message, 30000 if low else 15000)
             if self.ctx.interactive:
-                (QMessageBox.warning if low else QMessageBox.information)(self.ctx.widget, "DSM", self.message)
+                (QMessageBox.warning if low else QMessageBox.information)(self.ctx.widget, "DSM", plain(self.message))
 
         self.job = run_with_progress(self.ctx, "DSM", work, done)
         return self.job

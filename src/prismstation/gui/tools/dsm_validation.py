@@ -10,9 +10,9 @@
 """
 from __future__ import annotations
 
+from html import escape
 import csv
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +20,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpinBox, QFileDialog,
                                QFormLayout, QHBoxLayout, QLabel, QLineEdit, QMessageBox,
-                               QPushButton, QSplitter, QTableWidget, QTableWidgetItem,
+                               QPushButton, QSplitter, QStackedWidget, QTableWidget, QTableWidgetItem, QTabWidget,
                                QVBoxLayout, QWidget)
 
 from prismstation.core.dsmstats import hillshade, histogram, residual_sd_by_view
@@ -71,7 +71,9 @@ class ResidualSDPanel(QWidget):
         super().__init__(ctx.widget)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(4, 4, 4, 4)
-        lay.addWidget(QLabel("<b>SD of image residuals (px) — as Tadono et al. 2008, Table 1</b>"))
+        title = QLabel("<b>SD of image residuals (px) — as Tadono et al. 2008, Table 1</b>")
+        title.setWordWrap(True)  # (a narrow dock cut it)
+        lay.addWidget(title)
         self.table = _table(self.HEAD)
         lay.addWidget(self.table)
         self.solution = None
@@ -113,8 +115,8 @@ def run_validation(dsm, reference, *, dsm_height="ellipsoidal", reference_height
     from prismstation.io.dem import read_dem
     from prismstation.ops.validate import validate_dsm_files
 
-    fd, tmp = tempfile.mkstemp(suffix=".tif", prefix="dsmdiff_")
-    os.close(fd)
+    from prismstation.io.atomic import scratch_file
+    tmp = str(scratch_file("dsmdiff", ".tif"))  # (a killed run's: removed first)
     try:
         val, info = validate_dsm_files(dsm, reference, dsm_height=dsm_height,
                                        reference_height=reference_height, geoid=geoid,
@@ -152,14 +154,17 @@ def shaded_difference(diff, relief, limit=None) -> np.ndarray:
     return np.clip(rgb * 255, 0, 255).astype(np.uint8)
 
 
-def prefill(project, project_path, last: dict) -> dict:
-    """What the dialog starts from: the last run's choices, else the project's — its DSM
-    (``dsm.tif`` beside the project, the DSM tool's default), its reference DEM (SRTM-like:
-    orthometric) and its geoid (a grid's path, or the constant)."""
+def prefill(project, project_path, last: dict, exported: str | None = None) -> dict:
+    """What the dialog starts from: the DSM the window ``exported`` last (when given: since the
+    last validation), the last run's choices, else the project's — its DSM (``<project>_dsm.tif``,
+    the DSM tool's default, or ``dsm.tif`` beside the project or the scene), its reference DEM
+    (SRTM-like: orthometric where the file does not say) and its geoid (a grid's path, or the
+    constant). The heights' kinds the files record are read by the dialog."""
     out = {"dsm_height": "ellipsoidal", "reference_height": "ellipsoidal", "geoid_constant": 0.0}
     if project is not None:
         folders = [Path(p).parent for p in (project_path, project.scene_path) if p]
-        for cand in (f / "dsm.tif" for f in folders):
+        named = [Path(project_path).with_name(f"{Path(project_path).stem}_dsm.tif")] if project_path else []
+        for cand in named + [f / "dsm.tif" for f in folders]:
             if cand.is_file():
                 out["dsm"] = str(cand)
                 break
@@ -175,7 +180,10 @@ def prefill(project, project_path, last: dict) -> dict:
             out.update({"geoid_grid": str(grid)} if grid else {"geoid_constant": float(g.get("value") or 0.0)})
         elif g.get("value") is not None:
             out["geoid_constant"] = float(g["value"])
-    return {**out, **{k: v for k, v in last.items() if v not in ("", None)}}
+    out = {**out, **{k: v for k, v in last.items() if v not in ("", None)}}
+    if exported:
+        out["dsm"] = str(exported)
+    return out
 
 
 class DsmDialog(QDialog):
@@ -195,13 +203,21 @@ class DsmDialog(QDialog):
             row.addWidget(b)
             f.addRow(label, row)
             self.paths[key] = e
-        self.kinds = {}
+        self.kinds, self.kind_notes = {}, {}
         for key, label in (("dsm_height", "DSM heights"), ("reference_height", "Reference heights")):
             c = QComboBox()
             c.addItems(["ellipsoidal", "orthometric"])
             c.setCurrentText(last.get(key, "ellipsoidal"))
-            f.addRow(label, c)
-            self.kinds[key] = c
+            note = QLabel("")
+            note.setStyleSheet("color: #555")
+            row = QHBoxLayout()
+            row.addWidget(c)
+            row.addWidget(note, 1)
+            f.addRow(label, row)
+            self.kinds[key], self.kind_notes[key] = c, note
+        for path_key, kind_key in (("dsm", "dsm_height"), ("reference", "reference_height")):
+            self.paths[path_key].textChanged.connect(lambda text, k=kind_key: self._kind_from_file(k, text))
+            self._kind_from_file(kind_key, self.paths[path_key].text())
         self.geoid_constant = QDoubleSpinBox()
         self.geoid_constant.setRange(-200, 200)
         self.geoid_constant.setDecimals(3)
@@ -212,6 +228,19 @@ class DsmDialog(QDialog):
         bb.accepted.connect(self.accept)
         bb.rejected.connect(self.reject)
         f.addRow(bb)
+
+    def _kind_from_file(self, key: str, path: str) -> None:
+        """The heights' kind as the file records it (a DSM written here does: its vertical CRS),
+        shown and not asked; where the file does not say, the operator chooses."""
+        from prismstation.io.dsm import recorded_height_kind
+        path = path.strip()
+        kind = recorded_height_kind(path) if path and Path(path).is_file() else None
+        combo, note = self.kinds[key], self.kind_notes[key]
+        if kind is not None:
+            combo.setCurrentText(kind)
+        combo.setEnabled(kind is None)
+        note.setText("recorded in the file" if kind is not None else
+                     "the file does not say: choose" if path else "")
 
     def _browse(self, edit, title) -> None:
         p, _ = QFileDialog.getOpenFileName(self, title, edit.text(), "Rasters (*.tif *.tiff *.img *.vrt);;All (*)")
@@ -226,31 +255,38 @@ class DsmDialog(QDialog):
 
 
 class DsmResultPanel(QWidget):
+    """The statistics (title, table, colour scale, export buttons) and the two plots (the
+    difference map, its histogram): the statistics above the plots side by side where the dock
+    is tall, one tab each where it is short (a bottom dock on a laptop squeezed the plots to
+    nothing, then to slivers)."""
+
+    COMPACT_HEIGHT = 420  # px: below this the three parts go in tabs
+
     def __init__(self, parent=None):
         super().__init__(parent)
         self.validation = self.info = self.diff = None
-        lay = QVBoxLayout(self)
-        lay.setContentsMargins(4, 4, 4, 4)
+        self.stats = QWidget()
+        lay = QVBoxLayout(self.stats)
+        lay.setContentsMargins(0, 0, 0, 0)
         self.title = QLabel("No DSM validated yet (Tools ▸ Validate DSM…)")
         self.title.setWordWrap(True)
         lay.addWidget(self.title)
         self.table = _table(("Cells",) + STAT_COLUMNS)
-        self.table.setMinimumHeight(90)
-        self.table.setMaximumHeight(130)
+        self.table.setFixedHeight(66)  # the header and a row (then: its rows, at most 130 px)
         lay.addWidget(self.table)
-        split = QSplitter(Qt.Orientation.Horizontal)
-        self.map = pg.PlotWidget(title="DSM − reference over shaded relief")
+        self.map = pg.PlotWidget()
+        self.map.setTitle("DSM − reference over shaded relief", size="9pt")
         self.map.setAspectLocked(True)
         self.map.invertY(True)
         self.map_item = pg.ImageItem(axisOrder="row-major")
         self.map.addItem(self.map_item)
-        self.hist = pg.PlotWidget(title="Histogram of DSM − reference")
+        self.hist = pg.PlotWidget()
+        self.hist.setTitle("Histogram of DSM − reference", size="9pt")
         self.hist.setLabel("bottom", "difference (m)")
         self.hist.setLabel("left", "cells")
         for p in (self.map, self.hist):
             p.setBackground("w")
-            split.addWidget(p)
-        lay.addWidget(split, 1)
+            p.setMinimumSize(160, 130)
         row = QHBoxLayout()
         self.legend = QLabel("")
         row.addWidget(self.legend, 1)
@@ -262,6 +298,45 @@ class DsmResultPanel(QWidget):
             b.setEnabled(False)
             row.addWidget(b)
         lay.addLayout(row)
+        lay.addStretch(1)
+        self.full = QWidget()
+        full = QVBoxLayout(self.full)
+        full.setContentsMargins(0, 0, 0, 0)
+        self.split = QSplitter(Qt.Orientation.Horizontal)
+        full.addWidget(self.split, 1)
+        self.tabs = QTabWidget()
+        self.tabs.setDocumentMode(True)
+        self._stack = QStackedWidget()
+        self._stack.addWidget(self.full)
+        self._stack.addWidget(self.tabs)
+        outer = QVBoxLayout(self)
+        outer.setContentsMargins(4, 4, 4, 4)
+        outer.addWidget(self._stack)
+        self._compact = None
+        self._arrange(False)
+
+    def _arrange(self, compact: bool) -> None:
+        """The three parts in tabs (``compact``) or the statistics above the two plots."""
+        if compact == self._compact:
+            return
+        self._compact = compact
+        if compact:
+            for w, name in ((self.stats, "Statistics"), (self.map, "Difference map"), (self.hist, "Histogram")):
+                self.tabs.addTab(w, name)
+        else:
+            self.tabs.clear()  # (the pages are kept: they move back)
+            self.full.layout().insertWidget(0, self.stats)
+            self.split.addWidget(self.map)
+            self.split.addWidget(self.hist)
+            for w in (self.stats, self.map, self.hist):
+                w.show()
+        self._stack.setCurrentWidget(self.tabs if compact else self.full)
+
+    def resizeEvent(self, ev) -> None:
+        """Judged on what the dock shows (its scroll area's viewport), not on this panel."""
+        super().resizeEvent(ev)
+        area = self.parentWidget() if self.parentWidget() is not None else self
+        self._arrange(area.height() < self.COMPACT_HEIGHT)
 
     def rows(self):
         """``[(label, DiffStats)]``: overall first, then one per class."""
@@ -270,7 +345,8 @@ class DsmResultPanel(QWidget):
 
     def show_result(self, val, info, diff, relief) -> None:
         self.validation, self.info, self.diff = val, info, diff
-        self.title.setText(f"<b>{os.path.basename(info['dsm'])}</b> − <b>{os.path.basename(info['reference'])}</b>"
+        self.title.setText(f"<b>{escape(os.path.basename(info['dsm']))}</b> − "
+                           f"<b>{escape(os.path.basename(info['reference']))}</b>"
                            f" on the DSM grid ({info['grid']['width']} × {info['grid']['height']}, "
                            f"{crs_name(info['grid']['crs'])}), heights {info['heights']['compared_as']}")
         pct = sorted(val.overall.percentiles)
@@ -286,6 +362,10 @@ class DsmResultPanel(QWidget):
             for c, text in enumerate(cells):
                 self.table.setItem(i, c, _item(text, c == 0))
         self.table.resizeColumnsToContents()
+        t = self.table  # as tall as its rows (with room for the side scroll bar), no taller
+        need = (t.horizontalHeader().height() + sum(t.rowHeight(i) for i in range(t.rowCount()))
+                + 2 * t.frameWidth() + t.horizontalScrollBar().sizeHint().height())
+        t.setFixedHeight(min(need, 130))
         ok = np.isfinite(diff)
         limit = float(np.percentile(np.abs(diff[ok]), 98)) if ok.any() else 1.0
         self.map_item.setImage(shaded_difference(diff, relief, limit))
@@ -317,6 +397,7 @@ class DsmResultPanel(QWidget):
         import io
 
         from prismstation.io.atomic import write_atomic
+        from prismstation.io.csvtable import text_cell
         from prismstation.io.jsonfile import write_json
 
         kind = kind or ("csv" if str(path).lower().endswith(".csv") else "json")
@@ -330,7 +411,7 @@ class DsmResultPanel(QWidget):
         w.writerow(["cells"] + list(STAT_COLUMNS) + [f"p{p:g}" for p in pct]
                    + [f"abs_p{p:g}" for p in apct])
         for label, s in self.rows():
-            w.writerow([label] + [getattr(s, k) for k in STAT_COLUMNS]
+            w.writerow([text_cell(label)] + [getattr(s, k) for k in STAT_COLUMNS]
                        + [s.percentiles[p] for p in pct] + [s.abs_percentiles[p] for p in apct])
         write_atomic(path, buf.getvalue(), keep_backup=False)
 
@@ -352,7 +433,8 @@ class DsmValidationTool:
         ctx.tools_menu.addAction(self.dock.toggleViewAction())
 
     def open_dialog(self) -> None:
-        d = DsmDialog(self.ctx.widget, prefill(self.ctx.project, self.ctx.files.path, self.last))
+        exported = self.ctx.outputs.pop("dsm", None)  # written since the last validation: offered once
+        d = DsmDialog(self.ctx.widget, prefill(self.ctx.project, self.ctx.files.path, self.last, exported))
         if d.exec() == QDialog.DialogCode.Accepted:
             self.start(**d.values())
 
@@ -379,7 +461,7 @@ class DsmValidationTool:
         return self.job
 
     def _failed(self, error: str) -> None:
-        self.panel.title.setText(f"<span style='color:#b91c1c'>Validation failed: {error}</span>")
+        self.panel.title.setText(f"<span style='color:#b91c1c'>Validation failed: {escape(error)}</span>")
         self.dock.show()
 
     def _done(self, result) -> None:

@@ -18,9 +18,11 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpin
                                QPushButton, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
 
 from prismstation.core.rectify import KINDS, compare_transforms, min_points, n_params
+from prismstation.gui import settings as st
 from prismstation.gui.titles import fit_title
 from prismstation.gui.tools._rect_common import crs_name, fmt, view_points, watch_project
 from prismstation.gui.tools._worker import Job, run_with_progress
+from prismstation.gui.plain import plain
 
 
 def _item(text, align=Qt.AlignmentFlag.AlignRight) -> QTableWidgetItem:
@@ -121,7 +123,7 @@ class TransformsPanel(QWidget):
                 t.setItem(i, 3 + 2 * j, _item(fmt(r.rmse_icp)))
                 if not r.ok:
                     for c in (2 + 2 * j, 3 + 2 * j):
-                        t.item(i, c).setToolTip(r.error)
+                        t.item(i, c).setToolTip(plain(r.error))
                     notes.append(f"{v} · {kind}: {r.error}")
         t.resizeColumnsToContents()
         if notes:
@@ -174,6 +176,10 @@ class RectifyDialog(QDialog):
         self.resolution.setDecimals(3)
         self.resolution.setSpecialValueText("auto (the image's own)")
         self.out = QLineEdit()
+        self._suggested = ""
+        self.view.currentTextChanged.connect(lambda *_: self._suggest(ctx))
+        self.kind.currentTextChanged.connect(lambda *_: self._suggest(ctx))
+        self._suggest(ctx)
         browse = QPushButton("…")
         browse.clicked.connect(self._browse)
         row = QHBoxLayout()
@@ -189,10 +195,29 @@ class RectifyDialog(QDialog):
         bb.rejected.connect(self.reject)
         f.addRow(bb)
 
+    def _suggest(self, ctx) -> None:
+        """A file beside the project named after the view and transform, until the operator
+        types or browses one of their own."""
+        if self.out.text() not in ("", self._suggested):
+            return
+        base = Path(ctx.files.path) if ctx.files.path else None
+        folder = base.parent if base is not None else Path(st.value(st.Key.LAST_IMPORT_DIR) or ".")
+        stem = f"{base.stem}_" if base is not None else ""
+        self._suggested = str(folder / f"{stem}{self.view.currentText()}_{self.kind.currentText()}.tif")
+        self.out.setText(self._suggested)
+
     def _browse(self) -> None:
         p, _ = QFileDialog.getSaveFileName(self, "Rectified GeoTIFF", self.out.text(), "GeoTIFF (*.tif)")
         if p:
             self.out.setText(p)
+
+    def accept(self) -> None:
+        """OK with no output file says so and stays open (it used to close, writing nothing)."""
+        if not self.out.text().strip():
+            QMessageBox.warning(self, "Rectify", "Choose the output GeoTIFF: a file name is needed.")
+            self.out.setFocus()
+            return
+        super().accept()
 
 
 class RectifyTool:
@@ -220,9 +245,9 @@ class RectifyTool:
         if w.project is None:
             return
         d = RectifyDialog(w, self.panel)
-        if d.exec() != QDialog.DialogCode.Accepted or not d.out.text():
+        if d.exec() != QDialog.DialogCode.Accepted:
             return
-        self.start(d.view.currentText(), d.kind.currentText(), d.out.text(), d.crs.text() or None,
+        self.start(d.view.currentText(), d.kind.currentText(), d.out.text().strip(), d.crs.text() or None,
                    d.resolution.value() or None)
 
     def start(self, view: str, kind: str, out_path, out_crs=None, resolution=None,
@@ -263,7 +288,7 @@ class RectifyTool:
                         f"in {crs_name(result.crs)} — {view} through {report.kind}, planimetric RMSE "
                         f"{fmt(report.rmse_gcp)} m (GCPs), {fmt(report.rmse_icp)} m (ICPs)", 30000)
         if self.ctx.interactive:
-            box = QMessageBox(QMessageBox.Icon.Information, "Rectify", self.summary,
+            box = QMessageBox(QMessageBox.Icon.Information, "Rectify", plain(self.summary),
                               QMessageBox.StandardButton.Ok, self.ctx.widget)
             fit_title(box)
             box.exec()
@@ -271,7 +296,7 @@ class RectifyTool:
     def _message(self, text: str) -> None:
         self.ctx.status(text, 15000)
         if self.ctx.interactive and "Cannot" in text:
-            QMessageBox.warning(self.ctx.widget, "Rectify", text)
+            QMessageBox.warning(self.ctx.widget, "Rectify", plain(text))
 
 
 def install(ctx) -> None:

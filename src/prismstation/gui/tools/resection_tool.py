@@ -16,6 +16,7 @@ where the satellite was (the demo's N–F: B/H 0.16 from the resections, 0.50 fr
 """
 from __future__ import annotations
 
+from html import escape
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt
@@ -25,6 +26,7 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDoubleSpinBox, QFormLayout, 
 
 from prismstation.core.resection import PUSHBROOM_NOTE, FrameCamera, base_height, resect
 from prismstation.errors import PrismError
+from prismstation.gui.plot_figures import legend_below
 from prismstation.gui.titles import fit_title
 from prismstation.gui.tools._rect_common import view_points
 from prismstation.io.report import scene_identity
@@ -137,7 +139,7 @@ class ResectionDialog(QDialog):
         self.plot_pos.setLabel("bottom", "iteration")
         for p in (self.plot_angles, self.plot_pos):
             p.setBackground("w")
-            p.addLegend(offset=(-10, 10))
+            legend_below(p.getPlotItem(), columns=3)  # (inside, it hid the first iterations)
             p.showGrid(x=True, y=True, alpha=0.3)
             right.addWidget(p)
         self.resize(1100, 720)
@@ -221,7 +223,7 @@ class ResectionDialog(QDialog):
         try:
             res = self.resect_view(view)
         except PrismError as exc:
-            self.text.setHtml(f"<p style='color:#b91c1c'>Resection of {view} failed: {exc}</p>")
+            self.text.setHtml(f"<p style='color:#b91c1c'>Resection of {escape(view)} failed: {escape(str(exc))}</p>")
             return None
         self.show_result(view, res)
         return res
@@ -276,7 +278,7 @@ class ResectionDialog(QDialog):
             ra, rb = (self.resect_view(v) for v in (lv, rv))
             bh = base_height(ra.position, rb.position)
         except PrismError as exc:
-            self.bh_label.setText(f"<span style='color:#b91c1c'>{exc}</span>")
+            self.bh_label.setText(f"<span style='color:#b91c1c'>{escape(str(exc))}</span>")
             return None
         self._show_bh(bh, {lv: ra, rv: rb})
         return bh

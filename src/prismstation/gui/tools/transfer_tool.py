@@ -41,6 +41,7 @@ from prismstation.gui import commands as cmd
 from prismstation.gui.tools._worker import Job, run_with_progress
 from prismstation.gui.views import DRIVE_TO_MAX_SCALE
 from prismstation.model.points import GroundPoint, Measurement
+from prismstation.gui.plain import plain
 
 CANDIDATE_COLOUR = "#39ff14"
 
@@ -87,6 +88,7 @@ class TransferPanel(QWidget):
         lay = QVBoxLayout(self)
         lay.setContentsMargins(2, 2, 2, 2)
         self.label = QLabel("Place a point in one view: it is searched in the others.")
+        self.label.setTextFormat(Qt.TextFormat.PlainText)  # it shows the point's id
         self.label.setWordWrap(True)
         self.table = QTableWidget(0, len(self.HEADERS))
         self.table.setHorizontalHeaderLabels(self.HEADERS)
@@ -109,7 +111,7 @@ class TransferPanel(QWidget):
             vals = [v, f"{t.x:.2f}", f"{t.y:.2f}", f"{m.score:.3f}", f"{m.sigma_x:.3f}", f"{m.sigma_y:.3f}", m.status]
             for j, s in enumerate(vals):
                 item = QTableWidgetItem(s)
-                item.setToolTip(m.reason)   # why a search failed
+                item.setToolTip(plain(m.reason))   # why a search failed
                 self.table.setItem(i, j, item)
         self.table.resizeColumnsToContents()
         ok = [v for v, t in cands.items() if t.ok]
@@ -362,7 +364,7 @@ class TransferTool:
         self.ctx.status(f"Automatic tie points: {self.summary}", 30000)
         if self.ctx.interactive:
             (QMessageBox.information if ties else QMessageBox.warning)(
-                self.ctx.widget, "Automatic tie points", self.summary)
+                self.ctx.widget, "Automatic tie points", plain(self.summary))
 
 
 def install(ctx) -> None:

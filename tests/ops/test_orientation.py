@@ -1,0 +1,56 @@
+"""One orientation from a reference DEM for every sensor model (``ops/orientation.py``): every
+registered model has its workflows and its window parts under its name; an orientation is
+stored in one change event, one with nothing to apply is refused; its JSON keeps the model's
+layout beside the fit report."""
+from __future__ import annotations
+
+import inspect
+
+import pytest
+
+from prismstation.core import sensors
+from prismstation.core.conditioning import FAILED, OK, OrientVerdict
+from prismstation.gui import sensors as gui_sensors
+from prismstation.model.project import Project
+from prismstation.ops import sensors as ops_sensors
+from prismstation.ops.orientation import Orientation, apply_orientation
+from tests.core.synth import make_scene
+
+
+def test_every_model_has_workflows_and_window_parts_of_one_signature():
+    assert set(ops_sensors.WORKFLOWS) == set(sensors.MODELS) == set(gui_sensors.PARTS)
+    for name in sensors.MODELS:
+        wf = ops_sensors.WORKFLOWS[name]
+        assert list(inspect.signature(wf.orient).parameters) == ["project", "reference", "request", "solution",
+                                                                 "progress"]
+        assert list(inspect.signature(wf.export_dsm).parameters) == ["sol", "project", "request", "reference",
+                                                                     "progress"]
+        for fn in ("panel_sections", "fit_warning", "plot_line", "orientable", "orient_request",
+                   "orientation_text", "verdict_text", "applied_text"):
+            assert callable(getattr(gui_sensors.PARTS[name], fn)), (name, fn)
+
+
+def _orientation(record, status=OK, report_key=None):
+    return Orientation(OrientVerdict(status, "why", "", 5.0), record, ("a line",), {"dem_control": record},
+                       "3 patches", report_key=report_key)
+
+
+def test_apply_stores_the_record_in_one_change_and_refuses_nothing_to_apply():
+    project = Project(make_scene(size=2000))
+    seen = []
+    project.changed.connect(seen.append)
+    apply_orientation(project, _orientation({"field": {}}))
+    assert project.dem_control == {"field": {}} and project.settings.orientation == "dem" and len(seen) == 1
+    refused = _orientation(None, FAILED)
+    assert refused.exit_status == 3 and not refused.ok
+    with pytest.raises(ValueError, match="nothing to apply"):
+        apply_orientation(project, refused)
+
+
+def test_json_keeps_each_models_layout_beside_the_report():
+    report = {"points": [], "messages": ["m"]}
+    prism = _orientation({"patches": []})
+    assert prism.json(report) == {"points": [], "messages": ["m"], "dem_control": {"patches": []}}
+    rpc = _orientation({"biases": {}}, report_key="report")
+    assert rpc.json(report) == {"dem_control": {"biases": {}}, "report": report}
+    assert rpc.json(None) == {"dem_control": {"biases": {}}}
