@@ -254,7 +254,7 @@ def run_full(args) -> None:
     rp = out / "rpc.prismproj"
     if not rp.exists():
         from prismstation.cli import main
-        assert main(["new", str(rp), "--images", str(vrts["N"]), str(vrts["F"])]) == 0
+        assert main(["new", str(rp), "--images", str(vrts["N"]), str(vrts["F"]), "--no-ties"]) == 0
     ours_rpc = out / "ours_rpc.tif"
     measured(ortho_cli(["ortho", rp, "-o", ours_rpc, "--view", "N_rpc", "--bias", "none", "--dem", dem,
                         "--dem-heights", "ellipsoidal", "--posting", T.a, "--window", *win, "--workers", args.workers]),
@@ -333,7 +333,7 @@ def run_pleiades(args) -> None:
             w.writerow(["id", "view", "x", "y", "sigma_px"])
             for j, i, xy, s in zip(tp.point, tp.image, tp.xy, tp.sigma):
                 w.writerow([f"T{j:04d}", names[i], float(xy[0]), float(xy[1]), float(s[0])])
-        assert main(["new", str(d / "block.prismproj"), "--images", *map(str, images), "--measurements",
+        assert main(["new", str(d / "block.prismproj"), "--images", *map(str, images), "--no-ties", "--measurements",
                      str(d / "ties.csv")]) == 0
         assert main(["fit", str(d / "block.prismproj"), "--bias", "none", "--json", str(d / "before.json")]) == 0
         r = json.loads((d / "before.json").read_text())

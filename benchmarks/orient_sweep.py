@@ -1,7 +1,10 @@
 """Orientation without GCPs across geolocation errors and terrains: a sweep.
 
 Each scene is rendered ONCE (``simulate``, on the fractal relief, smooth rolling hills or a real
-DEM: ``--terrains``) with an SRTM-like reference; its published
+DEM: ``--terrains``) with its SRTM-like references (``--references``: ``projected``, 90 m on the
+scene's UTM grid, 2 m noise; ``geographic``, 3″ EPSG:4326 with EGM96 heights and 4 m noise, as
+SRTM is shipped, read with the EGM96 grid as the project's geoid); every case runs against
+each. Its published
 geolocation is then perturbed (``sim.perturb.perturb_geolocation``) to each error level: every
 view off by exactly ``M`` metres in its own random direction (the worst case of "up to M").
 Per case: ``new`` + ``orient-dem`` through the command line, then the check-point RMSE
@@ -18,7 +21,7 @@ failure). Beside each RMSE, the σ the orientation states for a check point (``o
 ``sigma_m`` with the check points' own measurement noise in quadrature: ``noise_px`` × GSD × √2
 planimetric, ``noise_px`` × c1 × √2 in height) and the ratio of the two: a case more than 2 σ off
 is marked; the σ expected from the terrain before the run; the mean check-point error along
-the flight direction and 90° to its left. The terrain column gives the terrain's
+the flight direction and 90° to its left, and east and north. The terrain column gives the terrain's
 mean slope over the ground N sees (30 m cells), as ``simulate`` states it.
 """
 from __future__ import annotations
@@ -42,7 +45,8 @@ from prismstation.sim import simulate  # noqa: E402
 from prismstation.core.prism import theoretical_c1  # noqa: E402
 from prismstation.io.scene import read_scene  # noqa: E402
 from prismstation.sim.perturb import perturb_geolocation, truth_geometry  # noqa: E402
-from prismstation.sim.reference import make_reference_dem  # noqa: E402
+from prismstation.io.geoid import GridGeoid, find_grid  # noqa: E402
+from prismstation.sim.reference import make_geographic_reference, make_reference_dem  # noqa: E402
 
 TARGETS = {14000: (2.5, 2.5), 6000: (5.0, 3.2)}
 
@@ -76,21 +80,27 @@ def coarse_error(sim: Path, scene_file: Path, errors: dict, dem_control: dict) -
 
 
 def run_case(sim: Path, ref: Path, errors: dict, work: Path, patch_km: float,
-             sigma_m: float = 50.0) -> dict:
-    """One case: perturb, ``new``, ``orient-dem --geolocation-sigma-m sigma_m`` (exit 3 = a
-    verdict that is not ok, still measured), then the check points against the truth."""
+             sigma_m: float = 50.0, geoid: str | None = None, reuse: bool = False) -> dict:
+    """One case: perturb, ``new`` (``--geoid geoid`` if given), ``orient-dem
+    --geolocation-sigma-m sigma_m`` (exit 3 = a verdict that is not ok, still measured), then
+    the check points against the truth. ``reuse``: a report already in ``work`` (a sweep
+    stopped and run again) is scored instead of running the case again (its time: NaN)."""
     scene = perturb_geolocation(sim, errors, work / "scene.json")
     proj = work / "p.prismproj"
     out = work / "dem.json"
-    out.unlink(missing_ok=True)
     err = io.StringIO()
     t0 = time.perf_counter()
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-        code = main(["new", str(proj), "--force", "--scene", str(scene), "--points", str(sim / "points.csv"),
-                     "--measurements", str(sim / "measurements.csv")])
-        if code == 0:
-            code = main(["orient-dem", str(proj), str(ref), "--patch-km", str(patch_km),
-                         "--json", str(out), "--geolocation-sigma-m", str(sigma_m)])
+    if reuse and out.exists():
+        code, t0 = None, float("nan")
+    else:
+        out.unlink(missing_ok=True)
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+            code = main(["new", str(proj), "--force", "--scene", str(scene), "--points",
+                         str(sim / "points.csv"), "--measurements", str(sim / "measurements.csv"),
+                         *(["--geoid", geoid] if geoid else [])])
+            if code == 0:
+                code = main(["orient-dem", str(proj), str(ref), "--patch-km", str(patch_km),
+                             "--json", str(out), "--geolocation-sigma-m", str(sigma_m)])
     seconds = time.perf_counter() - t0
     row = {"seconds": seconds, "exit": code}
     if not out.exists():
@@ -120,6 +130,7 @@ def run_case(sim: Path, ref: Path, errors: dict, work: Path, patch_km: float,
     orbit, _, _ = truth_geometry(t)
     err = np.column_stack([dE, dN])
     row.update(points=len(pts), plan=float(np.hypot(_rms(dE), _rms(dN))), height=_rms(dh),
+               mean_E=float(np.mean(dE)), mean_N=float(np.mean(dN)),
                along_mean=float(np.mean(err @ orbit.t)), across_mean=float(np.mean(err @ orbit.a)),
                used=len(used), patches=len(patches), verdict=verdict,
                sigma_plan=float(np.hypot(num(sg, "E"), num(sg, "N"))), sigma_h=num(sg, "h"),
@@ -159,16 +170,25 @@ def main_sweep(argv=None) -> int:
                     help="where the dem terrain's scenes sit in the DEM (its CRS; default its centre)")
     ap.add_argument("--relief-scale", type=float, default=1.0,
                     help="scale every terrain's heights about their mean (simulate --relief-scale)")
+    ap.add_argument("--references", nargs="+", default=["projected", "geographic"],
+                    choices=["projected", "geographic"],
+                    help="the SRTM-like references every case runs against (default both)")
     ap.add_argument("--keep", metavar="DIR", help="keep the scenes in DIR")
+    ap.add_argument("--reuse", action="store_true",
+                    help="score the reports a stopped sweep left in --keep's cases instead of "
+                         "running those cases again")
     a = ap.parse_args(argv)
     if "dem" in a.terrains and not a.terrain_dem:
         ap.error("--terrains dem needs --terrain-dem")
+    egm96 = find_grid()
+    if "geographic" in a.references and egm96 is None:
+        ap.error("the geographic reference needs the EGM96 grid on PROJ's paths (proj-data)")
     rows = []
     base = Path(a.keep) if a.keep else Path(tempfile.mkdtemp(prefix="orient_sweep_"))
-    print("| size | terrain (mean slope) | pass | seed | error m | coarse F / B err px (σ) | expected σ plan m | "
-          "plan m (σ) | plan err/σ | height m (σ) | height err/σ | along / across mean m | patches used | "
-          "verdict | s | note |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| size | terrain (mean slope) | pass | seed | error m | reference | coarse F / B err px (σ) | "
+          "expected σ plan m | plan m (σ) | plan err/σ | height m (σ) | height err/σ | along / across "
+          "mean m | mean E / N m | patches used | verdict | s | note |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     cases = [(size, terrain, pas, seed) for size in a.sizes for terrain in a.terrains
              for pas in a.passes for seed in a.seeds]
     for size, terrain, pas, seed in cases:
@@ -183,6 +203,9 @@ def main_sweep(argv=None) -> int:
                      relief_scale=a.relief_scale)
         if not (sim / "srtm.tif").exists():
             make_reference_dem(sim / "truth_dem.tif", sim / "srtm.tif", seed=scene_seed + 1)
+        if "geographic" in a.references and not (sim / "srtm_geo.tif").exists():
+            make_geographic_reference(sim / "truth_dem.tif", sim / "srtm_geo.tif", GridGeoid(egm96),
+                                      seed=scene_seed + 1)
         # scenes kept from before the terrains were stated have no statistics
         stats = json.loads((sim / "truth.json").read_text()).get("terrain", {}).get("statistics", {})
         slope = f"{stats['mean_slope_pct']:.1f} %" if stats else "?"
@@ -191,37 +214,46 @@ def main_sweep(argv=None) -> int:
             errors = errors_of_magnitude(m, rng)
             if m == 0 and a.scene_seed is not None and seed != a.seeds[0]:
                 continue    # no error, one scene: the same case as the first draw's
-            work = sim / f"e{int(m)}_d{seed}"
-            work.mkdir(exist_ok=True)
-            r = run_case(sim, sim / "srtm.tif", errors, work, patch_km, a.sigma_m)
-            r.update(size=size, terrain=terrain, terrain_statistics=stats, pass_=pas, seed=seed,
-                     scene_seed=scene_seed, error=m,
-                     plan_ratio=_ratio(r.get("plan", np.nan), r.get("sigma_plan_check", np.nan)),
-                     height_ratio=_ratio(r.get("height", np.nan), r.get("sigma_h_check", np.nan)))
-            rows.append(r)
-            tgt = TARGETS.get(size)
-            note = r.get("failure", "")
-            if "plan" in r and tgt:
-                bad = r["plan"] > tgt[0] or r["height"] > tgt[1]
-                note = ("MISSES TARGET" + (" (said so)" if r["verdict"] != "ok" else " SILENTLY")) if bad else "meets target"
-            if not (r["plan_ratio"] <= 2 and r["height_ratio"] <= 2) and "plan" in r:
-                note += "; error beyond 2 × the stated σ"
-            cf = "-" if "coarse_F" not in r else (f"{r['coarse_F']:.2f} ({r['coarse_F_sigma']:.2f}) / "
-                  f"{r['coarse_B']:.2f} ({r['coarse_B_sigma']:.2f})")
-            nan = float("nan")
-            print(f"| {size} | {terrain} ({slope}) | {pas} | {seed} | {m:.0f} | {cf} | {r.get('expected_plan', nan):.1f} | "
-                  f"{r.get('plan', nan):.2f} ({r.get('sigma_plan_check', nan):.1f}) | {r['plan_ratio']:.2f} | "
-                  f"{r.get('height', nan):.2f} ({r.get('sigma_h_check', nan):.1f}) | {r['height_ratio']:.2f} | "
-                  f"{r.get('along_mean', nan):+.2f} / {r.get('across_mean', nan):+.2f} | "
-                  f"{r.get('used', '-')}/{r.get('patches', '-')} | "
-                  f"{r.get('verdict', 'failed')} | {r['seconds']:.0f} | {note} |", flush=True)
+            for kind in a.references:
+                work = sim / (f"e{int(m)}_d{seed}" if kind == "projected" else f"e{int(m)}_d{seed}_geo")
+                work.mkdir(exist_ok=True)
+                ref, geoid = ((sim / "srtm.tif", None) if kind == "projected"
+                              else (sim / "srtm_geo.tif", str(egm96)))
+                r = run_case(sim, ref, errors, work, patch_km, a.sigma_m, geoid, a.reuse)
+                r.update(size=size, terrain=terrain, terrain_statistics=stats, pass_=pas, seed=seed,
+                         scene_seed=scene_seed, error=m, reference=kind,
+                         plan_ratio=_ratio(r.get("plan", np.nan), r.get("sigma_plan_check", np.nan)),
+                         height_ratio=_ratio(r.get("height", np.nan), r.get("sigma_h_check", np.nan)))
+                rows.append(r)
+                print(_line(r, slope, TARGETS.get(size)), flush=True)
     clean = [{k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in r.items()}
              for r in rows]
     name = (f"sweep_{'_'.join(map(str, a.sizes))}_{'_'.join(a.terrains)}_{'_'.join(a.passes)}_"
-            f"{'_'.join(map(str, a.seeds))}.json")
+            f"{'_'.join(map(str, a.seeds))}_{'_'.join(a.references)}.json")
     (base / name).write_text(json.dumps(clean, indent=2, allow_nan=False))
     print(f"\nscenes and {name} in {base}")
     return 0
+
+
+def _line(r: dict, slope: str, tgt) -> str:
+    """One row of the printed table."""
+    note = r.get("failure", "")
+    if "plan" in r and tgt:
+        bad = r["plan"] > tgt[0] or r["height"] > tgt[1]
+        note = ("MISSES TARGET" + (" (said so)" if r["verdict"] != "ok" else " SILENTLY")) if bad else "meets target"
+    if not (r["plan_ratio"] <= 2 and r["height_ratio"] <= 2) and "plan" in r:
+        note += "; error beyond 2 × the stated σ"
+    cf = "-" if "coarse_F" not in r else (f"{r['coarse_F']:.2f} ({r['coarse_F_sigma']:.2f}) / "
+                                          f"{r['coarse_B']:.2f} ({r['coarse_B_sigma']:.2f})")
+    nan = float("nan")
+    return (f"| {r['size']} | {r['terrain']} ({slope}) | {r['pass_']} | {r['seed']} | {r['error']:.0f} | "
+            f"{r['reference']} | {cf} | {r.get('expected_plan', nan):.1f} | "
+            f"{r.get('plan', nan):.2f} ({r.get('sigma_plan_check', nan):.1f}) | {r['plan_ratio']:.2f} | "
+            f"{r.get('height', nan):.2f} ({r.get('sigma_h_check', nan):.1f}) | {r['height_ratio']:.2f} | "
+            f"{r.get('along_mean', nan):+.2f} / {r.get('across_mean', nan):+.2f} | "
+            f"{r.get('mean_E', nan):+.2f} / {r.get('mean_N', nan):+.2f} | "
+            f"{r.get('used', '-')}/{r.get('patches', '-')} | "
+            f"{r.get('verdict', 'failed')} | {r['seconds']:.0f} | {note} |")
 
 
 if __name__ == "__main__":

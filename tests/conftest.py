@@ -9,6 +9,7 @@ os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = ROOT.parent / "shared" / "data" / "real"
+FOREIGN_DATA = ROOT.parent / "shared" / "data" / "foreign"
 
 
 @pytest.fixture(scope="session")
@@ -17,6 +18,14 @@ def shared_data() -> Path:
     if not SHARED_DATA.is_dir():
         pytest.skip("../shared/data/real is not beside this checkout")
     return SHARED_DATA
+
+
+@pytest.fixture(scope="session")
+def foreign_data() -> Path:
+    """``../shared/data/foreign``: scenes another simulator made; skipped where absent."""
+    if not FOREIGN_DATA.is_dir():
+        pytest.skip("../shared/data/foreign is not beside this checkout")
+    return FOREIGN_DATA
 
 
 @pytest.fixture(autouse=True)

@@ -46,7 +46,7 @@ def block(request, shared_data, tmp_path_factory):
         w.writerow(["id", "view", "x", "y", "sigma_px"])
         for j, i, xy, s in zip(tp.point, tp.image, tp.xy, tp.sigma):
             w.writerow([f"T{j:04d}", images[i].stem, float(xy[0]), float(xy[1]), float(s[0])])
-    assert main(["new", str(d / "block.prismproj"), "--images", *map(str, images),
+    assert main(["new", str(d / "block.prismproj"), "--images", *map(str, images), "--no-ties",
                  "--measurements", str(d / "ties.csv")]) == 0
     assert main(["fit", str(d / "block.prismproj"), "--bias", "none", "--json", str(d / "before.json")]) == 0
     before = json.loads((d / "before.json").read_text())

@@ -200,3 +200,28 @@ def test_blunder_stands_out_and_datum_defect_is_refused(triplet):
     assert np.abs(res.std_residuals[5, 0]) > 5
     with pytest.raises(DegenerateGeometry, match="not determined"):
         adjust(triplet, P, I, XY, 0.3, bias="affine", fixed=())
+
+
+def test_longitudes_across_the_antimeridian(triplet):
+    """An image across ±180°: its RPC's LONG_OFF at 179.95°, ground points given between
+    −180° and −179.9° (as any CRS transformation returns them). The same RPC with LONG_OFF
+    at −180.05° sees those points without wrapping: both must give the same pixels, and image
+    → ground must come back within −180…180° and re-project."""
+    from dataclasses import replace
+    east = replace(triplet[0], lon_off=179.95, lon_scale=0.12)
+    west = replace(east, lon_off=179.95 - 360.0)
+    rng = np.random.default_rng(5)
+    lon = rng.uniform(-179.99, -179.9, 200)
+    lat = east.lat_off + rng.uniform(-0.5, 0.5, 200) * east.lat_scale
+    h = east.h_off + rng.uniform(-0.5, 0.5, 200) * east.h_scale
+    np.testing.assert_allclose(np.column_stack(east.project(lon, lat, h)),
+                               np.column_stack(west.project(lon, lat, h)), atol=1e-6, rtol=0)
+    x, y, J = east.project_with_partials(lon, lat, h)
+    np.testing.assert_allclose(J, west.project_with_partials(lon, lat, h)[2], rtol=1e-9)
+    back_lon, back_lat = east.localize(x, y, h)
+    assert np.all(back_lon <= 180.0) and np.all(back_lon >= -180.0)
+    np.testing.assert_allclose(back_lon, lon, atol=1e-9)
+    on_the_east = rng.uniform(179.9, 180.0, 50)     # the image's other half: no turn
+    np.testing.assert_allclose(np.column_stack(east.project(on_the_east, lat[:50], h[:50])),
+                               np.column_stack(west.project(on_the_east - 360.0, lat[:50], h[:50])),
+                               atol=1e-6, rtol=0)

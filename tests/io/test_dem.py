@@ -15,7 +15,8 @@ def test_hgt_resampled_to_utm_agrees_with_the_independent_utm_product(shared_dat
     d = geo.heights - utm.heights
     both = np.isfinite(d)
     assert both.mean() > 0.9
-    assert abs(np.mean(d[both])) < 0.5 and np.std(d[both]) < 2.0   # CNES resampled the same tile
+    # CNES resampled the same tile, by GDAL's approximate warp: 6 m north of it, hence 1.5 m SD
+    assert abs(np.mean(d[both])) < 0.5 and np.std(d[both]) < 2.0
     assert np.isnan(utm.heights).any() and not (utm.heights == -32768).any()
     # Mont Ventoux summit (44.1741 N, 5.2789 E, 1909 m) is the highest cell around it
     from pyproj import Transformer

@@ -72,16 +72,16 @@ def test_new_images_names_views_by_stem_and_refuses_twins(shared_data, tmp_path)
     for d in (a, b):
         shutil.copy(shared_data / PAIR[0], d / "img.tif")
     assert main(["new", str(tmp_path / "p.prismproj"), "--images", str(a / "img.tif"), str(b / "img.tif")]) == 2
-    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *(str(shared_data / f) for f in PAIR)]) == 0
+    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *(str(shared_data / f) for f in PAIR), "--no-ties"]) == 0
     project = load_project(tmp_path / "p.prismproj")
     assert project.scene.sensor is RpcModel and project.settings.bias_model == "shift"
-    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *(str(shared_data / f) for f in PAIR)]) == 2
+    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *(str(shared_data / f) for f in PAIR), "--no-ties"]) == 2
     assert main(["new", str(tmp_path / "q.prismproj"), "--images", str(tmp_path / "none.tif"),
                  str(shared_data / PAIR[0])]) == 2
 
 
 def test_project_settings_are_checked_against_the_sensor_model(shared_data, tmp_path):
-    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *(str(shared_data / f) for f in PAIR)]) == 0
+    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *(str(shared_data / f) for f in PAIR), "--no-ties"]) == 0
     path = tmp_path / "p.prismproj"
     data = json.loads(path.read_text())
     data["settings"]["bias_model"] = "similarity"
@@ -103,7 +103,7 @@ def test_a_command_the_model_does_not_list_is_refused_in_one_line(shared_data, t
     from prismstation.core.rpc_model import RpcModel
     monkeypatch.setattr(RpcModel, "workflows", frozenset({"fit", "report"}))
     proj = tmp_path / "p.prismproj"
-    assert main(["new", str(proj), "--images", *(str(shared_data / f) for f in PAIR)]) == 0
+    assert main(["new", str(proj), "--images", *(str(shared_data / f) for f in PAIR), "--no-ties"]) == 0
     capsys.readouterr()
     assert main(["orient-dem", str(proj), str(shared_data / PAIR[0])]) == 2
     assert main(["dsm", str(proj), "-o", str(tmp_path / "dsm.tif")]) == 2
@@ -113,3 +113,57 @@ def test_a_command_the_model_does_not_list_is_refused_in_one_line(shared_data, t
                    f"prismstation dsm: {proj}: dsm is not available yet for images with RPCs "
                    "(on this project: fit, report)"]
     assert not (tmp_path / "dsm.tif").exists()
+
+
+# ----------------------------------------------------------------- the map zone, overlap
+def _tagged(path, rpc, size=64):
+    from tests.cli.test_rpc_workflows import write_tagged
+    write_tagged(path, np.zeros((size, size), np.float32), rpc)
+    return path
+
+
+def _wide_rpc(lon0, lat0, half_deg, seed=0):
+    """The RPC of a 64 px image ``2 × half_deg`` degrees of longitude wide, centred on
+    ``(lon0, lat0)``."""
+    from tests.ops.rpc_synth import make_rpc
+    from prismstation.core.rpc_bias import metres_per_degree
+    ke, _ = metres_per_degree(lat0)
+    return make_rpc(lon0, lat0, gsd=half_deg * ke / 32, size=64, tan_along=0.0, seed=seed)
+
+
+def test_the_zone_is_the_common_footprints_not_the_mean_offsets(tmp_path):
+    """Offsets at 5.5° and 6.7° E (their mean in UTM 32), footprints meeting only between
+    5.9° and 5.95° E: UTM 31."""
+    a = _tagged(tmp_path / "a.tif", _wide_rpc(5.5, 44.0, 0.45))
+    b = _tagged(tmp_path / "b.tif", _wide_rpc(6.7, 44.0, 0.8, seed=1))
+    scene = read_scene(write_scene_for_images([a, b], tmp_path / "s.scene.json"))
+    assert scene.crs == "EPSG:32631"
+
+
+def test_images_across_the_antimeridian(tmp_path):
+    """Two images over Fiji's 180th meridian, 179.8°–180° and 179.95°–180.15° E: their
+    offsets' mean would be −0.025° (UTM 30); the common footprint lies just west of 180° (UTM
+    60 south), and the scene's model works there."""
+    a = _tagged(tmp_path / "a.tif", _wide_rpc(179.9, -16.5, 0.1))
+    b = _tagged(tmp_path / "b.tif", _wide_rpc(-179.95, -16.5, 0.1, seed=1))
+    scene = read_scene(write_scene_for_images([a, b], tmp_path / "s.scene.json"))
+    assert scene.crs == "EPSG:32760"
+    from prismstation.core.rpc_bias import metres_per_degree
+    gsd = 0.1 * metres_per_degree(-16.5)[0] / 32          # the RPCs' own, about 334 m
+    for name, view in scene.views.items():
+        assert abs(view.pixel_size_m / gsd - 1) < 0.02, (name, view.pixel_size_m, gsd)
+    ground = scene.views["a"].footprint()
+    assert np.isfinite(ground).all()
+    assert np.all(np.abs(ground[:, 0] - ground[0, 0]) < 30e3)   # one zone: no jump of a turn
+
+
+def test_images_that_do_not_overlap_are_refused_in_one_line(shared_data, tmp_path, capsys):
+    """Buenos Aires (the WorldView-3 NITF) and Nice (the Pléiades DIMAP crop)."""
+    fmt = shared_data / "rpc_formats"
+    images = [fmt / "wv3_20.NTF", fmt / "PHR1B_P_201709281038393_SEN_PRG_FC_178609-001.tif"]
+    assert main(["new", str(tmp_path / "p.prismproj"), "--images", *map(str, images)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"prismstation new: the images do not overlap: {images[0].name} and {images[1].name} "
+                   "see no common ground (footprints at their RPCs' height offsets): a project needs "
+                   "images of one place"]
+    assert not (tmp_path / "p.prismproj").exists() and not (tmp_path / "p.scene.json").exists()

@@ -18,7 +18,7 @@ def block(tmp_path):
     """A folder with three RPC images and a valid project over them made by ``new``."""
     images = rpc_images(tmp_path / "imgs")
     project = tmp_path / "p.prismproj"
-    assert main(["new", str(project), "--images", *map(str, images)]) == 0
+    assert main(["new", str(project), "--images", *map(str, images), "--no-ties"]) == 0
     return tmp_path, images, project
 
 
@@ -32,7 +32,7 @@ def test_force_with_a_bad_points_file_changes_nothing(block):
     bad.write_text("id,E,N,H\nA,1,2\n")
     before = _state(d)
     # a different set of images: the scene would change too
-    result = ft.run_cli(["new", project, "--images", *images[:2], "--points", bad, "--force"])
+    result = ft.run_cli(["new", project, "--images", *images[:2], "--no-ties", "--points", bad, "--force"])
     ft.assert_clean_failure(result, "new", "bad.csv")
     assert _state(d) == before
     load_project(project)
@@ -43,7 +43,7 @@ def test_a_bad_points_file_leaves_no_orphan_scene(tmp_path):
     bad = tmp_path / "bad.csv"
     bad.write_text("id,E,N,H\nA,x,2,3\n")
     before = _state(tmp_path)
-    result = ft.run_cli(["new", tmp_path / "q.prismproj", "--images", *images, "--points", bad])
+    result = ft.run_cli(["new", tmp_path / "q.prismproj", "--images", *images, "--no-ties", "--points", bad])
     ft.assert_clean_failure(result, "new", "bad.csv")
     assert _state(tmp_path) == before
 
@@ -51,7 +51,7 @@ def test_a_bad_points_file_leaves_no_orphan_scene(tmp_path):
 def test_an_existing_project_without_force_is_refused_before_anything_is_written(block):
     d, images, project = block
     before = _state(d)
-    result = ft.run_cli(["new", project, "--images", *images[:2]])
+    result = ft.run_cli(["new", project, "--images", *images[:2], "--no-ties"])
     ft.assert_clean_failure(result, "new", "already exists")
     assert _state(d) == before
 
@@ -70,7 +70,7 @@ def test_a_failing_replace_at_any_step_puts_every_file_back(block, monkeypatch, 
             raise OSError(errno.EIO, "Input/output error")
         return real(*a, **kw)
     monkeypatch.setattr(os, "replace", failing)
-    result = ft.run_cli(["new", project, "--images", *images[:2], "--geoid", "12", "--force"])
+    result = ft.run_cli(["new", project, "--images", *images[:2], "--no-ties", "--geoid", "12", "--force"])
     monkeypatch.setattr(os, "replace", real)
     ft.assert_clean_failure(result, "new", ("p.scene.json", "p.prismproj"))
     after = {f: h for f, h in _state(d).items() if not f.endswith(".bak")}

@@ -3,11 +3,15 @@
 
 ``--images``: two or more images with RPCs (any names; the RPCs from wherever
 :func:`prismstation.io.rpc.read_rpc` finds them), one view per image named by its file's stem;
-the scene file is written beside the project as ``<project>.scene.json``."""
+the scene file is written beside the project as ``<project>.scene.json``, the map zone the
+UTM zone of the images' common footprint (images that do not overlap are refused). Tie points
+are then matched as ``prismstation ties`` matches them (:mod:`prismstation.cli.ties`; exit
+status 3 when none is found, the project saved without them) unless ``--no-ties``."""
 from __future__ import annotations
 
 from pathlib import Path
 
+from prismstation.cli.ties import add_tie_options, match_and_save
 from prismstation.errors import InputError
 from prismstation.io.project import SUFFIX
 from prismstation.model.points import HEIGHT_KINDS
@@ -28,6 +32,9 @@ def register(sub) -> None:
     p.add_argument("--height", choices=HEIGHT_KINDS, help="height kind of points without a height column")
     p.add_argument("--geoid", help="geoid: a number (constant undulation, m), a grid file, or 'auto'")
     p.add_argument("--force", action="store_true", help="overwrite an existing project")
+    p.add_argument("--no-ties", action="store_true",
+                   help="--images: do not match tie points (prismstation ties does it later)")
+    add_tie_options(p)
     p.set_defaults(func=run)
 
 
@@ -52,4 +59,6 @@ def run(args) -> int:
     if args.images:
         print(f"{scene_path}: {len(project.scene.views)} {project.scene.sensor.description} "
               f"({', '.join(project.scene.views)}), CRS {project.scene.crs}")
+        if not args.no_ties:
+            return match_and_save(project, args.project, args.grid, command="new")
     return 0

@@ -1,7 +1,8 @@
 """``prismstation simulate OUTDIR [--seed N] [--size N] ...``: a synthetic PRISM 1B2 triplet.
 
 Writes ``N.tif``, ``F.tif``, ``B.tif``, ``scene.json``, ``points.csv``, ``measurements.csv``
-(docs/formats.md) and the truth: ``truth.json``, ``truth_dem.tif`` (ellipsoidal heights).
+(docs/formats.md) and the truth: ``truth.json``, ``truth_dem.tif`` (ellipsoidal heights); with
+``--reference`` also an SRTM-like reference DEM, ``srtm.tif`` (:mod:`prismstation.sim.reference`).
 """
 from __future__ import annotations
 
@@ -72,6 +73,16 @@ def register(sub) -> None:
     p.add_argument("--jpeg-quality", type=int, default=None, metavar="Q",
                    help="pass the images through JPEG at quality Q (1–100): 8 × 8 block noise as "
                         "compressed products carry (default: none)")
+    p.add_argument("--reference", choices=["projected", "geographic"],
+                   help="also write an SRTM-like reference DEM, srtm.tif: projected (90 m cells of "
+                        "the scene's grid, the scene's constant geoid) or geographic (3\" cells of "
+                        "EPSG:4326, heights through a geoid grid, as SRTM is shipped)")
+    p.add_argument("--reference-noise-m", type=float, metavar="M",
+                   help="σ of the reference's white noise per cell, metres (default 2 projected, "
+                        "4 geographic)")
+    p.add_argument("--reference-geoid", metavar="GRID",
+                   help="geoid grid of the geographic reference's heights (default: the EGM96 "
+                        "grid on PROJ's data paths)")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.error = _one_line_error("prismstation simulate")
     p.set_defaults(func=run)
@@ -83,6 +94,7 @@ def run(args) -> int:
     out = Path(args.outdir)
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a folder", file=out)
+    geoid = _reference_geoid(args)
     shown = [-1]
 
     def progress(fraction: float) -> None:
@@ -112,9 +124,46 @@ def run(args) -> int:
     finally:
         if not args.quiet and shown[0] >= 0:
             print(file=sys.stderr)
+    if args.reference:
+        paths["reference"] = _write_reference(args, paths, out / "srtm.tif", geoid)
     print(f"wrote {', '.join(sorted(p.name for p in paths.values()))} into {out}")
     print(describe_terrain(json.loads(paths["truth"].read_text(encoding="utf-8"))["terrain"]))
+    if args.reference == "geographic":
+        print(f"srtm.tif: 3\" EPSG:4326, orthometric through {geoid.describe()} (a project "
+              f"reads it with new --geoid {geoid.path}; points.csv's orthometric heights use "
+              f"the scene's constant geoid)")
     return 0
+
+
+def _reference_geoid(args):
+    """The geoid of a geographic reference, checked before anything is simulated."""
+    from prismstation.io.geoid import GridGeoid, find_grid
+
+    noise = args.reference_noise_m
+    if noise is not None and not (noise >= 0 and noise <= 100):
+        raise InputError(f"--reference-noise-m must be between 0 and 100, got {noise}")
+    if args.reference != "geographic":
+        if args.reference_geoid:
+            raise InputError("--reference-geoid is for --reference geographic")
+        return None
+    grid = args.reference_geoid or find_grid()
+    if grid is None:
+        raise InputError("a geographic reference needs a geoid grid (EGM96 egm96_15.gtx) and "
+                         "none is on PROJ's data paths: give --reference-geoid GRID")
+    if not Path(grid).is_file():
+        raise InputError("geoid grid not found", file=grid)
+    return GridGeoid(grid)
+
+
+def _write_reference(args, paths, out: Path, geoid) -> Path:
+    from prismstation.sim.reference import make_geographic_reference, make_reference_dem
+
+    seed = args.seed + 1          # the reference's noise and voids: not the scene's draws
+    if args.reference == "geographic":
+        noise = 4.0 if args.reference_noise_m is None else args.reference_noise_m
+        return make_geographic_reference(paths["truth_dem"], out, geoid, noise_m=noise, seed=seed)
+    noise = 2.0 if args.reference_noise_m is None else args.reference_noise_m
+    return make_reference_dem(paths["truth_dem"], out, noise_m=noise, seed=seed)
 
 
 def describe_terrain(terrain: dict) -> str:

@@ -1,6 +1,8 @@
 """The rational function model (RPC00B) of a pushbroom image: ground ↔ image, with partials.
 
-Ground points are longitude and latitude in degrees (WGS 84) and ellipsoidal height in metres;
+Ground points are longitude and latitude in degrees (WGS 84; a longitude differs from the RPC's
+``LONG_OFF`` by less than half a turn, so an image across the antimeridian sees −179.9° and
+180.1° alike, and image → ground returns −180…180°) and ellipsoidal height in metres;
 image points are ``x`` = column and ``y`` = row in pixels, the project's convention: origin at
 the top-left *corner* of the top-left pixel, so the centre of pixel ``(i, j)`` is
 ``(i + 0.5, j + 0.5)``. RPCs count from the *centre* of the first pixel (``SAMP_OFF`` and
@@ -26,10 +28,17 @@ POLYNOMIALS = ("line_num", "line_den", "samp_num", "samp_den")
 #: the range each offset and scale may take on Earth (degrees, metres, pixels); outside it an
 #: RPC is refused: heights from below the Dead Sea to above Everest with margin, images of up to
 #: ten million pixels a side
-PLAUSIBLE = {"lat_off": (-90.0, 90.0), "lon_off": (-180.0, 360.0), "lat_scale": (-90.0, 90.0),
+PLAUSIBLE = {"lat_off": (-90.0, 90.0), "lon_off": (-360.0, 360.0), "lat_scale": (-90.0, 90.0),
              "lon_scale": (-180.0, 180.0), "h_off": (-1000.0, 10000.0), "h_scale": (-10000.0, 10000.0),
              "line_off": (-1e7, 1e7), "samp_off": (-1e7, 1e7), "line_scale": (-1e7, 1e7),
              "samp_scale": (-1e7, 1e7)}
+
+
+def wrap180(lon):
+    """Longitudes (degrees) beyond ±180 brought back by a turn; others untouched (bit for bit):
+    an RPC whose ``LONG_OFF`` is near the antimeridian sees −179.9° as 180.1°."""
+    lon = np.asarray(lon, dtype=float)
+    return np.where(lon > 180.0, lon - 360.0, np.where(lon < -180.0, lon + 360.0, lon))
 
 
 def _terms(L, P, H):
@@ -129,7 +138,7 @@ class Rpc:
     # ------------------------------------------------------------------ model
     def _normalise(self, lon, lat, h):
         lon, lat, h = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (lon, lat, h)))
-        return ((lon - self.lon_off) / self.lon_scale, (lat - self.lat_off) / self.lat_scale,
+        return ((wrap180(lon - self.lon_off)) / self.lon_scale, (lat - self.lat_off) / self.lat_scale,
                 (h - self.h_off) / self.h_scale)
 
     def project(self, lon, lat, h) -> tuple[np.ndarray, np.ndarray]:
@@ -192,7 +201,7 @@ class Rpc:
                 lat = lat + np.where(ok, 0.0, (a * ey - c * ex) / det)
         px, py = self.project(lon, lat, h)
         ok = np.isfinite(px) & (np.hypot(x - px, y - py) <= tol)
-        return np.where(ok, lon, np.nan), np.where(ok, lat, np.nan), ok
+        return np.where(ok, wrap180(lon), np.nan), np.where(ok, lat, np.nan), ok
 
     def _first_guess(self, x, y, h):
         """Affine image → ground fitted on a 5 × 5 grid of the ground domain at the points'

@@ -21,7 +21,7 @@ from typing import Sequence
 import numpy as np
 
 from prismstation.core.estimate import SINGULAR, degenerate
-from prismstation.core.rpc import Rpc
+from prismstation.core.rpc import Rpc, wrap180
 from prismstation.core.rpc_bias import (BIAS_MODELS, BiasedRpc, _inv3, _rays, bias_design,
                                         intersect_points, metres_per_degree)
 from prismstation.errors import ModelError
@@ -219,7 +219,7 @@ def _normal_solve(models, point, image, xy, w, D, lon, lat, h, n, gcp_point, gcp
     vg = np.zeros((0, 3))
     if len(gcp_point):
         p = gcp_point
-        vg = np.column_stack([(gcp_llh[:, 0] - lon[p]) * ke[p], (gcp_llh[:, 1] - lat[p]) * kn[p],
+        vg = np.column_stack([wrap180(gcp_llh[:, 0] - lon[p]) * ke[p], (gcp_llh[:, 1] - lat[p]) * kn[p],
                               gcp_llh[:, 2] - h[p]])
         wg = 1.0 / gcp_sig ** 2
         for c in range(3):

@@ -20,7 +20,7 @@ import numpy as np
 from prismstation.core import rpc_solve
 from prismstation.core.recent import Recent
 from prismstation.core.results import PointColumns
-from prismstation.core.rpc import Rpc
+from prismstation.core.rpc import Rpc, wrap180
 from prismstation.core.rpc_bias import BIAS_MODELS, RpcBias, bias_design
 from prismstation.core.sensor import STEP_M
 from prismstation.core.solution import Control, Settings, Solution, statistics
@@ -85,8 +85,8 @@ def _partials_en(project_with_partials, projection, E, N, h):
     lon, lat = np.asarray(lon, float).reshape(5, -1), np.asarray(lat, float).reshape(5, -1)
     x, y, Jg = project_with_partials(lon[0], lat[0], h)
     D = np.empty((len(E), 2, 2))                      # ∂(lon, lat)/∂(E, N), degrees per metre
-    D[:, 0, 0], D[:, 1, 0] = (lon[1] - lon[2]) / (2 * STEP_M), (lat[1] - lat[2]) / (2 * STEP_M)
-    D[:, 0, 1], D[:, 1, 1] = (lon[3] - lon[4]) / (2 * STEP_M), (lat[3] - lat[4]) / (2 * STEP_M)
+    D[:, 0, 0], D[:, 1, 0] = wrap180(lon[1] - lon[2]) / (2 * STEP_M), (lat[1] - lat[2]) / (2 * STEP_M)
+    D[:, 0, 1], D[:, 1, 1] = wrap180(lon[3] - lon[4]) / (2 * STEP_M), (lat[3] - lat[4]) / (2 * STEP_M)
     J = np.concatenate([Jg[:, :, :2] @ D, Jg[:, :, 2:]], axis=2)
     return np.column_stack([x, y]), J
 

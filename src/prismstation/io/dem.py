@@ -1,5 +1,7 @@
 """DEMs and DSMs: the one reader (SRTM ``.hgt``, GeoTIFF or any single-band raster with a CRS,
 on its own grid or resampled onto a target grid, optionally made ellipsoidal) and a writer.
+Resampling onto another grid goes through :mod:`prismstation.io.reproject` (positions exact to
+:data:`~prismstation.io.reproject.ERROR_PX` of a source cell).
 
 Grids are ``(crs, transform, shape)``: ``transform`` a rasterio ``Affine`` from pixel
 ``(col, row)`` (docs/model.md §1, origin at the top-left corner of the top-left pixel) to CRS
@@ -15,16 +17,15 @@ import pyproj
 import rasterio
 from rasterio._err import CPLE_BaseError
 from rasterio.crs import CRS
-from rasterio.enums import Resampling
 from rasterio.errors import RasterioError
 from rasterio.transform import Affine
-from rasterio.vrt import WarpedVRT
-from rasterio.warp import calculate_default_transform, reproject, transform_bounds
-from rasterio.windows import Window
+from rasterio.warp import transform_bounds
+from rasterio.windows import Window, from_bounds
 
 from prismstation.errors import InputError, RasterReadError
 from prismstation.io.atomic import atomic_path, cause_text, raster_check
 from prismstation.io.geoid import to_ellipsoidal
+from prismstation.io.reproject import warp_array, warp_band
 from prismstation.io.georef import height_metres_per_unit
 from prismstation.io.windows import CheckedRaster
 
@@ -95,8 +96,6 @@ def _needed_window(ds, target):
     margin of two cells (None: the whole file), so that a DEM is read only where it is used."""
     if target is None:
         return None
-    from rasterio.warp import transform_bounds
-    from rasterio.windows import Window, from_bounds
     crs, t, (rows, cols) = target
     xs, ys = zip(*(t * (c, r) for c, r in ((0, 0), (cols, 0), (0, rows), (cols, rows))))
     try:
@@ -130,16 +129,13 @@ def _read_source(path: Path, what: str, target=None):
         return arr, ds.crs, transform
 
 
-def _auto_resampling(src, src_crs, src_transform, crs, transform) -> str:
-    """``"average"`` when the source cells are finer than half the target cells, else bilinear."""
-    rows, cols = src.shape
-    left, top = src_transform * (0, 0)
-    right, bottom = src_transform * (cols, rows)
-    t, _, _ = calculate_default_transform(src_crs, crs, cols, rows, min(left, right),
-                                          min(top, bottom), max(left, right), max(top, bottom))
-    src_cell = np.sqrt(abs(t.a * t.e - t.b * t.d))
-    dst_cell = np.sqrt(abs(transform.a * transform.e - transform.b * transform.d))
-    return "average" if src_cell < 0.5 * dst_cell else "bilinear"
+def _auto_resampling(src_crs, src_transform, src_shape, crs, transform, shape) -> str:
+    """``"average"`` when the source cells are finer than half the target cells, else bilinear
+    (cell sizes in metres, :func:`local_metric_transform`)."""
+    def cell(c, t, s):
+        a, b, _, d, e, _ = local_metric_transform(c, t, s)
+        return np.sqrt(abs(a * e - b * d))
+    return "average" if cell(src_crs, src_transform, src_shape) < 0.5 * cell(crs, transform, shape) else "bilinear"
 
 
 def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
@@ -175,13 +171,11 @@ def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
         raise ValueError("give the target grid's crs, transform and shape together, or none")
     else:
         out_crs, out_t = CRS.from_user_input(crs), Affine(*tuple(transform)[:6])
-        heights = np.full(tuple(shape), np.nan)
         try:
             if resampling == "auto":
-                resampling = _auto_resampling(src, src_crs, src_transform, out_crs, out_t)
-            reproject(src, heights, src_transform=src_transform, src_crs=src_crs,
-                      src_nodata=np.nan, dst_transform=out_t, dst_crs=out_crs, dst_nodata=np.nan,
-                      resampling=Resampling[resampling])
+                resampling = _auto_resampling(src_crs, src_transform, src.shape, out_crs, out_t, shape)
+            heights = warp_array(src, src_crs, src_transform, out_crs, out_t, shape,
+                                 resampling=resampling)
         except (RasterioError, CPLE_BaseError, KeyError) as exc:
             raise RasterReadError(f"{path}: cannot resample {what} ({cause_text(exc, str(path))})") from None
     kind = "orthometric"
@@ -203,13 +197,9 @@ def resample_to_grid(path, grid: DemGrid, *, resampling: str = "bilinear",
     with open_raster(path, what) as ds:
         if ds.crs is None:
             raise InputError(f"{what} has no coordinate reference system", file=path)
-        out = np.full(grid.shape, fill, dtype=dtype)
-        window = _needed_window(ds, (CRS.from_user_input(grid.crs), Affine(*tuple(grid.transform)[:6]), grid.shape))
         try:
-            reproject(source=ds.read(1, window=window), destination=out,
-                      src_transform=ds.transform if window is None else ds.window_transform(window),
-                      src_crs=ds.crs, src_nodata=ds.nodata, dst_transform=grid.transform,
-                      dst_crs=grid.crs, dst_nodata=fill, resampling=Resampling[resampling])
+            out = warp_band(ds.dataset, grid.crs, grid.transform, grid.shape, resampling=resampling,
+                            fill=fill, dtype=dtype)
         except Exception as exc:
             raise RasterReadError(f"{path}: cannot read or resample {what} onto the DSM grid "
                                   f"({cause_text(exc, str(path))})") from None
@@ -271,9 +261,6 @@ def local_metric_transform(crs, transform, shape) -> tuple[float, ...]:
 
 
 # ------------------------------------------------------------ a DEM read window by window
-#: the largest error (source pixels) the warper's approximate transformer may leave in the
-#: source position of a target cell (GDAL's default, 0.125, moves a 3″ grid on UTM by metres)
-WARP_ERROR_PX = 0.001
 
 
 def dem_height_kind(path) -> str | None:
@@ -302,7 +289,7 @@ def read_dem_window(path, crs, transform, shape, *, resampling: str = "bilinear"
                     what: str = "DEM") -> np.ndarray:
     """Band 1 of the DEM ``path`` on the grid ``(crs, transform, shape)``: float32 metres as the
     file holds them, NaN where void or outside it. Only the part of the file the grid needs is
-    read (GDAL's warper; positions exact to :data:`WARP_ERROR_PX` of a source cell), so a tile
+    read (:func:`prismstation.io.reproject.warp_band`), so a tile
     of a large DSM costs a tile's memory. ``resampling``: a ``rasterio.enums.Resampling`` name
     (``"min"`` and ``"max"`` give a height range)."""
     path = Path(path)
@@ -314,11 +301,8 @@ def read_dem_window(path, crs, transform, shape, *, resampling: str = "bilinear"
             nodata = SRTM_VOID                  # SRTM voids even without a nodata tag
         rows, cols = (int(v) for v in shape)
         try:
-            with WarpedVRT(ds.dataset, crs=CRS.from_user_input(crs), transform=Affine(*tuple(transform)[:6]),
-                           width=cols, height=rows, resampling=Resampling[resampling],
-                           tolerance=WARP_ERROR_PX, src_nodata=nodata, nodata=np.nan,
-                           dtype="float32") as vrt:
-                out = vrt.read(1)
+            out = warp_band(ds.dataset, crs, transform, (rows, cols), resampling=resampling,
+                            src_nodata=nodata, fill=np.nan, dtype=np.float32)
         except (RasterioError, CPLE_BaseError, KeyError) as exc:
             raise RasterReadError(f"{path}: cannot read {what} onto a grid "
                                   f"({cause_text(exc, str(path))})") from None
@@ -330,7 +314,6 @@ def read_dem_window(path, crs, transform, shape, *, resampling: str = "bilinear"
 def dem_bounds(path, crs, what: str = "DEM") -> tuple[float, float, float, float]:
     """``(x0, y0, x1, y1)``: the extent of the DEM ``path`` in ``crs`` (its corners and edges
     transformed)."""
-    from rasterio.warp import transform_bounds
     with open_raster(path, what) as ds:
         if ds.crs is None:
             raise InputError(f"{what} has no coordinate reference system", file=path)

@@ -1,7 +1,8 @@
 """Geoid undulation ``Ngeoid`` (metres) so that ``h = H + Ngeoid`` (docs/model.md §1).
 
 A constant, or a geoid grid (EGM96 ``egm96_15.gtx`` or any grid GDAL reads) sampled
-bilinearly at the points' geographic position (converted from the project CRS by pyproj).
+bilinearly at the points' geographic position (converted from the project CRS by pyproj at
+every point: :func:`prismstation.io.reproject.grid_pixels`).
 Never a silent no-op: a missing grid is an error, not zero.
 """
 from __future__ import annotations
@@ -17,6 +18,7 @@ from scipy.ndimage import map_coordinates
 
 from prismstation.errors import InputError, RasterReadError
 from prismstation.io.inputs import open_raster_file
+from prismstation.io.reproject import grid_pixels
 
 GRID_NAMES = ("egm96_15.gtx", "us_nga_egm96_15.tif", "egm08_25.gtx", "us_nga_egm08_25.tif")
 
@@ -73,24 +75,19 @@ class GridGeoid:
         if t.b or t.d:
             raise InputError("a rotated geoid grid is not supported", self.path)
         self._grid = grid
-        self._x0, self._dx, self._y0, self._dy = t.c, t.a, t.f, t.e
+        self._transform = t
         self._wraps = abs(grid.shape[1] * t.a - 360.0) < 1e-6
-        self._transformers: dict = {}
 
     def undulation(self, E, N, crs) -> np.ndarray:
         """Undulation at map points ``E``, ``N`` (any shape) of ``crs``; NaN outside the grid."""
-        key = str(crs)
-        if key not in self._transformers:
-            self._transformers[key] = pyproj.Transformer.from_crs(crs, "EPSG:4326", always_xy=True)
-        lon, lat = self._transformers[key].transform(np.asarray(E, float), np.asarray(N, float))
-        col = (np.asarray(lon) - self._x0) / self._dx - 0.5
-        row = (np.asarray(lat) - self._y0) / self._dy - 0.5
+        col, row = grid_pixels(E, N, crs, "EPSG:4326", self._transform)
+        col, row = np.asarray(col) - 0.5, np.asarray(row) - 0.5     # cell centres at integers
         grid = self._grid
         if self._wraps:
             col = np.mod(col, grid.shape[1])
             grid = np.concatenate([grid, grid[:, :1]], axis=1)
         return map_coordinates(grid, [np.ravel(row), np.ravel(col)], order=1, mode="constant",
-                               cval=np.nan).reshape(np.shape(lon))
+                               cval=np.nan).reshape(np.shape(col))
 
     def describe(self) -> str:
         return f"grid {self.path.name}"

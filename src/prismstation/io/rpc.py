@@ -10,17 +10,22 @@
    is moved by ``(−c, −f)``;
 2. JAXA's ``RPC-<id>.txt`` beside ``IMG-<id>.tif`` / ``IMG-<band>-<id>.tif`` (read here: GDAL's
    ALOS reader needs the product's ``summary.txt`` or ``HDR`` file as well);
-3. ``<stem>.RPB``, ``<stem>_RPC.TXT``, ``RPC_<stem>.XML`` (DIMAP) beside the image;
+3. ``<stem>.RPB``, ``<stem>_RPC.TXT``, ``RPC_<stem>.XML`` (DIMAP) beside the image, and
+   ``RPC_<id>.XML`` beside a DIMAP product's first tile ``IMG_<id>_R1C1`` (other tiles are left
+   to GDAL, which places them in the product through its ``DIM_<id>.XML``);
 4. the RPCs GDAL finds (rasterio's ``ds.rpcs``): GeoTIFF RPC tags, NITF RPC00B, and side files
-   of products GDAL recognises.
+   of products GDAL recognises; a NITF ``RPC00A`` record is read here from GDAL's ``TRE``
+   metadata domain (GDAL reorders its terms wrongly).
 
-Side files are parsed here (not through GDAL) so that a bad file is reported with its line;
+Side files are parsed here (not through GDAL) so that a bad file is reported with its line, and
+so that an RPC00A order is recognised (GDAL reads ``.RPB`` and DIMAP RPC00A as RPC00B);
 the tags and NITF RPC00B come from rasterio, which reads them well. No package beyond rasterio
 is used: ``rpcm`` would add ``srtm4`` (SRTM tiles downloaded at run time) and ``shareloc``
 numba and xarray for the few hundred lines this needs.
 """
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -84,6 +89,9 @@ def find_rpc_files(image) -> list[Path]:
         if len(rest) > 3 and rest[2] == "-":          # IMG-<band>-<id>
             names += [f"RPC-{rest[3:]}.txt"]
     names += [f"{stem}.RPB", f"{stem}_RPC.TXT", f"RPC_{stem}.XML"]
+    m = re.fullmatch(r"IMG_(.+)_R1C1", stem, re.IGNORECASE)
+    if m:                                   # the first tile of a DIMAP product
+        names += [f"RPC_{m[1]}.XML"]
     found = (_sibling(d, n) for n in names)
     return [p for p in found if p is not None]
 
@@ -133,10 +141,15 @@ def read_rpc(path) -> Rpc:
         with open_raster_file(path, "image") as ds:
             rpcs = ds.rpcs
             driver = ds.driver
+            records = ds.tags(ns="TRE") if "TRE" in ds.tag_namespaces() else {}
     except RasterReadError as exc:
         raise InputError(str(exc).removeprefix(f"{path}: "), path) from None
+    if "RPC00A" in records and "RPC00B" not in records:
+        # GDAL reorders RPC00A's quadratic terms the wrong way round (LPH, L², P², H² as
+        # P², H², LPH, L²): tens of pixels off; the record is read here
+        return fmt.read_nitf_tre("RPC00A", records["RPC00A"], path)
     if rpcs is None:
         raise InputError("no RPCs found: none in the file's metadata (GeoTIFF tags, NITF "
-                         "RPC00B) and no side file (.geom, .RPB, _RPC.TXT, RPC_*.XML, "
+                         "RPC00B or RPC00A) and no side file (.geom, .RPB, _RPC.TXT, RPC_*.XML, "
                          "RPC-*.txt) beside it", path)
     return rpc_from_rasterio(rpcs, f"{path.name} ({driver} metadata through GDAL)")

@@ -1,10 +1,18 @@
-"""Parsers of the RPC side files users have: OSSIM ``.geom``, DigitalGlobe ``.RPB``,
-``_RPC.TXT``, Pléiades / SPOT DIMAP ``RPC_*.XML`` and JAXA's fixed-width ``RPC-*.txt``.
+"""Parsers of the RPC files users have: OSSIM ``.geom``, DigitalGlobe ``.RPB``,
+``_RPC.TXT``, Pléiades / SPOT / Pléiades Neo DIMAP ``RPC_*.XML``, JAXA's fixed-width
+``RPC-*.txt`` and the NITF ``RPC00A`` tagged record.
 
 Each returns a :class:`prismstation.core.rpc.Rpc` in its convention (RPC00B, 0-based image
 offsets with the first pixel's centre at 0, as GDAL reads them) or raises
 :class:`~prismstation.errors.InputError` naming the file, the line and the problem (a missing
-key, a wrong number of coefficients, a value that is not a number, a zero scale).
+key, a wrong number of coefficients, a value that is not a number, a zero scale, a polynomial
+order that is neither RPC00A nor RPC00B).
+
+**RPC00A** orders the 20 terms differently from RPC00B (the NITF tagged record of that name,
+a ``.RPB`` with ``specId = "RPC00A"``, a DIMAP file whose ``RESOURCE_ID`` is ``RPC00A``, an
+OSSIM ``.geom`` with ``polynomial_format: A``): 1, L, P, H, LP, LH, PH, **LPH, L², P², H²**,
+L³, **L²P, L²H, LP²**, P³, **P²H, LH², PH²**, H³. Read as RPC00B such coefficients put a
+point tens of pixels off; they are reordered here (:func:`rpc00a_to_b`).
 """
 from __future__ import annotations
 
@@ -21,6 +29,17 @@ from prismstation.errors import InputError, ModelError
 SCALARS = ("line_off", "samp_off", "lat_off", "lon_off", "h_off",
            "line_scale", "samp_scale", "lat_scale", "lon_scale", "h_scale")
 POLYS = ("line_num", "line_den", "samp_num", "samp_den")
+#: the RPC00B position of each RPC00A term, in RPC00A's order (module docstring)
+RPC00A_TO_B = (0, 1, 2, 3, 4, 5, 6, 10, 7, 8, 9, 11, 14, 17, 12, 15, 18, 13, 16, 19)
+#: the polynomial orders these readers know, by the names the formats give them
+ORDERS = ("RPC00A", "RPC00B")
+
+
+def rpc00a_to_b(coeffs) -> np.ndarray:
+    """``(20,)`` RPC00A-ordered coefficients in RPC00B's order."""
+    out = np.empty(20)
+    out[list(RPC00A_TO_B)] = np.asarray(coeffs, float)
+    return out
 
 
 class _Values:
@@ -40,10 +59,19 @@ class _Values:
             raise InputError(f"{what}: {text.strip()!r} is not a finite number", self.path, line)
         return v
 
+    def order(self, value: str, what: str, line: int | None, fmt: str) -> str:
+        """The polynomial order a file states (``RPC00A`` or ``RPC00B``), else refused."""
+        v = value.strip().strip('"').strip("'").strip().upper()
+        if v not in ORDERS:
+            raise InputError(f"{fmt}: {what} {v!r} is not a polynomial order this reader "
+                             f"knows ({' or '.join(ORDERS)})", self.path, line)
+        return v
+
     def build(self, fmt: str, names: dict[str, str], coeff_names: dict[str, str],
-              index_base: int = 1) -> Rpc:
+              index_base: int = 1, order: str = "RPC00B") -> Rpc:
         """Check and convert: ``names`` maps our scalar name to the file's key, ``coeff_names``
-        our polynomial name to the file's key (messages quote the file's own names)."""
+        our polynomial name to the file's key (messages quote the file's own names);
+        ``order`` the file's term order (RPC00A is reordered to RPC00B)."""
         vals = {}
         for ours in SCALARS:
             key = names[ours]
@@ -70,8 +98,11 @@ class _Values:
             if ours.endswith("_den") and not np.any(polys[ours]):
                 raise InputError(f"{fmt}: {key} is all zeros (a denominator must not be)",
                                  self.path, got[0][1])
+            if order == "RPC00A":
+                polys[ours] = rpc00a_to_b(polys[ours])
+        how = fmt if order == "RPC00B" else f"{fmt}, RPC00A reordered to RPC00B"
         try:
-            return Rpc(**vals, **polys, source=f"{Path(self.path).name} ({fmt})")
+            return Rpc(**vals, **polys, source=f"{Path(self.path).name} ({how})")
         except ModelError as exc:  # pragma: no cover - every check above comes first
             raise InputError(f"{fmt}: {exc}", self.path) from None
 
@@ -94,6 +125,7 @@ _GEOM_COEFFS = {p: p + "_coeff" for p in POLYS}
 def read_geom(path) -> Rpc:
     """OSSIM keyword list (``key:  value`` lines; coefficients ``line_num_coeff_00`` … ``_19``).
 
+    ``polynomial_format: A`` is RPC00A (reordered), ``B`` (or none) RPC00B.
     OSSIM's image coordinates are 0-based with the first pixel's centre at 0, as GDAL's. Its
     adjustable image-space parameters (the current ``adjustment_N``) move the image point by
     ``center + sigma × parameter``: ``intrack_offset`` is added to the line, ``crtrack_offset``
@@ -117,11 +149,10 @@ def read_geom(path) -> Rpc:
         m = re.fullmatch(r"(line|samp)_(num|den)_coeff_(\d+)", key)
         if m:
             v.polys[f"{m[1]}_{m[2]}"][int(m[3])] = (value, n)
-    fmt = kv.get("polynomial_format", ("B", None))
-    if fmt[0].upper() != "B":
-        raise InputError(f"OSSIM geom: polynomial_format {fmt[0]!r} (only RPC00B, 'B', is read)",
-                         path, fmt[1])
-    rpc = v.build("OSSIM geom", _GEOM_NAMES, _GEOM_COEFFS, index_base=0)
+    fmt, fmt_line = kv.get("polynomial_format", ("B", None))
+    order = v.order(f"RPC00{fmt}" if fmt.strip().upper() in ("A", "B") else fmt,
+                    "polynomial_format", fmt_line, "OSSIM geom")
+    rpc = v.build("OSSIM geom", _GEOM_NAMES, _GEOM_COEFFS, index_base=0, order=order)
     shift = {"intrack_offset": 0.0, "crtrack_offset": 0.0}
     current = kv.get("current_adjustment", ("0", None))[0]
     prefix = f"adjustment_{current}.adj_param_"
@@ -153,8 +184,10 @@ _RPB_COEFFS = {"line_num": "lineNumCoef", "line_den": "lineDenCoef",
 
 
 def read_rpb(path) -> Rpc:
-    """DigitalGlobe ``.RPB``: ``key = value;`` and ``key = ( c1, …, c20 );`` over lines."""
+    """DigitalGlobe ``.RPB``: ``key = value;`` and ``key = ( c1, …, c20 );`` over lines;
+    ``specId = "RPC00A"`` is RPC00A (reordered), ``"RPC00B"`` (or none) RPC00B."""
     v = _Values(path)
+    order = "RPC00B"
     by_key = {k.lower(): o for o, k in _RPB_NAMES.items()}
     coef_key = {k.lower(): o for o, k in _RPB_COEFFS.items()}
     open_list, items = None, []
@@ -171,7 +204,9 @@ def read_rpb(path) -> Rpc:
         if not sep:
             continue
         value = value.strip().rstrip(";").strip()
-        if key in by_key:
+        if key == "specid":
+            order = v.order(value, "specId", n, "RPB")
+        elif key in by_key:
             v.scalars[by_key[key]] = (value, n)
         elif key in coef_key:
             open_list, items = coef_key[key], []
@@ -182,7 +217,7 @@ def read_rpb(path) -> Rpc:
                 open_list = None
     if open_list is not None:
         raise InputError(f"RPB: the list {_RPB_COEFFS[open_list]} is not closed", path)
-    return v.build("RPB", _RPB_NAMES, _RPB_COEFFS)
+    return v.build("RPB", _RPB_NAMES, _RPB_COEFFS, order=order)
 
 
 # ---------------------------------------------------------------------- _RPC.TXT
@@ -212,12 +247,16 @@ def read_rpc_txt(path) -> Rpc:
 
 # ---------------------------------------------------------------------- DIMAP RPC_*.XML
 def read_dimap_xml(path) -> Rpc:
-    """Pléiades / SPOT 6-7 DIMAP v2 ``RPC_*.XML``: ``Global_RFM/Inverse_Model`` (ground →
-    image) ``LINE_NUM_COEFF_1`` … and ``RFM_Validity`` offsets and scales.
+    """Pléiades / SPOT 6-7 DIMAP v2 and Pléiades Neo DIMAP v3 ``RPC_*.XML``: the ground → image
+    model (``Global_RFM/Inverse_Model``; v3 ``GroundtoImage_Values``) ``LINE_NUM_COEFF_1`` …,
+    the ``RFM_Validity`` offsets and scales, and ``Resource_Reference/RESOURCE_ID`` the
+    polynomial order (``RPC00A`` reordered; ``RPC00B`` or none as is).
 
     Pléiades and SPOT 6/7 count image coordinates from 1 (the first pixel's centre at 1);
     their ``LINE_OFF``/``SAMP_OFF`` lose 1 here, as GDAL does. Pléiades Neo (profile
-    ``PNEO…``) counts from 0 and is read as is.
+    ``PNEO…``) is read as counting from 0, as GDAL 3.10 reads it (whatever its
+    ``ImagetoGround_Validity_Domain`` says; CNES's shareloc takes v3 offsets as counted from
+    0.5 — half a pixel apart, which no sample at hand settles).
     """
     import xml.etree.ElementTree as ET
 
@@ -229,33 +268,62 @@ def read_dimap_xml(path) -> Rpc:
                          exc.position[0] if exc.position else None) from None
     lines = text.splitlines()
 
-    def line_of(tag):
+    def line_of(tag, after=0):
         pat = f"<{tag}>"
-        return next((i for i, s in enumerate(lines, 1) if pat in s), None)
+        return next((i for i, s in enumerate(lines, 1) if i > after and pat in s), None)
 
     v = _Values(path)
     names = {o: o.upper().replace("LON_", "LONG_").replace("H_", "HEIGHT_") for o in SCALARS}
     for ours, tag in names.items():
         el = root.find(f".//RFM_Validity/{tag}")
         if el is not None:
-            v.scalars[ours] = (el.text or "", line_of(tag))
-    inv = root.find(".//Inverse_Model")
+            v.scalars[ours] = (el.text or "", line_of(tag, line_of("RFM_Validity") or 0))
+    block = next(((b, el) for b in ("Inverse_Model", "GroundtoImage_Values")
+                  if (el := root.find(f".//{b}")) is not None), None)
+    if block is None:
+        raise InputError("DIMAP RPC: no ground → image model (Inverse_Model or GroundtoImage_Values)",
+                         path)
+    after = line_of(block[0]) or 0
     for ours in POLYS:
-        for el in ([] if inv is None else inv):
+        for el in block[1]:
             m = re.fullmatch(rf"{ours.upper()}_COEFF_(\d+)", el.tag)
             if m:
-                v.polys[ours][int(m[1]) - 1] = (el.text or "", line_of(el.tag))
+                v.polys[ours][int(m[1]) - 1] = (el.text or "", line_of(el.tag, after))
+    order = "RPC00B"
+    rid = root.find(".//Resource_Reference/RESOURCE_ID")
+    if rid is not None:
+        order = v.order(rid.text or "", "RESOURCE_ID", line_of("RESOURCE_ID"), "DIMAP RPC")
     coeffs = {p: p.upper() + "_COEFF" for p in POLYS}
-    rpc = v.build("DIMAP RPC", names, coeffs)
+    rpc = v.build("DIMAP RPC", names, coeffs, order=order)
     profile = (root.findtext(".//METADATA_PROFILE") or "").strip().upper()
     return rpc if profile.startswith("PNEO") else rpc.shifted(dx=-1.0, dy=-1.0)
 
 
-# ---------------------------------------------------------------------- JAXA RPC-*.txt
-#: field widths of JAXA's one-line layout (GDAL's ALOS metadata reader uses the same)
-_ALOS_WIDTHS = (6, 5, 8, 9, 5, 6, 5, 8, 9, 5)
-_ALOS_NAMES = {o: o.upper().replace("LON_", "LONG_").replace("H_", "HEIGHT_") for o in SCALARS}
-_ALOS_COEFF_WIDTH = 12
+# ---------------------------------------------------------------------- fixed width
+#: field widths of the NITF RPC00A/RPC00B layout from LINE_OFF on (JAXA's RPC-*.txt is that
+#: layout without its first fields; GDAL's ALOS and NITF readers use the same widths)
+_FIXED_WIDTHS = (6, 5, 8, 9, 5, 6, 5, 8, 9, 5)
+_FIXED_NAMES = {o: o.upper().replace("LON_", "LONG_").replace("H_", "HEIGHT_") for o in SCALARS}
+_COEFF_WIDTH = 12
+#: SUCCESS (1), ERR_BIAS (7), ERR_RAND (7): what a NITF record holds before LINE_OFF
+_NITF_HEAD = 15
+
+
+def _fixed_width(v: _Values, line: str, line_no: int | None, fmt: str, order: str = "RPC00B") -> Rpc:
+    """The ten offsets and scales and 4 × 20 coefficients of ``line`` (from LINE_OFF on)."""
+    need = sum(_FIXED_WIDTHS) + 80 * _COEFF_WIDTH
+    if len(line.rstrip("\r\n")) < need:
+        raise InputError(f"{fmt}: the line has {len(line)} characters, the fixed-width "
+                         f"layout needs {need}", v.path, line_no)
+    pos = 0
+    for ours, w in zip(SCALARS, _FIXED_WIDTHS):
+        v.scalars[ours] = (line[pos:pos + w], line_no)
+        pos += w
+    for ours in POLYS:
+        for i in range(20):
+            v.polys[ours][i] = (line[pos:pos + _COEFF_WIDTH], line_no)
+            pos += _COEFF_WIDTH
+    return v.build(fmt, _FIXED_NAMES, {p: p.upper() + "_COEFF" for p in POLYS}, order=order)
 
 
 def read_alos_txt(path) -> Rpc:
@@ -264,18 +332,13 @@ def read_alos_txt(path) -> Rpc:
     LAT_SCALE (8), LONG_SCALE (9), HEIGHT_SCALE (5), then 4 × 20 coefficients of 12 characters
     (line numerator, line denominator, sample numerator, sample denominator)."""
     text = _read_text(path)
-    first = text.splitlines()[0] if text.strip() else ""
-    need = sum(_ALOS_WIDTHS) + 80 * _ALOS_COEFF_WIDTH
-    if len(first.rstrip("\r\n")) < need:
-        raise InputError(f"JAXA RPC: the line has {len(first)} characters, the fixed-width "
-                         f"layout needs {need}", path, 1)
+    return _fixed_width(_Values(path), text.splitlines()[0] if text.strip() else "", 1, "JAXA RPC")
+
+
+def read_nitf_tre(tag: str, record: str, path) -> Rpc:
+    """A NITF ``RPC00A`` or ``RPC00B`` tagged record (``record``: its 1,041 characters, as
+    GDAL's ``TRE`` metadata domain holds them): SUCCESS, ERR_BIAS, ERR_RAND, then the layout of
+    :func:`read_alos_txt`. ``RPC00A`` is reordered."""
     v = _Values(path)
-    pos = 0
-    for ours, w in zip(SCALARS, _ALOS_WIDTHS):
-        v.scalars[ours] = (first[pos:pos + w], 1)
-        pos += w
-    for ours in POLYS:
-        for i in range(20):
-            v.polys[ours][i] = (first[pos:pos + _ALOS_COEFF_WIDTH], 1)
-            pos += _ALOS_COEFF_WIDTH
-    return v.build("JAXA RPC", _ALOS_NAMES, {p: p.upper() + "_COEFF" for p in POLYS})
+    order = v.order(tag, "tagged record", None, "NITF")
+    return _fixed_width(v, record[_NITF_HEAD:], None, f"NITF {tag}", order=order)

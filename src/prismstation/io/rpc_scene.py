@@ -3,8 +3,10 @@
 :func:`rpc_to_dict`) and the scene of a set of images (:func:`write_scene_for_images`, behind
 ``prismstation new --images``).
 
-The scene's CRS is the WGS 84 UTM zone of the images' centre; the RPC's heights are
-ellipsoidal (WGS 84), like every height the engine computes with.
+The scene's CRS is the WGS 84 UTM zone of the images' common footprint (each image's ground
+footprint at its RPC's height offset, intersected: :func:`common_footprint`); images that see
+no common ground are refused. The RPC's heights are ellipsoidal (WGS 84), like every height
+the engine computes with.
 """
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from pyproj import CRS, Transformer
 
-from prismstation.core.rpc import POLYNOMIALS, SCALARS, Rpc
+from prismstation.core.rpc import POLYNOMIALS, SCALARS, Rpc, wrap180
 from prismstation.core.rpc_model import RpcModel, RpcView, ground_sample_distance
 from prismstation.errors import InputError, ModelError, RasterReadError
 from prismstation.io.inputs import open_raster_file
@@ -63,6 +65,92 @@ def utm_crs(lon: float, lat: float) -> str:
     return f"EPSG:{32600 + zone if lat >= 0 else 32700 + zone}"
 
 
+def ground_footprint(rpc: Rpc, shape, name: str, per_edge: int = 8) -> np.ndarray:
+    """``(k, 2)`` lon, lat (degrees) along the border of an image of ``shape`` ``(rows, cols)``
+    at the RPC's height offset, clockwise from the top-left corner (points the RPC cannot
+    invert are left out); fewer than three refused naming ``name``."""
+    rows, cols = shape
+    t = np.linspace(0.0, 1.0, per_edge, endpoint=False)
+    x = np.concatenate([t * cols, np.full(per_edge, cols), (1 - t) * cols, np.zeros(per_edge)])
+    y = np.concatenate([np.zeros(per_edge), t * rows, np.full(per_edge, rows), (1 - t) * rows])
+    lon, lat, ok = rpc.localize_masked(x, y, np.full(x.shape, rpc.h_off))
+    if ok.sum() < 3:
+        raise InputError(f"the RPC cannot be inverted along the image's border at its height offset "
+                         f"({rpc.h_off:g} m): no ground footprint", name)
+    return np.column_stack([lon[ok], lat[ok]])
+
+
+def _hull(p: np.ndarray) -> np.ndarray:
+    """Convex hull ``(k, 2)``, counter-clockwise (Andrew's monotone chain)."""
+    pts = sorted(map(tuple, p))
+
+    def half(seq):
+        out = []
+        for q in seq:
+            while len(out) >= 2 and ((out[-1][0] - out[-2][0]) * (q[1] - out[-2][1])
+                                     - (out[-1][1] - out[-2][1]) * (q[0] - out[-2][0])) <= 0:
+                out.pop()
+            out.append(q)
+        return out[:-1]
+    return np.array(half(pts) + half(pts[::-1]), float).reshape(-1, 2)
+
+
+def _clip(subject: np.ndarray, clip: np.ndarray) -> np.ndarray:
+    """The part of convex polygon ``subject`` inside convex ``clip`` (both counter-clockwise;
+    Sutherland–Hodgman): ``(k, 2)``, empty when they do not meet."""
+    out = subject
+    for a, b in zip(clip, np.roll(clip, -1, axis=0)):
+        if len(out) == 0:
+            break
+        side = (b[0] - a[0]) * (out[:, 1] - a[1]) - (b[1] - a[1]) * (out[:, 0] - a[0])
+        nxt = []
+        for i in range(len(out)):
+            j = (i + 1) % len(out)
+            if side[i] >= 0:
+                nxt.append(out[i])
+            if (side[i] >= 0) != (side[j] >= 0):
+                nxt.append(out[i] + (out[j] - out[i]) * side[i] / (side[i] - side[j]))
+        out = np.array(nxt, float).reshape(-1, 2)
+    return out
+
+
+def _area(p: np.ndarray) -> float:
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))) if len(p) >= 3 else 0.0
+
+
+def common_footprint(footprints: dict) -> tuple[float, float]:
+    """Longitude, latitude (degrees) of the centroid of the ground every image sees:
+    ``footprints`` name → :func:`ground_footprint`. The footprints are intersected as convex
+    polygons on a plane tangent at the first one (degrees of longitude scaled by the cosine of
+    the latitude, across ±180° alike). Refused in one line naming the images when two of them
+    do not overlap, or when all overlap pairwise but see nothing in common."""
+    names = list(footprints)
+    lon0 = float(np.mean(footprints[names[0]][:, 0]))
+    lat0 = float(np.mean(np.concatenate([f[:, 1] for f in footprints.values()])))
+    k = math.cos(math.radians(lat0))
+    plane = {n: _hull(np.column_stack([wrap180(f[:, 0] - lon0) * k, f[:, 1]]))
+             for n, f in footprints.items()}
+    apart = [(a, b) for i, a in enumerate(names) for b in names[i + 1:]
+             if _area(_clip(plane[a], plane[b])) <= 0.0]
+    if apart:
+        pairs = "; ".join(f"{a} and {b}" for a, b in apart)
+        raise InputError(f"the images do not overlap: {pairs} see no common ground (footprints at "
+                         "their RPCs' height offsets): a project needs images of one place")
+    common = plane[names[0]]
+    for n in names[1:]:
+        common = _clip(common, plane[n])
+    area = _area(common)
+    if area <= 0.0:
+        raise InputError(f"the images see no ground in common, though each pair overlaps: "
+                         f"{', '.join(names)}")
+    x, y = common[:, 0], common[:, 1]
+    cross = x * np.roll(y, -1) - np.roll(x, -1) * y
+    cx = float(np.sum((x + np.roll(x, -1)) * cross)) / (6 * area)
+    cy = float(np.sum((y + np.roll(y, -1)) * cross)) / (6 * area)
+    return float(wrap180(lon0 + cx / k)), cy
+
+
 def rpc_to_dict(rpc: Rpc) -> dict:
     """The RPC as a scene file stores it: the ten offsets and scales and the four polynomials
     under :data:`prismstation.core.rpc.SCALARS` / ``POLYNOMIALS`` names (GDAL's conventions:
@@ -107,10 +195,20 @@ def rpc_view(name: str, rpc: Rpc, projection: LonLatProjection, image: str | Non
     return RpcView(name, rpc, projection, float(pixel_size_m), image, shape)
 
 
+def _shape(image: Path) -> tuple[int, int]:
+    """``(rows, cols)`` of an image, opened through :func:`open_raster_file`."""
+    try:
+        with open_raster_file(image, "image") as ds:
+            return ds.height, ds.width
+    except RasterReadError as exc:
+        raise InputError(str(exc).removeprefix(f"{image}: "), image) from None
+
+
 def scene_dict_for_images(images, out_dir) -> dict:
     """The scene of ``images`` (two or more files with RPCs, read by
     :func:`prismstation.io.rpc.read_rpc`): views named by the files' stems, in the given order,
-    image paths relative to ``out_dir``."""
+    image paths relative to ``out_dir``, the CRS the UTM zone of their common footprint
+    (:func:`common_footprint`; images that do not overlap are refused)."""
     paths = [Path(p) for p in images]
     if len(paths) < 2:
         raise InputError(f"an RPC project needs two or more images, got {len(paths)}",
@@ -124,8 +222,8 @@ def scene_dict_for_images(images, out_dir) -> dict:
                              "by its file's name, rename one", p)
         names[p.stem] = p
     rpcs = {name: read_rpc(p) for name, p in names.items()}
-    crs = utm_crs(float(np.mean([r.lon_off for r in rpcs.values()])),
-                  float(np.mean([r.lat_off for r in rpcs.values()])))
+    crs = utm_crs(*common_footprint({p.name: ground_footprint(rpcs[n], _shape(p), str(p))
+                                     for n, p in names.items()}))
     out_dir = Path(out_dir).resolve()
     views = {}
     for name, p in names.items():

@@ -28,6 +28,7 @@ from scipy import ndimage
 
 from prismstation.errors import InputError
 from prismstation.io.dem import SRTM_VOID, open_raster
+from prismstation.io.reproject import grid_pixels
 
 #: largest share of void posts under the scene that is filled; more and the DEM is refused there
 MAX_VOID_SHARE = 0.05
@@ -64,8 +65,7 @@ class DemTerrain:
 
     def _to_dem_pixels(self, e, n) -> tuple[np.ndarray, np.ndarray]:
         """Continuous DEM array indices ``(col, row)``, post centres at integers."""
-        x, y = Transformer.from_crs(self.scene_crs, self.crs, always_xy=True).transform(e, n)
-        col, row = ~self.transform @ (np.asarray(x), np.asarray(y))
+        col, row = grid_pixels(e, n, self.scene_crs, self.crs, self.transform)
         return np.asarray(col) - 0.5, np.asarray(row) - 0.5
 
     def heights(self, e0: float, n0: float, shape, spacing: float,

@@ -11,6 +11,7 @@ from prismstation.core.dsmstats import residual_sd_by_view, sample_stats, valida
 from prismstation.errors import InputError
 from prismstation.io.dem import DemGrid, read_dem, resample_to_grid
 from prismstation.io.geoid import undulation_on_grid
+from prismstation.ops.coregister import coregister_dems
 from prismstation.ops.validate import validate_dsm_files
 
 
@@ -124,10 +125,15 @@ def test_reference_in_another_crs_and_resolution(shared_data, tmp_path):
     # (GDAL's approximate transformer and kernel leave < 0.1 px, i.e. < 0.5 m here)
     assert abs(err.mean()) < 0.02 and np.abs(err).max() < 0.6 and np.abs(err).mean() < 0.2
     v, _ = validate_dsm_files(dsm_path, shared_data / "srtm" / "N44E005.hgt")
-    # the UTM tile is the .hgt resampled and rounded to whole metres
-    assert abs(v.overall.bias) < 0.05 and v.overall.max <= 0.5 + 1e-6 and v.overall.min >= -0.5 - 1e-6
-    assert v.overall.rmse == pytest.approx(1 / math.sqrt(12), rel=0.05)   # uniform rounding
+    assert abs(v.overall.bias) < 0.05
     assert v.overall.count > 0.9 * np.isfinite(grid.heights).sum()
+    # The UTM tile is the .hgt resampled by GDAL's default warp (its approximate transformer,
+    # 0.125 source pixel, on 83 km rows) and rounded to whole metres: read exactly, the .hgt
+    # lies 6 m south of it (±0.9 m), so the difference is more than rounding on the slopes;
+    # moved by that shift it is rounding again.
+    c = coregister_dems(dsm_path, shared_data / "srtm" / "N44E005.hgt", max_shift_m=100.0)
+    assert c.result.dy == pytest.approx(6.2, abs=3 * c.result.sigma_dy) and abs(c.result.dx) < 3 * c.result.sigma_dx
+    assert v.overall.rmse > 1.0 and c.result.nmad_after < 0.7
 
 
 def test_height_kinds_and_geoid(shared_data):

@@ -19,14 +19,14 @@ on, or whose transfer was rejected.
 
 *Automatic tie points…*: a grid over the N image (the first of other scenes) transferred to
 the other views, blunders rejected
-(:func:`prismstation.ops.tie_points.auto_tie_points`, with the reference DEM when one is loaded),
+(:func:`prismstation.ops.tie_points.find_tie_points`, as ``prismstation ties`` does, with the
+reference DEM when one is loaded),
 added as new tie points in one undoable step; a summary (how many added, not found and why,
 rejected as blunders, the across-track RMS) on the status line and, interactively, in a box.
 """
 from __future__ import annotations
 
 import math
-import re
 
 import pyqtgraph as pg
 import shiboken6
@@ -40,42 +40,11 @@ from prismstation.core.scene import reference_view
 from prismstation.gui import commands as cmd
 from prismstation.gui.tools._worker import Job, run_with_progress
 from prismstation.gui.views import DRIVE_TO_MAX_SCALE
-from prismstation.model.points import GroundPoint, Measurement
 from prismstation.gui.plain import plain
+from prismstation.model.points import Measurement
+from prismstation.ops.tie_points import tie_point_edits, ties_summary
 
 CANDIDATE_COLOUR = "#39ff14"
-
-
-def new_tie_ids(project, n: int, prefix: str = "T") -> list[str]:
-    """``n`` new point ids: the project's next id with ``prefix``
-    (:meth:`~prismstation.model.project.Project.new_point_id`: one more than the highest
-    number after it, zero-padded as the project's ids are) and the ones after it."""
-    first = project.new_point_id(prefix)
-    digits = re.search(r"\d+$", first).group()
-    k, width = int(digits), len(digits) if digits.startswith("0") else 0
-    return [f"{prefix}{k + i:0{width}d}" for i in range(n)]
-
-
-def ties_summary(summary: dict, ids: list[str], scene=None) -> str:
-    """What the automatic tie points did, in one paragraph: how many of the grid points were
-    added (their ids), how many were not found in the other views of ``scene`` and why (the
-    search's status), how many were rejected as blunders, and the RMS of the kept ones'
-    differences across the parallax (across the track for a PRISM triplet)."""
-    triplet = scene is None or scene.is_triplet
-    others = ("F", "B") if scene is None else [v for v in scene.views if v != scene.reference_view]
-    tried, failed, blunders = summary.get("tried", 0), summary.get("failed", {}), summary.get("blunders", 0)
-    text = f"{len(ids)} of {tried} grid points added" + (f" ({ids[0]}–{ids[-1]})" if ids else "")
-    n_failed = sum(failed.values())
-    if n_failed:
-        why = ", ".join(f"{n} {status}" for status, n in sorted(failed.items(), key=lambda kv: -kv[1]))
-        text += f"; {n_failed} not found in {' and '.join(others)} ({why})"
-    if blunders:
-        text += (f"; {blunders} rejected as blunders ("
-                 + ("across-track F−N or B−N" if triplet else "across the parallax") + " beyond 3 NMAD of the median)")
-    rms = summary.get("rms_px", math.nan)
-    if math.isfinite(rms):
-        text += f"; {'across-track' if triplet else 'across the parallax'} RMS {rms:.2f} px"
-    return text + "."
 
 
 class TransferPanel(QWidget):
@@ -336,14 +305,11 @@ class TransferTool:
             return None
         height_of = self.ctx.views.height_of
 
+        snapshot = project.snapshot()
+
         def work(progress):
-            from prismstation.io.windows import ImageWindows
-            from prismstation.ops.tie_points import auto_tie_points
-            summary: dict = {}
-            with ImageWindows(project.scene) as im:
-                ties = auto_tie_points(sol, im, grid=grid, height_of=height_of, progress=progress,
-                                       summary=summary)
-            return ties, summary
+            from prismstation.ops.tie_points import find_tie_points
+            return find_tie_points(snapshot, grid=grid, height_of=height_of, progress=progress, sol=sol)
 
         self.job = run_with_progress(self.ctx, "Automatic tie points", work,
                                      lambda out: self._add_ties(project, *out))
@@ -354,11 +320,8 @@ class TransferTool:
         on the status line and, in an interactive window, in a message box."""
         if project is not self.ctx.project:
             return
-        ids = new_tie_ids(project, len(ties))
+        ids, points, ms = tie_point_edits(project, ties)
         if ties:
-            points = [GroundPoint(pid, math.nan, math.nan, math.nan, kind="TIE") for pid in ids]
-            ms = [Measurement(pid, v, float(t[v][0]), float(t[v][1]))
-                  for pid, t in zip(ids, ties) for v in project.scene.views]
             self.ctx.undo_stack.push(cmd.Import(project, points, ms, text=f"{len(ties)} automatic tie points"))
         self.summary = ties_summary(summary, ids, project.scene)
         self.ctx.status(f"Automatic tie points: {self.summary}", 30000)
