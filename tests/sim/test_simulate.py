@@ -275,7 +275,7 @@ def test_rendering_options_alias_block_and_bend(tmp_path, capsys):
     them; JPEG adds steps at the 8 × 8 block borders; an attitude acceleration moves the
     images' points by a curve in time that a drift cannot (each view's true positions differ
     from the linear-attitude scene's by more than a line in time, the other draws kept)."""
-    kw = dict(size=300, seed=4, n_icp=12, n_tie=0, noise_px=0.0, terrain="smooth")
+    kw = dict(size=256, seed=4, n_icp=4, n_tie=0, noise_px=0.0, terrain="smooth")
     base = simulate(tmp_path / "base", **kw)
     same = simulate(tmp_path / "same", psf_px=0.6, noise_dn=1.2, texture="fields", attitude_accel=0.0,
                     jpeg_quality=None, **kw)
