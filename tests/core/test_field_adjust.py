@@ -8,8 +8,8 @@ from scipy import ndimage
 from scipy.optimize import least_squares
 
 from prismstation.core import conditioning as cond
-from prismstation.core.field_adjust import (Basis, Cells, Distortion, FieldObs, Surface, accumulate, adjust_field,
-                                            signal_share)
+from prismstation.core.field_adjust import Cells, FieldObs, accumulate, adjust_field, signal_share
+from prismstation.core.field_model import Basis, Distortion, Surface
 
 POST = 30.0          # reference posting (m)
 GSD = 2.5            # N pixel (m); N image 6000 px = 15 km, north-up, the map offset by ORIGIN

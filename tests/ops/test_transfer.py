@@ -160,7 +160,7 @@ def test_the_template_grows_until_its_texture_fixes_the_point(parcels):
     template grows (up to 65 × 65) until its texture promises the point to 0.05 px: more points
     are found, no more of them wrong, and a template that is large enough is not grown."""
     from prismstation.io.windows import ImageWindows
-    from prismstation.ops.transfer import template_half
+    from prismstation.ops.transfer_template import template_half
     project, sol, dem, points = parcels
     found, wrong, fixed = {12: 0, None: 0}, {12: 0, None: 0}, 0
     with ImageWindows(project.scene) as im:

@@ -35,7 +35,7 @@ ADVICE = ("GCPs (three or more, spread over the scene, used together with the re
 def information(gx, gy, phi, weight, psi=None) -> np.ndarray:
     """Normal matrix (9 + D, 9 + D) of the field's parameters (per component E, N, h: terms
     ``phi`` (m, 3)) and of the relative DEMs' height distortion (terms ``psi`` (m, D), optional:
-    :class:`~prismstation.core.field_adjust.Distortion`) from cells with reference gradients
+    :class:`~prismstation.core.field_model.Distortion`) from cells with reference gradients
     ``gx, gy`` (m,) and weights (1/m²)."""
     g = np.column_stack([gx, gy, -np.ones_like(gx)])
     J = (g[:, :, None] * phi[:, None, :]).reshape(len(gx), 9)

@@ -34,7 +34,8 @@ from prismstation.core import conditioning as cond
 from prismstation.core import prism
 from prismstation.core.coarse import K_SIGMA, dem_offset
 from prismstation.core.dem_orient import ControlPoints, PatchShift, control_from_field, gcp_field_obs
-from prismstation.core.field_adjust import Basis, Cells, Distortion, adjust_field
+from prismstation.core.field_adjust import Cells, adjust_field
+from prismstation.core.field_model import Basis, Distortion
 from prismstation.core.solution import Control
 from prismstation.core.view_offsets import SIGMA_FIELD_PX, SIGMA_HEIGHT_M, n_along_sigma_px, offset_at
 from prismstation.errors import InputError
@@ -137,7 +138,7 @@ class OrientRun:
 
     def distortion(self) -> Distortion:
         """The relative DEMs' height distortion along the track the adjustment allows for
-        (:class:`~prismstation.core.field_adjust.Distortion`): the N-space flight direction at
+        (:class:`~prismstation.core.field_model.Distortion`): the N-space flight direction at
         N's centre, ``t = ±1`` at the image's ends."""
         rows, cols = self.shape
         N = self.scene.views["N"]
