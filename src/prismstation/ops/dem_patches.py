@@ -19,7 +19,7 @@ from prismstation.core.adjustment.affine import Affine2D
 from prismstation.core.matching.coarse import K_SIGMA
 from prismstation.core.orientation.dem_orient import grid_points, patch_windows, relative_dem_points, smooth_like_reference
 from prismstation.core.matching.dense import parallax_map
-from prismstation.core.orientation.field_adjust import Surface
+from prismstation.core.orientation.field_model import Surface
 from prismstation.core.models.ray_dem import ray_meets_surface
 from prismstation.core.surfaces.sample import remap_points
 from prismstation.errors import InputError

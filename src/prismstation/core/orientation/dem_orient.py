@@ -16,7 +16,8 @@ import numpy as np
 from scipy import ndimage
 
 from prismstation.core.models import prism
-from prismstation.core.orientation.field_adjust import Basis, FieldObs
+from prismstation.core.orientation.field_adjust import FieldObs
+from prismstation.core.orientation.field_model import Basis
 from prismstation.core.models.prism import BiasFit, FixedPrism, ParallaxLine
 from prismstation.core.models.scene import Scene
 from prismstation.core.orientation.shift_field import ShiftField
