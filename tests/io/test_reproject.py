@@ -31,6 +31,9 @@ UTM31 = "EPSG:32631"         # central meridian 3° E; the zone spans 0–6° E
 #: and at the zone's edges (±2.95°: the UTM grid reaches past them)
 PLACES = [(0.0, 0.0), (0.0, 2.95), (20.0, -2.95), (41.0, 0.0), (41.0, 2.95), (60.0, 0.0),
           (70.0, 0.0), (70.0, -2.95)]
+#: the costlier checks (whole coregistrations, whole validations) at a zone's edge low, mid and
+#: high (GDAL's default fails them at 41° and 70°); the warp itself is checked at every place
+EDGES = [(0.0, 2.95), (41.0, 2.95), (70.0, -2.95)]
 
 
 def surface(e, n, e0, n0):
@@ -129,7 +132,7 @@ def test_read_dem_lays_each_grid_on_the_other_where_it_is(tmp_path, lat, dlon):
     assert np.hypot(*s) <= TOLERANCE_M, s
 
 
-@pytest.mark.parametrize("lat,dlon", PLACES)
+@pytest.mark.parametrize("lat,dlon", EDGES)
 def test_coregister_finds_no_shift_between_the_two_grids(tmp_path, lat, dlon):
     p = Place(lat, dlon).write(tmp_path)
     for ref, dem in ((p.utm, p.geo), (p.geo, p.utm)):
@@ -138,7 +141,7 @@ def test_coregister_finds_no_shift_between_the_two_grids(tmp_path, lat, dlon):
         assert np.hypot(c.result.dx, c.result.dy) <= TOLERANCE_M, (ref.name, c.result)
 
 
-@pytest.mark.parametrize("lat,dlon", PLACES)
+@pytest.mark.parametrize("lat,dlon", EDGES)
 def test_validate_dsm_compares_each_cell_with_the_same_ground(tmp_path, lat, dlon):
     p = Place(lat, dlon).write(tmp_path)
     diff = tmp_path / "diff.tif"
