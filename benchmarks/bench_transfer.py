@@ -29,12 +29,19 @@ for both views and the consistency test (CPU time beside it: the machine may be 
     python benchmarks/bench_transfer.py                       # judged set, 4,000 px scenes
     python benchmarks/bench_transfer.py --set tuning
     python benchmarks/bench_transfer.py --size 2000 --work /tmp/bt --no-pleiades
+    python benchmarks/bench_transfer.py --set options --no-pleiades \
+        --foreign ../shared/data/foreign/smooth_hills_10km
+
+``--set options``: the simulator's options for what another renderer's triplet differs by
+(tuning scenes); ``--foreign``: another simulator's triplets with their exact image positions
+(judged on, never tuned on).
 
 Scenes are cached in ``--work`` (default a folder in the system's temporary directory).
 """
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import sys
 import tempfile
@@ -65,6 +72,8 @@ SRTM = DATA / "srtm" / "N44E005.hgt"
 PLEIADES = DATA / "pleiades_triplet"
 HALF = 12
 PEER_MIN = 0.6
+#: ours' template half size (``--half``; None: ``transfer``'s own choice)
+HALF_WINDOW = None
 
 #: the scenes the matcher was tuned on; sets judged on first and then looked at (after
 #: "seen" the σ got its term across the parallax — z across 1.3–1.4 on the fractal relief, as
@@ -85,6 +94,13 @@ SETS = {
     # 0.12° from the scenes above and clear of its voids
     "judged": [("fractal", 23, None), ("smooth", 23, None), ("dem", 24, (5.35, 44.20)),
                ("dem", 25, (5.90, 44.85))],
+    # the simulator's options for what another renderer differs by (tuning): each pixel one
+    # point of the ground (no point spread: edges alias), flat parcels with hard edges, 2 DN of
+    # noise, JPEG block noise
+    "options": [("smooth", 31, None, dict(texture="parcels", psf_px=0.0, noise_dn=2.0)),
+                ("fractal", 32, None, dict(texture="parcels", psf_px=0.0, noise_dn=2.0)),
+                ("smooth", 33, None, dict(psf_px=0.0, noise_dn=2.0)),
+                ("smooth", 34, None, dict(jpeg_quality=75))],
 }
 
 
@@ -179,11 +195,12 @@ def print_rows(name, method, tallies, ms, cpu, views=("F", "B")):
 
 
 # ---------------------------------------------------------------------------- simulated scenes
-def scene(work: Path, terrain: str, seed: int, centre, size: int) -> Path:
-    tag = f"{terrain}_s{seed}_{size}" + (f"_{centre[0]:g}_{centre[1]:g}" if centre else "")
+def scene(work: Path, terrain: str, seed: int, centre, size: int, options=None) -> Path:
+    tag = (f"{terrain}_s{seed}_{size}" + (f"_{centre[0]:g}_{centre[1]:g}" if centre else "")
+           + "".join(f"_{k}{v}" for k, v in sorted((options or {}).items())))
     d = work / tag
     if not (d / "truth.json").exists():
-        kw = dict(terrain=terrain)
+        kw = dict(terrain=terrain, **(options or {}))
         if terrain == "dem":
             kw.update(terrain_dem=str(SRTM), terrain_centre=centre)
         print(f"  simulating {tag} …", flush=True)
@@ -195,15 +212,34 @@ def scene(work: Path, terrain: str, seed: int, centre, size: int) -> Path:
     return d
 
 
-def run_scene(d: Path) -> None:
-    project = load_project(d / "p.prismproj")
+def foreign_scene(d: Path, work: Path) -> tuple[Path, list, Path]:
+    """Another simulator's triplet: its project (made once in ``work``), its points' exact
+    image positions, its SRTM-like reference."""
+    proj = work / f"foreign_{d.name}.prismproj"
+    if not proj.exists():
+        create(proj, d / "scene.json", d / "points.csv", d / "measurements.csv", geoid="auto")
+    exact = json.loads((d / "truth_image.json").read_text())
+    return proj, [{"image": v} for v in exact.values()], d / "srtm_like.tif"
+
+
+def run_scene(d: Path, foreign_work: Path | None = None) -> None:
+    if foreign_work is not None:
+        proj, pts, ref = foreign_scene(d, foreign_work)
+        project = load_project(proj)
+        name = f"foreign {d.name} (judged)"
+    else:
+        project = load_project(d / "p.prismproj")
+        truth = json.loads((d / "truth.json").read_text())
+        st = truth.get("terrain", {}).get("statistics", {})
+        args = truth["arguments"]
+        defaults = inspect.signature(simulate).parameters
+        opts = "".join(f", {k} {args[k]}" for k in ("texture", "psf_px", "noise_dn", "jpeg_quality")
+                       if k in args and args[k] != defaults[k].default)
+        name = (f"{truth.get('terrain', {}).get('kind', 'fractal')} seed {args['seed']}, "
+                f"slope {st.get('mean_slope_pct', float('nan')):.0f} %{opts}")
+        ref, pts = d / "srtm.tif", truth["points"]
     sol = solve_project(project)
-    truth = json.loads((d / "truth.json").read_text())
-    st = truth.get("terrain", {}).get("statistics", {})
-    name = (f"{truth.get('terrain', {}).get('kind', 'fractal')} seed {truth['arguments']['seed']}, "
-            f"slope {st.get('mean_slope_pct', float('nan')):.0f} %")
-    dem = load_for_scene(d / "srtm.tif", project)
-    pts = truth["points"]
+    dem = load_for_scene(ref, project)
     with ImageWindows(project.scene) as im:
         for label, height_of in (("ours, reference DEM", dem), ("ours, no DEM", None)):
             tal = {v: Tally() for v in "FB"}
@@ -212,7 +248,7 @@ def run_scene(d: Path) -> None:
             sigma_dem, sigma_mean = search_sigmas(sol, height_of)
             for p in pts:
                 tr = transfer(sol, im, "N", p["image"]["N"], height_of=height_of, sigma_dem=sigma_dem,
-                              sigma_mean=sigma_mean)
+                              sigma_mean=sigma_mean, half_window=HALF_WINDOW)
                 for v in "FB":
                     t = tr.get(v)
                     if t is None:
@@ -398,9 +434,16 @@ def main(argv=None) -> None:
     ap.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "prismstation-bench-transfer")
     ap.add_argument("--no-pleiades", action="store_true")
     ap.add_argument("--no-sim", action="store_true")
+    ap.add_argument("--foreign", type=Path, nargs="*", default=[],
+                    help="folders of another simulator's triplets (scene.json, points.csv, "
+                         "measurements.csv, truth_image.json, srtm_like.tif): judged, never tuned on")
     ap.add_argument("--orient-cells", action="store_true",
                     help="also measure orient-dem's relative DEM cells against least squares (steep scenes)")
+    ap.add_argument("--half", type=int, default=None,
+                    help="ours' template half size, px (default: transfer's own choice)")
     args = ap.parse_args(argv)
+    global HALF_WINDOW
+    HALF_WINDOW = args.half
     args.work.mkdir(parents=True, exist_ok=True)
     print("Point transfer N → F / N → B: found, wrong (> 1 px), flagged, RMS of the right ones (px),\n"
           "σ check (RMS z along / across the parallax, share in the 95 % ellipse), ms per point (CPU)\n"
@@ -408,11 +451,15 @@ def main(argv=None) -> None:
     print(f"machine reference (a fixed numpy workload): {reference_ms():.1f} ms CPU\n")
     if not args.no_sim:
         print(header("scene") + "   failures")
-        for terrain, seed, centre in SETS[args.set]:
-            run_scene(scene(args.work, terrain, seed, centre, args.size))
+        for terrain, seed, centre, *options in SETS[args.set]:
+            run_scene(scene(args.work, terrain, seed, centre, args.size, *options))
+    if args.foreign:
+        print(header("another simulator's scene") + "   failures")
+        for d in args.foreign:
+            run_scene(d, foreign_work=args.work)
     if args.orient_cells:
         from bench_transfer_cells import orient_cells
-        for terrain, seed, centre in SETS[args.set]:
+        for terrain, seed, centre, *_ in SETS[args.set]:
             if terrain == "dem":
                 orient_cells(scene(args.work, terrain, seed, centre, args.size))
     if not args.no_pleiades and PLEIADES.is_dir():

@@ -14,6 +14,8 @@ the consistency verdict of the patch shift field (``core.consistency.snoop``), t
     python benchmarks/orient_sweep.py --sizes 1600 --errors 0 25 50 100 --seeds 0
     python benchmarks/orient_sweep.py --sizes 6000 14000 --passes descending ascending --seeds 0 1 2
     python benchmarks/orient_sweep.py --sizes 6000 --terrains smooth dem --terrain-dem N44E005.hgt
+    python benchmarks/orient_sweep.py --sizes 4000 --terrains smooth --patch-km 2 --errors 0 50 \
+        --render texture=parcels psf_px=0 noise_dn=2 attitude_accel=5e-7 terrain_wavelength_m=5000
 
 Targets: 14,000 px ≤ 2.5 m planimetric and height; 6,000 px within Gonçalves's (2008) < 5 m
 and ≤ 3.2 m; no case wrong without saying so (a wrong case must have a non-ok verdict or a
@@ -141,9 +143,25 @@ def run_case(sim: Path, ref: Path, errors: dict, work: Path, patch_km: float,
     return row
 
 
-def scene_dir(base: Path, size: int, terrain: str, pas: str, seed: int) -> Path:
-    """Where a scene is kept (the fractal ones where earlier sweeps kept them)."""
-    return base / (f"s{size}_{pas}_{seed}" if terrain == "fractal" else f"s{size}_{terrain}_{pas}_{seed}")
+def scene_dir(base: Path, size: int, terrain: str, pas: str, seed: int, render: dict | None = None) -> Path:
+    """Where a scene is kept (the fractal ones where earlier sweeps kept them); ``render``: the
+    simulator's rendering options (``--render``), named in the folder."""
+    tag = "".join(f"_{k}{v}" for k, v in sorted((render or {}).items()))
+    return base / ((f"s{size}_{pas}_{seed}" if terrain == "fractal" else f"s{size}_{terrain}_{pas}_{seed}") + tag)
+
+
+def render_options(items) -> dict:
+    """``simulate``'s rendering options from ``NAME=VALUE`` items (``--render``): texture,
+    psf_px, noise_dn, attitude_accel, jpeg_quality, terrain_wavelength_m."""
+    kinds = {"texture": str, "psf_px": float, "noise_dn": float, "attitude_accel": float,
+             "jpeg_quality": int, "terrain_wavelength_m": float}
+    out = {}
+    for item in items or []:
+        name, _, value = item.partition("=")
+        if name not in kinds:
+            raise SystemExit(f"--render: unknown option {name!r} (one of {', '.join(kinds)})")
+        out[name] = kinds[name](value)
+    return out
 
 
 def _ratio(err, sigma) -> float:
@@ -173,11 +191,16 @@ def main_sweep(argv=None) -> int:
     ap.add_argument("--references", nargs="+", default=["projected", "geographic"],
                     choices=["projected", "geographic"],
                     help="the SRTM-like references every case runs against (default both)")
+    ap.add_argument("--render", nargs="+", metavar="NAME=VALUE",
+                    help="simulate's options for what another renderer's triplet differs by, e.g. "
+                         "texture=parcels psf_px=0 noise_dn=2 attitude_accel=5e-7 "
+                         "terrain_wavelength_m=5000 (tuning scenes: another simulator's judge)")
     ap.add_argument("--keep", metavar="DIR", help="keep the scenes in DIR")
     ap.add_argument("--reuse", action="store_true",
                     help="score the reports a stopped sweep left in --keep's cases instead of "
                          "running those cases again")
     a = ap.parse_args(argv)
+    render = render_options(a.render)
     if "dem" in a.terrains and not a.terrain_dem:
         ap.error("--terrains dem needs --terrain-dem")
     egm96 = find_grid()
@@ -194,13 +217,13 @@ def main_sweep(argv=None) -> int:
     for size, terrain, pas, seed in cases:
         patch_km = a.patch_km or (4.0 if size >= 6000 else 1.0)
         scene_seed = seed if a.scene_seed is None else a.scene_seed
-        sim = scene_dir(base, size, terrain, pas, scene_seed)
+        sim = scene_dir(base, size, terrain, pas, scene_seed, render)
         if not (sim / "truth.json").exists():
             simulate(sim, size=size, seed=scene_seed, ascending=pas == "ascending",
                      geolocation_error_m=0.0, terrain=terrain,
                      terrain_dem=a.terrain_dem if terrain == "dem" else None,
                      terrain_centre=a.terrain_centre if terrain == "dem" else None,
-                     relief_scale=a.relief_scale)
+                     relief_scale=a.relief_scale, **render)
         if not (sim / "srtm.tif").exists():
             make_reference_dem(sim / "truth_dem.tif", sim / "srtm.tif", seed=scene_seed + 1)
         if "geographic" in a.references and not (sim / "srtm_geo.tif").exists():

@@ -8,7 +8,8 @@ from scipy import ndimage
 from scipy.optimize import least_squares
 
 from prismstation.core import conditioning as cond
-from prismstation.core.field_adjust import Basis, Cells, FieldObs, Surface, accumulate, adjust_field
+from prismstation.core.field_adjust import Cells, FieldObs, accumulate, adjust_field, signal_share
+from prismstation.core.field_model import Basis, Distortion, Surface
 
 POST = 30.0          # reference posting (m)
 GSD = 2.5            # N pixel (m); N image 6000 px = 15 km, north-up, the map offset by ORIGIN
@@ -200,3 +201,41 @@ def test_conditioning_on_a_ridge_fixes_the_shift_across_it_only():
     cells, P = make_cells(rough, THETA)
     fit = adjust_field(cells, rough, BASIS, np.zeros(9), n_patches=P, prior_sigma=PRIOR)
     assert cond.judge(_summary(fit), 5.0, P, 50.0).ok
+
+
+def test_height_distortion_along_the_track_is_not_taken_for_a_shift():
+    """Gentle hills, nearly a plane over a patch, and relative DEMs bent along the track by a
+    Legendre quadratic of 0.5 m (F's and B's offsets from N not linear in time): with the
+    field's affine dh alone the bend moves the field by most of a metre; with the distortion's
+    terms in the adjustment the field is found to a decimetre or two, within its σ, and the
+    bend is found too (with the sign of a correction: the heights were raised by it)."""
+    rng = np.random.default_rng(3)
+    z = ndimage.gaussian_filter(rng.normal(size=(600, 600)), 50, mode="wrap")
+    surf = Surface(500.0 + 200.0 * z / z.std(), 0.0, 600 * POST, POST)
+    cells, P = make_cells(surf, THETA, grid=4, side=24, noise=0.05, seed=4)
+    dist = Distortion((SIZE / 2, SIZE / 2), SIZE / 2, (0.0, 1.0))
+    bend = 0.5 * dist.psi(cells.x, cells.y)[:, 0]
+    bent = Cells(cells.x, cells.y, cells.e, cells.n, cells.h + bend, cells.patch, cells.row, cells.col)
+    lx, ly = cond.lattice((SIZE, SIZE), 3)
+    truth = BASIS.predict(THETA, lx, ly)[:, :2]
+    old = adjust_field(bent, surf, BASIS, THETA, n_patches=P, prior_sigma=PRIOR)
+    new = adjust_field(bent, surf, BASIS, THETA, n_patches=P, prior_sigma=PRIOR, distortion=dist, distortion_sigma=1.4)
+    assert old and new, (old.reason, new.reason)
+    e_old = np.abs(old.field(lx, ly)[:, :2] - truth)
+    e_new = np.abs(new.field(lx, ly)[:, :2] - truth)
+    assert e_new.max() < 0.25 and np.all(e_new < 2 * new.sigma(lx, ly)[:, :2]), (e_new.max(), new.sigma(lx, ly))
+    assert e_old.max() > 3 * e_new.max(), (e_old.max(), e_new.max())
+    assert new.delta[0] == pytest.approx(-0.5, abs=0.05) and abs(new.delta[1]) < 0.05
+
+
+def test_signal_share_leaves_the_mean_gradient_out():
+    """Reference gradients = a plane's slope + relief + the reference's noise, the cells' own =
+    the same slope and relief + their noise: ρ is the relief's share of what varies, not of the
+    whole gradient (the plane's slope, shared by both, made it near 1)."""
+    rng = np.random.default_rng(0)
+    n = 4000
+    relief = rng.normal(0, 0.01, (n, 2))
+    g = 0.05 + relief + rng.normal(0, 0.03, (n, 2))          # SRTM-like noise: 3 × the relief
+    o = 0.05 + relief + rng.normal(0, 0.01, (n, 2))
+    rho = signal_share(g[:, 0], g[:, 1], o[:, 0], o[:, 1])
+    assert rho == pytest.approx(0.01 ** 2 / (0.01 ** 2 + 0.03 ** 2), abs=0.03)

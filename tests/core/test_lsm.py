@@ -259,3 +259,18 @@ def test_the_unmodelled_displacement_from_block_sums_is_the_blocks_own_fit():
         delta, g2 = np.array(delta), np.array(g2)
         expected = np.sqrt(max(np.sum(g2 * delta ** 2 - noise) / np.sum(g2), 0.0))
         assert unmodelled_sigma(G, r, k, other=other) == pytest.approx(expected, rel=1e-9)
+
+
+def test_texture_sigma_sees_what_a_template_can_fix():
+    """The σ a template's texture promises in its weakest direction: infinite inside a flat
+    parcel (noise only) and on one straight edge (nothing fixes the point along it); a corner
+    of the same contrast fixes it, to about √2·noise / (contrast·√(edge length)) px."""
+    from prismstation.core.lsm_sigma import texture_sigma
+    rng = np.random.default_rng(0)
+    n = 25
+    flat = 120.0 + rng.normal(0, 2.0, (n, n))
+    edge = flat + 40.0 * (np.arange(n)[None, :] >= n // 2)
+    corner = flat + 40.0 * ((np.arange(n)[None, :] >= n // 2) & (np.arange(n)[:, None] >= n // 2))
+    assert texture_sigma(flat) == np.inf
+    assert texture_sigma(edge) == np.inf
+    assert 0.005 < texture_sigma(corner) < 0.05

@@ -132,3 +132,46 @@ def test_the_slope_is_recovered_from_a_matched_shape(synth_sol):
     for grad in ((0.35, -0.2), (-0.5, 0.1), (0.0, 0.6)):
         A = local_shape(sol, "N", xy, ["F"], h=600.0, height_of=_plane(en, 600.0, grad))[2]["F"].A
         assert fitted_slope(sol, "N", xy, "F", A, en, 600.0) == pytest.approx(grad, abs=0.01)
+
+
+@pytest.fixture(scope="module")
+def parcels(tmp_path_factory):
+    """Flat parcels with hard edges, each pixel one point of the ground (no point spread, 2 DN
+    of noise) on smooth hills: a 25 × 25 template often sees the inside of one parcel, or one
+    straight edge. Its fit on the 9 GCPs and an SRTM-like reference."""
+    from prismstation.io.project import load_project
+    from prismstation.ops.fit import solve_project
+    from prismstation.ops.project import create
+    from prismstation.ops.reference_heights import load_for_scene
+    from prismstation.sim import simulate
+    from prismstation.sim.reference import make_reference_dem
+    d = tmp_path_factory.mktemp("parcels")
+    simulate(d, size=1000, seed=31, terrain="smooth", texture="parcels", psf_px=0.0, noise_dn=2.0,
+             n_tie=0)
+    make_reference_dem(d / "truth_dem.tif", d / "srtm.tif", seed=31)
+    create(d / "p.prismproj", d / "scene.json", d / "points.csv", d / "measurements.csv")
+    project = load_project(d / "p.prismproj")
+    return project, solve_project(project), load_for_scene(d / "srtm.tif", project), \
+        json.loads((d / "truth.json").read_text())["points"]
+
+
+def test_the_template_grows_until_its_texture_fixes_the_point(parcels):
+    """Where 25 × 25 px hold too little texture (a flat parcel, one straight edge), the
+    template grows (up to 65 × 65) until its texture promises the point to 0.05 px: more points
+    are found, no more of them wrong, and a template that is large enough is not grown."""
+    from prismstation.io.windows import ImageWindows
+    from prismstation.ops.transfer_template import template_half
+    project, sol, dem, points = parcels
+    found, wrong, fixed = {12: 0, None: 0}, {12: 0, None: 0}, 0
+    with ImageWindows(project.scene) as im:
+        for p in points:
+            xy = p["image"]["N"]
+            fixed += template_half(im, "N", xy) == 12
+            for half in (12, None):
+                tr = transfer(sol, im, "N", xy, height_of=dem, half_window=half)
+                for v in "FB":
+                    if tr[v].ok:
+                        found[half] += 1
+                        wrong[half] += np.hypot(*np.subtract((tr[v].x, tr[v].y), p["image"][v])) > 1.0
+    assert 0 < fixed < len(points)
+    assert found[None] >= found[12] + 0.15 * 2 * len(points) and wrong[None] <= wrong[12], (found, wrong)

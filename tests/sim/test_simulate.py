@@ -10,6 +10,7 @@ from prismstation.cli import main
 from prismstation.sim import geometry as geo
 from prismstation.sim import simulate
 from prismstation.sim.run import scene_relief
+from prismstation.sim.scenario import build_scenario
 
 SIZE = 640
 
@@ -260,3 +261,46 @@ def test_large_products_get_internal_overviews(tmp_path):
         assert ds.transform.to_gdal() == pytest.approx(gt)
         small = ds.read(1, out_shape=(128, 128))
         assert small[0, 0] == 0 and small[-1, 0] == 150
+
+
+def _image(path):
+    with rasterio.open(path) as ds:
+        return ds.read(1).astype(float)
+
+
+def test_rendering_options_alias_block_and_bend(tmp_path, capsys):
+    """The options for what another renderer differs by: defaults render as before (the same
+    images as without the options); flat parcels sampled at one point per pixel have hard
+    edges (neighbours differing by more than 30 DN) where the default point spread softens
+    them; JPEG adds steps at the 8 × 8 block borders; an attitude acceleration moves the
+    images' points by a curve in time that a drift cannot (each view's true positions differ
+    from the linear-attitude scene's by more than a line in time, the other draws kept)."""
+    kw = dict(size=256, seed=4, n_icp=4, n_tie=0, noise_px=0.0, terrain="smooth")
+    base = simulate(tmp_path / "base", **kw)
+    same = simulate(tmp_path / "same", psf_px=0.6, noise_dn=1.2, texture="fields", attitude_accel=0.0,
+                    jpeg_quality=None, **kw)
+    assert np.array_equal(_image(base["N"]), _image(same["N"]))
+    sharp = simulate(tmp_path / "sharp", texture="parcels", psf_px=0.0, noise_dn=2.0, **kw)
+    soft = simulate(tmp_path / "soft", texture="parcels", **kw)
+
+    def hard_edges(img):
+        return np.mean(np.abs(np.diff(img, axis=1)) > 30)
+    assert hard_edges(_image(sharp["N"])) > 2 * hard_edges(_image(soft["N"]))
+    jpeg = simulate(tmp_path / "jpeg", jpeg_quality=30, **kw)
+    d = _image(jpeg["N"]) - _image(base["N"])
+    step = np.abs(np.diff(d, axis=1))
+    at_border = step[:, 7::8].mean()
+    inside = np.delete(step, np.s_[7::8], axis=1).mean()
+    assert at_border > 1.3 * inside
+    linear = build_scenario(np.random.default_rng(7), 6000)
+    bent = build_scenario(np.random.default_rng(7), 6000, attitude_accel=5e-7)
+    tau = np.linspace(-8.0, 8.0, 33)
+    for view in "NFB":
+        a0, a1 = linear.views[view].attitude, bent.views[view].attitude
+        assert a1.pitch_rate == a0.pitch_rate and a1.roll == pytest.approx(a0.roll, abs=1e-8)  # same draws
+        d = np.array(a1.angles(tau)[:2]) - np.array(a0.angles(tau)[:2])
+        line = np.polynomial.polynomial.polyfit(tau, d.T, 1)
+        bend = d.T - np.polynomial.polynomial.polyval(tau, line).T
+        assert np.abs(bend).max() > 1e-6, view                            # rad: 0.7 m at 690 km
+    assert main(["simulate", str(tmp_path / "x"), "--psf-px", "-1", "--quiet"]) == 2
+    assert "--psf-px" in capsys.readouterr().err

@@ -56,6 +56,23 @@ def register(sub) -> None:
     p.add_argument("--relief-scale", type=float, default=1.0, metavar="F",
                    help="scale the heights by F about their mean over the ground N sees, "
                         "0 < F <= 1 (default 1)")
+    p.add_argument("--terrain-wavelength-m", type=float, default=None, metavar="M",
+                   help="the smooth terrain's shortest wavelength, metres (default 1200; 5000: hills "
+                        "that are nearly a plane over a few kilometres)")
+    p.add_argument("--texture", choices=["fields", "parcels"], default="fields",
+                   help="fields: field patchworks with hedges, roads and forest (default); parcels: "
+                        "flat parcels with hard edges and no texture inside")
+    p.add_argument("--psf-px", type=float, default=0.6, metavar="SIGMA",
+                   help="σ of the sensor's Gaussian point spread, pixels (default 0.6; 0 = each pixel "
+                        "one point of the ground: sharp edges alias)")
+    p.add_argument("--noise-dn", type=float, default=1.2, metavar="SIGMA",
+                   help="σ of the images' noise, DN (default 1.2)")
+    p.add_argument("--attitude-accel", type=float, default=0.0, metavar="RAD_S2",
+                   help="σ of each view's own roll and pitch acceleration, rad/s² (default 0: attitude "
+                        "drifts linearly in time; 5e-7 bends F−B parallax by ~0.05 px over 10 km)")
+    p.add_argument("--jpeg-quality", type=int, default=None, metavar="Q",
+                   help="pass the images through JPEG at quality Q (1–100): 8 × 8 block noise as "
+                        "compressed products carry (default: none)")
     p.add_argument("--reference", choices=["projected", "geographic"],
                    help="also write an SRTM-like reference DEM, srtm.tif: projected (90 m cells of "
                         "the scene's grid, the scene's constant geoid) or geographic (3\" cells of "
@@ -96,7 +113,10 @@ def run(args) -> int:
                          geolocation_error_m=args.geolocation_error_m,
                          terrain=args.terrain or ("dem" if args.terrain_dem else "fractal"),
                          terrain_dem=args.terrain_dem, terrain_centre=args.terrain_centre,
-                         relief_scale=args.relief_scale, progress=progress)
+                         relief_scale=args.relief_scale, psf_px=args.psf_px, noise_dn=args.noise_dn,
+                         texture=args.texture, attitude_accel=args.attitude_accel,
+                         jpeg_quality=args.jpeg_quality, terrain_wavelength_m=args.terrain_wavelength_m,
+                         progress=progress)
     except PrismError:
         raise
     except OSError as exc:  # the folder itself (a file writer raises WriteError naming its file)

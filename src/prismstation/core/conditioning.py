@@ -32,17 +32,21 @@ ADVICE = ("GCPs (three or more, spread over the scene, used together with the re
           "DEM (a 30 m DEM instead of 90 m SRTM sees more relief)")
 
 
-def information(gx, gy, phi, weight) -> np.ndarray:
-    """Normal matrix (9, 9) of the field's parameters (per component E, N, h: terms
-    ``phi`` (m, 3)) from cells with reference gradients ``gx, gy`` (m,) and weights (1/m²)."""
+def information(gx, gy, phi, weight, psi=None) -> np.ndarray:
+    """Normal matrix (9 + D, 9 + D) of the field's parameters (per component E, N, h: terms
+    ``phi`` (m, 3)) and of the relative DEMs' height distortion (terms ``psi`` (m, D), optional:
+    :class:`~prismstation.core.field_model.Distortion`) from cells with reference gradients
+    ``gx, gy`` (m,) and weights (1/m²)."""
     g = np.column_stack([gx, gy, -np.ones_like(gx)])
     J = (g[:, :, None] * phi[:, None, :]).reshape(len(gx), 9)
+    if psi is not None:
+        J = np.column_stack([J, -psi])
     w = np.broadcast_to(np.asarray(weight, float), (len(gx),))
     return (J * w[:, None]).T @ J
 
 
 def expected_cov(info: np.ndarray, prior_sigma) -> np.ndarray:
-    """(9, 9) covariance of the field's parameters from a normal matrix and a zero-mean prior."""
+    """Covariance of the parameters from a normal matrix and a zero-mean prior (σ per parameter)."""
     return np.linalg.inv(info + np.diag(1.0 / np.square(np.asarray(prior_sigma, float))))
 
 

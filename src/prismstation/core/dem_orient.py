@@ -16,7 +16,8 @@ import numpy as np
 from scipy import ndimage
 
 from prismstation.core import prism
-from prismstation.core.field_adjust import Basis, FieldObs
+from prismstation.core.field_adjust import FieldObs
+from prismstation.core.field_model import Basis
 from prismstation.core.prism import BiasFit, FixedPrism, ParallaxLine
 from prismstation.core.scene import Scene
 from prismstation.core.shift_field import ShiftField

@@ -5,7 +5,7 @@ the map by the ancillary N model at ``(e_c, n_c)`` with a relative height ``h_c`
 like the reference). The truth is the cell moved by the shift field ``s(x, y) = (dE, dN, dh)``,
 a function of the cell's N-image position ``(x_c, y_c)``: per component ``θ_k0 + θ_ku·u +
 θ_kv·v`` over normalised coordinates ``(u, v)`` (:class:`Basis`; a component may keep its
-constant only). Each cell observes
+constant only; :mod:`prismstation.core.field_model`). Each cell observes
 
     f_c = R(e_c + dE − oE, n_c + dN − oN) + oh − (h_c + dh)  ≈ 0,
 
@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from prismstation.core.coreg import correlation_area
+from prismstation.core.field_model import Basis, Distortion, Surface
 from prismstation.core.stats import nmad
 
 COMPONENTS = ("E", "N", "h")
@@ -46,76 +47,6 @@ K_OUTLIER = 3.0
 MIN_SPREAD_M = 0.05
 #: Gauss–Newton stops when no part of the field moves by more than this (m) over the image
 TOL_M = 1e-3
-
-
-@dataclass(frozen=True)
-class Surface:
-    """Reference heights ``heights`` (rows, cols; NaN where void) on a north-up grid whose
-    top-left corner is ``(west, north)`` (m) with square cells of ``posting`` m."""
-
-    heights: np.ndarray
-    west: float
-    north: float
-    posting: float
-
-    def __post_init__(self):
-        gy, gx = np.gradient(np.asarray(self.heights, float), self.posting)
-        object.__setattr__(self, "_gx", gx)
-        object.__setattr__(self, "_gy", -gy)          # rows run south
-
-    def sample(self, e, n):
-        """Bilinear heights and gradients ``(h, dh/dE, dh/dN)`` at map points ``e, n`` (m),
-        NaN where a void or the grid's edge is within reach."""
-        col = (np.asarray(e, float) - self.west) / self.posting - 0.5
-        row = (self.north - np.asarray(n, float)) / self.posting - 0.5
-        rows, cols = self.heights.shape
-        c0, r0 = np.floor(col).astype(int), np.floor(row).astype(int)
-        inside = (c0 >= 1) & (r0 >= 1) & (c0 < cols - 2) & (r0 < rows - 2)
-        c0, r0 = np.where(inside, c0, 1), np.where(inside, r0, 1)
-        fc, fr = col - c0, row - r0
-        out = []
-        for g in (self.heights, self._gx, self._gy):
-            v = ((1 - fr) * ((1 - fc) * g[r0, c0] + fc * g[r0, c0 + 1])
-                 + fr * ((1 - fc) * g[r0 + 1, c0] + fc * g[r0 + 1, c0 + 1]))
-            out.append(np.where(inside, v, np.nan))
-        return tuple(out)
-
-
-@dataclass(frozen=True)
-class Basis:
-    """The field's coordinates: ``u = (x − cx) / scale``, ``v = (y − cy) / scale`` (N pixels),
-    and which terms each component keeps (``terms[k]``: 3 for ``1, u, v``; 1 for a constant)."""
-
-    centre: tuple
-    scale: float
-    terms: tuple = (3, 3, 3)
-
-    @classmethod
-    def over(cls, shape, terms=(3, 3, 3)) -> "Basis":
-        """The basis centred on an N image of ``shape`` (rows, cols), ±1 at its edges."""
-        rows, cols = shape
-        return cls((cols / 2.0, rows / 2.0), max(rows, cols) / 2.0, tuple(terms))
-
-    def phi(self, x, y) -> np.ndarray:
-        """``(..., 3)``: ``1, u, v`` at N positions ``x, y``."""
-        u = (np.asarray(x, float) - self.centre[0]) / self.scale
-        v = (np.asarray(y, float) - self.centre[1]) / self.scale
-        return np.stack([np.ones_like(u), u, v], -1)
-
-    @property
-    def active(self) -> np.ndarray:
-        """``(9,)`` bool: which of ``θ`` (per component: 1, u, v) are estimated."""
-        return np.array([j < t for t in self.terms for j in range(3)])
-
-    def predict(self, theta, x, y) -> np.ndarray:
-        """The field ``(..., 3)`` (dE, dN, dh, m) of parameters ``theta`` (9,) at ``x, y``."""
-        return self.phi(x, y) @ np.asarray(theta, float).reshape(3, 3).T
-
-    def predict_sigma(self, cov, x, y) -> np.ndarray:
-        """σ ``(..., 3)`` of the field at ``x, y`` from the ``(9, 9)`` covariance of ``θ``."""
-        p = self.phi(x, y)
-        return np.sqrt(np.stack([np.einsum("...i,ij,...j->...", p, cov[3 * k:3 * k + 3, 3 * k:3 * k + 3], p)
-                                 for k in range(3)], -1))
 
 
 @dataclass(frozen=True)
@@ -185,34 +116,44 @@ class PatchSums:
     inlier: np.ndarray = field(default=None)
 
 
-def _unknowns(basis: Basis, free_offset) -> np.ndarray:
-    """``(12,)`` bool: the field's estimated terms, then the reference offset's free components
-    (``free_offset``: a bool for all three, or (3,) bools)."""
-    return np.r_[basis.active, np.broadcast_to(np.asarray(free_offset, bool), (3,))]
+def _unknowns(basis: Basis, free_offset, n_dist: int = 0) -> np.ndarray:
+    """``(12 + n_dist,)`` bool: the field's estimated terms, the reference offset's free
+    components (``free_offset``: a bool for all three, or (3,) bools), then the height
+    distortion's ``n_dist`` terms (:class:`Distortion`)."""
+    return np.r_[basis.active, np.broadcast_to(np.asarray(free_offset, bool), (3,)), np.ones(n_dist, bool)]
 
 
-def residuals(cells: Cells, surface: Surface, basis: Basis, theta, offset=(0.0, 0.0, 0.0)):
+def _psi(distortion, x, y) -> np.ndarray:
+    return np.zeros(np.shape(x) + (0,)) if distortion is None else distortion.psi(x, y)
+
+
+def residuals(cells: Cells, surface: Surface, basis: Basis, theta, offset=(0.0, 0.0, 0.0),
+              distortion: Distortion | None = None, delta=()):
     """``f`` (m,) and the reference gradients ``gx, gy`` at the moved cells (NaN where the
-    reference has none)."""
+    reference has none); ``delta`` the height distortion's terms (:class:`Distortion`)."""
     s = basis.predict(theta, cells.x, cells.y)
     o = np.asarray(offset, float)
     r, gx, gy = surface.sample(cells.e + s[:, 0] - o[0], cells.n + s[:, 1] - o[1])
-    return r + o[2] - cells.h - s[:, 2], gx, gy
+    dist = _psi(distortion, cells.x, cells.y) @ np.asarray(delta, float) if len(delta) else 0.0
+    return r + o[2] - cells.h - s[:, 2] - dist, gx, gy
 
 
 def accumulate(cells: Cells, surface: Surface, basis: Basis, theta, offset, n_patches: int,
                free_offset=False, k_outlier: float = K_OUTLIER,
                areas: np.ndarray | None = None, frozen: PatchSums | None = None,
-               own_gradients: tuple | None = None) -> PatchSums:
-    """The patches' sums (:class:`PatchSums`) at ``theta`` (9,) and ``offset`` (3,).
+               own_gradients: tuple | None = None, distortion: Distortion | None = None,
+               delta=()) -> PatchSums:
+    """The patches' sums (:class:`PatchSums`) at ``theta`` (9,), ``offset`` (3,) and the height
+    distortion's terms ``delta`` (``distortion``, :class:`Distortion`).
     ``areas``: correlation areas to use (default: measured from the residuals here);
     ``frozen``: earlier sums whose inlier cells, spreads and areas are kept (the weights fixed,
     so that Gauss–Newton minimises one objective: cells at the outlier bound flipping in and
     out made it cycle). ``own_gradients``: the cells' own gradients ``(gx, gy)`` (m,) (their
     relative DEM's, :func:`cell_gradients`); given, the reference's gradients in the sums are
     scaled per patch by ``√ρ_p`` (:func:`signal_share`) — for the covariance, not for steps."""
-    f, gx, gy = residuals(cells, surface, basis, theta, offset)
-    act = _unknowns(basis, free_offset)
+    f, gx, gy = residuals(cells, surface, basis, theta, offset, distortion, delta)
+    psi = _psi(distortion, cells.x, cells.y)
+    act = _unknowns(basis, free_offset, psi.shape[-1])
     u = int(act.sum())
     P = n_patches
     out = PatchSums(np.zeros((P, u, u)), np.zeros((P, u)), np.zeros((P, 3, 3)), np.zeros((P, 3)),
@@ -252,7 +193,7 @@ def accumulate(cells: Cells, surface: Surface, basis: Basis, theta, offset, n_pa
         if own_gradients is not None:
             k = np.sqrt(signal_share(gx[sl][ok], gy[sl][ok], own_gradients[0][sl][ok], own_gradients[1][sl][ok]))
         g = np.column_stack([k * gx[sl][ok], k * gy[sl][ok], -np.ones(ok.sum())])  # the patch's shift
-        J = np.column_stack([g[:, :1] * ph, g[:, 1:2] * ph, -ph, -g])[:, act]   # the parameters
+        J = np.column_stack([g[:, :1] * ph, g[:, 1:2] * ph, -ph, -g, -psi[sl][ok]])[:, act]   # the parameters
         fo = fp[ok]
         out.N[p], out.b[p] = w * J.T @ J, w * J.T @ fo
         out.I[p], out.h[p], out.B[p] = w * g.T @ g, w * g.T @ fo, w * g.T @ J
@@ -280,17 +221,24 @@ def cell_gradients(cells: "Cells", posting: float) -> tuple[np.ndarray, np.ndarr
 
 
 def signal_share(gx, gy, ox, oy) -> float:
-    """ρ in [0, 1]: the share of the reference's gradients ``gx, gy`` that is relief the cells'
-    own gradients ``ox, oy`` see too, ``Σ g·o / Σ |g|²`` (cells where both are finite). The
-    reference's own noise makes gradients the relative DEM does not share: counted as relief,
-    they state a shift fixed to metres on terrain that fixes it to tens (a plane under SRTM's
-    2 m noise); both measure the same relief and their noises are independent, so their
-    product keeps the relief's part only."""
+    """ρ in [0, 1]: the share of the variation of the reference's gradients ``gx, gy`` about
+    their mean that is relief the cells' own gradients ``ox, oy`` see too,
+    ``Σ (g − ḡ)·(o − ō) / Σ |g − ḡ|²`` (cells where both are finite). The reference's own noise
+    makes gradients the relative DEM does not share: counted as relief, they state a shift
+    fixed to metres on terrain that fixes it to tens (a plane under SRTM's 2 m noise); both
+    measure the same relief and their noises are independent, so their product keeps the
+    relief's part only. The mean gradient is left out: a tilted plane fixes no shift (it is a
+    height), and on hills that are nearly a plane at the patch's scale it made ρ near 1 while
+    the reference's noise was most of what varied (on another simulator's 10 km scene, SRTM-like
+    4 m noise: gradients varying by 0.05 where the relief's varied by 0.008)."""
     ok = np.isfinite(gx) & np.isfinite(gy) & np.isfinite(ox) & np.isfinite(oy)
-    den = float(np.sum(gx[ok] ** 2 + gy[ok] ** 2))
-    if ok.sum() < 10 or den <= 0:
+    if ok.sum() < 10:
         return 0.0
-    return float(np.clip(np.sum(gx[ok] * ox[ok] + gy[ok] * oy[ok]) / den, 0.0, 1.0))
+    gx, gy, ox, oy = (v[ok] - v[ok].mean() for v in (gx, gy, ox, oy))
+    den = float(np.sum(gx ** 2 + gy ** 2))
+    if den <= 0:
+        return 0.0
+    return float(np.clip(np.sum(gx * ox + gy * oy) / den, 0.0, 1.0))
 
 
 def _about_own_shift(g: np.ndarray, f: np.ndarray, ok: np.ndarray) -> np.ndarray:
@@ -308,14 +256,14 @@ def _area(cells: Cells, sl: slice, res: np.ndarray) -> float:
     return correlation_area(grid)
 
 
-def obs_sums(obs: FieldObs | None, basis: Basis, theta, free_offset):
+def obs_sums(obs: FieldObs | None, basis: Basis, theta, free_offset, n_dist: int = 0):
     """The GCPs' normal equations ``(N, b)`` at ``theta`` (zeros without GCPs)."""
-    act = _unknowns(basis, free_offset)
+    act = _unknowns(basis, free_offset, n_dist)
     u = int(act.sum())
     if obs is None or not len(obs):
         return np.zeros((u, u)), np.zeros(u)
     phi = basis.phi(obs.x, obs.y)
-    J = np.zeros((len(obs), 12))
+    J = np.zeros((len(obs), 12 + n_dist))
     for k in range(3):
         sel = obs.comp == k
         J[sel, 3 * k:3 * k + 3] = phi[sel]
@@ -329,7 +277,9 @@ def obs_sums(obs: FieldObs | None, basis: Basis, theta, free_offset):
 class FieldFit:
     """The adjusted field. ``theta`` (9,) per component (E, N, h) its terms (1, u, v) in m;
     ``offset`` (3,) the reference's offset from the ground control (zeros without GCPs);
-    ``cov`` (12, 12) of ``(theta, offset)`` from the adjustment with ``Σ_b``; ``cov_jack`` the
+    ``delta`` (D,) the relative DEMs' height distortion along the track (:class:`Distortion`, m;
+    empty without); ``cov`` (12 + D, 12 + D) of ``(theta, offset, delta)`` from the adjustment
+    with ``Σ_b``; ``cov_jack`` the
     patches' jackknife of the same (NaN with fewer than 3 patches); ``sigma_b`` (3,) m each
     patch's own shift beyond its cells' noise (E, N, h). Per patch (P,): ``used`` (kept and
     with cells), ``cells`` used, ``spread`` (m, NMAD), ``area`` (correlation area, cells),
@@ -356,6 +306,8 @@ class FieldFit:
     iterations: int
     reason: str = ""
     info: np.ndarray | None = None
+    delta: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    distortion: Distortion | None = None
 
     def __bool__(self) -> bool:
         return not self.reason
@@ -391,39 +343,46 @@ def _expand(values, act, fill=0.0):
 
 def adjust_field(cells: Cells, surface: Surface, basis: Basis, theta0, *, n_patches: int,
                  prior_sigma, obs: FieldObs | None = None, alpha: float = 0.05,
-                 max_iter: int = 30, max_reject: int | None = None) -> FieldFit:
+                 max_iter: int = 30, max_reject: int | None = None,
+                 distortion: Distortion | None = None, distortion_sigma: float = 1.0) -> FieldFit:
     """Adjust the field (module docstring) from the start ``theta0`` (9,).
 
     ``prior_sigma`` (9,) m: the a-priori σ of each parameter (zero-mean prior). With ``obs``
-    (GCPs) the reference's offset is estimated too. Patches whose own shift departs from the
+    (GCPs) the reference's offset is estimated too. With ``distortion`` the relative DEMs'
+    heights may also hold its polynomials along the track (:class:`Distortion`), each of
+    a-priori σ ``distortion_sigma`` (m). Patches whose own shift departs from the
     others' field beyond the χ² test at ``alpha`` are removed one at a time, at most
     ``max_reject`` (default a quarter of them)."""
     from prismstation.core import field_stats as fs
 
     # the reference's offset is free in each component some GCP observes
     free = np.zeros(3, bool) if obs is None else np.isin(np.arange(3), np.asarray(obs.comp))
-    act = _unknowns(basis, free)
+    nd = 0 if distortion is None else len(distortion)
+    act = _unknowns(basis, free, nd)
     theta = np.where(basis.active, np.asarray(theta0, float), 0.0)
     offset = np.zeros(3)
+    delta = np.zeros(nd)
     P = int(n_patches)
     keep = np.ones(P, bool)
     limit = P // 4 if max_reject is None else int(max_reject)
-    prior_w = np.r_[1.0 / np.square(np.asarray(prior_sigma, float)), np.zeros(3)][act]
+    prior_w = np.r_[1.0 / np.square(np.asarray(prior_sigma, float)), np.zeros(3),
+                    np.full(nd, 1.0 / float(distortion_sigma) ** 2)][act]
     rejected: list[int] = []
     total, reason = 0, ""
     own = cell_gradients(cells, surface.posting)
 
     def extra(th):
-        No, bo = obs_sums(obs, basis, th, free)
-        return No + np.diag(prior_w), bo + prior_w * np.r_[th, offset][act]
+        No, bo = obs_sums(obs, basis, th, free, nd)
+        return No + np.diag(prior_w), bo + prior_w * np.r_[th, offset, delta][act]
 
     def gauss_newton(sb, keep):
         # the weights (inlier cells, spreads, correlation areas) are measured at the first three
         # iterations, then kept: one objective, not one that moves by millimetres at every step
-        nonlocal theta, offset, total
+        nonlocal theta, offset, delta, total
         frozen = None
         for i in range(max_iter):
-            S = accumulate(cells, surface, basis, theta, offset, P, free, frozen=frozen)
+            S = accumulate(cells, surface, basis, theta, offset, P, free, frozen=frozen, distortion=distortion,
+                           delta=delta)
             if i >= 2:
                 frozen = S
             k = keep & (S.used > 0)
@@ -432,12 +391,13 @@ def adjust_field(cells: Cells, surface: Surface, basis: Basis, theta0, *, n_patc
             Nx, bx = extra(theta)
             d, C = fs.solve(S, k, sb, Nx, bx)
             step = _expand(d, act)
-            theta, offset = theta + step[:9], offset + step[9:]
+            theta, offset, delta = theta + step[:9], offset + step[9:12], delta + step[12:]
             total += 1
             # converged: no term moves by more than a millimetre or a fiftieth of its σ
             if np.all(np.abs(d) < np.maximum(TOL_M, 0.02 * np.sqrt(np.diag(C)))):
                 # the covariance's sums: the reference's gradients as far as the cells share them
-                S = accumulate(cells, surface, basis, theta, offset, P, free, areas=S.area, own_gradients=own)
+                S = accumulate(cells, surface, basis, theta, offset, P, free, areas=S.area, own_gradients=own,
+                               distortion=distortion, delta=delta)
                 return S, keep & (S.used > 0), True
         return S, k, False
 
@@ -468,22 +428,23 @@ def adjust_field(cells: Cells, surface: Surface, basis: Basis, theta0, *, n_patc
         break
     u = int(act.sum())
     if reason.startswith("no patch"):
-        nan = np.full(12, np.nan)
-        return FieldFit(basis, theta, offset, np.full((12, 12), np.nan), np.full((12, 12), np.nan),
+        n = 12 + nd
+        return FieldFit(basis, theta, offset, np.full((n, n), np.nan), np.full((n, n), np.nan),
                         np.full(3, np.nan), np.zeros(P, bool), np.zeros(P, int), np.full(P, np.nan),
                         np.full(P, np.nan), np.full((P, 3), np.nan), np.full(P, np.nan), np.zeros(P, int),
-                        np.full(P, np.nan), tuple(rejected), total, reason)
+                        np.full(P, np.nan), tuple(rejected), total, reason, None, delta, distortion)
     d, C = fs.solve(S, k, sb, Nx, bx)
     b, _ = fs.patch_shifts(S, k, sb, d, C)
     shift = np.full((P, 3), np.nan)
     shift[k] = b
-    cov = np.zeros((12, 12))
+    n = 12 + nd
+    cov = np.zeros((n, n))
     cov[np.ix_(act, act)] = C
     jack = fs.jackknife(loo.delta[k]) if k.sum() >= 3 else np.full((u, u), np.nan)
-    cov_jack = np.full((12, 12), np.nan)
+    cov_jack = np.full((n, n), np.nan)
     if np.isfinite(jack).all():
-        cov_jack = np.zeros((12, 12))
+        cov_jack = np.zeros((n, n))
         cov_jack[np.ix_(act, act)] = jack
     return FieldFit(basis, theta, offset, cov, cov_jack, np.sqrt(sb), k, S.used, S.spread, S.area, shift,
                     np.where(k, loo.T, np.nan), np.where(k, loo.dof, 0), np.where(k, loo.crit, np.nan),
-                    tuple(rejected), total, reason, S.I)
+                    tuple(rejected), total, reason, S.I, delta, distortion)

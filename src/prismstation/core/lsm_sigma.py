@@ -84,3 +84,19 @@ def unmodelled_sigma(G, r, n_params: int, block: int = 4, w=None, other=None) ->
     wb = 1.0 if w is None else sums(w) / block ** 2
     excess = np.sum(wb * (g2 * delta ** 2 - noise)) / np.sum(wb * g2)
     return float(np.sqrt(max(excess, 0.0)))
+
+
+def texture_sigma(a) -> float:
+    """σ (px) a template ``a`` (grey values, ``(n, n)``) can fix a position to in its weakest
+    direction, before any match: the noise (:func:`noise_sigma`, in both views) over the
+    structure tensor's smaller eigenvalue, less the noise's own share of the gradients (central
+    differences: half the noise variance per component). Infinite where the noise has all of
+    it — a template inside a flat parcel, or on one straight edge (which fixes nothing along it)."""
+    a = np.asarray(a, np.float64)
+    gy, gx = np.gradient(a)
+    gx, gy = gx[1:-1, 1:-1].ravel(), gy[1:-1, 1:-1].ravel()
+    var = noise_sigma(a) ** 2
+    G = np.array([[gx @ gx, gx @ gy], [gx @ gy, gy @ gy]])
+    lam = float(np.linalg.eigvalsh(G)[0]) - 0.5 * var * gx.size
+    return float(np.sqrt(2.0 * var / lam)) if lam > 0 else float("inf")
+

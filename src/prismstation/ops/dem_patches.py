@@ -19,7 +19,7 @@ from prismstation.core.affine import Affine2D
 from prismstation.core.coarse import K_SIGMA
 from prismstation.core.dem_orient import grid_points, patch_windows, relative_dem_points, smooth_like_reference
 from prismstation.core.dense import parallax_map
-from prismstation.core.field_adjust import Surface
+from prismstation.core.field_model import Surface
 from prismstation.core.ray_dem import ray_meets_surface
 from prismstation.core.sample import remap_points
 from prismstation.errors import InputError

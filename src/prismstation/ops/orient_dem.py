@@ -34,9 +34,10 @@ from prismstation.core import conditioning as cond
 from prismstation.core import prism
 from prismstation.core.coarse import K_SIGMA, dem_offset
 from prismstation.core.dem_orient import ControlPoints, PatchShift, control_from_field, gcp_field_obs
-from prismstation.core.field_adjust import Basis, Cells, adjust_field
+from prismstation.core.field_adjust import Cells, adjust_field
+from prismstation.core.field_model import Basis, Distortion
 from prismstation.core.solution import Control
-from prismstation.core.view_offsets import SIGMA_HEIGHT_M, n_along_sigma_px, offset_at
+from prismstation.core.view_offsets import SIGMA_FIELD_PX, SIGMA_HEIGHT_M, n_along_sigma_px, offset_at
 from prismstation.errors import InputError
 from prismstation.io.jsonfile import plain
 from prismstation.io.project import project_geoid
@@ -135,6 +136,24 @@ class OrientRun:
         rows, cols = self.shape
         return offset_at(self.offsets[v], self.grads[v], (cols / 2, rows / 2), xy)
 
+    def distortion(self) -> Distortion:
+        """The relative DEMs' height distortion along the track the adjustment allows for
+        (:class:`~prismstation.core.field_model.Distortion`): the N-space flight direction at
+        N's centre, ``t = ±1`` at the image's ends."""
+        rows, cols = self.shape
+        N = self.scene.views["N"]
+        en = prism.ancillary_to_ground(self.scene, N, np.array([[cols / 2, rows / 2]]), self.ref.mean_h)
+        d = prism.along_track_unit(self.scene, en)[0]
+        return Distortion((cols / 2.0, rows / 2.0), max(rows, cols) / 2.0, tuple(float(v) for v in d))
+
+    @property
+    def distortion_sigma_m(self) -> float:
+        """A-priori σ (m) of each term of the height distortion: F's and B's offsets may each
+        vary across the scene by :data:`~prismstation.core.view_offsets.SIGMA_FIELD_PX` beyond
+        what a constant describes; their difference is a parallax of √2 times that, ``c1`` m
+        of height per pixel."""
+        return float(prism.theoretical_c1(self.scene) * SIGMA_FIELD_PX * np.sqrt(2.0))
+
     def along(self) -> np.ndarray:
         """The flight direction on the map (unit E, N) at N's centre."""
         rows, cols = self.shape
@@ -228,8 +247,9 @@ def expected_sigma(run: OrientRun, step_px: int | None = None) -> cond.SigmaSumm
     basis = Basis.over(run.shape)
     cells_per_sample = (step * N.pixel_size_m / run.posting_m) ** 2
     w = cells_per_sample / (cond.SIGMA_CELL_M ** 2 * cond.a_priori_area(run.ref.cells))
-    info = cond.information(gx[ok], gy[ok], basis.phi(xy[ok, 0], xy[ok, 1]), w)
-    cov = cond.expected_cov(info, prior_sigma(run))
+    dist = run.distortion()
+    info = cond.information(gx[ok], gy[ok], basis.phi(xy[ok, 0], xy[ok, 1]), w, dist.psi(xy[ok, 0], xy[ok, 1]))
+    cov = cond.expected_cov(info, np.r_[prior_sigma(run), np.full(len(dist), run.distortion_sigma_m)])[:9, :9]
     lx, ly = cond.lattice(run.shape)
     p = basis.phi(lx, ly)
     Phi = np.einsum("kl,ni->nkli", np.eye(3), p).reshape(len(lx), 3, 9)
@@ -262,7 +282,8 @@ def adjust(run: OrientRun, cells: Cells, n_patches: int, theta0, gcps: ControlPo
         obs = gcp_field_obs(run.scene, gcps.xy_f, gcps.xy_b, gcps.ground, gcps.sigma_m, run.offset_of,
                             run.n_weight, gcps.ids)
     return adjust_field(cells, run.ref.surface(), Basis.over(run.shape), theta0, n_patches=n_patches,
-                        prior_sigma=prior_sigma(run), obs=obs)
+                        prior_sigma=prior_sigma(run), obs=obs, distortion=run.distortion(),
+                        distortion_sigma=run.distortion_sigma_m)
 
 
 def control_points(project: Project, ids=None, sigma_px: float = 0.3, survey_sigma_m=(1.0, 1.0)) -> ControlPoints:
@@ -413,5 +434,8 @@ def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcp
          "offset": fit.offset.tolist(), "source": source},
         expected.to_dict(),
         {"sigma_b_m": fit.sigma_b.tolist(), "iterations": fit.iterations, "cells": int(np.sum(fit.cells)),
+         "height_distortion": {"degrees": list(run.distortion().degrees), "terms_m": fit.delta.tolist(),
+                               "sigma_m": np.sqrt(np.clip(np.diag(fit.cov)[12:], 0, None)).tolist(),
+                               "a_priori_sigma_m": run.distortion_sigma_m},
          "rejected": [index[j] for j in fit.rejected], "gcp_observations": 0 if gcps is None else len(gcps),
          "reason": fit.reason})

@@ -42,6 +42,7 @@ from prismstation.core.lsm import LsmResult
 from prismstation.core.lsm_search import best_score, match
 from prismstation.core.solution import Solution
 from prismstation.io.windows import ImageWindows
+from prismstation.ops.transfer_template import template_half
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 from prismstation.ops.predict import DEFAULT_HEIGHT_SPREAD_M, dem_sigma, ground_jacobian, height_spread
 
@@ -231,17 +232,21 @@ class Transfer:
 
 def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_range=None,
              height_of=None, sigma_dem: float | None = None, sigma_mean: float | None = None,
-             half_window: int = 12, check: bool = True) -> dict[str, Transfer]:
+             half_window: int | None = None, check: bool = True) -> dict[str, Transfer]:
     """Find the point at ``xy`` of ``source`` in every other view.
 
     ``h``, ``h_range``: the height searched and its ± range (m; default
     :func:`search_height`); ``height_of``: the reference DEM (ellipsoidal heights at map
     points), which also gives the terrain slope for the predicted shape; ``sigma_dem``,
-    ``sigma_mean``: passed to :func:`search_height`. ``check``: the three-ray consistency test
-    when the point is found in two other views (:func:`consistency`).
+    ``sigma_mean``: passed to :func:`search_height`. ``half_window``: the template's half size
+    (px; default as large as its texture needs,
+    :func:`~prismstation.ops.transfer_template.template_half`). ``check``: the three-ray
+    consistency test when the point is found in two other views (:func:`consistency`).
     """
     sc = sol.scene
     xy = np.asarray(xy, float)
+    if half_window is None:
+        half_window = template_half(images, source, xy)
     ray = None
     if h is None or h_range is None:
         ray = ray_on_dem(sol, source, xy, float(sol.mean_height), height_of)

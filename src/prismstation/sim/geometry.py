@@ -25,18 +25,25 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Attitude:
-    """Attitude error of one view: angles (rad) at τ = 0 and drift rates (rad/s)."""
+    """Attitude error of one view: angles (rad) at τ = 0, drift rates (rad/s) and accelerations
+    (rad/s²: attitude that is not linear in time, ``½·a·(τ − accel_time)²``, about the time
+    ``accel_time`` (s) the view sees its scene's centre)."""
 
     roll: float = 0.0
     pitch: float = 0.0
     yaw: float = 0.0
     roll_rate: float = 0.0
     pitch_rate: float = 0.0
+    roll_accel: float = 0.0
+    pitch_accel: float = 0.0
+    accel_time: float = 0.0
 
     def angles(self, tau):
         """``(roll, pitch, yaw)`` at time(s) ``tau`` (s)."""
         tau = np.asarray(tau, dtype=float)
-        return self.roll + self.roll_rate * tau, self.pitch + self.pitch_rate * tau, self.yaw
+        q = 0.5 * (tau - self.accel_time) ** 2
+        return (self.roll + self.roll_rate * tau + self.roll_accel * q,
+                self.pitch + self.pitch_rate * tau + self.pitch_accel * q, self.yaw)
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,8 @@
 """Rendering of 1B2 product images through the rigorous geometry.
 
 For each output pixel centre: image → map at h = 0 → nominal raw (line, col) → TRUE ray →
-terrain intersection → ground texture; then a Gaussian sensor PSF and Gaussian noise.
+terrain intersection → ground texture; then a Gaussian sensor PSF (or none: point sampling) and
+Gaussian noise, and optionally JPEG block noise (:func:`jpeg_blocks`).
 """
 from __future__ import annotations
 
@@ -37,8 +38,10 @@ def render_rows(orbit: geo.Orbit, view: geo.View, width: int, r0: int, r1: int, 
                 noise_sigma: float = 1.2, rng=None, sampler=None) -> np.ndarray:
     """Rows ``r0:r1`` (all ``width`` columns) of a product image, float32 DN before rounding.
 
-    ``psf_sigma`` (px) Gaussian blur, ``noise_sigma`` (DN) Gaussian noise from ``rng`` (none
-    when ``rng`` is None or ``noise_sigma`` is 0).
+    ``texture``: a :class:`~prismstation.sim.terrain.Grid` (sampled bicubically) or a function
+    ``(E, N) → DN`` (sampled at each pixel's ground point). ``psf_sigma`` (px) Gaussian blur (0:
+    none, each pixel one point of the ground), ``noise_sigma`` (DN) Gaussian noise from ``rng``
+    (none when ``rng`` is None or ``noise_sigma`` is 0).
     """
     sample = sampler or dem_sampler(dem)
     halo = HALO if psf_sigma > 0 else 0
@@ -46,8 +49,11 @@ def render_rows(orbit: geo.Orbit, view: geo.View, width: int, r0: int, r1: int, 
     xs = np.arange(width) + 0.5
     xy = np.stack(np.meshgrid(xs, ys), axis=-1)
     ground = ground_of_pixels(orbit, view, xy, sample, h_min, h_max)
-    col, row = texture.to_pixel(ground[..., 0], ground[..., 1])
-    img = remap_points(texture.values, col, row, cv2.INTER_CUBIC).astype(np.float32)
+    if callable(texture):                  # a function of map position (no grid)
+        img = texture(ground[..., 0], ground[..., 1])
+    else:
+        col, row = texture.to_pixel(ground[..., 0], ground[..., 1])
+        img = remap_points(texture.values, col, row, cv2.INTER_CUBIC).astype(np.float32)
     if psf_sigma > 0:
         img = cv2.GaussianBlur(img, (0, 0), psf_sigma, borderType=cv2.BORDER_REFLECT)
         img = img[halo:halo + (r1 - r0)]
@@ -58,3 +64,12 @@ def render_rows(orbit: geo.Orbit, view: geo.View, width: int, r0: int, r1: int, 
 
 def to_uint8(img: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def jpeg_blocks(img: np.ndarray, quality: int) -> np.ndarray:
+    """``img`` (uint8, rows a multiple of 8 from an 8-aligned first row) through a baseline JPEG
+    encoder at ``quality`` (1–100) and back: its 8 × 8 block noise, as compressed products carry."""
+    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise RuntimeError("JPEG encoding failed")
+    return cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)

@@ -14,7 +14,7 @@ from prismstation.sim.scenario import (ALTITUDE, ANGLES_DEG, CENTRE, CRS, GEOID,
                                        build_scenario, image_to_map_transform)
 from prismstation.sim.scene_terrain import check_terrain, grid_over, make_terrain, scene_relief
 from prismstation.sim.terrain import Grid, hillshade
-from prismstation.sim.texture import make_texture
+from prismstation.sim.texture import ParcelTexture, make_texture
 
 __all__ = ["simulate", "scene_relief"]
 
@@ -22,6 +22,22 @@ TEXTURE_SPACING = 2.5
 PSF_SIGMA_PX = 0.6
 IMAGE_NOISE_DN = 1.2
 VIEWS = ("N", "F", "B")
+TEXTURES = ("fields", "parcels")
+
+
+def _check_rendering(psf_px, noise_dn, texture, attitude_accel, jpeg_quality, terrain_wavelength_m):
+    if not (np.isfinite(psf_px) and 0 <= psf_px <= 5):
+        raise InputError(f"--psf-px must be between 0 and 5 pixels, got {psf_px}")
+    if not (np.isfinite(noise_dn) and 0 <= noise_dn <= 50):
+        raise InputError(f"--noise-dn must be between 0 and 50, got {noise_dn}")
+    if texture not in TEXTURES:
+        raise InputError(f"--texture must be one of {', '.join(TEXTURES)}, got {texture!r}")
+    if not (np.isfinite(attitude_accel) and 0 <= attitude_accel <= 1e-4):
+        raise InputError(f"--attitude-accel must be between 0 and 1e-4 rad/s², got {attitude_accel}")
+    if jpeg_quality is not None and not (1 <= int(jpeg_quality) <= 100):
+        raise InputError(f"--jpeg-quality must be between 1 and 100, got {jpeg_quality}")
+    if terrain_wavelength_m is not None and not (np.isfinite(terrain_wavelength_m) and 200 <= terrain_wavelength_m <= 50000):
+        raise InputError(f"--terrain-wavelength-m must be between 200 and 50000, got {terrain_wavelength_m}")
 
 
 def _check(size, n_gcp, n_icp, n_tie, noise_px, survey_sigma_xy, survey_sigma_h):
@@ -42,7 +58,8 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
              survey_sigma_xy=0.5, survey_sigma_h=1.0, north_up=False, ascending=False,
              map_to_image_in_json=False, geolocation_error_m=50.0, geolocation_errors=None,
              terrain="fractal", terrain_dem=None, terrain_centre=None, relief_scale=1.0,
-             progress=None) -> dict:
+             psf_px=PSF_SIGMA_PX, noise_dn=IMAGE_NOISE_DN, texture="fields", attitude_accel=0.0,
+             jpeg_quality=None, terrain_wavelength_m=None, progress=None) -> dict:
     """Write a synthetic ALOS-PRISM 1B2 triplet with known truth into ``outdir``.
 
     Parameters
@@ -68,6 +85,17 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
         in the UTM zone there). See :mod:`prismstation.sim.scene_terrain`.
     relief_scale : heights scaled by this factor (0 < f ≤ 1) about their mean over the
         ground N sees.
+    psf_px : σ (px) of the Gaussian point spread (0: none — each pixel one point of the
+        ground, sharp edges alias).
+    noise_dn : σ (DN) of the images' Gaussian noise.
+    texture : ``"fields"`` (field patchworks, hedges, roads, forest on a 2.5 m grid) or
+        ``"parcels"`` (flat parcels with hard edges, no texture inside; see
+        :class:`prismstation.sim.texture.ParcelTexture`).
+    attitude_accel : σ (rad/s²) of each view's own roll and pitch acceleration: attitude not
+        linear in time (0: linear drift only).
+    jpeg_quality : JPEG quality (1–100) the images go through (8 × 8 block noise), or None.
+    terrain_wavelength_m : the smooth terrain's shortest wavelength (m; default 1,200): longer
+        makes hills that are nearly a plane over a few kilometres.
     progress : optional ``callable(fraction)``.
 
     Returns
@@ -76,6 +104,9 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
     ``truth``, ``truth_dem``.
     """
     _check(size, n_gcp, n_icp, n_tie, noise_px, survey_sigma_xy, survey_sigma_h)
+    _check_rendering(psf_px, noise_dn, texture, attitude_accel, jpeg_quality, terrain_wavelength_m)
+    if terrain_wavelength_m is not None and terrain != "smooth":
+        raise InputError("--terrain-wavelength-m is the smooth terrain's; add --terrain smooth")
     report = progress or (lambda f: None)
     if not (np.isfinite(geolocation_error_m) and 0 <= geolocation_error_m <= 1000):
         raise InputError(f"--geolocation-error-m must be between 0 and 1000, got {geolocation_error_m}")
@@ -90,10 +121,10 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
     r_att, r_terrain, r_texture, r_points, r_noise, r_render = (
         np.random.default_rng(s) for s in ss.spawn(6))
     scenario = build_scenario(r_att, size, north_up, ascending, geolocation_error_m,
-                              geolocation_errors, centre)
+                              geolocation_errors, centre, attitude_accel)
 
     # terrain (ellipsoidal heights) and its derived grids; nothing is written before it is made
-    land = make_terrain(scenario, terrain, r_terrain, placed, relief_scale)
+    land = make_terrain(scenario, terrain, r_terrain, placed, relief_scale, terrain_wavelength_m)
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     lo, hi, h_min, h_max = land.lo, land.hi, land.h_min, land.h_max
@@ -107,8 +138,12 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
     report(0.03)
 
     te0, tn0, tshape = grid_over(lo, hi, TEXTURE_SPACING)
-    texture = make_texture(r_texture, te0, tn0, tshape, TEXTURE_SPACING, ortho_grid, shade,
-                           slope, progress=lambda f: report(0.03 + 0.12 * f))
+    kind = texture
+    if kind == "parcels":
+        texture = ParcelTexture(r_texture, (te0, tn0), shade=shade)
+    else:
+        texture = make_texture(r_texture, te0, tn0, tshape, TEXTURE_SPACING, ortho_grid, shade,
+                               slope, progress=lambda f: report(0.03 + 0.12 * f))
     del shade, slope
 
     # images
@@ -125,9 +160,9 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
             for r0 in range(0, size, block):
                 r1 = min(size, r0 + block)
                 rows = render.render_rows(scenario.orbit, view, size, r0, r1, dem, texture,
-                                          h_min, h_max, PSF_SIGMA_PX, IMAGE_NOISE_DN, rng,
-                                          sampler=sampler)
-                write(render.to_uint8(rows), r0)
+                                          h_min, h_max, psf_px, noise_dn, rng, sampler=sampler)
+                rows = render.to_uint8(rows)
+                write(rows if jpeg_quality is None else render.jpeg_blocks(rows, jpeg_quality), r0)
                 report(0.15 + 0.8 * (k + r1 / size * 0.9) / 3)
         paths[name] = path
     del texture
@@ -142,7 +177,10 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
                                     ascending=ascending,
                                     map_to_image_in_json=map_to_image_in_json,
                                     geolocation_error_m=geolocation_error_m,
-                                    terrain=terrain, relief_scale=relief_scale)))
+                                    terrain=terrain, relief_scale=relief_scale, psf_px=psf_px,
+                                    noise_dn=noise_dn, texture=kind, attitude_accel=attitude_accel,
+                                    jpeg_quality=jpeg_quality,
+                                    terrain_wavelength_m=terrain_wavelength_m)))
     report(1.0)
     return paths
 
@@ -215,12 +253,13 @@ def _write_tables(out, scenario, crs, dem, terrain, points, rng, noise_px, sxy, 
                       "heading_deg": float(np.degrees(o.heading)),
                       "track_origin": list(o.track_origin), "tan_beta0": o.tan_beta0,
                       "col0": o.col0, "ifov_rad": o.ifov, "line_period_s": o.line_period,
-                      "image_noise_dn": IMAGE_NOISE_DN, "psf_sigma_px": PSF_SIGMA_PX,
+                      "image_noise_dn": args["noise_dn"], "psf_sigma_px": args["psf_px"],
                       "relief_m": float(dem.values.max() - GEOID)},
         "platform_attitude": asdict(scenario.platform),
         "views": {name: {"theta_rad": v.theta, "tau0_s": v.tau0,
                          "attitude": {f: getattr(v.attitude, f) for f in
-                                      ("roll", "pitch", "yaw", "roll_rate", "pitch_rate")},
+                                      ("roll", "pitch", "yaw", "roll_rate", "pitch_rate",
+                                       "roll_accel", "pitch_accel", "accel_time")},
                          "alignment": scenario.alignment[name],
                          "grid_shift_px": list(scenario.grid_shift_px[name]),
                          "map_to_image": list(v.map_to_image),

@@ -17,7 +17,7 @@ independently, :data:`DRIFT_SIGMA_RAD_S`) make them vary by metres across the sc
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -130,11 +130,13 @@ def geolocation_error_at(orbit: geo.Orbit, view: geo.View, published, xy) -> np.
 
 def build_scenario(rng, size: int, north_up: bool = False, ascending: bool = False,
                    geolocation_error_m: float = GEOLOCATION_ERROR_M, errors: dict | None = None,
-                   centre=CENTRE) -> Scenario:
+                   centre=CENTRE, attitude_accel: float = 0.0) -> Scenario:
     """Draw attitude errors (a common platform part plus each view's own alignment and drift),
     product grids, and each view's geolocation error (``errors`` {view: (along, across)} m if
     given, else :func:`draw_geolocation_errors` with bound ``geolocation_error_m``). The scene
-    is centred on ``centre`` (E, N metres); the draws do not depend on it."""
+    is centred on ``centre`` (E, N metres); the draws do not depend on it. ``attitude_accel``
+    (rad/s²): σ of each view's own roll and pitch acceleration (attitude not linear in time;
+    drawn last, so that the other draws are those of a scene without it)."""
     centre = (float(centre[0]), float(centre[1]))
     pass_direction = "ascending" if ascending else "descending"
     heading = np.radians(HEADING_DEG[pass_direction])
@@ -155,6 +157,11 @@ def build_scenario(rng, size: int, north_up: bool = False, ascending: bool = Fal
                                                        float(rng.uniform(-6, 6)))
     if errors is None:
         errors = draw_geolocation_errors(rng, geolocation_error_m, VIEW_NAMES)
+    if not (np.isfinite(attitude_accel) and 0 <= attitude_accel <= 1e-4):
+        raise ValueError(f"attitude acceleration σ must be 0..1e-4 rad/s², got {attitude_accel}")
+    for name in VIEW_NAMES:
+        accel = rng.normal(0, attitude_accel, 2) if attitude_accel > 0 else (0.0, 0.0)
+        alignment[name].update(roll_accel=float(accel[0]), pitch_accel=float(accel[1]))
 
     def make_view(name, align):
         theta = SIGNS[name] * np.radians(ANGLES_DEG[name])
@@ -162,8 +169,11 @@ def build_scenario(rng, size: int, north_up: bool = False, ascending: bool = Fal
                            pitch=platform.pitch + align["pitch"],
                            yaw=platform.yaw + align["yaw"],
                            roll_rate=platform.roll_rate + align["roll_rate"],
-                           pitch_rate=platform.pitch_rate + align["pitch_rate"])
+                           pitch_rate=platform.pitch_rate + align["pitch_rate"],
+                           roll_accel=align["roll_accel"], pitch_accel=align["pitch_accel"])
         tau0 = -ALTITUDE * np.tan(theta) / SPEED - size / 2 * orbit.line_period
+        if att.roll_accel or att.pitch_accel:
+            att = replace(att, accel_time=float(tau0 + size / 2 * orbit.line_period))
         return geo.View(name, float(theta), float(tau0), att,
                         product_affine(orbit, size, north_up, shifts[name], centre))
 

@@ -15,7 +15,7 @@ import numpy as np
 from prismstation.errors import InputError
 from prismstation.sim import geometry as geo
 from prismstation.sim.scenario import GEOID
-from prismstation.sim.terrain import (SMOOTH_MEAN_SLOPE, Grid, cell_centres, inside_polygon,
+from prismstation.sim.terrain import (SMOOTH_LAMBDA_MIN_M, SMOOTH_MEAN_SLOPE, Grid, cell_centres, inside_polygon,
                                       scale_relief, smooth_relief, synthesize_relief,
                                       terrain_statistics)
 
@@ -92,10 +92,12 @@ def check_terrain(kind: str, has_dem: bool, relief_scale: float) -> None:
 
 
 def make_terrain(scenario, kind: str = "fractal", rng=None, dem=None,
-                 relief_scale: float = 1.0) -> SceneTerrain:
+                 relief_scale: float = 1.0, wavelength_m: float | None = None) -> SceneTerrain:
     """The terrain of ``kind`` under ``scenario`` (``rng`` for the synthetic ones, ``dem`` a
     :class:`sim.dem_terrain.DemTerrain` placed at the scenario's centre), its heights scaled by
-    ``relief_scale`` about their mean over the ground N sees, with its statistics."""
+    ``relief_scale`` about their mean over the ground N sees, with its statistics;
+    ``wavelength_m`` the smooth terrain's shortest wavelength (default
+    :data:`~prismstation.sim.terrain.SMOOTH_LAMBDA_MIN_M`)."""
     check_terrain(kind, dem is not None, relief_scale)
     spacing = grid_spacing(scenario.size)
     info = {"kind": kind, "relief_scale": float(relief_scale)}
@@ -113,9 +115,12 @@ def make_terrain(scenario, kind: str = "fractal", rng=None, dem=None,
         if kind == "smooth":
             seed = int(rng.integers(2 ** 63))
             info["target_mean_slope_pct"] = 100.0 * SMOOTH_MEAN_SLOPE
+            if wavelength_m is not None:
+                info["shortest_wavelength_m"] = float(wavelength_m)
 
             def heights(e0, n0, shape, inside):
-                return smooth_relief(shape, spacing, np.random.default_rng(seed), inside)
+                return smooth_relief(shape, spacing, np.random.default_rng(seed), inside,
+                                     lambda_min=wavelength_m or SMOOTH_LAMBDA_MIN_M)
 
             bound = (0.0, SMOOTH_FIRST_BOUND_M)
         else:

@@ -108,13 +108,13 @@ STATS_CELL_M = 30.0
 
 
 def smooth_relief(shape, spacing, rng, inside, mean_slope=SMOOTH_MEAN_SLOPE,
-                  base=SMOOTH_BASE_M) -> np.ndarray:
+                  base=SMOOTH_BASE_M, lambda_min=SMOOTH_LAMBDA_MIN_M) -> np.ndarray:
     """Rolling hills (orthometric m, float32, lowest ``base``): a Gaussian field with power
-    ``∝ k^−4.5`` between ``SMOOTH_LAMBDA_MIN_M`` and ``min(2 × extent, 30 km)``, scaled so
-    that its mean slope over the cells where ``inside`` ``(rows, cols)`` bool is True is
-    ``mean_slope``."""
+    ``∝ k^−4.5`` between ``lambda_min`` and ``max(min(2 × extent, 30 km), 2 × lambda_min)``,
+    scaled so that its mean slope over the cells where ``inside`` ``(rows, cols)`` bool is True
+    is ``mean_slope``."""
     extent = max(shape) * spacing
-    z = spectral_noise(shape, spacing, rng, 4.5, SMOOTH_LAMBDA_MIN_M, min(2.0 * extent, 30000.0))
+    z = spectral_noise(shape, spacing, rng, 4.5, lambda_min, max(min(2.0 * extent, 30000.0), 2.0 * lambda_min))
     gy, gx = np.gradient(z, spacing)
     z *= mean_slope / float(np.hypot(gx, gy)[inside].mean())
     return (base + z - z.min()).astype(np.float32)

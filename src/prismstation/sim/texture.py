@@ -1,8 +1,11 @@
-"""Ground texture of the simulator: a believable landscape as a north-up uint8 grid.
+"""Ground texture of the simulator.
 
-Field patchworks in two orientations with hedges and ploughing stripes, forest on steep and
-wet ground, bare rock on the summits, two road networks, brightness noise at several scales,
-all multiplied by hill shading from a sun direction. Generated in row blocks (bounded memory).
+``fields`` (:func:`make_texture`, the default): a believable landscape as a north-up uint8
+grid of 2.5 m cells — field patchworks in two orientations with hedges and ploughing stripes,
+forest on steep and wet ground, bare rock on the summits, two road networks, brightness noise at
+several scales, all multiplied by hill shading from a sun direction; generated in row blocks
+(bounded memory). ``parcels`` (:class:`ParcelTexture`): flat parcels with hard edges, a function
+of map position with no grid, so that pixels sampled without a point spread alias.
 """
 from __future__ import annotations
 
@@ -107,3 +110,46 @@ def make_texture(rng, e0: float, n0: float, shape, spacing: float, heights: Grid
         if progress:
             progress(r1 / rows)
     return Grid(out, e0, n0, spacing)
+
+
+class ParcelTexture:
+    """Ground brightness of flat parcels with hard edges, as a function of map position (no
+    grid: sampled at each pixel's own ground point, edges stay sharp at any resolution).
+
+    Parcels are the Voronoi cells of one seed per ``size`` m square of a jittered lattice; each
+    has a brightness of its own (uniform in ``level ± contrast``), slightly modulated over a few
+    tens of metres and over kilometres, multiplied by hill shading. Inside a parcel there is no
+    texture but that modulation: a template there sees noise. Sampled without a point spread
+    (``simulate --psf-px 0``), the edges alias: what one view's pixel grid shows of them is not
+    what another's shows.
+    """
+
+    def __init__(self, rng, origin, size: float = 100.0, level: float = 115.0, contrast: float = 40.0,
+                 shade: Grid | None = None, table: int = 1024):
+        self.origin = (float(origin[0]), float(origin[1]))
+        self.size, self.level, self.contrast, self.shade, self.n = size, level, contrast, shade, table
+        self.jitter = rng.uniform(0.0, 1.0, (table, table, 2)).astype(np.float32)
+        self.value = rng.uniform(-1.0, 1.0, (table, table)).astype(np.float32)
+        self.fine, self.broad = _Noise(rng, 25.0), _Noise(rng, 1500.0, 256)
+
+    def __call__(self, e, n) -> np.ndarray:
+        """Brightness (DN, float32) at map points ``e, n`` (any shape, metres)."""
+        e, n = np.asarray(e, np.float64), np.asarray(n, np.float64)
+        x, y = e - self.origin[0], self.origin[1] - n              # metres from the origin, y south
+        fx, fy = x / self.size, y / self.size
+        ix, iy = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
+        best = np.full(e.shape, np.inf)
+        val = np.zeros(e.shape, np.float32)
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                cx, cy = (ix + dx) % self.n, (iy + dy) % self.n
+                jit = self.jitter[cy, cx]
+                d2 = (ix + dx + jit[..., 0] - fx) ** 2 + (iy + dy + jit[..., 1] - fy) ** 2
+                closer = d2 < best
+                best = np.where(closer, d2, best)
+                val = np.where(closer, self.value[cy, cx], val)
+        x, y = x.astype(np.float32), y.astype(np.float32)
+        out = self.level + self.contrast * val + 2.0 * self.fine(x, y) + 6.0 * self.broad(x, y)
+        if self.shade is not None:
+            out = out * self.shade.sample(e, n).astype(np.float32)
+        return out.astype(np.float32)
