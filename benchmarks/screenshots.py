@@ -6,7 +6,8 @@ point measured in N, predicted in F and B at the reference DEM's height with its
 ``predictions_intersection``, ``predictions_mean_height``, ``predictions_transfer`` (1600 × 1000),
 ``editing_new_point.png`` (Edit ▸ New point from coordinates…: the dialog as filled in, drawn
 over the window once the point is added and the views are driven to where the model puts it,
-1600 × 1000), ``start_page.png`` and ``image_view.png`` (three image views with their loupes
+1600 × 1000), ``ortho_1600x1000.png`` (Tools ▸ Orthoimage… of N on the reference DEM, its dock
+with the GCPs and ICPs at their known positions, checked at them), ``start_page.png`` and ``image_view.png`` (three image views with their loupes
 and contrast panels, 1500 × 560, on ``--triplet``: a folder of three images, ``img_0*.tif`` or
 ``N.tif``, ``F.tif``, ``B.tif``; the demo's by default). Every window picture is checked to be
 exactly the size asked for (nothing below the screen's edge).
@@ -77,6 +78,7 @@ def main(argv=None) -> int:
             if dem:
                 win.load_reference_dem(project.parent / "triplet" / "srtm.tif", wait=True)
             wait_settled(win)
+            win.statusBar().clearMessage()  # (the DEM's path in the temporary folder)
         return win
 
     def save(win, name, size):
@@ -208,6 +210,13 @@ def main(argv=None) -> int:
         save_image(new_point_picture(win, project), out / "editing_new_point.png", (1600, 1000))
         close(win)
 
+    if wanted("ortho"):
+        win = window()
+        lay_out(win, (1600, 1000))
+        ortho_picture(win, project, tmp)
+        save(win, "ortho_1600x1000.png", (1600, 1000))
+        close(win)
+
     if wanted("image_view"):
         save_image(image_views_picture(Path(args.triplet) if args.triplet else project.parent / "triplet"),
                    out / "image_view.png", (1500, 560))
@@ -220,6 +229,53 @@ def save_image(img, path: Path, size) -> None:
     if not img.save(str(path)):
         raise SystemExit(f"screenshots: cannot write {path}")
     print("wrote", path)
+
+
+def wait_job(job, timeout_s: float = 600.0):
+    """Process events until a tool's Job ends; its result (SystemExit if it fails)."""
+    import time
+
+    from PySide6.QtCore import QCoreApplication, QThread
+    got = []
+    job.result.connect(lambda v: got.append(("result", v)))
+    job.failed.connect(lambda m: got.append(("failed", m)))
+    job.cancelled.connect(lambda: got.append(("cancelled", None)))
+    t0 = time.monotonic()
+    while not got and time.monotonic() - t0 < timeout_s:
+        QCoreApplication.processEvents()
+        QThread.msleep(10)
+    if not got or got[0][0] != "result":
+        raise SystemExit(f"screenshots: the job ended with {got[0] if got else 'a timeout'}")
+    return got[0][1]
+
+
+def ortho_picture(win, project, tmp: Path) -> None:
+    """Tools ▸ Orthoimage… as the dialog's defaults make it (the reference view on the loaded
+    reference DEM), its dock raised, the model panel closed and the right column widened to half
+    the window, the ortho checked at the points."""
+    from PySide6.QtCore import QCoreApplication, Qt
+
+    from prismstation.gui.app import wait_settled
+    from prismstation.ops.ortho import OrthoRequest
+
+    tool = win.tools["ortho"]
+    view = win.project.scene.reference_view
+    ref = project.parent / "triplet" / "srtm.tif"
+    wait_job(tool.start(OrthoRequest(output=str(tmp / "demo_ortho.tif"), views=(view,), dem=str(ref))))
+    tool.dock.raise_()
+    win.docks["model"].hide()       # the right column for the ortho, wider: as an operator drags it
+    win.resizeDocks([tool.dock], [int(win.width() * 0.5)], Qt.Orientation.Horizontal)
+    wait_settled(win)
+    wait_job(tool.viewer.validate())
+    v = tool.viewer.view
+    QCoreApplication.processEvents()
+    v.fit()
+    for _ in range(400):
+        QCoreApplication.processEvents()
+        if v.tiles_complete():
+            break
+    win.statusBar().showMessage(tool.message.splitlines()[0].replace(str(tmp) + "/", ""))
+    QCoreApplication.processEvents()
 
 
 def new_point_picture(win, project):

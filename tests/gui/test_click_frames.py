@@ -60,12 +60,14 @@ def test_clicks_during_a_refit_are_taken_and_the_refits_coalesce(qtbot, window, 
     from prismstation.gui import solver as solver_mod
     win = window
     real = solver_mod.solve_project
-    fits, running = [], threading.Event()
+    fits, running, release = [], threading.Event(), threading.Event()
 
     def slow(snap, *a, **k):
         fits.append(snap.revision)
         running.set()
-        time.sleep(0.4)  # (the interpreter is free meanwhile, as in the fit's numpy work)
+        # held until the three clicks are made (a fixed sleep let a loaded machine end the fit
+        # before the third click); the interpreter is free meanwhile, as in the fit's numpy work
+        release.wait(20)
         return real(snap, *a, **k)
     monkeypatch.setattr(solver_mod, "solve_project", slow)
     monkeypatch.setattr(win.solver, "inline_ms", 0.0)
@@ -85,6 +87,7 @@ def test_clicks_during_a_refit_are_taken_and_the_refits_coalesce(qtbot, window, 
         qtbot.wait(5)
     assert win.solver.busy() and len(fits) == 1  # all three made while the first fit ran
     assert max(taken) < 0.2, taken               # none waited for it
+    release.set()
     settle(qtbot, win)
     assert win.undo_stack.count() == n0 + 4
     assert (win.project.measurement("G2", "N").x, win.project.measurement("G2", "N").y) == tuple(xy)

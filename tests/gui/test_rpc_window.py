@@ -323,7 +323,9 @@ def test_the_plots_draw_the_tie_points_of_a_model_that_fits_them(win):
     d = win.plots._data
     assert d.ties and len(d.vec_tie_ids) == 16 and len(d.vec_gcp_ids) == 5 and len(d.vec_icp_ids) == 4
     assert set(d.std_ids) == {p for p, q in win.project.points.items() if q.kind in ("GCP", "TIE")}
-    assert "tie points" in win.plots.plots["std_residuals"].getPlotItem().titleLabel.text
+    std = win.plots.plots["std_residuals"].getPlotItem()
+    assert "tie points" in std.titleLabel.text
+    assert std.getAxis("bottom").labelText == "point"     # not "GCP": it counts tie points too
     assert "16 tie points in img_01" in win.plots.summary.text()
 
 

@@ -291,6 +291,8 @@ class PlotsWidget(QWidget):
             if self._titles.get(name) != title:
                 pw.setTitle(title, size="9pt", color=(30, 30, 30))
                 self._titles[name] = title
+                if name == "std_residuals":     # the axis names what it counts
+                    pw.getPlotItem().setLabel("bottom", "point" if self._data.ties else "GCP")
 
     # ------------------------------------------------------------------ public
     def set_solution(self, solution) -> None:
