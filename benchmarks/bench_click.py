@@ -64,7 +64,7 @@ def main(argv=None) -> int:
     from PySide6.QtCore import Qt
     from PySide6.QtTest import QTest
 
-    from tests.gui.project_factory import make_project
+    from prismstation.sim.small_project import make_project
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-click-"))
     os.environ["PRISMSTATION_SETTINGS_DIR"] = str(tmp / "settings")
@@ -183,7 +183,7 @@ def main(argv=None) -> int:
     target = 33.0 if args.points <= 200 else 50.0
     line("first frame (target ≤ 16 ms)", first)
     line(f"whole round (target ≤ {target:g} ms)", total)
-    line("  fit (core.solution.solve)", fit)
+    line("  fit (core.models.solution.solve)", fit)
     line("  fit published → last paint", gui_ms)
     line("CPU time of the process per round", cpu)
     print(f"  open to settled images and first fit      {t_open * 1000:7.0f} ms")

@@ -17,7 +17,7 @@ import numpy as np
 import rasterio
 from scipy import ndimage
 
-from prismstation.core.coreg import coregister, nuth_kaab
+from prismstation.core.matching.coreg import coregister, nuth_kaab
 
 TILE = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "srtm" / "N44E005_UTM.tif"
 CASES = [(0.3, -0.45, 2.0), (0.05, 0.12, 0.0), (1.7, 0.6, -5.0), (3.0, 5.0, 10.0),

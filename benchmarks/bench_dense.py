@@ -4,7 +4,7 @@ A triplet of ``--size`` pixels is simulated (``prismstation simulate``, kept in 
 reused), its project made and fitted. Then, timed in the same run:
 
 * one plain StereoSGBM pass (128 disparities, block 5, OpenCV's default mode) over the N and F
-  images as they are (no rectification: the yardstick of the issue, not a DSM); run twice, the
+  images as they are (no rectification: the yardstick of the targets, not a DSM); run twice, the
   faster counts (the ratios below are then the less flattering);
 * the whole DSM (``prismstation.ops.dsm.make_dsm``: three pairs, coarse to fine, refinement,
   fusion) at postings of 20, 10 and 5 m.
@@ -16,7 +16,7 @@ matched cells), then at the finest posting the same per slope class of the truth
 and the peak resident memory of the process (the plain pass runs in a child process and is
 not in it).
 
-Run: ``python benchmarks/bench_dense.py --size 3000`` (6000 and 14000 for the issue's targets);
+Run: ``python benchmarks/bench_dense.py --size 3000`` (6000 and 14000 for the targets of docs/benchmarks.md);
 ``--scene DIR`` uses a triplet simulated beforehand (``benchmarks/simulate_full.py --out DIR``);
 ``--exact-control`` orients it with its GCPs' true ground and image coordinates instead of the
 surveyed ones (σ 0.5 m / 1 m and 0.3 px), to tell the matcher's error from the control's;
@@ -37,7 +37,7 @@ import numpy as np
 import rasterio
 
 from prismstation.ops.project import create
-from prismstation.core.stats import nmad
+from prismstation.core.adjustment.stats import nmad
 from prismstation.io.dem import read_dem
 from prismstation.io.raster import gdal_env
 from prismstation.io.project import load_project

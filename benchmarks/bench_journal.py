@@ -24,7 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from prismstation.io.project import load_project, project_to_dict  # noqa: E402
 from prismstation.io.recovery import Journal  # noqa: E402
 from prismstation.model.points import Measurement  # noqa: E402
-from tests.gui.project_factory import make_project  # noqa: E402
+from prismstation.sim.small_project import make_project  # noqa: E402
 
 
 class SerialiseOnly:

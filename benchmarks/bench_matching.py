@@ -19,7 +19,7 @@ import numpy as np
 import rasterio
 from scipy import ndimage
 
-from prismstation.core.matching import match_point
+from prismstation.core.matching.matching import match_point
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "pleiades_triplet"
 H = 15            # template half size: 31 x 31 for every method

@@ -75,11 +75,11 @@ def ortho_cli(args) -> str:
 
 # ---------------------------------------------------------------------------- RPC of a model
 def fit_rpc(ground_to_image, to_lonlat, window, h_range, image_to_ground, n: int = 31, levels: int = 7):
-    """An RPC00B (:class:`prismstation.core.rpc.Rpc`) fitted to a model over an image window
+    """An RPC00B (:class:`prismstation.core.models.rpc.Rpc`) fitted to a model over an image window
     and a height range: ``image_to_ground(xy, h)`` places a ``n × n × levels`` grid on the
     ground, the 78 coefficients by linear least squares (denominators' constant 1); returns
     the RPC and its largest error (px) at the cells' centres between the grid's points."""
-    from prismstation.core.rpc import Rpc, _terms
+    from prismstation.core.models.rpc import Rpc, _terms
 
     c0, r0, w, h = window
     lo, hi = h_range
@@ -133,7 +133,7 @@ def write_rpc_vrt(path: Path, image: Path, rpc) -> None:
 def shift_lsq(a, b, r0, c0, n):
     """How far ``b``'s content lies from ``a``'s over a window (cells ``(dx, dy)``, b(x + s) =
     a(x)): least squares on the gradient, ``b`` resampled by cubic convolution."""
-    from prismstation.core.ortho import resample
+    from prismstation.core.surfaces.ortho import resample
     yy, xx = np.mgrid[r0:r0 + n, c0:c0 + n].astype(np.float32)
     ref = a[r0:r0 + n, c0:c0 + n]
     s = np.zeros(2)
@@ -312,12 +312,12 @@ def run_pleiades(args) -> None:
     from scipy.interpolate import griddata
 
     from prismstation.cli import main
-    from prismstation.core.rpc_tiepoints import match_tie_points
+    from prismstation.core.matching.rpc_tiepoints import match_tie_points
     from prismstation.io.dem import write_dem
     from prismstation.io.project import load_project, save_project
     from prismstation.ops.fit import solve_project
     from prismstation.ops.ortho_tiles import Heights
-    from prismstation.core import ortho
+    from prismstation.core.surfaces import ortho
 
     if not PLEIADES.is_dir():
         raise SystemExit(f"{PLEIADES} not found")

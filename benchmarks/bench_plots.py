@@ -23,11 +23,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 from PySide6.QtWidgets import QApplication  # noqa: E402
 
-from prismstation.core.solution import solve  # noqa: E402
+from prismstation.core.models.solution import solve  # noqa: E402
 from prismstation.gui.plots import PlotsWidget  # noqa: E402
 from prismstation.gui.report_writer import write_document  # noqa: E402
 from prismstation.io.report import report_dict  # noqa: E402
-from tests.core.synth import make_points, make_scene  # noqa: E402
+from prismstation.sim.model_triplet import make_points, make_scene  # noqa: E402
 
 
 def solutions(n_gcp, n_icp, seeds=(1, 2)):

@@ -13,8 +13,8 @@ import cv2
 import numpy as np
 import rasterio
 
-from prismstation.core.deblock import blockiness, deblock
-from prismstation.core.rectify import KINDS, fit_transform, n_params
+from prismstation.core.matching.deblock import blockiness, deblock
+from prismstation.core.models.rectify import KINDS, fit_transform, n_params
 from prismstation.ops.validate import validate_dsm_files
 from prismstation.ops.rectify import rectify_raster
 

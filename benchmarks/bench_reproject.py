@@ -1,7 +1,7 @@
 """Where a geographic DEM lands on a UTM grid: GDAL's default warp against ``io.reproject``.
 
 Per place (latitude, longitude off the UTM zone's central meridian): the analytic hills of
-``tests/io/test_reproject.py`` written on a 3″ EPSG:4326 grid and on a 21 km, 30 m UTM grid,
+``prismstation.sim.hills`` written on a 3″ EPSG:4326 grid and on a 21 km, 30 m UTM grid,
 the first read onto the second with the approximate transformer at GDAL's default threshold
 (0.125 source pixel) and at ``ERROR_PX``; printed: where the surface arrives (east, north, m,
 least squares on its gradient) and the largest error of the warp's source positions against
@@ -21,10 +21,9 @@ from rasterio.transform import Affine
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
-sys.path.insert(0, str(ROOT))
 
 from prismstation.io.reproject import ERROR_PX, grid_pixels, warp_array  # noqa: E402
-from tests.io.test_reproject import PLACES, UTM31, Place, shift_m  # noqa: E402
+from prismstation.sim.hills import PLACES, UTM31, Place, shift_m  # noqa: E402
 
 GDAL_DEFAULT = 0.125
 

@@ -35,9 +35,9 @@ from rasterio.rpc import RPC
 from rasterio.transform import RPCTransformer
 from scipy.optimize import least_squares
 
-from prismstation.core.rpc_adjust import adjust, adjust_snooping
-from prismstation.core.rpc_bias import BiasedRpc, intersect_points
-from prismstation.core.rpc_tiepoints import match_tie_points
+from prismstation.core.models.rpc_adjust import adjust, adjust_snooping
+from prismstation.core.models.rpc_bias import BiasedRpc, intersect_points
+from prismstation.core.matching.rpc_tiepoints import match_tie_points
 from prismstation.io.rpc import read_rpc, read_rpc_file
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"

@@ -11,7 +11,7 @@ Printed:
 3. the peer, in the same process: each pair orthorectified by GDAL's RPC transformer
    (``rasterio.warp.reproject`` with the RPCs, the fitted shift folded into the RPC offsets) at
    the tie points' mean height on a 0.5 m grid turned so that the pair's parallax runs along
-   its rows, the same StereoSGBM and subpixel refinement (``core.sgm``), heights from the
+   its rows, the same StereoSGBM and subpixel refinement (``core.matching.sgm``), heights from the
    parallax rate, binned to the same 1 m grid: time and the same agreement figures;
 4. orientation from a reference DEM: SRTM's N44E005 tile (the only one among the samples)
    does not reach Aubagne (43.26° N), so the reference is the triplet's own fitted DSM
@@ -41,18 +41,18 @@ import rasterio
 from rasterio.rpc import RPC
 from rasterio.warp import reproject, Resampling
 
-from prismstation.core import sgm
-from prismstation.core.dsmstats import hillshade
-from prismstation.core.rpc_adjust import adjust_snooping
-from prismstation.core.rpc_bias import intersect_points, metres_per_degree
-from prismstation.core.rpc_epipolar import grid_heights
-from prismstation.core.rpc_tiepoints import match_tie_points
-from prismstation.core.stats import nmad
+from prismstation.core.matching import sgm
+from prismstation.core.surfaces.dsmstats import hillshade
+from prismstation.core.models.rpc_adjust import adjust_snooping
+from prismstation.core.models.rpc_bias import intersect_points, metres_per_degree
+from prismstation.core.surfaces.rpc_epipolar import grid_heights
+from prismstation.core.matching.rpc_tiepoints import match_tie_points
+from prismstation.core.adjustment.stats import nmad
 from prismstation.io.dem import write_dem
 from prismstation.io.raster import gdal_env
 from prismstation.io.rpc import read_rpc
-from prismstation.ops.rpc_dsm import (PairDsm, footprint_grid, image_shape, pair_agreement, rpc_dsm,
-                                      to_lonlat, to_map)
+from prismstation.io.rpc_scene import to_lonlat, to_map
+from prismstation.ops.rpc_dsm import PairDsm, footprint_grid, image_shape, pair_agreement, rpc_dsm
 from prismstation.ops.rpc_orient import orient_from_reference
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"

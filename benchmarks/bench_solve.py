@@ -1,7 +1,7 @@
 """Time of one fit of a project: ``prismstation.ops.fit.solve_project`` (the refit after
 each click of the operator in the workstation window).
 
-Triplet projects made by ``tests/gui/project_factory.make_project`` (no images) with 10 % GCPs
+Triplet projects made by ``prismstation.sim.small_project.make_project`` (no images) with 10 % GCPs
 and 90 % ICPs, all measured in N, F and B. Between two fits one GCP's N measurement moves by
 a pixel, as a click moves it (the fit reuses what the click cannot have changed: the other
 views' bias fits, the parallax line, the heights — kept in a ``FitMemo`` as the window's
@@ -50,7 +50,7 @@ def main(argv=None) -> int:
 
     from prismstation.io.project import load_project
     from prismstation.ops.fit import FitMemo, solve_project
-    from tests.gui.project_factory import make_project
+    from prismstation.sim.small_project import make_project
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-solve-"))
     print(f"{'points':>6}  {'GCP':>4}  {'median':>8}  {'p10':>8}  {'p90':>8}  (ms per solve_project)")

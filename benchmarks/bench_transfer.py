@@ -56,7 +56,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from prismstation.ops.project import create  # noqa: E402
-from prismstation.core.lsm_search import match  # noqa: E402
+from prismstation.core.matching.lsm_search import match  # noqa: E402
 from prismstation.io.project import load_project  # noqa: E402
 from prismstation.io.windows import ImageWindows  # noqa: E402
 from prismstation.ops.fit import solve_project  # noqa: E402
@@ -65,7 +65,7 @@ from prismstation.ops.transfer import (FREE_SHAPE_CHANGE, MAX_SIGMA_PX, local_sh
                                        search_height, search_sigmas, transfer)
 from prismstation.sim import simulate  # noqa: E402
 from prismstation.sim.reference import make_reference_dem  # noqa: E402
-from prismstation.core.coarse import search_radius_px  # noqa: E402
+from prismstation.core.matching.coarse import search_radius_px  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "real"
 SRTM = DATA / "srtm" / "N44E005.hgt"

@@ -14,13 +14,13 @@ from prismstation.io.windows import ImageWindows
 
 def orient_cells(d: Path, f: int = 2, half_cells: int = 24) -> None:
     """The relative DEM cells of ``orient-dem`` at the scene's points: its dense F↔B matcher
-    (``core.dense.parallax_map`` as orient-dem runs it: F and B averaged f×f, 9 × 9 windows,
+    (``core.matching.dense.parallax_map`` as orient-dem runs it: F and B averaged f×f, 9 × 9 windows,
     the reference DEM's parallax as prior, ±3 σ of it searched) against least-squares matching
     of F and B from N (``ops.transfer``, full resolution, reference DEM), both against the
     simulator's exact F−B parallax. Both carry F and B into N space through the fitted model."""
-    from prismstation.core import prism
-    from prismstation.core.affine import Affine2D
-    from prismstation.core.dense import parallax_map
+    from prismstation.core.models import prism
+    from prismstation.core.adjustment.affine import Affine2D
+    from prismstation.core.matching.dense import parallax_map
     from prismstation.io.windows import scaling, shift
     project = load_project(d / "p.prismproj")
     sol = solve_project(project)

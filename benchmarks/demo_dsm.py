@@ -22,7 +22,7 @@ sys.path.insert(0, str(ROOT / "src"))
 
 from prismstation.cli import main  # noqa: E402
 from prismstation.cli.demo import ensure_demo  # noqa: E402
-from prismstation.core.stats import nmad  # noqa: E402
+from prismstation.core.adjustment.stats import nmad  # noqa: E402
 from prismstation.io.dem import read_dem  # noqa: E402
 
 

@@ -1,4 +1,4 @@
-"""The matcher's σ calibration (:mod:`prismstation.core.matching`): empirical scatter against
+"""The matcher's σ calibration (:mod:`prismstation.core.matching.matching`): empirical scatter against
 formal and claimed σ on real independent imagery (Pléiades triplet closure, no truth needed)
 and on a simulated PRISM triplet with relief (known truth).
 

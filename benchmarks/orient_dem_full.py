@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from prismstation.ops.project import create
-from prismstation.core.solution import solve
+from prismstation.core.models.solution import solve
 from prismstation.ops.orient_dem import orient_from_dem
 from prismstation.sim import simulate
 from prismstation.sim.reference import make_reference_dem

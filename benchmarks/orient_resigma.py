@@ -25,9 +25,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from prismstation.core import prism  # noqa: E402
+from prismstation.core.models import prism  # noqa: E402
 from prismstation.io.scene import read_scene  # noqa: E402
-from prismstation.core.view_offsets import SIGMA_HEIGHT_M  # noqa: E402
+from prismstation.core.orientation.view_offsets import SIGMA_HEIGHT_M  # noqa: E402
 from prismstation.ops import orient_dem  # noqa: E402
 
 

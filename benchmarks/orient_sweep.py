@@ -9,7 +9,7 @@ geolocation is then perturbed (``sim.perturb.perturb_geolocation``) to each erro
 view off by exactly ``M`` metres in its own random direction (the worst case of "up to M").
 Per case: ``new`` + ``orient-dem`` through the command line, then the check-point RMSE
 (planimetric, height) over every ground point against the simulator's truth, the patches used,
-the consistency verdict of the patch shift field (``core.consistency.snoop``), the run time.
+the consistency verdict of the patch shift field (``core.orientation.consistency.snoop``), the run time.
 
     python benchmarks/orient_sweep.py --sizes 1600 --errors 0 25 50 100 --seeds 0
     python benchmarks/orient_sweep.py --sizes 6000 14000 --passes descending ascending --seeds 0 1 2
@@ -44,7 +44,7 @@ sys.path.insert(0, str(ROOT / "src"))
 
 from prismstation.cli import main  # noqa: E402
 from prismstation.sim import simulate  # noqa: E402
-from prismstation.core.prism import theoretical_c1  # noqa: E402
+from prismstation.core.models.prism import theoretical_c1  # noqa: E402
 from prismstation.io.scene import read_scene  # noqa: E402
 from prismstation.sim.perturb import perturb_geolocation, truth_geometry  # noqa: E402
 from prismstation.io.geoid import GridGeoid, find_grid  # noqa: E402

@@ -9,7 +9,7 @@ def rpc_window(images, out: Path, tmp: Path, size=(1600, 1000), cell: int = 64) 
     """``rpc_window_1600x1000.png``: the window on a project of ``images`` (with RPCs).
 
     Tie points are matched automatically between the images
-    (:func:`prismstation.core.rpc_tiepoints.match_tie_points`, one per ``cell`` px) and given
+    (:func:`prismstation.core.matching.rpc_tiepoints.match_tie_points`, one per ``cell`` px) and given
     to ``new --images``; the reference DEM is the tie points' own heights by the unbiased RPCs
     (``fit --bias none``), gridded at 5 m (no DEM covering such crops is at hand: a DEM with no
     offset to the RPCs). The window opens the project with shift biases, the first image held
@@ -27,7 +27,7 @@ def rpc_window(images, out: Path, tmp: Path, size=(1600, 1000), cell: int = 64) 
     from scipy.interpolate import griddata
 
     from prismstation.cli import main as cli
-    from prismstation.core.rpc_tiepoints import match_tie_points
+    from prismstation.core.matching.rpc_tiepoints import match_tie_points
     from prismstation.gui.app import make_app, wait_settled
     from prismstation.gui.main_window import MainWindow
 

@@ -1,4 +1,4 @@
-"""The two experiments that calibrate the matcher's σ (:mod:`prismstation.core.matching`),
+"""The two experiments that calibrate the matcher's σ (:mod:`prismstation.core.matching.matching`),
 run by ``benchmarks/match_sigma.py`` and checked by ``tests/core/matching/test_match_sigma.py``
 (an experiment, not a test: it lives here and the test imports it).
 
@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 import rasterio
 
-from prismstation.core.matching import match_point
+from prismstation.core.matching.matching import match_point
 
 HALF = 12
 

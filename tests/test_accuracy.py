@@ -1,4 +1,4 @@
-"""Issue 2 item 8 / done-when: simulated triplets (rigorous geometry, written in the public
+"""Accuracy with GCPs: simulated triplets (rigorous geometry, written in the public
 formats) through `new` → `fit --json`; ICP accuracy against the noise floor.
 
 9 GCPs, 41 ICPs, 0.3 px measurement noise, no survey noise. Floors (per axis):

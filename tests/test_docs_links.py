@@ -89,3 +89,16 @@ def test_readme_commands_are_what_ci_runs():
     assert "bash packaging/setup.sh && .venv/bin/prismstation demo" in [b.strip() for b in blocks]
     setup = (ROOT / "packaging" / "setup.sh").read_text()
     assert "poppler-utils" in setup  # the PDF report test reads its output with poppler's tools
+
+
+def test_nothing_names_a_tracker_issue():
+    """Code, tests, benchmarks and docs say what a thing does, not which ticket asked for it:
+    no "Issue N" (a number that means nothing inside the repository)."""
+    pattern = re.compile(r"\bissues?\s*#?\s*\d+", re.IGNORECASE)
+    files = [ROOT / "README.md", ROOT / "pyproject.toml", *DOCS] + [
+        p for d in ("src", "tests", "benchmarks", "packaging", ".ci") for p in (ROOT / d).rglob("*")
+        if (p.suffix in (".py", ".md", ".toml", ".cfg", ".sh", ".txt") or p.parent.name == ".ci") and p.is_file()]
+    found = [f"{p.relative_to(ROOT)}:{text.count(chr(10), 0, m.start()) + 1}: {m.group(0)}"
+             for p in dict.fromkeys(files) for text in [p.read_text(encoding="utf-8", errors="replace")]
+             for m in pattern.finditer(text)]
+    assert not found, "\n".join(found)

@@ -1,4 +1,4 @@
-"""Issue 4 on a simulated triplet with an SRTM-like reference (truth at 90 m, orthometric,
+"""Orientation without GCPs on a simulated triplet with an SRTM-like reference (truth at 90 m, orthometric,
 2 m noise, voids): orient-dem with no GCP, point transfer, automatic ties, DSM."""
 import json
 

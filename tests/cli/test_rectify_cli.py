@@ -6,7 +6,7 @@ import pytest
 import rasterio
 
 from prismstation.cli import main
-from prismstation.core.rectify import compare_transforms
+from prismstation.core.models.rectify import compare_transforms
 from tests.rectify_data import CRS, _apply, _csvs, _image, _points, _read
 
 

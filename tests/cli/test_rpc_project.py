@@ -2,7 +2,7 @@
 and the Réunion pair.
 
 Tie points are matched automatically between the images (SIFT, then NCC and
-least-squares matching: :func:`prismstation.core.rpc_tiepoints.match_tie_points`) and given to
+least-squares matching: :func:`prismstation.core.matching.rpc_tiepoints.match_tie_points`) and given to
 ``new --images`` as a measurements file. ``fit`` then runs with the first image held fixed and
 the tie points held to a reference DEM. No DEM covering these crops is among the samples, so
 the reference is made from the products' own RPCs: the heights their unbiased intersection
@@ -22,7 +22,7 @@ from rasterio.transform import from_origin
 from scipy.interpolate import griddata
 
 from prismstation.cli import main
-from prismstation.core.rpc_tiepoints import match_tie_points
+from prismstation.core.matching.rpc_tiepoints import match_tie_points
 
 pytestmark = pytest.mark.slow   # the matching: ~40 s per block on a busy 2-core machine
 SETS = {"triplet": [f"pleiades_triplet/img_0{i}.tif" for i in (1, 2, 3)],

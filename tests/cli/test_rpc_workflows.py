@@ -19,10 +19,10 @@ import rasterio
 from rasterio.rpc import RPC
 
 from prismstation.cli import main
-from prismstation.core.rpc_bias import metres_per_degree
-from prismstation.core.stats import nmad
+from prismstation.core.models.rpc_bias import metres_per_degree
+from prismstation.core.adjustment.stats import nmad
 from prismstation.io.project import load_project
-from prismstation.ops.rpc_dsm_tiles import to_lonlat
+from prismstation.io.rpc_scene import to_lonlat
 from tests.ops.rpc_synth import World, analytic_terrain, make_rpc, render
 from tests.ops.test_rpc_dsm import GSD, LAT0, LON0, SHIFT, SIZE, TANS, write_reference
 

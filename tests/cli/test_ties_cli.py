@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from prismstation.cli import main
-from prismstation.core.rpc_bias import metres_per_degree
+from prismstation.core.models.rpc_bias import metres_per_degree
 from prismstation.errors import Cancelled
 from prismstation.io.project import load_project
 from prismstation.ops.tie_points import add_tie_points

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from prismstation.core.solution import PointObs, Settings, critical_value, normal_equivalent, solve
-from tests.core.synth import make_points, make_scene
+from prismstation.core.models.solution import PointObs, Settings, critical_value, normal_equivalent, solve
+from prismstation.sim.model_triplet import make_points, make_scene
 
 
 @pytest.mark.parametrize("dof", [2, 3, 5, 7, 12, 40, 1000])

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from prismstation.core.consistency import (ALPHA, EXIT_NOT_TRUSTED, INCONSISTENT, OK, TOO_FEW,
+from prismstation.core.orientation.consistency import (ALPHA, EXIT_NOT_TRUSTED, INCONSISTENT, OK, TOO_FEW,
                                            shift_field_verdict, snoop)
 
 

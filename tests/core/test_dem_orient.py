@@ -1,12 +1,12 @@
 import numpy as np
 import pytest
 
-from prismstation.core import prism
-from prismstation.core.dem_orient import (PatchShift, affine_field, control_from_field, gcp_field_obs,
+from prismstation.core.models import prism
+from prismstation.core.orientation.dem_orient import (PatchShift, affine_field, control_from_field, gcp_field_obs,
                                           grid_points, patch_windows, smooth_like_reference)
-from prismstation.core.solution import PointObs, solve
-from prismstation.core import view_offsets as vo
-from tests.core.synth import make_scene
+from prismstation.core.models.solution import PointObs, solve
+from prismstation.core.orientation import view_offsets as vo
+from prismstation.sim.model_triplet import make_scene
 
 
 def _shift(x, y):  # an affine field of shifts (m) over the N image, like the ~50 m Gonçalves reports
@@ -151,7 +151,7 @@ def test_voids_that_follow_the_relief_do_not_move_the_smoothed_shift():
     voids where the matcher typically fails — small crests facing one way: matched as it is, the
     terrain lands metres off; smoothed to the reference's resolution, within 0.5 m."""
     from scipy import ndimage
-    from prismstation.core.coarse import dem_offset
+    from prismstation.core.matching.coarse import dem_offset
     rng = np.random.default_rng(0)
     n = 540                                                      # 10 m cells
     f = ndimage.gaussian_filter(rng.normal(size=(n, n)), 12)

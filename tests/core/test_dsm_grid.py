@@ -3,7 +3,7 @@ whole-grid steps give."""
 import numpy as np
 import pytest
 
-from prismstation.core import dsm_grid
+from prismstation.core.surfaces import dsm_grid
 
 
 def _surface(rows=300, cols=80, seed=0):

@@ -1,15 +1,15 @@
-"""Which heights a DSM follows (core.dsm_heights): the parallax line or the rays through the
+"""Which heights a DSM follows (core.surfaces.dsm_heights): the parallax line or the rays through the
 biases, chosen by the GCPs left out in turn."""
 import dataclasses
 
 import numpy as np
 import pytest
 
-from prismstation.core.dsm_heights import choose_heights, loo_height_errors, model_height_correction
-from prismstation.core.prism import FixedPrism
-from prismstation.core.solution import Control, solve
+from prismstation.core.surfaces.dsm_heights import choose_heights, loo_height_errors, model_height_correction
+from prismstation.core.models.prism import FixedPrism
+from prismstation.core.models.solution import Control, solve
 
-from tests.core.synth import make_points, make_scene
+from prismstation.sim.model_triplet import make_points, make_scene
 
 
 def _drifting(points, size, drift_px):

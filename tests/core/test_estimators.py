@@ -1,4 +1,4 @@
-"""Every fitted transform of core through the one estimator protocol (core/estimate.py):
+"""Every fitted transform of core through the one estimator protocol (core/adjustment/estimate.py):
 fit on noisy synthetic pairs, forward∘inverse, residuals, σ0 and the parameter covariance
 against the scatter of the parameters over 200 noise draws; then the degenerate geometries."""
 from dataclasses import dataclass
@@ -7,17 +7,17 @@ from typing import Callable
 import numpy as np
 import pytest
 
-from prismstation.core import prism
-from prismstation.core.affine import Affine2D
-from prismstation.core.estimate import MAX_CONDITION, SINGULAR, Estimator, FailedFit
-from prismstation.core.prism import BiasFit
-from prismstation.core.rectify import FittedTransform, compare_transforms, fit_transform
-from prismstation.core.resection import FrameCamera, resect
-from prismstation.core.shift_field import ShiftField
-from prismstation.core.solution import PointObs, Settings, solve
+from prismstation.core.models import prism
+from prismstation.core.adjustment.affine import Affine2D
+from prismstation.core.adjustment.estimate import MAX_CONDITION, SINGULAR, Estimator, FailedFit
+from prismstation.core.models.prism import BiasFit
+from prismstation.core.models.rectify import FittedTransform, compare_transforms, fit_transform
+from prismstation.core.models.resection import FrameCamera, resect
+from prismstation.core.orientation.shift_field import ShiftField
+from prismstation.core.models.solution import PointObs, Settings, solve
 from prismstation.errors import DegenerateGeometry, ModelError
 
-from .synth import make_scene
+from prismstation.sim.model_triplet import make_scene
 
 DRAWS = 200
 E0, N0 = 512000.0, 4601000.0

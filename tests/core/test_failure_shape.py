@@ -1,14 +1,14 @@
-"""One failure shape for results (core/estimate.py, "Failure as a value"): falsy when it
+"""One failure shape for results (core/adjustment/estimate.py, "Failure as a value"): falsy when it
 failed, with a reason; truthy with an empty reason when it did not."""
 import math
 
 import numpy as np
 
-from prismstation.core.affine import Affine2D
-from prismstation.core.coreg import CoregResult
-from prismstation.core.dense import ParallaxMap
-from prismstation.core.ray_dem import ray_meets_surface
-from prismstation.core.resection import FrameCamera, project, resect
+from prismstation.core.adjustment.affine import Affine2D
+from prismstation.core.matching.coreg import CoregResult
+from prismstation.core.matching.dense import ParallaxMap
+from prismstation.core.models.ray_dem import ray_meets_surface
+from prismstation.core.models.resection import FrameCamera, project, resect
 
 
 def _check(ok, failed):

@@ -4,9 +4,9 @@ import math
 import numpy as np
 import pytest
 
-from prismstation.core.scene import GroundTrack
-from prismstation.core.solution import critical_value
-from prismstation.core.stats import ComponentStats, VectorStats
+from prismstation.core.models.scene import GroundTrack
+from prismstation.core.models.solution import critical_value
+from prismstation.core.adjustment.stats import ComponentStats, VectorStats
 
 
 def _nearest_on_polyline(points, q):

@@ -1,5 +1,5 @@
-"""The joint adjustment of the DEM orientation's shift field (core/field_adjust.py), its σ and
-the terrain's conditioning verdict (core/conditioning.py), on synthetic cells whose truth is known."""
+"""The joint adjustment of the DEM orientation's shift field (core/orientation/field_adjust.py), its σ and
+the terrain's conditioning verdict (core/orientation/conditioning.py), on synthetic cells whose truth is known."""
 from __future__ import annotations
 
 import numpy as np
@@ -7,9 +7,9 @@ import pytest
 from scipy import ndimage
 from scipy.optimize import least_squares
 
-from prismstation.core import conditioning as cond
-from prismstation.core.field_adjust import Cells, FieldObs, accumulate, adjust_field, signal_share
-from prismstation.core.field_model import Basis, Distortion, Surface
+from prismstation.core.orientation import conditioning as cond
+from prismstation.core.orientation.field_adjust import Cells, FieldObs, accumulate, adjust_field, signal_share
+from prismstation.core.orientation.field_model import Basis, Distortion, Surface
 
 POST = 30.0          # reference posting (m)
 GSD = 2.5            # N pixel (m); N image 6000 px = 15 km, north-up, the map offset by ORIGIN

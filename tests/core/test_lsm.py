@@ -1,13 +1,13 @@
-"""Least-squares matching (core/lsm.py, core/lsm_search.py) on real Pléiades texture warped by
+"""Least-squares matching (core/matching/lsm.py, core/matching/lsm_search.py) on real Pléiades texture warped by
 known affine transforms (truth = the warp), its stated σ against the scatter, and its failures."""
 import numpy as np
 import pytest
 import rasterio
 from scipy import ndimage
 
-from prismstation.core import lsm
-from prismstation.core.lsm import refine
-from prismstation.core.lsm_search import match
+from prismstation.core.matching import lsm
+from prismstation.core.matching.lsm import refine
+from prismstation.core.matching.lsm_search import match
 
 HALF = 70   # half size of the crops
 
@@ -224,7 +224,7 @@ def test_the_weighted_fit_follows_relief_finer_than_the_template(texture):
 def test_the_spline_gives_the_interpolating_spline_and_its_gradients():
     # values as scipy's cubic B-spline, gradients as its central differences; image coordinates
     # (pixel centre at +0.5) of a window whose corner is image pixel (c0, r0)
-    from prismstation.core.lsm_spline import Spline
+    from prismstation.core.matching.lsm_spline import Spline
     rng = np.random.default_rng(3)
     img = ndimage.gaussian_filter(rng.normal(0, 50, (40, 50)), 1.0) + 500
     sp = Spline(img, c0=100, r0=200)
@@ -239,7 +239,7 @@ def test_the_spline_gives_the_interpolating_spline_and_its_gradients():
 
 def test_the_unmodelled_displacement_from_block_sums_is_the_blocks_own_fit():
     # each 4 × 4 block's displacement by least squares, done block by block, against the sums
-    from prismstation.core.lsm_sigma import unmodelled_sigma
+    from prismstation.core.matching.lsm_sigma import unmodelled_sigma
     rng = np.random.default_rng(4)
     n, k = 25, 8
     G, O = rng.normal(0, 30, (n, n)), rng.normal(0, 30, (n, n))
@@ -265,7 +265,7 @@ def test_texture_sigma_sees_what_a_template_can_fix():
     """The σ a template's texture promises in its weakest direction: infinite inside a flat
     parcel (noise only) and on one straight edge (nothing fixes the point along it); a corner
     of the same contrast fixes it, to about √2·noise / (contrast·√(edge length)) px."""
-    from prismstation.core.lsm_sigma import texture_sigma
+    from prismstation.core.matching.lsm_sigma import texture_sigma
     rng = np.random.default_rng(0)
     n = 25
     flat = 120.0 + rng.normal(0, 2.0, (n, n))

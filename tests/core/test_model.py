@@ -3,12 +3,12 @@ import math
 import numpy as np
 import pytest
 
-from prismstation.core import prism
-from prismstation.core.affine import Affine2D
-from prismstation.core.solution import PointObs, Settings, solve
+from prismstation.core.models import prism
+from prismstation.core.adjustment.affine import Affine2D
+from prismstation.core.models.solution import PointObs, Settings, solve
 from prismstation.errors import ModelError
 
-from tests.core.synth import PAPER_B, PAPER_M, make_points, make_scene
+from prismstation.sim.model_triplet import PAPER_B, PAPER_M, make_points, make_scene
 
 
 def test_eq4_theoretical_parallax_scale():  # docs/model.md §6, Gonçalves 2008 eq. 4

@@ -1,7 +1,7 @@
 """The one NMAD: σ of normal data, unmoved by outliers, NaN-blind, dtype kept."""
 import numpy as np
 
-from prismstation.core.stats import nmad
+from prismstation.core.adjustment.stats import nmad
 
 
 def test_nmad_is_sigma_of_normal_data_and_ignores_outliers_and_nan():

@@ -1,9 +1,9 @@
-"""core/ortho: the cells' image positions from the lattice hold the model to its tolerance
+"""core/surfaces/ortho: the cells' image positions from the lattice hold the model to its tolerance
 wherever the model bends (in plan and in height), and the kernels move nothing."""
 import numpy as np
 import pytest
 
-from prismstation.core import ortho
+from prismstation.core.surfaces import ortho
 
 T = (2.5, 0.0, 500000.0, 0.0, -2.5, 4600000.0)
 

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from prismstation.core.ray_dem import ray_meets_surface
+from prismstation.core.models.ray_dem import ray_meets_surface
 
 TAN_FB = math.tan(math.radians(26.0))      # F and B of PRISM, as the demo's geometry has them
 

@@ -2,8 +2,8 @@
 different bytes compute again, and it forgets the oldest beyond its size."""
 import numpy as np
 
-from prismstation.core.prism_model import PrismModel
-from prismstation.core.recent import Recent, key_of
+from prismstation.core.models.prism_model import PrismModel
+from prismstation.core.models.recent import Recent, key_of
 
 
 def test_same_bytes_same_object_and_new_bytes_recompute():

@@ -5,8 +5,8 @@ import math
 
 import numpy as np
 
-from prismstation.core.results import PointColumns
-from prismstation.core.solution import solve
+from prismstation.core.models.results import PointColumns
+from prismstation.core.models.solution import solve
 from tests.core.test_solve_reference import _project
 
 

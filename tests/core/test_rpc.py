@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from prismstation.core.rpc_adjust import adjust
-from prismstation.core.rpc_bias import BiasedRpc, bias_design, intersect, metres_per_degree
+from prismstation.core.models.rpc_adjust import adjust
+from prismstation.core.models.rpc_bias import BiasedRpc, bias_design, intersect, metres_per_degree
 from prismstation.errors import DegenerateGeometry, ModelError
 from prismstation.io.rpc import read_rpc
 

@@ -5,12 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prismstation.core.rpc_bias import BiasedRpc, intersect_points
-from prismstation.core.rpc_epipolar import (apply_affine, correspondences, grid_heights,
+from prismstation.core.models.rpc_bias import BiasedRpc, intersect_points
+from prismstation.core.surfaces.rpc_epipolar import (apply_affine, correspondences, grid_heights,
                                             ray_lattice, rectify_pair, triangulate)
 from prismstation.errors import ModelError
-from prismstation.io.rpc_scene import utm_crs
-from prismstation.ops.rpc_dsm import to_map
+from prismstation.io.rpc_scene import to_map, utm_crs
 from tests.ops.rpc_synth import make_rpc
 
 LON0, LAT0 = 5.27, 44.17

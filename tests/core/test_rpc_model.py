@@ -10,10 +10,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prismstation.core.rpc_bias import BiasedRpc
-from prismstation.core.rpc_model import RpcBias, RpcModel
-from prismstation.core.sensor import SensorModel
-from prismstation.core.solution import PointObs, Settings, solve
+from prismstation.core.models.rpc_bias import BiasedRpc
+from prismstation.core.models.rpc_model import RpcBias, RpcModel
+from prismstation.core.models.sensor import SensorModel
+from prismstation.core.models.solution import PointObs, Settings, solve
 from prismstation.io.rpc_scene import write_scene_for_images
 from prismstation.io.scene import read_scene
 

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 import rasterio
 
-from prismstation.core.rpc_adjust import adjust, adjust_snooping
-from prismstation.core.rpc_bias import intersect_points
-from prismstation.core.rpc_tiepoints import match_tie_points
+from prismstation.core.models.rpc_adjust import adjust, adjust_snooping
+from prismstation.core.models.rpc_bias import intersect_points
+from prismstation.core.matching.rpc_tiepoints import match_tie_points
 from prismstation.io.rpc import read_rpc
 
 SETS = {"triplet": [f"pleiades_triplet/img_0{i}.tif" for i in (1, 2, 3)],

@@ -1,4 +1,4 @@
-"""The sensor-model protocol (``core/sensor.py``) as every registered model implements it: the
+"""The sensor-model protocol (``core/models/sensor.py``) as every registered model implements it: the
 fitted geometry takes arrays of any leading shape (a grid, as an orthoimage asks for it) and
 gives the same shape, image → ground inverts ground → image, and a scene names its model."""
 from __future__ import annotations
@@ -6,14 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prismstation.core import sensors
-from prismstation.core.rpc_bias import RpcBias
-from prismstation.core.rpc_model import RpcModel, RpcView
-from prismstation.core.scene import Scene
-from prismstation.core.sensor import SensorModel
-from prismstation.core.solution import solve
+from prismstation.core.models import sensors
+from prismstation.core.models.rpc_bias import RpcBias
+from prismstation.core.models.rpc_model import RpcModel, RpcView
+from prismstation.core.models.scene import Scene
+from prismstation.core.models.sensor import SensorModel
+from prismstation.core.models.solution import solve
 from prismstation.io.rpc_scene import LonLatProjection
-from tests.core.synth import make_points, make_scene
+from prismstation.sim.model_triplet import make_points, make_scene
 from tests.ops.rpc_synth import make_rpc
 
 LON0, LAT0 = 3.0, 43.3   # the synthetic RPC images' centre (UTM 31)

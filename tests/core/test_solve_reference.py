@@ -11,11 +11,11 @@ import math
 import numpy as np
 import pytest
 
-from prismstation.core import prism
-from prismstation.core.results import PointColumns
-from prismstation.core.solution import PointObs, Settings, normal_equivalent, solve, statistics
+from prismstation.core.models import prism
+from prismstation.core.models.results import PointColumns
+from prismstation.core.models.solution import PointObs, Settings, normal_equivalent, solve, statistics
 
-from tests.core.synth import make_points, make_scene
+from prismstation.sim.model_triplet import make_points, make_scene
 
 TOL_PX = 1e-7   # pixels: the point-by-point and vectorised paths round differently
 TOL_M = 1e-6    # metres (the inverse relief iteration stops at 1e-9 m per step)

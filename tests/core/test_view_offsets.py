@@ -9,7 +9,7 @@ import pytest
 import rasterio
 from scipy import ndimage
 
-from prismstation.core import view_offsets as vo
+from prismstation.core.orientation import view_offsets as vo
 from prismstation.io.scene import read_scene
 from prismstation.sim import simulate
 from prismstation.sim.perturb import perturb_geolocation

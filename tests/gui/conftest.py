@@ -10,7 +10,7 @@ import pytest
 
 from tests.qt_windows import close_windows, open_window
 
-from tests.gui.project_factory import make_project
+from prismstation.sim.small_project import make_project
 
 UNMEASURED = ("G9",)
 

@@ -6,12 +6,12 @@ import math
 import pytest
 from PySide6.QtGui import QUndoStack
 
-from prismstation.core.solution import Settings
+from prismstation.core.models.solution import Settings
 from prismstation.errors import InputError
 from prismstation.gui import commands as cmd
 from prismstation.model.points import GroundPoint, Measurement
 from prismstation.model.project import Project
-from tests.core.synth import make_scene
+from prismstation.sim.model_triplet import make_scene
 
 
 def state(p: Project):

@@ -53,7 +53,7 @@ def drag_marker(qtbot, win, view, x, y, dx, dy):
 
 
 def test_undoing_a_blunder_drag_clears_magenta_in_the_other_views(qtbot, window):
-    """Issue 13 bug 2: a marker dragged in F becomes a blunder (magenta in N, F, B); after
+    """A marker dragged in F becomes a blunder (magenta in N, F, B); after
     Ctrl+Z the screen of N and B no longer shows it magenta (it did until a pan)."""
     win = window
     assert not any(r.blunder for r in win.solver.solution.points)
@@ -108,7 +108,7 @@ def measure_new_tie_in_n(qtbot, win):
 
 
 def test_undoing_a_points_creation_leaves_no_ghost_in_the_other_views(qtbot, window):
-    """Issue 13 bug 2: the predicted markers of an undone point stayed on screen in F and B."""
+    """The predicted markers of an undone point stayed on screen in F and B."""
     win = window
     pid, pred = measure_new_tie_in_n(qtbot, win)
     for _ in range(2):                   # the click, then the creation
@@ -123,7 +123,7 @@ def test_undoing_a_points_creation_leaves_no_ghost_in_the_other_views(qtbot, win
 
 
 def test_deleting_a_points_only_measurement_leaves_no_ghost(qtbot, window):
-    """Issue 13 bug 2: Del on a point's only measurement left its predictions on screen."""
+    """Del on a point's only measurement left its predictions on screen."""
     win = window
     pid, pred = measure_new_tie_in_n(qtbot, win)
     n = win.project.measurement(pid, "N")

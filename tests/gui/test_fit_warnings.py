@@ -7,7 +7,7 @@ import pyqtgraph as pg
 import pytest
 from PySide6.QtCore import Qt
 
-from prismstation.core.solution import critical_value
+from prismstation.core.models.solution import critical_value
 from prismstation.gui.accuracy_strip import WARN_COLOR
 from tests.gui.test_operator import click_image, key, settle
 from tests.qt_windows import close_windows, open_window

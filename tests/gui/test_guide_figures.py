@@ -28,7 +28,7 @@ def section(text: str, number: int) -> str:
 
 def demo_figures(project_path) -> dict:
     """``{section: [snippet, ...]}``: the figures of the demo as the guide writes them."""
-    from prismstation.core.prism import theoretical_c1
+    from prismstation.core.models.prism import theoretical_c1
     from prismstation.io.project import load_project
     from prismstation.ops.fit import solve_project
 

@@ -401,6 +401,7 @@ def test_reference_dem_heights_for_the_linked_cursor(qtbot, window, tmp_path):
     from prismstation.ops.reference_heights import scene_grid
     win = window
     transform, shape = scene_grid(win.project.scene, spacing=100.0)
+    transform = rasterio.transform.Affine(*transform)
     dem = tmp_path / "dem.tif"
     rows, cols = shape
     # a plane: h = 900 m + 0.01 · (column): its height under the cursor is known exactly

@@ -19,7 +19,7 @@ from PySide6.QtCore import QPointF, Qt
 from PySide6.QtTest import QTest
 from rasterio.transform import from_origin
 
-from prismstation.core.rpc_model import RpcBias, RpcModel
+from prismstation.core.models.rpc_model import RpcBias, RpcModel
 from prismstation.io.rpc_scene import write_scene_for_images
 from prismstation.io.scene import read_scene
 from prismstation.ops.project import create

@@ -12,7 +12,7 @@ from PySide6.QtWidgets import QApplication
 from rasterio.transform import from_origin
 
 from prismstation.ops.predict import CHI2_95_2D
-from tests.gui.project_factory import Terrain
+from prismstation.sim.small_project import Terrain
 from tests.gui.test_operator import click_image, settle
 
 SHIFT = Qt.KeyboardModifier.ShiftModifier

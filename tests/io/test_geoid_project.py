@@ -11,8 +11,8 @@ from prismstation.io.points import read_ground_points, read_measurements
 from prismstation.io.project import load_project, save_project
 from prismstation.ops.fit import solve_project
 from prismstation.model.points import Measurement
-from tests.core.synth import make_points, make_scene
-from tests.io.test_cli_pipeline import write_triplet
+from prismstation.sim.model_triplet import make_points, make_scene
+from tests.cli.test_fit import write_triplet
 
 
 def test_grid_geoid_matches_proj(shared_data):

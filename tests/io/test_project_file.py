@@ -12,8 +12,8 @@ from prismstation.io.project import load_project, save_project
 from prismstation.io.recovery import Journal, recover
 from prismstation.model.points import GroundPoint, Measurement
 from prismstation.model.project import Project
-from tests.core.synth import make_scene
-from tests.io.test_cli_pipeline import write_triplet
+from prismstation.sim.model_triplet import make_scene
+from tests.cli.test_fit import write_triplet
 
 RECORD = {"reference": "srtm.tif", "mean_height": 312.5, "offsets_px": {"F": [0.5, -1.0]},
           "patches": [{"window": [0, 0, 10, 10], "x": 5.0, "y": 5.0, "dE": None, "dN": None, "dh": 1.5,

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 from pyproj import Transformer
 
-from prismstation.core.solution import solve
+from prismstation.core.models.solution import solve
 from prismstation.io import report as rp
 from prismstation.io.text_report import format_report
-from tests.core.synth import make_points, make_scene
+from prismstation.sim.model_triplet import make_points, make_scene
 
 
 @pytest.fixture(scope="module")

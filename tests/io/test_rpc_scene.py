@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from prismstation.cli import main
-from prismstation.core.rpc_model import RpcModel
+from prismstation.core.models.rpc_model import RpcModel
 from prismstation.errors import InputError
 from prismstation.io.project import load_project
 from prismstation.io.rpc import read_rpc
@@ -100,7 +100,7 @@ def test_project_settings_are_checked_against_the_sensor_model(shared_data, tmp_
 def test_a_command_the_model_does_not_list_is_refused_in_one_line(shared_data, tmp_path, capsys, monkeypatch):
     """``ops.project.require_workflow``: a sensor model whose ``workflows`` do not list a
     command (here the RPC model with ``orient-dem`` and ``dsm`` taken out) refuses it."""
-    from prismstation.core.rpc_model import RpcModel
+    from prismstation.core.models.rpc_model import RpcModel
     monkeypatch.setattr(RpcModel, "workflows", frozenset({"fit", "report"}))
     proj = tmp_path / "p.prismproj"
     assert main(["new", str(proj), "--images", *(str(shared_data / f) for f in PAIR), "--no-ties"]) == 0
@@ -126,7 +126,7 @@ def _wide_rpc(lon0, lat0, half_deg, seed=0):
     """The RPC of a 64 px image ``2 × half_deg`` degrees of longitude wide, centred on
     ``(lon0, lat0)``."""
     from tests.ops.rpc_synth import make_rpc
-    from prismstation.core.rpc_bias import metres_per_degree
+    from prismstation.core.models.rpc_bias import metres_per_degree
     ke, _ = metres_per_degree(lat0)
     return make_rpc(lon0, lat0, gsd=half_deg * ke / 32, size=64, tan_along=0.0, seed=seed)
 
@@ -148,7 +148,7 @@ def test_images_across_the_antimeridian(tmp_path):
     b = _tagged(tmp_path / "b.tif", _wide_rpc(-179.95, -16.5, 0.1, seed=1))
     scene = read_scene(write_scene_for_images([a, b], tmp_path / "s.scene.json"))
     assert scene.crs == "EPSG:32760"
-    from prismstation.core.rpc_bias import metres_per_degree
+    from prismstation.core.models.rpc_bias import metres_per_degree
     gsd = 0.1 * metres_per_degree(-16.5)[0] / 32          # the RPCs' own, about 334 m
     for name, view in scene.views.items():
         assert abs(view.pixel_size_m / gsd - 1) < 0.02, (name, view.pixel_size_m, gsd)

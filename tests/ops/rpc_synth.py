@@ -16,8 +16,8 @@ import rasterio
 import rasterio.errors
 from scipy import ndimage
 
-from prismstation.core.rpc import Rpc
-from prismstation.core.rpc_bias import metres_per_degree
+from prismstation.core.models.rpc import Rpc
+from prismstation.core.models.rpc_bias import metres_per_degree
 
 
 class World:

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from prismstation.core import view_offsets
+from prismstation.core.orientation import view_offsets
 
 from prismstation.io.scene import read_scene
 from prismstation.ops.coarse_offsets import coarse_view_offsets

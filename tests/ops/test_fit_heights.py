@@ -8,7 +8,7 @@ import pytest
 from prismstation.model.points import GroundPoint, Measurement
 from prismstation.model.project import Project
 from prismstation.ops.fit import FitMemo, ellipsoidal_heights
-from tests.core.synth import make_scene
+from prismstation.sim.model_triplet import make_scene
 
 
 @pytest.fixture

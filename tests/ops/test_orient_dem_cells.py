@@ -27,9 +27,9 @@ def test_the_prior_is_taken_where_the_field_puts_n():
     looks (at the ancillary point plus (dE, dN)), minus dh: in the ancillary frame, the frame of
     the relative DEM's heights. Without it, where the ancillary model puts N."""
     from types import SimpleNamespace
-    from prismstation.core import prism
+    from prismstation.core.models import prism
     from prismstation.ops.dem_patches import ReferenceGrid
-    from tests.core.synth import make_scene
+    from prismstation.sim.model_triplet import make_scene
 
     sc = make_scene(size=2000)
     posting = 30.0

@@ -8,13 +8,13 @@ import inspect
 
 import pytest
 
-from prismstation.core import sensors
-from prismstation.core.conditioning import FAILED, OK, OrientVerdict
+from prismstation.core.models import sensors
+from prismstation.core.orientation.conditioning import FAILED, OK, OrientVerdict
 from prismstation.gui import sensors as gui_sensors
 from prismstation.model.project import Project
 from prismstation.ops import sensors as ops_sensors
 from prismstation.ops.orientation import Orientation, apply_orientation
-from tests.core.synth import make_scene
+from prismstation.sim.model_triplet import make_scene
 
 
 def test_every_model_has_workflows_and_window_parts_of_one_signature():

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import rasterio
 
-from prismstation.core.ortho import resample
+from prismstation.core.surfaces.ortho import resample
 from prismstation.errors import Cancelled, InputError
 from prismstation.io.dem import read_dem, write_dem
 from prismstation.io.ortho import read_ortho_info, to_band

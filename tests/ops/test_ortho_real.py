@@ -12,12 +12,12 @@ from rasterio.transform import RPCTransformer
 from rasterio.warp import Resampling, reproject
 
 from prismstation.cli import main
-from prismstation.core.ortho import resample
+from prismstation.core.surfaces.ortho import resample
 from prismstation.io.dem import write_dem
 from prismstation.io.project import load_project
 from prismstation.ops.fit import solve_project
 from prismstation.ops.ortho_tiles import Heights
-from prismstation.core import ortho
+from prismstation.core.surfaces import ortho
 
 
 @pytest.fixture(scope="module")

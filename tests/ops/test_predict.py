@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from prismstation.core.solution import PointObs, solve
+from prismstation.core.models.solution import PointObs, solve
 from prismstation.ops.predict import (CHI2_95_2D, DEFAULT_DEM_SIGMA_M, PointInput, dem_sigma,
                                       height_spread, predict_point)
-from tests.core.synth import make_points, make_scene
+from prismstation.sim.model_triplet import make_points, make_scene
 
 NOISE_PX = 0.3
 
@@ -107,7 +107,7 @@ def test_vectorised_known_ground_predictions_equal_the_single_ones():
 def test_a_point_measured_in_one_oblique_view_meets_a_steep_reference(view):
     """Measured only in F (or B), placed by the reference DEM: on a 60° slope along track the
     ray meets the surface where the old fixed five steps stopped metres short."""
-    from prismstation.core import prism
+    from prismstation.core.models import prism
     from prismstation.ops.predict import ground_estimate
     scene = make_scene()
     truth = make_points(scene, n_gcp=9, n_icp=1, noise_px=0.0, seed=1)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import rasterio
 
-from prismstation.core.rectify import compare_transforms, fit_transform
+from prismstation.core.models.rectify import compare_transforms, fit_transform
 from prismstation.errors import Cancelled
 from prismstation.ops.rectify import rectify_raster
 from tests.rectify_data import CRS, _apply, _image, _points, _read

@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 import rasterio
 
-from prismstation.core.rpc_bias import BiasedRpc, metres_per_degree
-from prismstation.core.stats import nmad
+from prismstation.core.models.rpc_bias import BiasedRpc, metres_per_degree
+from prismstation.core.adjustment.stats import nmad
 from prismstation.errors import Cancelled, InputError
 from prismstation.io.dsm import read_dsm_info, write_dsm
-from prismstation.ops.rpc_dsm import Grid, rpc_dsm, tile_height_range, to_lonlat
+from prismstation.io.rpc_scene import to_lonlat
+from prismstation.ops.rpc_dsm import Grid, rpc_dsm, tile_height_range
 from prismstation.ops.rpc_orient import orient_from_reference, orient_rpc_from_dem
 from tests.ops.rpc_synth import World, analytic_terrain, dem_terrain, make_rpc, render, write_image
 

@@ -10,13 +10,14 @@ import numpy as np
 import pytest
 import rasterio
 
-from prismstation.core.rpc_adjust import adjust_snooping
-from prismstation.core.rpc_bias import intersect_points, metres_per_degree
-from prismstation.core.rpc_tiepoints import match_tie_points
+from prismstation.core.models.rpc_adjust import adjust_snooping
+from prismstation.core.models.rpc_bias import intersect_points, metres_per_degree
+from prismstation.core.matching.rpc_tiepoints import match_tie_points
 from prismstation.io.dem import write_dem
 from prismstation.io.rpc import read_rpc
-from prismstation.core.stats import nmad
-from prismstation.ops.rpc_dsm import rpc_dsm, to_map
+from prismstation.core.adjustment.stats import nmad
+from prismstation.io.rpc_scene import to_map
+from prismstation.ops.rpc_dsm import rpc_dsm
 from prismstation.ops.rpc_orient import orient_from_reference
 from tests.ops.rpc_synth import write_image
 

@@ -9,10 +9,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from prismstation.core.solution import solve
+from prismstation.core.models.solution import solve
 from prismstation.ops.transfer import (FALLBACK_HEIGHT_RANGE_M, MIN_HEIGHT_RANGE_M, consistency,
                                        local_shape, search_height, transfer)
-from tests.core.synth import make_points, make_scene
+from prismstation.sim.model_triplet import make_points, make_scene
 
 
 @pytest.fixture(scope="module")

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from prismstation.core.dem_orient import identity_control
-from prismstation.core.solution import solve
+from prismstation.core.orientation.dem_orient import identity_control
+from prismstation.core.models.solution import solve
 from prismstation.io.scene import read_scene
 from prismstation.io.windows import ImageWindows
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
@@ -42,9 +42,9 @@ def test_transfer_with_the_ancillary_model_finds_views_off_by_60_m(tmp_path):
 def test_fitted_model_searches_narrow():
     from dataclasses import replace
 
-    from prismstation.core.prism import BiasFit
-    from prismstation.core.prism_model import PrismModel
-    from tests.core.synth import make_scene
+    from prismstation.core.models.prism import BiasFit
+    from prismstation.core.models.prism_model import PrismModel
+    from prismstation.sim.model_triplet import make_scene
     sc = make_scene()
     sol = solve(sc, [], control=identity_control(sc, 500.0))
     xy0 = np.random.default_rng(0).uniform(0, 1e4, (8, 2))

@@ -24,7 +24,7 @@ from prismstation.errors import InputError, PrismError
 from prismstation.io import pointfiles as pfm
 from prismstation.io.points import ground_points_csv, measurements_csv
 from prismstation.model.points import GroundPoint, Measurement
-from tests.core.synth import make_points, make_scene
+from prismstation.sim.model_triplet import make_points, make_scene
 
 SCALE = max(1, int(os.environ.get("PRISMSTATION_FUZZ", "1") or 1))
 

@@ -1,7 +1,7 @@
 """Geometry properties (hypothesis): the model's forward and inverse agree, fits do not depend
 on point order, and every transform round-trips.
 
-Scenes are tests/core/synth.py's: path-oriented (1B2-R) or north-up (1B2-G) affines, any
+Scenes are sim/model_triplet.py's: path-oriented (1B2-R) or north-up (1B2-G) affines, any
 heading, a 14,000 px image at 2.5 m, the ground track 3 km beside the image centre.
 """
 from __future__ import annotations
@@ -10,12 +10,12 @@ import numpy as np
 from hypothesis import assume, example, given
 from hypothesis import strategies as st
 
-from prismstation.core import prism
-from prismstation.core.affine import Affine2D
-from prismstation.core.prism import BIAS_MODELS, BiasFit, fit_bias
-from prismstation.core.rectify import fit_transform
-from prismstation.core.solution import Settings, solve
-from tests.core.synth import make_points, make_scene
+from prismstation.core.models import prism
+from prismstation.core.adjustment.affine import Affine2D
+from prismstation.core.models.prism import BIAS_MODELS, BiasFit, fit_bias
+from prismstation.core.models.rectify import fit_transform
+from prismstation.core.models.solution import Settings, solve
+from prismstation.sim.model_triplet import make_points, make_scene
 from tests.robustness.fuzzlib import fuzz_settings
 
 SIZE = 14000

@@ -1,4 +1,4 @@
-"""Issue 7 item 1: kill -9 a real process in the middle of editing; nothing confirmed is lost."""
+"""Crash recovery: kill -9 a real process in the middle of editing; nothing confirmed is lost."""
 import os
 import signal
 import subprocess

@@ -8,7 +8,7 @@ import pytest
 
 from tests.qt_windows import close_windows, new_window
 
-from tests.gui.project_factory import make_project
+from prismstation.sim.small_project import make_project
 
 
 @pytest.fixture(scope="session")

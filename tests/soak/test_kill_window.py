@@ -1,4 +1,4 @@
-"""Issue 7 item 1 through the real window: ``kill -9`` a window process in the middle of editing,
+"""Crash recovery through the real window: ``kill -9`` a window process in the middle of editing,
 then the next window offers to recover and every edit that was on screen is there.
 
 The editor is a separate Python process running the real :class:`MainWindow` offscreen; a timer

@@ -1,4 +1,4 @@
-"""Issue 7 item 4: thousands of random operator actions through the real window (offscreen) —
+"""Soak: thousands of random operator actions through the real window (offscreen) —
 place, move, delete, undo, redo, switch kind, save, reopen — with no exception anywhere (an
 excepthook that fails the test) and resident memory growing less than 10 % between the first
 and the last thousand actions.

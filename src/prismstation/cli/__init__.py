@@ -124,6 +124,11 @@ def log_traceback(exc: BaseException, command: str, subject: str | None):
 
 
 def _main(argv: list[str], keep) -> int:
+    # start-up: the stack (rasterio, numpy, the commands) loads here, not for --version
+    from prismstation.cli._common import end_progress
+    from prismstation.cli._gdal_lines import GdalLines
+    from prismstation.io.raster import gdal_env
+
     parser = build_parser()
     args = keep(parser.parse_args(argv))
     if not getattr(args, "func", None):
@@ -132,8 +137,6 @@ def _main(argv: list[str], keep) -> int:
         else:
             parser.print_help()
             return 2
-    from prismstation.cli._gdal_lines import GdalLines
-    from prismstation.io.raster import gdal_env
     # GDAL's own lines on stderr (a failed write prints one per block, from Python's logging
     # and from libtiff in C): the error's one line below names the file and carries them
     logging.getLogger("rasterio._env").setLevel(logging.CRITICAL)
@@ -145,7 +148,6 @@ def _main(argv: list[str], keep) -> int:
             print(line, file=sys.stderr)
         return status
     except (PrismError, OSError) as exc:
-        from prismstation.cli._common import end_progress
         end_progress()
         text, cause = str(exc), gdal_lines.cause()
         if cause and cause not in text:

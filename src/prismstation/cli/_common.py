@@ -2,12 +2,15 @@
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 from pathlib import Path
 
+from prismstation.cli._gdal_lines import stderr_is_terminal
 from prismstation.errors import InputError
 from prismstation.io.inputs import local_file
 from prismstation.ops.fit import BIAS_MODELS, PARALLAX_MODELS
 from prismstation.ops.predict import DEFAULT_DEM_SIGMA_M
+from prismstation.ops.reference_heights import load_for_scene
 
 
 def add_model_options(p, *, reference: bool = True) -> None:
@@ -32,7 +35,6 @@ def add_model_options(p, *, reference: bool = True) -> None:
 def apply_model_options(project, args) -> None:
     """The options' model choices into the project's settings, each checked against what the
     project's sensor model offers."""
-    from dataclasses import replace
     sensor = project.scene.sensor
     kw = {}
     if getattr(args, "bias", None):
@@ -62,7 +64,6 @@ def reference_heights(project, args):
         return None, None
     if not args.dem_sigma > 0:
         raise InputError(f"--dem-sigma {args.dem_sigma:g}: expected a positive number of metres")
-    from prismstation.ops.reference_heights import load_for_scene
     return load_for_scene(existing(args.dem, "reference DEM"), project), float(args.dem_sigma)
 
 
@@ -72,7 +73,6 @@ _open_line = False  # a progress line is on stderr, not ended yet
 def progress_printer(what: str = ""):
     """A progress callable (:mod:`prismstation.ops.progress`) printing ``what``, the percentage
     and the message on one line of stderr when it is a terminal; it never asks to stop."""
-    from prismstation.cli._gdal_lines import stderr_is_terminal
     show = stderr_is_terminal()
 
     def progress(fraction, message=""):

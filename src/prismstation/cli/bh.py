@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 
 from prismstation.errors import InputError
-from prismstation.io.jsonfile import write_json
+from prismstation.io.jsonfile import line_of, read_json, write_json
 from prismstation.io.ranges import MAP_M
 from prismstation.ops.resection import base_height
 
@@ -26,8 +26,6 @@ def register(sub) -> None:
 
 
 def _from_resection(path) -> list[float]:
-    from prismstation.io.jsonfile import line_of, read_json
-
     data, text = read_json(path)
     eo = data.get("eo")
     if not isinstance(eo, dict):

@@ -9,6 +9,12 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from prismstation.io.project import load_project, save_project
+from prismstation.io.recovery import recovery_for
+from prismstation.io.text_report import format_report
+from prismstation.ops.fit import fit_report
+from prismstation.ops.project import create
+
 DEMO_SEED = 2008
 DEMO_SIZE = 2000
 
@@ -23,7 +29,7 @@ def default_dir() -> Path:
 
 def ensure_demo(directory=None, *, rebuild: bool = False, progress=None) -> Path:
     """Make the demo project if absent; returns the project path."""
-    from prismstation.ops.project import create
+    # start-up: the simulator loads only to make the demo
     from prismstation.sim import simulate
     from prismstation.sim.reference import make_reference_dem
 
@@ -44,8 +50,6 @@ def ensure_demo(directory=None, *, rebuild: bool = False, progress=None) -> Path
 def _record_reference_dem(project: Path) -> None:
     """The demo's SRTM-like DEM as its project's reference DEM (a demo made before projects
     kept one gets it once, unless it has unsaved edits to recover)."""
-    from prismstation.io.project import load_project, save_project
-    from prismstation.io.recovery import recovery_for
     dem = reference_dem(project)
     if dem is None or recovery_for(project) is not None:
         return
@@ -75,16 +79,13 @@ def run(args) -> int:
     made = Path(args.dir or default_dir()) / "demo.prismproj"
     if not args.no_gui and not args.screenshot and (args.rebuild or not made.exists()):
         # the first time: the window at once, the demo made behind a progress dialog
-        from prismstation.gui.app import run as run_gui
+        from prismstation.gui.app import run as run_gui  # start-up: Qt loads only for the window
         return run_gui(demo_maker=lambda progress=None: ensure_demo(args.dir, rebuild=args.rebuild, progress=progress),
                        open_demo=True)
     project = ensure_demo(args.dir, rebuild=args.rebuild)
     if args.no_gui:
-        from prismstation.io.project import load_project
-        from prismstation.io.text_report import format_report
-        from prismstation.ops.fit import fit_report
         proj = load_project(project)
         print(format_report(fit_report(proj, project)[1]))
         return 0
-    from prismstation.gui.app import run as run_gui
+    from prismstation.gui.app import run as run_gui  # start-up: Qt loads only for the window
     return run_gui(str(project), screenshot=args.screenshot, reference_dem=reference_dem(project))

@@ -12,6 +12,7 @@ from __future__ import annotations
 import sys
 
 from prismstation.cli._common import end_progress, existing, progress_printer
+from prismstation.io.formatting import fixed
 from prismstation.io.project import load_project
 from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest
 from prismstation.ops.fit import solve_project
@@ -70,14 +71,10 @@ def run(args) -> int:
         line = "the parallax line" if hm["model"] == "line" else "the rays through the biases"
         print(f"heights: {line} ({hm['reason']})")
     for pair, a in dsm.info.get("pair_agreement", {}).items():
-        print(f"pairs {pair}: NMAD {_m(a['nmad_m'])} m, median {_m(a['median_m'])} m over {a['cells']} cells "
-              f"({_m(a['nmad_in_sigma'])} of their σ)")
+        print(f"pairs {pair}: NMAD {fixed(a['nmad_m'])} m, median {fixed(a['median_m'])} m over {a['cells']} cells "
+              f"({fixed(a['nmad_in_sigma'])} of their σ)")
     if out.low_fill:
         print(f"prismstation dsm: LOW FILL: only {fill:.1f} % of the seen cells matched "
               f"(threshold {args.min_fill:g} %); the voids are marked 0 in the mask band", file=sys.stderr)
         return LOW_FILL_STATUS
     return 0
-
-
-def _m(v) -> str:
-    return "–" if v is None else f"{v:.2f}"

@@ -1,6 +1,8 @@
 """``prismstation gui [PROJECT] [--screenshot PNG]``: the measurement workstation window."""
 from __future__ import annotations
 
+from prismstation.cli.demo import ensure_demo
+
 
 def register(sub) -> None:
     p = sub.add_parser("gui", help="open the measurement workstation window")
@@ -11,6 +13,5 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from prismstation.cli.demo import ensure_demo
-    from prismstation.gui.app import run as run_gui
+    from prismstation.gui.app import run as run_gui  # start-up: Qt loads only for the window
     return run_gui(args.project, screenshot=args.screenshot, demo_maker=ensure_demo)

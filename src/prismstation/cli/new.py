@@ -14,6 +14,7 @@ from pathlib import Path
 from prismstation.cli.ties import add_tie_options, match_and_save
 from prismstation.errors import InputError
 from prismstation.io.project import SUFFIX
+from prismstation.io.rpc_scene import scene_dict_for_images
 from prismstation.model.points import HEIGHT_KINDS
 from prismstation.ops.project import create
 
@@ -43,11 +44,10 @@ def run(args) -> int:
         raise InputError("already exists (use --force to overwrite)", args.project)
     scene_path, scene_doc = args.scene, None
     if args.product:
-        from prismstation.io.products import scene_dict_for_folder
+        from prismstation.io.products import scene_dict_for_folder  # start-up: the CEOS reader, 0.1 s
         scene_path = Path(args.project).parent / "scene.json"
         scene_doc = scene_dict_for_folder(args.product, scene_path.parent)
     elif args.images:
-        from prismstation.io.rpc_scene import scene_dict_for_images
         scene_path = Path(args.project).with_suffix(".scene.json")
         scene_doc = scene_dict_for_images(args.images, scene_path.parent)
     project = create(args.project, scene_path, args.points, args.measurements, crs=args.crs,

@@ -8,11 +8,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from prismstation.errors import InputError, ModelError, RasterReadError
-from prismstation.io.inputs import local_file, open_raster_file
+from prismstation.errors import InputError, ModelError
+from prismstation.io.inputs import local_file
 from prismstation.cli._common import end_progress, progress_printer
 from prismstation.io.jsonfile import write_json
 from prismstation.io.rectify_io import read_point_pairs
+from prismstation.io.windows import raster_header
 from prismstation.ops.rectify import KINDS, fit_transforms, format_rmse_table, rectify_raster
 
 
@@ -38,12 +39,9 @@ def _points_crs(args):
         return args.points_crs
     if args.crs:
         return args.crs
-    try:
-        with open_raster_file(args.image, "image") as ds:
-            if ds.crs is not None:
-                return ds.crs.to_wkt()
-    except RasterReadError as exc:
-        raise InputError(str(exc).removeprefix(f"{args.image}: "), file=args.image) from None
+    crs = raster_header(args.image, "image")[2]
+    if crs is not None:
+        return crs
     raise InputError("the image has no CRS: give the points' CRS with --points-crs or --crs",
                      file=args.image)
 

@@ -27,7 +27,7 @@ def run(args) -> int:
                              operator=args.operator)
     ext = Path(args.output).suffix.lower()
     if ext in (".html", ".htm", ".pdf"):
-        from prismstation.gui.report_writer import write_document  # Qt's own PDF writer
+        from prismstation.gui.report_writer import write_document  # start-up: Qt's PDF writer, only for it
         write_document(report, args.output)
     else:
         write_report(report, args.output)

@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from prismstation.errors import InputError, RasterReadError
-from prismstation.io.inputs import open_raster_file
 from prismstation.io.jsonfile import write_json
 from prismstation.io.rectify_io import read_point_pairs
+from prismstation.io.windows import raster_header
 from prismstation.ops.resection import PARAM_NAMES, resect_points
 
 
@@ -42,11 +41,8 @@ def _principal_point(args) -> tuple[float, float]:
     if args.image_size:
         w, h = args.image_size
         return w / 2.0, h / 2.0
-    try:
-        with open_raster_file(args.image, "image") as ds:
-            return ds.width / 2.0, ds.height / 2.0
-    except RasterReadError as exc:
-        raise InputError(str(exc).removeprefix(f"{args.image}: "), file=args.image) from None
+    width, height, _ = raster_header(args.image, "image")
+    return width / 2.0, height / 2.0
 
 
 def run(args) -> int:

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from prismstation.errors import InputError, PrismError, WriteError
+from prismstation.io.geoid import GridGeoid, find_grid
 
 
 def _one_line_error(prog: str):
@@ -89,7 +90,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from prismstation.sim import simulate
+    from prismstation.sim import simulate  # start-up: the simulator loads only to simulate
 
     out = Path(args.outdir)
     if out.exists() and not out.is_dir():
@@ -137,8 +138,6 @@ def run(args) -> int:
 
 def _reference_geoid(args):
     """The geoid of a geographic reference, checked before anything is simulated."""
-    from prismstation.io.geoid import GridGeoid, find_grid
-
     noise = args.reference_noise_m
     if noise is not None and not (noise >= 0 and noise <= 100):
         raise InputError(f"--reference-noise-m must be between 0 and 100, got {noise}")
@@ -156,7 +155,7 @@ def _reference_geoid(args):
 
 
 def _write_reference(args, paths, out: Path, geoid) -> Path:
-    from prismstation.sim.reference import make_geographic_reference, make_reference_dem
+    from prismstation.sim.reference import make_geographic_reference, make_reference_dem  # start-up: the simulator
 
     seed = args.seed + 1          # the reference's noise and voids: not the scene's draws
     if args.reference == "geographic":

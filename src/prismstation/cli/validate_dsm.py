@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from prismstation.cli._common import end_progress, progress_printer
 from prismstation.errors import InputError
+from prismstation.io.geoid import ConstantGeoid, GridGeoid
 from prismstation.io.jsonfile import write_json
 from prismstation.model.points import HEIGHT_KINDS
 from prismstation.ops.validate import validate_dsm_files
@@ -30,8 +31,6 @@ def register(sub) -> None:
 
 
 def _geoid(args):
-    from prismstation.io.geoid import ConstantGeoid, GridGeoid
-
     if args.geoid_constant is not None:
         return ConstantGeoid(args.geoid_constant)
     if args.geoid_grid:

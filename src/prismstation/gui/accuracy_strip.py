@@ -8,12 +8,11 @@ never relayouts the window.
 """
 from __future__ import annotations
 
-import math
-
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QDoubleSpinBox, QFrame, QHBoxLayout, QLabel
 
 from prismstation.gui.palette import html
+from prismstation.io.formatting import fixed
 from prismstation.gui.sensors import parts_of
 from prismstation.gui.text_label import TextLabel
 from prismstation.gui.plain import plain
@@ -30,10 +29,6 @@ FIELDS = (("E", "ICP RMSE of easting, estimated − known ground position (m)"),
 WARN_COLOR = "#c00000"
 
 
-def _m(v) -> str:
-    return "—" if v is None or not math.isfinite(v) else f"{v:.2f}"
-
-
 def accuracy_values(sol) -> dict:
     """``{field: text}`` of the strip for a Solution (None: all "—")."""
     out = dict.fromkeys([f for f, _ in FIELDS], "—")
@@ -43,12 +38,12 @@ def accuracy_values(sol) -> dict:
     st = sol.stats
     g = st.get("ground", {}).get("ICP")
     if g is not None:
-        out.update(E=_m(g.x.rms), N=_m(g.y.rms), plan=_m(g.planimetric_rms))
+        out.update(E=fixed(g.x.rms), N=fixed(g.y.rms), plan=fixed(g.planimetric_rms))
     hgt = st.get("height", {}).get("ICP") if sol.model.heights_fitted else None
     if hgt is not None:
-        out["h"] = _m(hgt.rms)
+        out["h"] = fixed(hgt.rms)
     s0 = sol.bias[sol.reference_view].sigma0 if sol.reference_view in sol.bias else None
-    out["σ0"] = "—" if s0 is None or not math.isfinite(s0) else f"{s0:.3f}"
+    out["σ0"] = fixed(s0, 3)
     cols = sol.columns
     measured = [k for k, m in zip(cols.kinds, cols.measured_anywhere().tolist()) if m]
     n = {k: measured.count(k) for k in ("GCP", "ICP")}

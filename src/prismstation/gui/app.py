@@ -6,17 +6,22 @@ writes a PNG of the whole main window (``QWidget.grab``) and returns 0; it works
 """
 from __future__ import annotations
 
+import os
+import shutil
 import sys
 import tempfile
 from pathlib import Path
 
 from prismstation.errors import InputError
+from prismstation.gui import settings, workers
+from prismstation.gui.main_window import MainWindow
+from prismstation.io.atomic import OWNER_TAG, clean_stale
+from prismstation.io.raster import gdal_env
 
 
 def icon_path():
     """The application icon: ``resources/icons`` beside the source tree, or inside a
     PyInstaller bundle; None when neither is there (a wheel install without resources)."""
-    from pathlib import Path
     roots = [Path(__file__).resolve().parents[3] / "resources"]
     if getattr(sys, "_MEIPASS", None):
         roots.insert(0, Path(sys._MEIPASS) / "resources")
@@ -32,8 +37,6 @@ def make_app():
     import pyqtgraph as pg
     from PySide6.QtWidgets import QApplication
 
-    from prismstation.gui import settings
-
     app = QApplication.instance() or QApplication(sys.argv[:1])
     icon = icon_path()
     if icon is not None:
@@ -48,7 +51,6 @@ def make_app():
     # collector ran ~4 times per click and a full collection (~50 ms) now and then mid-click
     import gc
     gc.set_threshold(20000, 10, 10)
-    from prismstation.gui import workers
     workers.collect_on_gui_thread()  # a worker thread must never free a Qt object
     return app
 
@@ -108,7 +110,6 @@ def run(project_path=None, screenshot=None, reference_dem=None, demo_maker=None,
     screenshot_path = screenshot
     if project_path is not None and not Path(project_path).exists():
         raise InputError("project not found", project_path)
-    import os
     headless = not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
                     or os.environ.get("QT_QPA_PLATFORM"))
     if headless and screenshot_path is not None:
@@ -120,24 +121,20 @@ def run(project_path=None, screenshot=None, reference_dem=None, demo_maker=None,
     settings_dir = None
     if screenshot_path is not None:
         if "PRISMSTATION_SETTINGS_DIR" not in os.environ:  # never the user's layout in a picture
-            from prismstation.io.atomic import OWNER_TAG, clean_stale
             clean_stale(tempfile.gettempdir(), "prismstation-settings-", folders=True)  # a killed run's
             settings_dir = tempfile.mkdtemp(prefix=f"prismstation-settings-{OWNER_TAG}_")
             os.environ["PRISMSTATION_SETTINGS_DIR"] = settings_dir
-    from prismstation.io.raster import gdal_env
     try:
         with gdal_env():                 # the window's GDAL settings, for as long as it runs
             return _run_window(project_path, screenshot_path, reference_dem, demo_maker, open_demo)
     finally:
         if settings_dir is not None:  # the picture's settings folder goes with it
-            import shutil
             shutil.rmtree(settings_dir, ignore_errors=True)
             os.environ.pop("PRISMSTATION_SETTINGS_DIR", None)
 
 
 def _run_window(project_path, screenshot_path, reference_dem, demo_maker, open_demo) -> int:
     app = make_app()
-    from prismstation.gui.main_window import MainWindow
 
     interactive = screenshot_path is None
     win = MainWindow(interactive=interactive, demo_maker=demo_maker)

@@ -9,7 +9,9 @@ import math
 
 from PySide6.QtGui import QUndoCommand
 
+from prismstation.errors import InputError
 from prismstation.model.points import GroundPoint, Measurement
+from prismstation.model.project import has_ground
 
 MOVE_ID = 1001
 
@@ -111,9 +113,7 @@ class SetKind(QUndoCommand):
         super().__init__(f"{pid} → {kind}")
         self.project, self.pid, self.kind = project, pid, kind
         self.old = project.points[pid].kind
-        from prismstation.model.project import has_ground
         if kind != "TIE" and not has_ground(project.points[pid]):
-            from prismstation.errors import InputError
             raise InputError(f"point {pid} has no ground coordinates: it can only be a tie point")
 
     def redo(self) -> None:
@@ -180,8 +180,6 @@ class EditPoint(QUndoCommand):
     taken or empty id, a GCP or ICP without all three coordinates)."""
 
     def __init__(self, project, pid: str, point: GroundPoint, text: str | None = None):
-        from prismstation.errors import InputError
-        from prismstation.model.project import has_ground
         super().__init__(text or f"Edit {pid}")
         if not point.id.strip():
             raise InputError("a point id cannot be empty")

@@ -1,6 +1,6 @@
 """What the window tells of the fit's own footing (no Qt): the one blunder threshold and why it
 holds for every fit of the sensor model (:meth:`SensorModel.adjustments
-<prismstation.core.sensor.SensorModel>`).
+<prismstation.core.models.sensor.SensorModel>`).
 
 The test runs at one level α, the two-sided normal tail of ``Settings.blunder_threshold``
 (3.29 ↔ α = 0.001); a model's own checks (the PRISM parallax model's F test) run at the same
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from scipy import special
 
-from prismstation.core.solution import critical_value
+from prismstation.core.models.solution import critical_value
 
 
 def alpha_of(threshold: float) -> float:

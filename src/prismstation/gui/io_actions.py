@@ -14,8 +14,11 @@ from pathlib import Path
 from PySide6.QtWidgets import QFileDialog, QInputDialog, QMessageBox
 
 from prismstation.errors import PrismError
-from prismstation.gui import commands as cmd
-from prismstation.gui import settings as st
+from prismstation.gui import commands as cmd, settings as st
+from prismstation.gui.import_dialog import ImportDialog
+from prismstation.gui.report_writer import write_document
+from prismstation.io.report import default_operator, write_report
+from prismstation.ops.fit import project_report
 from prismstation.gui.plain import plain
 
 REPORT_FILTER = "HTML (*.html);;PDF (*.pdf);;CSV (*.csv);;JSON (*.json)"
@@ -25,7 +28,6 @@ def import_points(window) -> None:
     """Run the import dialog on the window's project and push what it read."""
     if window.project is None:
         return
-    from prismstation.gui.import_dialog import ImportDialog
     dlg = ImportDialog(list(window.project.scene.views), window.project.scene.crs, window,
                        height_kind=window.project.height_kind())
     if dlg.exec():
@@ -44,7 +46,6 @@ def push_import(window, points, ms) -> None:
 def report_operator(window, ask: bool) -> str | None:
     """The operator named on a report: the name given once (remembered), else the login name;
     with ``ask``, offered for editing first (``None``: the operator cancelled)."""
-    from prismstation.io.report import default_operator
     name = st.value(st.Key.REPORT_OPERATOR) or default_operator()
     if ask:
         name, ok = QInputDialog.getText(window, "Report operator", "Operator named on reports:",
@@ -85,12 +86,9 @@ def export_report(window, path: str | None = None) -> bool:
     operator = report_operator(window, ask and not st.value(st.Key.REPORT_OPERATOR))
     if operator is None:
         return False
-    from prismstation.io.report import write_report
-    from prismstation.ops.fit import project_report
     try:
         rep = project_report(window.project, sol, window.files.path, operator=operator)
         if Path(path).suffix.lower() in (".html", ".htm", ".pdf"):
-            from prismstation.gui.report_writer import write_document
             write_document(rep, path)
         else:
             write_report(rep, path)

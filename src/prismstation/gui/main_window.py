@@ -14,6 +14,7 @@ from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import (QDockWidget, QHBoxLayout, QMainWindow, QMessageBox,
                                QStackedWidget, QTabWidget, QVBoxLayout, QWidget)
 
+from prismstation import __version__
 from prismstation.errors import PrismError
 from prismstation.gui import commands as cmd
 from prismstation.gui import io_actions, menus, window_layout
@@ -21,17 +22,20 @@ from prismstation.gui.accuracy_strip import AccuracyStrip
 from prismstation.gui.tools import install_tools
 from prismstation.gui import settings as st
 from prismstation.gui.contrast import ContrastPanel
+from prismstation.gui.guide import show_guide
 from prismstation.gui.linked_nav import LinkedNavigation
 from prismstation.gui.loupe import Loupe
 from prismstation.gui.measure_mode import MeasureMode
 from prismstation.gui.memory import MemoryKeeper, one_dask_pool
 from prismstation.gui.model_panel import ModelPanel
+from prismstation.gui.overviews import offer_overviews
 from prismstation.gui.plots import PlotsWidget
 from prismstation.gui.point_editor import PointEditor
 from prismstation.gui.point_table import PointTableModel
 from prismstation.gui.point_table_view import PointTableView
 from prismstation.gui.start_page import StartPage
 from prismstation.gui.status_fields import StatusFields
+from prismstation.gui.tools._worker import run_with_progress, running_jobs_of
 from prismstation.gui.views import TripletViews
 from prismstation.gui.workspace import Workspace
 
@@ -46,7 +50,6 @@ class MainWindow(QMainWindow):
         self.setObjectName("MainWindow")
         self.setWindowTitle("prismstation")
         self.interactive = interactive
-        from prismstation.gui.tools._worker import running_jobs_of
         # first: its heap setting holds for threads made from now on
         self.memory = MemoryKeeper(self, busy=lambda: bool(running_jobs_of(self)))
         self.workspace = ws = Workspace(self, threaded_fit)
@@ -427,14 +430,12 @@ class MainWindow(QMainWindow):
 
     # ------------------------------------------------------------------ misc
     def _offer_overviews(self, source) -> None:
-        from prismstation.gui.overviews import offer_overviews
         offer_overviews(self, source)
 
     def open_demo(self) -> None:
         """Make the demo project on first use (in a worker, with progress), then open it."""
         if self.demo_maker is None or not self.files.maybe_save():
             return
-        from prismstation.gui.tools._worker import run_with_progress
         def opened(path) -> None:
             if self.files.open_project(str(path), check_unsaved=False):
                 dem = Path(path).parent / "triplet" / "srtm.tif"  # the demo's reference DEM (cli/demo.py)
@@ -444,11 +445,9 @@ class MainWindow(QMainWindow):
                           opened)
 
     def show_guide(self) -> None:
-        from prismstation.gui.guide import show_guide
         show_guide(self)
 
     def about(self) -> None:
-        from prismstation import __version__
         QMessageBox.about(self, "prismstation", f"prismstation {__version__}\n"
                           "Orientation of ALOS-PRISM stereo triplets (empirical model).")
 

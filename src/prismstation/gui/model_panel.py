@@ -2,10 +2,10 @@
 as the paper's Tables 1–3, blunders and messages.
 
 The choices are the scene's sensor model's (:meth:`ModelPanel.set_sensor`,
-:mod:`prismstation.core.sensor`): its bias models; its height–parallax models, the row hidden
+:mod:`prismstation.core.models.sensor`): its bias models; its height–parallax models, the row hidden
 where it has none (RPC images: points are intersected); the view held fixed where the model
-holds one as the datum. Reads a :class:`~prismstation.core.solution.Solution`; a change of the
-choices is emitted as new :class:`~prismstation.core.solution.Settings` (the window turns it into
+holds one as the datum. Reads a :class:`~prismstation.core.models.solution.Solution`; a change of the
+choices is emitted as new :class:`~prismstation.core.models.solution.Settings` (the window turns it into
 an undoable command).
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ from PySide6.QtGui import QColor, QFont, QFontMetrics, QPainter, QPalette
 from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QHBoxLayout, QLabel,
                                QPushButton, QScrollArea, QSizePolicy, QVBoxLayout, QWidget)
 
-from prismstation.core.prism import BIAS_MODELS, PARALLAX_MODELS
+from prismstation.core.models.prism import BIAS_MODELS, PARALLAX_MODELS
 from prismstation.gui.fit_checks import blunder_test
 from prismstation.gui.sensors import parts_of
 from prismstation.gui.static_text import StaticTexts
@@ -379,7 +379,7 @@ class ModelPanel(QWidget):
         self.threshold.editingFinished.connect(self._emit)
 
     def set_sensor(self, sensor, views) -> None:
-        """Offer the choices of sensor model class ``sensor`` (:mod:`prismstation.core.sensor`)
+        """Offer the choices of sensor model class ``sensor`` (:mod:`prismstation.core.models.sensor`)
         on a scene of ``views`` (names, in order): its bias models, its parallax models (the row
         hidden when it has none), the view held fixed (the row shown when it holds one)."""
         self._settings = None  # shown again from the next settings

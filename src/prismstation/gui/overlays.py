@@ -16,7 +16,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QColor, QFont, QFontMetricsF, QPainterPath, QPen, QStaticText, QTransform
 
-from prismstation.core.results import rows_array
+from prismstation.core.models.results import rows_array
 from prismstation.gui.markers import NO_SHAPE, Markers, on_screen
 from prismstation.gui.palette import BLUNDER_RGB, CURRENT_RGB, CURSOR_RGB, KIND_RGB, qcolor
 from prismstation.ops.predict import CHI2_95_2D

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from prismstation.core.scene import reference_view
+from prismstation.core.models.scene import reference_view
 from prismstation.gui.sensors import parts_of
 
 
@@ -116,7 +116,7 @@ class PlotData:
 
     @classmethod
     def from_solution(cls, sol, view: str | None = None) -> "PlotData":
-        """From a :class:`~prismstation.core.solution.Solution` (``None`` gives empty plots); the
+        """From a :class:`~prismstation.core.models.solution.Solution` (``None`` gives empty plots); the
         residual vectors of ``view`` (default: :func:`vector_view`)."""
         if sol is None:
             return cls()

@@ -36,11 +36,10 @@ def figure_widget(plots):
     """A hidden copy of ``plots`` (a PlotsWidget) drawn as the report's figures are:
     antialiased, a grid, each legend under its plot naming only what it draws. The caller
     deletes it."""
-    from prismstation.gui.plots import PlotsWidget
     smooth = pg.getConfigOption("antialias")
     pg.setConfigOptions(antialias=True)  # items read it when created
     try:
-        tmp = PlotsWidget(grid=True, legends=True)
+        tmp = type(plots)(grid=True, legends=True)  # (a PlotsWidget: plots imports this module)
     finally:
         pg.setConfigOptions(antialias=smooth)
     tmp.setAttribute(Qt.WidgetAttribute.WA_DontShowOnScreen, True)

@@ -1,4 +1,4 @@
-"""Live plots of a fitted :class:`~prismstation.core.solution.Solution`.
+"""Live plots of a fitted :class:`~prismstation.core.models.solution.Solution`.
 
 Four pyqtgraph plots in a 2 × 2 grid, each a ``pg.PlotWidget`` whose items are created once and
 only get new data on :meth:`PlotsWidget.set_solution` (no rebuilding):
@@ -296,7 +296,7 @@ class PlotsWidget(QWidget):
 
     # ------------------------------------------------------------------ public
     def set_solution(self, solution) -> None:
-        """Show ``solution`` (a :class:`~prismstation.core.solution.Solution` or None), the residual
+        """Show ``solution`` (a :class:`~prismstation.core.models.solution.Solution` or None), the residual
         vectors of the image chosen in :attr:`view_box` (by default :func:`.plot_data.vector_view`)."""
         self._solution = solution
         data = PlotData.from_solution(solution, self._vector_view)

@@ -1,7 +1,7 @@
 """The point table: one row per point with its kind, views, residuals and ground estimate.
 
 A ``QAbstractTableModel`` reading the project (ids, kinds, measurements) and the current
-:class:`~prismstation.core.solution.Solution` (residuals, estimates, standardised residuals).
+:class:`~prismstation.core.models.solution.Solution` (residuals, estimates, standardised residuals).
 GCPs flagged as blunders get a red background; residuals are in pixels of the reference view.
 A refit repaints the table on every click, so the model sorts itself (no proxy model in
 between), builds only the rows on screen and formats their texts once for the view's one-pass
@@ -15,7 +15,7 @@ import numpy as np
 from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt
 from PySide6.QtGui import QBrush, QColor
 
-from prismstation.core.scene import reference_view
+from prismstation.core.models.scene import reference_view
 from prismstation.gui.overlays import KIND_COLORS
 from prismstation.gui.plain import plain
 from prismstation.gui.static_text import ALIGN_LEFT, ALIGN_RIGHT

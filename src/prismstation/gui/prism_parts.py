@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from prismstation.core.conditioning import SigmaSummary
+from prismstation.core.orientation.conditioning import SigmaSummary
 from prismstation.gui.fit_checks import alpha_of
 from prismstation.gui.plain import counted
 from prismstation.io.formatting import fixed

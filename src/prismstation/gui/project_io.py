@@ -335,7 +335,7 @@ class ProjectFiles(QObject):
         target = path.parent / "scene.json"
         if target.exists():
             return
-        from prismstation.io.products import write_scene_for_product
+        from prismstation.io.products import write_scene_for_product  # start-up: the CEOS reader, 0.1 s
         try:
             self.project.scene_path = str(write_scene_for_product(product, path.parent).resolve())
         except (PrismError, OSError) as exc:
@@ -349,7 +349,7 @@ class ProjectFiles(QObject):
         product = product or self.choose_dir("JAXA PRISM product folder")
         if not product:
             return False
-        from prismstation.io.products import write_scene_for_product
+        from prismstation.io.products import write_scene_for_product  # start-up: the CEOS reader, 0.1 s
         product = Path(product).resolve()
         staging = untitled_path().parent / "products" / product.name
         try:

@@ -14,6 +14,8 @@ import sys
 from pathlib import Path
 
 from prismstation.errors import InputError, WriteError
+from prismstation.gui.plot_figures import render_images
+from prismstation.gui.plots import PlotsWidget
 from prismstation.io.atomic import write_atomic
 from prismstation.io.report_html import MAX_DOCUMENT_POINTS, format_when, report_html
 
@@ -36,8 +38,6 @@ def _ensure_app():
 def render_figures(report: dict, size=(840, 540)) -> dict:
     """The four plots of ``report`` as QImages ``{name: QImage}`` (offscreen pyqtgraph)."""
     _ensure_app()
-    from prismstation.gui.plot_figures import render_images
-    from prismstation.gui.plots import PlotsWidget
     w = PlotsWidget()
     try:
         w.set_report(report)

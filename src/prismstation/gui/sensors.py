@@ -1,5 +1,5 @@
 """Each sensor model's own parts of the window, by the model's name (``Scene.sensor.name``,
-:mod:`prismstation.core.sensors`): the one place the window picks a model's widgets. Generic
+:mod:`prismstation.core.models.sensors`): the one place the window picks a model's widgets. Generic
 parts (the model panel, the accuracy strip, the plots, the orientation tool) ask
 :func:`parts_of` and never which model it is.
 

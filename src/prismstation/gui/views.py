@@ -6,7 +6,7 @@ each with its 95 % error ellipse; ``navigated`` tells
 :class:`~prismstation.gui.linked_nav.LinkedNavigation` of a zoom or pan made by hand.
 
 Views of different images are not linked by pyqtgraph's ``setXLink`` (their geometries differ):
-the cursor in one view goes through the current :class:`~prismstation.core.solution.Solution`
+the cursor in one view goes through the current :class:`~prismstation.core.models.solution.Solution`
 (pixel → ground at a height → pixel) to the others (docs/architecture.md). The height is that of the
 point under the cursor when there is one (its estimated or known height), else the mean scene
 height of the solution.
@@ -23,8 +23,8 @@ from PySide6.QtCore import QRect, Qt, Signal
 from PySide6.QtGui import QRegion
 from PySide6.QtWidgets import QSplitter, QVBoxLayout, QWidget
 
-from prismstation.core.ray_dem import ray_meets_surface
-from prismstation.core.scene import reference_view
+from prismstation.core.models.ray_dem import ray_meets_surface
+from prismstation.core.models.scene import reference_view
 from prismstation.errors import PrismError
 from prismstation.gui import workers
 from prismstation.gui.image_view import ImageView

@@ -30,6 +30,7 @@ from rasterio.windows import Window
 
 from prismstation.errors import PrismError
 from prismstation.io.cog import write_cog
+from prismstation.io.inputs import open_raster_file
 
 NODATA = float("nan")   # what a plain read of band 1 shows as no height
 BANDS = ("height", "mask", "pairs_agreeing")
@@ -121,7 +122,6 @@ def recorded_height_kind(path) -> str | None:
     a vertical CRS is gravity-related (orthometric) unless its name or datum names an ellipsoid
     (GeoTIFF keys keep those, not the axis), a 3-D CRS with an ellipsoidal height axis is
     ellipsoidal; a 2-D CRS says nothing."""
-    from prismstation.io.inputs import open_raster_file
     try:
         with open_raster_file(path, "DSM") as ds:  # (a typed path: a FIFO would hang the reader)
             tag, wkt = ds.tags().get("HEIGHTS"), ds.crs.to_wkt() if ds.crs else None

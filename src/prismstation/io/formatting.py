@@ -1,4 +1,5 @@
-"""Numbers as text, the one way every report, command and window part writes them."""
+"""Numbers as text, the one way every report, command and window part writes them
+(:func:`fixed`; JSON values are made safe by :func:`prismstation.io.jsonfile.plain`)."""
 from __future__ import annotations
 
 import math

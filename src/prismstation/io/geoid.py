@@ -142,16 +142,18 @@ def to_ellipsoidal(H, geoid, E=None, N=None, crs=None) -> np.ndarray:
 
 
 def undulation_on_grid(geoid, grid, max_samples: int = 256) -> np.ndarray:
-    """Geoid undulation (m) at every cell centre of ``grid`` (an :class:`io.dem.DemGrid`): exact on a coarse lattice of at
-    most ``max_samples`` per axis, bilinear in between (geoids vary over kilometres)."""
+    """Geoid undulation (m) at every cell centre of ``grid`` (an :class:`io.dem.DemGrid`, or
+    anything with its ``shape``, ``crs`` and ``transform`` — an ``Affine`` or its six numbers):
+    exact on a coarse lattice of at most ``max_samples`` per axis, bilinear in between (geoids
+    vary over kilometres)."""
     rows, cols = grid.shape
     exact = rows * cols <= max_samples ** 2 or rows < 2 or cols < 2
     r = np.arange(rows) if exact else np.unique(np.linspace(0, rows - 1, max_samples).round())
     c = np.arange(cols) if exact else np.unique(np.linspace(0, cols - 1, max_samples).round())
     cc, rr = np.meshgrid(c + 0.5, r + 0.5)
-    t = grid.transform
-    e = t.c + cc * t.a + rr * t.b
-    n = t.f + cc * t.d + rr * t.e
+    ta, tb, tc, td, te, tf = tuple(grid.transform)[:6]
+    e = tc + cc * ta + rr * tb
+    n = tf + cc * td + rr * te
     u = np.asarray(geoid.undulation(e, n, grid.crs), float).reshape(cc.shape)
     if exact:
         return u

@@ -1,5 +1,6 @@
 """What every point file shares: :class:`PointFile`, CRS texts as other tools write them, the
-horizontal conversion of ground points, and the lon/lat column-order check.
+horizontal conversion of ground points, and the lon/lat column-order check; a CRS in words
+(:func:`crs_name`) and the conversion of map coordinates between two CRSs (:class:`Reprojection`).
 
 CRS texts (:func:`parse_crs`): anything pyproj reads (``EPSG:32617``, ``epsg:4326``, proj
 strings, WKT), a proj string in quotes (``'+proj=utm +zone=17 ...'``), and the OpenDroneMap
@@ -162,3 +163,39 @@ def convert_point_file(pf: PointFile, to_crs: str) -> PointFile:
             raise InputError(f"point {p.id!r} cannot be transformed to {to_crs}")
         pts.append(replace(p, E=float(e), N=float(n)))
     return replace(pf, points=tuple(pts), crs=to_crs, header=None)
+
+
+def crs_name(text) -> str:
+    """A CRS as an operator reads it — ``WGS 84 / UTM zone 29N (EPSG:32629)`` — from any
+    definition (WKT, ``EPSG:…``, PROJ string); the text itself, shortened, when PROJ cannot read it."""
+    try:
+        crs = CRS.from_user_input(text)
+    except (CRSError, TypeError, ValueError):
+        t = " ".join(str(text).split())
+        return t if len(t) <= 60 else t[:57] + "…"
+    code = crs.to_epsg(min_confidence=70)
+    return f"{crs.name} (EPSG:{code})" if code else crs.name
+
+
+class Reprojection:
+    """Map coordinates of CRS ``source`` to CRS ``target`` (default ``source``) and back, x =
+    easting (or longitude): ``forward(x, y)``, ``backward(x, y)`` → ``(x, y)`` arrays;
+    ``same`` when the two are one CRS; ``target_wkt``, ``target_text`` the target's WKT and its
+    shortest definition. A CRS PROJ does not know is an :class:`InputError`."""
+
+    def __init__(self, source, target=None):
+        try:
+            src = CRS.from_user_input(source)
+            dst = src if target is None else CRS.from_user_input(target)
+        except CRSError as exc:
+            raise InputError(f"unknown CRS ({exc})") from None
+        self.same = dst == src
+        self.target_wkt, self.target_text = dst.to_wkt(), dst.to_string()
+        self._fw = Transformer.from_crs(src, dst, always_xy=True)
+        self._bw = Transformer.from_crs(dst, src, always_xy=True)
+
+    def forward(self, x, y):
+        return self._fw.transform(x, y)
+
+    def backward(self, x, y):
+        return self._bw.transform(x, y)

@@ -19,6 +19,7 @@ import warnings
 from pathlib import Path
 
 from prismstation.errors import InputError, RasterReadError
+from prismstation.io.atomic import cause_text
 
 #: GDAL drivers of the rasters the workstation reads: images (GeoTIFF, JPEG 2000, NITF, PNG,
 #: JPEG, Erdas), DEMs (GeoTIFF, SRTM .hgt, DTED, ASCII grids, ENVI/EHdr), geoid grids (GTX)
@@ -133,7 +134,6 @@ def open_raster_file(path, what: str = "raster"):
     from rasterio.errors import NotGeoreferencedWarning
     from rasterio.io import DatasetReader
 
-    from prismstation.io.atomic import cause_text
     p = check_raster_file(path, what)
     try:
         with warnings.catch_warnings():

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from prismstation.core.scene import reference_view
+from prismstation.core.models.scene import reference_view
 from prismstation.errors import InputError
 from prismstation.io import ceos
 from prismstation.io.atomic import write_atomic

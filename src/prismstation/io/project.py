@@ -16,14 +16,13 @@ from functools import lru_cache
 from pathlib import Path
 
 from prismstation import __version__
-from prismstation.core.prism import PARALLAX_MODELS
-from prismstation.core.rpc_model import RpcModel
-from prismstation.core.solution import Settings
+from prismstation.core.models.prism import PARALLAX_MODELS
+from prismstation.core.models.solution import Settings
 from prismstation.errors import InputError
 from prismstation.io import geoid as geoid_mod
 from prismstation.io.atomic import write_atomic
 from prismstation.io.lock import refuse_if_held
-from prismstation.io.jsonfile import dumps, line_of, read_json
+from prismstation.io.jsonfile import dumps, line_of, plain, read_json
 from prismstation.io.ranges import SIGMA_M, check_map, check_sigma, outside_images
 from prismstation.io.scene import read_scene
 from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint, Measurement
@@ -35,10 +34,6 @@ SUFFIX = ".prismproj"
 DEM_CONTROL, RELOCATED, PRODUCT, REFERENCE_DEM = "dem_control", "relocated_images", "product", "reference_dem"
 _KNOWN = {"format", "saved_by", "scene", "settings", "geoid", "points", "measurements",
           DEM_CONTROL, RELOCATED, PRODUCT, REFERENCE_DEM, "recovery"}  # "recovery": the journal's own note
-
-
-def _num(v):
-    return None if v is None or (isinstance(v, float) and not math.isfinite(v)) else v
 
 
 def _relative(path, base: Path) -> str:
@@ -68,7 +63,7 @@ def project_to_dict(project: Project, path) -> dict:
         "settings": settings_dict(project.settings),
         "geoid": geoid,
         "points": [
-            {"id": p.id, "kind": p.kind, "E": _num(p.E), "N": _num(p.N), "H": _num(p.H),
+            {"id": p.id, "kind": p.kind, "E": plain(p.E), "N": plain(p.N), "H": plain(p.H),
              "height": p.height_kind, "sigma_xy_m": p.sigma_xy_m, "sigma_h_m": p.sigma_h_m,
              **({"extra": p.extra} if p.extra else {})}
             for p in project.points.values()],
@@ -236,17 +231,29 @@ def apply_relocations(project: Project, base=None) -> None:
 
 def _dem_control_ok(control, scene) -> bool:
     """The ``dem_control`` record has the shape its readers (the fit, the window's vectors)
-    take for granted: a PRISM triplet's ``patches`` of numbers, an RPC block's ``biases``."""
-    if not isinstance(control, dict):
-        return False
-    patches, biases = control.get("patches"), control.get("biases")
-    if scene.sensor is RpcModel:
-        return isinstance(biases, dict) and all(
-            isinstance(b, dict) and isinstance(b.get("model"), str) and isinstance(b.get("params"), list)
-            for b in biases.values())
+    take for granted, by the scene's sensor model (:data:`_CONTROL_SHAPES`; a model not listed
+    there: any object, its ``control_from_record`` checks it at the fit)."""
+    return isinstance(control, dict) and _CONTROL_SHAPES.get(scene.sensor.name, lambda c: True)(control)
+
+
+def _patches_ok(control) -> bool:
+    """A PRISM triplet's record: ``patches``, each with the numbers (or nulls) :data:`_PATCH_NUMBERS`."""
+    patches = control.get("patches")
     return isinstance(patches, list) and all(
         isinstance(q, dict) and all(k in q and (q[k] is None or _number(q[k])) for k in _PATCH_NUMBERS)
         for q in patches)
+
+
+def _biases_ok(control) -> bool:
+    """An RPC block's record: ``biases``, view → ``{"model": name, "params": [...], ...}``."""
+    biases = control.get("biases")
+    return isinstance(biases, dict) and all(
+        isinstance(b, dict) and isinstance(b.get("model"), str) and isinstance(b.get("params"), list)
+        for b in biases.values())
+
+
+#: sensor model name → the check of its ``dem_control`` record's shape
+_CONTROL_SHAPES = {"prism": _patches_ok, "rpc": _biases_ok}
 
 
 #: the numbers (or nulls) every saved patch holds

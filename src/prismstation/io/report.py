@@ -25,7 +25,7 @@ from pyproj import CRS, Transformer
 from pyproj.exceptions import CRSError
 
 from prismstation import __version__
-from prismstation.core.solution import Solution
+from prismstation.core.models.solution import Solution
 from prismstation.errors import InputError
 from prismstation.io.atomic import write_atomic
 from prismstation.io.csvtable import text_cell

@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import html
 import itertools
-import math
 import re
 from pathlib import Path
 
-from prismstation.core.scene import reference_view
+from prismstation.core.models.scene import reference_view
+from prismstation.io.formatting import fixed
 
 FIGURE_CAPTIONS = {
     "height": "Ellipsoidal height versus F−B parallax of the GCPs and ICPs, with the fitted and "
@@ -40,14 +40,6 @@ _TABLE_MARK = "\x00table\x00"  # numbered in document order by report_html
 _NEW_PAGE = ' style="page-break-before:always"'
 _NUMBER = re.compile(r"[+\-]?\d|—$")  # cells aligned right: numbers and the "no value" dash
 # ---------------------------------------------------------------------------- formatting
-def _num(v, nd=2, signed=False) -> str:
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return "—"
-    if isinstance(v, bool) or isinstance(v, int):
-        return str(v)
-    return f"{v:+.{nd}f}" if signed else f"{v:.{nd}f}"
-
-
 def _sci(v) -> str:
     if v is None:
         return "—"
@@ -88,7 +80,7 @@ def _stat_rows(columns, stats=("n", "min", "max", "mean", "rms", "std"), nd=2):
     rows = []
     for s in stats:
         rows.append([names[s]] + [("—" if c is None else str(c.get(s)) if s == "n"
-                                   else _num(c.get(s), nd, signed=s in ("min", "max", "mean")))
+                                   else fixed(c.get(s), nd, sign=s in ("min", "max", "mean")))
                                   for c in columns])
     return rows
 
@@ -130,9 +122,9 @@ def _header_rows(r: dict) -> list:
          ("Height–parallax model", settings.get("parallax_model", "—")) if _from_parallax(r) else
          ("View held fixed", settings.get("fixed_view") or next(
              (v for v, b in (r.get("model") or {}).get("bias", {}).items() if b.get("fixed")), "—"))],
-        [("A-priori σ of a measurement", f"{_num(settings.get('sigma_px'))} px"),
-         ("Blunder threshold |w|", _num(settings.get("blunder_threshold")))],
-        [("Mean scene height", f"{_num(r.get('mean_height_m'))} m")],
+        [("A-priori σ of a measurement", f"{fixed(settings.get('sigma_px'))} px"),
+         ("Blunder threshold |w|", fixed(settings.get("blunder_threshold")))],
+        [("Mean scene height", f"{fixed(r.get('mean_height_m'))} m")],
     ]
 
 
@@ -157,17 +149,17 @@ def _summary(r: dict, ref: str) -> str:
     for kind in ("GCP", "ICP"):
         if kind not in g:
             continue
-        rows.append([kind, str(g[kind]["x"]["n"]), _num(g[kind]["x"]["rms"]), _num(g[kind]["y"]["rms"]),
-                     _num(g[kind]["planimetric_rms"]), _num((hgt.get(kind) or {}).get("rms")),
-                     _num(img.get(kind, {}).get("px", {}).get("planimetric_rms"))])
+        rows.append([kind, str(g[kind]["x"]["n"]), fixed(g[kind]["x"]["rms"]), fixed(g[kind]["y"]["rms"]),
+                     fixed(g[kind]["planimetric_rms"]), fixed((hgt.get(kind) or {}).get("rms")),
+                     fixed(img.get(kind, {}).get("px", {}).get("planimetric_rms"))])
     bias = (r.get("model") or {}).get("bias", {}).get(ref, {})
     sigma = (r.get("settings") or {}).get("sigma_px")
     if (r.get("header") or {}).get("orientation") == "reference DEM":
         note = ("<p>Oriented from the reference DEM, not from the GCPs: GCP and ICP figures are "
                 "both independent checks.</p>")
     else:
-        note = (f'<p>σ0 of the bias fit in view {_esc(ref)}: {_num(bias.get("sigma0"), 3)} '
-                f'(unit weight; a-priori σ {_num(sigma)} px). GCP figures are the fit\'s own '
+        note = (f'<p>σ0 of the bias fit in view {_esc(ref)}: {fixed(bias.get("sigma0"), 3)} '
+                f'(unit weight; a-priori σ {fixed(sigma)} px). GCP figures are the fit\'s own '
                 f'residuals; ICP figures are the independent check.</p>')
     return _table("summary", "Accuracy: root-mean-square ground residuals, estimated − known (m), "
                              f"and image residuals in view {ref} (px)",
@@ -189,9 +181,9 @@ def _model(r: dict) -> list:
             row.append("" if p is None else f"{_sci(p['value'])} ± {_sci(p['std'])}")
         rows.append(row)
     rows.append(["model"] + [bias[v].get("model", "") for v in views])
-    rows.append(["σ0 (px)"] + [_num(bias[v].get("sigma0"), 3) for v in views])
-    rows.append(["redundancy (dof)"] + [_num(bias[v].get("dof")) for v in views])
-    rows.append(["observations"] + [_num(bias[v].get("n_observations")) for v in views])
+    rows.append(["σ0 (px)"] + [fixed(bias[v].get("sigma0"), 3) for v in views])
+    rows.append(["redundancy (dof)"] + [fixed(bias[v].get("dof")) for v in views])
+    rows.append(["observations"] + [fixed(bias[v].get("n_observations")) for v in views])
     caption = ("Bias compensation per view, x = x′ + M·x′ + b (x′: image position from the "
                "product's ancillary data; M 2×2, b in pixels): parameter ± σ" if _from_parallax(r) else
                "Bias compensation per view, x = RPC(ground) + Δ(x) (Δ at the image point: a0, b0 in pixels "
@@ -200,11 +192,11 @@ def _model(r: dict) -> list:
                     ["Parameter"] + [f"view {v}" for v in views], rows)]
     par = model.get("parallax")
     if par:
-        rows = [["c0 (m)", _num(par.get("c0"), 2), _num(par.get("std_c0"), 2)],
-                ["c1 (m/px)", _num(par.get("c1"), 4), _num(par.get("std_c1"), 4)],
-                ["c1 theoretical (m/px)", _num(par.get("c1_theoretical"), 4), ""],
-                ["σ0 (m)", _num(par.get("sigma0_m"), 3), ""],
-                ["redundancy (dof)", _num(par.get("dof")), ""],
+        rows = [["c0 (m)", fixed(par.get("c0"), 2), fixed(par.get("std_c0"), 2)],
+                ["c1 (m/px)", fixed(par.get("c1"), 4), fixed(par.get("std_c1"), 4)],
+                ["c1 theoretical (m/px)", fixed(par.get("c1_theoretical"), 4), ""],
+                ["σ0 (m)", fixed(par.get("sigma0_m"), 3), ""],
+                ["redundancy (dof)", fixed(par.get("dof")), ""],
                 ["fitted", f"{par.get('used')} (requested {par.get('requested')})", ""]]
         if par.get("note"):
             rows.append(["note", par["note"], ""])
@@ -220,15 +212,15 @@ def _statistics(r: dict, ref: str) -> list:
     if ref in img:
         cols = [img[ref][k]["m"][c] for k in ("GCP", "ICP") for c in ("x", "y")]
         rows = _stat_rows(cols)
-        rows.append(["Planimetric RMS", "", _num(img[ref]["GCP"]["m"]["planimetric_rms"]), "",
-                     _num(img[ref]["ICP"]["m"]["planimetric_rms"])])
+        rows.append(["Planimetric RMS", "", fixed(img[ref]["GCP"]["m"]["planimetric_rms"]), "",
+                     fixed(img[ref]["ICP"]["m"]["planimetric_rms"])])
         parts.append(_table("table1", f"Image residuals of GCPs and ICPs in view {ref}, scaled to metres "
                                       "by the pixel size (m)",
                             ["", "GCP Rx", "GCP Ry", "ICP Rx", "ICP Ry"], rows))
     kinds = [k for k in ("GCP", "ICP", "TIE") if all(k in d for d in img.values())]
     rows = [[v] + [x for k in kinds for x in
-                   (str(d[k]["px"]["x"]["n"]), _num(d[k]["px"]["x"]["rms"]),
-                    _num(d[k]["px"]["y"]["rms"]), _num(d[k]["px"]["planimetric_rms"]))]
+                   (str(d[k]["px"]["x"]["n"]), fixed(d[k]["px"]["x"]["rms"]),
+                    fixed(d[k]["px"]["y"]["rms"]), fixed(d[k]["px"]["planimetric_rms"]))]
             for v, d in img.items()]
     if rows:
         parts.append(_table("table1b", "Image residuals per view (px)",
@@ -247,8 +239,8 @@ def _statistics(r: dict, ref: str) -> list:
         g = st["ground"]
         cols = [g[k][c] for k in ("GCP", "ICP") for c in ("x", "y")]
         rows = _stat_rows(cols, ("n", "min", "max", "mean", "rms"))
-        rows.append(["Planimetric RMS", "", _num(g["GCP"]["planimetric_rms"]), "",
-                     _num(g["ICP"]["planimetric_rms"])])
+        rows.append(["Planimetric RMS", "", fixed(g["GCP"]["planimetric_rms"]), "",
+                     fixed(g["ICP"]["planimetric_rms"])])
         parts.append(_table("ground", "Ground residuals, estimated − known (m)",
                             ["", "GCP dE", "GCP dN", "ICP dE", "ICP dN"], rows))
     return parts
@@ -284,11 +276,11 @@ def _points(r: dict, ref: str, views: list, limit: int | None = None) -> list:
     head = ["id", "kind", "E", "N", "h"] + (["H given"] if ortho else []) + ["dE", "dN", "dh", "|w|", "blunder"]
     rows, flagged = [], []
     for i, p in enumerate(known):
-        given = [_num(p.get("H_given"), 3) if p.get("height_kind") == "orthometric" else ""] if ortho else []
-        rows.append([p["id"], p["kind"], _num(p["E_known"], 3), _num(p["N_known"], 3),
-                     _num(p.get("h_known"), 3)] + given +
-                    [_num(p.get("dE"), signed=True), _num(p.get("dN"), signed=True),
-                     _num(p.get("dh"), signed=True), _num(p.get("std_residual")),
+        given = [fixed(p.get("H_given"), 3) if p.get("height_kind") == "orthometric" else ""] if ortho else []
+        rows.append([p["id"], p["kind"], fixed(p["E_known"], 3), fixed(p["N_known"], 3),
+                     fixed(p.get("h_known"), 3)] + given +
+                    [fixed(p.get("dE"), sign=True), fixed(p.get("dN"), sign=True),
+                     fixed(p.get("dh"), sign=True), fixed(p.get("std_residual")),
                      "yes" if p.get("blunder") else ""])
         if p.get("blunder"):
             flagged.append(i)
@@ -301,18 +293,18 @@ def _points(r: dict, ref: str, views: list, limit: int | None = None) -> list:
     py = _from_parallax(r)
     for i, p in enumerate(pts):
         res = p.get("residual_px") or {}
-        rows.append([p["id"], p["kind"]] + [_num(x, signed=True) for v in views
+        rows.append([p["id"], p["kind"]] + [fixed(x, sign=True) for v in views
                                              for x in (res.get(v) or (None, None))]
-                    + ([_num(p.get("parallax_px"))] if py else []))
+                    + ([fixed(p.get("parallax_px"))] if py else []))
         if p.get("blunder"):
             flagged.append(i)
     parts.append(_table("residuals", "Image residuals, measured − predicted (px)"
                         + (", and F−B parallax py (px)" if py else ""),
                         ["id", "kind"] + [f"{c} {v}" for v in views for c in ("vx", "vy")] + (["py"] if py else []),
                         rows, small=True, highlight=flagged))
-    rows = [[p["id"], p["kind"], _num(p.get("E_est"), 2), _num(p.get("N_est"), 2), _num(p.get("h_est"), 2),
+    rows = [[p["id"], p["kind"], fixed(p.get("E_est"), 2), fixed(p.get("N_est"), 2), fixed(p.get("h_est"), 2),
              _SOURCE.get(p.get("height_source"), p.get("height_source") or ""),
-             _num(p.get("lat_est"), 7), _num(p.get("lon_est"), 7)] for p in pts]
+             fixed(p.get("lat_est"), 7), fixed(p.get("lon_est"), 7)] for p in pts]
     parts.append(_table("estimates", "Estimated ground coordinates (E, N m; h ellipsoidal m, from "
                                      + ("py: parallax" if py else "rays: intersection of the rays")
                                      + ", DEM: reference DEM, mean: mean height; latitude and "

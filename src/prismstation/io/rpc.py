@@ -1,7 +1,7 @@
 """Find and read the RPCs of an image, whichever way they come.
 
 :func:`read_rpc` takes an image (or an RPC file) and returns a
-:class:`prismstation.core.rpc.Rpc` in the image's own pixel frame. Looked for, in this order:
+:class:`prismstation.core.models.rpc.Rpc` in the image's own pixel frame. Looked for, in this order:
 
 1. an OSSIM ``<stem>.geom`` beside the image (GDAL does not read it). When the image has a
    translation-only geotransform and no CRS, the image is a crop of the product the RPC
@@ -29,7 +29,7 @@ import re
 from dataclasses import replace
 from pathlib import Path
 
-from prismstation.core.rpc import Rpc
+from prismstation.core.models.rpc import Rpc
 from prismstation.errors import InputError, ModelError, RasterReadError
 from prismstation.io.inputs import local_file, open_raster_file
 from prismstation.io import rpc_formats as fmt

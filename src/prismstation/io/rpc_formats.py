@@ -2,7 +2,7 @@
 ``_RPC.TXT``, Pléiades / SPOT / Pléiades Neo DIMAP ``RPC_*.XML``, JAXA's fixed-width
 ``RPC-*.txt`` and the NITF ``RPC00A`` tagged record.
 
-Each returns a :class:`prismstation.core.rpc.Rpc` in its convention (RPC00B, 0-based image
+Each returns a :class:`prismstation.core.models.rpc.Rpc` in its convention (RPC00B, 0-based image
 offsets with the first pixel's centre at 0, as GDAL reads them) or raises
 :class:`~prismstation.errors.InputError` naming the file, the line and the problem (a missing
 key, a wrong number of coefficients, a value that is not a number, a zero scale, a polynomial
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from prismstation.core.rpc import Rpc
+from prismstation.core.models.rpc import Rpc
 from prismstation.errors import InputError, ModelError
 
 #: the ten scalars under the names every format maps to

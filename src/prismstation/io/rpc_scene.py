@@ -1,5 +1,5 @@
 """Images with RPCs as a scene: the map projection the RPC model works through
-(:class:`LonLatProjection`), the RPC view of a scene file (:func:`rpc_view_from_dict`,
+(:class:`LonLatProjection`; :func:`to_map`, :func:`to_lonlat` for a grid's CRS), the RPC view of a scene file (:func:`rpc_view_from_dict`,
 :func:`rpc_to_dict`) and the scene of a set of images (:func:`write_scene_for_images`, behind
 ``prismstation new --images``).
 
@@ -12,13 +12,14 @@ from __future__ import annotations
 
 import math
 import os
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 from pyproj import CRS, Transformer
 
-from prismstation.core.rpc import POLYNOMIALS, SCALARS, Rpc, wrap180
-from prismstation.core.rpc_model import RpcModel, RpcView, ground_sample_distance
+from prismstation.core.models.rpc import POLYNOMIALS, SCALARS, Rpc, wrap180
+from prismstation.core.models.rpc_model import RpcModel, RpcView, ground_sample_distance
 from prismstation.errors import InputError, ModelError, RasterReadError
 from prismstation.io.inputs import open_raster_file
 from prismstation.io.jsonfile import write_json
@@ -57,6 +58,24 @@ class LonLatProjection:
 
     def __setstate__(self, state):
         self.__init__(state["crs"])
+
+
+@lru_cache(maxsize=16)
+def _transformer(crs: str, inverse: bool) -> Transformer:
+    a, b = ("EPSG:4326", crs) if not inverse else (crs, "EPSG:4326")
+    return Transformer.from_crs(a, b, always_xy=True)
+
+
+def to_map(crs: str):
+    """``(lon°, lat°) → (E, N)`` of ``crs``."""
+    t = _transformer(str(crs), False)
+    return lambda lon, lat: t.transform(lon, lat)
+
+
+def to_lonlat(crs: str):
+    """``(E, N)`` of ``crs`` → ``(lon°, lat°)``."""
+    t = _transformer(str(crs), True)
+    return lambda e, n: t.transform(e, n)
 
 
 def utm_crs(lon: float, lat: float) -> str:
@@ -153,7 +172,7 @@ def common_footprint(footprints: dict) -> tuple[float, float]:
 
 def rpc_to_dict(rpc: Rpc) -> dict:
     """The RPC as a scene file stores it: the ten offsets and scales and the four polynomials
-    under :data:`prismstation.core.rpc.SCALARS` / ``POLYNOMIALS`` names (GDAL's conventions:
+    under :data:`prismstation.core.models.rpc.SCALARS` / ``POLYNOMIALS`` names (GDAL's conventions:
     0-based offsets, the first pixel's centre at 0)."""
     d = {k: float(getattr(rpc, k)) for k in SCALARS}
     d.update({k: [float(c) for c in getattr(rpc, k)] for k in POLYNOMIALS})

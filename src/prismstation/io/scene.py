@@ -1,4 +1,4 @@
-"""``scene.json`` (docs/formats.md) → :class:`prismstation.core.scene.Scene`.
+"""``scene.json`` (docs/formats.md) → :class:`prismstation.core.models.scene.Scene`.
 
 Here, and only here, a scene's sensor model is chosen: views of the PRISM model (format 1, or 2
 without a ``"model"``) or images with RPCs (format 2, ``"model": "rpc"``,
@@ -15,9 +15,9 @@ import numpy as np
 from pyproj import CRS
 from pyproj.exceptions import CRSError
 
-from prismstation.core.affine import Affine2D
-from prismstation.core import sensors
-from prismstation.core.scene import GroundTrack, Scene, View
+from prismstation.core.adjustment.affine import Affine2D
+from prismstation.core.models import sensors
+from prismstation.core.models.scene import GroundTrack, Scene, View
 from prismstation.errors import InputError, RasterReadError
 from prismstation.io import rpc_scene
 from prismstation.io.inputs import open_raster_file

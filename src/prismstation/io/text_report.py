@@ -2,15 +2,8 @@
 report dict (:func:`prismstation.io.report.report_dict`); the points are in its other formats."""
 from __future__ import annotations
 
-from prismstation.core.scene import reference_view
-
-
-def _f(v, nd=2):
-    return "—" if v is None else f"{v:+.{nd}f}" if isinstance(v, float) else str(v)
-
-
-def _u(v, nd=3):
-    return "—" if v is None else f"{v:.{nd}f}"
+from prismstation.core.models.scene import reference_view
+from prismstation.io.formatting import fixed
 
 
 def _table(title, cols, rows) -> list[str]:
@@ -41,13 +34,13 @@ def format_report(r: dict) -> str:
         if b.get("fixed"):
             lines.append(f"{head}: held fixed (the datum)")
             continue
-        lines.append(f"{head}, σ0 = {_u(b.get('sigma0'))} px  dof = {b.get('dof') if b.get('dof') is not None else '—'}")
+        lines.append(f"{head}, σ0 = {fixed(b.get('sigma0'), 3)} px  dof = {b.get('dof') if b.get('dof') is not None else '—'}")
         for name, p in b["parameters"].items():
             sd = "" if p["std"] is None else f"  ± {p['std']:.2g}"
             lines.append(f"  {name:>3} = {p['value']:+.6g}{sd}")
     if par:
         lines.append(f"Parallax line ({par['used']}): h = {par['c0']:+.2f} + {par['c1']:.4f}·py"
-                     f"   (theoretical c1 = {par['c1_theoretical']:.4f}; σ0 = {_u(par['sigma0_m'], 2)} m)")
+                     f"   (theoretical c1 = {par['c1_theoretical']:.4f}; σ0 = {fixed(par['sigma0_m'], 2)} m)")
     lines.append("")
     st = r["statistics"]
     if from_parallax:  # the PRISM model: the reference view's residuals in metres, F and B against N
@@ -59,27 +52,27 @@ def format_report(r: dict) -> str:
                 m = st["image"][ref][kind]["m"]
                 for c in ("x", "y"):
                     v = m[c][stat]
-                    row.append(str(v) if stat == "n" else _f(v))
+                    row.append(str(v) if stat == "n" else fixed(v, sign=True))
             rows.append(row)
-        rows.append(["planimetric RMS", "", _f(st["image"][ref]["GCP"]["m"]["planimetric_rms"]), "",
-                     _f(st["image"][ref]["ICP"]["m"]["planimetric_rms"])])
+        rows.append(["planimetric RMS", "", fixed(st["image"][ref]["GCP"]["m"]["planimetric_rms"], sign=True), "",
+                     fixed(st["image"][ref]["ICP"]["m"]["planimetric_rms"], sign=True)])
         lines += _table(f"Table 1. Image residuals, view {ref} (m)", ["GCP Rx", "GCP Ry", "ICP Rx", "ICP Ry"], rows)
         if "F-N" in st:
-            rows = [[s] + [_f(st[k][s]) if s != "n" else str(st[k][s]) for k in ("F-N", "B-N")]
+            rows = [[s] + [fixed(st[k][s], sign=True) if s != "n" else str(st[k][s]) for k in ("F-N", "B-N")]
                     for s in ("n", "min", "max", "mean", "std")]
             lines += _table("Table 2. Across-track differences to N (px)", ["F−N", "B−N"], rows)
-            rows = [[s] + [_f(st["height"][k][s]) if s != "n" else str(st["height"][k][s]) for k in ("GCP", "ICP")]
+            rows = [[s] + [fixed(st["height"][k][s], sign=True) if s != "n" else str(st["height"][k][s]) for k in ("GCP", "ICP")]
                     for s in ("n", "min", "max", "mean", "rms")]
             lines += _table("Table 3. Height residuals, from parallax − known (m)", ["GCP Rh", "ICP Rh"], rows)
     else:  # a model intersecting rays: every view's residuals
         lines += _per_view_table(st)
-        rows = [[s] + [_f(st["height"][k][s]) if s != "n" else str(st["height"][k][s]) for k in ("GCP", "ICP")]
+        rows = [[s] + [fixed(st["height"][k][s], sign=True) if s != "n" else str(st["height"][k][s]) for k in ("GCP", "ICP")]
                 for s in ("n", "min", "max", "mean", "rms")]
         lines += _table("Table 2. Height residuals, from intersection − known (m)", ["GCP Rh", "ICP Rh"], rows)
     g = st["ground"]
-    rows = [[s] + [_f(g[k][c][s]) if s != "n" else str(g[k][c][s]) for k in ("GCP", "ICP") for c in ("x", "y")]
+    rows = [[s] + [fixed(g[k][c][s], sign=True) if s != "n" else str(g[k][c][s]) for k in ("GCP", "ICP") for c in ("x", "y")]
             for s in ("n", "mean", "rms")]
-    rows.append(["planimetric RMS", "", _f(g["GCP"]["planimetric_rms"]), "", _f(g["ICP"]["planimetric_rms"])])
+    rows.append(["planimetric RMS", "", fixed(g["GCP"]["planimetric_rms"], sign=True), "", fixed(g["ICP"]["planimetric_rms"], sign=True)])
     lines += _table(f"Table {4 if 'F-N' in st else 2 if from_parallax else 3}. Ground residuals, estimated − known (m)", ["GCP dE", "GCP dN", "ICP dE", "ICP dN"], rows)
     flagged = [p["id"] for p in r["points"] if p.get("blunder")]
     if flagged:
@@ -96,7 +89,7 @@ def _per_view_table(st) -> list[str]:
         row = [view]
         for k in kinds:
             px = by_kind.get(k, {}).get("px") or {"x": {}, "y": {}}
-            row += [str(px["x"].get("n", 0)), _u(px["x"].get("rms")), _u(px["y"].get("rms"))]
+            row += [str(px["x"].get("n", 0)), fixed(px["x"].get("rms"), 3), fixed(px["y"].get("rms"), 3)]
         rows.append(row)
     cols = [f"{k} {c}" for k in kinds for c in ("n", "RMS x", "RMS y")]
     return _table("Table 1. Image residuals per view (px)", cols, rows)

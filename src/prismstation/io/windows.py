@@ -12,11 +12,10 @@ naming the file, what it is (``view N``), the window in image pixels and GDAL's 
 """
 from __future__ import annotations
 
-
 import numpy as np
 from rasterio.windows import Window
 
-from prismstation.core.affine import Affine2D
+from prismstation.core.adjustment.affine import Affine2D
 from prismstation.errors import InputError, RasterReadError
 from prismstation.io.atomic import cause_text
 from prismstation.io.inputs import open_raster_file
@@ -57,6 +56,22 @@ class CheckedRaster:
         except Exception as exc:
             raise read_error(self.name, f"{self.what}, {describe_window(window)}", exc) from None
 
+    def read_bands(self, c0: int, r0: int, w: int, h: int) -> np.ndarray:
+        """Every band of the window ``[c0, c0 + w) × [r0, r0 + h)`` px (inside the image):
+        ``(count, h, w)`` in the file's type."""
+        return self.read(window=Window(c0, r0, w, h))
+
+    def read_padded(self, c0: int, r0: int, w: int, h: int) -> np.ndarray:
+        """Band 1 of the window ``[c0, c0 + w) × [r0, r0 + h)`` px as float32 ``(h, w)``, NaN
+        where it falls outside the image."""
+        out = np.full((h, w), np.nan, np.float32)
+        a0, b0 = max(c0, 0), max(r0, 0)
+        a1, b1 = min(c0 + w, self.width), min(r0 + h, self.height)
+        if a1 > a0 and b1 > b0:
+            out[b0 - r0:b1 - r0, a0 - c0:a1 - c0] = self.read(1, window=Window(a0, b0, a1 - a0, b1 - b0),
+                                                              out_dtype="float32")
+        return out
+
     @property
     def dataset(self):
         """The rasterio dataset itself, for GDAL calls that need one (a warp)."""
@@ -80,6 +95,17 @@ class CheckedRaster:
 def open_image(path, what: str = "raster") -> CheckedRaster:
     """``path`` opened for checked reads (:class:`CheckedRaster`)."""
     return CheckedRaster(path, what)
+
+
+def raster_header(path, what: str = "image") -> tuple[int, int, str | None]:
+    """``(width, height, CRS as WKT or None)`` of the raster ``path``, its pixels unread
+    (opened through :func:`~prismstation.io.inputs.open_raster_file`: a local file only); a
+    file that fails the checks or does not open as a raster is an :class:`InputError` naming it."""
+    try:
+        with open_raster_file(path, what) as ds:
+            return ds.width, ds.height, (ds.crs.to_wkt() if ds.crs is not None else None)
+    except RasterReadError as exc:
+        raise InputError(str(exc).removeprefix(f"{path}: "), file=path) from None
 
 
 #: full-resolution rows read at a time by :meth:`ImageWindows.read_reduced`
@@ -117,7 +143,7 @@ class ImageWindows:
         them), read in strips of rows so that the full-resolution window is never held (a
         14,000 px image is 0.8 GB as float32) → ``(array, col0, row0)``; ``(None, …)`` when
         less than one block remains."""
-        import cv2
+        import cv2  # start-up: OpenCV loads with the first reduced read
 
         if factor <= 1:
             return self.read(view, c0, r0, w, h)

@@ -5,7 +5,7 @@ Plain Python. Every edit goes through a method, bumps :attr:`Project.revision` a
 :attr:`Project.changed` with a :class:`Change` naming what changed; edits inside
 ``with project.batch():`` emit one merged :class:`Change` at the end. Only :class:`Project`
 changes its revision. Solving is separate (:meth:`point_obs` feeds
-:func:`prismstation.core.solution.solve`).
+:func:`prismstation.core.models.solution.solve`).
 """
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ from collections import Counter
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
-from prismstation.core.scene import Scene
-from prismstation.core.solution import PointObs, Settings
+from prismstation.core.models.scene import Scene
+from prismstation.core.models.solution import PointObs, Settings
 from prismstation.errors import InputError
 from prismstation.model.points import KINDS, GroundPoint, Measurement
 from prismstation.model.signal import Signal

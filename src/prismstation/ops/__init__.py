@@ -13,7 +13,7 @@ should be in each view, with its ellipse), :mod:`~.validate` (DSM against a refe
 B/H), :mod:`~.reference_heights` (a reference DEM as heights for the window),
 :mod:`~.progress` (the protocol).
 
-Results that can fail are falsy with a ``reason`` (:mod:`prismstation.core.estimate`);
+Results that can fail are falsy with a ``reason`` (:mod:`prismstation.core.adjustment.estimate`);
 bad input raises :class:`~prismstation.errors.InputError`.
 
 Layers, imports pointing down only: ``cli`` → ``gui`` → ``ops`` → ``io`` → ``model`` → ``core``.

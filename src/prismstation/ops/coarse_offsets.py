@@ -2,7 +2,7 @@
 
 :func:`coarse_view_offsets` reads the reference DEM (ellipsoidal through ``geoid``) over N's
 footprint, cuts N into a 3 × 3 lattice of windows, and for each window and view calls
-:func:`prismstation.core.view_offsets.view_offset` over the radius the a-priori σ allows; the
+:func:`prismstation.core.orientation.view_offsets.view_offset` over the radius the a-priori σ allows; the
 windows are combined per view with a consistency verdict. The result's ``offsets_px`` are
 N-space pixels from the ancillary prediction to where the view sees the point, at N's centre,
 and ``gradients_px`` how they vary over N (attitude drift): the DEM orientation
@@ -17,12 +17,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from rasterio.windows import Window
 from scipy import ndimage
 
-from prismstation.core import view_offsets as vo
-from prismstation.core.coarse import K_SIGMA, search_radius_px
-from prismstation.core.scene import Scene
+from prismstation.core.orientation import view_offsets as vo
+from prismstation.core.matching.coarse import K_SIGMA, search_radius_px
+from prismstation.core.models.scene import Scene
 from prismstation.errors import InputError
 from prismstation.io.dem import read_dem
 from prismstation.io.windows import open_image
@@ -35,7 +34,7 @@ SIGMA_APRIORI_M = 50.0
 class CoarseOffsets:
     """Per view (F, B): the N-space offset (px) at the N image's centre, its σ, the verdict,
     the windows, and the offset's gradient over N (px per N pixel, 2 × 2,
-    :func:`prismstation.core.view_offsets.gradient`)."""
+    :func:`prismstation.core.orientation.view_offsets.gradient`)."""
 
     offsets_px: dict
     sigma_px: dict
@@ -63,21 +62,11 @@ class CoarseOffsets:
                             for w in self.windows]}
 
 
-def _read(ds, c0, r0, w, h) -> np.ndarray:
-    """Window of band 1 as float32, NaN outside the image."""
-    out = np.full((h, w), np.nan, np.float32)
-    a0, b0 = max(c0, 0), max(r0, 0)
-    a1, b1 = min(c0 + w, ds.width), min(r0 + h, ds.height)
-    if a1 > a0 and b1 > b0:
-        out[b0 - r0:b1 - r0, a0 - c0:a1 - c0] = ds.read(1, window=Window(a0, b0, a1 - a0, b1 - b0))
-    return out
-
-
 def coarse_view_offsets(scene: Scene, reference_path, geoid, *, sigma_apriori_m: float = SIGMA_APRIORI_M,
                         k: float = K_SIGMA, window_px: int = 512, grid: int = 3,
                         posting_m: float = 30.0, n_shift=None, progress=None) -> CoarseOffsets:
     """F and B offsets relative to N over the a-priori range (module docstring); ``n_shift``
-    as in :func:`prismstation.core.view_offsets.n_heights` (N's error, once known)."""
+    as in :func:`prismstation.core.orientation.view_offsets.n_heights` (N's error, once known)."""
     if not scene.is_triplet:
         raise InputError("the coarse view offsets need an N, F, B triplet")
     N = scene.views["N"]
@@ -106,13 +95,13 @@ def coarse_view_offsets(scene: Scene, reference_path, geoid, *, sigma_apriori_m:
         for i, win in enumerate(wins):
             checkpoint(progress, i / len(wins), f"coarse offsets: window {i + 1} of {len(wins)}")
             c0, r0, w, h = win
-            n_img = _read(ds["N"], c0, r0, w, h)
+            n_img = ds["N"].read_padded(c0, r0, w, h)
             if not np.isfinite(n_img).all():
                 continue
             hh = vo.n_heights(scene, win, sample, mean_h, n_shift=n_shift)
             for v in "FB":
                 a0, b0, aw, ah = vo.source_window(scene, v, win, hh, radius + 12)
-                found.append(vo.view_offset(scene, v, n_img, win, _read(ds[v], a0, b0, aw, ah),
+                found.append(vo.view_offset(scene, v, n_img, win, ds[v].read_padded(a0, b0, aw, ah),
                                             (a0, b0), hh, sigma_apriori_m, k))
     finally:
         for d in ds.values():

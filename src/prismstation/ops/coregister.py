@@ -1,15 +1,15 @@
 """DEM-to-DEM co-registration: the 3-D shift laying a DEM on a reference DEM.
 
 DEM is resampled onto the reference grid (bilinear or average: ``io.dem.read_dem``), then
-either :func:`core.coarse.dem_offset` searches the whole a-priori range at coarse resolution
-and :func:`core.coreg.coregister` refines ``(dcol, drow, dz)`` in reference-grid pixels
+either :func:`core.matching.coarse.dem_offset` searches the whole a-priori range at coarse resolution
+and :func:`core.matching.coreg.coregister` refines ``(dcol, drow, dz)`` in reference-grid pixels
 (least-squares surface matching, the default), or Nuth & Kääb (2011) fits the slope/aspect
 relation. Geographic grids (EPSG:4326 SRTM .hgt, Copernicus GLO-30/90 GeoTIFF) work as they
 are: the adjustment's metric quantities use a local metric frame at the grid's centre
 (``io.dem.local_metric_transform``). Signs and the JSON document: docs/formats.md.
 
-The result is a :class:`~prismstation.core.coreg.CoregResult`, falsy with a ``reason`` when
-the adjustment gave no shift (the failure convention of :mod:`prismstation.core.estimate`).
+The result is a :class:`~prismstation.core.matching.coreg.CoregResult`, falsy with a ``reason`` when
+the adjustment gave no shift (the failure convention of :mod:`prismstation.core.adjustment.estimate`).
 """
 from __future__ import annotations
 
@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prismstation.core.coarse import dem_offset
-from prismstation.core.coreg import CoregResult, nuth_kaab
+from prismstation.core.matching.coarse import dem_offset
+from prismstation.core.matching.coreg import CoregResult, nuth_kaab
 from prismstation.errors import InputError
 from prismstation.io.dem import local_metric_transform, read_dem
 

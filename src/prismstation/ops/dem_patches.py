@@ -4,8 +4,8 @@ Per patch of N: F and B, each with its offset field from N removed (:class:`pris
 are matched densely in N space along the flight direction around the reference DEM's
 parallax; the parallax becomes heights ``h = c1·py`` placed on the map by the ancillary N model,
 gridded on the reference's 30 m grid and smoothed to the reference's own resolution
-(:func:`prismstation.core.dem_orient.smooth_like_reference`). Each valid grid cell is a cell
-of :class:`prismstation.core.field_adjust.Cells`.
+(:func:`prismstation.core.orientation.dem_orient.smooth_like_reference`). Each valid grid cell is a cell
+of :class:`prismstation.core.orientation.field_adjust.Cells`.
 """
 from __future__ import annotations
 
@@ -14,14 +14,14 @@ from dataclasses import dataclass
 from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
-from prismstation.core import prism
-from prismstation.core.affine import Affine2D
-from prismstation.core.coarse import K_SIGMA
-from prismstation.core.dem_orient import grid_points, patch_windows, relative_dem_points, smooth_like_reference
-from prismstation.core.dense import parallax_map
-from prismstation.core.field_model import Surface
-from prismstation.core.ray_dem import ray_meets_surface
-from prismstation.core.sample import remap_points
+from prismstation.core.models import prism
+from prismstation.core.adjustment.affine import Affine2D
+from prismstation.core.matching.coarse import K_SIGMA
+from prismstation.core.orientation.dem_orient import grid_points, patch_windows, relative_dem_points, smooth_like_reference
+from prismstation.core.matching.dense import parallax_map
+from prismstation.core.orientation.field_model import Surface
+from prismstation.core.models.ray_dem import ray_meets_surface
+from prismstation.core.surfaces.sample import remap_points
 from prismstation.errors import InputError
 from prismstation.io.dem import read_dem
 from prismstation.io.windows import ImageWindows, scaling, shift
@@ -53,7 +53,7 @@ class ReferenceGrid:
 
     def ground(self, scene, xy: np.ndarray, shift=None):
         """Where N's ancillary rays through image points ``xy`` (n, 2) meet the reference
-        (:class:`~prismstation.core.ray_dem.RayHits`: ``en`` (n, 2), ``h`` (n,), NaN where a
+        (:class:`~prismstation.core.models.ray_dem.RayHits`: ``en`` (n, 2), ``h`` (n,), NaN where a
         ray did not meet it). ``shift`` (optional): N's shift field ``(x, y) → (dE, dN, dh)``
         (m), the reference laid where N really looks — ``en`` and ``h`` are then in the
         ancillary frame (the reference at ``en + (dE, dN)``, minus ``dh``)."""
@@ -88,7 +88,7 @@ def read_reference(run) -> ReferenceGrid:
 @dataclass(frozen=True)
 class PatchCells:
     """One patch of N: its window ``(col0, row0, cols, rows)`` and centre ``x, y`` (N px), the
-    share of it matched, its cells (a dict of :class:`~prismstation.core.field_adjust.Cells`
+    share of it matched, its cells (a dict of :class:`~prismstation.core.orientation.field_adjust.Cells`
     fields, empty when it failed) and why it failed ("" when it did not)."""
 
     window: tuple

@@ -23,10 +23,10 @@ from dataclasses import dataclass, field
 from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
-from prismstation.core.dsm_grid import (BRIDGE_STRIP, bridge, cell_centres, drop_unconfirmed,
+from prismstation.core.surfaces.dsm_grid import (BRIDGE_STRIP, bridge, cell_centres, drop_unconfirmed,
                                         fill_voids, grid_over, regrid, seen_by_all)
-from prismstation.core.dsm_heights import HEIGHT_MODELS, choose_heights, model_height_correction
-from prismstation.core.solution import Solution
+from prismstation.core.surfaces.dsm_heights import HEIGHT_MODELS, choose_heights, model_height_correction
+from prismstation.core.models.solution import Solution
 from prismstation.errors import InputError
 from prismstation.ops.dsm_tiles import TileSpec, return_freed_memory, run_tiles
 from prismstation.ops.progress import checkpoint, scaled
@@ -71,6 +71,18 @@ class Dsm:
         """Share of the seen cells with a matched (not filled) height."""
         n = int(self.seen.sum()) if self.seen is not None else 0
         return float(((self.mask == MASK_MATCHED) & self.seen).sum() / n) if n else 0.0
+
+
+def grid_dsm(heights, seen, quality, transform, crs: str, posting_m: float, info: dict, *, mask=None,
+             height_kind: str = "ellipsoidal", geoid: str | None = None) -> Dsm:
+    """The :class:`Dsm` of ``heights`` on a grid, the last step of every DSM (a triplet's, images
+    with RPCs'): ``mask`` (default: :data:`MASK_MATCHED` where a ``seen`` cell has a height,
+    :data:`MASK_VOID` elsewhere) and the share of the seen cells with a height."""
+    n_seen = int(seen.sum())
+    if mask is None:
+        mask = (np.isfinite(heights) & seen).astype(np.uint8) * MASK_MATCHED
+    valid = float(np.isfinite(heights[seen]).sum() / n_seen) if n_seen else 0.0
+    return Dsm(heights, transform, crs, height_kind, valid, mask, seen, quality, posting_m, geoid, info)
 
 
 def _track_tiles(sol, transform, shape, wanted, size_m: float, overlap_m: float):
@@ -230,7 +242,7 @@ def make_dsm(sol: Solution, window=None, *, posting_m: float = 10.0, orthometric
     ``fill``: fill voids by interpolation (mask 2). ``refine``: ZNCC subpixel refinement
     after SGBM. ``scheduler``, ``workers``: see :mod:`prismstation.ops.dsm_tiles`.
     ``progress(fraction, message)`` returning False cancels (:class:`Cancelled`).
-    ``heights_model``: ``auto``, ``line`` or ``rays`` (:mod:`prismstation.core.dsm_heights`);
+    ``heights_model``: ``auto``, ``line`` or ``rays`` (:mod:`prismstation.core.surfaces.dsm_heights`);
     the choice and its reason are in ``info["heights"]``.
 
     The steps: :func:`plan_dsm`, :func:`starting_prior`, :func:`match_levels`,
@@ -369,7 +381,6 @@ def finish_dsm(plan: DsmPlan, heights, quality, t, info, *, fill: bool, orthomet
             heights[r0:r0 + 512] -= orthometric_geoid.undulation(en[..., 0], en[..., 1], sc.crs).astype(np.float32)
         kind = "orthometric"
         geoid_name = orthometric_geoid.describe() if hasattr(orthometric_geoid, "describe") else "geoid"
-    n_seen = int(seen.sum())
-    valid = float(np.isfinite(heights[seen]).sum() / n_seen) if n_seen else 0.0
     checkpoint(progress, 1.0, "done")
-    return Dsm(heights, t, sc.crs, kind, valid, mask, seen, quality, plan.posting_m, geoid_name, info)
+    return grid_dsm(heights, seen, quality, t, sc.crs, plan.posting_m, info, mask=mask, height_kind=kind,
+                    geoid=geoid_name)

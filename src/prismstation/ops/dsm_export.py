@@ -40,7 +40,7 @@ class DsmRequest:
     project's geoid (else ellipsoidal). ``height_uncertainty_m``: a-priori ± of the prior
     (None: the engine's default). ``fill``: fill voids by interpolation (mask 2).
     ``min_fill_percent``: below it the export is a low fill (the file is written all the
-    same). ``heights``: ``auto``, ``line`` or ``rays`` (:mod:`prismstation.core.dsm_heights`).
+    same). ``heights``: ``auto``, ``line`` or ``rays`` (:mod:`prismstation.core.surfaces.dsm_heights`).
     ``scheduler``, ``workers``: see :mod:`prismstation.ops.dsm_tiles`.
     """
 

@@ -25,8 +25,8 @@ import numpy as np
 from prismstation.errors import PrismError, RasterReadError
 from prismstation.io.raster import gdal_env
 from prismstation.io.windows import ImageWindows
-from prismstation.core.solution import Solution
-from prismstation.core.stereo_tile import frame_over, tile_dsm
+from prismstation.core.models.solution import Solution
+from prismstation.core.surfaces.stereo_tile import frame_over, tile_dsm
 from prismstation.ops.progress import checkpoint
 
 
@@ -106,7 +106,7 @@ def return_freed_memory() -> None:
 
 def run_tile(spec: TileSpec):
     """Heights, quality (pairs agreeing) and blend weights of the tile's cells, and the tile's
-    σ check ``(z_nmad, count)`` (:class:`prismstation.core.stereo_tile.TileResult`)."""
+    σ check ``(z_nmad, count)`` (:class:`prismstation.core.surfaces.stereo_tile.TileResult`)."""
     cv2.setNumThreads(1)
     sol = spec.sol
     a = spec.transform[0]

@@ -1,6 +1,6 @@
 """Fitting a project: its heights made ellipsoidal through its geoid setting, its DEM control
 (when the project is oriented from a reference DEM) rebuilt by its sensor model, then the
-scene's sensor model fitted (:func:`prismstation.core.solution.solve`).
+scene's sensor model fitted (:func:`prismstation.core.models.solution.solve`).
 
 A caller that fits one project again and again (the window's solver, after every click) keeps
 a :class:`FitMemo`: what the next fit may take again from the last ones."""
@@ -10,9 +10,9 @@ import threading
 
 import numpy as np
 
-from prismstation.core import sensors
-from prismstation.core.recent import Recent
-from prismstation.core.solution import Solution, solve
+from prismstation.core.models import sensors
+from prismstation.core.models.recent import Recent
+from prismstation.core.models.solution import Solution, solve
 from prismstation.errors import InputError, ModelError
 from prismstation.io.geoid import to_ellipsoidal
 from prismstation.io.project import project_geoid
@@ -31,7 +31,7 @@ class FitMemo:
     """What one caller's fits of a project take again from the last ones (thread-safe): the
     ellipsoidal heights of its points (:meth:`heights`: a click moves a measurement, not a
     point) and the model's pure fits of the same inputs (``recent``, a
-    :class:`~prismstation.core.recent.Recent`: a click refits every view and moves one)."""
+    :class:`~prismstation.core.models.recent.Recent`: a click refits every view and moves one)."""
 
     def __init__(self, size: int = 16):
         self.recent = Recent(size)

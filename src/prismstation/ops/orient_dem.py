@@ -5,16 +5,16 @@ Every search takes its range from a stated a-priori uncertainty (docs/orientatio
 1. Where F and B are relative to N, over the whole range the geolocation σ allows
    (:func:`prismstation.ops.coarse_offsets.coarse_view_offsets`).
 2. What the terrain can fix: the field's σ expected from the reference's gradients over N's
-   footprint (:mod:`prismstation.core.conditioning`), before any matching.
+   footprint (:mod:`prismstation.core.orientation.conditioning`), before any matching.
 3. Per patch of the N image: F and B, with those offsets removed, matched densely in N space →
    relative-DEM cells (:mod:`prismstation.ops.dem_patches`).
 4. One adjustment of the shift field ``(dE, dN, dh)`` over N from every cell of every patch
-   (:func:`prismstation.core.field_adjust.adjust_field`), started from a search of the whole
+   (:func:`prismstation.core.orientation.field_adjust.adjust_field`), started from a search of the whole
    mosaic over the a-priori radius; GCPs, when given, are observations of the same field.
 5. Step 1 again with N placed by that field, every patch matched again with the new offsets
    and the reference laid where the field puts N, the field adjusted again.
-6. The verdict on the field's σ against the target (:func:`prismstation.core.conditioning.judge`)
-   and the model (:func:`prismstation.core.dem_orient.control_from_field`).
+6. The verdict on the field's σ against the target (:func:`prismstation.core.orientation.conditioning.judge`)
+   and the model (:func:`prismstation.core.orientation.dem_orient.control_from_field`).
 
 A-priori settings: ``sigma_apriori_m`` (each view's ancillary geolocation σ per component; 50 m
 by default, after the shifts of about 50 m Gonçalves reports with SRTM as control; Tadono et al.
@@ -30,14 +30,14 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from prismstation.core import conditioning as cond
-from prismstation.core import prism
-from prismstation.core.coarse import K_SIGMA, dem_offset
-from prismstation.core.dem_orient import ControlPoints, PatchShift, control_from_field, gcp_field_obs
-from prismstation.core.field_adjust import Cells, adjust_field
-from prismstation.core.field_model import Basis, Distortion
-from prismstation.core.solution import Control
-from prismstation.core.view_offsets import SIGMA_FIELD_PX, SIGMA_HEIGHT_M, n_along_sigma_px, offset_at
+from prismstation.core.orientation import conditioning as cond
+from prismstation.core.models import prism
+from prismstation.core.matching.coarse import K_SIGMA, dem_offset
+from prismstation.core.orientation.dem_orient import ControlPoints, PatchShift, control_from_field, gcp_field_obs
+from prismstation.core.orientation.field_adjust import Cells, adjust_field
+from prismstation.core.orientation.field_model import Basis, Distortion
+from prismstation.core.models.solution import Control
+from prismstation.core.orientation.view_offsets import SIGMA_FIELD_PX, SIGMA_HEIGHT_M, n_along_sigma_px, offset_at
 from prismstation.errors import InputError
 from prismstation.io.jsonfile import plain
 from prismstation.io.project import project_geoid
@@ -57,7 +57,7 @@ class DemOrientation:
     (N-space px, from the ancillary prediction to where the view sees the point) and their
     gradients, the coarse step's record, the adjusted field (``field``: its parameters and
     covariance), the σ expected from the terrain before the run and the σ stated after it
-    (:class:`~prismstation.core.conditioning.SigmaSummary` dicts, m), the verdict and the model."""
+    (:class:`~prismstation.core.orientation.conditioning.SigmaSummary` dicts, m), the verdict and the model."""
 
     reference: str
     patches: tuple
@@ -138,7 +138,7 @@ class OrientRun:
 
     def distortion(self) -> Distortion:
         """The relative DEMs' height distortion along the track the adjustment allows for
-        (:class:`~prismstation.core.field_model.Distortion`): the N-space flight direction at
+        (:class:`~prismstation.core.orientation.field_model.Distortion`): the N-space flight direction at
         N's centre, ``t = ±1`` at the image's ends."""
         rows, cols = self.shape
         N = self.scene.views["N"]
@@ -149,7 +149,7 @@ class OrientRun:
     @property
     def distortion_sigma_m(self) -> float:
         """A-priori σ (m) of each term of the height distortion: F's and B's offsets may each
-        vary across the scene by :data:`~prismstation.core.view_offsets.SIGMA_FIELD_PX` beyond
+        vary across the scene by :data:`~prismstation.core.orientation.view_offsets.SIGMA_FIELD_PX` beyond
         what a constant describes; their difference is a parallax of √2 times that, ``c1`` m
         of height per pixel."""
         return float(prism.theoretical_c1(self.scene) * SIGMA_FIELD_PX * np.sqrt(2.0))
@@ -201,7 +201,7 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
 
 
 def join_cells(pcs) -> tuple[Cells, list[int]]:
-    """The matched patches' cells as one :class:`~prismstation.core.field_adjust.Cells`, the
+    """The matched patches' cells as one :class:`~prismstation.core.orientation.field_adjust.Cells`, the
     adjustment's patch ``j`` being ``pcs[index[j]]`` (patches without cells are left out, and
     the labels stay contiguous: the adjustment counts its patches 0 … n − 1)."""
     index = [k for k, p in enumerate(pcs) if p.count]
@@ -233,7 +233,7 @@ def prior_sigma(run: OrientRun) -> np.ndarray:
 def expected_sigma(run: OrientRun, step_px: int | None = None) -> cond.SigmaSummary:
     """Step 2: the field's σ the terrain allows, from the reference's gradients where N's
     ancillary model puts its footprint: every reference cell a matched cell of a-priori σ
-    :data:`~prismstation.core.conditioning.SIGMA_CELL_M`."""
+    :data:`~prismstation.core.orientation.conditioning.SIGMA_CELL_M`."""
     rows, cols = run.shape
     N = run.scene.views["N"]
     step = step_px or max(int(round(run.posting_m / N.pixel_size_m)), 1)
@@ -258,7 +258,7 @@ def expected_sigma(run: OrientRun, step_px: int | None = None) -> cond.SigmaSumm
 
 def start_field(run: OrientRun, cells: Cells) -> np.ndarray:
     """The adjustment's start (9,): the whole mosaic of relative DEMs laid on the reference by
-    an exhaustive search over the a-priori radius (:func:`prismstation.core.coarse.dem_offset`)
+    an exhaustive search over the a-priori radius (:func:`prismstation.core.matching.coarse.dem_offset`)
     — a constant shift; where that finds nothing (a plane), the median height difference."""
     ref = run.ref
     mosaic = np.full(ref.dem.heights.shape, np.nan)
@@ -275,7 +275,7 @@ def start_field(run: OrientRun, cells: Cells) -> np.ndarray:
 
 
 def adjust(run: OrientRun, cells: Cells, n_patches: int, theta0, gcps: ControlPoints | None):
-    """Step 4: :func:`prismstation.core.field_adjust.adjust_field` over all cells (and the GCPs,
+    """Step 4: :func:`prismstation.core.orientation.field_adjust.adjust_field` over all cells (and the GCPs,
     observations of the field made with the run's current view offsets)."""
     obs = None
     if gcps is not None and len(gcps):
@@ -288,7 +288,7 @@ def adjust(run: OrientRun, cells: Cells, n_patches: int, theta0, gcps: ControlPo
 
 def control_points(project: Project, ids=None, sigma_px: float = 0.3, survey_sigma_m=(1.0, 1.0)) -> ControlPoints:
     """The project's GCPs (or those in ``ids``) measured in F and B, as
-    :class:`~prismstation.core.dem_orient.ControlPoints`: heights made ellipsoidal through the
+    :class:`~prismstation.core.orientation.dem_orient.ControlPoints`: heights made ellipsoidal through the
     project's geoid; σ of each shift: its survey σ (``sigma_xy_m``, ``sigma_h_m``; where the
     point states none, ``survey_sigma_m`` (planimetric per component, height)) and its image
     measurements' (their ``sigma_px``, else ``sigma_px``) in quadrature."""
@@ -370,7 +370,7 @@ def offsets_along_sigma(run: OrientRun, record: dict) -> float:
     a cell sits at ``pF − w·py·d``, so errors δF, δB of the offsets move all of them alike by
     ``(1 − w)·δF + w·δB`` along ``d`` — a shift the adjustment takes for N's own and cannot see.
     From the coarse step's windows (``record``, :meth:`CoarseOffsets.to_dict`):
-    :func:`~prismstation.core.view_offsets.n_along_sigma_px`, where the reference heights'
+    :func:`~prismstation.core.orientation.view_offsets.n_along_sigma_px`, where the reference heights'
     error, common to F and B in a window, cancels but for the windows they do not share."""
     rows, cols = run.shape
     N = run.scene.views["N"]

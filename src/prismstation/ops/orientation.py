@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from prismstation.core.conditioning import TARGET_M, OrientVerdict
+from prismstation.core.orientation.conditioning import TARGET_M, OrientVerdict
 from prismstation.model.project import Project
 
 
@@ -40,7 +40,7 @@ class OrientRequest:
 class Orientation:
     """An orientation from a reference DEM, the same for every sensor model.
 
-    ``verdict`` (:class:`~prismstation.core.conditioning.OrientVerdict`: ``ok``,
+    ``verdict`` (:class:`~prismstation.core.orientation.conditioning.OrientVerdict`: ``ok``,
     ``too_smooth``, ``too_few``, ``failed``; its ``exit_status`` is the command's);
     ``record`` the project's ``dem_control`` once applied (JSON-ready, the model's own
     layout, read back by its ``control_from_record``), None when there is nothing to apply

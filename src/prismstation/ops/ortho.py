@@ -2,7 +2,7 @@
 :class:`OrthoRequest` and call :func:`export_orthos`.
 
 Each view is resampled through the project's fitted sensor model — the solution's
-``model.ground_to_image`` with its biases, whatever the model (:mod:`prismstation.core.sensor`)
+``model.ground_to_image`` with its biases, whatever the model (:mod:`prismstation.core.models.sensor`)
 — onto a DEM (the project's DSM, a reference DEM of any CRS, orthometric heights made
 ellipsoidal through the project's geoid) or a constant height, on a north-up grid of the scene's
 CRS aligned on multiples of the posting (so the orthos of several views share their cells). The
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from prismstation.core.dsm_grid import grid_over
+from prismstation.core.surfaces.dsm_grid import grid_over
 from prismstation.errors import InputError, ModelError
 from prismstation.io.atomic import check_writable
 from prismstation.io.dem import dem_bounds, dem_height_kind

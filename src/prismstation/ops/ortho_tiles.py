@@ -1,7 +1,7 @@
 """An orthoimage's tiles: what one tile needs (:class:`OrthoTile`, picklable, so that it runs in a
 thread, a process or on a ``dask.distributed`` worker that can read the files) and its work
 (:func:`run_ortho_tile`): the DEM read onto the tile's cells, the positions of the cells in the
-image through the fitted model (:mod:`prismstation.core.ortho`), only the image window they need
+image through the fitted model (:mod:`prismstation.core.surfaces.ortho`), only the image window they need
 read, and the image resampled there. The tiles run through the DSM's machinery
 (:func:`prismstation.ops.dsm_tiles.run_tiles`: Dask, batches, progress and cancel).
 
@@ -16,7 +16,7 @@ from types import SimpleNamespace
 from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
 
-from prismstation.core.ortho import KERNEL_REACH, fit_lattice, positions, resample
+from prismstation.core.surfaces.ortho import KERNEL_REACH, fit_lattice, positions, resample
 from prismstation.errors import RasterReadError
 from prismstation.io.dem import read_dem_cells, read_dem_window
 from prismstation.io.raster import gdal_env
@@ -117,7 +117,7 @@ def _bilinear(grid, transform, x, y, shape, edge: bool = False) -> np.ndarray:
 class OrthoTile:
     """One tile: the output cells ``window`` = (row0, col0, rows, cols) of the ortho grid
     ``transform`` (north-up, rasterio order), view ``view`` of the fitted sensor ``model``
-    (:mod:`prismstation.core.sensor`), its image file ``image`` of ``image_shape`` (rows, cols),
+    (:mod:`prismstation.core.models.sensor`), its image file ``image`` of ``image_shape`` (rows, cols),
     read reduced by ``factor`` (the ortho's posting over the image's pixel, whole), the tile's
     ``heights`` (:class:`Heights`) and the ``resampling`` kernel."""
 

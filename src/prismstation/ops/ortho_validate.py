@@ -9,7 +9,7 @@ exactly the ortho's geometry (relief, scale, rotation, the kernel's smoothing), 
 the ortho only by the translation the ortho is off by there. A raw image chip matched against the
 ortho would carry the view's own rotation and relief into the match; a chip of another view would
 carry its own geometry and radiometry. The template is matched in the ortho (normalised
-cross-correlation, then least-squares matching: :func:`prismstation.core.matching.match_point`)
+cross-correlation, then least-squares matching: :func:`prismstation.core.matching.matching.match_point`)
 within ``±R`` cells of ``K``, ``R`` from the ortho's stated accuracy (four times its expected σ,
 at least :data:`MIN_SEARCH_PX`): where it lands is where the ortho shows the point. A point not
 found there is reported as such, not moved.
@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from prismstation.core.matching import OK, match_point
+from prismstation.core.matching.matching import OK, match_point
 from prismstation.errors import InputError
 from prismstation.io.ortho import read_ortho_info, read_ortho_window
 from prismstation.io.project import project_geoid

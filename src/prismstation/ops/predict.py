@@ -21,7 +21,7 @@ Uncertainty (the error ellipse): the covariance of the predicted image position 
 column, y row) propagates, to first order,
 
 * the bias-fit parameter covariance of the predicted view (a-posteriori; the sensor model's
-  ``bias_cov``, :mod:`prismstation.core.sensor`);
+  ``bias_cov``, :mod:`prismstation.core.models.sensor`);
 * the covariance of the ground position, from the measurements used (each with its σ — its own
   ``sigma_px`` or the settings' a-priori σ — scaled by the a-posteriori σ0 of that view's bias
   fit, plus that view's bias-parameter covariance) and the height's σ.
@@ -38,9 +38,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prismstation.core.ray_dem import ray_meets_surface
-from prismstation.core.sensor import STEP_M
-from prismstation.core.solution import Solution
+from prismstation.core.models.ray_dem import ray_meets_surface
+from prismstation.core.models.sensor import STEP_M
+from prismstation.core.models.solution import Solution
+from prismstation.ops.fit import ellipsoidal_heights
 
 CHI2_95_2D = 5.991464547107979
 """χ² with 2 degrees of freedom at 95 %: the 95 % ellipse has semi-axes ``sqrt(5.99·λ)``."""
@@ -109,14 +110,14 @@ def dem_sigma(height_of, ground: dict) -> float:
 # ---------------------------------------------------------------------- model derivatives
 def bias_cov(sol: Solution, view: str, xy) -> np.ndarray:
     """``(..., 2, 2)`` px²: what the bias fit's parameter covariance adds at image ``xy``
-    (the sensor model's :meth:`~prismstation.core.sensor.SensorModel.bias_cov`)."""
+    (the sensor model's :meth:`~prismstation.core.models.sensor.SensorModel.bias_cov`)."""
     return sol.model.bias_cov(view, xy)
 
 
 def ground_jacobian(sol: Solution, view: str, g) -> tuple[np.ndarray, np.ndarray]:
     """``(xy, J)``: image position of ground ``g = (E, N, h)`` in ``view`` and ``J`` ``(2, 3)``,
     its derivative in pixels per metre (the sensor model's
-    :meth:`~prismstation.core.sensor.SensorModel.partials`)."""
+    :meth:`~prismstation.core.models.sensor.SensorModel.partials`)."""
     g = np.asarray(g, float)
     xy, J = sol.model.partials(view, g[None, :2], g[None, 2])
     return xy[0], J[0]
@@ -286,6 +287,5 @@ def project_inputs(project, ground: dict) -> list[PointInput]:
 
 def known_ground(project) -> dict:
     """id → ``(E, N, h ellipsoidal)`` of the project's points with ground coordinates."""
-    from prismstation.ops.fit import ellipsoidal_heights
     h = ellipsoidal_heights(project)
     return {pid: (project.points[pid].E, project.points[pid].N, hv) for pid, hv in h.items()}

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 
-from prismstation.core.conditioning import SigmaSummary
+from prismstation.core.orientation.conditioning import SigmaSummary
 from prismstation.model.project import Project
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 from prismstation.ops.dsm_export import export_dsm

@@ -71,7 +71,7 @@ def create(project_path, scene_path, points=None, measurements=None, *, crs=None
 
 def require_workflow(project, command: str, path=None) -> None:
     """Refuse ``command`` (``"orient-dem"``, ``"dsm"``) on a project whose sensor model does not
-    offer it yet (:attr:`SensorModel.workflows <prismstation.core.sensor.SensorModel>`): one
+    offer it yet (:attr:`SensorModel.workflows <prismstation.core.models.sensor.SensorModel>`): one
     :class:`~prismstation.errors.InputError` naming the project, the model and the command."""
     sensor = project.scene.sensor
     if command not in sensor.workflows:

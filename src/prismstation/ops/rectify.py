@@ -11,11 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prismstation.core.rectify import KINDS, TransformReport, compare_transforms, format_rmse_table
+from prismstation.core.models.rectify import KINDS, TransformReport, compare_transforms, format_rmse_table
 from prismstation.errors import InputError, ModelError
-from prismstation.io.atomic import raster_check
+from prismstation.io.georef import Reprojection
+from prismstation.io.geotiff import block_writer
 from prismstation.io.windows import open_image
-from prismstation.ops.progress import ProgressFn, checkpoint, partial_output
+from prismstation.ops.progress import ProgressFn, checkpoint
 
 __all__ = ["KINDS", "RectifyResult", "fit_transforms", "format_rmse_table", "rectify_raster"]
 
@@ -41,8 +42,7 @@ class RectifyResult:
 def _sample(src, x: np.ndarray, y: np.ndarray, nodata: float, resampling: str) -> np.ndarray:
     """Sample all bands of ``src`` (a :class:`~prismstation.io.windows.CheckedRaster`) at image
     points (x, y) (pixels, corner origin)."""
-    import cv2
-    import rasterio.windows
+    import cv2  # start-up: OpenCV loads with the first rectified block
 
     count = src.count
     out = np.full((count,) + x.shape, nodata, dtype=np.float32)
@@ -54,7 +54,7 @@ def _sample(src, x: np.ndarray, y: np.ndarray, nodata: float, resampling: str) -
     c1 = int(min(src.width, math.ceil(x[inside].max()) + 2))
     r1 = int(min(src.height, math.ceil(y[inside].max()) + 2))
     # src is a CheckedRaster: a failed read names the file and the window
-    data = src.read(window=rasterio.windows.Window(c0, r0, c1 - c0, r1 - r0)).astype(np.float32)
+    data = src.read_bands(c0, r0, c1 - c0, r1 - r0).astype(np.float32)
     mx = np.where(inside, x - 0.5 - c0, -1e6).astype(np.float32)
     my = np.where(inside, y - 0.5 - r0, -1e6).astype(np.float32)
     interp = cv2.INTER_NEAREST if resampling == "nearest" else cv2.INTER_LINEAR
@@ -111,7 +111,7 @@ def rectify_raster(image, transform, out_path, *, points_crs, out_crs=None,
     Parameters
     ----------
     image : path of any raster rasterio opens (its own georeferencing is ignored).
-    transform : a :class:`prismstation.core.rectify.FittedTransform` (pixels → ``points_crs``).
+    transform : a :class:`prismstation.core.models.rectify.FittedTransform` (pixels → ``points_crs``).
     points_crs : CRS of the ground points the transform was fitted to.
     out_crs : output CRS (default ``points_crs``); pyproj converts between the two.
     resolution : output cell size in ``out_crs`` units (default: the image's own, mapped).
@@ -120,19 +120,7 @@ def rectify_raster(image, transform, out_path, *, points_crs, out_crs=None,
         :class:`~prismstation.errors.Cancelled` and no output file is left.
     resampling : ``"bilinear"`` or ``"nearest"``.
     """
-    import rasterio
-    from pyproj import CRS, Transformer
-    from pyproj.exceptions import CRSError
-    from rasterio.transform import Affine
-
-    try:
-        pcrs = CRS.from_user_input(points_crs)
-        ocrs = pcrs if out_crs is None else CRS.from_user_input(out_crs)
-    except CRSError as exc:
-        raise InputError(f"unknown CRS ({exc})") from None
-    to_out = Transformer.from_crs(pcrs, ocrs, always_xy=True)
-    to_pts = Transformer.from_crs(ocrs, pcrs, always_xy=True)
-    same_crs = ocrs == pcrs
+    crs = Reprojection(points_crs, out_crs)
     src = open_image(image, "the image")
     out_path = str(out_path)
     with src:
@@ -140,12 +128,12 @@ def rectify_raster(image, transform, out_path, *, points_crs, out_crs=None,
         t = np.linspace(0, 1, 65)
         border = np.concatenate([np.column_stack([t * W, 0 * t]), np.column_stack([t * W, H + 0 * t]),
                                  np.column_stack([0 * t, t * H]), np.column_stack([W + 0 * t, t * H])])
-        e, n = to_out.transform(*transform(border).T)
+        e, n = crs.forward(*transform(border).T)
         if not (np.all(np.isfinite(e)) and np.all(np.isfinite(n))):
             raise ModelError("the transform maps part of the image outside the output CRS")
         if resolution is None:
             c = np.array([[W / 2, H / 2], [W / 2 + 1, H / 2], [W / 2, H / 2 + 1]])
-            ce, cn = to_out.transform(*transform(c).T)
+            ce, cn = crs.forward(*transform(c).T)
             dx = math.hypot(ce[1] - ce[0], cn[1] - cn[0])
             dy = math.hypot(ce[2] - ce[0], cn[2] - cn[0])
             resolution = math.sqrt(dx * dy)
@@ -158,24 +146,19 @@ def rectify_raster(image, transform, out_path, *, points_crs, out_crs=None,
         if width * height > 2_000_000_000 or width < 1 or height < 1:
             raise InputError(f"output of {width} × {height} cells at resolution {r}: "
                              f"check --resolution and the CRS units")
-        geo = Affine(r, 0.0, left, 0.0, -r, top)
         nodata = src.nodata if src.nodata is not None else 0
         dtype = src.dtypes[0]
-        profile = dict(driver="GTiff", width=width, height=height, count=src.count, dtype=dtype,
-                       crs=ocrs.to_wkt(), transform=geo, nodata=nodata, tiled=True,
-                       blockxsize=512, blockysize=512, compress="deflate",
-                       BIGTIFF="IF_SAFER")
         bs = int(block)
         windows = [(r0, c0) for r0 in range(0, height, bs) for c0 in range(0, width, bs)]
-        with partial_output(out_path, check=raster_check(width, height, src.count)) as part, \
-                rasterio.open(part, "w", **profile) as dst:
+        with block_writer(out_path, width=width, height=height, count=src.count, dtype=dtype,
+                          crs_wkt=crs.target_wkt, transform=(r, 0.0, left, 0.0, -r, top), nodata=nodata) as write:
             for k, (r0, c0) in enumerate(windows):
                 h, w = min(bs, height - r0), min(bs, width - c0)
                 def exact(rr, cc):
                     """Image (x, y) of output cells at block rows rr, columns cc (same shape)."""
                     oe, on = left + (c0 + cc + 0.5) * r, top - (r0 + rr + 0.5) * r
-                    if not same_crs:
-                        oe, on = to_pts.transform(oe, on)
+                    if not crs.same:
+                        oe, on = crs.backward(oe, on)
                     xy = transform.inverse(np.column_stack([np.ravel(oe), np.ravel(on)]))
                     return xy[:, 0].reshape(np.shape(rr)), xy[:, 1].reshape(np.shape(rr))
 
@@ -184,6 +167,6 @@ def rectify_raster(image, transform, out_path, *, points_crs, out_crs=None,
                 if np.issubdtype(np.dtype(dtype), np.integer):
                     info = np.iinfo(dtype)
                     vals = np.clip(np.rint(vals), info.min, info.max)
-                dst.write(vals.astype(dtype), window=rasterio.windows.Window(c0, r0, w, h))
+                write(vals.astype(dtype), c0, r0)
                 checkpoint(progress, (k + 1) / len(windows), f"block {k + 1} of {len(windows)}")
-    return RectifyResult(out_path, ocrs.to_string(), width, height, r, geo.to_gdal())
+    return RectifyResult(out_path, crs.target_text, width, height, r, (left, r, 0.0, top, 0.0, -r))

@@ -8,7 +8,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from rasterio.transform import from_origin
 from scipy import ndimage
 
 from prismstation.errors import InputError
@@ -40,12 +39,13 @@ class DemHeights:
 
 
 def scene_grid(scene, spacing: float = SPACING_M, margin: float = MARGIN_M):
-    """``(transform, shape)`` of a north-up grid in the scene CRS covering every view's image."""
+    """``(transform, shape)`` of a north-up grid in the scene CRS covering every view's image;
+    ``transform`` ``(a, 0, c, 0, e, f)`` (rasterio's order)."""
     c = np.vstack([v.footprint() for v in scene.views.values()])
     x0, y0 = c.min(axis=0) - margin
     x1, y1 = c.max(axis=0) + margin
     shape = (int(math.ceil((y1 - y0) / spacing)), int(math.ceil((x1 - x0) / spacing)))
-    return from_origin(x0, y1, spacing, spacing), shape
+    return (float(spacing), 0.0, float(x0), 0.0, -float(spacing), float(y1)), shape
 
 
 def load_for_scene(path, project, progress: ProgressFn | None = None) -> DemHeights:

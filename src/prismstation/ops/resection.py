@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from prismstation.core.resection import PARAM_NAMES, BaseHeight, FrameCamera, ResectionResult, base_height, resect
+from prismstation.core.models.resection import PARAM_NAMES, BaseHeight, FrameCamera, ResectionResult, base_height, resect
 from prismstation.errors import InputError
 
 __all__ = ["PARAM_NAMES", "BaseHeight", "ResectionResult", "base_height", "resect_points"]

@@ -2,9 +2,9 @@
 
 For every pair of images and every tile of the output grid (north-up, a UTM zone by default,
 ellipsoidal heights), the left image's window seeing the tile is rectified with the right
-image (:func:`prismstation.core.rpc_epipolar.rectify_pair`, through the biased RPCs), matched
+image (:func:`prismstation.core.surfaces.rpc_epipolar.rectify_pair`, through the biased RPCs), matched
 by OpenCV's StereoSGBM with the ZNCC subpixel refinement of the PRISM DSM
-(:mod:`prismstation.core.sgm`), triangulated through the RPCs and binned into the tile's cells.
+(:mod:`prismstation.core.matching.sgm`), triangulated through the RPCs and binned into the tile's cells.
 Each tile matches every pair and fuses them in one Dask task
 (:mod:`prismstation.ops.rpc_dsm_tiles`, run by :func:`prismstation.ops.dsm_tiles.run_tiles`);
 it reads its own windows, so it runs in a thread, a process or on a ``dask.distributed``
@@ -32,15 +32,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from prismstation.core.rpc_bias import as_biased
-from prismstation.core.stats import nmad
+from prismstation.core.models.rpc_bias import as_biased
+from prismstation.core.adjustment.stats import nmad
 from prismstation.errors import InputError, ModelError
 from prismstation.io.dem import read_dem
-from prismstation.io.rpc_scene import utm_crs
-from prismstation.ops.dsm import MASK_MATCHED, Dsm
+from prismstation.io.rpc_scene import to_map, utm_crs
+from prismstation.ops.dsm import Dsm, grid_dsm
 from prismstation.ops.dsm_tiles import run_tiles
-from prismstation.ops.rpc_dsm_tiles import (BlockTile, Grid, image_shape, run_block_tile, to_lonlat,  # noqa: F401
-                                            to_map)
+from prismstation.ops.rpc_dsm_tiles import BlockTile, Grid, image_shape, run_block_tile
 
 #: smallest widening (m) of a tile's height range beyond its tie points' heights
 POINT_MARGIN_M = 20.0
@@ -172,6 +171,152 @@ KEEP_PAIRS_CELLS = 30_000_000
 AGREEMENT_SAMPLES = 4096
 
 
+@dataclass(frozen=True)
+class RpcDsmPlan:
+    """What every step of :func:`rpc_dsm` shares: the images (``paths``, their ``models`` —
+    :class:`Rpc` / :class:`BiasedRpc`, fitted biases applied — and ``shapes`` (rows, cols)),
+    the index ``pairs`` matched, the output ``grid``, the whole DSM's a-priori
+    ``height_range`` (lo, hi) ellipsoidal m, the matching (``margin_px``, ``refine``) and the
+    fusion's ``tau``, the tiling (``tile_cells``) and whether the pair DSMs are kept whole
+    (``keep_pairs``)."""
+
+    paths: tuple
+    models: tuple
+    shapes: tuple
+    pairs: tuple
+    grid: Grid
+    height_range: tuple
+    margin_px: float
+    refine: bool
+    tau: float
+    tile_cells: int
+    keep_pairs: bool
+
+
+def plan_rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=None,
+                 grid: Grid | None = None, crs: str | None = None, margin_px: float = 2.0,
+                 tile_cells: int = TILE_CELLS, refine: bool = True, tau: float = 3.0,
+                 keep_pairs: bool | None = None) -> RpcDsmPlan:
+    """The plan (:func:`rpc_dsm` says what each argument is): the images' shapes, the height
+    range (default the RPCs' own domain), the grid (default their common footprint at
+    ``posting``), the pairs (default every pair), the pair DSMs kept up to
+    :data:`KEEP_PAIRS_CELLS`."""
+    if len(paths) != len(models) or len(paths) < 2:
+        raise InputError("a DSM needs two or more images, each with its RPC model")
+    shapes = tuple(image_shape(p) for p in paths)
+    height_range = tuple(height_range) if height_range is not None else rpc_height_domain(models)
+    if grid is None:
+        grid = footprint_grid(models, shapes, posting, 0.5 * sum(height_range), crs)
+    pairs = tuple(tuple(map(int, p)) for p in pairs) if pairs is not None else \
+        tuple(itertools.combinations(range(len(paths)), 2))
+    cells = grid.shape[0] * grid.shape[1]
+    keep = keep_pairs if keep_pairs is not None else cells * len(pairs) <= KEEP_PAIRS_CELLS
+    return RpcDsmPlan(tuple(str(p) for p in paths), tuple(models), shapes, pairs, grid, height_range,
+                      margin_px, refine, tau, tile_cells, keep)
+
+
+def reference_prior(plan: RpcDsmPlan, reference, geoid=None) -> np.ndarray | None:
+    """The reference DEM file ``reference`` read onto the plan's grid, ellipsoidal (``geoid``
+    for an orthometric one; float32, NaN void), or None without one."""
+    if reference is None:
+        return None
+    return read_dem(reference, plan.grid.crs, plan.grid.transform, plan.grid.shape, geoid=geoid,
+                    what="reference DEM").heights.astype(np.float32)
+
+
+def tile_specs(plan: RpcDsmPlan, prior=None, points=None) -> list:
+    """Every tile of the grid (:func:`tile_windows`) as a :class:`BlockTile`, each with its own
+    a-priori heights (:func:`tile_height_range`) from ``points`` (lon°, lat°, ellipsoidal h m
+    arrays: the bias fit's tie points) and the reference ``prior`` on the grid."""
+    grid = plan.grid
+    if points is not None:
+        lon, lat, hp = (np.asarray(v, float).ravel() for v in points)
+        points = (*(np.asarray(v) for v in to_map(grid.crs)(lon, lat)), hp)
+    return [BlockTile(plan.paths, plan.models, plan.shapes, plan.pairs, grid, win,
+                      tile_height_range(grid, win, plan.height_range, points, prior),
+                      margin_px=plan.margin_px, refine=plan.refine, tau=plan.tau)
+            for win in tile_windows(grid, plan.tile_cells)]
+
+
+@dataclass
+class TileSums:
+    """What the tiles of :func:`match_tiles` add up to, on the plan's grid: the fused
+    ``heights`` (float32, NaN void), ``quality`` (pairs agreeing), ``seen`` (cells every
+    image sees); the pair DSMs (``pairs``, :class:`PairDsm`, when kept) or a sample of their
+    differences per two pairs (``samples``); the matched cells of each pair (``filled``), the
+    largest epipolar error (px) and the matching's ``seconds``."""
+
+    heights: np.ndarray
+    quality: np.ndarray
+    seen: np.ndarray
+    pairs: list
+    samples: dict
+    filled: np.ndarray
+    epipolar_px: float = 0.0
+    seconds: float = 0.0
+
+
+def match_tiles(plan: RpcDsmPlan, specs: list, *, scheduler=None, workers=None, progress=None) -> TileSums:
+    """Every tile matched and fused (:func:`~prismstation.ops.rpc_dsm_tiles.run_block_tile`,
+    as Dask tasks through :func:`~prismstation.ops.dsm_tiles.run_tiles`), each result added
+    into the grids as it arrives: only the fused grid (and the kept pair grids) are held whole."""
+    shape = plan.grid.shape
+    combos = list(itertools.combinations(range(len(plan.pairs)), 2))
+    sums = TileSums(np.full(shape, np.nan, np.float32), np.zeros(shape, np.uint8), np.zeros(shape, bool),
+                    [PairDsm(pr, np.full(shape, np.nan, np.float32), np.zeros(shape, np.int32),
+                             np.full(shape, np.nan, np.float32)) for pr in plan.pairs] if plan.keep_pairs else [],
+                    {c: ([], []) for c in combos}, np.zeros(len(plan.pairs), np.int64))
+    rng = np.random.default_rng(0)
+    t0 = time.perf_counter()
+
+    def consume(k, res):
+        th, tq, ts, vals, sig, cnt, stats = res
+        r0, c0, nr, nc = specs[k].window
+        sl = (slice(r0, r0 + nr), slice(c0, c0 + nc))
+        sums.heights[sl], sums.quality[sl], sums.seen[sl] = th, tq, ts
+        sums.filled[:] += np.isfinite(vals[:, ts]).sum(axis=1)
+        sums.epipolar_px = max([sums.epipolar_px] + [st.get("epipolar_error_px", 0.0) for st in stats])
+        for p, r in enumerate(sums.pairs):
+            r.heights[sl], r.counts[sl], r.sigma[sl] = vals[p], cnt[p], sig[p]
+            r.tiles.append(dict(stats[p], window=specs[k].window))
+        if not plan.keep_pairs:
+            for a, b in combos:
+                d, z = _differences(vals[a], vals[b], sig[a], sig[b])
+                if d.size > AGREEMENT_SAMPLES:
+                    pick = rng.choice(d.size, AGREEMENT_SAMPLES, replace=False)
+                    d, z = d[pick], z[pick]
+                sums.samples[(a, b)][0].append(d.astype(np.float32))
+                sums.samples[(a, b)][1].append(z.astype(np.float32))
+
+    run_tiles(specs, consume, scheduler=scheduler, workers=workers, progress=progress, fn=run_block_tile)
+    sums.seconds = time.perf_counter() - t0
+    for r in sums.pairs:
+        r.seconds = sums.seconds
+    return sums
+
+
+def finish_rpc_dsm(plan: RpcDsmPlan, sums: TileSums, n_tiles: int) -> Dsm:
+    """The :class:`~prismstation.ops.dsm.Dsm` of the fused grid
+    (:func:`~prismstation.ops.dsm.grid_dsm`: the mask, the fill over the seen cells) and its
+    record: the pairs' agreement (exact from the kept pair DSMs, else from the samples), each
+    pair's fill, the largest epipolar error, the height range, the tiles."""
+    pairs = plan.pairs
+    if plan.keep_pairs:
+        agreement = pair_agreement(sums.pairs)
+    else:
+        agreement = {f"{pairs[a]}-{pairs[b]}": _agreement(np.concatenate(d or [np.zeros(0)]),
+                                                          np.concatenate(z or [np.zeros(0)]))
+                     for (a, b), (d, z) in sums.samples.items()}
+    n_seen = int(sums.seen.sum())
+    info = {"pairs": [list(p) for p in pairs], "pair_agreement": agreement,
+            "agreement_sampled": not plan.keep_pairs,
+            "pair_fill": [float(f) / n_seen if n_seen else 0.0 for f in sums.filled],
+            "seconds": sums.seconds, "epipolar_error_px": sums.epipolar_px, "height_range": list(plan.height_range),
+            "tiles": n_tiles}
+    return grid_dsm(sums.heights, sums.seen, sums.quality, plan.grid.transform, plan.grid.crs, plan.grid.posting,
+                    info)
+
+
 def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=None, points=None,
             reference=None, geoid=None, grid: Grid | None = None, crs: str | None = None,
             margin_px: float = 2.0, tile_cells: int = TILE_CELLS, refine: bool = True, tau: float = 3.0,
@@ -186,7 +331,7 @@ def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=Non
     file; ``geoid`` makes an orthometric one ellipsoidal): the module docstring.
 
     Each tile matches every pair and fuses them as the PRISM DSM does
-    (:func:`prismstation.core.sgm.fuse`): the pair heights within ``tau`` σ of their median,
+    (:func:`prismstation.core.matching.sgm.fuse`): the pair heights within ``tau`` σ of their median,
     σ-weighted; a cell with one height (or two that disagree) keeps the one nearest its
     neighbours' fused surface within 3σ or three postings. The
     :class:`~prismstation.ops.dsm.Dsm` holds ellipsoidal heights on ``grid``, ``quality``
@@ -194,78 +339,13 @@ def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=Non
     (:func:`pair_agreement`), ``info["pair_fill"]`` and the tiles' largest epipolar error.
     The pair DSMs (:class:`PairDsm`) are returned when kept (``keep_pairs``, default: up to
     :data:`KEEP_PAIRS_CELLS`), else an empty list.
+
+    The steps, as the PRISM DSM's (:func:`prismstation.ops.dsm.make_dsm`): :func:`plan_rpc_dsm`,
+    :func:`reference_prior`, :func:`tile_specs`, :func:`match_tiles`, :func:`finish_rpc_dsm`.
     """
-    if len(paths) != len(models) or len(paths) < 2:
-        raise InputError("a DSM needs two or more images, each with its RPC model")
-    shapes = tuple(image_shape(p) for p in paths)
-    height_range = tuple(height_range) if height_range is not None else rpc_height_domain(models)
-    if grid is None:
-        grid = footprint_grid(models, shapes, posting, 0.5 * sum(height_range), crs)
-    pairs = tuple(tuple(map(int, p)) for p in pairs) if pairs is not None else \
-        tuple(itertools.combinations(range(len(paths)), 2))
-    prior = None
-    if reference is not None:
-        prior = read_dem(reference, grid.crs, grid.transform, grid.shape, geoid=geoid,
-                         what="reference DEM").heights.astype(np.float32)
-    if points is not None:
-        lon, lat, hp = (np.asarray(v, float).ravel() for v in points)
-        points = (*(np.asarray(v) for v in to_map(grid.crs)(lon, lat)), hp)
-    cells = grid.shape[0] * grid.shape[1]
-    keep = keep_pairs if keep_pairs is not None else cells * len(pairs) <= KEEP_PAIRS_CELLS
-    specs = [BlockTile(tuple(str(p) for p in paths), tuple(models), shapes, pairs, grid, win,
-                       tile_height_range(grid, win, height_range, points, prior),
-                       margin_px=margin_px, refine=refine, tau=tau)
-             for win in tile_windows(grid, tile_cells)]
-    del prior
-    h = np.full(grid.shape, np.nan, np.float32)
-    q = np.zeros(grid.shape, np.uint8)
-    seen = np.zeros(grid.shape, bool)
-    results = [PairDsm(pr, np.full(grid.shape, np.nan, np.float32), np.zeros(grid.shape, np.int32),
-                       np.full(grid.shape, np.nan, np.float32)) for pr in pairs] if keep else []
-    combos = list(itertools.combinations(range(len(pairs)), 2))
-    samples = {c: ([], []) for c in combos}
-    filled = np.zeros(len(pairs), np.int64)
-    epipolar = [0.0]
-    rng = np.random.default_rng(0)
-    t0 = time.perf_counter()
-
-    def consume(k, res):
-        th, tq, ts, vals, sig, cnt, stats = res
-        r0, c0, nr, nc = specs[k].window
-        sl = (slice(r0, r0 + nr), slice(c0, c0 + nc))
-        h[sl], q[sl], seen[sl] = th, tq, ts
-        filled[:] += np.isfinite(vals[:, ts]).sum(axis=1)
-        epipolar[0] = max([epipolar[0]] + [st.get("epipolar_error_px", 0.0) for st in stats])
-        for p, r in enumerate(results):
-            r.heights[sl], r.counts[sl], r.sigma[sl] = vals[p], cnt[p], sig[p]
-            r.tiles.append(dict(stats[p], window=specs[k].window))
-        if not keep:
-            for a, b in combos:
-                d, z = _differences(vals[a], vals[b], sig[a], sig[b])
-                if d.size > AGREEMENT_SAMPLES:
-                    pick = rng.choice(d.size, AGREEMENT_SAMPLES, replace=False)
-                    d, z = d[pick], z[pick]
-                samples[(a, b)][0].append(d.astype(np.float32))
-                samples[(a, b)][1].append(z.astype(np.float32))
-
-    run_tiles(specs, consume, scheduler=scheduler, workers=workers, progress=progress, fn=run_block_tile)
-    seconds = time.perf_counter() - t0
-    for r in results:
-        r.seconds = seconds
-    if keep:
-        agreement = pair_agreement(results)
-    else:
-        agreement = {f"{pairs[a]}-{pairs[b]}": _agreement(np.concatenate(samples[(a, b)][0] or [np.zeros(0)]),
-                                                          np.concatenate(samples[(a, b)][1] or [np.zeros(0)]))
-                     for a, b in combos}
-    n_seen = int(seen.sum())
-    info = {"pairs": [list(p) for p in pairs], "pair_agreement": agreement,
-            "agreement_sampled": not keep,
-            "pair_fill": [float(f) / n_seen if n_seen else 0.0 for f in filled],
-            "seconds": seconds, "epipolar_error_px": epipolar[0], "height_range": list(height_range),
-            "tiles": len(specs)}
-    mask = (np.isfinite(h) & seen).astype(np.uint8) * MASK_MATCHED
-    dsm = Dsm(h, grid.transform, grid.crs, "ellipsoidal",
-              float(np.isfinite(h[seen]).mean()) if n_seen else 0.0,
-              mask=mask, seen=seen, quality=q, posting_m=grid.posting, info=info)
-    return dsm, results
+    plan = plan_rpc_dsm(paths, models, posting=posting, pairs=pairs, height_range=height_range, grid=grid,
+                        crs=crs, margin_px=margin_px, tile_cells=tile_cells, refine=refine, tau=tau,
+                        keep_pairs=keep_pairs)
+    specs = tile_specs(plan, reference_prior(plan, reference, geoid), points)
+    sums = match_tiles(plan, specs, scheduler=scheduler, workers=workers, progress=progress)
+    return finish_rpc_dsm(plan, sums, len(specs)), sums.pairs

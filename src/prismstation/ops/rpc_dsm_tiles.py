@@ -9,52 +9,24 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from functools import lru_cache
 
 from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
-import pyproj
-import rasterio
-from rasterio.windows import Window
 
-from prismstation.core import sgm
-from prismstation.core.rpc_bias import as_biased
-from prismstation.core.rpc_epipolar import (grid_heights, ray_lattice, rectify_pair, source_window,
+from prismstation.core.matching import sgm
+from prismstation.core.models.rpc_bias import as_biased
+from prismstation.core.surfaces.rpc_epipolar import (grid_heights, ray_lattice, rectify_pair, source_window,
                                             triangulate, warp)
-from prismstation.errors import InputError, ModelError
-from prismstation.io.inputs import open_raster_file
+from prismstation.errors import ModelError
 from prismstation.io.raster import gdal_env
-
-
-@lru_cache(maxsize=16)
-def _transformer(crs: str, inverse: bool) -> pyproj.Transformer:
-    a, b = ("EPSG:4326", crs) if not inverse else (crs, "EPSG:4326")
-    return pyproj.Transformer.from_crs(a, b, always_xy=True)
-
-
-def to_map(crs: str):
-    """``(lon°, lat°) → (E, N)`` of ``crs``."""
-    t = _transformer(str(crs), False)
-    return lambda lon, lat: t.transform(lon, lat)
-
-
-def to_lonlat(crs: str):
-    t = _transformer(str(crs), True)
-    return lambda e, n: t.transform(e, n)
-
-
-def _open(path):
-    """rasterio's dataset of an image; an image whose RPCs are in a side file is not
-    georeferenced in GDAL's sense, which is no reason for a warning."""
-    return open_raster_file(path, "image")
+from prismstation.io.rpc_scene import to_lonlat, to_map
+from prismstation.io.windows import open_image, raster_header
 
 
 def image_shape(path) -> tuple[int, int]:
-    try:
-        with _open(path) as ds:
-            return ds.height, ds.width
-    except rasterio.errors.RasterioError as exc:
-        raise InputError(f"cannot open the image ({exc})", path) from None
+    """``(rows, cols)`` of the image ``path`` (:func:`~prismstation.io.windows.raster_header`)."""
+    width, height, _ = raster_header(path)
+    return height, width
 
 
 @dataclass(frozen=True)
@@ -97,15 +69,8 @@ class PairTile:
 
 def _read(path, win) -> np.ndarray:
     """Window (x0, y0, w, h) of band 1 as float32, NaN outside the image."""
-    x0, y0, w, h = win
-    out = np.full((h, w), np.nan, np.float32)
-    with _open(path) as ds:
-        c0, r0 = max(x0, 0), max(y0, 0)
-        c1, r1 = min(x0 + w, ds.width), min(y0 + h, ds.height)
-        if c1 > c0 and r1 > r0:
-            out[r0 - y0:r1 - y0, c0 - x0:c1 - x0] = ds.read(1, window=Window(c0, r0, c1 - c0, r1 - r0),
-                                                            out_dtype="float32")
-    return out
+    with open_image(path, "image") as ds:
+        return ds.read_padded(*win)
 
 
 def left_window(spec: PairTile, shape_a):

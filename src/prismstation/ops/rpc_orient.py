@@ -2,7 +2,7 @@
 
 The DSM of the images as they are oriented (raw RPCs, or biases fitted with one image held
 fixed: the block sits where that image's RPC puts it) is co-registered to the reference DEM
-(:func:`prismstation.core.coarse.dem_offset`: an exhaustive search over the a-priori radius,
+(:func:`prismstation.core.matching.coarse.dem_offset`: an exhaustive search over the a-priori radius,
 then least-squares surface matching, Gruen & Akca 2005) on a grid of the reference's own cell
 size. The result is a ground translation ``s = (dE, dN, dU)``: the DSM's point ``X`` truly lies
 at ``X + s``. An image point ``xy`` the DSM put at ``X`` (``xy = rpc(X) + Δ(xy)``) must then be
@@ -23,13 +23,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prismstation.core.coarse import dem_offset
-from prismstation.core.coreg import CoregResult, block_mean
-from prismstation.core.rpc_bias import BIAS_MODELS, BiasedRpc, as_biased, bias_design, metres_per_degree
+from prismstation.core.matching.coarse import dem_offset
+from prismstation.core.matching.coreg import CoregResult, block_mean
+from prismstation.core.models.rpc_bias import BIAS_MODELS, BiasedRpc, as_biased, bias_design, metres_per_degree
 from prismstation.errors import InputError
 from prismstation.io.dem import read_dem
+from prismstation.io.rpc_scene import to_lonlat
 from prismstation.ops.rpc_dsm import rpc_dsm
-from prismstation.ops.rpc_dsm_tiles import to_lonlat
 
 #: default bound of the horizontal shift (metres)
 DEFAULT_MAX_SHIFT_M = 100.0

@@ -7,7 +7,7 @@ The project-level side of :func:`prismstation.ops.rpc_dsm.rpc_dsm` and
 (``Solution.model.models``), the fit's intersected tie points for the search ranges, the
 project's geoid for an orthometric reference and for orthometric output, and the record an
 orientation leaves in the project (``Project.dem_control``) for the fit to read back as each
-image's a-priori bias (:func:`prismstation.core.rpc_solve.control_from_record`).
+image's a-priori bias (:func:`prismstation.core.models.rpc_solve.control_from_record`).
 """
 from __future__ import annotations
 
@@ -15,10 +15,9 @@ from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
-from rasterio.transform import Affine
 
-from prismstation.core import conditioning as cond
-from prismstation.core.rpc_bias import BIAS_NAMES
+from prismstation.core.orientation import conditioning as cond
+from prismstation.core.models.rpc_bias import BIAS_NAMES
 from prismstation.errors import InputError, ModelError
 from prismstation.io.atomic import check_writable
 from prismstation.io.dsm import write_dsm
@@ -39,7 +38,7 @@ POINTS_MARGIN_M = 100.0
 
 
 def images_and_models(sol, project) -> tuple[list, list]:
-    """The views' image files and their fitted :class:`~prismstation.core.rpc_bias.BiasedRpc`,
+    """The views' image files and their fitted :class:`~prismstation.core.models.rpc_bias.BiasedRpc`,
     in the scene's order."""
     views = project.scene.views
     missing = [v for v, view in views.items() if not view.image]
@@ -99,7 +98,7 @@ def export_dsm(sol, project, request: DsmRequest, *, reference=None, progress=No
                      progress=scaled(progress, 0.0, COMPUTE_SHARE))
     dsm = replace(dsm, info=plain(dsm.info))
     if request.orthometric:
-        grid = SimpleNamespace(shape=dsm.heights.shape, transform=Affine(*tuple(dsm.transform)[:6]), crs=dsm.crs)
+        grid = SimpleNamespace(shape=dsm.heights.shape, transform=tuple(dsm.transform)[:6], crs=dsm.crs)
         dsm = replace(dsm, heights=dsm.heights - undulation_on_grid(geoid, grid).astype(np.float32),
                       height_kind="orthometric", geoid=geoid.describe() if hasattr(geoid, "describe") else "geoid")
     checkpoint(progress, COMPUTE_SHARE, "writing")

@@ -1,5 +1,5 @@
 """Each sensor model's workflows on a project, by the model's name (``Scene.sensor.name``,
-:mod:`prismstation.core.sensors`): the one place the front ends find which function orients a
+:mod:`prismstation.core.models.sensors`): the one place the front ends find which function orients a
 project from a reference DEM and which makes its DSM. ``prismstation orient-dem``, ``dsm`` and
 the window's tools call :func:`workflows_of` and never ask which model it is.
 

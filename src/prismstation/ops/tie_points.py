@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prismstation.core import prism
-from prismstation.core.solution import Solution
-from prismstation.core.stats import nmad
+from prismstation.core.models import prism
+from prismstation.core.models.solution import Solution
+from prismstation.core.adjustment.stats import nmad
 from prismstation.io.windows import ImageWindows
 from prismstation.model.points import GroundPoint, Measurement
 from prismstation.model.project import Project

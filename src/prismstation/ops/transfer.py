@@ -1,7 +1,7 @@
 """Automatic point transfer on the project's images (automatic tie points build on it: :mod:`prismstation.ops.tie_points`).
 
 A point placed in one view is searched in the others around the current model's prediction
-by shape-aware least-squares matching (:func:`prismstation.core.lsm_search.match`, Gruen
+by shape-aware least-squares matching (:func:`prismstation.core.matching.lsm_search.match`, Gruen
 1985). What the search assumes, and where it comes from:
 
 * **height** (:func:`search_height`): the point's height from the reference DEM (else the
@@ -37,10 +37,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import stats
 
-from prismstation.core.coarse import search_radius_px
-from prismstation.core.lsm import LsmResult
-from prismstation.core.lsm_search import best_score, match
-from prismstation.core.solution import Solution
+from prismstation.core.matching.coarse import search_radius_px
+from prismstation.core.matching.lsm import LsmResult
+from prismstation.core.matching.lsm_search import best_score, match
+from prismstation.core.models.solution import Solution
 from prismstation.io.windows import ImageWindows
 from prismstation.ops.transfer_template import template_half
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
@@ -216,7 +216,7 @@ def local_shape(sol: Solution, source: str, xy, views, *, h: float, height_of=No
 @dataclass(frozen=True)
 class Transfer:
     """Where a point of ``source`` view was found in ``view`` (image pixels) and how well:
-    ``match`` the :class:`~prismstation.core.lsm.LsmResult` (``cov`` its 2×2 covariance,
+    ``match`` the :class:`~prismstation.core.matching.lsm.LsmResult` (``cov`` its 2×2 covariance,
     ``status``/``reason``), ``predicted`` the model's prediction."""
 
     view: str

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from prismstation.core.lsm_sigma import texture_sigma
+from prismstation.core.matching.lsm_sigma import texture_sigma
 from prismstation.io.windows import ImageWindows
 
 TEMPLATE_HALVES = (12, 18, 24, 32)
@@ -12,7 +12,7 @@ TEMPLATE_HALVES = (12, 18, 24, 32)
 the point in every direction (:func:`template_half`)."""
 TEXTURE_SIGMA_PX = 0.05
 """The σ (px) a template's texture must promise from the image noise alone in its weakest
-direction (:func:`prismstation.core.lsm_sigma.texture_sigma`) to be used: a third of the
+direction (:func:`prismstation.core.matching.lsm_sigma.texture_sigma`) to be used: a third of the
 0.15 px a transfer on smooth terrain aims at, leaving the rest to what the noise does not
 model (shape, sampling)."""
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from prismstation.core.dsmstats import DsmValidation, validate_dsm
+from prismstation.core.surfaces.dsmstats import DsmValidation, validate_dsm
 from prismstation.errors import InputError
 from prismstation.io.dem import open_raster, read_dem, resample_to_grid, write_dem
 from prismstation.io.geoid import undulation_on_grid

@@ -11,7 +11,7 @@ import numpy as np
 
 from prismstation.sim import geometry as geo
 from prismstation.sim.terrain import Grid
-from prismstation.core.sample import remap_points
+from prismstation.core.surfaces.sample import remap_points
 
 HALO = 4
 

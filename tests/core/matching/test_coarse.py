@@ -6,7 +6,7 @@ import pytest
 import rasterio
 from scipy import ndimage
 
-from prismstation.core.coarse import (AT_EDGE, LOW_SCORE, OK, dem_offset, image_offset,
+from prismstation.core.matching.coarse import (AT_EDGE, LOW_SCORE, OK, dem_offset, image_offset,
                                       search_radius_px)
 
 GSD = 2.5

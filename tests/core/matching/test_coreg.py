@@ -7,8 +7,8 @@ import rasterio
 from scipy import ndimage
 
 from prismstation.cli import main
-from prismstation.core.coreg import coregister, shift_grid
-from prismstation.core.shift_field import fit_shift_field
+from prismstation.core.matching.coreg import coregister, shift_grid
+from prismstation.core.orientation.shift_field import fit_shift_field
 
 
 @pytest.fixture(scope="module")
@@ -102,7 +102,7 @@ def test_affine_shift_field_recovers_a_known_field():
 
 @pytest.mark.parametrize("dcol, drow, dz", [(0.3, -0.45, 2.0), (-4.4, 2.6, 12.0)])
 def test_nuth_kaab_finds_the_same_known_shifts(tile, dcol, drow, dz):
-    from prismstation.core.coreg import nuth_kaab
+    from prismstation.core.matching.coreg import nuth_kaab
     h, transform, _, _ = tile
     ref = h[300:800, 200:700].copy()
     dem = moved(h, dcol, drow, dz, noise=3.0, seed=1)[300:800, 200:700]

@@ -65,7 +65,7 @@ def test_known_shift_recovered_within_its_sigma(shared_data, tmp_path, name, dco
 def test_formal_sigma_against_empirical_scatter(shared_data):
     """Eight random sub-pixel shifts of random 400² crops of the geographic tile: the
     errors, normalised by their σ, have an RMS at most 1 (σ honest, not optimistic)."""
-    from prismstation.core.coreg import coregister
+    from prismstation.core.matching.coreg import coregister
     with rasterio.open(shared_data / "srtm" / "N44E005.hgt") as ds:
         h = ds.read(1).astype(float)
         metric = local_metric_transform(ds.crs, ds.transform, ds.shape)

@@ -4,7 +4,7 @@ import pytest
 import rasterio
 from scipy import ndimage
 
-from prismstation.core.dense import heights_from_parallax, parallax_map
+from prismstation.core.matching.dense import heights_from_parallax, parallax_map
 
 
 def py_true(x, y):
@@ -98,7 +98,7 @@ def test_flat_images_give_nan_and_heights_follow_the_line():
 
 
 # ---------------------------------------------------------------- the DSM engine
-from prismstation.core import sgm  # noqa: E402
+from prismstation.core.matching import sgm  # noqa: E402
 from prismstation.errors import Cancelled  # noqa: E402
 
 
@@ -273,8 +273,8 @@ def test_reference_prior_and_void_filling(triplet):
 def test_dsm_heights_follow_the_fitted_models_parallax_line(triplet):
     """The correction turns the matching's geometric height into the model's (F–B parallax
     line) height anywhere in the scene and at any height, not only on its lattice."""
-    from prismstation.core import prism
-    from prismstation.core.dsm_heights import model_height_correction
+    from prismstation.core.models import prism
+    from prismstation.core.surfaces.dsm_heights import model_height_correction
     _, _, sol = triplet
     sc = sol.scene
     corr = model_height_correction(sol, 300.0, 900.0)

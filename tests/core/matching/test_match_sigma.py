@@ -1,12 +1,12 @@
 """The matcher's σ is a claim: checked against empirical scatter on real independent imagery
 (Pléiades triplet closure) and on a simulated PRISM triplet with relief (known truth).
-Calibration numbers: :mod:`prismstation.core.matching` module doc."""
+Calibration numbers: :mod:`prismstation.core.matching.matching` module doc."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from prismstation.core.matching import (SIGMA_FLOOR_ACROSS, SIGMA_FLOOR_ALONG, SIGMA_SCALE,
+from prismstation.core.matching.matching import (SIGMA_FLOOR_ACROSS, SIGMA_FLOOR_ALONG, SIGMA_SCALE,
                                         calibrated_sigma)
 from benchmarks.sigma_experiments import closure_rows, summary, truth_rows
 

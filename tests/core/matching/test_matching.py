@@ -4,7 +4,7 @@ import pytest
 import rasterio
 from scipy import ndimage
 
-from prismstation.core.matching import match_point
+from prismstation.core.matching.matching import match_point
 
 
 @pytest.fixture(scope="module")
@@ -108,7 +108,7 @@ def test_texture_varying_in_one_direction_only_is_ambiguous():
 
 
 def test_transfer_a_grid_and_reject_a_planted_blunder(texture):
-    from prismstation.core.matching import blunder_mask, transfer_points
+    from prismstation.core.matching.matching import blunder_mask, transfer_points
     ref = texture[100:600, 100:600]
     srch = texture[104:604, 99:599]                 # content moved by (+1, -4) px
     gx, gy = np.meshgrid(np.arange(80.5, 430, 70), np.arange(80.5, 430, 70))

@@ -3,7 +3,7 @@ import cv2
 import numpy as np
 import pytest
 
-from prismstation.core.deblock import blockiness, deblock
+from prismstation.core.matching.deblock import blockiness, deblock
 from prismstation.errors import ModelError
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from prismstation.cli import main
-from prismstation.core.resection import (FrameCamera, angles_of, base_height, homography_start,
+from prismstation.core.models.resection import (FrameCamera, angles_of, base_height, homography_start,
                                          project, resect, rotation_matrix, vertical_start)
 from prismstation.errors import ModelError
 

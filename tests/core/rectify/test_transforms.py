@@ -4,7 +4,7 @@ import warnings
 import numpy as np
 import pytest
 
-from prismstation.core.rectify import (KINDS, compare_transforms, fit_transform, format_rmse_table,
+from prismstation.core.models.rectify import (KINDS, compare_transforms, fit_transform, format_rmse_table,
                                        min_points, n_params, poly_exponents)
 from prismstation.errors import ModelError
 

@@ -1,12 +1,12 @@
-"""A fitted synthetic triplet (tests/core/synth.py) with one GCP made a blunder."""
+"""A fitted synthetic triplet (sim/model_triplet.py) with one GCP made a blunder."""
 from __future__ import annotations
 
 from dataclasses import replace
 
 import pytest
 
-from prismstation.core.solution import solve
-from tests.core.synth import make_points, make_scene
+from prismstation.core.models.solution import solve
+from prismstation.sim.model_triplet import make_points, make_scene
 
 BLUNDER_ID = "P4"
 

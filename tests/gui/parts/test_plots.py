@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from prismstation.gui.plot_figures import figure_widget, render_images
-from prismstation.core.solution import solve
+from prismstation.core.models.solution import solve
 from prismstation.gui.plots import PlotData, PlotsWidget
-from tests.core.synth import make_points, make_scene
+from prismstation.sim.model_triplet import make_points, make_scene
 from tests.gui.parts.conftest import BLUNDER_ID
 
 

@@ -170,8 +170,8 @@ def prism_project(tmp_path_factory):
     """A synthetic triplet project whose scene.json carries PRISM scene and product ids,
     acquisition times and its source (as a JAXA product gives them), heights orthometric."""
     from prismstation.cli import main
-    from tests.core.synth import make_points, make_scene
-    from tests.io.test_cli_pipeline import write_triplet
+    from prismstation.sim.model_triplet import make_points, make_scene
+    from tests.cli.test_fit import write_triplet
     d = tmp_path_factory.mktemp("prism")
     sc = make_scene()
     write_triplet(d, sc, make_points(sc, n_gcp=9, n_icp=12, noise_px=0.3, seed=5), geoid=55.0, ortho=True)
@@ -280,8 +280,8 @@ def test_cli_report_every_format_holds_the_same_report(tmp_path, prism_project, 
 
 def test_single_view_and_empty_reports(tmp_path, qtbot):
     from dataclasses import replace
-    from prismstation.core.solution import solve
-    from tests.core.synth import make_points, make_scene
+    from prismstation.core.models.solution import solve
+    from prismstation.sim.model_triplet import make_points, make_scene
     sc = make_scene()
     single = replace(sc, views={"N": sc.views["N"]})
     pts = [replace(p, image={"N": p.image["N"]}) for p in make_points(sc, n_gcp=6, n_icp=5)]

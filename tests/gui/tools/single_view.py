@@ -70,7 +70,7 @@ def make_frame_view(outdir, n=16, noise_px=0.1, seed=4, two_views=False):
     """A single view measured through a frame camera (f 100 mm, 50 µm pixels, principal point
     at the centre of a 400 px image; 1.5 m/px at 3 km): returns (project path, camera).
     With ``two_views`` a second view ``A2`` (same picture) sees the points from FRAME_EO_B."""
-    from prismstation.core.resection import FrameCamera, project as frame_project
+    from prismstation.core.models.resection import FrameCamera, project as frame_project
 
     out = Path(outdir)
     path = make_single_view(out, n_gcp=1, n_icp=0)

@@ -11,7 +11,7 @@ from tests.qt_windows import close_windows, open_window
 import rasterio
 from rasterio.transform import Affine
 
-from prismstation.core.rectify import KINDS, compare_transforms
+from prismstation.core.models.rectify import KINDS, compare_transforms
 from prismstation.gui.tools._rect_common import view_points
 from tests.gui.tools.single_view import make_single_view
 
@@ -120,7 +120,7 @@ def two_frame_window(qtbot, tmp_path):
 
 
 def test_bh_from_two_resections(two_frame_window):
-    from prismstation.core.resection import base_height
+    from prismstation.core.models.resection import base_height
     from tests.gui.tools.single_view import FRAME_EO, FRAME_EO_B
     window = two_frame_window
     assert list(window.views.views) == ["A", "A2"]
@@ -151,7 +151,7 @@ def big_window(qtbot, tmp_path):
 
 
 def test_deblock_toggle_changes_displayed_tiles(big_window, qtbot):
-    from prismstation.core.deblock import deblock
+    from prismstation.core.matching.deblock import deblock
     window = big_window
     iv = window.views.views["A"]
     iv.center_on(1200, 1200, 0.5)  # zoom in: full-resolution tiles

@@ -16,6 +16,9 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction
 from PySide6.QtWidgets import QDockWidget, QMessageBox
 
+from prismstation.gui.menus import act
+from prismstation.gui.tools._worker import running_jobs_of, stop_jobs_of
+
 
 class ToolContext:
     """What a tool may use of the window.
@@ -69,7 +72,6 @@ class ToolContext:
 
     def add_action(self, text, slot, shortcut=None, tip=None, checkable=False) -> QAction:
         """An action of the window (its shortcut works anywhere in it); not put in a menu."""
-        from prismstation.gui.menus import act
         return act(self.widget, text, slot, shortcut, tip=tip, checkable=checkable)
 
     def add_dock(self, key: str, title: str, widget, area=Qt.DockWidgetArea.RightDockWidgetArea,
@@ -92,7 +94,6 @@ class ToolContext:
         question follows the jobs while it is open: their progress, and when the last one ends
         it closes unanswered — nothing is left to cancel, the window stays and shows the outcome
         (the operator quits again if they still want to)."""
-        from prismstation.gui.tools._worker import running_jobs_of
         jobs = [job for job in running_jobs_of(self.widget) if not job.is_cancelled()]  # (cancelled: ending)
         if not jobs or not self.interactive:
             return True
@@ -134,7 +135,6 @@ class ToolContext:
     def shutdown(self) -> None:
         """Cancel and join the tools' running jobs, then let each tool with a ``shutdown()``
         release what it holds (the window is closing)."""
-        from prismstation.gui.tools._worker import stop_jobs_of
         stop_jobs_of(self.widget)
         for tool in self.tools.values():
             stop = getattr(tool, "shutdown", None)

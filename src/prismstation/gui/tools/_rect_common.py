@@ -1,5 +1,5 @@
 """Shared pieces of the rectification / resection / DSM tools: the project's points of one view,
-a refresh coalescer and number formatting. (Their worker thread is :mod:`._worker`.)"""
+and a refresh coalescer. (Their worker thread is :mod:`._worker`.)"""
 from __future__ import annotations
 
 import numpy as np
@@ -49,21 +49,3 @@ def watch_project(ctx, fn) -> Coalescer:
     ctx.solver.solution_changed.connect(c.poke)
     ctx.views.images_loaded.connect(c.poke)
     return c
-
-
-def crs_name(text) -> str:
-    """A CRS as an operator reads it — ``WGS 84 / UTM zone 29N (EPSG:32629)`` — from any
-    definition (WKT, ``EPSG:…``, PROJ string); the text itself, shortened, when PROJ cannot read it."""
-    from pyproj import CRS
-    from pyproj.exceptions import CRSError
-    try:
-        crs = CRS.from_user_input(text)
-    except (CRSError, TypeError, ValueError):
-        t = " ".join(str(text).split())
-        return t if len(t) <= 60 else t[:57] + "…"
-    code = crs.to_epsg(min_confidence=70)
-    return f"{crs.name} (EPSG:{code})" if code else crs.name
-
-
-def fmt(v: float, digits: int = 3) -> str:
-    return f"{v:.{digits}f}" if v is not None and np.isfinite(v) else "—"

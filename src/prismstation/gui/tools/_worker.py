@@ -19,7 +19,7 @@ import weakref
 
 import shiboken6
 from PySide6.QtCore import QCoreApplication, QEvent, QObject, Qt, QTimer, Signal
-from PySide6.QtWidgets import QMessageBox, QProgressDialog
+from PySide6.QtWidgets import QMessageBox, QProgressDialog, QWidget
 
 from prismstation.errors import PrismError
 from prismstation.gui import workers
@@ -146,9 +146,9 @@ def _work(ref, fn, title, cancel) -> None:  # worker thread
 
 
 def _widget(window):
-    """The widget of a tool context (or the widget itself)."""
-    from prismstation.gui.tools import ToolContext
-    return window.widget if isinstance(window, ToolContext) else window
+    """The window of a tool context (its ``widget``), or ``window`` itself when it is one (or
+    None)."""
+    return window if window is None or isinstance(window, QWidget) else window.widget
 
 
 def running_jobs_of(window) -> list:

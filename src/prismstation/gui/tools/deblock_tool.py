@@ -1,12 +1,12 @@
 """JPEG block-noise reduction for display (Tadono et al. 2008, §3), switchable per view.
 
 Tools ▸ JPEG block-noise reduction has one checkable action per view; a checked view shows its
-overview and tiles through :func:`prismstation.core.deblock.deblock` (8 × 8 blocks, applied to
+overview and tiles through :func:`prismstation.core.matching.deblock.deblock` (8 × 8 blocks, applied to
 each displayed array as it is shown). The choice is kept per view name across project reloads.
 """
 from __future__ import annotations
 
-from prismstation.core.deblock import deblock
+from prismstation.core.matching.deblock import deblock
 from prismstation.errors import ModelError
 
 

@@ -34,8 +34,8 @@ from PySide6.QtWidgets import (QDialog, QDialogButtonBox, QDoubleSpinBox, QFileD
                                QHBoxLayout, QLabel, QLineEdit, QMessageBox, QPushButton, QTableWidget,
                                QTableWidgetItem, QVBoxLayout, QWidget)
 
-from prismstation.core.conditioning import MIN_PATCHES, TARGET_M
-from prismstation.core.dem_orient import patch_windows
+from prismstation.core.orientation.conditioning import MIN_PATCHES, TARGET_M
+from prismstation.core.orientation.dem_orient import patch_windows
 from prismstation.gui import settings as st
 from prismstation.gui.plain import plain
 from prismstation.gui.sensors import parts_of

@@ -22,10 +22,14 @@ from PySide6.QtWidgets import (QAbstractSpinBox, QButtonGroup, QCheckBox, QCombo
                                QDialogButtonBox, QDoubleSpinBox, QFileDialog, QFormLayout,
                                QHBoxLayout, QLineEdit, QMessageBox, QPushButton, QRadioButton)
 
+from prismstation.errors import InputError
 from prismstation.gui import settings as st
 from prismstation.gui.tools._worker import run_with_progress
+from prismstation.io.project import project_geoid
+from prismstation.model.project import has_ground
 from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest
 from prismstation.gui.plain import plain
+from prismstation.ops.project import require_workflow
 from prismstation.ops.sensors import workflows_of
 
 #: the height models as the dialog names them (``prismstation dsm --heights``)
@@ -194,8 +198,6 @@ class DsmTool:
     def refusal(self) -> str | None:
         """Why the project's sensor model cannot make a DSM here, or None
         (:func:`prismstation.ops.project.require_workflow`)."""
-        from prismstation.errors import InputError
-        from prismstation.ops.project import require_workflow
         try:
             require_workflow(self.ctx.project, "dsm")
         except InputError as exc:
@@ -224,8 +226,6 @@ class DsmTool:
 
     def geoid(self) -> str | None:
         """The project's geoid, described (None when it cannot be used: a grid not found)."""
-        from prismstation.errors import InputError
-        from prismstation.io.project import project_geoid
         try:
             g = project_geoid(self.ctx.project)
         except InputError:
@@ -240,7 +240,6 @@ class DsmTool:
             return
         ref = self.reference()
         name = Path(str(getattr(ref, "path", "") or "reference")).name if ref is not None else None
-        from prismstation.model.project import has_ground
         kinds = [q.height_kind for q in self.ctx.project.points.values() if has_ground(q)]
         orthometric = bool(kinds) and kinds.count("orthometric") >= kinds.count("ellipsoidal")
         sc = self.ctx.project.scene

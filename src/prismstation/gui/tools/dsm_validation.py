@@ -23,11 +23,19 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpin
                                QPushButton, QSplitter, QStackedWidget, QTableWidget, QTableWidgetItem, QTabWidget,
                                QVBoxLayout, QWidget)
 
-from prismstation.core.dsmstats import hillshade, histogram, residual_sd_by_view
+from prismstation.core.surfaces.dsmstats import hillshade, histogram, residual_sd_by_view
 from prismstation.errors import PrismError
 from prismstation.gui.titles import fit_title
-from prismstation.gui.tools._rect_common import crs_name, fmt
 from prismstation.gui.tools._worker import Job, run_with_progress
+from prismstation.io.atomic import scratch_file, write_atomic
+from prismstation.io.csvtable import text_cell
+from prismstation.io.dem import read_dem
+from prismstation.io.dsm import recorded_height_kind
+from prismstation.io.formatting import fixed
+from prismstation.io.geoid import ConstantGeoid, GridGeoid, find_grid
+from prismstation.io.georef import crs_name
+from prismstation.io.jsonfile import write_json
+from prismstation.ops.validate import validate_dsm_files
 
 STAT_COLUMNS = ("count", "bias", "sd", "rmse", "min", "max", "median", "nmad")
 
@@ -102,7 +110,7 @@ class ResidualSDPanel(QWidget):
             cells = [v]
             for kind in ("GCP", "ICP"):
                 r = next((r for r in rows[kind] if r.view == v), None)
-                cells += ["0", "—", "—"] if r is None else [str(r.n_points), fmt(r.sd_x), fmt(r.sd_y)]
+                cells += ["0", "—", "—"] if r is None else [str(r.n_points), fixed(r.sd_x, 3), fixed(r.sd_y, 3)]
             for c, text in enumerate(cells):
                 self.table.setItem(i, c, _item(text, c == 0))
         self.table.resizeColumnsToContents()
@@ -112,10 +120,6 @@ class ResidualSDPanel(QWidget):
 def run_validation(dsm, reference, *, dsm_height="ellipsoidal", reference_height="ellipsoidal",
                    geoid=None, mask=None):
     """Worker body: ``(validation, info, difference (rows, cols) m, shaded relief [0, 1])``."""
-    from prismstation.io.dem import read_dem
-    from prismstation.ops.validate import validate_dsm_files
-
-    from prismstation.io.atomic import scratch_file
     tmp = str(scratch_file("dsmdiff", ".tif"))  # (a killed run's: removed first)
     try:
         val, info = validate_dsm_files(dsm, reference, dsm_height=dsm_height,
@@ -175,7 +179,6 @@ def prefill(project, project_path, last: dict, exported: str | None = None) -> d
             grid = Path(g.get("path", ""))
             out["geoid_grid"] = str(grid if grid.is_absolute() or not folders else folders[-1] / grid)
         elif g.get("kind") == "auto":
-            from prismstation.io.geoid import find_grid
             grid = find_grid()
             out.update({"geoid_grid": str(grid)} if grid else {"geoid_constant": float(g.get("value") or 0.0)})
         elif g.get("value") is not None:
@@ -232,7 +235,6 @@ class DsmDialog(QDialog):
     def _kind_from_file(self, key: str, path: str) -> None:
         """The heights' kind as the file records it (a DSM written here does: its vertical CRS),
         shown and not asked; where the file does not say, the operator chooses."""
-        from prismstation.io.dsm import recorded_height_kind
         path = path.strip()
         kind = recorded_height_kind(path) if path and Path(path).is_file() else None
         combo, note = self.kinds[key], self.kind_notes[key]
@@ -357,8 +359,8 @@ class DsmResultPanel(QWidget):
         rows = self.rows()
         self.table.setRowCount(len(rows))
         for i, (label, s) in enumerate(rows):
-            cells = [label, str(s.count)] + [fmt(getattr(s, k)) for k in STAT_COLUMNS[1:]] \
-                + [fmt(s.percentiles.get(p, float("nan"))) for p in pct]
+            cells = [label, str(s.count)] + [fixed(getattr(s, k), 3) for k in STAT_COLUMNS[1:]] \
+                + [fixed(s.percentiles.get(p, float("nan")), 3) for p in pct]
             for c, text in enumerate(cells):
                 self.table.setItem(i, c, _item(text, c == 0))
         self.table.resizeColumnsToContents()
@@ -395,10 +397,6 @@ class DsmResultPanel(QWidget):
         """Write the statistics as JSON (with the inputs) or CSV (one row per cell set),
         atomically (a failure is a ``WriteError``, no file)."""
         import io
-
-        from prismstation.io.atomic import write_atomic
-        from prismstation.io.csvtable import text_cell
-        from prismstation.io.jsonfile import write_json
 
         kind = kind or ("csv" if str(path).lower().endswith(".csv") else "json")
         if kind == "json":
@@ -441,7 +439,6 @@ class DsmValidationTool:
     def start(self, dsm, reference, dsm_height="ellipsoidal", reference_height="ellipsoidal",
               mask="", geoid_grid="", geoid_constant=0.0, progress_dialog=True) -> Job | None:
         """Validate in a worker (returns the Job); the result appears in the "DSM validation" dock."""
-        from prismstation.io.geoid import ConstantGeoid, GridGeoid
 
         self.last = dict(dsm=dsm, reference=reference, dsm_height=dsm_height,
                          reference_height=reference_height, mask=mask, geoid_grid=geoid_grid,

@@ -17,12 +17,15 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDialogButtonBox, QDoubleSpin
                                QFormLayout, QHBoxLayout, QLabel, QLineEdit, QMessageBox,
                                QPushButton, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
 
-from prismstation.core.rectify import KINDS, compare_transforms, min_points, n_params
+from prismstation.core.models.rectify import KINDS, compare_transforms, min_points, n_params
 from prismstation.gui import settings as st
 from prismstation.gui.titles import fit_title
-from prismstation.gui.tools._rect_common import crs_name, fmt, view_points, watch_project
+from prismstation.gui.tools._rect_common import view_points, watch_project
 from prismstation.gui.tools._worker import Job, run_with_progress
 from prismstation.gui.plain import plain
+from prismstation.io.formatting import fixed
+from prismstation.io.georef import crs_name
+from prismstation.ops.rectify import rectify_raster
 
 
 def _item(text, align=Qt.AlignmentFlag.AlignRight) -> QTableWidgetItem:
@@ -119,8 +122,8 @@ class TransformsPanel(QWidget):
             t.setItem(i, 1, _item(str(n_params(kind))))
             for j, v in enumerate(views):
                 r = self.reports[v][i]
-                t.setItem(i, 2 + 2 * j, _item(fmt(r.rmse_gcp)))
-                t.setItem(i, 3 + 2 * j, _item(fmt(r.rmse_icp)))
+                t.setItem(i, 2 + 2 * j, _item(fixed(r.rmse_gcp, 3)))
+                t.setItem(i, 3 + 2 * j, _item(fixed(r.rmse_icp, 3)))
                 if not r.ok:
                     for c in (2 + 2 * j, 3 + 2 * j):
                         t.item(i, c).setToolTip(plain(r.error))
@@ -147,8 +150,8 @@ class TransformsPanel(QWidget):
         ids, chk = self.ids[v]
         self.resid.setRowCount(len(ids))
         for i, (pid, icp, (vx, vy)) in enumerate(zip(ids, chk, r.residuals)):
-            for c, text in enumerate((pid, "ICP" if icp else "GCP", fmt(vx), fmt(vy),
-                                      fmt(float(np.hypot(vx, vy))))):
+            for c, text in enumerate((pid, "ICP" if icp else "GCP", fixed(vx, 3), fixed(vy, 3),
+                                      fixed(float(np.hypot(vx, vy)), 3))):
                 self.resid.setItem(i, c, _item(text, Qt.AlignmentFlag.AlignLeft if c < 2
                                                else Qt.AlignmentFlag.AlignRight))
         self.resid.resizeColumnsToContents()
@@ -255,7 +258,6 @@ class RectifyTool:
         """Rectify ``view`` through ``kind`` into ``out_path`` in a worker; returns the Job
         (result: the rectified raster's record), or None with a message when the transform
         cannot be fitted."""
-        from prismstation.ops.rectify import rectify_raster
 
         w = self.ctx
         self.panel.refresh(force=True)
@@ -280,13 +282,13 @@ class RectifyTool:
         """The summary: what was written, on which grid, and how well the transform fits."""
         self.summary = (
             f"Rectified view {view} through the {report.kind} transform ({report.n_params} parameters, "
-            f"{report.n_gcp} GCPs; planimetric RMSE {fmt(report.rmse_gcp)} m on the GCPs, "
-            f"{fmt(report.rmse_icp)} m on {report.n_icp} ICPs).\n\n"
+            f"{report.n_gcp} GCPs; planimetric RMSE {fixed(report.rmse_gcp, 3)} m on the GCPs, "
+            f"{fixed(report.rmse_icp, 3)} m on {report.n_icp} ICPs).\n\n"
             f"Wrote {result.path}: {result.width} × {result.height} cells of {result.resolution:g} "
             f"in {crs_name(result.crs)}.")
         self.ctx.status(f"Wrote {result.path}: {result.width} × {result.height} cells of {result.resolution:g} "
                         f"in {crs_name(result.crs)} — {view} through {report.kind}, planimetric RMSE "
-                        f"{fmt(report.rmse_gcp)} m (GCPs), {fmt(report.rmse_icp)} m (ICPs)", 30000)
+                        f"{fixed(report.rmse_gcp, 3)} m (GCPs), {fixed(report.rmse_icp, 3)} m (ICPs)", 30000)
         if self.ctx.interactive:
             box = QMessageBox(QMessageBox.Icon.Information, "Rectify", plain(self.summary),
                               QMessageBox.StandardButton.Ok, self.ctx.widget)

@@ -24,7 +24,7 @@ from PySide6.QtWidgets import (QComboBox, QDialog, QDoubleSpinBox, QFormLayout, 
                                QGroupBox, QHBoxLayout, QLabel, QPushButton, QRadioButton,
                                QTextBrowser, QVBoxLayout)
 
-from prismstation.core.resection import PUSHBROOM_NOTE, FrameCamera, base_height, resect
+from prismstation.core.models.resection import PUSHBROOM_NOTE, FrameCamera, base_height, resect
 from prismstation.errors import PrismError
 from prismstation.gui.plot_figures import legend_below
 from prismstation.gui.titles import fit_title

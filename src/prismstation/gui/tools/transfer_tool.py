@@ -36,13 +36,15 @@ from PySide6.QtWidgets import (QDialog, QDialogButtonBox, QFormLayout, QHBoxLayo
                                QMessageBox, QPushButton, QSpinBox, QTableWidget, QTableWidgetItem,
                                QVBoxLayout, QWidget)
 
-from prismstation.core.scene import reference_view
+from prismstation.core.models.scene import reference_view
 from prismstation.gui import commands as cmd
 from prismstation.gui.tools._worker import Job, run_with_progress
 from prismstation.gui.views import DRIVE_TO_MAX_SCALE
 from prismstation.gui.plain import plain
+from prismstation.io.windows import ImageWindows
 from prismstation.model.points import Measurement
-from prismstation.ops.tie_points import tie_point_edits, ties_summary
+from prismstation.ops.tie_points import find_tie_points, tie_point_edits, ties_summary
+from prismstation.ops.transfer import search_height, transfer
 
 CANDIDATE_COLOUR = "#39ff14"
 
@@ -154,7 +156,6 @@ class TransferTool:
         """``(h, h_range)`` metres searched for a point at ``(x, y)`` of ``source``
         (:func:`prismstation.ops.transfer.search_height` with the loaded reference DEM and the
         σ the predictions measured for it and for the mean height)."""
-        from prismstation.ops.transfer import search_height
         preds = self.ctx.views.predictions
         return search_height(sol, source, (x, y), height_of=self.ctx.views.height_of,
                              sigma_dem=preds.sigma_dem, sigma_mean=preds.sigma_mean)
@@ -171,8 +172,6 @@ class TransferTool:
         sigma_dem, sigma_mean = preds.sigma_dem, preds.sigma_mean
 
         def work(progress):
-            from prismstation.io.windows import ImageWindows
-            from prismstation.ops.transfer import transfer
             with ImageWindows(scene) as im:
                 return transfer(sol, im, source, (x, y), height_of=height_of, sigma_dem=sigma_dem,
                                 sigma_mean=sigma_mean)
@@ -308,7 +307,6 @@ class TransferTool:
         snapshot = project.snapshot()
 
         def work(progress):
-            from prismstation.ops.tie_points import find_tie_points
             return find_tie_points(snapshot, grid=grid, height_of=height_of, progress=progress, sol=sol)
 
         self.job = run_with_progress(self.ctx, "Automatic tie points", work,

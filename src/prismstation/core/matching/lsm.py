@@ -1,0 +1,477 @@
+"""Adaptive least-squares matching (Gruen 1985): a patch's position, shape and radiometry
+estimated together, with the covariance of the position.
+
+Coordinates (docs/model.md §1): image ``x`` = column, ``y`` = row, pixels, continuous, origin
+at the top-left corner of the top-left pixel, so array element ``[j, i]`` has its centre at
+``(i + 0.5, j + 0.5)``. Images are 2-D arrays of any numeric dtype.
+
+The template is the ``(2h+1)²`` pixels of the reference around the point; a template pixel at
+offset ``w = (u, v)`` from the point (pixel centre minus point) is modelled as
+
+    T(w) = g0 + g1 · S(t + A·w [+ d·(c1·u² + c2·u·v + c3·v²)/h])
+
+with ``S`` the search image (cubic B-spline interpolation, values and gradients exact:
+:mod:`prismstation.core.matching.lsm_spline`), ``t`` the point's position in the search image, ``A``
+(2×2) the local shape (search pixels per reference pixel: the Jacobian of the reference →
+search mapping at the point), ``g0``, ``g1`` offset and gain, and optionally a bend along the
+parallax direction ``d`` (the terrain's curvature within the template). Gauss–Newton from a
+start ``(t0, A0)``; the result is ``t`` — the point itself, not a template corner — and its 2×2
+covariance.
+
+Covariance (:func:`refine`): ``(SIGMA_SCALE·σ_formal)² + (RELIEF_SCALE·σ_relief)²·ddᵀ +
+σ_across²·d⊥d⊥ᵀ``. The formal ``σ0²·N⁻¹`` is inflated for the noise in the search image's
+gradients; ``σ_relief`` and ``σ_across`` are the displacement the patch's shape does not
+follow, along and across ``d`` (all three in :mod:`prismstation.core.matching.lsm_sigma`). Along ``d``
+a second fit weighted to the point's surroundings (Gaussian of σ :data:`TAPER` px) gives the
+position and σ when it states the smaller σ there, the two fits' disagreement counted in
+both (relief finer than the template). The factors were calibrated on simulated PRISM triplets (the
+fractal relief, smooth hills, a real DEM's relief); ``tests/core/test_lsm.py`` and
+``benchmarks/bench_transfer.py`` check the σ against the scatter on other scenes, on warped
+real Pléiades texture and on the real Pléiades triplet (docs/matching.md).
+
+Failures come back as a status with a reason, never raised and never a silent position:
+``not_converged``, ``texture`` (too little texture: no contrast, noise outweighing the
+gradients, or σ above the limit), ``shape`` (the shape degenerate or moved beyond its
+allowance), ``moved`` (the patch ran away from its start), ``low_correlation``, ``outside``
+(the patch leaves an image).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+from scipy import ndimage, stats
+
+from prismstation.core.matching.lsm_sigma import gradient_noise_inflation, noise_sigma, unmodelled_sigma
+from prismstation.core.matching.lsm_spline import Spline, search_spline
+
+OK = "ok"
+NOT_CONVERGED, TEXTURE, SHAPE, MOVED, LOW_CORRELATION, OUTSIDE = (
+    "not_converged", "texture", "shape", "moved", "low_correlation", "outside")
+
+STEP_TOL = 1e-2
+"""Converged when the position moves less than this (px) in an iteration, and the shape less
+than 2.5 times this at the template's edge."""
+WANDER_ITER = 6
+"""Iterations after which a patch still moving by 0.1 px per step is given up."""
+SIGMA_SCALE = 1.5
+"""Factor on the formal σ: the views differ by more than noise (point spread, resampling),
+calibrated on the simulated triplets (1.3 times too large on warped real texture)."""
+RELIEF_SCALE = 2.0
+"""Factor on the σ of the unmodelled relief along the parallax: the 4 px blocks smooth the
+finest relief (calibrated on the simulator's fractal relief)."""
+MAX_BEND = 1.0
+"""Largest bend (px) of the patch at the template's edge."""
+BEND_P = 0.99
+"""Confidence of the F test that keeps a bend."""
+MAX_ACROSS_CHANGE = 0.06
+"""Largest change of the shape across the parallax (relief changes it along the parallax; the
+model's views are right to 10⁻³ across)."""
+TAPER = 3.0
+"""σ (px) of the Gaussian weight about the point in the fit that gives the position along the
+parallax: relief finer than the template moves the point by its own height, which an average
+over the whole template misses (on the fractal relief 0.22 px along the parallax with the whole
+template, 0.11 px with this weight; on smooth hills 0.04 and 0.07 px)."""
+NEAR_GAIN = 2.0
+"""The weighted fit's formal σ is about this many times the whole template's (its Gaussian
+holds a fifth of the template's weight): it is tried only where the unmodelled relief makes
+the whole template's σ larger than that."""
+NEAR_RELIEF = 0.7
+"""The weighted fit's error along the parallax as a share of its disagreement with the whole
+template's (measured on mounds 3–8 px wide on warped real texture: 0.4–0.7)."""
+BEND_TRIGGER = 0.03
+"""A bend is tried when the affine patch leaves this much unmodelled relief (px)."""
+RIVAL_ITER = 3
+RIVAL_MARGIN = 0.1
+"""A patch that must reach a correlation (``need_rho`` of :func:`refine`: a rival peak) is given
+up when, after :data:`RIVAL_ITER` iterations, its correlation lies more than this below it (on
+the tuning scenes and the Pléiades triplet the correlation rose by at most 0.06 after the third
+iteration)."""
+
+
+@dataclass(frozen=True)
+class LsmResult:
+    """Outcome of :func:`refine`.
+
+    ``x, y``: the point's position in the search image (pixels; on failure the best estimate,
+    check :attr:`ok`); ``cov``: its 2×2 covariance (px², x then y; NaN when it could not be
+    computed); ``formal_cov``: ``σ0²·N⁻¹`` with the gradient-noise inflation, before the
+    factors and the unmodelled displacement; ``shape``: ``A`` (2×2); ``gain``, ``offset``:
+    ``g1``, ``g0``; ``rho``: correlation of the template with the fitted patch;
+    ``iterations``; ``status`` / ``reason``; ``score``: the correlation peak the search started
+    from (:mod:`prismstation.core.matching.lsm_search`); ``extra``: ``bend`` (c1, c2, c3), ``sigma_relief``,
+    ``sigma_across`` (px) and the parallax direction ``d``."""
+
+    x: float
+    y: float
+    cov: np.ndarray
+    formal_cov: np.ndarray
+    shape: np.ndarray
+    gain: float
+    offset: float
+    rho: float
+    iterations: int
+    status: str
+    reason: str = ""
+    score: float = float("nan")        # the correlation shown to the operator (set by callers)
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == OK
+
+    @property
+    def sigma_x(self) -> float:
+        return float(np.sqrt(self.cov[0, 0]))
+
+    @property
+    def sigma_y(self) -> float:
+        return float(np.sqrt(self.cov[1, 1]))
+
+    @property
+    def formal_sigma_x(self) -> float:
+        return float(np.sqrt(self.formal_cov[0, 0]))
+
+    @property
+    def formal_sigma_y(self) -> float:
+        return float(np.sqrt(self.formal_cov[1, 1]))
+
+
+_NAN2 = np.full((2, 2), np.nan)
+_I2 = np.eye(2)
+
+
+def failed(x, y, status, reason, *, shape=None, rho=np.nan, iterations=0, score=np.nan) -> LsmResult:
+    """A failed :class:`LsmResult` at the best estimate ``(x, y)``."""
+    return LsmResult(float(x), float(y), _NAN2, _NAN2, np.eye(2) if shape is None else np.asarray(shape, float),
+                     np.nan, np.nan, float(rho), iterations, status, reason, float(score))
+
+
+def template(reference, x: float, y: float, half: int):
+    """``(T, u, v)``: the ``(2·half+1)²`` reference pixels around ``(x, y)`` (float64) and
+    their centres' offsets from the point (pixels), or None when the window leaves the image."""
+    i0, j0 = int(np.floor(x)), int(np.floor(y))
+    if not (half <= j0 < reference.shape[0] - half and half <= i0 < reference.shape[1] - half):
+        return None
+    t = np.asarray(reference[j0 - half:j0 + half + 1, i0 - half:i0 + half + 1], np.float64)
+    k = np.arange(-half, half + 1, dtype=float)
+    v, u = np.meshgrid(k + j0 + 0.5 - y, k + i0 + 0.5 - x, indexing="ij")
+    return t, u, v
+
+
+class _Fit:
+    """The Gauss–Newton state of one patch: position ``t``, shape ``A``, bend ``c`` (3 or 0
+    terms), offset ``g0`` and gain ``g1``, on a fixed template and search spline."""
+
+    def __init__(self, T, u, v, spline, d, half, w=None):
+        self.T, self.u, self.v, self.spline, self.d, self.half = T.ravel(), u.ravel(), v.ravel(), spline, d, half
+        self.uv = np.vstack([self.u, self.v])                  # (2, n) template offsets
+        self.w = None if w is None else np.asarray(w, float).ravel()     # None: uniform
+        gv, gu = np.gradient(T)                            # template gradients (grey values per px)
+        self.Tu, self.Tv = gu.ravel(), gv.ravel()
+        self.Q = np.vstack([self.u ** 2, self.u * self.v, self.v ** 2]) / half    # (3, n) bend terms
+        self.c = np.zeros(3)
+        self.g0, self.g1 = 0.0, None
+
+    def sample(self):
+        q = self.A @ self.uv
+        q += self.t[:, None]
+        if self.c.any():
+            q += np.outer(self.d, self.c @ self.Q)
+        lo, hi = q.min(axis=1), q.max(axis=1)
+        sp = self.spline
+        if lo[0] < sp.lo[0] or lo[1] < sp.lo[1] or hi[0] > sp.hi[0] or hi[1] > sp.hi[1]:
+            return None
+        return sp.sample(q[0], q[1])
+
+    def design(self, S, Sx, Sy, bend: bool, esm: bool):
+        """Rows ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)`` ``(n, 8 or 11)`` (a transposed view);
+        with ``esm`` the gradient is the mean of the search image's and the template's carried
+        into the search image (Benhimane and Malis 2004: faster convergence); without, the
+        search image's alone (the covariance)."""
+        gx, gy = self.g1 * Sx, self.g1 * Sy
+        if esm:
+            a, b, c, d = self.A.ravel()
+            det = a * d - b * c
+            gx = 0.5 * (gx + (d / det) * self.Tu - (c / det) * self.Tv)
+            gy = 0.5 * (gy - (b / det) * self.Tu + (a / det) * self.Tv)
+        u, v = self.u, self.v
+        J = np.empty((11 if bend else 8, S.size))
+        J[0], J[1] = gx, gy
+        np.multiply(gx, u, out=J[2])
+        np.multiply(gx, v, out=J[3])
+        np.multiply(gy, u, out=J[4])
+        np.multiply(gy, v, out=J[5])
+        if bend:
+            np.multiply(gx * self.d[0] + gy * self.d[1], self.Q, out=J[6:9])
+        J[-2], J[-1] = 1.0, S
+        return J.T
+
+    def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float,
+            need_rho: float | None = None):
+        """Iterate to convergence: ``(status, reason, iterations)``, status ``OK`` or a failure;
+        ``need_rho``: give up as :data:`RIVAL_ITER` and :data:`RIVAL_MARGIN` say."""
+        nb = 3 if bend else 0
+        for it in range(1, max_iter + 1):
+            smp = self.sample()
+            if smp is None:
+                return OUTSIDE, "patch left the search image", it
+            S, Sx, Sy = smp
+            if need_rho is not None and it >= RIVAL_ITER:
+                rho = _correlation(self.T, S)
+                if rho < need_rho - RIVAL_MARGIN:
+                    return LOW_CORRELATION, f"correlation {rho:.2f} after {it - 1} iterations: no rival", it
+            if self.g1 is None:
+                self.g1 = self.T.std() / max(S.std(), 1e-12)
+                self.g0 = self.T.mean() - self.g1 * S.mean()
+            r = self.T - (self.g0 + self.g1 * S)
+            Jt = self.design(S, Sx, Sy, bend, esm=True).T
+            Jw = Jt if self.w is None else Jt * self.w
+            try:
+                dp = np.linalg.solve(Jw @ Jt.T, Jw @ r)
+            except np.linalg.LinAlgError:
+                return TEXTURE, "singular normal matrix (no texture)", it
+            self.t += dp[0:2]
+            self.A += dp[2:6].reshape(2, 2)
+            if bend:
+                self.c += dp[6:9]
+            self.g0 += dp[6 + nb]
+            self.g1 += dp[7 + nb]
+            if math.hypot(self.t[0] - t0[0], self.t[1] - t0[1]) > max_move:
+                return MOVED, f"the patch moved more than {max_move:g} px from its start", it
+            change = np.linalg.norm(A0inv @ self.A - _I2)      # ≥ the largest singular value
+            bent = bend and np.abs(self.c).max() * self.half > 2 * MAX_BEND
+            if change > 2 * max_shape_change or self.g1 <= 0 or bent:
+                return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else
+                               f"the shape degenerated (changed by {change:.0%})"), it
+            step = math.hypot(dp[0], dp[1])
+            shape_still = self.w is not None or np.abs(dp[2:6 + nb]).max() * self.half < 2.5 * STEP_TOL
+            if max(abs(dp[0]), abs(dp[1])) < STEP_TOL and shape_still:
+                return OK, "", it
+            if it >= WANDER_ITER and step > 0.1:
+                break   # still wandering
+        return NOT_CONVERGED, f"no convergence in {it} iterations", it
+
+    def copy(self):
+        other = object.__new__(_Fit)
+        other.__dict__.update(self.__dict__)
+        other.t, other.A, other.c = self.t.copy(), self.A.copy(), self.c.copy()
+        return other
+
+    def final(self, bend: bool):
+        """``(r, J, rho)`` at the current state: residuals, design (search-image gradients),
+        correlation of template and patch."""
+        smp = self.sample()
+        if smp is None:
+            return None, None, np.nan
+        S, Sx, Sy = smp
+        r = self.T - (self.g0 + self.g1 * S)
+        return r, self.design(S, Sx, Sy, bend, esm=False), _correlation(self.T, S)
+
+
+def _correlation(a, b) -> float:
+    """Correlation coefficient of the arrays ``a`` and ``b`` (same size)."""
+    a, b = a - a.mean(), np.ravel(b) - b.mean()
+    return float(a @ b / np.sqrt((a @ a) * (b @ b)))
+
+
+def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half: int = 12,
+           max_iter: int = 20, max_move: float = 3.0, max_shape_change: float = 0.25,
+           min_rho: float = 0.6, max_sigma: float = 0.5, smooth: float = 0.0,
+           spline: Spline | None = None, taper: float = TAPER, need_rho: float | None = None) -> LsmResult:
+    """Least-squares matching of the point ``(x, y)`` of ``reference`` in ``search``.
+
+    Parameters
+    ----------
+    reference, search : ndarray (rows, cols)
+    x, y : float
+        The point in the reference image (pixels).
+    t0 : (2,)
+        Start position of the point in the search image (pixels).
+    A0 : (2, 2)
+        Start shape: search pixels per reference pixel, columns the images of the reference
+        x and y axes (e.g. from the sensor model and the terrain slope).
+    parallax : (dx, dy) or None
+        The direction in the search image along which relief displaces points. Given, the
+        affine patch, once converged, may also bend along it: ``+ d·(c1·u² + c2·u·v +
+        c3·v²)/half`` (the terrain's curvature within the template, which an affine patch
+        averages into its centre); the bend is kept when it is significant (F test at
+        :data:`BEND_P`, on residuals scaled by :data:`SIGMA_SCALE`) and under
+        :data:`MAX_BEND` px at the template's edge.
+    half : int
+        Template half size: ``(2·half+1)²`` pixels.
+    max_iter : int
+        Gauss–Newton iterations before ``not_converged``.
+    max_move : float
+        Largest distance (px) of the result from ``t0`` (``moved`` beyond).
+    max_shape_change : float
+        Largest change of the shape from ``A0``, as the largest singular value of
+        ``A0⁻¹A − I`` (``shape`` beyond; 0.25: ±25 % scale or shear).
+    min_rho : float
+        Correlation of template and fitted patch below this: ``low_correlation``.
+    max_sigma : float
+        Stated σ (px, larger semi-axis) above this: ``texture``.
+    smooth : float
+        σ (px) of a Gaussian low-pass applied to both images first (a coarse pass; 0: none).
+    spline : Spline, optional
+        A ready :class:`Spline` of ``search`` (for repeated calls); built here otherwise.
+    need_rho : float, optional
+        The correlation the match must reach to matter (a rival of a match found already):
+        given up early (``low_correlation``) when it falls far short (:data:`RIVAL_MARGIN`).
+    """
+    A0 = np.asarray(A0, float)
+    t0 = np.asarray(t0, float)
+    m = int(np.ceil(3 * smooth)) if smooth > 0 else 0
+    tpl = template(reference, x, y, half + m)
+    if tpl is None:
+        return failed(t0[0], t0[1], OUTSIDE, "template leaves the reference image", shape=A0)
+    T, u, v = tpl
+    if m:
+        T, u, v = ndimage.gaussian_filter(T, smooth, mode="nearest")[m:-m, m:-m], u[m:-m, m:-m], v[m:-m, m:-m]
+    if float(T.std()) <= 1e-6 * (abs(float(T.mean())) + 1.0):
+        return failed(t0[0], t0[1], TEXTURE, "template has no contrast", shape=A0)
+    if spline is None or smooth > 0:
+        # room for the patch to move by max_move and its shape to change by max_shape_change
+        spline = search_spline(search, t0, A0, half, max_move + 1.0 + 3 * smooth + 1.5 * max_shape_change * half,
+                               smooth)
+        if spline is None:
+            return failed(t0[0], t0[1], OUTSIDE, "patch leaves the search image", shape=A0)
+    d = np.zeros(2) if parallax is None else np.asarray(parallax, float) / np.hypot(*parallax)
+    fit = _Fit(T, u, v, spline, d, half)
+    fit.t, fit.A = t0.copy(), A0.copy()
+    A0inv = np.linalg.inv(A0)
+    status, reason, it = fit.run(False, max_iter, t0, max_move, A0inv, max_shape_change, need_rho)
+    if status != OK:
+        x_, y_ = (t0 if status == MOVED else fit.t)
+        rho = fit.final(False)[2] if status == NOT_CONVERGED else np.nan
+        return failed(x_, y_, status, reason, shape=fit.A, rho=rho, iterations=it)
+    r, J, rho = fit.final(False)
+    if r is None:
+        return failed(fit.t[0], fit.t[1], OUTSIDE, "patch left the search image", shape=fit.A, iterations=it)
+    n = 2 * half + 1
+    bend = False
+    if parallax is not None and unmodelled_sigma(_along(J, d, n), r.reshape(n, n), J.shape[1]) > BEND_TRIGGER:
+        curved = fit.copy()
+        status, _, it2 = curved.run(True, max_iter, t0, max_move, A0inv, max_shape_change)
+        it += it2
+        if status == OK and np.abs(curved.c).max() * half <= MAX_BEND:
+            r1, J1, rho1 = curved.final(True)
+            if r1 is not None and _significant(r, r1):
+                fit, bend, r, J, rho = curved, True, r1, J1, rho1
+    why = shape_check(A0, fit.A, d if parallax is not None else None, max_shape_change)
+    if why:
+        return failed(fit.t[0], fit.t[1], SHAPE, why + " from the start", shape=fit.A, rho=rho, iterations=it)
+    e1 = d if parallax is not None else np.array([1.0, 0.0])
+    e2 = np.array([-e1[1], e1[0]])
+    # the image noise, the lower of the two images' (in the template's grey values): textured
+    # ground makes the estimate high, never low
+    noise = min(noise_sigma(T), fit.g1 * spline.noise_near(fit.t[0], fit.t[1], half))
+    stated = _stated(fit, r, J, noise, e1, e2, n)
+    if stated is None:
+        return failed(fit.t[0], fit.t[1], TEXTURE, "too little texture: the image noise outweighs its gradients",
+                      shape=fit.A, rho=rho, iterations=it)
+    cov, formal, s_relief, s_across = stated
+    t = fit.t.copy()
+    local = 0.0
+    if taper > 0 and parallax is not None and e1 @ cov @ e1 > NEAR_GAIN ** 2 * SIGMA_SCALE ** 2 * (e1 @ formal @ e1):
+        # the relief the patch leaves moves the point along the parallax: a fit weighted to the
+        # point's surroundings follows it closer. How far the two fits disagree along the
+        # parallax measures that relief: the whole template's may be off by all of it, the
+        # weighted one by :data:`NEAR_RELIEF` of it. The one stating the smaller σ gives the
+        # position along the parallax (across, where relief moves nothing, the whole template)
+        near = fit.copy()
+        near.w = np.exp(-(fit.u ** 2 + fit.v ** 2) / (2 * taper ** 2))
+        status, _, it3 = near.run(bend, max_iter, t0, max_move, A0inv, max_shape_change)
+        r3, J3, _ = near.final(bend) if status == OK else (None, None, None)
+        st3 = _stated(near, r3, J3, noise, e1, e2, n) if r3 is not None else None
+        if st3 is not None:
+            it += it3
+            P1, P2 = np.outer(e1, e1), np.outer(e2, e2)
+            delta = float(e1 @ (near.t - fit.t))
+            var_near = e1 @ st3[0] @ e1 + (NEAR_RELIEF * delta) ** 2
+            var_whole = max(e1 @ cov @ e1, delta ** 2)
+            if var_near < var_whole:
+                t = t + P1 @ (near.t - fit.t)
+                formal = (e1 @ st3[1] @ e1) * P1 + (e2 @ formal @ e2) * P2
+                s_relief, local = st3[2], taper
+            cov = min(var_near, var_whole) * P1 + (e2 @ cov @ e2) * P2
+    res = LsmResult(float(t[0]), float(t[1]), cov, formal, fit.A.copy(), float(fit.g1), float(fit.g0),
+                    rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),
+                                           "sigma_relief": s_relief, "sigma_across": s_across, "d": d,
+                                           "taper": local})
+    if rho < min_rho:
+        return _as_failure(res, LOW_CORRELATION, f"correlation {rho:.2f} below {min_rho:.2f}")
+    smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
+    if not np.isfinite(smax) or smax > max_sigma:
+        return _as_failure(res, TEXTURE, f"too little texture: σ {smax:.2f} px above {max_sigma:.2f}")
+    return res
+
+
+def _stated(fit: _Fit, r, J, noise: float, e1, e2, n: int):
+    """``(cov, formal, σ_relief, σ_across)`` of the fitted position (see :func:`refine`;
+    ``noise``: the images' noise σ in the template's grey values), None when the noise
+    outweighs the gradients."""
+    k = J.shape[1]
+    if fit.w is None:        # uniform weights: the sandwich is N⁻¹ itself
+        s02 = float(r @ r) / max(r.size - k, 1)
+        inflation = gradient_noise_inflation(J[:, 0], J[:, 1], noise ** 2, r.size)
+        if not np.isfinite(inflation):
+            return None
+        formal = s02 * np.linalg.inv(J.T @ J)[:2, :2] * inflation
+        wn = None
+    else:
+        w = fit.w
+        s02 = float(w @ (r * r)) / float(w.sum()) * r.size / max(r.size - k, 1)
+        inflation = gradient_noise_inflation(J[:, 0] * w, J[:, 1] * w, noise ** 2, float(w @ w))
+        if not np.isfinite(inflation):
+            return None
+        Mi = np.linalg.inv(J.T @ (J * w[:, None]))
+        formal = s02 * (Mi @ (J.T @ (J * (w * w)[:, None])) @ Mi)[:2, :2] * inflation
+        wn = w.reshape(n, n)
+    # the displacement the patch's shape does not follow, along the parallax and across it
+    s_relief = unmodelled_sigma(_along(J, e1, n), r.reshape(n, n), k, w=wn)
+    s_across = unmodelled_sigma(_along(J, e2, n), r.reshape(n, n), k, w=wn, other=_along(J, e1, n))
+    cov = (SIGMA_SCALE ** 2 * formal + (RELIEF_SCALE * s_relief) ** 2 * np.outer(e1, e1)
+           + s_across ** 2 * np.outer(e2, e2))
+    return cov, formal, s_relief, s_across
+
+
+def shape_check(A0, A, parallax, max_change: float, max_across: float = MAX_ACROSS_CHANGE) -> str:
+    """Why the shape ``A`` is too far from ``A0`` ("" when it is not): its change
+    (largest singular value of ``A0⁻¹A − I``) beyond ``max_change``, or — given the parallax
+    direction — its change across the parallax beyond ``max_across`` (relief moves points
+    along the parallax only: a slope changes the row of ``A`` along it, nothing across)."""
+    change = float(np.linalg.svd(np.linalg.solve(A0, A) - _I2, compute_uv=False)[0])
+    if change > max_change:
+        return f"the shape changed by {change:.0%} (more than {max_change:.0%})"
+    if parallax is not None:
+        d = np.asarray(parallax, float) / np.hypot(*parallax)
+        across = float(np.hypot(*(np.array([-d[1], d[0]]) @ (A - A0))))
+        if across > max_across:
+            return f"the shape changed by {across:.0%} across the parallax (more than {max_across:.0%})"
+    return ""
+
+
+def _along(J, d, n: int):
+    """The design's gradient along ``d`` on the template grid ``(n, n)``."""
+    return (J[:, 0] * d[0] + J[:, 1] * d[1]).reshape(n, n)
+
+
+def _significant(r0, r1) -> bool:
+    """F test of the bend: do its residuals ``r1`` lower the affine patch's ``r0`` more than
+    noise would (at :data:`BEND_P`, the residual variance scaled by :data:`SIGMA_SCALE`²)?"""
+    dof = r1.size - 11
+    f = (float(r0 @ r0) - float(r1 @ r1)) / 3 / (SIGMA_SCALE ** 2 * float(r1 @ r1) / dof)
+    return bool(f > _f_quantile(dof))
+
+
+@lru_cache(maxsize=64)
+def _f_quantile(dof: int) -> float:
+    return float(stats.f.ppf(BEND_P, 3, dof))
+
+
+def _as_failure(res: LsmResult, status: str, reason: str) -> LsmResult:
+    from dataclasses import replace
+    return replace(res, status=status, reason=reason)

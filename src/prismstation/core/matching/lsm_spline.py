@@ -1,0 +1,80 @@
+"""Cubic B-spline interpolation of an image window with analytic derivatives: the search
+image of least-squares matching (:mod:`prismstation.core.matching.lsm`).
+
+Coordinates as there (docs/model.md §1): image ``x`` = column, ``y`` = row, pixels,
+continuous, array element ``[j, i]`` centred at ``(i + 0.5, j + 0.5)``. Values and gradients
+are exact for the spline (grey values, grey values per pixel); a window holds float64.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from prismstation.core.matching.lsm_sigma import noise_sigma
+
+
+class Spline:
+    """Cubic B-spline interpolation of a window of an image, with analytic derivatives.
+
+    ``img`` is a window whose top-left corner is image pixel ``(c0, r0)``; :meth:`sample`
+    takes image coordinates (continuous, docs/model.md §1)."""
+
+    def __init__(self, img, c0: int = 0, r0: int = 0):
+        self.raw = np.asarray(img, np.float64)
+        self.coef = ndimage.spline_filter(self.raw, order=3, mode="mirror")
+        self.c0, self.r0 = c0, r0
+        rows, cols = self.coef.shape
+        self._flat, self._w = self.coef.ravel(), cols
+        k = np.arange(-1, 3)
+        self._taps = (k[:, None] * cols + k[None, :]).reshape(16, 1)   # [row tap, col tap] flat
+        self.lo = (c0 + 1.5, r0 + 1.5)                  # where the 4×4 support stays inside (image px)
+        self.hi = (c0 + cols - 2.5, r0 + rows - 2.5)
+
+    def noise_near(self, x: float, y: float, half: int) -> float:
+        """:func:`noise_sigma` of the window's pixels within ``half`` px of ``(x, y)``."""
+        i, j = int(x - self.c0), int(y - self.r0)
+        return noise_sigma(self.raw[max(j - half, 0):j + half + 1, max(i - half, 0):i + half + 1])
+
+    def sample(self, x, y):
+        """``(S, ∂S/∂x, ∂S/∂y)`` at image points ``x, y`` (same shape, inside)."""
+        col = np.ravel(x) - (0.5 + self.c0)
+        row = np.ravel(y) - (0.5 + self.r0)
+        i, j = np.floor(col), np.floor(row)
+        n = col.size
+        p = np.empty((2, 4, n))                  # [x, y] × [1, t, t², t³] of the fractions t
+        p[:, 0] = 1.0
+        np.subtract(col, i, out=p[0, 1])
+        np.subtract(row, j, out=p[1, 1])
+        np.multiply(p[:, 1], p[:, 1], out=p[:, 2])
+        np.multiply(p[:, 2], p[:, 1], out=p[:, 3])
+        w = (_BWD @ p).reshape(2, 2, 4, n)       # [x, y] × [weight, derivative] × tap × point
+        k = j.astype(np.intp) * self._w + i.astype(np.intp)
+        g = np.take(self._flat, self._taps + k).reshape(4, 4, n)                 # [row, col, point]
+        rows = np.einsum("mkn,jmn->jkn", g, w[1])          # the 4 columns' taps by row weight, derivative
+        out = np.einsum("jkn,ikn->jin", rows, w[0])        # [row weight, derivative] × [col weight, derivative]
+        shape = np.shape(x)
+        return out[0, 0].reshape(shape), out[0, 1].reshape(shape), out[1, 0].reshape(shape)
+
+
+#: cubic B-spline weights of taps −1..2 as polynomials in the fraction t: [1, t, t², t³] @ _BW
+_BW = np.array([[1, 4, 1, 0], [-3, 0, 3, 0], [3, -6, 3, 0], [-1, 3, -3, 1]], float) / 6.0
+_BD = np.array([[-3, 0, 3, 0], [6, -12, 6, 0], [-3, 9, -9, 3]], float) / 6.0   # d/dt: [1, t, t²] @ _BD
+#: the weights (rows 0–3) and their derivatives (rows 4–7) from [1, t, t², t³] (a column)
+_BWD = np.vstack([_BW.T, np.hstack([_BD.T, np.zeros((4, 1))])])
+
+
+def search_spline(search, t0, A0, half: int, margin: float, smooth: float = 0.0) -> Spline | None:
+    """The :class:`Spline` of the part of ``search`` that a patch of ``A0``-shape at ``t0``
+    can reach within ``margin`` px (low-passed by a Gaussian of σ ``smooth`` px when > 0);
+    None when less than the patch remains."""
+    reach = half * np.abs(np.asarray(A0, float)).sum(axis=1) + margin + 4
+    c0 = max(int(np.floor(t0[0] - reach[0])), 0)
+    r0 = max(int(np.floor(t0[1] - reach[1])), 0)
+    c1 = min(int(np.ceil(t0[0] + reach[0])) + 1, search.shape[1])
+    r1 = min(int(np.ceil(t0[1] + reach[1])) + 1, search.shape[0])
+    if c1 - c0 < 8 or r1 - r0 < 8:
+        return None
+    crop = np.asarray(search[r0:r1, c0:c1], np.float64)
+    if smooth > 0:
+        crop = ndimage.gaussian_filter(crop, smooth, mode="nearest")
+    return Spline(crop, c0, r0)
