@@ -42,7 +42,7 @@ from prismstation.core.matching.lsm import LsmResult
 from prismstation.core.matching.lsm_search import best_score, match
 from prismstation.core.models.solution import Solution
 from prismstation.io.windows import ImageWindows
-from prismstation.ops.transfer_template import template_half
+from prismstation.ops.transfer_template import TEMPLATE_HALVES, template_halves
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 from prismstation.ops.predict import DEFAULT_HEIGHT_SPREAD_M, dem_sigma, ground_jacobian, height_spread
 
@@ -73,6 +73,13 @@ the shapes of slopes this steep (rising along and across the track, both ways)."
 RETRY_STATUSES = ("not_converged", "shape", "texture", "low_correlation", "low_score", "moved")
 """The failures a different start shape may cure."""
 MAX_SIGMA_PX = 0.5
+SECOND_OPINION_PX = 0.25
+"""A match from a template grown for point-sampled edges that states a σ (px) above this — half
+the refusal limit, :data:`MAX_SIGMA_PX`: relief within it spoils it — is made again with the
+template the noise alone asks for, and the smaller σ stated wins."""
+RESIZE_STATUSES = ("texture", "not_converged", "shape", "low_correlation")
+"""With a reference DEM, a match failing so is tried with the other template sizes, the nearest
+first: relief may spoil a large template, too little texture a small one."""
 """A match stating a larger σ (px) is a failure (``texture``)."""
 
 
@@ -240,13 +247,20 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     points), which also gives the terrain slope for the predicted shape; ``sigma_dem``,
     ``sigma_mean``: passed to :func:`search_height`. ``half_window``: the template's half size
     (px; default as large as its texture needs,
-    :func:`~prismstation.ops.transfer_template.template_half`). ``check``: the three-ray
+    :func:`~prismstation.ops.transfer_template.template_halves`; a failing match is tried with
+    the other sizes, :data:`RESIZE_STATUSES`, and one stating more than
+    :data:`SECOND_OPINION_PX` with the noise's size). ``check``: the three-ray
     consistency test when the point is found in two other views (:func:`consistency`).
     """
     sc = sol.scene
     xy = np.asarray(xy, float)
-    if half_window is None:
-        half_window = template_half(images, source, xy)
+    adaptive = half_window is None
+    h_noise = None
+    if adaptive:
+        half_window, h_noise = template_halves(images, source, xy)
+    others = sorted((h for h in TEMPLATE_HALVES if h != half_window), key=lambda h: abs(h - half_window)) \
+        if adaptive else []
+    biggest = max([half_window, *others])
     ray = None
     if h is None or h_range is None:
         ray = ray_on_dem(sol, source, xy, float(sol.mean_height), height_of)
@@ -261,7 +275,7 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
                                       half_window=half_window, ray=ray)
     free = next(iter(shapes.values())).slope is None if shapes else True
     radius = search_radius_px(model_sigma_m(sol) * np.sqrt(2), sc.views[source].pixel_size_m)
-    ref, rc0, rr0 = images.around(source, xy[0], xy[1], half_window + 8)
+    ref, rc0, rr0 = images.around(source, xy[0], xy[1], biggest + 8)
     out, guided = {}, set()
     for v in targets:
         if v in out and out[v].ok:
@@ -271,7 +285,7 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
             continue
         along = radius + float(np.hypot(*s.dh)) * h_range
         d = s.dh if np.hypot(*s.dh) > 1e-9 else np.array([0.0, 1.0])
-        reach = int(along + radius + 2 * half_window * np.abs(s.A).max() + 12)
+        reach = int(along + radius + 2 * biggest * np.abs(s.A).max() + 12)
         win, c0, r0 = images.around(v, s.pred[0], s.pred[1], reach)
         if win is None:
             continue
@@ -291,6 +305,22 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
                 if m2.ok:
                     m = m2
                     break
+        if adaptive and m.ok and not free and _sigma_max(m) > SECOND_OPINION_PX:
+            # relief within a template grown for point-sampled edges may spoil it: the size the
+            # noise alone asks for is matched too, and the smaller σ stated wins
+            if h_noise < half_window:
+                m2 = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], s.A, d, along=along,
+                           across=radius, half=h_noise, max_sigma=MAX_SIGMA_PX,
+                           max_shape_change=DEM_SHAPE_CHANGE, parallax=d)
+                if m2.ok and _sigma_max(m2) < _sigma_max(m):
+                    m = m2
+        for h in others if not free else ():
+            if m.ok or m.status not in RESIZE_STATUSES:
+                break
+            # another template size: a smaller one where relief spoils the larger (its σ), a
+            # larger one where the texture was too thin
+            m = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], s.A, d, along=along, across=radius,
+                      half=h, max_sigma=MAX_SIGMA_PX, max_shape_change=DEM_SHAPE_CHANGE, parallax=d)
         m = replace(m, x=m.x + c0, y=m.y + r0, extra={**m.extra, "along": along})
         out[v] = Transfer(v, m.x, m.y, (float(s.pred[0]), float(s.pred[1])), m)
         if check and free and m.ok and len(targets) >= 2:
@@ -306,6 +336,11 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     if check and len([t for t in out.values() if t.ok]) >= 2:
         out = consistency(sol, source, xy, out, h_pt, en0=en_pt)
     return out
+
+
+def _sigma_max(m: LsmResult) -> float:
+    """The larger semi-axis (px) of a match's stated covariance."""
+    return float(np.sqrt(np.linalg.eigvalsh(m.cov)[-1]))
 
 
 def _slope_shapes(sol: Solution, source: str, xy, view: str, h: float, half_window: int):

@@ -44,7 +44,8 @@ from functools import lru_cache
 import numpy as np
 from scipy import ndimage, stats
 
-from prismstation.core.matching.lsm_sigma import gradient_noise_inflation, noise_sigma, unmodelled_sigma
+from prismstation.core.matching.lsm_sigma import (gradient_noise_inflation, noise_sigma, sampling_px,
+                                                  sampling_scatter, unmodelled_sigma)
 from prismstation.core.matching.lsm_spline import Spline, search_spline
 
 OK = "ok"
@@ -169,6 +170,7 @@ class _Fit:
         self.T, self.u, self.v, self.spline, self.d, self.half = T.ravel(), u.ravel(), v.ravel(), spline, d, half
         self.uv = np.vstack([self.u, self.v])                  # (2, n) template offsets
         self.w = None if w is None else np.asarray(w, float).ravel()     # None: uniform
+        self.pw = None                                     # the pixels' weights (aliasing), None: uniform
         gv, gu = np.gradient(T)                            # template gradients (grey values per px)
         self.Tu, self.Tv = gu.ravel(), gv.ravel()
         self.Q = np.vstack([self.u ** 2, self.u * self.v, self.v ** 2]) / half    # (3, n) bend terms
@@ -228,7 +230,8 @@ class _Fit:
                 self.g0 = self.T.mean() - self.g1 * S.mean()
             r = self.T - (self.g0 + self.g1 * S)
             Jt = self.design(S, Sx, Sy, bend, esm=True).T
-            Jw = Jt if self.w is None else Jt * self.w
+            wt = self.weights()
+            Jw = Jt if wt is None else Jt * wt
             try:
                 dp = np.linalg.solve(Jw @ Jt.T, Jw @ r)
             except np.linalg.LinAlgError:
@@ -253,6 +256,12 @@ class _Fit:
             if it >= WANDER_ITER and step > 0.1:
                 break   # still wandering
         return NOT_CONVERGED, f"no convergence in {it} iterations", it
+
+    def weights(self):
+        """The pixels' weights in the fit: the taper's times the aliasing's (None: uniform)."""
+        if self.w is None:
+            return self.pw
+        return self.w if self.pw is None else self.w * self.pw
 
     def copy(self):
         other = object.__new__(_Fit)
@@ -280,7 +289,8 @@ def _correlation(a, b) -> float:
 def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half: int = 12,
            max_iter: int = 20, max_move: float = 3.0, max_shape_change: float = 0.25,
            min_rho: float = 0.6, max_sigma: float = 0.5, smooth: float = 0.0,
-           spline: Spline | None = None, taper: float = TAPER, need_rho: float | None = None) -> LsmResult:
+           spline: Spline | None = None, taper: float = TAPER, need_rho: float | None = None,
+           start=None) -> LsmResult:
     """Least-squares matching of the point ``(x, y)`` of ``reference`` in ``search``.
 
     Parameters
@@ -320,6 +330,9 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     need_rho : float, optional
         The correlation the match must reach to matter (a rival of a match found already):
         given up early (``low_correlation``) when it falls far short (:data:`RIVAL_MARGIN`).
+    start : (2, 2), optional
+        The shape the iterations start from (default ``A0``; the allowance counts from ``A0``),
+        e.g. a smaller template's match.
     """
     A0 = np.asarray(A0, float)
     t0 = np.asarray(t0, float)
@@ -340,7 +353,16 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
             return failed(t0[0], t0[1], OUTSIDE, "patch leaves the search image", shape=A0)
     d = np.zeros(2) if parallax is None else np.asarray(parallax, float) / np.hypot(*parallax)
     fit = _Fit(T, u, v, spline, d, half)
-    fit.t, fit.A = t0.copy(), A0.copy()
+    fit.t, fit.A = t0.copy(), (A0 if start is None else np.asarray(start, float)).copy()
+    # point-sampled edges (:func:`sampling_px`): a pixel on one is weighted by the inverse of its
+    # variance, the noise's plus the edge's unknown place in both views (gradient × σ), so the
+    # texture that samples place well counts more
+    t_noise = noise_sigma(T)
+    aliasing = sampling_px(T, t_noise)
+    if t_noise > 0 and (aliasing[0].any() or aliasing[1].any()):
+        gv, gu = np.gradient(T)
+        edge_var = 2.0 * ((gu * aliasing[0]) ** 2 + (gv * aliasing[1]) ** 2)
+        fit.pw = (t_noise ** 2 / (t_noise ** 2 + edge_var)).ravel()
     A0inv = np.linalg.inv(A0)
     status, reason, it = fit.run(False, max_iter, t0, max_move, A0inv, max_shape_change, need_rho)
     if status != OK:
@@ -352,7 +374,8 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         return failed(fit.t[0], fit.t[1], OUTSIDE, "patch left the search image", shape=fit.A, iterations=it)
     n = 2 * half + 1
     bend = False
-    if parallax is not None and unmodelled_sigma(_along(J, d, n), r.reshape(n, n), J.shape[1]) > BEND_TRIGGER:
+    sp = 1.0 if fit.pw is None else np.sqrt(fit.pw).reshape(n, n)
+    if parallax is not None and unmodelled_sigma(_along(J, d, n) * sp, r.reshape(n, n) * sp, J.shape[1]) > BEND_TRIGGER:
         curved = fit.copy()
         status, _, it2 = curved.run(True, max_iter, t0, max_move, A0inv, max_shape_change)
         it += it2
@@ -367,12 +390,12 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     e2 = np.array([-e1[1], e1[0]])
     # the image noise, the lower of the two images' (in the template's grey values): textured
     # ground makes the estimate high, never low
-    noise = min(noise_sigma(T), fit.g1 * spline.noise_near(fit.t[0], fit.t[1], half))
-    stated = _stated(fit, r, J, noise, e1, e2, n)
+    noise = min(t_noise, fit.g1 * spline.noise_near(fit.t[0], fit.t[1], half))
+    stated = _stated(fit, r, J, noise, e1, e2, n, aliasing)
     if stated is None:
         return failed(fit.t[0], fit.t[1], TEXTURE, "too little texture: the image noise outweighs its gradients",
                       shape=fit.A, rho=rho, iterations=it)
-    cov, formal, s_relief, s_across = stated
+    cov, formal, s_relief, s_across, sampled = stated
     t = fit.t.copy()
     local = 0.0
     if taper > 0 and parallax is not None and e1 @ cov @ e1 > NEAR_GAIN ** 2 * SIGMA_SCALE ** 2 * (e1 @ formal @ e1):
@@ -385,18 +408,21 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         near.w = np.exp(-(fit.u ** 2 + fit.v ** 2) / (2 * taper ** 2))
         status, _, it3 = near.run(bend, max_iter, t0, max_move, A0inv, max_shape_change)
         r3, J3, _ = near.final(bend) if status == OK else (None, None, None)
-        st3 = _stated(near, r3, J3, noise, e1, e2, n) if r3 is not None else None
+        st3 = _stated(near, r3, J3, noise, e1, e2, n, aliasing) if r3 is not None else None
         if st3 is not None:
             it += it3
             P1, P2 = np.outer(e1, e1), np.outer(e2, e2)
             delta = float(e1 @ (near.t - fit.t))
-            var_near = e1 @ st3[0] @ e1 + (NEAR_RELIEF * delta) ** 2
-            var_whole = max(e1 @ cov @ e1, delta ** 2)
+            var_near = e1 @ (st3[0] + st3[4]) @ e1 + (NEAR_RELIEF * delta) ** 2
+            var_whole = max(e1 @ (cov + sampled) @ e1, delta ** 2)
             if var_near < var_whole:
                 t = t + P1 @ (near.t - fit.t)
                 formal = (e1 @ st3[1] @ e1) * P1 + (e2 @ formal @ e2) * P2
                 s_relief, local = st3[2], taper
-            cov = min(var_near, var_whole) * P1 + (e2 @ cov @ e2) * P2
+            cov = min(var_near, var_whole) * P1 + (e2 @ (cov + sampled) @ e2) * P2
+            sampled = None
+    if sampled is not None:
+        cov = cov + sampled
     res = LsmResult(float(t[0]), float(t[1]), cov, formal, fit.A.copy(), float(fit.g1), float(fit.g0),
                     rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),
                                            "sigma_relief": s_relief, "sigma_across": s_across, "d": d,
@@ -409,33 +435,46 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     return res
 
 
-def _stated(fit: _Fit, r, J, noise: float, e1, e2, n: int):
+def _stated(fit: _Fit, r, J, noise: float, e1, e2, n: int, aliasing=None):
     """``(cov, formal, σ_relief, σ_across)`` of the fitted position (see :func:`refine`;
     ``noise``: the images' noise σ in the template's grey values), None when the noise
     outweighs the gradients."""
     k = J.shape[1]
-    if fit.w is None:        # uniform weights: the sandwich is N⁻¹ itself
+    if fit.weights() is None:        # uniform weights: the sandwich is N⁻¹ itself
         s02 = float(r @ r) / max(r.size - k, 1)
         inflation = gradient_noise_inflation(J[:, 0], J[:, 1], noise ** 2, r.size)
         if not np.isfinite(inflation):
             return None
-        formal = s02 * np.linalg.inv(J.T @ J)[:2, :2] * inflation
+        Ni = np.linalg.inv(J.T @ J)
+        formal = s02 * Ni[:2, :2] * inflation
         wn = None
+        Jw = J
     else:
-        w = fit.w
+        w = fit.weights()
         s02 = float(w @ (r * r)) / float(w.sum()) * r.size / max(r.size - k, 1)
-        inflation = gradient_noise_inflation(J[:, 0] * w, J[:, 1] * w, noise ** 2, float(w @ w))
+        # the noise's share of the information JᵀWJ: the taper's weights enter the gradients
+        # (its sandwich), the aliasing's the information (the pixels' inverse variances)
+        wt = np.ones(r.size) if fit.w is None else fit.w
+        wp = np.ones(r.size) if fit.pw is None else fit.pw
+        inflation = gradient_noise_inflation(J[:, 0] * wt * np.sqrt(wp), J[:, 1] * wt * np.sqrt(wp), noise ** 2,
+                                             float(wt @ (wt * wp)))
         if not np.isfinite(inflation):
             return None
-        Mi = np.linalg.inv(J.T @ (J * w[:, None]))
-        formal = s02 * (Mi @ (J.T @ (J * (w * w)[:, None])) @ Mi)[:2, :2] * inflation
-        wn = w.reshape(n, n)
+        Jw = J * w[:, None]
+        Ni = np.linalg.inv(J.T @ Jw)
+        formal = s02 * (Ni @ (J.T @ (Jw * w[:, None])) @ Ni)[:2, :2] * inflation
+        wn = None if fit.w is None else fit.w.reshape(n, n)
     # the displacement the patch's shape does not follow, along the parallax and across it
     s_relief = unmodelled_sigma(_along(J, e1, n), r.reshape(n, n), k, w=wn)
     s_across = unmodelled_sigma(_along(J, e2, n), r.reshape(n, n), k, w=wn, other=_along(J, e1, n))
     cov = (SIGMA_SCALE ** 2 * formal + (RELIEF_SCALE * s_relief) ** 2 * np.outer(e1, e1)
            + s_across ** 2 * np.outer(e2, e2))
-    return cov, formal, s_relief, s_across
+    # where point-sampled edges lie between their samples, in both views (:func:`sampling_px`)
+    sampled = np.zeros((2, 2))
+    if aliasing is not None and (aliasing[0].any() or aliasing[1].any()):
+        K = sampling_scatter(Jw.reshape(n, n, k), J[:, 0].reshape(n, n), J[:, 1].reshape(n, n), *aliasing)
+        sampled = 2.0 * (Ni @ K @ Ni)[:2, :2]
+    return cov, formal, s_relief, s_across, sampled
 
 
 def shape_check(A0, A, parallax, max_change: float, max_across: float = MAX_ACROSS_CHANGE) -> str:

@@ -100,3 +100,106 @@ def texture_sigma(a) -> float:
     lam = float(np.linalg.eigvalsh(G)[0]) - 0.5 * var * gx.size
     return float(np.sqrt(2.0 * var / lam)) if lam > 0 else float("inf")
 
+
+SAMPLING_BLOCK = 8
+"""Side (px) of the blocks within which point-sampled edges are taken to share their phase
+error (an edge's crossings in neighbouring rows lie alike between their samples; on
+point-sampled Voronoi parcels the σ grew by a tenth from 4 px blocks to 8, and little more
+beyond)."""
+
+#: A Gaussian-blurred straight edge, point-sampled at a random phase in two views and matched
+#: by the cubic B-spline (1-D, 400 phases per blur σ of 0, 0.05 … 0.7 px): the ratio
+#: ``Σ Δ±k² / Δ₀²`` (k = 1, 2) of the sample differences beside the crossing to the crossing's
+#: own (0 for a hard edge: all of the step lies between two samples), and the RMS error (px)
+#: of the position per view it leaves — 0.30 px unblurred (a uniform ±0.5 px phase), under
+#: 0.01 px from a blur of 0.55 px on, where the interpolant places the edge between samples.
+_SAMPLING_RATIO = np.array([0.0, 0.031, 0.078, 0.088, 0.124, 0.156, 0.186, 0.218, 0.270, 0.299, 0.342,
+                            0.401, 0.450, 0.493, 0.565, 0.7])
+_SAMPLING_PX = np.array([0.298, 0.238, 0.201, 0.163, 0.126, 0.099, 0.068, 0.048, 0.033, 0.021, 0.014,
+                         0.008, 0.005, 0.003, 0.002, 0.0])
+
+
+def sampling_px(a, noise: float):
+    """``(ex, ey)`` ``(n, n)``: σ (px) of where a point-sampled edge at each pixel of ``a``
+    (grey values) lies, along x and along y, in one view.
+
+    A hard edge between two samples lies anywhere between them (±0.5 px, σ 0.29 px): the
+    samples say only which side of it each pixel centre is on. A crossing (a difference of
+    neighbouring samples above twice its noise, ``noise`` the images' σ) is told from a blurred
+    edge, which samples place well, by the share of the change the two differences on each
+    side hold (none for a hard edge; white texture rarely has four quiet neighbours); the σ
+    from that share is the table above, given to the four pixels whose values the crossing's
+    place moves. 0 away from crossings (and for any band-limited texture)."""
+    a = np.asarray(a, np.float64)
+    v = 2.0 * noise ** 2                                  # noise variance of a difference
+    out = []
+    for arr in (a, a.T):
+        d = np.diff(arr, axis=1)                          # (n, n-1): crossing k between k, k+1
+        d0 = d[:, 2:-2] ** 2
+        side = np.maximum(d[:, :-4] ** 2 + d[:, 1:-3] ** 2 + d[:, 3:-1] ** 2 + d[:, 4:] ** 2 - 4 * v, 0.0)
+        ratio = np.where(d0 > 4 * v, side / np.maximum(d0 - v, 1e-12), np.inf)
+        e = np.zeros_like(d)
+        e[:, 2:-2] = np.interp(ratio, _SAMPLING_RATIO, _SAMPLING_PX, right=0.0)
+        px = np.zeros_like(arr)
+        for k in range(-1, 3):                            # pixels k-1 … k+2 of crossing k
+            lo, hi = max(k, 0), min(arr.shape[1] - 1 + k, arr.shape[1])
+            px[:, lo:hi] = np.maximum(px[:, lo:hi], e[:, lo - k:hi - k])
+        out.append(px)
+    return out[0], out[1].T
+
+
+def block_sums(a, block: int):
+    """Sums of ``a`` (``(n, n, …)``) over ``block × block`` blocks (the last ones partial),
+    ``(m², …)``."""
+    n = a.shape[0]
+    m = -(-n // block)
+    pad = m * block - n
+    if pad:
+        a = np.pad(a, [(0, pad), (0, pad)] + [(0, 0)] * (a.ndim - 2))
+    return a.reshape(m, block, m, block, *a.shape[2:]).sum(axis=(1, 3)).reshape(m * m, *a.shape[2:])
+
+
+def sampling_scatter(J, gx, gy, ex, ey, block: int = SAMPLING_BLOCK):
+    """``Σ_B c cᵀ`` ``(k, k)``: the covariance of ``Jᵀr`` for the residuals point sampling
+    leaves, ``r = gx·ux + gy·uy`` with ``ux``, ``uy`` the edges' displacements (σ ``ex``,
+    ``ey``, px, :func:`sampling_px`), alike within a ``block × block`` block and independent
+    between blocks. ``J`` ``(n, n, k)``: the (weighted) design on the template grid; ``gx``,
+    ``gy`` ``(n, n)``: the gradients (grey values per px). The position's covariance in one
+    view is ``N⁻¹ Σ N⁻¹`` (``N`` the normal matrix)."""
+    cx = block_sums(J * (gx * ex)[..., None], block)
+    cy = block_sums(J * (gy * ey)[..., None], block)
+    return cx.T @ cx + cy.T @ cy
+
+
+def template_sigmas(a, halves, block: int = 4) -> list[tuple[float, float]]:
+    """For each half size ``h`` of ``halves``, the σ (px) the ``(2h+1)²`` template centred in
+    ``a`` (grey values, square, odd side) can fix a position to in its weakest direction before
+    any match: ``(from the noise, from the noise and point sampling)`` — the first as
+    :func:`texture_sigma`, the second adding :func:`sampling_px`'s displacements in both views
+    (the position alone; the match's shape adds to it). One pass over ``a`` for all sizes."""
+    a = np.asarray(a, np.float64)
+    c = a.shape[0] // 2
+    lap = np.abs(ndimage.correlate(a, _LAPLACE, mode="nearest"))
+    gy, gx = np.gradient(a)
+    out = []
+    for h in halves:
+        sl = slice(c - h, c + h + 1)
+        inner = slice(c - h + 1, c + h)
+        noise = 1.4826 * float(np.median(lap[inner, inner])) / 6.0
+        var = noise ** 2
+        x, y = gx[inner, inner].ravel(), gy[inner, inner].ravel()
+        G = np.array([[x @ x, x @ y], [x @ y, y @ y]])
+        lam = float(np.linalg.eigvalsh(G)[0]) - 0.5 * var * x.size
+        s_noise = float(np.sqrt(2.0 * var / lam)) if lam > 0 else float("inf")
+        if not np.isfinite(s_noise):
+            out.append((s_noise, s_noise))
+            continue
+        ex, ey = sampling_px(a[sl, sl], noise)
+        if not (ex.any() or ey.any()):
+            out.append((s_noise, s_noise))
+            continue
+        J = np.stack([gx[sl, sl], gy[sl, sl]], -1)
+        Mi = np.linalg.inv(np.einsum("ijk,ijl->kl", J, J))
+        C = 2.0 * Mi @ sampling_scatter(J, J[..., 0], J[..., 1], ex, ey, block) @ Mi
+        out.append((s_noise, float(np.hypot(s_noise, np.sqrt(max(np.linalg.eigvalsh(C)[-1], 0.0))))))
+    return out
