@@ -181,6 +181,7 @@ def template_sigmas(a, halves, block: int = 4) -> list[tuple[float, float]]:
     c = a.shape[0] // 2
     lap = np.abs(ndimage.correlate(a, _LAPLACE, mode="nearest"))
     gy, gx = np.gradient(a)
+    edges = None                # the crossings, once, at the largest template's noise
     out = []
     for h in halves:
         sl = slice(c - h, c + h + 1)
@@ -194,7 +195,10 @@ def template_sigmas(a, halves, block: int = 4) -> list[tuple[float, float]]:
         if not np.isfinite(s_noise):
             out.append((s_noise, s_noise))
             continue
-        ex, ey = sampling_px(a[sl, sl], noise)
+        if edges is None:
+            top = max(halves)
+            edges = sampling_px(a, 1.4826 * float(np.median(lap[c - top + 1:c + top, c - top + 1:c + top])) / 6.0)
+        ex, ey = edges[0][sl, sl], edges[1][sl, sl]
         if not (ex.any() or ey.any()):
             out.append((s_noise, s_noise))
             continue
