@@ -78,8 +78,8 @@ SECOND_OPINION_PX = 0.25
 the refusal limit, :data:`MAX_SIGMA_PX`: relief within it spoils it — is made again with the
 template the noise alone asks for, and the smaller σ stated wins."""
 RESIZE_STATUSES = ("texture", "not_converged", "shape", "low_correlation")
-"""With a reference DEM, a match failing so is tried with the other template sizes, the nearest
-first: relief may spoil a large template, too little texture a small one."""
+"""A match failing so is tried with the other template sizes, the nearest first: relief may
+spoil a large template, too little texture a small one."""
 """A match stating a larger σ (px) is a failure (``texture``)."""
 
 
@@ -274,6 +274,10 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     en_pt, h_pt, shapes = local_shape(sol, source, xy, targets, h=float(h), height_of=height_of,
                                       half_window=half_window, ray=ray)
     free = next(iter(shapes.values())).slope is None if shapes else True
+    if free and adaptive:
+        # no DEM: every size is a search over hundreds of pixels (and a coarse pass, and slope
+        # starts): the size the noise asks for, the one point-sampled edges ask for its second
+        half_window, h_noise = h_noise, half_window
     radius = search_radius_px(model_sigma_m(sol) * np.sqrt(2), sc.views[source].pixel_size_m)
     ref, rc0, rr0 = images.around(source, xy[0], xy[1], biggest + 8)
     out, guided = {}, set()
@@ -305,22 +309,22 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
                 if m2.ok:
                     m = m2
                     break
-        if adaptive and m.ok and not free and _sigma_max(m) > SECOND_OPINION_PX:
+        resize = dict(along=along, across=radius, max_sigma=MAX_SIGMA_PX, parallax=d,
+                      max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
+                      coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0)
+        if adaptive and not free and m.ok and _sigma_max(m) > SECOND_OPINION_PX and h_noise < half_window:
             # relief within a template grown for point-sampled edges may spoil it: the size the
             # noise alone asks for is matched too, and the smaller σ stated wins
-            if h_noise < half_window:
-                m2 = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], s.A, d, along=along,
-                           across=radius, half=h_noise, max_sigma=MAX_SIGMA_PX,
-                           max_shape_change=DEM_SHAPE_CHANGE, parallax=d)
-                if m2.ok and _sigma_max(m2) < _sigma_max(m):
-                    m = m2
-        for h in others if not free else ():
+            m2 = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], s.A, d, half=h_noise, **resize)
+            if m2.ok and _sigma_max(m2) < _sigma_max(m):
+                m = m2
+        # with no DEM each size is a search over hundreds of pixels: only the edges' size
+        for h in ([h_noise] if adaptive and h_noise != half_window else []) if free else others:
             if m.ok or m.status not in RESIZE_STATUSES:
                 break
             # another template size: a smaller one where relief spoils the larger (its σ), a
             # larger one where the texture was too thin
-            m = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], s.A, d, along=along, across=radius,
-                      half=h, max_sigma=MAX_SIGMA_PX, max_shape_change=DEM_SHAPE_CHANGE, parallax=d)
+            m = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], s.A, d, half=h, **resize)
         m = replace(m, x=m.x + c0, y=m.y + r0, extra={**m.extra, "along": along})
         out[v] = Transfer(v, m.x, m.y, (float(s.pred[0]), float(s.pred[1])), m)
         if check and free and m.ok and len(targets) >= 2:
