@@ -78,8 +78,10 @@ SECOND_OPINION_PX = 0.25
 the refusal limit, :data:`MAX_SIGMA_PX`: relief within it spoils it — is made again with the
 template the noise alone asks for, and the smaller σ stated wins."""
 RESIZE_STATUSES = ("texture", "not_converged", "shape", "low_correlation")
-"""A match failing so is tried with the other template sizes, the nearest first: relief may
-spoil a large template, too little texture a small one."""
+"""A match failing so is tried with the smaller template sizes, the nearest first (with no
+reference DEM: with the other of the two sizes of
+:func:`~prismstation.ops.transfer_template.template_halves`): relief within a template grown
+for point-sampled edges may spoil it."""
 """A match stating a larger σ (px) is a failure (``texture``)."""
 
 
@@ -258,8 +260,9 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     h_noise = None
     if adaptive:
         half_window, h_noise = template_halves(images, source, xy)
-    others = sorted((h for h in TEMPLATE_HALVES if h != half_window), key=lambda h: abs(h - half_window)) \
-        if adaptive else []
+    # a failing match is tried with the smaller sizes, the nearest first (relief within the
+    # template spoils a large one)
+    others = sorted((h for h in TEMPLATE_HALVES if h < half_window), reverse=True) if adaptive else []
     biggest = max([half_window, *others])
     ray = None
     if h is None or h_range is None:
@@ -322,8 +325,6 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
         for h in ([h_noise] if adaptive and h_noise != half_window else []) if free else others:
             if m.ok or m.status not in RESIZE_STATUSES:
                 break
-            # another template size: a smaller one where relief spoils the larger (its σ), a
-            # larger one where the texture was too thin
             m = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], s.A, d, half=h, **resize)
         m = replace(m, x=m.x + c0, y=m.y + r0, extra={**m.extra, "along": along})
         out[v] = Transfer(v, m.x, m.y, (float(s.pred[0]), float(s.pred[1])), m)

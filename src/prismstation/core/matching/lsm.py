@@ -408,8 +408,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         return failed(fit.t[0], fit.t[1], OUTSIDE, "patch left the search image", shape=fit.A, iterations=it)
     n = 2 * half + 1
     bend = False
-    sp = 1.0 if fit.pw is None else np.sqrt(fit.pw).reshape(n, n)
-    if parallax is not None and unmodelled_sigma(_along(J, d, n) * sp, r.reshape(n, n) * sp, J.shape[1]) > BEND_TRIGGER:
+    if parallax is not None and unmodelled_sigma(_along(J, d, n), r.reshape(n, n), J.shape[1]) > BEND_TRIGGER:
         curved = fit.copy()
         status, _, it2 = curved.run(True, max_iter, t0, max_move, A0inv, max_shape_change)
         it += it2
@@ -450,13 +449,16 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
             it += it3
             P1, P2 = np.outer(e1, e1), np.outer(e2, e2)
             delta = float(e1 @ (near.t - fit.t))
-            var_near = e1 @ (st3[0] + st3[4]) @ e1 + (NEAR_RELIEF * delta) ** 2
-            var_whole = max(e1 @ (cov + sampled) @ e1, delta ** 2)
+            var_near = e1 @ st3[0] @ e1 + (NEAR_RELIEF * delta) ** 2
+            var_whole = max(e1 @ cov @ e1, delta ** 2)
+            along = sampled
             if var_near < var_whole:
                 t = t + P1 @ (near.t - fit.t)
                 formal = (e1 @ st3[1] @ e1) * P1 + (e2 @ formal @ e2) * P2
-                s_relief, local = st3[2], taper
-            cov = min(var_near, var_whole) * P1 + (e2 @ (cov + sampled) @ e2) * P2
+                s_relief, local, along = st3[2], taper, st3[4]
+            # the sampling of the fit that gives the position along the parallax, the whole
+            # template's across
+            cov = (min(var_near, var_whole) + e1 @ along @ e1) * P1 + (e2 @ (cov + sampled) @ e2) * P2
             sampled = None
     if sampled is not None:
         cov = cov + sampled
