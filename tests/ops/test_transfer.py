@@ -125,7 +125,7 @@ def test_rays_that_do_not_meet_are_rejected(steep):
 
 def test_the_slope_is_recovered_from_a_matched_shape(synth_sol):
     # without a reference DEM the first view's matched shape tells the slope the other is searched on
-    from prismstation.ops.transfer import _plane, fitted_slope
+    from prismstation.ops.transfer_slope import fitted_slope, plane as _plane
     sol = synth_sol
     xy = np.array([6500.0, 7200.0])
     en = sol.image_to_ground("N", xy, 600.0)

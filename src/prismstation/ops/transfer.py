@@ -17,8 +17,10 @@ by shape-aware least-squares matching (:func:`prismstation.core.matching.lsm_sea
   (its slope foreshortens F and B against N by ``tanθ × slope``: 15–30 % on mountains). With
   no DEM the plane is level at the model's height and the matcher lets the shape move
   further (:data:`FREE_SHAPE_CHANGE` instead of :data:`DEM_SHAPE_CHANGE`) after a smoothed
-  first pass; a view that still fails is tried from slopes of :data:`SLOPE_HYPOTHESIS`; the
-  first view found gives the height and, from its matched shape (:func:`fitted_slope`), the
+  first pass; a view that still fails is tried from slopes of
+  :data:`~prismstation.ops.transfer_slope.SLOPE_HYPOTHESIS`; the
+  first view found gives the height and, from its matched shape
+  (:func:`~prismstation.ops.transfer_slope.fitted_slope`), the
   slope the other view is then searched at, over a short band.
 
 Every match states its covariance; a match that fails says why (``status``, ``reason``).
@@ -42,6 +44,7 @@ from prismstation.core.matching.lsm import LsmResult
 from prismstation.core.matching.lsm_search import best_score, match
 from prismstation.core.models.solution import Solution
 from prismstation.io.windows import ImageWindows
+from prismstation.ops.transfer_slope import fitted_slope, plane, slope_shapes
 from prismstation.ops.transfer_template import TEMPLATE_HALVES, template_halves
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 from prismstation.ops.predict import DEFAULT_HEIGHT_SPREAD_M, dem_sigma, ground_jacobian, height_spread
@@ -67,9 +70,6 @@ CONSISTENCY_P = 0.999
 CONFIRM_ALONG_PX = 30.0
 """A match found in one view only, over a search longer than this (px, ±) along the parallax,
 is ``unconfirmed`` (a failure): with no reference DEM the band spans hundreds of pixels."""
-SLOPE_HYPOTHESIS = 0.4
-"""With no reference DEM, a match that fails from the level plane's shape is tried again from
-the shapes of slopes this steep (rising along and across the track, both ways)."""
 RETRY_STATUSES = ("not_converged", "shape", "texture", "low_correlation", "low_score", "moved")
 """The failures a different start shape may cure."""
 MAX_SIGMA_PX = 0.5
@@ -304,7 +304,7 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
             # the level start may be too far from a steep slope's shape: start from slopes,
             # the one correlating best first (a cheap test), until one is found
             band = (ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0])
-            starts = _slope_shapes(sol, source, xy, v, h_pt, half_window)
+            starts = slope_shapes(sol, source, xy, v, h_pt, half_window)
             scores = [best_score(*band, A, d, along, radius, half_window) for A in starts]
             for k in np.argsort(scores)[::-1]:
                 m2 = match(*band, starts[k], d, along=along, across=radius, half=half_window,
@@ -348,58 +348,6 @@ def _sigma_max(m: LsmResult) -> float:
     return float(np.sqrt(np.linalg.eigvalsh(m.cov)[-1]))
 
 
-def _slope_shapes(sol: Solution, source: str, xy, view: str, h: float, half_window: int):
-    """``view``'s predicted shapes of the point on planes of :data:`SLOPE_HYPOTHESIS` rising
-    along and across the track (the source image's rows and columns on the ground), both ways."""
-    xy = np.asarray(xy, float)
-    g = sol.image_to_ground(source, np.array([xy, xy + [0.0, 10.0], xy + [10.0, 0.0]]), np.full(3, h))
-    grads = [sign * SLOPE_HYPOTHESIS * axis / np.hypot(*axis) for axis in (g[1] - g[0], g[2] - g[0])
-             for sign in (1.0, -1.0)]
-    shapes = _plane_shapes(sol, source, xy, view, g[0], h, half_window)
-    return [A for A in shapes(grads) if np.all(np.isfinite(A))]
-
-
-def _plane(en0, h0: float, grad):
-    """Heights ``(n,)`` of the plane through ``(en0, h0)`` with gradient ``grad`` (dh/dE, dh/dN)
-    at map points ``(n, 2)``: a reference-height function for :func:`local_shape`."""
-    en0, g = np.asarray(en0, float), np.asarray(grad, float)
-    return lambda en: h0 + (np.atleast_2d(en) - en0) @ g
-
-
-def _plane_shapes(sol: Solution, source: str, xy, view: str, en, h: float, half_window: int):
-    """A function: gradients ``[(dh/dE, dh/dN), …]`` → ``view``'s shapes (2×2 each) of the point
-    ``xy`` of ``source`` on the planes through ``(en, h)`` with those gradients, as
-    :func:`local_shape` makes them (over ±``half_window`` px, the rays as straight lines)."""
-    w = float(half_window)
-    pix = np.asarray(xy, float) + np.array([[w, 0], [-w, 0], [0, w], [0, -w]])
-    ends = sol.image_to_ground(source, np.vstack([pix, pix]), np.r_[np.full(4, h), np.full(4, h + 100.0)])
-    base, k = ends[:4], (ends[4:] - ends[:4]) / 100.0
-
-    def shapes(grads):
-        dh = [((base - en) @ g) / (1.0 - k @ g) for g in grads]
-        q = sol.ground_to_image(view, np.vstack([base + k * d[:, None] for d in dh]),
-                                np.concatenate([h + d for d in dh])).reshape(len(grads), 4, 2)
-        return [np.column_stack([(c[0] - c[1]) / (2 * w), (c[2] - c[3]) / (2 * w)]) for c in q]
-
-    return shapes
-
-
-def fitted_slope(sol: Solution, source: str, xy, view: str, A, en, h: float, step: float = 0.2,
-                 half_window: int = 12):
-    """The terrain gradient (dh/dE, dh/dN) under the point ``xy`` of ``source`` that makes the
-    model's shape in ``view`` (as :func:`local_shape` makes it, over ±``half_window`` px) equal
-    the matched shape ``A`` (2×2): Gauss–Newton on the shapes of planes through ``(en, h)``,
-    two steps (the shape is near linear in the gradient); the rays as straight lines."""
-    A, en = np.asarray(A, float), np.asarray(en, float)
-    shapes = _plane_shapes(sol, source, xy, view, en, h, half_window)
-    g = np.zeros(2)
-    for _ in range(2):
-        s0, sE, sN = shapes([g, g + [step, 0.0], g + [0.0, step]])
-        J = np.column_stack([(sE - s0).ravel() / step, (sN - s0).ravel() / step])
-        g = g + np.linalg.lstsq(J, (A - s0).ravel(), rcond=None)[0]
-    return g if np.all(np.isfinite(g)) and np.hypot(*g) < 3.0 else None
-
-
 def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, ground, half_window, free, mark=True,
              search=True):
     """One view found (``v1``), another not: search the other at the height the found one
@@ -425,7 +373,7 @@ def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, ground, 
             continue
         pred, A = np.asarray(sol.ground_to_image(v, g[:2], g[2]), float), s.A
         if slope is not None:
-            ls = local_shape(sol, source, xy, [v], h=g[2], height_of=_plane(g[:2], g[2], slope),
+            ls = local_shape(sol, source, xy, [v], h=g[2], height_of=plane(g[:2], g[2], slope),
                              half_window=half_window)[2][v]
             if np.all(np.isfinite(ls.A)):
                 pred, A = ls.pred, ls.A

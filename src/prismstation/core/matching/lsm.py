@@ -19,9 +19,11 @@ start ``(t0, A0)``; the result is ``t`` — the point itself, not a template cor
 covariance.
 
 Covariance (:func:`refine`): ``(SIGMA_SCALE·σ_formal)² + (RELIEF_SCALE·σ_relief)²·ddᵀ +
-σ_across²·d⊥d⊥ᵀ``. The formal ``σ0²·N⁻¹`` is inflated for the noise in the search image's
-gradients; ``σ_relief`` and ``σ_across`` are the displacement the patch's shape does not
-follow, along and across ``d`` (all three in :mod:`prismstation.core.matching.lsm_sigma`). Along ``d``
+σ_across²·d⊥d⊥ᵀ + C_sampling``. The formal ``σ0²·N⁻¹`` is inflated for the noise in the search
+image's gradients; ``σ_relief`` and ``σ_across`` are the displacement the patch's shape does
+not follow, along and across ``d``; ``C_sampling`` is where point-sampled edges (no optical
+blur) lie between their samples in both views, and the pixels on such edges are weighted down
+in the fit by that variance (all in :mod:`prismstation.core.matching.lsm_sigma`). Along ``d``
 a second fit weighted to the point's surroundings (Gaussian of σ :data:`TAPER` px) gives the
 position and σ when it states the smaller σ there, the two fits' disagreement counted in
 both (relief finer than the template). The factors were calibrated on simulated PRISM triplets (the
@@ -37,34 +39,24 @@ allowance), ``moved`` (the patch ran away from its start), ``low_correlation``, 
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
 from scipy import ndimage, stats
 
+from prismstation.core.matching.lsm_fit import (LOW_CORRELATION, MAX_BEND, MOVED, NOT_CONVERGED, OK,  # noqa: F401
+                                                OUTSIDE, RIVAL_ITER, RIVAL_MARGIN, SHAPE, STEP_TOL, TEXTURE, Fit)
 from prismstation.core.matching.lsm_sigma import (gradient_noise_inflation, noise_sigma, sampling_px,
                                                   sampling_scatter, unmodelled_sigma)
 from prismstation.core.matching.lsm_spline import Spline, search_spline
 
-OK = "ok"
-NOT_CONVERGED, TEXTURE, SHAPE, MOVED, LOW_CORRELATION, OUTSIDE = (
-    "not_converged", "texture", "shape", "moved", "low_correlation", "outside")
-
-STEP_TOL = 1e-2
-"""Converged when the position moves less than this (px) in an iteration, and the shape less
-than 2.5 times this at the template's edge."""
-WANDER_ITER = 6
-"""Iterations after which a patch still moving by 0.1 px per step is given up."""
 SIGMA_SCALE = 1.5
 """Factor on the formal σ: the views differ by more than noise (point spread, resampling),
 calibrated on the simulated triplets (1.3 times too large on warped real texture)."""
 RELIEF_SCALE = 2.0
 """Factor on the σ of the unmodelled relief along the parallax: the 4 px blocks smooth the
 finest relief (calibrated on the simulator's fractal relief)."""
-MAX_BEND = 1.0
-"""Largest bend (px) of the patch at the template's edge."""
 BEND_P = 0.99
 """Confidence of the F test that keeps a bend."""
 MAX_ACROSS_CHANGE = 0.06
@@ -89,12 +81,6 @@ NEAR_RELIEF = 0.7
 template's (measured on mounds 3–8 px wide on warped real texture: 0.4–0.7)."""
 BEND_TRIGGER = 0.03
 """A bend is tried when the affine patch leaves this much unmodelled relief (px)."""
-RIVAL_ITER = 3
-RIVAL_MARGIN = 0.1
-"""A patch that must reach a correlation (``need_rho`` of :func:`refine`: a rival peak) is given
-up when, after :data:`RIVAL_ITER` iterations, its correlation lies more than this below it (on
-the tuning scenes and the Pléiades triplet the correlation rose by at most 0.06 after the third
-iteration)."""
 
 
 @dataclass(frozen=True)
@@ -167,150 +153,10 @@ def template(reference, x: float, y: float, half: int):
     return t, u, v
 
 
-class _Fit:
-    """The Gauss–Newton state of one patch: position ``t``, shape ``A``, bend ``c`` (3 or 0
-    terms), offset ``g0`` and gain ``g1``, on a fixed template and search spline."""
-
-    def __init__(self, T, u, v, spline, d, half, w=None):
-        self.T, self.u, self.v, self.spline, self.d, self.half = T.ravel(), u.ravel(), v.ravel(), spline, d, half
-        self.uv = np.vstack([self.u, self.v])                  # (2, n) template offsets
-        self.w = None if w is None else np.asarray(w, float).ravel()     # None: uniform
-        self.pw = None                                     # the pixels' weights (aliasing), None: uniform
-        gv, gu = np.gradient(T)                            # template gradients (grey values per px)
-        self.Tu, self.Tv = gu.ravel(), gv.ravel()
-        self.Q = np.vstack([self.u ** 2, self.u * self.v, self.v ** 2]) / half    # (3, n) bend terms
-        self.c = np.zeros(3)
-        self.g0, self.g1 = 0.0, None
-
-    def sample(self):
-        q = self.A @ self.uv
-        q += self.t[:, None]
-        if self.c.any():
-            q += np.outer(self.d, self.c @ self.Q)
-        lo, hi = q.min(axis=1), q.max(axis=1)
-        sp = self.spline
-        if lo[0] < sp.lo[0] or lo[1] < sp.lo[1] or hi[0] > sp.hi[0] or hi[1] > sp.hi[1]:
-            return None
-        return sp.sample(q[0], q[1])
-
-    def design(self, S, Sx, Sy, bend: bool, esm: bool):
-        """Rows ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)`` ``(n, 8 or 11)`` (a transposed view);
-        with ``esm`` the gradient is the mean of the search image's and the template's carried
-        into the search image (Benhimane and Malis 2004: faster convergence); without, the
-        search image's alone (the covariance)."""
-        gx, gy = self.g1 * Sx, self.g1 * Sy
-        if esm:
-            a, b, c, d = self.A.ravel()
-            det = a * d - b * c
-            gx = 0.5 * (gx + (d / det) * self.Tu - (c / det) * self.Tv)
-            gy = 0.5 * (gy - (b / det) * self.Tu + (a / det) * self.Tv)
-        u, v = self.u, self.v
-        J = np.empty((11 if bend else 8, S.size))
-        J[0], J[1] = gx, gy
-        np.multiply(gx, u, out=J[2])
-        np.multiply(gx, v, out=J[3])
-        np.multiply(gy, u, out=J[4])
-        np.multiply(gy, v, out=J[5])
-        if bend:
-            np.multiply(gx * self.d[0] + gy * self.d[1], self.Q, out=J[6:9])
-        J[-2], J[-1] = 1.0, S
-        return J.T
-
-    def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float,
-            need_rho: float | None = None):
-        """Iterate to convergence: ``(status, reason, iterations)``, status ``OK`` or a failure;
-        ``need_rho``: give up as :data:`RIVAL_ITER` and :data:`RIVAL_MARGIN` say."""
-        nb = 3 if bend else 0
-        for it in range(1, max_iter + 1):
-            smp = self.sample()
-            if smp is None:
-                return OUTSIDE, "patch left the search image", it
-            S, Sx, Sy = smp
-            if need_rho is not None and it >= RIVAL_ITER:
-                rho = _correlation(self.T, S)
-                if rho < need_rho - RIVAL_MARGIN:
-                    return LOW_CORRELATION, f"correlation {rho:.2f} after {it - 1} iterations: no rival", it
-            if self.g1 is None:
-                self.g1 = self.T.std() / max(S.std(), 1e-12)
-                self.g0 = self.T.mean() - self.g1 * S.mean()
-            r = self.T - (self.g0 + self.g1 * S)
-            Jt = self.design(S, Sx, Sy, bend, esm=True).T
-            wt = self.weights()
-            Jw = Jt if wt is None else Jt * wt
-            try:
-                dp = np.linalg.solve(Jw @ Jt.T, Jw @ r)
-            except np.linalg.LinAlgError:
-                return TEXTURE, "singular normal matrix (no texture)", it
-            self.t += dp[0:2]
-            self.A += dp[2:6].reshape(2, 2)
-            if bend:
-                self.c += dp[6:9]
-            self.g0 += dp[6 + nb]
-            self.g1 += dp[7 + nb]
-            if math.hypot(self.t[0] - t0[0], self.t[1] - t0[1]) > max_move:
-                return MOVED, f"the patch moved more than {max_move:g} px from its start", it
-            change = np.linalg.norm(A0inv @ self.A - _I2)      # ≥ the largest singular value
-            bent = bend and np.abs(self.c).max() * self.half > 2 * MAX_BEND
-            if change > 2 * max_shape_change or self.g1 <= 0 or bent:
-                return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else
-                               f"the shape degenerated (changed by {change:.0%})"), it
-            step = math.hypot(dp[0], dp[1])
-            shape_still = self.w is not None or np.abs(dp[2:6 + nb]).max() * self.half < 2.5 * STEP_TOL
-            if max(abs(dp[0]), abs(dp[1])) < STEP_TOL and shape_still:
-                return OK, "", it
-            if it >= WANDER_ITER and step > 0.1:
-                break   # still wandering
-        return NOT_CONVERGED, f"no convergence in {it} iterations", it
-
-    def weights(self):
-        """The pixels' weights in the fit: the taper's times the aliasing's (None: uniform)."""
-        if self.w is None:
-            return self.pw
-        return self.w if self.pw is None else self.w * self.pw
-
-    def copy(self):
-        other = object.__new__(_Fit)
-        other.__dict__.update(self.__dict__)
-        other.t, other.A, other.c = self.t.copy(), self.A.copy(), self.c.copy()
-        return other
-
-    def subset(self, keep):
-        """A copy iterating on the pixels ``keep`` (boolean, ``(n²,)``) only: the pixels whose
-        weight is negligible cost iterations and move nothing."""
-        other = self.copy()
-        for name in ("T", "u", "v", "Tu", "Tv", "w", "pw"):
-            a = getattr(self, name)
-            if a is not None:
-                setattr(other, name, a[keep])
-        other.uv, other.Q = self.uv[:, keep], self.Q[:, keep]
-        return other
-
-    def take(self, other):
-        """Adopt ``other``'s parameters (a :meth:`subset`'s after its iterations)."""
-        self.t, self.A, self.c, self.g0, self.g1 = other.t, other.A, other.c, other.g0, other.g1
-
-    def final(self, bend: bool):
-        """``(r, J, rho)`` at the current state: residuals, design (search-image gradients),
-        correlation of template and patch."""
-        smp = self.sample()
-        if smp is None:
-            return None, None, np.nan
-        S, Sx, Sy = smp
-        r = self.T - (self.g0 + self.g1 * S)
-        return r, self.design(S, Sx, Sy, bend, esm=False), _correlation(self.T, S)
-
-
-def _correlation(a, b) -> float:
-    """Correlation coefficient of the arrays ``a`` and ``b`` (same size)."""
-    a, b = a - a.mean(), np.ravel(b) - b.mean()
-    return float(a @ b / np.sqrt((a @ a) * (b @ b)))
-
-
 def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half: int = 12,
            max_iter: int = 20, max_move: float = 3.0, max_shape_change: float = 0.25,
            min_rho: float = 0.6, max_sigma: float = 0.5, smooth: float = 0.0,
-           spline: Spline | None = None, taper: float = TAPER, need_rho: float | None = None,
-           start=None) -> LsmResult:
+           spline: Spline | None = None, taper: float = TAPER, need_rho: float | None = None) -> LsmResult:
     """Least-squares matching of the point ``(x, y)`` of ``reference`` in ``search``.
 
     Parameters
@@ -350,9 +196,6 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     need_rho : float, optional
         The correlation the match must reach to matter (a rival of a match found already):
         given up early (``low_correlation``) when it falls far short (:data:`RIVAL_MARGIN`).
-    start : (2, 2), optional
-        The shape the iterations start from (default ``A0``; the allowance counts from ``A0``),
-        e.g. a smaller template's match.
     """
     A0 = np.asarray(A0, float)
     t0 = np.asarray(t0, float)
@@ -372,8 +215,8 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         if spline is None:
             return failed(t0[0], t0[1], OUTSIDE, "patch leaves the search image", shape=A0)
     d = np.zeros(2) if parallax is None else np.asarray(parallax, float) / np.hypot(*parallax)
-    fit = _Fit(T, u, v, spline, d, half)
-    fit.t, fit.A = t0.copy(), (A0 if start is None else np.asarray(start, float)).copy()
+    fit = Fit(T, u, v, spline, d, half)
+    fit.t, fit.A = t0.copy(), A0.copy()
     # point-sampled edges (:func:`sampling_px`): a pixel on one is weighted by the inverse of its
     # variance, the noise's plus the edge's unknown place in both views (gradient × σ), so the
     # texture that samples place well counts more
@@ -474,10 +317,11 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     return res
 
 
-def _stated(fit: _Fit, r, J, noise: float, e1, e2, n: int, aliasing=None):
-    """``(cov, formal, σ_relief, σ_across)`` of the fitted position (see :func:`refine`;
-    ``noise``: the images' noise σ in the template's grey values), None when the noise
-    outweighs the gradients."""
+def _stated(fit: Fit, r, J, noise: float, e1, e2, n: int, aliasing=None):
+    """``(cov, formal, σ_relief, σ_across, sampled)`` of the fitted position (see
+    :func:`refine`; ``noise``: the images' noise σ in the template's grey values; ``aliasing``:
+    :func:`sampling_px` of the template), None when the noise outweighs the gradients;
+    ``sampled`` (2×2, px²), the point-sampled edges' share, is not in ``cov``."""
     k = J.shape[1]
     if fit.weights() is None:        # uniform weights: the sandwich is N⁻¹ itself
         s02 = float(r @ r) / max(r.size - k, 1)

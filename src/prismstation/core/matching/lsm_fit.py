@@ -1,0 +1,170 @@
+"""The Gauss–Newton state of one least-squares patch (:mod:`prismstation.core.matching.lsm`):
+position, affine shape, bend along the parallax, offset and gain on a fixed template and
+search spline; its iterations and what they stop on.
+
+Coordinates as in :mod:`prismstation.core.matching.lsm` (docs/model.md §1).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+OK = "ok"
+NOT_CONVERGED, TEXTURE, SHAPE, MOVED, LOW_CORRELATION, OUTSIDE = (
+    "not_converged", "texture", "shape", "moved", "low_correlation", "outside")
+
+STEP_TOL = 1e-2
+"""Converged when the position moves less than this (px) in an iteration, and the shape less
+than 2.5 times this at the template's edge."""
+WANDER_ITER = 6
+"""Iterations after which a patch still moving by 0.1 px per step is given up."""
+MAX_BEND = 1.0
+"""Largest bend (px) of the patch at the template's edge."""
+RIVAL_ITER = 3
+RIVAL_MARGIN = 0.1
+"""A patch that must reach a correlation (``need_rho`` of :func:`~prismstation.core.matching.lsm.refine`: a rival peak) is given
+up when, after :data:`RIVAL_ITER` iterations, its correlation lies more than this below it (on
+the tuning scenes and the Pléiades triplet the correlation rose by at most 0.06 after the third
+iteration)."""
+
+_I2 = np.eye(2)
+
+
+class Fit:
+    """The Gauss–Newton state of one patch: position ``t``, shape ``A``, bend ``c`` (3 or 0
+    terms), offset ``g0`` and gain ``g1``, on a fixed template and search spline."""
+
+    def __init__(self, T, u, v, spline, d, half, w=None):
+        self.T, self.u, self.v, self.spline, self.d, self.half = T.ravel(), u.ravel(), v.ravel(), spline, d, half
+        self.uv = np.vstack([self.u, self.v])                  # (2, n) template offsets
+        self.w = None if w is None else np.asarray(w, float).ravel()     # None: uniform
+        self.pw = None                                     # the pixels' weights (aliasing), None: uniform
+        gv, gu = np.gradient(T)                            # template gradients (grey values per px)
+        self.Tu, self.Tv = gu.ravel(), gv.ravel()
+        self.Q = np.vstack([self.u ** 2, self.u * self.v, self.v ** 2]) / half    # (3, n) bend terms
+        self.c = np.zeros(3)
+        self.g0, self.g1 = 0.0, None
+
+    def sample(self):
+        q = self.A @ self.uv
+        q += self.t[:, None]
+        if self.c.any():
+            q += np.outer(self.d, self.c @ self.Q)
+        lo, hi = q.min(axis=1), q.max(axis=1)
+        sp = self.spline
+        if lo[0] < sp.lo[0] or lo[1] < sp.lo[1] or hi[0] > sp.hi[0] or hi[1] > sp.hi[1]:
+            return None
+        return sp.sample(q[0], q[1])
+
+    def design(self, S, Sx, Sy, bend: bool, esm: bool):
+        """Rows ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)`` ``(n, 8 or 11)`` (a transposed view);
+        with ``esm`` the gradient is the mean of the search image's and the template's carried
+        into the search image (Benhimane and Malis 2004: faster convergence); without, the
+        search image's alone (the covariance)."""
+        gx, gy = self.g1 * Sx, self.g1 * Sy
+        if esm:
+            a, b, c, d = self.A.ravel()
+            det = a * d - b * c
+            gx = 0.5 * (gx + (d / det) * self.Tu - (c / det) * self.Tv)
+            gy = 0.5 * (gy - (b / det) * self.Tu + (a / det) * self.Tv)
+        u, v = self.u, self.v
+        J = np.empty((11 if bend else 8, S.size))
+        J[0], J[1] = gx, gy
+        np.multiply(gx, u, out=J[2])
+        np.multiply(gx, v, out=J[3])
+        np.multiply(gy, u, out=J[4])
+        np.multiply(gy, v, out=J[5])
+        if bend:
+            np.multiply(gx * self.d[0] + gy * self.d[1], self.Q, out=J[6:9])
+        J[-2], J[-1] = 1.0, S
+        return J.T
+
+    def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float,
+            need_rho: float | None = None):
+        """Iterate to convergence: ``(status, reason, iterations)``, status ``OK`` or a failure;
+        ``need_rho``: give up as :data:`RIVAL_ITER` and :data:`RIVAL_MARGIN` say."""
+        nb = 3 if bend else 0
+        for it in range(1, max_iter + 1):
+            smp = self.sample()
+            if smp is None:
+                return OUTSIDE, "patch left the search image", it
+            S, Sx, Sy = smp
+            if need_rho is not None and it >= RIVAL_ITER:
+                rho = correlation(self.T, S)
+                if rho < need_rho - RIVAL_MARGIN:
+                    return LOW_CORRELATION, f"correlation {rho:.2f} after {it - 1} iterations: no rival", it
+            if self.g1 is None:
+                self.g1 = self.T.std() / max(S.std(), 1e-12)
+                self.g0 = self.T.mean() - self.g1 * S.mean()
+            r = self.T - (self.g0 + self.g1 * S)
+            Jt = self.design(S, Sx, Sy, bend, esm=True).T
+            wt = self.weights()
+            Jw = Jt if wt is None else Jt * wt
+            try:
+                dp = np.linalg.solve(Jw @ Jt.T, Jw @ r)
+            except np.linalg.LinAlgError:
+                return TEXTURE, "singular normal matrix (no texture)", it
+            self.t += dp[0:2]
+            self.A += dp[2:6].reshape(2, 2)
+            if bend:
+                self.c += dp[6:9]
+            self.g0 += dp[6 + nb]
+            self.g1 += dp[7 + nb]
+            if math.hypot(self.t[0] - t0[0], self.t[1] - t0[1]) > max_move:
+                return MOVED, f"the patch moved more than {max_move:g} px from its start", it
+            change = np.linalg.norm(A0inv @ self.A - _I2)      # ≥ the largest singular value
+            bent = bend and np.abs(self.c).max() * self.half > 2 * MAX_BEND
+            if change > 2 * max_shape_change or self.g1 <= 0 or bent:
+                return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else
+                               f"the shape degenerated (changed by {change:.0%})"), it
+            step = math.hypot(dp[0], dp[1])
+            shape_still = self.w is not None or np.abs(dp[2:6 + nb]).max() * self.half < 2.5 * STEP_TOL
+            if max(abs(dp[0]), abs(dp[1])) < STEP_TOL and shape_still:
+                return OK, "", it
+            if it >= WANDER_ITER and step > 0.1:
+                break   # still wandering
+        return NOT_CONVERGED, f"no convergence in {it} iterations", it
+
+    def weights(self):
+        """The pixels' weights in the fit: the taper's times the aliasing's (None: uniform)."""
+        if self.w is None:
+            return self.pw
+        return self.w if self.pw is None else self.w * self.pw
+
+    def copy(self):
+        other = object.__new__(Fit)
+        other.__dict__.update(self.__dict__)
+        other.t, other.A, other.c = self.t.copy(), self.A.copy(), self.c.copy()
+        return other
+
+    def subset(self, keep):
+        """A copy iterating on the pixels ``keep`` (boolean, ``(n²,)``) only: the pixels whose
+        weight is negligible cost iterations and move nothing."""
+        other = self.copy()
+        for name in ("T", "u", "v", "Tu", "Tv", "w", "pw"):
+            a = getattr(self, name)
+            if a is not None:
+                setattr(other, name, a[keep])
+        other.uv, other.Q = self.uv[:, keep], self.Q[:, keep]
+        return other
+
+    def take(self, other):
+        """Adopt ``other``'s parameters (a :meth:`subset`'s after its iterations)."""
+        self.t, self.A, self.c, self.g0, self.g1 = other.t, other.A, other.c, other.g0, other.g1
+
+    def final(self, bend: bool):
+        """``(r, J, rho)`` at the current state: residuals, design (search-image gradients),
+        correlation of template and patch."""
+        smp = self.sample()
+        if smp is None:
+            return None, None, np.nan
+        S, Sx, Sy = smp
+        r = self.T - (self.g0 + self.g1 * S)
+        return r, self.design(S, Sx, Sy, bend, esm=False), correlation(self.T, S)
+
+
+def correlation(a, b) -> float:
+    """Correlation coefficient of the arrays ``a`` and ``b`` (same size)."""
+    a, b = a - a.mean(), np.ravel(b) - b.mean()
+    return float(a @ b / np.sqrt((a @ a) * (b @ b)))

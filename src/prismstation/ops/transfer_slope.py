@@ -1,0 +1,68 @@
+"""The terrain slope with no reference DEM (:mod:`prismstation.ops.transfer`): the shapes a
+point's patch takes on sloping planes through the model, and the slope a matched shape implies.
+
+Shapes are 2×2 (target px per source px) as :func:`prismstation.ops.transfer.local_shape` makes
+them (the mapping's central difference over ±``half_window`` px), the rays as straight lines
+through their points at ``h`` and ``h + 100`` m; gradients are (dh/dE, dh/dN).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from prismstation.core.models.solution import Solution
+
+SLOPE_HYPOTHESIS = 0.4
+"""With no reference DEM, a match that fails from the level plane's shape is tried again from
+the shapes of slopes this steep (rising along and across the track, both ways)."""
+
+
+def slope_shapes(sol: Solution, source: str, xy, view: str, h: float, half_window: int):
+    """``view``'s predicted shapes of the point on planes of :data:`SLOPE_HYPOTHESIS` rising
+    along and across the track (the source image's rows and columns on the ground), both ways."""
+    xy = np.asarray(xy, float)
+    g = sol.image_to_ground(source, np.array([xy, xy + [0.0, 10.0], xy + [10.0, 0.0]]), np.full(3, h))
+    grads = [sign * SLOPE_HYPOTHESIS * axis / np.hypot(*axis) for axis in (g[1] - g[0], g[2] - g[0])
+             for sign in (1.0, -1.0)]
+    shapes = plane_shapes(sol, source, xy, view, g[0], h, half_window)
+    return [A for A in shapes(grads) if np.all(np.isfinite(A))]
+
+
+def plane(en0, h0: float, grad):
+    """Heights ``(n,)`` of the plane through ``(en0, h0)`` with gradient ``grad`` (dh/dE, dh/dN)
+    at map points ``(n, 2)``: a reference-height function for :func:`~prismstation.ops.transfer.local_shape`."""
+    en0, g = np.asarray(en0, float), np.asarray(grad, float)
+    return lambda en: h0 + (np.atleast_2d(en) - en0) @ g
+
+
+def plane_shapes(sol: Solution, source: str, xy, view: str, en, h: float, half_window: int):
+    """A function: gradients ``[(dh/dE, dh/dN), …]`` → ``view``'s shapes (2×2 each) of the point
+    ``xy`` of ``source`` on the planes through ``(en, h)`` with those gradients, as
+    :func:`~prismstation.ops.transfer.local_shape` makes them (over ±``half_window`` px, the rays as straight lines)."""
+    w = float(half_window)
+    pix = np.asarray(xy, float) + np.array([[w, 0], [-w, 0], [0, w], [0, -w]])
+    ends = sol.image_to_ground(source, np.vstack([pix, pix]), np.r_[np.full(4, h), np.full(4, h + 100.0)])
+    base, k = ends[:4], (ends[4:] - ends[:4]) / 100.0
+
+    def shapes(grads):
+        dh = [((base - en) @ g) / (1.0 - k @ g) for g in grads]
+        q = sol.ground_to_image(view, np.vstack([base + k * d[:, None] for d in dh]),
+                                np.concatenate([h + d for d in dh])).reshape(len(grads), 4, 2)
+        return [np.column_stack([(c[0] - c[1]) / (2 * w), (c[2] - c[3]) / (2 * w)]) for c in q]
+
+    return shapes
+
+
+def fitted_slope(sol: Solution, source: str, xy, view: str, A, en, h: float, step: float = 0.2,
+                 half_window: int = 12):
+    """The terrain gradient (dh/dE, dh/dN) under the point ``xy`` of ``source`` that makes the
+    model's shape in ``view`` (as :func:`~prismstation.ops.transfer.local_shape` makes it, over ±``half_window`` px) equal
+    the matched shape ``A`` (2×2): Gauss–Newton on the shapes of planes through ``(en, h)``,
+    two steps (the shape is near linear in the gradient); the rays as straight lines."""
+    A, en = np.asarray(A, float), np.asarray(en, float)
+    shapes = plane_shapes(sol, source, xy, view, en, h, half_window)
+    g = np.zeros(2)
+    for _ in range(2):
+        s0, sE, sN = shapes([g, g + [step, 0.0], g + [0.0, step]])
+        J = np.column_stack([(sE - s0).ravel() / step, (sN - s0).ravel() / step])
+        g = g + np.linalg.lstsq(J, (A - s0).ravel(), rcond=None)[0]
+    return g if np.all(np.isfinite(g)) and np.hypot(*g) < 3.0 else None
