@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
+from scipy import ndimage
 
 from prismstation.core.models import prism
 from prismstation.core.adjustment.affine import Affine2D
@@ -28,13 +29,23 @@ from prismstation.io.windows import ImageWindows, scaling, shift
 from prismstation.ops.progress import checkpoint
 
 
+#: the dense prior is the reference smoothed by a Gaussian of this many of its own cells (σ): a
+#: reference's noise is white from cell to cell (SRTM: metres), and the matcher's sub-pixel
+#: value is drawn toward its prior — a prior holding that noise printed it into the relative
+#: DEMs, whose gradients then shared the reference's noise and were taken for relief (the σ of
+#: the field 5 × too small on smooth hills under a 4 m-noise reference). Smoothed over two
+#: cells its noise falls ~7 ×; the search covers what the smoothing takes off the relief.
+PRIOR_SMOOTH_CELLS = 2.0
+
+
 @dataclass(frozen=True)
 class ReferenceGrid:
     """The reference DEM read over N's footprint and the search radius: ellipsoidal heights
     ``dem.heights`` (NaN where void) on the north-up grid of ``posting_m`` whose corner cells
     span ``lo`` (west, south) to ``hi`` (east, north), metres; ``filled`` the same with voids
     at the mean height ``mean_h`` (float32), ``slope`` its gradient's norm (m/m), ``cells`` the
-    reference's own cell size in grid cells (col, row)."""
+    reference's own cell size in grid cells (col, row); ``smooth`` the filled heights smoothed
+    over :data:`PRIOR_SMOOTH_CELLS` of the reference's own cells (the dense matcher's prior)."""
 
     dem: object
     lo: np.ndarray
@@ -44,6 +55,7 @@ class ReferenceGrid:
     filled: np.ndarray
     slope: np.ndarray
     cells: tuple
+    smooth: np.ndarray | None = None
 
     def at(self, grid: np.ndarray, en: np.ndarray) -> np.ndarray:
         """``grid`` (one of this grid's arrays) sampled bilinearly at map points ``en`` (..., 2)."""
@@ -51,15 +63,17 @@ class ReferenceGrid:
         row = (self.hi[1] - en[..., 1]) / self.posting_m - 0.5
         return remap_points(grid, col, row).astype(float)
 
-    def ground(self, scene, xy: np.ndarray, shift=None):
+    def ground(self, scene, xy: np.ndarray, shift=None, smooth: bool = False):
         """Where N's ancillary rays through image points ``xy`` (n, 2) meet the reference
         (:class:`~prismstation.core.models.ray_dem.RayHits`: ``en`` (n, 2), ``h`` (n,), NaN where a
         ray did not meet it). ``shift`` (optional): N's shift field ``(x, y) → (dE, dN, dh)``
         (m), the reference laid where N really looks — ``en`` and ``h`` are then in the
-        ancillary frame (the reference at ``en + (dE, dN)``, minus ``dh``)."""
+        ancillary frame (the reference at ``en + (dE, dN)``, minus ``dh``). ``smooth``: the
+        reference smoothed (``self.smooth``) instead of as it is."""
         s = np.zeros((len(xy), 3)) if shift is None else np.asarray(shift(xy[:, 0], xy[:, 1]), float)
+        grid = self.smooth if smooth and self.smooth is not None else self.filled
         return ray_meets_surface(lambda h: prism.ancillary_to_ground(scene, scene.views["N"], xy, h),
-                                 lambda en: self.at(self.filled, en + s[:, :2]) - s[:, 2], self.mean_h)
+                                 lambda en: self.at(grid, en + s[:, :2]) - s[:, 2], self.mean_h)
 
     def surface(self) -> Surface:
         """The heights (voids NaN) as the adjustment samples them."""
@@ -82,7 +96,9 @@ def read_reference(run) -> ReferenceGrid:
     cells = tuple(c / posting_m for c in (ref.source_cell_m or (posting_m, posting_m)))
     filled = np.nan_to_num(ref.heights, nan=mean_h).astype(np.float32)
     gy, gx = np.gradient(filled, posting_m)
-    return ReferenceGrid(ref, lo, hi, posting_m, mean_h, filled, np.hypot(gx, gy), cells)
+    smooth = ndimage.gaussian_filter(filled.astype(float), [PRIOR_SMOOTH_CELLS * c for c in cells[::-1]],
+                                     mode="nearest").astype(np.float32)
+    return ReferenceGrid(ref, lo, hi, posting_m, mean_h, filled, np.hypot(gx, gy), cells, smooth)
 
 
 @dataclass(frozen=True)
@@ -151,10 +167,12 @@ def match_patch(run, images, win, sigma_py_off: float) -> PatchCells:
     resolution, as cells.
 
     The prior is the reference where N's ancillary model puts the patch, or where the field
-    ``run.n_field`` puts it once one is known. The parallax search covers K_SIGMA σ of the
+    ``run.n_field`` puts it once one is known, moved by ``run.prior_offset_px`` matched pixels
+    (0 but when the prior's pull is measured: :func:`prismstation.ops.orient_dem.prior_pull`). The parallax search covers K_SIGMA σ of the
     prior's error: the reference heights' σ, the height error of sampling them where N's error
     puts the patch (``run.n_sigma_m`` × the patch's RMS slope: the a-priori geolocation σ, or
-    the field's) and the offsets' along-track σ ``sigma_py_off`` (px)."""
+    the field's), what the prior's smoothing (:data:`PRIOR_SMOOTH_CELLS`) takes off the relief
+    (RMS over the patch) and the offsets' along-track σ ``sigma_py_off`` (px)."""
     scene, ref, f, posting_m = run.scene, run.ref, run.decimation, run.posting_m
     lo, hi = ref.lo, ref.hi
     c1 = prism.theoretical_c1(scene)
@@ -166,7 +184,7 @@ def match_patch(run, images, win, sigma_py_off: float) -> PatchCells:
     gx, gy = np.meshgrid(np.arange(wd[0] + 0.5, wd[0] + wd[2], step) * f,
                          np.arange(wd[1] + 0.5, wd[1] + wd[3], step) * f)
     pts = np.column_stack([gx.ravel(), gy.ravel()])
-    hit = ref.ground(scene, pts, run.n_field)
+    hit = ref.ground(scene, pts, run.n_field, smooth=True)
     if hit.converged.mean() < 0.98:
         return fail(f"N's rays did not meet the reference DEM: {hit.reason}")
     en, hh = hit.en, hit.h
@@ -177,14 +195,17 @@ def match_patch(run, images, win, sigma_py_off: float) -> PatchCells:
         hh = np.where(miss, np.nanmedian(hh), hh)
         en = np.where(miss[:, None], prism.ancillary_to_ground(scene, scene.views["N"], pts, hh), en)
     rms_slope = float(np.sqrt(np.mean(ref.at(ref.slope, en) ** 2)))
-    sigma_py = float(np.hypot(np.hypot(run.sigma_height_m, run.n_sigma_m * rms_slope) / c1, sigma_py_off))
+    # what the smoothing took off the relief under the patch (m, RMS)
+    rms_smooth = float(np.sqrt(np.mean((ref.at(ref.filled, en) - ref.at(ref.smooth, en)) ** 2)))
+    sigma_py = float(np.hypot(np.linalg.norm([run.sigma_height_m, run.n_sigma_m * rms_slope, rms_smooth]) / c1,
+                              sigma_py_off))
     search_px = int(np.ceil(K_SIGMA * sigma_py / f)) + 1
     # the samples sit at decimated pixel centres 0.5 + step·k of the window: interpolate there
     # (a plain resize would take them as the centres of step-wide blocks, step/2 − 0.5 off)
     u = (np.arange(wd[2], dtype=np.float32) / step)[None, :].repeat(wd[3], 0)
     v = (np.arange(wd[3], dtype=np.float32) / step)[:, None].repeat(wd[2], 1)
     prior = cv2.remap((hh / c1 / f).reshape(gx.shape).astype(np.float32), u, v, cv2.INTER_LINEAR,
-                      borderMode=cv2.BORDER_REPLICATE)
+                      borderMode=cv2.BORDER_REPLICATE) + np.float32(run.prior_offset_px)
     d = prism.along_track_unit(scene, en.mean(0))
     reach = float(np.abs(prior).max()) * f + (search_px + 20) * f
     arrays, to_n = {}, {}

@@ -109,6 +109,8 @@ class OrientRun:
     ref: ReferenceGrid = None     # the reference DEM on the matching's grid
     n_field: object = None        # N's shift field once adjusted (step 5 matches with it)
     n_field_sigma_m: float = None  # its planimetric σ (m)
+    prior_offset_px: float = 0.0  # the dense prior moved by this (matched px): the pull's measurement
+    prior_field: tuple = (None, None)  # (field, σ) the last patches' priors were laid with
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -194,10 +196,12 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     checkpoint(progress, 0.55, "adjusting the shift field")
     fit = adjust(run, cells, len(index), start_field(run, cells), gcps)  # 4.
     record = run.coarse.to_dict()
+    pull = None
     if fit:
         pcs, index, fit, record = second_pass(run, pcs, index, fit, patch_m, gcps)  # 5.
+        pull = prior_pull(run, fit, patch_m, gcps)
     checkpoint(progress, 1.0, "done")
-    return make_result(run, pcs, index, fit, expected, record, target_m, gcps)  # 6.
+    return make_result(run, pcs, index, fit, expected, record, target_m, gcps, pull)  # 6.
 
 
 def join_cells(pcs) -> tuple[Cells, list[int]]:
@@ -331,19 +335,56 @@ def second_pass(run: OrientRun, pcs, index, fit, patch_m: float, gcps):
     run.grads = {v: np.asarray(second.gradients_px[v], float) for v in "FB"}
     run.n_field, run.n_field_sigma_m = fit.field, field_plan_sigma(run, fit)
     try:
-        pcs2 = match_patches(run, patch_m, progress_range=(0.65, 0.95))
+        pcs2 = match_patches(run, patch_m, progress_range=(0.65, 0.8))
     except InputError as e:
         pcs2, why = None, str(e)
     if pcs2 is not None:
         cells2, index2 = join_cells(pcs2)
-        checkpoint(run.progress, 0.95, "adjusting the shift field again")
+        checkpoint(run.progress, 0.8, "adjusting the shift field again")
         fit2 = adjust(run, cells2, len(index2), fit.theta, gcps)
         why = f"the adjustment after it failed ({fit2.reason})"
+    prior = run.n_field, run.n_field_sigma_m
     run.n_field = None
     if pcs2 is None or not fit2:
         run.offsets, run.grads = old
         return pcs, index, fit, {**second.to_dict(), "first_pass": record, "second_pass": f"not used: {why}"}
+    run.prior_field = prior
     return pcs2, index2, fit2, {**second.to_dict(), "first_pass": record}
+
+
+#: how far the pull's measurement moves the dense prior (matched px): half the matcher's
+#: candidate step, the most a pull that is periodic in the prior's error can change
+PULL_OFFSET_PX = 0.5
+
+
+def prior_pull(run: OrientRun, fit, patch_m: float, gcps) -> dict:
+    """How far the field follows the dense matcher's prior, measured: every patch matched again
+    as the last pass matched it but with its prior moved by :data:`PULL_OFFSET_PX` matched
+    pixels of parallax, the field adjusted again from ``fit``. The matcher's sub-pixel value is
+    drawn toward its whole-pixel candidates around the prior (most on sharp, point-sampled
+    texture), and the prior is the reference laid where the ancillary model, or the first field,
+    puts N: every patch is drawn alike, so their scatter and ``Σ_b`` never see it. The prior's
+    a-priori error (the reference heights' σ over ``c1``, several pixels) exceeds the pull's
+    period of one candidate, so the change is the pull's σ: ``{"offset_px", "theta_change"
+    (9,) m, "reason"}`` (``theta_change`` None and ``reason`` why when it could not be measured)."""
+    saved = run.n_field, run.n_field_sigma_m
+    run.n_field, run.n_field_sigma_m = run.prior_field
+    run.prior_offset_px = PULL_OFFSET_PX
+    out = {"offset_px": PULL_OFFSET_PX, "theta_change": None, "reason": ""}
+    try:
+        pcs = match_patches(run, patch_m, progress_range=(0.8, 0.98))
+        cells, index = join_cells(pcs)
+        moved = adjust(run, cells, len(index), fit.theta, gcps)
+        if moved:
+            out["theta_change"] = (moved.theta - fit.theta).tolist()
+        else:
+            out["reason"] = f"the adjustment with the prior moved failed ({moved.reason})"
+    except InputError as e:
+        out["reason"] = f"the patches with the prior moved did not match ({e})"
+    finally:
+        run.prior_offset_px = 0.0
+        run.n_field, run.n_field_sigma_m = saved
+    return out
 
 
 def field_plan_sigma(run: OrientRun, fit) -> float:
@@ -388,8 +429,9 @@ def offsets_along_sigma(run: OrientRun, record: dict) -> float:
     return s * N.pixel_size_m if np.isfinite(s) else 0.0   # (no offsets: nothing to add)
 
 
-def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcps) -> DemOrientation:
-    """Step 6: the patches' record, the field's σ, the verdict and the model."""
+def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcps, pull=None) -> DemOrientation:
+    """Step 6: the patches' record, the field's σ (with the prior's pull, :func:`prior_pull`, as
+    a term common to the whole field), the verdict and the model."""
     offsets = {v: [float(c) for c in o] for v, o in run.offsets.items()}
     grads = {v: [[float(c) for c in row] for row in g] for v, g in run.grads.items()}
     where = {k: j for j, k in enumerate(index)}
@@ -417,8 +459,17 @@ def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcp
         covs = np.array([fit.cov_at(a, b) for a, b in zip(lx, ly)])
         if gcps is None or not len(gcps):      # GCPs observe the field through the same offsets
             covs[:, :2, :2] += offsets_along_sigma(run, record) ** 2 * np.outer(along, along)
+        unchecked = ""
+        if pull is not None and pull["theta_change"] is not None:
+            dv = fit.basis.predict(np.asarray(pull["theta_change"]), lx, ly)       # (25, 3)
+            covs += dv[:, :, None] * dv[:, None, :]
+            pull["sigma_m"] = cond.summarise(dv[:, :, None] * dv[:, None, :], along).to_dict()
+            unchecked = (f"σ includes {pull['sigma_m']['plan']:.1f} m planimetric, {pull['sigma_m']['h']:.1f} m "
+                         "in height for the matcher's pull toward its prior, which the patches cannot check")
+        elif pull is not None:
+            unchecked = f"the matcher's pull toward its prior was not measured: {pull['reason']}"
         summary = cond.summarise(covs, along)
-        verdict = cond.judge(summary, target_m, used, run.sigma_apriori_m)
+        verdict = cond.judge(summary, target_m, used, run.sigma_apriori_m, unchecked=unchecked)
     else:
         summary = cond.SigmaSummary(*(np.nan,) * 7)
         verdict = cond.OrientVerdict(cond.FAILED, f"NOT TRUSTED: {fit.reason}",
@@ -438,4 +489,4 @@ def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcp
                                "sigma_m": np.sqrt(np.clip(np.diag(fit.cov)[12:], 0, None)).tolist(),
                                "a_priori_sigma_m": run.distortion_sigma_m},
          "rejected": [index[j] for j in fit.rejected], "gcp_observations": 0 if gcps is None else len(gcps),
-         "reason": fit.reason})
+         "reason": fit.reason, "prior_pull": pull})
