@@ -168,7 +168,9 @@ def match_patch(run, images, win, sigma_py_off: float) -> PatchCells:
 
     The prior is the reference where N's ancillary model puts the patch, or where the field
     ``run.n_field`` puts it once one is known, moved by ``run.prior_offset_px`` matched pixels
-    (0 but when the prior's pull is measured: :func:`prismstation.ops.orient_dem.prior_pull`). The parallax search covers K_SIGMA σ of the
+    (0 but when the prior's pull is measured: :func:`prismstation.ops.orient_dem.prior_pull`).
+    With ``run.pairs`` the cells also hold ``dh_pairs`` (m): the F–B relative DEM's own error
+    as the pair DEMs with N disagree (:func:`_pair_disagreement`), gridded like the heights. The parallax search covers K_SIGMA σ of the
     prior's error: the reference heights' σ, the height error of sampling them where N's error
     puts the patch (``run.n_sigma_m`` × the patch's RMS slope: the a-priori geolocation σ, or
     the field's), what the prior's smoothing (:data:`PRIOR_SMOOTH_CELLS`) takes off the relief
@@ -209,17 +211,19 @@ def match_patch(run, images, win, sigma_py_off: float) -> PatchCells:
     d = prism.along_track_unit(scene, en.mean(0))
     reach = float(np.abs(prior).max()) * f + (search_px + 20) * f
     arrays, to_n = {}, {}
-    for view in ("F", "B"):
+    for view in ("F", "B", "N") if run.pairs else ("F", "B"):
         back = prism.to_nadir_space(scene, scene.views[view]).inverse()
         box = np.array([[c0 - reach, r0 - reach], [c0 + w + reach, r0 - reach],
                         [c0 - reach, r0 + h + reach], [c0 + w + reach, r0 + h + reach]], float)
-        pc = back(box + run.offset_of(view, np.array([x, y], float)))
+        pc = back(box + (run.offset_of(view, np.array([x, y], float)) if view != "N" else 0.0))
         (a0, b0), (a1, b1) = pc.min(0), pc.max(0)
         # whole f × f blocks from the window's corner (a resize of the rest would stretch it)
         arr, ac0, ar0 = images.read_reduced(view, a0, b0, a1 - a0, b1 - b0, f)
         if arr is None:
             return fail(f"the {view} image does not cover the patch")
-        to_n[view] = _to_n_space(run, scene, view, (ac0, ar0), f)
+        to_n[view] = (_to_n_space(run, scene, view, (ac0, ar0), f) if view != "N" else
+                      (scaling(1 / f) @ prism.to_nadir_space(scene, scene.views["N"]) @ shift(ac0, ar0)
+                       @ scaling(f)).matrix)
         arrays[view] = arr
     pm = parallax_map(arrays["F"], arrays["B"], to_n["F"], to_n["B"], wd, d, prior=prior,
                       search_range=search_px, half_window=4, n_weight=run.n_weight)
@@ -240,5 +244,30 @@ def match_patch(run, images, win, sigma_py_off: float) -> PatchCells:
     n = hi[1] - (j0 + j + 0.5) * posting_m
     hc = rel[j, i]
     xy = prism.ground_to_ancillary(scene, scene.views["N"], np.column_stack([e, n]), hc)
-    return PatchCells(win, x, y, pm.valid_fraction,
-                      {"x": xy[:, 0], "y": xy[:, 1], "e": e, "n": n, "h": hc, "row": j0 + j, "col": i0 + i})
+    cells = {"x": xy[:, 0], "y": xy[:, 1], "e": e, "n": n, "h": hc, "row": j0 + j, "col": i0 + i}
+    if run.pairs:
+        dh = _pair_disagreement(run, arrays, to_n, wd, d, prior, search_px, pm.parallax)
+        E2, N2, _ = relative_dem_points(scene, np.where(np.isfinite(dh), pm.parallax, np.nan) * f, wd, c1,
+                                        step=1, scale=f)
+        dgrid = smooth_like_reference(grid_points(E2, N2, dh[np.isfinite(dh) & np.isfinite(pm.parallax)], t, shape),
+                                      ref.cells)
+        cells["dh_pairs"] = np.nan_to_num(dgrid[j, i], nan=0.0)
+    return PatchCells(win, x, y, pm.valid_fraction, cells)
+
+
+def _pair_disagreement(run, arrays, to_n, wd, d, prior, search_px: int, py_fb) -> np.ndarray:
+    """How the triplet's two pair DEMs with N disagree, as an error of the F–B relative DEM (m)
+    on the decimated N window ``wd``: F–N and N–B matched like F–B (their parallax is the share
+    ``w`` and ``1 − w`` of F–B's, N's position is F's and N's own), each scaled to F–B's
+    parallax, their difference times ``c1·f``. With independent errors of σ per image and
+    pixel, F–B's error has variance 2σ² and the difference
+    ``σ²·(1/w² + 1/(1 − w)² + 1/(w(1 − w))²)``: scaled by the root of that ratio (1/√12 for
+    θ_F = θ_B), it is one draw of F–B's own error (the part each image brings: sampling,
+    aliasing, noise), NaN where either pair did not match."""
+    wF, f, c1 = run.n_weight, run.decimation, prism.theoretical_c1(run.scene)
+    fn = parallax_map(arrays["F"], arrays["N"], to_n["F"], to_n["N"], wd, d, prior=prior * wF,
+                      search_range=search_px, half_window=4, n_weight=1.0)
+    nb = parallax_map(arrays["N"], arrays["B"], to_n["N"], to_n["B"], wd, d, prior=prior * (1 - wF),
+                      search_range=search_px, half_window=4, n_weight=0.0)
+    r = np.sqrt(2.0 / (1 / wF ** 2 + 1 / (1 - wF) ** 2 + 1 / (wF * (1 - wF)) ** 2))
+    return (fn.parallax / wF - nb.parallax / (1 - wF)) * (c1 * f * r)

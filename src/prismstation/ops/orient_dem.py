@@ -26,7 +26,7 @@ a cancel raises :class:`~prismstation.errors.Cancelled`.
 from __future__ import annotations
 
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -111,6 +111,7 @@ class OrientRun:
     n_field_sigma_m: float = None  # its planimetric σ (m)
     prior_offset_px: float = 0.0  # the dense prior moved by this (matched px): the pull's measurement
     prior_field: tuple = (None, None)  # (field, σ) the last patches' priors were laid with
+    pairs: bool = False           # match the pair DEMs F–N and N–B too (the second pass)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -199,7 +200,7 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     pull = None
     if fit:
         pcs, index, fit, record = second_pass(run, pcs, index, fit, patch_m, gcps)  # 5.
-        pull = prior_pull(run, fit, patch_m, gcps)
+        pull = {"prior": prior_pull(run, fit, patch_m, gcps), "pairs": pair_term(run, pcs, index, fit, gcps)}
     checkpoint(progress, 1.0, "done")
     return make_result(run, pcs, index, fit, expected, record, target_m, gcps, pull)  # 6.
 
@@ -334,10 +335,13 @@ def second_pass(run: OrientRun, pcs, index, fit, patch_m: float, gcps):
     run.offsets = {v: np.asarray(second.offsets_px[v], float) for v in "FB"}
     run.grads = {v: np.asarray(second.gradients_px[v], float) for v in "FB"}
     run.n_field, run.n_field_sigma_m = fit.field, field_plan_sigma(run, fit)
+    run.pairs = True
     try:
         pcs2 = match_patches(run, patch_m, progress_range=(0.65, 0.8))
     except InputError as e:
         pcs2, why = None, str(e)
+    finally:
+        run.pairs = False
     if pcs2 is not None:
         cells2, index2 = join_cells(pcs2)
         checkpoint(run.progress, 0.8, "adjusting the shift field again")
@@ -429,6 +433,28 @@ def offsets_along_sigma(run: OrientRun, record: dict) -> float:
     return s * N.pixel_size_m if np.isfinite(s) else 0.0   # (no offsets: nothing to add)
 
 
+def pair_term(run: OrientRun, pcs, index, fit, gcps) -> dict:
+    """The relative DEMs' own height errors at the scales the cells see (hundreds of metres),
+    propagated into the field: the cells' heights moved by one draw of that error (the pair
+    DEMs' disagreement, ``dh_pairs`` of :func:`prismstation.ops.dem_patches.match_patch`), the
+    field adjusted again from ``fit``. Correlated over the reference's cells and more, within a
+    patch of nearly one slope it is a shift of the patch that its scatter about its own shift
+    does not see. ``{"theta_change" (9,) m or None, "rms_m" (the draw's RMS), "reason"}``."""
+    out = {"theta_change": None, "rms_m": None, "reason": ""}
+    if not all("dh_pairs" in pcs[k].cells for k in index):
+        out["reason"] = "the pair DEMs were not matched (the second pass was not used)"
+        return out
+    cells, _ = join_cells(pcs)
+    dh = np.concatenate([pcs[k].cells["dh_pairs"] for k in index])
+    out["rms_m"] = float(np.sqrt(np.mean(dh ** 2)))
+    moved = adjust(run, replace(cells, h=cells.h + dh), len(index), fit.theta, gcps)
+    if moved:
+        out["theta_change"] = (moved.theta - fit.theta).tolist()
+    else:
+        out["reason"] = f"the adjustment with the heights moved failed ({moved.reason})"
+    return out
+
+
 def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcps, pull=None) -> DemOrientation:
     """Step 6: the patches' record, the field's σ (with the prior's pull, :func:`prior_pull`, as
     a term common to the whole field), the verdict and the model."""
@@ -459,15 +485,23 @@ def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcp
         covs = np.array([fit.cov_at(a, b) for a, b in zip(lx, ly)])
         if gcps is None or not len(gcps):      # GCPs observe the field through the same offsets
             covs[:, :2, :2] += offsets_along_sigma(run, record) ** 2 * np.outer(along, along)
-        unchecked = ""
-        if pull is not None and pull["theta_change"] is not None:
-            dv = fit.basis.predict(np.asarray(pull["theta_change"]), lx, ly)       # (25, 3)
+        notes = []
+        for key, what in (("prior", "the matcher's pull toward its prior"),
+                          ("pairs", "the relative DEMs' own errors, as the pair DEMs disagree")):
+            term = (pull or {}).get(key)
+            if term is None:
+                continue
+            if term["theta_change"] is None:
+                notes.append(f"{what} was not measured: {term['reason']}")
+                continue
+            dv = fit.basis.predict(np.asarray(term["theta_change"]), lx, ly)       # (25, 3)
             covs += dv[:, :, None] * dv[:, None, :]
-            pull["sigma_m"] = cond.summarise(dv[:, :, None] * dv[:, None, :], along).to_dict()
-            unchecked = (f"σ includes {pull['sigma_m']['plan']:.1f} m planimetric, {pull['sigma_m']['h']:.1f} m "
-                         "in height for the matcher's pull toward its prior, which the patches cannot check")
-        elif pull is not None:
-            unchecked = f"the matcher's pull toward its prior was not measured: {pull['reason']}"
+            term["sigma_m"] = cond.summarise(dv[:, :, None] * dv[:, None, :], along).to_dict()
+            notes.append(f"{term['sigma_m']['plan']:.1f} m planimetric, {term['sigma_m']['h']:.1f} m in height "
+                         f"for {what}")
+        unchecked = ("σ includes " + "; ".join(n for n in notes if "not measured" not in n)
+                     + ", which the patches cannot check") if any("not measured" not in n for n in notes) else ""
+        unchecked = "; ".join([unchecked] * bool(unchecked) + [n for n in notes if "not measured" in n])
         summary = cond.summarise(covs, along)
         verdict = cond.judge(summary, target_m, used, run.sigma_apriori_m, unchecked=unchecked)
     else:
@@ -489,4 +523,4 @@ def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcp
                                "sigma_m": np.sqrt(np.clip(np.diag(fit.cov)[12:], 0, None)).tolist(),
                                "a_priori_sigma_m": run.distortion_sigma_m},
          "rejected": [index[j] for j in fit.rejected], "gcp_observations": 0 if gcps is None else len(gcps),
-         "reason": fit.reason, "prior_pull": pull})
+         "reason": fit.reason, "prior_pull": (pull or {}).get("prior"), "pair_dems": (pull or {}).get("pairs")})
