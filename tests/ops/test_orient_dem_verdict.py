@@ -37,6 +37,11 @@ def test_too_few_patches_exit_3_with_the_verdict(project, capsys):
     assert pull["offset_px"] == 0.5 and len(pull["theta_change"]) == 9 and not pull["reason"]
     assert 0 < pull["sigma_m"]["plan"] <= rec["sigma_m"]["plan"]
     assert "pull toward its prior" in rec["verdict"]["message"]
+    # the relative DEMs' own errors, one draw from the pair DEMs' disagreement, likewise
+    pairs = rec["adjustment"]["pair_dems"]
+    assert len(pairs["theta_change"]) == 9 and 0 < pairs["rms_m"] < 5 and not pairs["reason"]
+    assert 0 < pairs["sigma_m"]["plan"] <= rec["sigma_m"]["plan"]
+    assert "as the pair DEMs disagree" in rec["verdict"]["message"]
 
 
 @pytest.mark.slow  # ~40 s: the whole orientation runs and the flat reference is refused (too_smooth)
