@@ -20,6 +20,7 @@ from prismstation.core.adjustment.affine import Affine2D
 from prismstation.core.matching.coarse import K_SIGMA
 from prismstation.core.orientation.dem_orient import grid_points, patch_windows, relative_dem_points, smooth_like_reference
 from prismstation.core.matching.dense import parallax_map
+from prismstation.core.orientation.field_adjust import Cells
 from prismstation.core.orientation.field_model import Surface
 from prismstation.core.models.ray_dem import ray_meets_surface
 from prismstation.core.surfaces.sample import remap_points
@@ -119,6 +120,14 @@ class PatchCells:
         return int(np.size(self.cells.get("h", ())))
 
 
+def join_cells(pcs) -> tuple[Cells, list[int]]:
+    """The matched patches' cells as one :class:`~prismstation.core.orientation.field_adjust.Cells`, the
+    adjustment's patch ``j`` being ``pcs[index[j]]`` (patches without cells are left out, and
+    the labels stay contiguous: the adjustment counts its patches 0 … n − 1)."""
+    index = [k for k, p in enumerate(pcs) if p.count]
+    return Cells.join([{**pcs[k].cells, "patch": j} for j, k in enumerate(index)]), index
+
+
 def match_patches(run, patch_m: float, progress_range=(0.25, 0.8)) -> list[PatchCells]:
     """Every patch of N matched (:func:`match_patch`); InputError when none was."""
     scene, N = run.scene, run.scene.views["N"]
@@ -168,9 +177,10 @@ def match_patch(run, images, win, sigma_py_off: float) -> PatchCells:
 
     The prior is the reference where N's ancillary model puts the patch, or where the field
     ``run.n_field`` puts it once one is known, moved by ``run.prior_offset_px`` matched pixels
-    (0 but when the prior's pull is measured: :func:`prismstation.ops.orient_dem.prior_pull`).
+    (0 but when the prior's pull is measured: :func:`prismstation.ops.dem_unchecked.prior_pull`).
     With ``run.pairs`` the cells also hold ``dh_pairs`` (m): the F–B relative DEM's own error
-    as the pair DEMs with N disagree (:func:`_pair_disagreement`), gridded like the heights. The parallax search covers K_SIGMA σ of the
+    as the pair DEMs with N disagree (:func:`_pair_disagreement`), gridded like the heights.
+    The parallax search covers K_SIGMA σ of the
     prior's error: the reference heights' σ, the height error of sampling them where N's error
     puts the patch (``run.n_sigma_m`` × the patch's RMS slope: the a-priori geolocation σ, or
     the field's), what the prior's smoothing (:data:`PRIOR_SMOOTH_CELLS`) takes off the relief

@@ -26,7 +26,7 @@ a cancel raises :class:`~prismstation.errors.Cancelled`.
 from __future__ import annotations
 
 import os
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -43,7 +43,8 @@ from prismstation.io.jsonfile import plain
 from prismstation.io.project import project_geoid
 from prismstation.model.project import Project
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M, coarse_view_offsets
-from prismstation.ops.dem_patches import ReferenceGrid, match_patches, read_reference
+from prismstation.ops import dem_unchecked as unchecked
+from prismstation.ops.dem_patches import ReferenceGrid, join_cells, match_patches, read_reference
 from prismstation.ops.fit import ellipsoidal_heights
 from prismstation.ops.progress import ProgressFn, checkpoint, scaled
 
@@ -200,17 +201,11 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     pull = None
     if fit:
         pcs, index, fit, record = second_pass(run, pcs, index, fit, patch_m, gcps)  # 5.
-        pull = {"prior": prior_pull(run, fit, patch_m, gcps), "pairs": pair_term(run, pcs, index, fit, gcps)}
+        refit = lambda cells, n: adjust(run, cells, n, fit.theta, gcps)  # noqa: E731
+        pull = {"prior": unchecked.prior_pull(run, patch_m, fit, refit),
+                "pairs": unchecked.pair_term(pcs, index, fit, refit)}
     checkpoint(progress, 1.0, "done")
     return make_result(run, pcs, index, fit, expected, record, target_m, gcps, pull)  # 6.
-
-
-def join_cells(pcs) -> tuple[Cells, list[int]]:
-    """The matched patches' cells as one :class:`~prismstation.core.orientation.field_adjust.Cells`, the
-    adjustment's patch ``j`` being ``pcs[index[j]]`` (patches without cells are left out, and
-    the labels stay contiguous: the adjustment counts its patches 0 … n − 1)."""
-    index = [k for k, p in enumerate(pcs) if p.count]
-    return Cells.join([{**pcs[k].cells, "patch": j} for j, k in enumerate(index)]), index
 
 
 def relate_views(run: OrientRun) -> None:
@@ -356,41 +351,6 @@ def second_pass(run: OrientRun, pcs, index, fit, patch_m: float, gcps):
     return pcs2, index2, fit2, {**second.to_dict(), "first_pass": record}
 
 
-#: how far the pull's measurement moves the dense prior (matched px): half the matcher's
-#: candidate step, the most a pull that is periodic in the prior's error can change
-PULL_OFFSET_PX = 0.5
-
-
-def prior_pull(run: OrientRun, fit, patch_m: float, gcps) -> dict:
-    """How far the field follows the dense matcher's prior, measured: every patch matched again
-    as the last pass matched it but with its prior moved by :data:`PULL_OFFSET_PX` matched
-    pixels of parallax, the field adjusted again from ``fit``. The matcher's sub-pixel value is
-    drawn toward its whole-pixel candidates around the prior (most on sharp, point-sampled
-    texture), and the prior is the reference laid where the ancillary model, or the first field,
-    puts N: every patch is drawn alike, so their scatter and ``Σ_b`` never see it. The prior's
-    a-priori error (the reference heights' σ over ``c1``, several pixels) exceeds the pull's
-    period of one candidate, so the change is the pull's σ: ``{"offset_px", "theta_change"
-    (9,) m, "reason"}`` (``theta_change`` None and ``reason`` why when it could not be measured)."""
-    saved = run.n_field, run.n_field_sigma_m
-    run.n_field, run.n_field_sigma_m = run.prior_field
-    run.prior_offset_px = PULL_OFFSET_PX
-    out = {"offset_px": PULL_OFFSET_PX, "theta_change": None, "reason": ""}
-    try:
-        pcs = match_patches(run, patch_m, progress_range=(0.8, 0.98))
-        cells, index = join_cells(pcs)
-        moved = adjust(run, cells, len(index), fit.theta, gcps)
-        if moved:
-            out["theta_change"] = (moved.theta - fit.theta).tolist()
-        else:
-            out["reason"] = f"the adjustment with the prior moved failed ({moved.reason})"
-    except InputError as e:
-        out["reason"] = f"the patches with the prior moved did not match ({e})"
-    finally:
-        run.prior_offset_px = 0.0
-        run.n_field, run.n_field_sigma_m = saved
-    return out
-
-
 def field_plan_sigma(run: OrientRun, fit) -> float:
     """The largest planimetric σ (m) of ``fit``'s field at a lattice over N (the a-priori σ
     where it is not finite)."""
@@ -433,28 +393,6 @@ def offsets_along_sigma(run: OrientRun, record: dict) -> float:
     return s * N.pixel_size_m if np.isfinite(s) else 0.0   # (no offsets: nothing to add)
 
 
-def pair_term(run: OrientRun, pcs, index, fit, gcps) -> dict:
-    """The relative DEMs' own height errors at the scales the cells see (hundreds of metres),
-    propagated into the field: the cells' heights moved by one draw of that error (the pair
-    DEMs' disagreement, ``dh_pairs`` of :func:`prismstation.ops.dem_patches.match_patch`), the
-    field adjusted again from ``fit``. Correlated over the reference's cells and more, within a
-    patch of nearly one slope it is a shift of the patch that its scatter about its own shift
-    does not see. ``{"theta_change" (9,) m or None, "rms_m" (the draw's RMS), "reason"}``."""
-    out = {"theta_change": None, "rms_m": None, "reason": ""}
-    if not all("dh_pairs" in pcs[k].cells for k in index):
-        out["reason"] = "the pair DEMs were not matched (the second pass was not used)"
-        return out
-    cells, _ = join_cells(pcs)
-    dh = np.concatenate([pcs[k].cells["dh_pairs"] for k in index])
-    out["rms_m"] = float(np.sqrt(np.mean(dh ** 2)))
-    moved = adjust(run, replace(cells, h=cells.h + dh), len(index), fit.theta, gcps)
-    if moved:
-        out["theta_change"] = (moved.theta - fit.theta).tolist()
-    else:
-        out["reason"] = f"the adjustment with the heights moved failed ({moved.reason})"
-    return out
-
-
 def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcps, pull=None) -> DemOrientation:
     """Step 6: the patches' record, the field's σ (with the prior's pull, :func:`prior_pull`, as
     a term common to the whole field), the verdict and the model."""
@@ -485,25 +423,9 @@ def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcp
         covs = np.array([fit.cov_at(a, b) for a, b in zip(lx, ly)])
         if gcps is None or not len(gcps):      # GCPs observe the field through the same offsets
             covs[:, :2, :2] += offsets_along_sigma(run, record) ** 2 * np.outer(along, along)
-        notes = []
-        for key, what in (("prior", "the matcher's pull toward its prior"),
-                          ("pairs", "the relative DEMs' own errors, as the pair DEMs disagree")):
-            term = (pull or {}).get(key)
-            if term is None:
-                continue
-            if term["theta_change"] is None:
-                notes.append(f"{what} was not measured: {term['reason']}")
-                continue
-            dv = fit.basis.predict(np.asarray(term["theta_change"]), lx, ly)       # (25, 3)
-            covs += dv[:, :, None] * dv[:, None, :]
-            term["sigma_m"] = cond.summarise(dv[:, :, None] * dv[:, None, :], along).to_dict()
-            notes.append(f"{term['sigma_m']['plan']:.1f} m planimetric, {term['sigma_m']['h']:.1f} m in height "
-                         f"for {what}")
-        unchecked = ("σ includes " + "; ".join(n for n in notes if "not measured" not in n)
-                     + ", which the patches cannot check") if any("not measured" not in n for n in notes) else ""
-        unchecked = "; ".join([unchecked] * bool(unchecked) + [n for n in notes if "not measured" in n])
+        unchecked_note = unchecked.add_to_covariances(covs, fit.basis, pull, lx, ly, along)
         summary = cond.summarise(covs, along)
-        verdict = cond.judge(summary, target_m, used, run.sigma_apriori_m, unchecked=unchecked)
+        verdict = cond.judge(summary, target_m, used, run.sigma_apriori_m, unchecked=unchecked_note)
     else:
         summary = cond.SigmaSummary(*(np.nan,) * 7)
         verdict = cond.OrientVerdict(cond.FAILED, f"NOT TRUSTED: {fit.reason}",
