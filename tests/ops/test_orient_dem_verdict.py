@@ -31,6 +31,17 @@ def test_too_few_patches_exit_3_with_the_verdict(project, capsys):
     rec = json.loads((d / "few.json").read_text())["dem_control"]
     assert rec["verdict"]["status"] == "too_few" and rec["sigma_apriori_m"] == 30.0
     assert rec["coarse"]["radius_px"] == pytest.approx(3 * 30 * 2 ** 0.5 / 2.5)
+    # the matcher's pull toward its prior, common to every patch (their scatter never sees it),
+    # is measured (the patches matched again with the prior moved) and is in the σ and the verdict
+    pull = rec["adjustment"]["prior_pull"]
+    assert pull["offset_px"] == 0.5 and len(pull["theta_change"]) == 9 and not pull["reason"]
+    assert 0 < pull["sigma_m"]["plan"] <= rec["sigma_m"]["plan"]
+    assert "pull toward its prior" in rec["verdict"]["message"]
+    # the relative DEMs' own errors, one draw from the pair DEMs' disagreement, likewise
+    pairs = rec["adjustment"]["pair_dems"]
+    assert len(pairs["theta_change"]) == 9 and 0 < pairs["rms_m"] < 5 and not pairs["reason"]
+    assert 0 < pairs["sigma_m"]["plan"] <= rec["sigma_m"]["plan"]
+    assert "as the pair DEMs disagree" in rec["verdict"]["message"]
 
 
 @pytest.mark.slow  # ~40 s: the whole orientation runs and the flat reference is refused (too_smooth)

@@ -13,12 +13,14 @@ from dataclasses import dataclass
 
 from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
+from scipy import ndimage
 
 from prismstation.core.models import prism
 from prismstation.core.adjustment.affine import Affine2D
 from prismstation.core.matching.coarse import K_SIGMA
 from prismstation.core.orientation.dem_orient import grid_points, patch_windows, relative_dem_points, smooth_like_reference
 from prismstation.core.matching.dense import parallax_map
+from prismstation.core.orientation.field_adjust import Cells
 from prismstation.core.orientation.field_model import Surface
 from prismstation.core.models.ray_dem import ray_meets_surface
 from prismstation.core.surfaces.sample import remap_points
@@ -28,13 +30,23 @@ from prismstation.io.windows import ImageWindows, scaling, shift
 from prismstation.ops.progress import checkpoint
 
 
+#: the dense prior is the reference smoothed by a Gaussian of this many of its own cells (σ): a
+#: reference's noise is white from cell to cell (SRTM: metres), and the matcher's sub-pixel
+#: value is drawn toward its prior — a prior holding that noise printed it into the relative
+#: DEMs, whose gradients then shared the reference's noise and were taken for relief (the σ of
+#: the field 5 × too small on smooth hills under a 4 m-noise reference). Smoothed over two
+#: cells its noise falls ~7 ×; the search covers what the smoothing takes off the relief.
+PRIOR_SMOOTH_CELLS = 2.0
+
+
 @dataclass(frozen=True)
 class ReferenceGrid:
     """The reference DEM read over N's footprint and the search radius: ellipsoidal heights
     ``dem.heights`` (NaN where void) on the north-up grid of ``posting_m`` whose corner cells
     span ``lo`` (west, south) to ``hi`` (east, north), metres; ``filled`` the same with voids
     at the mean height ``mean_h`` (float32), ``slope`` its gradient's norm (m/m), ``cells`` the
-    reference's own cell size in grid cells (col, row)."""
+    reference's own cell size in grid cells (col, row); ``smooth`` the filled heights smoothed
+    over :data:`PRIOR_SMOOTH_CELLS` of the reference's own cells (the dense matcher's prior)."""
 
     dem: object
     lo: np.ndarray
@@ -44,6 +56,7 @@ class ReferenceGrid:
     filled: np.ndarray
     slope: np.ndarray
     cells: tuple
+    smooth: np.ndarray | None = None
 
     def at(self, grid: np.ndarray, en: np.ndarray) -> np.ndarray:
         """``grid`` (one of this grid's arrays) sampled bilinearly at map points ``en`` (..., 2)."""
@@ -51,15 +64,17 @@ class ReferenceGrid:
         row = (self.hi[1] - en[..., 1]) / self.posting_m - 0.5
         return remap_points(grid, col, row).astype(float)
 
-    def ground(self, scene, xy: np.ndarray, shift=None):
+    def ground(self, scene, xy: np.ndarray, shift=None, smooth: bool = False):
         """Where N's ancillary rays through image points ``xy`` (n, 2) meet the reference
         (:class:`~prismstation.core.models.ray_dem.RayHits`: ``en`` (n, 2), ``h`` (n,), NaN where a
         ray did not meet it). ``shift`` (optional): N's shift field ``(x, y) → (dE, dN, dh)``
         (m), the reference laid where N really looks — ``en`` and ``h`` are then in the
-        ancillary frame (the reference at ``en + (dE, dN)``, minus ``dh``)."""
+        ancillary frame (the reference at ``en + (dE, dN)``, minus ``dh``). ``smooth``: the
+        reference smoothed (``self.smooth``) instead of as it is."""
         s = np.zeros((len(xy), 3)) if shift is None else np.asarray(shift(xy[:, 0], xy[:, 1]), float)
+        grid = self.smooth if smooth and self.smooth is not None else self.filled
         return ray_meets_surface(lambda h: prism.ancillary_to_ground(scene, scene.views["N"], xy, h),
-                                 lambda en: self.at(self.filled, en + s[:, :2]) - s[:, 2], self.mean_h)
+                                 lambda en: self.at(grid, en + s[:, :2]) - s[:, 2], self.mean_h)
 
     def surface(self) -> Surface:
         """The heights (voids NaN) as the adjustment samples them."""
@@ -82,7 +97,9 @@ def read_reference(run) -> ReferenceGrid:
     cells = tuple(c / posting_m for c in (ref.source_cell_m or (posting_m, posting_m)))
     filled = np.nan_to_num(ref.heights, nan=mean_h).astype(np.float32)
     gy, gx = np.gradient(filled, posting_m)
-    return ReferenceGrid(ref, lo, hi, posting_m, mean_h, filled, np.hypot(gx, gy), cells)
+    smooth = ndimage.gaussian_filter(filled.astype(float), [PRIOR_SMOOTH_CELLS * c for c in cells[::-1]],
+                                     mode="nearest").astype(np.float32)
+    return ReferenceGrid(ref, lo, hi, posting_m, mean_h, filled, np.hypot(gx, gy), cells, smooth)
 
 
 @dataclass(frozen=True)
@@ -101,6 +118,14 @@ class PatchCells:
     @property
     def count(self) -> int:
         return int(np.size(self.cells.get("h", ())))
+
+
+def join_cells(pcs) -> tuple[Cells, list[int]]:
+    """The matched patches' cells as one :class:`~prismstation.core.orientation.field_adjust.Cells`, the
+    adjustment's patch ``j`` being ``pcs[index[j]]`` (patches without cells are left out, and
+    the labels stay contiguous: the adjustment counts its patches 0 … n − 1)."""
+    index = [k for k, p in enumerate(pcs) if p.count]
+    return Cells.join([{**pcs[k].cells, "patch": j} for j, k in enumerate(index)]), index
 
 
 def match_patches(run, patch_m: float, progress_range=(0.25, 0.8)) -> list[PatchCells]:
@@ -151,10 +176,15 @@ def match_patch(run, images, win, sigma_py_off: float) -> PatchCells:
     resolution, as cells.
 
     The prior is the reference where N's ancillary model puts the patch, or where the field
-    ``run.n_field`` puts it once one is known. The parallax search covers K_SIGMA σ of the
+    ``run.n_field`` puts it once one is known, moved by ``run.prior_offset_px`` matched pixels
+    (0 but when the prior's pull is measured: :func:`prismstation.ops.dem_unchecked.prior_pull`).
+    With ``run.pairs`` the cells also hold ``dh_pairs`` (m): the F–B relative DEM's own error
+    as the pair DEMs with N disagree (:func:`_pair_disagreement`), gridded like the heights.
+    The parallax search covers K_SIGMA σ of the
     prior's error: the reference heights' σ, the height error of sampling them where N's error
     puts the patch (``run.n_sigma_m`` × the patch's RMS slope: the a-priori geolocation σ, or
-    the field's) and the offsets' along-track σ ``sigma_py_off`` (px)."""
+    the field's), what the prior's smoothing (:data:`PRIOR_SMOOTH_CELLS`) takes off the relief
+    (RMS over the patch) and the offsets' along-track σ ``sigma_py_off`` (px)."""
     scene, ref, f, posting_m = run.scene, run.ref, run.decimation, run.posting_m
     lo, hi = ref.lo, ref.hi
     c1 = prism.theoretical_c1(scene)
@@ -166,7 +196,7 @@ def match_patch(run, images, win, sigma_py_off: float) -> PatchCells:
     gx, gy = np.meshgrid(np.arange(wd[0] + 0.5, wd[0] + wd[2], step) * f,
                          np.arange(wd[1] + 0.5, wd[1] + wd[3], step) * f)
     pts = np.column_stack([gx.ravel(), gy.ravel()])
-    hit = ref.ground(scene, pts, run.n_field)
+    hit = ref.ground(scene, pts, run.n_field, smooth=True)
     if hit.converged.mean() < 0.98:
         return fail(f"N's rays did not meet the reference DEM: {hit.reason}")
     en, hh = hit.en, hit.h
@@ -177,28 +207,33 @@ def match_patch(run, images, win, sigma_py_off: float) -> PatchCells:
         hh = np.where(miss, np.nanmedian(hh), hh)
         en = np.where(miss[:, None], prism.ancillary_to_ground(scene, scene.views["N"], pts, hh), en)
     rms_slope = float(np.sqrt(np.mean(ref.at(ref.slope, en) ** 2)))
-    sigma_py = float(np.hypot(np.hypot(run.sigma_height_m, run.n_sigma_m * rms_slope) / c1, sigma_py_off))
+    # what the smoothing took off the relief under the patch (m, RMS)
+    rms_smooth = float(np.sqrt(np.mean((ref.at(ref.filled, en) - ref.at(ref.smooth, en)) ** 2)))
+    sigma_py = float(np.hypot(np.linalg.norm([run.sigma_height_m, run.n_sigma_m * rms_slope, rms_smooth]) / c1,
+                              sigma_py_off))
     search_px = int(np.ceil(K_SIGMA * sigma_py / f)) + 1
     # the samples sit at decimated pixel centres 0.5 + step·k of the window: interpolate there
     # (a plain resize would take them as the centres of step-wide blocks, step/2 − 0.5 off)
     u = (np.arange(wd[2], dtype=np.float32) / step)[None, :].repeat(wd[3], 0)
     v = (np.arange(wd[3], dtype=np.float32) / step)[:, None].repeat(wd[2], 1)
     prior = cv2.remap((hh / c1 / f).reshape(gx.shape).astype(np.float32), u, v, cv2.INTER_LINEAR,
-                      borderMode=cv2.BORDER_REPLICATE)
+                      borderMode=cv2.BORDER_REPLICATE) + np.float32(run.prior_offset_px)
     d = prism.along_track_unit(scene, en.mean(0))
     reach = float(np.abs(prior).max()) * f + (search_px + 20) * f
     arrays, to_n = {}, {}
-    for view in ("F", "B"):
+    for view in ("F", "B", "N") if run.pairs else ("F", "B"):
         back = prism.to_nadir_space(scene, scene.views[view]).inverse()
         box = np.array([[c0 - reach, r0 - reach], [c0 + w + reach, r0 - reach],
                         [c0 - reach, r0 + h + reach], [c0 + w + reach, r0 + h + reach]], float)
-        pc = back(box + run.offset_of(view, np.array([x, y], float)))
+        pc = back(box + (run.offset_of(view, np.array([x, y], float)) if view != "N" else 0.0))
         (a0, b0), (a1, b1) = pc.min(0), pc.max(0)
         # whole f × f blocks from the window's corner (a resize of the rest would stretch it)
         arr, ac0, ar0 = images.read_reduced(view, a0, b0, a1 - a0, b1 - b0, f)
         if arr is None:
             return fail(f"the {view} image does not cover the patch")
-        to_n[view] = _to_n_space(run, scene, view, (ac0, ar0), f)
+        to_n[view] = (_to_n_space(run, scene, view, (ac0, ar0), f) if view != "N" else
+                      (scaling(1 / f) @ prism.to_nadir_space(scene, scene.views["N"]) @ shift(ac0, ar0)
+                       @ scaling(f)).matrix)
         arrays[view] = arr
     pm = parallax_map(arrays["F"], arrays["B"], to_n["F"], to_n["B"], wd, d, prior=prior,
                       search_range=search_px, half_window=4, n_weight=run.n_weight)
@@ -219,5 +254,30 @@ def match_patch(run, images, win, sigma_py_off: float) -> PatchCells:
     n = hi[1] - (j0 + j + 0.5) * posting_m
     hc = rel[j, i]
     xy = prism.ground_to_ancillary(scene, scene.views["N"], np.column_stack([e, n]), hc)
-    return PatchCells(win, x, y, pm.valid_fraction,
-                      {"x": xy[:, 0], "y": xy[:, 1], "e": e, "n": n, "h": hc, "row": j0 + j, "col": i0 + i})
+    cells = {"x": xy[:, 0], "y": xy[:, 1], "e": e, "n": n, "h": hc, "row": j0 + j, "col": i0 + i}
+    if run.pairs:
+        dh = _pair_disagreement(run, arrays, to_n, wd, d, prior, search_px, pm.parallax)
+        E2, N2, _ = relative_dem_points(scene, np.where(np.isfinite(dh), pm.parallax, np.nan) * f, wd, c1,
+                                        step=1, scale=f)
+        dgrid = smooth_like_reference(grid_points(E2, N2, dh[np.isfinite(dh) & np.isfinite(pm.parallax)], t, shape),
+                                      ref.cells)
+        cells["dh_pairs"] = np.nan_to_num(dgrid[j, i], nan=0.0)
+    return PatchCells(win, x, y, pm.valid_fraction, cells)
+
+
+def _pair_disagreement(run, arrays, to_n, wd, d, prior, search_px: int, py_fb) -> np.ndarray:
+    """How the triplet's two pair DEMs with N disagree, as an error of the F–B relative DEM (m)
+    on the decimated N window ``wd``: F–N and N–B matched like F–B (their parallax is the share
+    ``w`` and ``1 − w`` of F–B's, N's position is F's and N's own), each scaled to F–B's
+    parallax, their difference times ``c1·f``. With independent errors of σ per image and
+    pixel, F–B's error has variance 2σ² and the difference
+    ``σ²·(1/w² + 1/(1 − w)² + 1/(w(1 − w))²)``: scaled by the root of that ratio (1/√12 for
+    θ_F = θ_B), it is one draw of F–B's own error (the part each image brings: sampling,
+    aliasing, noise), NaN where either pair did not match."""
+    wF, f, c1 = run.n_weight, run.decimation, prism.theoretical_c1(run.scene)
+    fn = parallax_map(arrays["F"], arrays["N"], to_n["F"], to_n["N"], wd, d, prior=prior * wF,
+                      search_range=search_px, half_window=4, n_weight=1.0)
+    nb = parallax_map(arrays["N"], arrays["B"], to_n["N"], to_n["B"], wd, d, prior=prior * (1 - wF),
+                      search_range=search_px, half_window=4, n_weight=0.0)
+    r = np.sqrt(2.0 / (1 / wF ** 2 + 1 / (1 - wF) ** 2 + 1 / (wF * (1 - wF)) ** 2))
+    return (fn.parallax / wF - nb.parallax / (1 - wF)) * (c1 * f * r)

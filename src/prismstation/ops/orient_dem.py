@@ -43,7 +43,8 @@ from prismstation.io.jsonfile import plain
 from prismstation.io.project import project_geoid
 from prismstation.model.project import Project
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M, coarse_view_offsets
-from prismstation.ops.dem_patches import ReferenceGrid, match_patches, read_reference
+from prismstation.ops import dem_unchecked as unchecked
+from prismstation.ops.dem_patches import ReferenceGrid, join_cells, match_patches, read_reference
 from prismstation.ops.fit import ellipsoidal_heights
 from prismstation.ops.progress import ProgressFn, checkpoint, scaled
 
@@ -109,6 +110,9 @@ class OrientRun:
     ref: ReferenceGrid = None     # the reference DEM on the matching's grid
     n_field: object = None        # N's shift field once adjusted (step 5 matches with it)
     n_field_sigma_m: float = None  # its planimetric σ (m)
+    prior_offset_px: float = 0.0  # the dense prior moved by this (matched px): the pull's measurement
+    prior_field: tuple = (None, None)  # (field, σ) the last patches' priors were laid with
+    pairs: bool = False           # match the pair DEMs F–N and N–B too (the second pass)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -194,18 +198,14 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     checkpoint(progress, 0.55, "adjusting the shift field")
     fit = adjust(run, cells, len(index), start_field(run, cells), gcps)  # 4.
     record = run.coarse.to_dict()
+    pull = None
     if fit:
         pcs, index, fit, record = second_pass(run, pcs, index, fit, patch_m, gcps)  # 5.
+        refit = lambda cells, n: adjust(run, cells, n, fit.theta, gcps)  # noqa: E731
+        pull = {"prior": unchecked.prior_pull(run, patch_m, fit, refit),
+                "pairs": unchecked.pair_term(pcs, index, fit, refit)}
     checkpoint(progress, 1.0, "done")
-    return make_result(run, pcs, index, fit, expected, record, target_m, gcps)  # 6.
-
-
-def join_cells(pcs) -> tuple[Cells, list[int]]:
-    """The matched patches' cells as one :class:`~prismstation.core.orientation.field_adjust.Cells`, the
-    adjustment's patch ``j`` being ``pcs[index[j]]`` (patches without cells are left out, and
-    the labels stay contiguous: the adjustment counts its patches 0 … n − 1)."""
-    index = [k for k, p in enumerate(pcs) if p.count]
-    return Cells.join([{**pcs[k].cells, "patch": j} for j, k in enumerate(index)]), index
+    return make_result(run, pcs, index, fit, expected, record, target_m, gcps, pull)  # 6.
 
 
 def relate_views(run: OrientRun) -> None:
@@ -330,19 +330,24 @@ def second_pass(run: OrientRun, pcs, index, fit, patch_m: float, gcps):
     run.offsets = {v: np.asarray(second.offsets_px[v], float) for v in "FB"}
     run.grads = {v: np.asarray(second.gradients_px[v], float) for v in "FB"}
     run.n_field, run.n_field_sigma_m = fit.field, field_plan_sigma(run, fit)
+    run.pairs = True
     try:
-        pcs2 = match_patches(run, patch_m, progress_range=(0.65, 0.95))
+        pcs2 = match_patches(run, patch_m, progress_range=(0.65, 0.8))
     except InputError as e:
         pcs2, why = None, str(e)
+    finally:
+        run.pairs = False
     if pcs2 is not None:
         cells2, index2 = join_cells(pcs2)
-        checkpoint(run.progress, 0.95, "adjusting the shift field again")
+        checkpoint(run.progress, 0.8, "adjusting the shift field again")
         fit2 = adjust(run, cells2, len(index2), fit.theta, gcps)
         why = f"the adjustment after it failed ({fit2.reason})"
+    prior = run.n_field, run.n_field_sigma_m
     run.n_field = None
     if pcs2 is None or not fit2:
         run.offsets, run.grads = old
         return pcs, index, fit, {**second.to_dict(), "first_pass": record, "second_pass": f"not used: {why}"}
+    run.prior_field = prior
     return pcs2, index2, fit2, {**second.to_dict(), "first_pass": record}
 
 
@@ -388,8 +393,9 @@ def offsets_along_sigma(run: OrientRun, record: dict) -> float:
     return s * N.pixel_size_m if np.isfinite(s) else 0.0   # (no offsets: nothing to add)
 
 
-def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcps) -> DemOrientation:
-    """Step 6: the patches' record, the field's σ, the verdict and the model."""
+def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcps, pull=None) -> DemOrientation:
+    """Step 6: the patches' record, the field's σ (with the prior's pull, :func:`prior_pull`, as
+    a term common to the whole field), the verdict and the model."""
     offsets = {v: [float(c) for c in o] for v, o in run.offsets.items()}
     grads = {v: [[float(c) for c in row] for row in g] for v, g in run.grads.items()}
     where = {k: j for j, k in enumerate(index)}
@@ -417,8 +423,9 @@ def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcp
         covs = np.array([fit.cov_at(a, b) for a, b in zip(lx, ly)])
         if gcps is None or not len(gcps):      # GCPs observe the field through the same offsets
             covs[:, :2, :2] += offsets_along_sigma(run, record) ** 2 * np.outer(along, along)
+        unchecked_note = unchecked.add_to_covariances(covs, fit.basis, pull, lx, ly, along)
         summary = cond.summarise(covs, along)
-        verdict = cond.judge(summary, target_m, used, run.sigma_apriori_m)
+        verdict = cond.judge(summary, target_m, used, run.sigma_apriori_m, unchecked=unchecked_note)
     else:
         summary = cond.SigmaSummary(*(np.nan,) * 7)
         verdict = cond.OrientVerdict(cond.FAILED, f"NOT TRUSTED: {fit.reason}",
@@ -438,4 +445,4 @@ def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcp
                                "sigma_m": np.sqrt(np.clip(np.diag(fit.cov)[12:], 0, None)).tolist(),
                                "a_priori_sigma_m": run.distortion_sigma_m},
          "rejected": [index[j] for j in fit.rejected], "gcp_observations": 0 if gcps is None else len(gcps),
-         "reason": fit.reason})
+         "reason": fit.reason, "prior_pull": (pull or {}).get("prior"), "pair_dems": (pull or {}).get("pairs")})

@@ -152,21 +152,23 @@ def weak_directions(s: SigmaSummary, target_m: float) -> str:
 
 
 def judge(sigma: SigmaSummary, target_m: float, patches_used: int, prior_sigma_m: float,
-          min_patches: int = MIN_PATCHES) -> OrientVerdict:
+          min_patches: int = MIN_PATCHES, unchecked: str = "") -> OrientVerdict:
     """The verdict on an orientation whose field has ``sigma`` with ``patches_used`` patches:
     ``ok`` when its planimetric and height σ are within ``target_m``; ``too_smooth`` (what
-    direction, what would help) otherwise; ``too_few`` below ``min_patches``."""
+    direction, what would help) otherwise; ``too_few`` below ``min_patches``. ``unchecked``:
+    what the σ holds that the data cannot check (said in the message when not empty)."""
+    note = f" ({unchecked})" if unchecked else ""
     if patches_used < min_patches:
         return OrientVerdict(TOO_FEW, f"{patches_used} patches: at least {min_patches} are needed to "
-                             "state the orientation's σ from the data (choose smaller patches)",
+                             f"state the orientation's σ from the data (choose smaller patches){note}",
                              "smaller patches, or a larger area", target_m, sigma)
     if sigma.plan <= target_m and sigma.h <= target_m:
-        return OrientVerdict(OK, f"trusted: {sigma.text()} (target {target_m:g} m)", "", target_m, sigma)
+        return OrientVerdict(OK, f"trusted: {sigma.text()} (target {target_m:g} m){note}", "", target_m, sigma)
     where = weak_directions(sigma, target_m)
     if sigma.worst >= 0.7 * prior_sigma_m:
         what = (f"the terrain fixes no shift {where}: σ {sigma.worst:.0f} m there is the a-priori "
                 f"geolocation σ ({prior_sigma_m:g} m)")
     else:
         what = f"the terrain is too smooth {where}: {sigma.text()}"
-    return OrientVerdict(TOO_SMOOTH, f"NOT TRUSTED: {what}; the target is {target_m:g} m", ADVICE,
+    return OrientVerdict(TOO_SMOOTH, f"NOT TRUSTED: {what}; the target is {target_m:g} m{note}", ADVICE,
                          target_m, sigma)

@@ -47,6 +47,9 @@ K_OUTLIER = 3.0
 MIN_SPREAD_M = 0.05
 #: Gauss–Newton stops when no part of the field moves by more than this (m) over the image
 TOL_M = 1e-3
+#: Gauss–Newton that has not settled within its iterations still counts as converged when its
+#: last step is below this share of the σ the cells' shared relief gives (:func:`signal_share`)
+JITTER = 0.1
 
 
 @dataclass(frozen=True)
@@ -399,6 +402,17 @@ def adjust_field(cells: Cells, surface: Surface, basis: Basis, theta0, *, n_patc
                 S = accumulate(cells, surface, basis, theta, offset, P, free, areas=S.area, own_gradients=own,
                                distortion=distortion, delta=delta)
                 return S, keep & (S.used > 0), True
+        # the steps' σ counts every gradient of the reference as relief; where most of them are
+        # its noise (smooth hills under SRTM) the steps jitter on that noise by decimetres, far
+        # below the σ the relief the cells share allows: converged as far as the data tell
+        S2 = accumulate(cells, surface, basis, theta, offset, P, free, areas=S.area, own_gradients=own,
+                        distortion=distortion, delta=delta)
+        k2 = keep & (S2.used > 0)
+        if k2.any():
+            Nx, bx = extra(theta)
+            _, C2 = fs.solve(S2, k2, sb, Nx, bx)
+            if np.all(np.abs(d) < np.maximum(TOL_M, JITTER * np.sqrt(np.diag(C2)))):
+                return S2, k2, True
         return S, k, False
 
     while True:
