@@ -31,13 +31,13 @@ TANS = (0.15, -0.15)               # B/H 0.3
 LINE_BIAS_PX = 40.0                # the right RPC's line offset error: 40 m along track
 
 
-@pytest.fixture(scope="module")
-def pair(tmp_path_factory, shared_data):
-    srtm = shared_data / "srtm" / "N44E005.hgt"
+def make_pair(d, srtm):
+    """The pair's images (the right one's RPC off by :data:`LINE_BIAS_PX` along the lines),
+    49 tie points (the true RPCs' projections of the terrain, 0.05 px of noise) and the project
+    ``p.prismproj`` (geoid 0) in folder ``d``: ``(d, world, srtm)``."""
     height = dem_terrain(srtm)
     world = World(LON0, LAT0, lambda e, n: 0.0, extent_m=1000, texture_cell_m=0.5)
     world.height = lambda lon, lat: height(lon, lat)
-    d = tmp_path_factory.mktemp("rpc_orientation")
     true, paths = [], []
     for k, t in enumerate(TANS):
         rpc = make_rpc(LON0, LAT0, gsd=GSD, size=SIZE, tan_along=t, h_off=1200.0, h_scale=800.0, seed=k + 1)
@@ -60,6 +60,11 @@ def pair(tmp_path_factory, shared_data):
     assert main(["new", str(d / "p.prismproj"), "--images", *map(str, paths), "--no-ties", "--geoid", "0",
                  "--measurements", str(d / "ties.csv")]) == 0
     return d, world, srtm
+
+
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory, shared_data):
+    return make_pair(tmp_path_factory.mktemp("rpc_orientation"), shared_data / "srtm" / "N44E005.hgt")
 
 
 def dsm_minus_truth(path, world) -> np.ndarray:

@@ -14,7 +14,7 @@ from dataclasses import replace
 
 from PySide6.QtCore import QEvent, QRect, QSize, Qt, Signal
 from PySide6.QtGui import QColor, QFont, QFontMetrics, QPainter, QPalette
-from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QHBoxLayout, QLabel,
+from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout, QHBoxLayout, QLabel,
                                QPushButton, QScrollArea, QSizePolicy, QVBoxLayout, QWidget)
 
 from prismstation.core.models.prism import BIAS_MODELS, PARALLAX_MODELS
@@ -22,6 +22,7 @@ from prismstation.gui.fit_checks import blunder_test
 from prismstation.gui.sensors import parts_of
 from prismstation.gui.static_text import StaticTexts
 from prismstation.io.formatting import fixed
+from prismstation.ops.fit import DEFAULT_REFERENCE_SIGMA_M
 
 SECTION_COLOR = QColor("#1d3c6e")
 HEAD_BG = QColor("#dde4ee")
@@ -323,6 +324,11 @@ class ModelPanel(QWidget):
         self.fixed = QComboBox()  # the view held fixed (models that hold one): data = view or None
         self.fixed.addItem(AUTO_FIXED, None)
         self.sigma = QDoubleSpinBox(decimals=2, minimum=0.01, maximum=100.0, singleStep=0.1, suffix=" px")
+        # models that hold tie points to the reference DEM (images with RPCs): its height σ and
+        # whether GCPs enter the fit — the project's stored settings, as `fit --dem-sigma`,
+        # `--gcps`/`--no-gcps` set them
+        self.ref_sigma = QDoubleSpinBox(decimals=1, minimum=0.1, maximum=500.0, singleStep=1.0, suffix=" m")
+        self.use_gcps = QCheckBox("GCPs in the fit")
         self.threshold = QDoubleSpinBox(decimals=2, minimum=1.0, maximum=20.0, singleStep=0.5)
         for w, tip in (
                 (self.bias, "How each view's image coordinates are corrected: shift (2 parameters), "
@@ -334,6 +340,11 @@ class ModelPanel(QWidget):
                 (self.fixed, "The view whose geolocation is the datum of a fit without GCPs: its "
                              "bias is not fitted and the others' are relative to it (auto: the "
                              "first view when there is no GCP, none with GCPs)"),
+                (self.ref_sigma, "σ of the reference DEM's heights the tie points are held to when GCPs "
+                                 "are too few (before the slope term: its cell on a slope adds "
+                                 "slope × cell / √12)"),
+                (self.use_gcps, "Unticked: GCPs are only checked (their residuals shown), the biases come "
+                                "from the tie points and the reference DEM"),
                 (self.sigma, "A-priori σ of one image measurement (pixels): weights the fit and "
                              "scales the standardised residuals; σ0 near 1× this means the "
                              "measurements are as good as assumed"),
@@ -347,6 +358,8 @@ class ModelPanel(QWidget):
         form.addRow("Bias model", self.bias)
         form.addRow("Parallax model", self.parallax)
         form.addRow("View held fixed", self.fixed)
+        form.addRow("Reference DEM σ", self.ref_sigma)
+        form.addRow("", self.use_gcps)
         row = QHBoxLayout()
         row.addWidget(self.sigma)
         row.addWidget(self.threshold)
@@ -375,6 +388,8 @@ class ModelPanel(QWidget):
         self.bias.activated.connect(self._emit)
         self.parallax.activated.connect(self._emit)
         self.fixed.activated.connect(self._emit)
+        self.ref_sigma.editingFinished.connect(self._emit)
+        self.use_gcps.toggled.connect(self._emit)
         self.sigma.editingFinished.connect(self._emit)
         self.threshold.editingFinished.connect(self._emit)
 
@@ -393,6 +408,8 @@ class ModelPanel(QWidget):
             self.fixed.addItem(v, v)
         self.form.setRowVisible(self.parallax, bool(sensor.parallax_models))
         self.form.setRowVisible(self.fixed, bool(sensor.holds_view_fixed))
+        self.form.setRowVisible(self.ref_sigma, bool(sensor.holds_view_fixed))
+        self.form.setRowVisible(self.use_gcps, bool(sensor.holds_view_fixed))
 
     def set_settings(self, settings) -> None:
         """Show ``settings`` without emitting (nothing is touched when they are unchanged: a
@@ -400,14 +417,17 @@ class ModelPanel(QWidget):
         if settings == self._settings:
             return
         self._settings = settings
-        for w in (self.bias, self.parallax, self.fixed, self.sigma, self.threshold):
+        for w in (self.bias, self.parallax, self.fixed, self.sigma, self.threshold, self.ref_sigma, self.use_gcps):
             w.blockSignals(True)
         self.bias.setCurrentText(settings.bias_model)
         self.parallax.setCurrentText(settings.parallax_model)
         self.fixed.setCurrentIndex(max(self.fixed.findData(settings.fixed_view), 0))
         self.sigma.setValue(settings.sigma_px)
         self.threshold.setValue(settings.blunder_threshold)
-        for w in (self.bias, self.parallax, self.fixed, self.sigma, self.threshold):
+        self.ref_sigma.setValue(DEFAULT_REFERENCE_SIGMA_M if settings.reference_sigma_m is None
+                                else settings.reference_sigma_m)
+        self.use_gcps.setChecked(settings.use_gcps)
+        for w in (self.bias, self.parallax, self.fixed, self.sigma, self.threshold, self.ref_sigma, self.use_gcps):
             w.blockSignals(False)
 
     def set_solution(self, sol) -> None:
@@ -431,6 +451,9 @@ class ModelPanel(QWidget):
         new = replace(self._settings, bias_model=self.bias.currentText(),
                       parallax_model=self.parallax.currentText() or self._settings.parallax_model,
                       fixed_view=self.fixed.currentData(), sigma_px=float(self.sigma.value()),
-                      blunder_threshold=float(self.threshold.value()))
+                      blunder_threshold=float(self.threshold.value()), use_gcps=self.use_gcps.isChecked())
+        ref = round(float(self.ref_sigma.value()), 1)
+        if self._settings.reference_sigma_m is not None or ref != DEFAULT_REFERENCE_SIGMA_M:
+            new = replace(new, reference_sigma_m=ref)
         if new != self._settings:
             self.settings_requested.emit(new)
