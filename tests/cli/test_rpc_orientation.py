@@ -20,7 +20,7 @@ import rasterio
 
 from prismstation.cli import main
 from prismstation.core.models.rpc_bias import metres_per_degree
-from prismstation.io.project import load_project
+from prismstation.io.project import load_project, save_project
 from prismstation.io.rpc_scene import to_lonlat
 from tests.cli.test_rpc_workflows import write_tagged
 from tests.ops.rpc_synth import World, dem_terrain, make_rpc, render
@@ -130,3 +130,24 @@ def test_fit_with_the_reference_is_stored_and_the_dsm_sits_on_it(pair, tmp_path,
     assert main(["report", proj, "-o", str(tmp_path / "r.json")]) == 0
     rep = json.loads((tmp_path / "r.json").read_text())
     assert rep["settings"]["reference_sigma_m"] == 6.0
+
+
+def test_a_bias_per_view_and_a_stale_result(pair, tmp_path, capsys):
+    d, world, srtm = pair
+    proj = str(d / "q.prismproj")                # beside the scene and images
+    (d / "q.prismproj").write_bytes((d / "p.prismproj").read_bytes())
+    assert main(["fit", proj, "--dem", str(srtm), "--bias", "img1=shift_drift"]) == 0
+    p = load_project(proj)
+    assert p.settings.view_bias == (("img1", "shift_drift"),) and p.settings.bias_model == "shift"
+    assert p.orientation["views"]["img1"]["names"] == ["a0", "b0", "b2"]
+    assert p.orientation["views"]["img0"]["fixed"]
+    assert main(["fit", proj, "--bias", "img1=nothing"]) == 2
+    # settings edited elsewhere: the stored result is not the one dsm fits, and it says so
+    p.set_settings(replace(p.settings, reference_sigma_m=8.0))
+    save_project(p, proj)
+    capsys.readouterr()
+    assert main(["dsm", proj, "-o", str(tmp_path / "s.tif"), "--posting", "8"]) == 0
+    assert "changed since fit stored its orientation" in capsys.readouterr().err
+    # every view one model again
+    assert main(["fit", proj, "--bias", "shift"]) == 0
+    assert load_project(proj).settings.view_bias == ()

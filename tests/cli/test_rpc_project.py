@@ -6,7 +6,7 @@ least-squares matching: :func:`prismstation.core.matching.rpc_tiepoints.match_ti
 ``new --images`` as a measurements file. ``fit`` then runs with the first image held fixed and
 the tie points held to a reference DEM. No DEM covering these crops is among the samples, so
 the reference is made from the products' own RPCs: the heights their unbiased intersection
-gives the tie points (``fit --bias none``), gridded at 5 m with 2 m of noise per node — a DEM
+gives the tie points (``report --bias none``), gridded at 5 m with 2 m of noise per node — a DEM
 whose common offset to the RPCs is zero. Known answer: the last image's RPC line offset moved
 by +30 px and its sample offset by −45 px in the scene file; the fit finds the moves back.
 """
@@ -48,7 +48,8 @@ def block(request, shared_data, tmp_path_factory):
             w.writerow([f"T{j:04d}", images[i].stem, float(xy[0]), float(xy[1]), float(s[0])])
     assert main(["new", str(d / "block.prismproj"), "--images", *map(str, images), "--no-ties",
                  "--measurements", str(d / "ties.csv")]) == 0
-    assert main(["fit", str(d / "block.prismproj"), "--bias", "none", "--json", str(d / "before.json")]) == 0
+    # the raw RPCs' report (report's options are its own: the project keeps its shift bias)
+    assert main(["report", str(d / "block.prismproj"), "--bias", "none", "-o", str(d / "before.json")]) == 0
     before = json.loads((d / "before.json").read_text())
     _reference_dem(before, d / "dem.tif")
     return d, images, tp
@@ -114,7 +115,7 @@ def test_fit_with_one_image_fixed_removes_the_residuals(block, capsys):
     # points over relief have a few
     assert sum(p["blunder"] for p in after["points"]) <= 0.05 * len(after["points"])
     # the text report: a column per image
-    assert main(["fit", str(d / "block.prismproj"), "--fixed-view", "img_01"]) == 0
+    assert main(["fit", str(d / "block.prismproj"), "--fixed-view", "img_01", "--no-dem"]) == 0
     out = capsys.readouterr().out
     assert "Image residuals per view (px)" in out and images[-1].stem in out
     assert "b0 not determined by the data" in out   # no GCP and no DEM: honest about the line bias
@@ -167,6 +168,10 @@ def test_dsm_and_orientation_on_the_real_images(block, capsys, tmp_path):
     proj = tmp_path / "p.prismproj"
     proj.write_bytes((d / "block.prismproj").read_bytes())
     (tmp_path / "block.scene.json").write_bytes((d / "block.scene.json").read_bytes())
+    (tmp_path / "dem.tif").write_bytes((d / "dem.tif").read_bytes())
+    # the orientation the DSM reads: the tie points held to the reference (stored by fit)
+    assert main(["fit", str(proj), "--fixed-view", "img_01", "--dem", str(tmp_path / "dem.tif"),
+                 "--dem-sigma", str(H_SIGMA)]) == 0
     capsys.readouterr()
     assert main(["dsm", str(proj), "-o", str(tmp_path / "dsm.tif"), "--posting", "4", "--min-fill", "80"]) == 0
     out = capsys.readouterr().out

@@ -310,11 +310,14 @@ def _settings(raw, path, text, scene) -> Settings:
               "blunder_threshold": (_number(s.blunder_threshold, 0.0, strict=True), "a positive number"),
               "mean_height": (s.mean_height is None or _number(s.mean_height), "a number or null"),
               "orientation": (getattr(s, "orientation", "gcp") in ("gcp", "dem"), '"gcp" or "dem"'),
-              "view_bias": (all(v in scene.views and m in sensor.bias_models for v, m in s.view_bias),
-                            f"views of the scene ({', '.join(scene.views)}) → one of {', '.join(sensor.bias_models)}"),
+              "view_bias": ((not s.view_bias or sensor.holds_view_fixed)
+                            and all(v in scene.views and m in sensor.bias_models for v, m in s.view_bias),
+                            f"views of the scene ({', '.join(scene.views)}) → one of {', '.join(sensor.bias_models)}"
+                            if sensor.holds_view_fixed else "nothing (one bias model for every view)"),
               "reference_sigma_m": (s.reference_sigma_m is None or _number(s.reference_sigma_m, 0.0, strict=True),
                                     "a positive number of metres or null"),
-              "use_gcps": (isinstance(s.use_gcps, bool), "true or false")}
+              "use_gcps": (isinstance(s.use_gcps, bool) and (s.use_gcps or sensor.holds_view_fixed),
+                           "true or false" if sensor.holds_view_fixed else "true (the model is fitted to its GCPs)")}
     for key, (ok, want) in checks.items():
         if not ok:
             raise InputError(f'"settings.{key}": expected {want}, found {getattr(s, key)!r}', path,
