@@ -48,6 +48,21 @@ def test_panel_settings_saved_and_read_by_the_command_line(pair_window, monkeypa
     b0 = sol.bias["img1"].params[1]
     assert abs(b0 + LINE_BIAS_PX) < max(3 * sol.bias["img1"].std[1], 0.5)
 
+    # a bias model of one view, chosen as the operator does, then every view's again
+    def choose(combo, text):
+        combo.setCurrentIndex(combo.findText(text))
+        combo.activated.emit(combo.currentIndex())
+    choose(panel.bias_view, "img1")
+    choose(panel.bias, "shift_drift")
+    assert win.project.settings.view_bias == (("img1", "shift_drift"),)
+    assert win.solver.refit_now().bias["img1"].model == "shift_drift"
+    choose(panel.bias_view, "img0")
+    assert panel.bias.currentText() == "shift"
+    choose(panel.bias_view, "every view")
+    choose(panel.bias, "shift")
+    assert win.project.settings.view_bias == () and win.project.settings.bias_model == "shift"
+    assert win.solver.refit_now().bias["img1"].params[1] == pytest.approx(b0, abs=1e-9)
+
     win.a_save.trigger()
     p = load_project(d / "p.prismproj")
     assert p.settings.reference_sigma_m == 6.0 and p.reference_dem == str(srtm.resolve())

@@ -28,6 +28,7 @@ SECTION_COLOR = QColor("#1d3c6e")
 HEAD_BG = QColor("#dde4ee")
 BAD_COLOR = QColor("#c00000")
 WARN_COLOR = QColor("#a04000")
+EVERY_VIEW = "every view"  # the bias-view choice that shows and sets the settings' bias_model
 AUTO_FIXED = "auto"  # the fixed-view choice that holds none fixed by name (the model decides)
 
 
@@ -319,6 +320,10 @@ class ModelPanel(QWidget):
         super().__init__(parent)
         self.bias = QComboBox()
         self.bias.addItems(list(BIAS_MODELS))
+        # which view the bias model is shown and set for (models with a bias per view): every
+        # view (the settings' bias_model), or one (its own, view_bias)
+        self.bias_view = QComboBox()
+        self.bias_view.addItem(EVERY_VIEW, None)
         self.parallax = QComboBox()
         self.parallax.addItems(list(PARALLAX_MODELS))
         self.fixed = QComboBox()  # the view held fixed (models that hold one): data = view or None
@@ -334,6 +339,8 @@ class ModelPanel(QWidget):
                 (self.bias, "How each view's image coordinates are corrected: shift (2 parameters), "
                             "similarity (4) or affine (6); more parameters need more GCPs spread "
                             "over the image"),
+                (self.bias_view, "Every view (one model for all), or the one view whose bias model is "
+                                 "shown and set"),
                 (self.parallax, "Height from the F−B parallax h = c0 + c1·py: line fits c0 and c1 on "
                                 "the GCPs, offset fits c0 with the theoretical c1, theoretical "
                                 "takes both from the geometry"),
@@ -355,7 +362,10 @@ class ModelPanel(QWidget):
                                  "is listed under Blunder test")):
             w.setToolTip(tip)
         form = self.form = QFormLayout()
-        form.addRow("Bias model", self.bias)
+        brow = QHBoxLayout()
+        brow.addWidget(self.bias, 1)
+        brow.addWidget(self.bias_view, 1)
+        form.addRow("Bias model", brow)
         form.addRow("Parallax model", self.parallax)
         form.addRow("View held fixed", self.fixed)
         form.addRow("Reference DEM σ", self.ref_sigma)
@@ -386,6 +396,7 @@ class ModelPanel(QWidget):
         self._settings = None
         self.solution = None
         self.bias.activated.connect(self._emit)
+        self.bias_view.activated.connect(self._show_bias)
         self.parallax.activated.connect(self._emit)
         self.fixed.activated.connect(self._emit)
         self.ref_sigma.editingFinished.connect(self._emit)
@@ -404,8 +415,12 @@ class ModelPanel(QWidget):
                 combo.addItems(items)
         self.fixed.clear()
         self.fixed.addItem(AUTO_FIXED, None)
+        self.bias_view.clear()
+        self.bias_view.addItem(EVERY_VIEW, None)
         for v in views:
             self.fixed.addItem(v, v)
+            self.bias_view.addItem(v, v)
+        self.bias_view.setVisible(bool(sensor.holds_view_fixed))
         self.form.setRowVisible(self.parallax, bool(sensor.parallax_models))
         self.form.setRowVisible(self.fixed, bool(sensor.holds_view_fixed))
         self.form.setRowVisible(self.ref_sigma, bool(sensor.holds_view_fixed))
@@ -419,7 +434,7 @@ class ModelPanel(QWidget):
         self._settings = settings
         for w in (self.bias, self.parallax, self.fixed, self.sigma, self.threshold, self.ref_sigma, self.use_gcps):
             w.blockSignals(True)
-        self.bias.setCurrentText(settings.bias_model)
+        self._show_bias()
         self.parallax.setCurrentText(settings.parallax_model)
         self.fixed.setCurrentIndex(max(self.fixed.findData(settings.fixed_view), 0))
         self.sigma.setValue(settings.sigma_px)
@@ -445,10 +460,23 @@ class ModelPanel(QWidget):
         """Everything the panel shows, one label per line (tests, clipboard)."""
         return f"Geoid: {self.geoid.text()}\n" + self.sections.plain_text()
 
+    def _show_bias(self, *_) -> None:
+        """The bias combo shows the model of the view chosen beside it (every view's: the settings')."""
+        if self._settings is None:
+            return
+        v = self.bias_view.currentData()
+        self.bias.blockSignals(True)
+        self.bias.setCurrentText(self._settings.bias_model if v is None else self._settings.bias_of(v))
+        self.bias.blockSignals(False)
+
     def _emit(self, *_) -> None:
         if self._settings is None:
             return
-        new = replace(self._settings, bias_model=self.bias.currentText(),
+        v, chosen = self.bias_view.currentData(), self.bias.currentText()
+        every = chosen if v is None else self._settings.bias_model
+        own = {} if v is None else {**dict(self._settings.view_bias), v: chosen}  # every view: one model
+        view_bias = tuple(sorted((k, m) for k, m in own.items() if m != every))
+        new = replace(self._settings, bias_model=every, view_bias=view_bias,
                       parallax_model=self.parallax.currentText() or self._settings.parallax_model,
                       fixed_view=self.fixed.currentData(), sigma_px=float(self.sigma.value()),
                       blunder_threshold=float(self.threshold.value()), use_gcps=self.use_gcps.isChecked())
