@@ -95,7 +95,7 @@ def fit_block(scene, points, settings: Settings = Settings(), *, height_of=None,
     ``settings.fixed_view`` names one. Each view's bias model is ``settings.bias_of(view)``;
     ``settings.use_gcps`` False fits without the GCPs (they are then checked as check points
     are). ``height_sigma_m`` is a number or a function of map points ``(n, 2)`` → ``(n,)`` m (a
-    σ per point: :func:`prismstation.ops.reference_heights.DemHeights.sigma`). Raises
+    σ per point, as :func:`prismstation.ops.reference_heights.height_sigma` makes it). Raises
     :class:`ModelError` only for settings this model does not have (an unknown bias model or
     view); data the operator can fix are messages."""
     kinds = {v: settings.bias_of(v) for v in scene.views}
