@@ -54,7 +54,7 @@ def test_the_reference_dem_is_kept_in_the_project(qtbot, sim, monkeypatch):
     finally:
         close_windows(qtbot, win)
     doc = json.loads((sim / "p.prismproj").read_text())
-    assert doc["format"] == "prismstation-project/2" and doc["reference_dem"] == "srtm.tif"
+    assert doc["format"] == "prismstation-project/3" and doc["reference_dem"] == "srtm.tif"
 
     win = open_window(qtbot, sim / "p.prismproj")      # reopened: loaded again, found by the DSM tool
     try:

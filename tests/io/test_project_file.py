@@ -92,3 +92,33 @@ def test_the_journal_records_every_change_and_recovery_counts_as_modified(tmp_pa
     r = recover(path)
     assert r.revision == 1 and r.dem_control == RECORD and list(r.points) == ["A"]
     assert "recovery" not in r.other
+
+
+def test_version_2_files_open_and_the_orientation_keys_are_checked(tmp_path, scene_path):
+    """A version-2 file (no stored orientation, none of the settings of a bias per view) opens
+    with their defaults and is saved as version 3 without them; the new keys are checked with
+    their line (a PRISM triplet has one bias model for every view and is fitted to its GCPs)."""
+    doc = {"format": "prismstation-project/2", "scene": "scene.json", "settings": {"bias_model": "shift"},
+           "points": [], "measurements": []}
+    (tmp_path / "v2.prismproj").write_text(json.dumps(doc, indent=1))
+    p = load_project(tmp_path / "v2.prismproj")
+    assert p.orientation is None and p.settings.view_bias == () and p.settings.use_gcps
+    assert p.settings.reference_sigma_m is None
+    save_project(p, tmp_path / "v3.prismproj")
+    again = json.loads((tmp_path / "v3.prismproj").read_text())
+    assert again["format"] == "prismstation-project/3" and "orientation" not in again
+    assert not {"view_bias", "reference_sigma_m", "use_gcps"} & set(again["settings"])
+    for settings, key in (({"view_bias": {"F": "shift"}}, "view_bias"), ({"use_gcps": False}, "use_gcps"),
+                          ({"reference_sigma_m": -1}, "reference_sigma_m"), ({"view_bias": ["F"]}, "view_bias")):
+        (tmp_path / "bad.prismproj").write_text(json.dumps({**doc, "format": "prismstation-project/3",
+                                                            "settings": settings}, indent=1))
+        with pytest.raises(InputError, match=key) as e:
+            load_project(tmp_path / "bad.prismproj")
+        assert e.value.line is not None
+    (tmp_path / "bad.prismproj").write_text(json.dumps({**doc, "format": "prismstation-project/3",
+                                                        "orientation": [1]}, indent=1))
+    with pytest.raises(InputError, match="orientation"):
+        load_project(tmp_path / "bad.prismproj")
+    # a version-2 file's "orientation" is not read as a stored orientation
+    (tmp_path / "old.prismproj").write_text(json.dumps({**doc, "orientation": {"views": {}}}))
+    assert load_project(tmp_path / "old.prismproj").orientation is None

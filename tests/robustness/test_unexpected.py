@@ -29,7 +29,7 @@ def test_an_unexpected_error_is_one_line_and_a_log(sim, tmp_path, monkeypatch, e
 
     def broken(*a, **k):
         raise exc
-    monkeypatch.setattr(fit, "fit_report", broken)
+    monkeypatch.setattr(fit, "stored_solution", broken)
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
     rc, out, err = ft.run_cli(["fit", sim / "p.prismproj"])
     lines = err.strip().splitlines()

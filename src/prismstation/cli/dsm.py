@@ -5,17 +5,20 @@ The export is the sensor model's (:func:`prismstation.ops.sensors.workflows_of`:
 triplet's :func:`prismstation.ops.dsm_export.export_dsm`, images with RPCs
 :func:`prismstation.ops.rpc_project.export_dsm`, which prints the pairs' agreement), the same
 as the window's. Exit status 3 (after writing the file) when fewer than ``--min-fill``
-percent of the cells all images see got a matched height.
+percent of the cells all images see got a matched height, or when a bias the data cannot
+determine decides the heights (:func:`prismstation.ops.fit.heights_not_fixed`: no GCP, no
+reference DEM in the project's stored orientation), said in one line.
 """
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from prismstation.cli._common import end_progress, existing, progress_printer
 from prismstation.io.formatting import fixed
 from prismstation.io.project import load_project
 from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest
-from prismstation.ops.fit import solve_project
+from prismstation.ops.fit import heights_not_fixed, stale_orientation, stored_solution
 from prismstation.ops.project import require_workflow
 from prismstation.ops.reference_heights import load_for_scene
 from prismstation.ops.sensors import workflows_of
@@ -49,10 +52,16 @@ def register(sub) -> None:
 def run(args) -> int:
     project = load_project(existing(args.project, "project"))
     require_workflow(project, "dsm", args.project)
-    sol = solve_project(project)
     reference = None
     if args.reference:
         reference = load_for_scene(existing(args.reference, "reference DEM"), project)  # as the window does
+    stale = stale_orientation(project)
+    if stale:
+        print(f"prismstation dsm: note: {stale}", file=sys.stderr)
+    same = reference is not None and project.reference_dem and \
+        Path(reference.path).resolve() == Path(project.reference_dem).resolve()
+    sol, stored = stored_solution(project, reference=reference if same else None)  # the stored orientation
+    reference = reference or stored
 
     request = DsmRequest(args.output, tuple(args.window) if args.window else None, args.posting,
                          args.orthometric, args.height_uncertainty, args.fill, args.min_fill,
@@ -73,8 +82,13 @@ def run(args) -> int:
     for pair, a in dsm.info.get("pair_agreement", {}).items():
         print(f"pairs {pair}: NMAD {fixed(a['nmad_m'])} m, median {fixed(a['median_m'])} m over {a['cells']} cells "
               f"({fixed(a['nmad_in_sigma'])} of their σ)")
+    status = 0
     if out.low_fill:
         print(f"prismstation dsm: LOW FILL: only {fill:.1f} % of the seen cells matched "
               f"(threshold {args.min_fill:g} %); the voids are marked 0 in the mask band", file=sys.stderr)
-        return LOW_FILL_STATUS
-    return 0
+        status = LOW_FILL_STATUS
+    unfixed = heights_not_fixed(sol)
+    if unfixed:
+        print(f"prismstation dsm: HEIGHTS NOT FIXED: {unfixed}", file=sys.stderr)
+        status = LOW_FILL_STATUS
+    return status

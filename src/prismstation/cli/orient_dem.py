@@ -19,7 +19,7 @@ from prismstation.io.lock import refuse_if_held
 from prismstation.io.project import load_project, save_project
 from prismstation.io.report import write_report
 from prismstation.io.text_report import format_report
-from prismstation.ops.fit import fit_report
+from prismstation.ops.fit import orientation_record, project_report, stored_solution
 from prismstation.ops.orientation import TARGET_M, OrientRequest, apply_orientation
 from prismstation.ops.project import require_workflow
 from prismstation.ops.sensors import workflows_of
@@ -65,9 +65,11 @@ def run(args) -> int:
             write_report(result.json(None), args.json)
         return result.exit_status
     apply_orientation(project, result)
+    sol, _ = stored_solution(project)
+    report = project_report(project, sol, args.project)
     if args.save:
+        project.set_orientation(orientation_record(project, sol))
         save_project(project, args.project)
-    _, report = fit_report(project, args.project)
     if args.json:
         write_report(result.json(report), args.json)
     for line in result.lines:

@@ -17,7 +17,7 @@ import sys
 from prismstation.cli._common import add_model_options, apply_model_options, end_progress, existing, progress_printer
 from prismstation.io.jsonfile import write_json
 from prismstation.io.project import load_project
-from prismstation.ops.fit import solve_project
+from prismstation.ops.fit import stored_solution
 from prismstation.ops.ortho import DEM_KINDS, RESAMPLINGS, OrthoRequest, export_orthos
 
 
@@ -55,7 +55,7 @@ def run(args) -> int:
     apply_model_options(project, args)
     if args.dem:
         existing(args.dem, "DEM")
-    sol = solve_project(project)
+    sol, _ = stored_solution(project)  # the project's stored orientation
     views = None if not args.view else tuple(args.view)
     request = OrthoRequest(args.output, views, args.dem, args.dem_heights, args.dem_sigma, args.height,
                            args.posting, tuple(args.window) if args.window else None, args.resampling,

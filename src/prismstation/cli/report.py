@@ -1,13 +1,16 @@
 """``prismstation report PROJECT -o OUT.{json,csv,html,pdf} [--operator NAME]``: the same report
-the window's File ▸ Export report… writes."""
+the window's File ▸ Export report… writes, of the project's stored orientation
+(:func:`prismstation.ops.fit.stored_solution`); the model options, when given, are this
+report's only (``fit`` stores them)."""
 from __future__ import annotations
 
 from pathlib import Path
 
-from prismstation.cli._common import add_model_options, apply_model_options, existing, reference_heights
+from prismstation.cli._common import add_model_options, apply_model_options, existing
+from prismstation.errors import ModelError
 from prismstation.io.project import load_project
 from prismstation.io.report import default_operator, write_report
-from prismstation.ops.fit import fit_report
+from prismstation.ops.fit import project_report, stored_solution
 
 
 def register(sub) -> None:
@@ -22,9 +25,10 @@ def register(sub) -> None:
 def run(args) -> int:
     project = load_project(existing(args.project, "project"))
     apply_model_options(project, args)
-    height_of, sigma = reference_heights(project, args)
-    sol, report = fit_report(project, args.project, height_of=height_of, height_sigma_m=sigma,
-                             operator=args.operator)
+    sol, _ = stored_solution(project)
+    if not sol.ok and project.settings.orientation != "dem":
+        raise ModelError("; ".join(sol.messages) or "the model could not be fitted")
+    report = project_report(project, sol, args.project, operator=args.operator)
     ext = Path(args.output).suffix.lower()
     if ext in (".html", ".htm", ".pdf"):
         from prismstation.gui.report_writer import write_document  # start-up: Qt's PDF writer, only for it

@@ -13,7 +13,7 @@ from prismstation.io.jsonfile import write_json
 from prismstation.io.ortho_plot import write_ortho_svg
 from prismstation.io.project import load_project
 from prismstation.model.points import KINDS
-from prismstation.ops.fit import solve_project
+from prismstation.ops.fit import stored_solution
 from prismstation.ops.ortho_validate import validate_ortho
 
 
@@ -32,7 +32,7 @@ def run(args) -> int:
     project = load_project(existing(args.project, "project"))
     apply_model_options(project, args)
     existing(args.ortho, "orthoimage")
-    sol = solve_project(project)
+    sol, _ = stored_solution(project)  # the project's stored orientation
     val = validate_ortho(sol, project, args.ortho, kinds=tuple(args.kinds), progress=progress_printer())
     end_progress()
     for n in val.notes:

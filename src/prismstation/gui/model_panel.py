@@ -14,7 +14,7 @@ from dataclasses import replace
 
 from PySide6.QtCore import QEvent, QRect, QSize, Qt, Signal
 from PySide6.QtGui import QColor, QFont, QFontMetrics, QPainter, QPalette
-from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QHBoxLayout, QLabel,
+from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout, QHBoxLayout, QLabel,
                                QPushButton, QScrollArea, QSizePolicy, QVBoxLayout, QWidget)
 
 from prismstation.core.models.prism import BIAS_MODELS, PARALLAX_MODELS
@@ -22,11 +22,13 @@ from prismstation.gui.fit_checks import blunder_test
 from prismstation.gui.sensors import parts_of
 from prismstation.gui.static_text import StaticTexts
 from prismstation.io.formatting import fixed
+from prismstation.ops.fit import DEFAULT_REFERENCE_SIGMA_M
 
 SECTION_COLOR = QColor("#1d3c6e")
 HEAD_BG = QColor("#dde4ee")
 BAD_COLOR = QColor("#c00000")
 WARN_COLOR = QColor("#a04000")
+EVERY_VIEW = "every view"  # the bias-view choice that shows and sets the settings' bias_model
 AUTO_FIXED = "auto"  # the fixed-view choice that holds none fixed by name (the model decides)
 
 
@@ -318,22 +320,38 @@ class ModelPanel(QWidget):
         super().__init__(parent)
         self.bias = QComboBox()
         self.bias.addItems(list(BIAS_MODELS))
+        # which view the bias model is shown and set for (models with a bias per view): every
+        # view (the settings' bias_model), or one (its own, view_bias)
+        self.bias_view = QComboBox()
+        self.bias_view.addItem(EVERY_VIEW, None)
         self.parallax = QComboBox()
         self.parallax.addItems(list(PARALLAX_MODELS))
         self.fixed = QComboBox()  # the view held fixed (models that hold one): data = view or None
         self.fixed.addItem(AUTO_FIXED, None)
         self.sigma = QDoubleSpinBox(decimals=2, minimum=0.01, maximum=100.0, singleStep=0.1, suffix=" px")
+        # models that hold tie points to the reference DEM (images with RPCs): its height σ and
+        # whether GCPs enter the fit — the project's stored settings, as `fit --dem-sigma`,
+        # `--gcps`/`--no-gcps` set them
+        self.ref_sigma = QDoubleSpinBox(decimals=1, minimum=0.1, maximum=500.0, singleStep=1.0, suffix=" m")
+        self.use_gcps = QCheckBox("GCPs in the fit")
         self.threshold = QDoubleSpinBox(decimals=2, minimum=1.0, maximum=20.0, singleStep=0.5)
         for w, tip in (
                 (self.bias, "How each view's image coordinates are corrected: shift (2 parameters), "
                             "similarity (4) or affine (6); more parameters need more GCPs spread "
                             "over the image"),
+                (self.bias_view, "Every view (one model for all), or the one view whose bias model is "
+                                 "shown and set"),
                 (self.parallax, "Height from the F−B parallax h = c0 + c1·py: line fits c0 and c1 on "
                                 "the GCPs, offset fits c0 with the theoretical c1, theoretical "
                                 "takes both from the geometry"),
                 (self.fixed, "The view whose geolocation is the datum of a fit without GCPs: its "
                              "bias is not fitted and the others' are relative to it (auto: the "
                              "first view when there is no GCP, none with GCPs)"),
+                (self.ref_sigma, "σ of the reference DEM's heights the tie points are held to when GCPs "
+                                 "are too few (before the slope term: its cell on a slope adds "
+                                 "slope × cell / √12)"),
+                (self.use_gcps, "Unticked: GCPs are only checked (their residuals shown), the biases come "
+                                "from the tie points and the reference DEM"),
                 (self.sigma, "A-priori σ of one image measurement (pixels): weights the fit and "
                              "scales the standardised residuals; σ0 near 1× this means the "
                              "measurements are as good as assumed"),
@@ -344,9 +362,17 @@ class ModelPanel(QWidget):
                                  "is listed under Blunder test")):
             w.setToolTip(tip)
         form = self.form = QFormLayout()
-        form.addRow("Bias model", self.bias)
+        brow = QHBoxLayout()
+        brow.addWidget(self.bias, 1)
+        brow.addWidget(self.bias_view, 1)
+        form.addRow("Bias model", brow)
         form.addRow("Parallax model", self.parallax)
         form.addRow("View held fixed", self.fixed)
+        form.addRow("Reference DEM σ", self.ref_sigma)
+        form.addRow("", self.use_gcps)
+        for w in (self.ref_sigma, self.use_gcps):  # shown for a model that holds tie points (set_sensor)
+            form.setRowVisible(w, False)
+        self.bias_view.setVisible(False)
         row = QHBoxLayout()
         row.addWidget(self.sigma)
         row.addWidget(self.threshold)
@@ -373,8 +399,11 @@ class ModelPanel(QWidget):
         self._settings = None
         self.solution = None
         self.bias.activated.connect(self._emit)
+        self.bias_view.activated.connect(self._show_bias)
         self.parallax.activated.connect(self._emit)
         self.fixed.activated.connect(self._emit)
+        self.ref_sigma.editingFinished.connect(self._emit)
+        self.use_gcps.toggled.connect(self._emit)
         self.sigma.editingFinished.connect(self._emit)
         self.threshold.editingFinished.connect(self._emit)
 
@@ -389,10 +418,16 @@ class ModelPanel(QWidget):
                 combo.addItems(items)
         self.fixed.clear()
         self.fixed.addItem(AUTO_FIXED, None)
+        self.bias_view.clear()
+        self.bias_view.addItem(EVERY_VIEW, None)
         for v in views:
             self.fixed.addItem(v, v)
+            self.bias_view.addItem(v, v)
+        self.bias_view.setVisible(bool(sensor.holds_view_fixed))
         self.form.setRowVisible(self.parallax, bool(sensor.parallax_models))
         self.form.setRowVisible(self.fixed, bool(sensor.holds_view_fixed))
+        self.form.setRowVisible(self.ref_sigma, bool(sensor.holds_view_fixed))
+        self.form.setRowVisible(self.use_gcps, bool(sensor.holds_view_fixed))
 
     def set_settings(self, settings) -> None:
         """Show ``settings`` without emitting (nothing is touched when they are unchanged: a
@@ -400,14 +435,17 @@ class ModelPanel(QWidget):
         if settings == self._settings:
             return
         self._settings = settings
-        for w in (self.bias, self.parallax, self.fixed, self.sigma, self.threshold):
+        for w in (self.bias, self.parallax, self.fixed, self.sigma, self.threshold, self.ref_sigma, self.use_gcps):
             w.blockSignals(True)
-        self.bias.setCurrentText(settings.bias_model)
+        self._show_bias()
         self.parallax.setCurrentText(settings.parallax_model)
         self.fixed.setCurrentIndex(max(self.fixed.findData(settings.fixed_view), 0))
         self.sigma.setValue(settings.sigma_px)
         self.threshold.setValue(settings.blunder_threshold)
-        for w in (self.bias, self.parallax, self.fixed, self.sigma, self.threshold):
+        self.ref_sigma.setValue(DEFAULT_REFERENCE_SIGMA_M if settings.reference_sigma_m is None
+                                else settings.reference_sigma_m)
+        self.use_gcps.setChecked(settings.use_gcps)
+        for w in (self.bias, self.parallax, self.fixed, self.sigma, self.threshold, self.ref_sigma, self.use_gcps):
             w.blockSignals(False)
 
     def set_solution(self, sol) -> None:
@@ -425,12 +463,28 @@ class ModelPanel(QWidget):
         """Everything the panel shows, one label per line (tests, clipboard)."""
         return f"Geoid: {self.geoid.text()}\n" + self.sections.plain_text()
 
+    def _show_bias(self, *_) -> None:
+        """The bias combo shows the model of the view chosen beside it (every view's: the settings')."""
+        if self._settings is None:
+            return
+        v = self.bias_view.currentData()
+        self.bias.blockSignals(True)
+        self.bias.setCurrentText(self._settings.bias_model if v is None else self._settings.bias_of(v))
+        self.bias.blockSignals(False)
+
     def _emit(self, *_) -> None:
         if self._settings is None:
             return
-        new = replace(self._settings, bias_model=self.bias.currentText(),
+        v, chosen = self.bias_view.currentData(), self.bias.currentText()
+        every = chosen if v is None else self._settings.bias_model
+        own = {} if v is None else {**dict(self._settings.view_bias), v: chosen}  # every view: one model
+        view_bias = tuple(sorted((k, m) for k, m in own.items() if m != every))
+        new = replace(self._settings, bias_model=every, view_bias=view_bias,
                       parallax_model=self.parallax.currentText() or self._settings.parallax_model,
                       fixed_view=self.fixed.currentData(), sigma_px=float(self.sigma.value()),
-                      blunder_threshold=float(self.threshold.value()))
+                      blunder_threshold=float(self.threshold.value()), use_gcps=self.use_gcps.isChecked())
+        ref = round(float(self.ref_sigma.value()), 1)
+        if self._settings.reference_sigma_m is not None or ref != DEFAULT_REFERENCE_SIGMA_M:
+            new = replace(new, reference_sigma_m=ref)
         if new != self._settings:
             self.settings_requested.emit(new)

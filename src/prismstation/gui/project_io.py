@@ -35,6 +35,7 @@ from prismstation.gui import workers
 from prismstation.gui.journal import (WindowJournal, autosave_path, untitled_journals,  # noqa: F401
                                       untitled_path)
 from prismstation.io.project import SUFFIX, apply_relocations, load_project, save_project
+from prismstation.ops.fit import orientation_record
 from prismstation.io.lock import ProjectLock, describe_holder
 from prismstation.io.recovery import Journal
 from prismstation.io.scene import read_scene
@@ -66,6 +67,10 @@ class ProjectFiles(QObject):
     path_changed = Signal(str)
     message = Signal(str)
     recent_changed = Signal(list)
+
+    #: the window's current fit (a callable → Solution or None; the workspace sets it): a save
+    #: stores its result with the project, as ``prismstation fit`` does
+    current_solution = None
 
     def __init__(self, undo_stack, parent_widget=None):
         super().__init__(parent_widget)
@@ -287,6 +292,11 @@ class ProjectFiles(QObject):
             return False
         if self.path is None:
             return self.save_as()
+        sol = self.current_solution() if self.current_solution is not None else None
+        if sol is not None and sol.revision == self.project.revision:
+            record = orientation_record(self.project, sol)  # the fit's result, as `fit` stores it
+            if record is not None:
+                self.project.set_orientation(record)
         try:
             save_project(self.project, self.path)
         except (PrismError, OSError) as exc:

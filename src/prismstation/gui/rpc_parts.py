@@ -1,21 +1,39 @@
-"""The RPC model's own parts of the window (:mod:`prismstation.gui.sensors`; no Qt): nothing
-beyond what every model shows in the model panel, the strip and the plots; the orientation
-from a reference DEM: its request and the stored record in words."""
+"""The RPC model's own parts of the window (:mod:`prismstation.gui.sensors`; no Qt): the model
+panel's Orientation section (what holds the fit, what the data do not determine) and the
+strip's warning when an undetermined bias decides the heights; the orientation from a
+reference DEM: its request and the stored record in words."""
 from __future__ import annotations
 
 import math
 
+from prismstation.ops.fit import DEFAULT_REFERENCE_SIGMA_M, heights_not_fixed
 from prismstation.ops.orientation import OrientRequest
 
 
 def panel_sections(sol) -> tuple[list, list]:
-    """No section of its own: the biases and the per-view residuals are every model's."""
-    return [], []
+    """The orientation's own section: what holds the fit (GCPs, the tie points held to the
+    reference DEM with its σ) and, per view, its bias model and the parameters the data do not
+    determine (the biases and the per-view residuals are every model's); a note when a bias
+    the data cannot determine decides the heights (:func:`prismstation.ops.fit.heights_not_fixed`,
+    the line ``prismstation dsm`` prints before its exit status 3)."""
+    m, st = sol.model, sol.settings
+    sigma = DEFAULT_REFERENCE_SIGMA_M if st.reference_sigma_m is None else st.reference_sigma_m
+    rows = [["GCPs in the fit", str(m.gcps) if st.use_gcps else "not used (checked only)"],
+            ["tie points held to the reference DEM", f"{m.held} (σ {sigma:g} m ⊕ slope)" if m.held else "none"]]
+    for v, b in m.bias.items():
+        weak = m.undetermined.get(v, ())
+        rows.append([f"{v}", "held fixed (the datum)" if b.fixed else
+                     f"{b.model}" + (f"; not determined: {', '.join(weak)}" if weak else "")])
+    unfixed = heights_not_fixed(sol)
+    return [("Orientation", ["", ""], rows)], ([(f"Heights not fixed: {unfixed}", "bad")] if unfixed else [])
 
 
 def fit_warning(sol) -> tuple[tuple[str, ...], str]:
-    """Nothing beyond the fit's messages."""
-    return (), ""
+    """When a bias the data cannot determine decides the heights: the strip says so."""
+    unfixed = heights_not_fixed(sol)
+    if not unfixed:
+        return (), ""
+    return ("⚠ h rests on a bias the data do not determine", "⚠ h not fixed"), unfixed
 
 
 def plot_line(sol) -> None:

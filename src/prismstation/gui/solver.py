@@ -20,7 +20,6 @@ from prismstation.gui import workers
 
 from prismstation.errors import PrismError
 from prismstation.ops.fit import FitMemo, solve_project
-from prismstation.ops.predict import DEFAULT_DEM_SIGMA_M
 
 
 def snapshot(project):
@@ -35,11 +34,9 @@ def _fit(snap, height_of, memo=None):
     ``memo``: the solver's :class:`~prismstation.ops.fit.FitMemo`."""
     t0 = time.perf_counter()
     try:
-        # the reference DEM's σ as the command line's default (a model that holds tie points
-        # to the DEM weighs them with it; the PRISM model does not use it)
-        sol, err = solve_project(snap, height_of=height_of,
-                                 height_sigma_m=None if height_of is None else DEFAULT_DEM_SIGMA_M,
-                                 memo=memo), None
+        # the reference DEM's σ is the project's setting (a model that holds tie points to the
+        # DEM weighs them with it: ops.fit.reference_sigma; the PRISM model does not use it)
+        sol, err = solve_project(snap, height_of=height_of, memo=memo), None
     except PrismError as exc:
         sol, err = None, str(exc)
     except Exception as exc:

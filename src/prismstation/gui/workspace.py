@@ -43,6 +43,7 @@ class Workspace(QObject):
         self.undo_stack = QUndoStack(self)
         self.files = ProjectFiles(self.undo_stack, parent_widget)
         self.solver = Solver(self, threaded=threaded_fit)
+        self.files.current_solution = lambda: self.solver.solution
         self.dem_loader = DemLoader(self)
         self.dem_loader.loaded.connect(self._on_dem_loaded)
         self.dem_loader.failed.connect(lambda m: self.files.warn("Reference DEM", m))

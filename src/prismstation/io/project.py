@@ -5,7 +5,10 @@ Top-level keys beside the points: ``dem_control`` (:attr:`Project.dem_control`),
 ``relocated_images`` (:attr:`Project.relocations`), ``product`` (:attr:`Project.product`),
 ``reference_dem`` (:attr:`Project.reference_dem`, relative to the project file; since format
 version 2); keys this version does not know are kept in :attr:`Project.other` and written back.
-Version 1 files (no reference DEM) are read as they are.
+``orientation`` (:attr:`Project.orientation`: the last fit's result as ``fit`` stored it —
+each view's bias with its covariance, σ0, what the data determined; since format version 3,
+with the settings' ``view_bias``, ``reference_sigma_m`` and ``use_gcps``).
+Files of versions 1 (no reference DEM) and 2 (no stored orientation) are read as they are.
 """
 from __future__ import annotations
 
@@ -29,11 +32,12 @@ from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint, Measurem
 from prismstation.model.project import Project, has_ground
 
 FORMAT_NAME = "prismstation-project"
-VERSION = 2  # 2: "reference_dem"
+VERSION = 3  # 2: "reference_dem"; 3: "orientation", the settings of a bias per view
 SUFFIX = ".prismproj"
 DEM_CONTROL, RELOCATED, PRODUCT, REFERENCE_DEM = "dem_control", "relocated_images", "product", "reference_dem"
+ORIENTATION = "orientation"
 _KNOWN = {"format", "saved_by", "scene", "settings", "geoid", "points", "measurements",
-          DEM_CONTROL, RELOCATED, PRODUCT, REFERENCE_DEM, "recovery"}  # "recovery": the journal's own note
+          DEM_CONTROL, RELOCATED, PRODUCT, REFERENCE_DEM, ORIENTATION, "recovery"}  # "recovery": the journal's own note
 
 
 def _relative(path, base: Path) -> str:
@@ -75,16 +79,20 @@ def project_to_dict(project: Project, path) -> dict:
         **({RELOCATED: dict(project.relocations)} if project.relocations else {}),
         **({PRODUCT: project.product} if project.product is not None else {}),
         **({REFERENCE_DEM: _relative(project.reference_dem, base)} if project.reference_dem else {}),
+        **({ORIENTATION: plain(project.orientation)} if project.orientation is not None else {}),
         **{k: v for k, v in project.other.items() if k not in _KNOWN},
     }
 
 
 def settings_dict(settings: Settings) -> dict:
-    """The settings as the project file and the report write them: ``fixed_view`` only when
-    set (files of models that hold no view fixed stay as they were)."""
+    """The settings as the project file and the report write them: ``fixed_view``,
+    ``view_bias`` (an object view → bias model), ``reference_sigma_m`` and ``use_gcps`` only
+    when set (files of models that have none of them stay as they were)."""
     d = asdict(settings)
-    if d.get("fixed_view") is None:
-        d.pop("fixed_view", None)
+    d["view_bias"] = dict(settings.view_bias)
+    for key, unset in (("fixed_view", None), ("view_bias", {}), ("reference_sigma_m", None), ("use_gcps", True)):
+        if d.get(key) == unset:
+            d.pop(key, None)
     return d
 
 
@@ -180,6 +188,10 @@ def load_project(path, *, scene_override=None) -> Project:
             raise InputError(f'"measurements"[{i}]: malformed measurement ({exc})', path,
                              _line_of_id(text, d)) from None
         measurements.append(m)
+    orientation = data.get(ORIENTATION) if version >= 3 else None
+    if orientation is not None and not (isinstance(orientation, dict) and isinstance(orientation.get("views"), dict)):
+        raise InputError(f'"{ORIENTATION}": expected an object with "views" (each view\'s fitted bias)', path,
+                         line_of(text, ORIENTATION))
     control, product = data.get(DEM_CONTROL), data.get(PRODUCT)
     dem = data.get(REFERENCE_DEM) if version >= 2 else None
     if dem is not None and not (isinstance(dem, str) and dem and "\0" not in dem):
@@ -194,7 +206,8 @@ def load_project(path, *, scene_override=None) -> Project:
         project = Project(scene, str(scene_path), settings=settings, geoid=geoid, points=points,
                           measurements=measurements, dem_control=control, relocations=reloc, product=product,
                           other={k: v for k, v in data.items() if k not in _KNOWN},
-                          reference_dem=None if dem is None else str((path.parent / dem).resolve()))
+                          reference_dem=None if dem is None else str((path.parent / dem).resolve()),
+                          orientation=orientation)
     except InputError as exc:
         raise InputError(exc.problem, path) from None
     bad = outside_images(project.scene, project.points, project.measurements.values())
@@ -275,6 +288,12 @@ def _settings(raw, path, text, scene) -> Settings:
     line = line_of(text, "settings")
     if not isinstance(raw, dict):
         raise InputError('"settings": expected an object', path, line)
+    raw = dict(raw)
+    vb = raw.get("view_bias", {})
+    if not (isinstance(vb, dict) and all(isinstance(v, str) for v in vb.values())):
+        raise InputError('"settings.view_bias": expected an object view → bias model', path,
+                         line_of(text, "view_bias") or line)
+    raw["view_bias"] = tuple(sorted(vb.items()))
     try:
         s = Settings(**raw)
     except TypeError as exc:
@@ -290,7 +309,15 @@ def _settings(raw, path, text, scene) -> Settings:
               "sigma_px": (_number(s.sigma_px, 0.0, strict=True), "a positive number"),
               "blunder_threshold": (_number(s.blunder_threshold, 0.0, strict=True), "a positive number"),
               "mean_height": (s.mean_height is None or _number(s.mean_height), "a number or null"),
-              "orientation": (getattr(s, "orientation", "gcp") in ("gcp", "dem"), '"gcp" or "dem"')}
+              "orientation": (getattr(s, "orientation", "gcp") in ("gcp", "dem"), '"gcp" or "dem"'),
+              "view_bias": ((not s.view_bias or sensor.holds_view_fixed)
+                            and all(v in scene.views and m in sensor.bias_models for v, m in s.view_bias),
+                            f"views of the scene ({', '.join(scene.views)}) → one of {', '.join(sensor.bias_models)}"
+                            if sensor.holds_view_fixed else "nothing (one bias model for every view)"),
+              "reference_sigma_m": (s.reference_sigma_m is None or _number(s.reference_sigma_m, 0.0, strict=True),
+                                    "a positive number of metres or null"),
+              "use_gcps": (isinstance(s.use_gcps, bool) and (s.use_gcps or sensor.holds_view_fixed),
+                           "true or false" if sensor.holds_view_fixed else "true (the model is fitted to its GCPs)")}
     for key, (ok, want) in checks.items():
         if not ok:
             raise InputError(f'"settings.{key}": expected {want}, found {getattr(s, key)!r}', path,

@@ -60,14 +60,15 @@ class Project:
     instead of the scene's. ``product``: the JAXA product folder the project was made from.
     ``reference_dem``: the path of the reference DEM the project works with (heights for
     points without parallax, the linked cursor, DSMs, the DEM orientation), or None.
-    ``other``: top-level keys of the project file this version does not know, written back
+    ``orientation``: the last stored fit's result (a dict, :func:`prismstation.ops.fit.orientation_record`),
+    or None. ``other``: top-level keys of the project file this version does not know, written back
     unchanged.
     """
 
     def __init__(self, scene: Scene, scene_path: str | None = None, *, settings: Settings = Settings(),
                  geoid: dict | None = None, points=(), measurements=(), dem_control: dict | None = None,
                  relocations: dict | None = None, product: str | None = None, other: dict | None = None,
-                 reference_dem: str | None = None):
+                 reference_dem: str | None = None, orientation: dict | None = None):
         self.scene = scene
         self.scene_path = scene_path
         self.settings = settings
@@ -80,6 +81,7 @@ class Project:
         self.relocations: dict[str, str] = dict(relocations or {})
         self.product = product
         self.reference_dem = reference_dem
+        self.orientation = orientation
         self.other: dict = dict(other or {})
         self._put_all(points, measurements)
         self.revision = 0
@@ -271,6 +273,12 @@ class Project:
         """Set (or clear, with ``None``) the DEM control record; returns the previous one."""
         old, self.dem_control = self.dem_control, record
         self._touch(control=True)
+        return old
+
+    def set_orientation(self, record: dict | None) -> dict | None:
+        """Store (or clear) the fit's result record; returns the previous one. Not an edit (no
+        revision, no notification): it records what the points and settings gave, as saved."""
+        old, self.orientation = self.orientation, record
         return old
 
     def set_relocations(self, relocations: dict) -> dict:

@@ -58,3 +58,26 @@ def load_for_scene(path, project, progress: ProgressFn | None = None) -> DemHeig
         raise InputError("the DEM does not cover the scene", file=path)
     checkpoint(progress, 1.0, "done")
     return DemHeights(grid, path)
+
+
+def height_sigma(heights: DemHeights, sigma_m: float):
+    """The σ (m) of the reference's height at map points ``en`` ``(n, 2)`` → ``(n,)``: its own
+    ``sigma_m`` ⊕ what its resolution cannot hold on a slope — a cell of ``d`` metres (the
+    file's own, :attr:`~prismstation.io.dem.DemGrid.source_cell_m`, at least the grid's)
+    on a slope ``s`` spans ``s·d`` metres of height, a point anywhere in it ``s·d/√12`` from
+    the cell's mean. The slope is the gradient of the grid the heights are read on, bilinear
+    at the points (0 outside)."""
+    grid = heights.grid
+    spacing = abs(float(grid.transform.a))
+    cell = max([spacing] + [float(c) for c in (getattr(grid, "source_cell_m", None) or ()) if np.isfinite(c)])
+    gy, gx = np.gradient(np.asarray(grid.heights, float), spacing)
+    slope = np.nan_to_num(np.hypot(gx, gy), nan=0.0)
+    inv = ~grid.transform
+
+    def sigma(en) -> np.ndarray:
+        en = np.asarray(en, dtype=float).reshape(-1, 2)
+        col, row = inv * (en[:, 0], en[:, 1])
+        s = ndimage.map_coordinates(slope, [np.asarray(row) - 0.5, np.asarray(col) - 0.5], order=1,
+                                    mode="constant", cval=0.0, prefilter=False)
+        return np.hypot(float(sigma_m), s * cell / math.sqrt(12.0))
+    return sigma

@@ -35,6 +35,8 @@ from prismstation.ops.rpc_dsm import rpc_dsm
 DEFAULT_MAX_SHIFT_M = 100.0
 #: fewest co-registration cells with both heights
 MIN_CELLS = 50
+#: fewest co-registration cells along each side of the DSM
+MIN_SIDE_CELLS = 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,9 +86,11 @@ def orient_from_reference(models, dsm_heights, dsm_transform, dsm_crs, reference
     if cell_m is None:
         cell_m = float(min(ref_full.source_cell_m))
     f, t, shape = coregistration_grid(dsm_transform, np.shape(dsm_heights), cell_m)
-    if min(shape) < 4:
-        raise InputError(f"the DSM covers {shape[0]} × {shape[1]} cells of {t[0]:g} m: too small to lay "
-                         "on the reference (a few reference cells each way at least)", reference)
+    models = [as_biased(m) for m in models]
+    if min(shape) < MIN_SIDE_CELLS:
+        return _failed(models, t, f"the images' DSM covers {shape[0]} × {shape[1]} cells of {t[0]:g} m, too few "
+                       f"for the surface matching ({MIN_SIDE_CELLS} each way at least); the reference still gives "
+                       "the heights through the tie points: fit --dem REFERENCE holds them to it")
     dem = block_mean(np.asarray(dsm_heights, float), f)[:shape[0], :shape[1]]
     ref = read_dem(reference, dsm_crs, t, shape, geoid=geoid, what="reference DEM").heights
     both = np.isfinite(ref) & np.isfinite(dem)
@@ -94,7 +98,6 @@ def orient_from_reference(models, dsm_heights, dsm_transform, dsm_crs, reference
         raise InputError(f"the DSM and the reference share {int(both.sum())} cells of {t[0]:g} m; "
                          f"need {MIN_CELLS} (does the reference cover the images?)", reference)
     res = dem_offset(ref, dem, t, max_shift_m)
-    models = [as_biased(m) for m in models]
     if not res:
         return RpcDemOrientation(models, [np.zeros_like(m.params) for m in models],
                                  [np.full(m.params.shape, np.nan) for m in models],
@@ -117,6 +120,15 @@ def orient_from_reference(models, dsm_heights, dsm_transform, dsm_crs, reference
         change.append(new.params - old)
         sigma.append(np.sqrt(np.diag(cov)))
     return RpcDemOrientation(out, change, sigma, tuple(s), tuple(sig), res, float(t[0]))
+
+
+def _failed(models, t, reason: str) -> RpcDemOrientation:
+    """A co-registration not made (``reason``): the input models, no change."""
+    nan = float("nan")
+    res = CoregResult(*(nan,) * 10, 0, 0, nan, nan, nan, nan, False, reason)
+    return RpcDemOrientation(models, [np.zeros_like(m.params) for m in models],
+                             [np.full(m.params.shape, np.nan) for m in models], (nan,) * 3, (nan,) * 3, res,
+                             float(t[0]))
 
 
 def _params_as(m: BiasedRpc, kind: str) -> np.ndarray:

@@ -26,7 +26,7 @@ from prismstation.io.jsonfile import plain
 from prismstation.io.project import project_geoid
 from prismstation.ops.coregister import result_dict
 from prismstation.ops.dsm_export import COMPUTE_SHARE, DsmExport, DsmRequest
-from prismstation.ops.fit import solve_project
+from prismstation.ops.fit import stored_solution
 from prismstation.ops.orientation import Orientation, OrientRequest
 from prismstation.ops.progress import checkpoint, scaled
 from prismstation.ops.rpc_dsm import rpc_dsm
@@ -144,11 +144,12 @@ def orientation_biases(project, orientation) -> dict:
 def orient(project, reference, request: OrientRequest = OrientRequest(), *, solution=None,
            progress=None) -> Orientation:
     """The images' relative DSM laid on the reference DEM file ``reference``
-    (:func:`orient_rpc_project` on ``solution``, default the project fitted now): each image's
+    (:func:`orient_rpc_project` on ``solution``, default the project's stored orientation,
+    :func:`~prismstation.ops.fit.stored_solution`): each image's
     new bias with its σ, to become the fit's a-priori biases. The search bound is 3 ×
     ``request.sigma_apriori_m`` (default :data:`~prismstation.ops.rpc_orient.DEFAULT_MAX_SHIFT_M`).
     A co-registration that failed is refused (verdict ``failed``, nothing to apply)."""
-    sol = solve_project(project) if solution is None else solution
+    sol = stored_solution(project)[0] if solution is None else solution
     sigma = request.sigma_apriori_m
     o, dsm = orient_rpc_project(sol, project, reference, posting_m=request.posting_m,
                                 max_shift_m=None if sigma is None else 3.0 * sigma, progress=progress)

@@ -93,7 +93,10 @@ def _partials_en(project_with_partials, projection, E, N, h):
 
 class RpcModel:
     """The RPC model of ``scene`` (views :class:`RpcView`) with ``bias`` (view →
-    :class:`RpcBias`; a view without one is unbiased)."""
+    :class:`RpcBias`; a view without one is unbiased). What held the fit: ``undetermined`` view →
+    the names of the parameters the data left at their a-priori σ
+    (:func:`~prismstation.core.models.rpc_solve.undetermined`), ``gcps`` the GCPs and
+    ``held`` the tie points held to the reference DEM's heights in the adjustment."""
 
     name = "rpc"
     bias_models = BIAS_MODELS
@@ -104,8 +107,11 @@ class RpcModel:
     description = "images with RPCs"
     workflows = frozenset({"fit", "report", "orient-dem", "dsm"})
 
-    def __init__(self, scene, bias: dict | None = None):
+    def __init__(self, scene, bias: dict | None = None, *, undetermined: dict | None = None, gcps: int = 0,
+                 held: int = 0):
         self.scene = scene
+        self.undetermined = dict(undetermined or {})
+        self.gcps, self.held = int(gcps), int(held)
         self.bias = {v: (bias or {}).get(v) or RpcBias() for v in scene.views}
         self.models = {v: self.bias[v].biased(view.rpc) for v, view in scene.views.items()}
 
@@ -121,7 +127,7 @@ class RpcModel:
         not used: the adjustment takes every point at once)."""
         fit = rpc_solve.fit_block(scene, points, settings, height_of=height_of, height_sigma_m=height_sigma_m,
                                   control=control)
-        model = cls(scene, fit.bias)
+        model = cls(scene, fit.bias, undetermined=fit.undetermined, gcps=len(fit.block.gcps), held=fit.held)
         results, mean_h = fit.block.evaluate(model, fit.result, height_of, settings)
         columns = PointColumns.of(results, scene.views)
         return Solution(scene, settings, model, columns, statistics(scene, columns), tuple(fit.messages), mean_h,

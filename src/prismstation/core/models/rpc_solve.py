@@ -71,13 +71,17 @@ class BlockFit(NamedTuple):
     """What :func:`fit_block` gives: the points as the adjustment took them (``block``, a
     :class:`_Block`, which evaluates every point), each view's :class:`RpcBias`, the adjustment
     (:class:`~prismstation.core.models.rpc_adjust.RpcAdjustment`, or None when nothing was fitted), the
-    messages and the failures (view → falsy ``FailedFit``)."""
+    messages and the failures (view → falsy ``FailedFit``); ``undetermined`` view → the names
+    of the parameters the data left at their a-priori σ (:func:`undetermined`); ``held`` how
+    many tie points were held to the reference DEM's heights."""
 
     block: "_Block"
     bias: dict
     result: object
     messages: list
     failures: dict
+    undetermined: dict = {}
+    held: int = 0
 
 
 def fit_block(scene, points, settings: Settings = Settings(), *, height_of=None,
@@ -88,11 +92,20 @@ def fit_block(scene, points, settings: Settings = Settings(), *, height_of=None,
     them, and a message says so). ``control``: its ``part`` view → :class:`BiasPrior`, each
     view's bias known a priori (an orientation from a reference DEM): its parameters are
     observed at those values with their σ and no view is held fixed unless
-    ``settings.fixed_view`` names one. Raises :class:`ModelError` only for settings this model
-    does not have (an unknown bias model or view); data the operator can fix are messages."""
-    kind = settings.bias_model
-    if kind not in BIAS_MODELS:
-        raise ModelError(f"bias model {kind!r} is not one the RPC model offers ({', '.join(BIAS_MODELS)})")
+    ``settings.fixed_view`` names one. Each view's bias model is ``settings.bias_of(view)``;
+    ``settings.use_gcps`` False fits without the GCPs (they are then checked as check points
+    are). ``height_sigma_m`` is a number or a function of map points ``(n, 2)`` → ``(n,)`` m (a
+    σ per point, as :func:`prismstation.ops.reference_heights.height_sigma` makes it). Raises
+    :class:`ModelError` only for settings this model does not have (an unknown bias model or
+    view); data the operator can fix are messages."""
+    kinds = {v: settings.bias_of(v) for v in scene.views}
+    for k in set(kinds.values()) | {settings.bias_model}:
+        if k not in BIAS_MODELS:
+            raise ModelError(f"bias model {k!r} is not one the RPC model offers ({', '.join(BIAS_MODELS)})")
+    unknown = sorted(set(dict(settings.view_bias)) - set(scene.views))
+    if unknown:
+        raise ModelError(f"a bias model is set for views the scene does not have: {', '.join(unknown)}")
+    kind = max(kinds.values(), key=BIAS_MODELS.get)   # the most parameters any view has
     if settings.fixed_view is not None and settings.fixed_view not in scene.views:
         raise ModelError(f"the view held fixed, {settings.fixed_view!r}, is not a view of the scene "
                          f"({', '.join(scene.views)})")
@@ -108,7 +121,7 @@ def fit_block(scene, points, settings: Settings = Settings(), *, height_of=None,
     if not run.gcps and settings.fixed_view is None and kind != "none" and run.block and not prior:
         messages.append(f"no GCP: view {ref} held fixed; the other views' biases are relative to its RPC")
     use_dem = height_of is not None and dem_needed(len(run.gcps), kind)
-    if use_dem and not (height_sigma_m is not None and height_sigma_m > 0):
+    if use_dem and not (callable(height_sigma_m) or (height_sigma_m is not None and height_sigma_m > 0)):
         use_dem = False
         messages.append("the reference DEM's heights come without their σ: tie points are not held to "
                         "them (the DEM places only points seen in one image)")
@@ -123,9 +136,10 @@ def fit_block(scene, points, settings: Settings = Settings(), *, height_of=None,
     else:
         reason = ""
         for m in [kind] if kind == "none" else [k for k in LADDER if BIAS_MODELS[k] <= BIAS_MODELS[kind]]:
+            per_view = [min(kinds[v], m, key=BIAS_MODELS.get) for v in names]
             try:
-                result, held = run.adjust(m, fixed, height_of if use_dem else None, height_sigma_m,
-                                          _prior_as(prior, m))
+                result, held = run.adjust(per_view, fixed, height_of if use_dem else None, height_sigma_m,
+                                          _prior_as(prior, per_view))
             except DegenerateGeometry as exc:
                 reason = str(exc)
                 continue
@@ -142,10 +156,14 @@ def fit_block(scene, points, settings: Settings = Settings(), *, height_of=None,
             failures[ref] = FailedFit(DegenerateGeometry(reason) if "determined" in reason else ModelError(reason))
         else:
             bias = run.biases(result, m, fixed)
-            messages += _undetermined(bias, result, bool(run.gcps) or bool(held.any()) or bool(prior))
+            weak = undetermined(bias, result)
+            messages += _undetermined(weak, bool(run.gcps) or bool(held.any()) or bool(prior))
             if held.any():
+                hs = (f"σ {height_sigma_m:.1f} m" if not callable(height_sigma_m) else
+                      f"σ {run.held_sigma[0]:.1f}–{run.held_sigma[1]:.1f} m with the slopes")
                 messages.append(f"{int(held.sum())} tie points held to the reference DEM's heights "
-                                f"(σ {height_sigma_m:.1f} m): fewer GCPs than the {m} bias needs")
+                                f"({hs}): fewer GCPs than the {m} bias needs")
+            return BlockFit(run, bias, result, messages, failures, weak, int(held.sum()))
     return BlockFit(run, bias, result, messages, failures)
 
 
@@ -160,7 +178,9 @@ class _Block:
         self.points = points
         self.seen = {p.id: [v for v in self.names if v in p.image and np.all(np.isfinite(p.image[v]))]
                      for p in points}
-        self.gcps = [p for p in points if p.kind == "GCP" and p.ground is not None and self.seen[p.id]]
+        self.gcps = [p for p in points if p.kind == "GCP" and p.ground is not None and self.seen[p.id]
+                     and settings.use_gcps]
+        self.held_sigma = (math.nan, math.nan)  # the smallest and largest σ of held heights (m)
         ties = [p for p in points if p.kind == "TIE" and len(self.seen[p.id]) >= 2]
         self.block = self.gcps + ties
         P, I, XY, S = [], [], [], []
@@ -178,9 +198,10 @@ class _Block:
         self.gcp_sigma = np.array([_ground_sigma(p.sigma_ground) for p in self.gcps], float).reshape(-1, 3)
 
     def adjust(self, kind, fixed, height_of, height_sigma, prior=None):
-        """The adjustment with the ``kind`` bias; with ``height_of`` the tie points are held to
-        the DEM's heights, taken again where the adjusted points moved (three rounds at most);
-        ``prior``: view index → :class:`BiasPrior` in ``kind``'s parameters.
+        """The adjustment with the ``kind`` bias (one name, or one per view); with ``height_of``
+        the tie points are held to the DEM's heights (σ ``height_sigma``: metres, or a function
+        of map points), taken again where the adjusted points moved (three rounds at most);
+        ``prior``: view index → :class:`BiasPrior` in that view's ``kind``'s parameters.
         Returns ``(RpcAdjustment, held (n,) bool)``."""
         n, g = len(self.block), len(self.gcps)
         rpcs = [self.scene.views[v].rpc for v in self.names]
@@ -209,8 +230,15 @@ class _Block:
                     np.nanmax(np.abs(new - href), initial=0.0) < 0.01:
                 break
             href, held = new, np.isfinite(new)
+            hs = height_sigma
+            if callable(height_sigma):
+                s = np.full(n, np.nan)
+                s[g:] = np.asarray(height_sigma(np.column_stack([E, N])), float)
+                hs = s[held]
+                if hs.size:
+                    self.held_sigma = (float(np.min(hs)), float(np.max(hs)))
             res = adjust(rpcs, self.point, self.image, self.xy, self.sigma, height_point=np.flatnonzero(held),
-                         height=href[held], height_sigma=height_sigma, **common)
+                         height=href[held], height_sigma=hs, **common)
             lon, lat = res.lon, res.lat
         return res, held
 
@@ -386,11 +414,12 @@ def control_from_record(scene, record: dict) -> Control:
     return Control("the orientation on a reference DEM", out)
 
 
-def _prior_as(prior: dict, kind: str) -> dict:
-    """The a-priori biases in ``kind``'s parameters: a parameter the prior has keeps its value
-    and σ, another is 0 with :func:`apriori_sigma`."""
+def _prior_as(prior: dict, kinds) -> dict:
+    """The a-priori biases in the parameters of ``kinds`` (one name, or one per view index): a
+    parameter the prior has keeps its value and σ, another is 0 with :func:`apriori_sigma`."""
     out = {}
     for k, b in prior.items():
+        kind = kinds if isinstance(kinds, str) else kinds[k]
         have = dict(zip(BIAS_NAMES[b.model], zip(b.params, b.sigma)))
         base = dict(zip(BIAS_NAMES[kind], apriori_sigma(kind)))
         vals = [have.get(n, (0.0, base[n])) for n in BIAS_NAMES[kind]]
@@ -404,16 +433,26 @@ def _prior_as(prior: dict, kind: str) -> dict:
 MIN_PRIOR_SIGMA_PX = 0.05
 
 
-def _undetermined(bias: dict, res, controlled: bool) -> list[str]:
-    """Messages naming the parameters the data leave at their a-priori σ (:data:`UNDETERMINED`):
-    their value is the prior's zero, not a measurement."""
+def undetermined(bias: dict, res) -> dict:
+    """View → the names of its bias parameters the data leave at their a-priori σ (σ over σ0
+    beyond :data:`UNDETERMINED` of :func:`apriori_sigma`): their value is the prior's, not a
+    measurement. Views held fixed and views with none are left out."""
     s0 = res.sigma0 if res.dof > 0 and math.isfinite(res.sigma0) and res.sigma0 > 0 else 1.0
-    out = []
+    out = {}
     for v, b in bias.items():
         if b.fixed or not b.names:
             continue
         ratio = b.std / s0 / apriori_sigma(b.model)
-        weak = [n for n, r in zip(b.names, ratio) if r > UNDETERMINED]
+        weak = tuple(n for n, r in zip(b.names, ratio) if r > UNDETERMINED)
+        if weak:
+            out[v] = weak
+    return out
+
+
+def _undetermined(weak: dict, controlled: bool) -> list[str]:
+    """Messages naming the parameters of :func:`undetermined`."""
+    out = []
+    for v, weak in weak.items():
         if weak:
             hint = ("" if controlled else ": tie points alone cannot tell a shift along the lines from a "
                     "height; add GCPs or a reference DEM")

@@ -39,6 +39,17 @@ class Settings:
     mean_height: float | None = None
     orientation: str = "gcp"      # "gcp": fitted to GCPs; "dem": from reference-DEM control
     fixed_view: str | None = None  # the view held fixed as the datum (models that hold one)
+    # models that fit an image-space bias per view and hold tie points to a reference DEM
+    # (images with RPCs): ((view, bias model), ...) where a view departs from ``bias_model``;
+    # the reference DEM's height σ (m; None: the default of an SRTM-class DEM); whether GCPs
+    # enter the fit (False: they are checked, as check points are)
+    view_bias: tuple = ()
+    reference_sigma_m: float | None = None
+    use_gcps: bool = True
+
+    def bias_of(self, view: str) -> str:
+        """The bias model of ``view``: its own in ``view_bias``, else ``bias_model``."""
+        return dict(self.view_bias).get(view, self.bias_model)
 
 
 @dataclass(frozen=True)

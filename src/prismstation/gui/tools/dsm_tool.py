@@ -27,6 +27,7 @@ from prismstation.gui import settings as st
 from prismstation.gui.tools._worker import run_with_progress
 from prismstation.io.project import project_geoid
 from prismstation.model.project import has_ground
+from prismstation.ops.fit import heights_not_fixed
 from prismstation.ops.dsm_export import HEIGHT_MODELS, DsmRequest
 from prismstation.gui.plain import plain
 from prismstation.ops.project import require_workflow
@@ -268,6 +269,9 @@ class DsmTool:
         def done(out):
             self.ctx.outputs["dsm"] = str(out.path)  # (Validate DSM offers it next)
             self.message, low = result_message(out)
+            unfixed = heights_not_fixed(sol)  # as `prismstation dsm` says it before its status 3
+            if unfixed:
+                self.message, low = f"HEIGHTS NOT FIXED: {unfixed}. " + self.message, True
             self.ctx.status(self.message, 30000 if low else 15000)
             if self.ctx.interactive:
                 (QMessageBox.warning if low else QMessageBox.information)(self.ctx.widget, "DSM", plain(self.message))
