@@ -140,7 +140,9 @@ def test_refusals_and_low_fill(block, tmp_path, capsys):
                  str(tmp_path / "f.json")]) == 3
     assert "REFUSED" in capsys.readouterr().err
     assert "NaN" not in (tmp_path / "f.json").read_text()
-    assert main(["dsm", proj, "-o", str(tmp_path / "x.tif"), "--fill"]) == 2
-    assert main(["dsm", proj, "-o", str(tmp_path / "x.tif"), "--window", "0", "0", "100", "100"]) == 2
+    # a window past the first image's edge (300 px): refused, one line
+    capsys.readouterr()
+    assert main(["dsm", proj, "-o", str(tmp_path / "x.tif"), "--window", "250", "0", "100", "100"]) == 2
+    assert "not inside the first image" in capsys.readouterr().err and not (tmp_path / "x.tif").exists()
     assert main(["dsm", proj, "-o", str(tmp_path / "low.tif"), "--posting", "16", "--min-fill", "100.1"]) == 3
     assert (tmp_path / "low.tif").exists()

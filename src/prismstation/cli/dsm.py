@@ -61,7 +61,7 @@ def run(args) -> int:
     dsm = out.dsm
     end_progress()
     fill = out.fill_percent
-    rows, cols = dsm.heights.shape
+    rows, cols = dsm.shape
     n = len(project.scene.views)
     print(f"wrote {args.output}: {cols} × {rows} cells at {args.posting:g} m, {dsm.height_kind} heights, "
           f"{fill:.1f} % of the {out.seen_cells} cells {'both' if n == 2 else 'all three' if n == 3 else f'all {n}'} "

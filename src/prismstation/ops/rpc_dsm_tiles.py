@@ -144,16 +144,20 @@ def run_pair_tile(spec: PairTile):
     return h, cnt, sigma, stats
 
 
-def seen_by_all(models, shapes, grid: Grid, heights, window=None) -> np.ndarray:
+def seen_by_all(models, shapes, grid: Grid, heights, window=None, crop=None) -> np.ndarray:
     """Cells (of ``window`` = (row0, col0, rows, cols), default the grid) whose centre at
-    ``heights`` (NaN → their median) falls inside every image."""
+    ``heights`` (NaN → their median) falls inside every image, and inside ``crop`` (col0, row0,
+    cols, rows) of the first one when given."""
     E, N = grid.cell_centres(window)
     lon, lat = to_lonlat(grid.crs)(E, N)
     h = np.where(np.isfinite(heights), heights, np.nanmedian(heights) if np.isfinite(heights).any() else 0.0)
     seen = np.ones(E.shape, bool)
-    for model, (rows, cols) in zip(models, shapes):
+    for k, (model, (rows, cols)) in enumerate(zip(models, shapes)):
+        x0, y0, x1, y1 = 0, 0, cols, rows
+        if k == 0 and crop is not None:
+            x0, y0, x1, y1 = crop[0], crop[1], crop[0] + crop[2], crop[1] + crop[3]
         x, y = as_biased(model).project(lon, lat, h)
-        seen &= (x >= 0) & (x < cols) & (y >= 0) & (y < rows)
+        seen &= (x >= x0) & (x < x1) & (y >= y0) & (y < y1)
     return seen
 
 
@@ -173,7 +177,8 @@ def fuse_pairs(vals, sig, tau: float, posting: float):
 class BlockTile:
     """One output tile of every pair (what a worker needs): the images' ``paths``,
     ``models`` and ``shapes``, the index ``pairs``, the cells ``window`` of ``grid``, the
-    tile's height range (m), the disparity margin (px), the refinement and the fusion's τ."""
+    tile's height range (m), the disparity margin (px), the refinement, the fusion's τ and the
+    ``crop`` (col0, row0, cols, rows) of the first image the DSM is limited to (None: all)."""
 
     paths: tuple
     models: tuple
@@ -185,6 +190,7 @@ class BlockTile:
     margin_px: float = 2.0
     refine: bool = True
     tau: float = 3.0
+    crop: tuple | None = None
 
 
 def run_block_tile(spec: BlockTile):
@@ -198,7 +204,7 @@ def run_block_tile(spec: BlockTile):
     counts = np.stack([o[1] for o in outs])
     sig = np.stack([o[2] for o in outs])
     h, q = fuse_pairs(vals, sig, spec.tau, spec.grid.posting)
-    seen = seen_by_all(spec.models, spec.shapes, spec.grid, h, spec.window)
+    seen = seen_by_all(spec.models, spec.shapes, spec.grid, h, spec.window, spec.crop)
     h[~seen] = np.nan
     q[~seen] = 0
     return h, q, seen, vals, sig, counts, [o[3] for o in outs]

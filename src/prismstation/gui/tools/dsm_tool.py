@@ -162,7 +162,7 @@ def result_message(out) -> tuple[str, bool]:
     and whether it filled less than the minimum."""
     dsm, path, fill, seen, filled = out.dsm, out.path, out.fill_percent, out.seen_cells, out.filled_percent
     min_fill_percent = out.request.min_fill_percent
-    rows, cols = dsm.heights.shape
+    rows, cols = dsm.shape
     pairs = len((dsm.info or {}).get("pairs") or [[0, 1], [0, 2], [1, 2]])     # a triplet's three
     every = {1: "both", 3: "all three"}.get(pairs, "all")
     text = (f"Wrote {path}: {cols} × {rows} cells at {dsm.posting_m:g} m, {dsm.height_kind} heights; "
