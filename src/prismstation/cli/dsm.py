@@ -5,7 +5,9 @@ The export is the sensor model's (:func:`prismstation.ops.sensors.workflows_of`:
 triplet's :func:`prismstation.ops.dsm_export.export_dsm`, images with RPCs
 :func:`prismstation.ops.rpc_project.export_dsm`, which prints the pairs' agreement), the same
 as the window's. Exit status 3 (after writing the file) when fewer than ``--min-fill``
-percent of the cells all images see got a matched height.
+percent of the cells all images see got a matched height. ``--window``, ``--fill``,
+``--scheduler`` and ``--workers`` mean the same for both models; the RPC DSM is written tile
+by tile, whatever its size (:mod:`prismstation.ops.rpc_dsm_export`).
 """
 from __future__ import annotations
 
@@ -28,7 +30,8 @@ def register(sub) -> None:
     p.add_argument("project")
     p.add_argument("-o", "--output", required=True, help="DSM GeoTIFF to write")
     p.add_argument("--window", nargs=4, type=int, metavar=("COL", "ROW", "W", "H"),
-                   help="N-image window in pixels (default: the whole N image)")
+                   help="window in pixels of the N image (a triplet) or of the first image (images "
+                        "with RPCs); default the whole image")
     p.add_argument("--posting", type=float, default=5.0, help="grid posting, m (default 5 = 2 × GSD)")
     p.add_argument("--orthometric", action="store_true", help="orthometric heights through the project's geoid")
     p.add_argument("--reference", metavar="DEM", help="reference DEM (orthometric) as the coarse prior")
