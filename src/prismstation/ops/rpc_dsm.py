@@ -52,6 +52,16 @@ MIN_TILE_POINTS = 5
 PRIOR_MARGIN_M = 40.0
 #: output cells per tile side
 TILE_CELLS = 256
+#: a posting under this many of the first image's pixels is fine (a cell holds a few samples,
+#: some none): each triangulated point is spread over the cells around it by a Gaussian of
+#: :data:`SPLAT_CELLS` cells (:func:`~prismstation.core.surfaces.rpc_epipolar.grid_heights`:
+#: no holes between the scattered points, each cell the mean of its neighbourhood) and the
+#: disparities pass a :data:`MEDIAN_PX` median filter (the usual SGM chain's outlier filter,
+#: :func:`~prismstation.core.matching.sgm.median_filter`); a coarser posting averages enough
+#: samples per cell for neither to matter
+FINE_POSTING_PX = 2.5
+SPLAT_CELLS = 0.5
+MEDIAN_PX = 3
 
 
 def rpc_height_domain(models) -> tuple[float, float]:
@@ -191,8 +201,9 @@ class RpcDsmPlan:
     the index ``pairs`` matched, the output ``grid``, the whole DSM's a-priori
     ``height_range`` (lo, hi) ellipsoidal m, the matching (``margin_px``, ``refine``) and the
     fusion's ``tau``, the tiling (``tile_cells``), whether the pair DSMs are kept whole
-    (``keep_pairs``) and the ``crop`` (col0, row0, cols, rows) of the first image the DSM is
-    limited to (None: the images' whole common footprint)."""
+    (``keep_pairs``), the ``crop`` (col0, row0, cols, rows) of the first image the DSM is
+    limited to (None: the images' whole common footprint), and the gridding's ``splat_cells``
+    and the disparities' ``median_px`` (:data:`FINE_POSTING_PX`)."""
 
     paths: tuple
     models: tuple
@@ -206,6 +217,8 @@ class RpcDsmPlan:
     tile_cells: int
     keep_pairs: bool
     crop: tuple | None = None
+    splat_cells: float = 0.0
+    median_px: int = 0
 
 
 def check_crop(window, shape) -> tuple:
@@ -223,11 +236,13 @@ def check_crop(window, shape) -> tuple:
 def plan_rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=None,
                  grid: Grid | None = None, crs: str | None = None, margin_px: float = 2.0,
                  tile_cells: int = TILE_CELLS, refine: bool = True, tau: float = 3.0,
-                 keep_pairs: bool | None = None, window=None) -> RpcDsmPlan:
+                 keep_pairs: bool | None = None, window=None, splat_cells: float | None = None,
+                 median_px: int | None = None) -> RpcDsmPlan:
     """The plan (:func:`rpc_dsm` says what each argument is): the images' shapes, the height
     range (default the RPCs' own domain), the grid (default their common footprint at
     ``posting``, the first image's limited to ``window``), the pairs (default every pair), the
-    pair DSMs kept up to :data:`KEEP_PAIRS_CELLS`."""
+    pair DSMs kept up to :data:`KEEP_PAIRS_CELLS`, the splat and the median filter at a fine
+    posting (:data:`FINE_POSTING_PX`) unless given."""
     if len(paths) != len(models) or len(paths) < 2:
         raise InputError("a DSM needs two or more images, each with its RPC model")
     if not (posting > 0 and np.isfinite(posting)):
@@ -241,8 +256,23 @@ def plan_rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_rang
         tuple(itertools.combinations(range(len(paths)), 2))
     cells = grid.shape[0] * grid.shape[1]
     keep = keep_pairs if keep_pairs is not None else cells * len(pairs) <= KEEP_PAIRS_CELLS
+    fine = grid.posting < FINE_POSTING_PX * pixel_size_m(models[0], shapes[0], 0.5 * sum(height_range))
+    splat = (SPLAT_CELLS if fine else 0.0) if splat_cells is None else float(splat_cells)
+    median = (MEDIAN_PX if fine else 0) if median_px is None else int(median_px)
     return RpcDsmPlan(tuple(str(p) for p in paths), tuple(models), shapes, pairs, grid, height_range,
-                      margin_px, refine, tau, tile_cells, keep, crop)
+                      margin_px, refine, tau, tile_cells, keep, crop, splat, median)
+
+
+def pixel_size_m(model, shape, height: float) -> float:
+    """The ground size (m) of a pixel at the image's centre at ``height``: the geometric mean of
+    its steps along the row and the column."""
+    rows, cols = shape
+    x = np.array([cols / 2, cols / 2 + 1, cols / 2])
+    y = np.array([rows / 2, rows / 2, rows / 2 + 1])
+    lon, lat = as_biased(model).localize(x, y, np.full(3, float(height)))
+    e, n = to_map(utm_crs(float(lon[0]), float(lat[0])))(lon, lat)
+    e, n = np.asarray(e), np.asarray(n)
+    return float(np.sqrt(np.hypot(e[1] - e[0], n[1] - n[0]) * np.hypot(e[2] - e[0], n[2] - n[0])))
 
 
 def reference_prior(plan: RpcDsmPlan, reference, geoid=None):
@@ -270,7 +300,8 @@ def tile_specs(plan: RpcDsmPlan, prior=None, points=None) -> list:
     heights, step = prior if prior is not None else (None, 1)
     return [BlockTile(plan.paths, plan.models, plan.shapes, plan.pairs, grid, win,
                       tile_height_range(grid, win, plan.height_range, points, heights, prior_step=step),
-                      margin_px=plan.margin_px, refine=plan.refine, tau=plan.tau, crop=plan.crop)
+                      margin_px=plan.margin_px, refine=plan.refine, tau=plan.tau, crop=plan.crop,
+                      splat_cells=plan.splat_cells, median_px=plan.median_px)
             for win in tile_windows(grid, plan.tile_cells) if not unseen_tile(plan, win)]
 
 
@@ -319,7 +350,7 @@ def match_tiles(plan: RpcDsmPlan, specs: list, put, *, scheduler=None, workers=N
     only the kept pair grids are held whole here."""
     shape = plan.grid.shape
     combos = list(itertools.combinations(range(len(plan.pairs)), 2))
-    sums = TileSums([PairDsm(pr, np.full(shape, np.nan, np.float32), np.zeros(shape, np.int32),
+    sums = TileSums([PairDsm(pr, np.full(shape, np.nan, np.float32), np.zeros(shape, np.float32),
                              np.full(shape, np.nan, np.float32)) for pr in plan.pairs] if plan.keep_pairs else [],
                     {c: ([], []) for c in combos}, np.zeros(len(plan.pairs), np.int64))
     per_tile = max(64, -(-AGREEMENT_SAMPLES // max(len(specs), 1)))
@@ -389,8 +420,8 @@ def fill_grid(heights, mask, seen) -> int:
 def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=None, points=None,
             reference=None, geoid=None, grid: Grid | None = None, crs: str | None = None,
             margin_px: float = 2.0, tile_cells: int = TILE_CELLS, refine: bool = True, tau: float = 3.0,
-            keep_pairs: bool | None = None, window=None, fill: bool = False, scheduler=None, workers=None,
-            progress=None) -> tuple[Dsm, list]:
+            keep_pairs: bool | None = None, window=None, fill: bool = False, splat_cells: float | None = None,
+            median_px: int | None = None, scheduler=None, workers=None, progress=None) -> tuple[Dsm, list]:
     """The fused DSM of two or more images with RPCs, in memory, and the pair DSMs it came
     from (:mod:`prismstation.ops.rpc_dsm_export` writes one of any size tile by tile).
 
@@ -401,7 +432,8 @@ def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=Non
     ``height_range``, ``points`` (lon°, lat°, ellipsoidal h m arrays: the bias fit's
     tie points), ``margin_px``, ``reference`` (a reference DEM
     file; ``geoid`` makes an orthometric one ellipsoidal): the module docstring. ``fill``:
-    voids filled by interpolation (mask 2, :func:`fill_grid`).
+    voids filled by interpolation (mask 2, :func:`fill_grid`). ``splat_cells``, ``median_px``:
+    the gridding and the disparities' filter (default: :data:`FINE_POSTING_PX`).
 
     Each tile matches every pair and fuses them as the PRISM DSM does
     (:func:`prismstation.core.matching.sgm.fuse`): the pair heights within ``tau`` σ of their median,
@@ -418,7 +450,7 @@ def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=Non
     """
     plan = plan_rpc_dsm(paths, models, posting=posting, pairs=pairs, height_range=height_range, grid=grid,
                         crs=crs, margin_px=margin_px, tile_cells=tile_cells, refine=refine, tau=tau,
-                        keep_pairs=keep_pairs, window=window)
+                        keep_pairs=keep_pairs, window=window, splat_cells=splat_cells, median_px=median_px)
     specs = tile_specs(plan, reference_prior(plan, reference, geoid), points)
     shape = plan.grid.shape
     heights, quality, seen = np.full(shape, np.nan, np.float32), np.zeros(shape, np.uint8), np.zeros(shape, bool)
