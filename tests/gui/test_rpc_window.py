@@ -20,6 +20,7 @@ from PySide6.QtTest import QTest
 from rasterio.transform import from_origin
 
 from prismstation.core.models.rpc_model import RpcBias, RpcModel
+from prismstation.gui.point_table import COLUMNS
 from prismstation.io.rpc_scene import write_scene_for_images
 from prismstation.io.scene import read_scene
 from prismstation.ops.project import create
@@ -145,6 +146,11 @@ def test_the_views_follow_the_scene_titled_by_their_names(win):
     assert list(win.status_xy) == list(VIEWS)  # a cursor-position label per view
     assert list(win.loupes) == list(VIEWS)
     assert [win.contrast_tabs.tabText(i) for i in range(win.contrast_tabs.count())] == list(VIEWS)
+    # the table's Views column marks long image names by their place; its header names them
+    model = win.table_model
+    assert {model.cell(pid, "Views") for pid in model.ids} == {"1 2 3"}
+    assert model.headerData(COLUMNS.index("Views"), Qt.Orientation.Horizontal, Qt.ItemDataRole.ToolTipRole) == \
+        "1 = img_01  2 = img_02  3 = img_03"
 
 
 def test_the_fit_finds_the_known_shifts_and_the_panel_offers_the_rpc_choices(qtbot, win):

@@ -230,3 +230,9 @@ def data_ranges(d: PlotData, vector_segments=(), std_range=((0, 1), (0, 4))) -> 
             out["vectors"] = ((lo[0] - pad, hi[0] + pad), (lo[1] - pad, hi[1] + pad))
     out["std_residuals"] = std_range
     return out
+
+
+def blunder_text(ids: list[str], most: int = 3) -> str:
+    """The flagged ids for the plot's label: the first ``most`` and how many more (the summary
+    line under the plots names them all)."""
+    return ", ".join(ids[:most]) + (f" +{len(ids) - most}" if len(ids) > most else "")

@@ -31,7 +31,7 @@ from prismstation.gui.fit_checks import alpha_of
 from prismstation.gui.markers import Scatter
 from prismstation.gui.plain import plain_block
 from prismstation.gui.palette import BLUNDER_RGB, FIT_RGB, KIND_RGB, THEORY_RGB, qcolor
-from prismstation.gui.plot_data import PlotData, auto_exaggeration, data_ranges, line_x, segments
+from prismstation.gui.plot_data import PlotData, auto_exaggeration, blunder_text, data_ranges, line_x, segments
 from prismstation.gui.plot_figures import legend_below
 from prismstation.gui.text_label import TextLabel
 
@@ -262,6 +262,7 @@ class PlotsWidget(QWidget):
         self.threshold_line = pg.InfiniteLine(3.29, angle=0, pen=pg.mkPen(BLUNDER_COLOR, width=1.5, style=dash),
                                               label="blunder threshold {value:.2f}",
                                               labelOpts={"position": 0.99, "color": BLUNDER_COLOR,
+                                                         "fill": (255, 255, 255, 210),  # over the stems
                                                          "anchors": [(1, 0), (1, 0)]})  # under it
         ps.addItem(self.threshold_line)
         self.blunder_label = pg.TextItem("", color=BLUNDER_COLOR, anchor=(0.5, 1.2))
@@ -361,8 +362,9 @@ class PlotsWidget(QWidget):
             top_i = max(flagged, key=lambda i: d.std_values[i])
             self._set(self.blunder_pt, xs[flagged], d.std_values[flagged],
                       data=[d.std_ids[i] for i in flagged])
-            self._once("blunder", (", ".join(d.std_ids[i] for i in flagged), xs[top_i], d.std_values[top_i]),
-                       lambda v: (self.blunder_label.setText(v[0]), self.blunder_label.setPos(v[1], v[2])))
+            self._once("blunder", (blunder_text([d.std_ids[i] for i in flagged]), xs[top_i], d.std_values[top_i],
+                                   xs[top_i] > (n + 1) / 2),
+                       self._place_blunder_label)
         else:
             self._set(self.blunder_pt, [], [])
             self._once("blunder", None, lambda v: self.blunder_label.setText(""))
@@ -376,6 +378,13 @@ class PlotsWidget(QWidget):
                               f"in {d.view}" if d.ties else f"{len(d.gcp_ids)} GCP, {len(d.icp_ids)} ICP with parallax")
                              + (f"; blunder: {', '.join(d.blunders)}" if d.blunders else ""))
         self._set_titles()
+
+    def _place_blunder_label(self, v) -> None:
+        """The flagged ids above the highest blunder's stem, leaning into the plot."""
+        text, x, y, right_half = v
+        self.blunder_label.setText(text)
+        self.blunder_label.setAnchor((1.0 if right_half else 0.0, 1.2))
+        self.blunder_label.setPos(x, y)
 
     def _set(self, item, x, y, data=None) -> None:
         """``item.setData(x, y[, data=...])`` unless it already shows exactly that: pyqtgraph

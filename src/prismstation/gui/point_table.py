@@ -253,6 +253,8 @@ class PointTableModel(QAbstractTableModel):
         ref = reference_view(views)
         measurements, points = p.measurements, p.points
         shown: dict[tuple, str] = {}  # views measured -> "N · B" (a handful of kinds)
+        # long view names (an RPC project's image names) by their place, "1 · 3", to stay legible
+        marks = views if all(len(v) <= 2 for v in views) else [str(i + 1) for i in range(len(views))]
         fitted = _fitted_values(sol, ref)
         usual = p.height_kind()
 
@@ -261,7 +263,7 @@ class PointTableModel(QAbstractTableModel):
             have = tuple(v for v in views if (pid, v) in measurements)
             vs = shown.get(have)
             if vs is None:
-                vs = shown[have] = " ".join(v if v in have else "·" for v in views)
+                vs = shown[have] = " ".join(m if v in have else "·" for v, m in zip(views, marks))
             vx, vy, vmax, e, n, h, dh, sr, blunder = fitted(pid)
             hk = pt.height_kind if pt.H == pt.H else ""  # (NaN: no height, no kind)
             return (pid, pt.kind, vs, vx, vy, vmax, e, n, h, dh, sr,
@@ -279,6 +281,10 @@ class PointTableModel(QAbstractTableModel):
     def headerData(self, section, orientation, role=Qt.ItemDataRole.DisplayRole):
         if orientation == Qt.Orientation.Horizontal and role == Qt.ItemDataRole.DisplayRole:
             return COLUMNS[section]
+        if (orientation == Qt.Orientation.Horizontal and role == Qt.ItemDataRole.ToolTipRole
+                and COLUMNS[section] == "Views" and self.project is not None):
+            views = list(self.project.scene.views)
+            return "  ".join(f"{i + 1} = {v}" for i, v in enumerate(views)) if any(len(v) > 2 for v in views) else None
         return None
 
     def data(self, index, role=Qt.ItemDataRole.DisplayRole):

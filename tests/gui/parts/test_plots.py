@@ -9,6 +9,7 @@ import pytest
 
 from prismstation.gui.plot_figures import figure_widget, render_images
 from prismstation.core.models.solution import solve
+from prismstation.gui.plot_data import blunder_text
 from prismstation.gui.plots import PlotData, PlotsWidget
 from prismstation.sim.model_triplet import make_points, make_scene
 from tests.gui.parts.conftest import BLUNDER_ID
@@ -87,6 +88,15 @@ def test_standardised_residuals_threshold_and_blunder(widget, fitted):
     np.testing.assert_allclose(d.std_values, y)
     np.testing.assert_allclose(d.gcp_h, _xy(widget.h_gcp)[1])
     assert d.blunders == (BLUNDER_ID,)
+    # the label leans into the plot from its stem: right-aligned in the plot's right half
+    left_half = x[i] <= (len(x) + 1) / 2
+    assert widget.blunder_label.anchor.x() == (0.0 if left_half else 1.0)
+
+
+def test_blunder_label_names_the_first_three_and_counts_the_rest():
+    assert blunder_text(["T1"]) == "T1"
+    assert blunder_text(["T1", "T2", "T3"]) == "T1, T2, T3"
+    assert blunder_text(["T1", "T2", "T3", "T4", "T5"]) == "T1, T2, T3 +2"
 
 
 def test_update_reuses_items_and_is_fast(widget, qtbot):
