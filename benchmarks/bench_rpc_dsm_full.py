@@ -1,7 +1,7 @@
 """The RPC DSM of a large simulated scene, written tile by tile: time and peak memory.
 
 A triplet of ``--size`` × ``--size`` images of 0.5 m pixels (forward, nadir, backward: B/H
-0.15 and 0.3, the synthetic world and cubic RPCs of ``tests/ops/rpc_synth.py``: rolling hills
+0.15 and 0.3, the synthetic world and cubic RPCs of ``prismstation.sim.rpc_synth``: rolling hills
 250–600 m, a random ground texture of 0.5 m cells), rendered strip by strip into tiled uint16
 GeoTIFFs with their RPCs in the tags (kept in ``--out`` and not rendered again). Then, in a
 child process per run, ``ops.rpc_dsm_export.write_rpc_dsm`` — what ``prismstation dsm`` runs
@@ -32,10 +32,9 @@ from rasterio.rpc import RPC
 from scipy import ndimage
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "src"))
 
-from tests.ops.rpc_synth import World, analytic_terrain, make_rpc  # noqa: E402
+from prismstation.sim.rpc_synth import World, analytic_terrain, make_rpc  # noqa: E402
 
 LON0, LAT0 = 5.27, 44.17
 GSD = 0.5
@@ -87,12 +86,12 @@ def make_scene(out: Path, size: int):
 CHILD = r"""
 import json, sys, time
 import numpy as np, rasterio
-sys.path.insert(0, {root!r}); sys.path.insert(0, {src!r})
+sys.path.insert(0, {src!r})
 from prismstation.io.rpc import read_rpc
 from prismstation.core.adjustment.stats import nmad
 from prismstation.io.rpc_scene import to_lonlat
 from prismstation.ops.rpc_dsm_export import write_rpc_dsm
-from tests.ops.rpc_synth import World, analytic_terrain
+from prismstation.sim.rpc_synth import World, analytic_terrain
 args = json.loads(sys.argv[1])
 models = [read_rpc(p) for p in args["paths"]]
 t0, c0 = time.perf_counter(), time.process_time()
@@ -120,7 +119,7 @@ print(json.dumps({{"wall": wall, "cpu": cpu, "peak_mb": peak, "shape": dsm.shape
 
 
 def run_child(paths, output, posting, window, fill, workers) -> dict:
-    code = CHILD.format(root=str(ROOT), src=str(ROOT / "src"), lon0=LON0, lat0=LAT0)
+    code = CHILD.format(src=str(ROOT / "src"), lon0=LON0, lat0=LAT0)
     arg = json.dumps({"paths": [str(p) for p in paths], "output": str(output), "posting": posting,
                       "window": window, "fill": fill, "workers": workers})
     res = subprocess.run([sys.executable, "-W", "ignore", "-c", code, arg], capture_output=True, text=True)
