@@ -143,7 +143,26 @@ def test_refusals_and_low_fill(block, tmp_path, capsys):
                  str(tmp_path / "f.json")]) == 3
     assert "REFUSED" in capsys.readouterr().err
     assert "NaN" not in (tmp_path / "f.json").read_text()
-    assert main(["dsm", proj, "-o", str(tmp_path / "x.tif"), "--fill"]) == 2
-    assert main(["dsm", proj, "-o", str(tmp_path / "x.tif"), "--window", "0", "0", "100", "100"]) == 2
+    # a window past the first image's edge (300 px): refused, one line
+    capsys.readouterr()
+    assert main(["dsm", proj, "-o", str(tmp_path / "x.tif"), "--window", "250", "0", "100", "100"]) == 2
+    assert "not inside the first image" in capsys.readouterr().err and not (tmp_path / "x.tif").exists()
     assert main(["dsm", proj, "-o", str(tmp_path / "low.tif"), "--posting", "16", "--min-fill", "100.1"]) == 3
     assert (tmp_path / "low.tif").exists()
+
+
+def test_dsm_window_and_fill(block, tmp_path, capsys):
+    """``--window`` (pixels of the first image) crops the DSM of images with RPCs and ``--fill``
+    fills its voids (mask 2), through the same export as the window's."""
+    d, world, _ = block
+    proj = str(d / "b.prismproj")
+    assert main(["dsm", proj, "-o", str(tmp_path / "all.tif"), "--posting", "4"]) in (0, 3)
+    capsys.readouterr()
+    assert main(["dsm", proj, "-o", str(tmp_path / "part.tif"), "--posting", "2", "--window", "50", "50", "150", "150",
+                 "--fill"]) in (0, 3)
+    assert "filled" in capsys.readouterr().out
+    with rasterio.open(tmp_path / "all.tif") as a, rasterio.open(tmp_path / "part.tif") as b:
+        assert b.width < 1.4 * a.width and b.height < 1.4 * a.height   # 2 m cells over half the image
+        m, h = b.read(2), b.read(1)
+    seen = np.isfinite(m)
+    assert np.isfinite(h[seen]).all() and (m[seen] == 2).any() and set(np.unique(m[seen])) <= {1.0, 2.0}

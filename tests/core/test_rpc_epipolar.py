@@ -103,3 +103,27 @@ def test_grid_heights_bins_means():
     assert cnt.tolist() == [[2, 1, 0], [0, 0, 1]]
     assert mean[0, 0] == 11.0 and mean[0, 1] == 20.0 and mean[1, 2] == 30.0 and np.isnan(mean[1, 0])
     assert extra[0, 0] == 22.0
+
+
+def test_grid_heights_spreads_points_over_their_neighbourhood():
+    """Points about as dense as the cells (a lattice of one cell turned by 30°, jittered, as
+    relief scatters an image's pixels on the ground) leave cells empty when each counts in its
+    own; spread with a Gaussian of half a cell, every
+    inner cell holds a height, the mean of its neighbourhood's (a constant stays exact), and
+    a cell no point comes within a cell of stays empty."""
+    rng = np.random.default_rng(0)
+    i, j = np.mgrid[-60:120, -60:120].astype(float)
+    c, s = np.cos(np.pi / 6), np.sin(np.pi / 6)
+    e = (c * i - s * j + rng.uniform(-0.3, 0.3, i.shape)).ravel()
+    n = -(s * i + c * j + rng.uniform(-0.3, 0.3, i.shape)).ravel()
+    h = np.full(e.size, 42.0)
+    t = (1.0, 0.0, 0.0, 0.0, -1.0, 0.0)
+    plain, cnt0, _ = grid_heights(e, n, h, t, (60, 60))
+    spread, cnt, _ = grid_heights(e, n, h, t, (60, 60), sigma_cells=0.5)
+    inner = (slice(2, -2), slice(2, -2))
+    assert np.isnan(plain[inner]).mean() > 0.05
+    assert np.isfinite(spread[inner]).all() and np.allclose(spread[inner], 42.0)
+    assert cnt[inner].min() >= 1.0 and cnt[inner].mean() > 2 * cnt0[inner].mean()
+    far, _, _ = grid_heights(np.array([0.5]), np.array([-0.5]), np.array([1.0]), t, (4, 4), sigma_cells=0.5)
+    assert np.isfinite(far).tolist()[:2] == [[True, True, False, False], [True, False, False, False]]
+    assert np.isnan(far[2:]).all()

@@ -411,23 +411,30 @@ def test_the_vector_plot_shows_any_image_and_not_one_held_fixed(qtbot, win):
 
 
 def test_the_dsm_dialog_of_an_rpc_project(qtbot, win, monkeypatch):
-    """Posting twice the images' 0.5 m pixel (it offered PRISM's 5 m); no "visible N area"."""
+    """Posting twice the images' 0.5 m pixel (it offered PRISM's 5 m); the extent the ground
+    every image sees or the first image's visible area (not N's); void filling offered, the
+    height model (a triplet's) not."""
     from PySide6.QtWidgets import QDialog
 
     from prismstation.gui.tools import dsm_tool
     seen = {}
 
     def look(dlg):
-        seen.update(posting=dlg.posting.value(), whole=dlg.whole.text(), area=dlg.area.isVisible(),
-                    checked=dlg.whole.isChecked(), tip=dlg.posting.toolTip(), window=dlg.request().window)
+        seen.update(posting=dlg.posting.value(), whole=dlg.whole.text(), area=dlg.area.text(),
+                    checked=dlg.area.isChecked(), tip=dlg.posting.toolTip(), window=dlg.request().window,
+                    fill=dlg.fill.isEnabled(), heights=dlg.heights.isEnabled())
         return QDialog.DialogCode.Rejected
     monkeypatch.setattr(dsm_tool.DsmDialog, "exec", look)
     win.tool_context.tools["dsm"].action.trigger()
     gsd = max(v.pixel_size_m for v in win.project.scene.views.values())
     assert 0.3 < gsd < 1.0                                   # (Pléiades)
     assert seen["posting"] == round(2 * gsd, 1) and "2 × the images'" in seen["tip"]
-    assert seen["whole"] == "the ground every image sees" and seen["checked"]
-    assert not seen["area"] and seen["window"] is None
+    first = next(iter(win.project.scene.views))
+    assert seen["whole"] == "the ground every image sees" and f"visible {first} area" in seen["area"]
+    rows, cols = win.project.scene.views[first].shape
+    w = seen["window"]
+    assert (w is None) != seen["checked"] and (w is None or (w[0] >= 0 and w[0] + w[2] <= cols and w[1] + w[3] <= rows))
+    assert seen["fill"] and not seen["heights"]
 
 
 def test_a_status_message_is_shown_whole(qtbot, win, rpc_path):

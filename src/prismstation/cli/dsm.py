@@ -7,7 +7,9 @@ triplet's :func:`prismstation.ops.dsm_export.export_dsm`, images with RPCs
 as the window's. Exit status 3 (after writing the file) when fewer than ``--min-fill``
 percent of the cells all images see got a matched height, or when a bias the data cannot
 determine decides the heights (:func:`prismstation.ops.fit.heights_not_fixed`: no GCP, no
-reference DEM in the project's stored orientation), said in one line.
+reference DEM in the project's stored orientation), said in one line. ``--window``, ``--fill``,
+``--scheduler`` and ``--workers`` mean the same for both models; the RPC DSM is written tile
+by tile, whatever its size (:mod:`prismstation.ops.rpc_dsm_export`).
 """
 from __future__ import annotations
 
@@ -31,7 +33,8 @@ def register(sub) -> None:
     p.add_argument("project")
     p.add_argument("-o", "--output", required=True, help="DSM GeoTIFF to write")
     p.add_argument("--window", nargs=4, type=int, metavar=("COL", "ROW", "W", "H"),
-                   help="N-image window in pixels (default: the whole N image)")
+                   help="window in pixels of the N image (a triplet) or of the first image (images "
+                        "with RPCs); default the whole image")
     p.add_argument("--posting", type=float, default=5.0, help="grid posting, m (default 5 = 2 × GSD)")
     p.add_argument("--orthometric", action="store_true", help="orthometric heights through the project's geoid")
     p.add_argument("--reference", metavar="DEM", help="reference DEM (orthometric) as the coarse prior")
@@ -70,7 +73,7 @@ def run(args) -> int:
     dsm = out.dsm
     end_progress()
     fill = out.fill_percent
-    rows, cols = dsm.heights.shape
+    rows, cols = dsm.shape
     n = len(project.scene.views)
     print(f"wrote {args.output}: {cols} × {rows} cells at {args.posting:g} m, {dsm.height_kind} heights, "
           f"{fill:.1f} % of the {out.seen_cells} cells {'both' if n == 2 else 'all three' if n == 3 else f'all {n}'} "

@@ -32,8 +32,8 @@ BLOCK = 256
 def write_cog(path, profile: dict, fill: Callable, *, before_keep=None, what: str = "raster",
               overview_resampling: str = "AVERAGE") -> None:
     """Write a COG at ``path``: ``fill(ds)`` writes the scratch dataset ``ds`` (rasterio, opened
-    for writing with ``profile`` — driver, size, bands, dtype, CRS, transform, nodata — made tiled
-    256 × 256 here); its tags, band names and mask go into the COG. ``before_keep()``, when
+    for writing and reading back with ``profile`` — driver, size, bands, dtype, CRS, transform,
+    nodata — made tiled 256 × 256 here); its tags, band names and mask go into the COG. ``before_keep()``, when
     given, is called once the COG is written and checked, before it replaces ``path``: whatever
     it raises (a cancel) leaves ``path`` as it was. ``what`` names the scratch file
     (``prismstation-WHAT-<owner>_…``: :func:`prismstation.io.atomic.scratch_file`, a killed run's
@@ -49,7 +49,7 @@ def write_cog(path, profile: dict, fill: Callable, *, before_keep=None, what: st
             watch = None
             try:
                 plain = str(scratch_file(what, ".tif"))  # (a killed run's: removed first)
-                with FreeSpaceWatch(tempfile.gettempdir()) as watch, rasterio.open(plain, "w", **profile) as ds:
+                with FreeSpaceWatch(tempfile.gettempdir()) as watch, rasterio.open(plain, "w+", **profile) as ds:
                     fill(ds)
                 check(Path(plain))
             except PrismError as exc:

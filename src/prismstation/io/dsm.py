@@ -65,6 +65,61 @@ def vertical_crs(crs, height_kind: str, geoid: str | None = None) -> CRS:
 STRIP_ROWS = 1024
 
 
+class DsmTiles:
+    """The scratch copy of a DSM being written (:func:`write_dsm_tiles`), window by window:
+    :meth:`write` puts a window's heights, mask and pairs agreeing, :meth:`read` gets a window
+    back (a second pass: voids filled across windows)."""
+
+    def __init__(self, ds):
+        self.ds = ds
+
+    def write(self, r0: int, c0: int, heights, mask, quality, seen) -> None:
+        """Heights (float32, NaN void), ``mask`` and ``quality`` (uint8 or None: 0) of the window
+        at row ``r0``, column ``c0``; bands 2 and 3 are NaN where not ``seen``."""
+        h = np.asarray(heights, np.float32)
+        window = Window(int(c0), int(r0), h.shape[1], h.shape[0])
+        self.ds.write(np.where(np.isfinite(h), h, NODATA).astype(np.float32), 1, window=window)
+        for i, band in ((2, mask), (3, quality)):
+            v = np.zeros(h.shape, np.float32) if band is None else np.asarray(band, np.float32)
+            self.ds.write(np.where(seen, v, NODATA).astype(np.float32), i, window=window)
+
+    def read(self, r0: int, c0: int, rows: int, cols: int):
+        """``(heights, mask, quality, seen)`` of a window written before (heights NaN void; mask
+        and quality uint8, 0 where not seen)."""
+        window = Window(int(c0), int(r0), int(cols), int(rows))
+        h, m, q = (self.ds.read(i, window=window) for i in (1, 2, 3))
+        seen = np.isfinite(m)
+        return h, np.nan_to_num(m).astype(np.uint8), np.nan_to_num(q).astype(np.uint8), seen
+
+
+def dsm_tags(matched: int, n_seen: int, posting_m: float, height_kind: str, heights_model=None) -> dict:
+    """The DSM's GeoTIFF tags (module docstring) from its counts: cells matched among the
+    ``n_seen`` cells every image sees."""
+    tags = {"FILL_PERCENT": f"{100.0 * matched / n_seen if n_seen else 0.0:.2f}",
+            "SEEN_CELLS": str(int(n_seen)), "POSTING_M": f"{posting_m:g}", "HEIGHTS": height_kind}
+    if heights_model:
+        tags["HEIGHT_MODEL"] = f"{heights_model['model']} ({heights_model['reason']})"
+    return tags
+
+
+def write_dsm_tiles(path, *, crs, transform, shape, height_kind: str, geoid: str | None = None,
+                    fill, before_keep=None) -> None:
+    """Write a DSM as a COG GeoTIFF at ``path`` window by window: ``fill(tiles)`` writes the
+    :class:`DsmTiles` ``tiles`` (a grid of ``shape`` (rows, cols) on ``transform``, north-up, in
+    ``crs`` with the vertical CRS of ``height_kind`` and ``geoid``) and returns the tags
+    (:func:`dsm_tags`). Nothing grid-sized is held in memory; atomic as :func:`write_dsm`."""
+    rows, cols = shape
+    profile = dict(width=int(cols), height=int(rows), count=3, dtype="float32",
+                   crs=vertical_crs(crs, height_kind, geoid),
+                   transform=Affine(*tuple(transform)[:6]), nodata=NODATA, GEOTIFF_VERSION="1.1")
+
+    def fill_scratch(ds):
+        ds.update_tags(**fill(DsmTiles(ds)))
+        for i, name in enumerate(BANDS, 1):
+            ds.set_band_description(i, name)
+    write_cog(path, profile, fill_scratch, before_keep=before_keep, what="dsm")
+
+
 def write_dsm(path, dsm, *, before_keep=None) -> None:
     """Write ``dsm`` (:class:`prismstation.ops.dsm.Dsm`) as a COG GeoTIFF at ``path``,
     atomically (:func:`prismstation.io.cog.write_cog`); a failure is a
@@ -75,36 +130,17 @@ def write_dsm(path, dsm, *, before_keep=None) -> None:
     h = np.asarray(dsm.heights, np.float32)
     rows, cols = h.shape
     seen = np.isfinite(h) if dsm.seen is None else dsm.seen
-    profile = dict(width=cols, height=rows, count=3, dtype="float32",
-                   crs=vertical_crs(dsm.crs, dsm.height_kind, dsm.geoid),
-                   transform=Affine(*tuple(dsm.transform)[:6]), nodata=NODATA, GEOTIFF_VERSION="1.1")
     matched = int(((dsm.mask == 1) & seen).sum()) if dsm.mask is not None else int(np.isfinite(h).sum())
-    n_seen = int(seen.sum())
-    tags = {"FILL_PERCENT": f"{100.0 * matched / n_seen if n_seen else 0.0:.2f}",
-            "SEEN_CELLS": str(n_seen), "POSTING_M": f"{dsm.posting_m:g}", "HEIGHTS": dsm.height_kind}
-    hm = dsm.info.get("heights")
-    if hm:
-        tags["HEIGHT_MODEL"] = f"{hm['model']} ({hm['reason']})"
-    # the plain copy is written in strips of rows (no grid-sized copy in memory)
-    write_cog(path, profile, lambda ds: _write_plain(ds, h, seen, dsm, tags), before_keep=before_keep,
-              what="dsm")
 
-
-def _write_plain(ds, h, seen, dsm, tags) -> None:
-    """The uncompressed GeoTIFF the COG is copied from, written in strips of rows."""
-    rows, cols = h.shape
-    for r0 in range(0, rows, STRIP_ROWS):
-        window = Window(0, r0, cols, min(STRIP_ROWS, rows - r0))
-        hs, ss = h[r0:r0 + STRIP_ROWS], seen[r0:r0 + STRIP_ROWS]
-        ds.write(np.where(np.isfinite(hs), hs, NODATA).astype(np.float32), 1, window=window)
-        for i, band in ((2, dsm.mask), (3, dsm.quality)):
-            v = (np.zeros(hs.shape, np.float32) if band is None
-                 else band[r0:r0 + STRIP_ROWS].astype(np.float32))
-            v[~ss] = NODATA
-            ds.write(v, i, window=window)
-    ds.update_tags(**tags)
-    for i, name in enumerate(BANDS, 1):
-        ds.set_band_description(i, name)
+    def fill(tiles):
+        # in strips of rows (no grid-sized copy in memory)
+        for r0 in range(0, rows, STRIP_ROWS):
+            rs = slice(r0, r0 + STRIP_ROWS)
+            tiles.write(r0, 0, h[rs], None if dsm.mask is None else dsm.mask[rs],
+                        None if dsm.quality is None else dsm.quality[rs], seen[rs])
+        return dsm_tags(matched, int(seen.sum()), dsm.posting_m, dsm.height_kind, dsm.info.get("heights"))
+    write_dsm_tiles(path, crs=dsm.crs, transform=dsm.transform, shape=(rows, cols), height_kind=dsm.height_kind,
+                    geoid=dsm.geoid, fill=fill, before_keep=before_keep)
 
 
 def read_dsm_info(path) -> dict:

@@ -52,6 +52,9 @@ class Dsm:
     mask : uint8, 0 void or unseen, 1 matched, 2 filled by interpolation. seen : bool, cells
     that all three images see. quality : uint8, pairs agreeing (0–3; 1 = one pair checked
     against its neighbourhood only). geoid : description of the geoid for orthometric heights.
+    counts : a DSM written tile by tile holds no grid (``heights``, ``mask``, ``seen``,
+    ``quality`` None; it is in its file): its ``shape`` (rows, cols) and cells ``seen``,
+    ``matched`` and ``filled``.
     """
 
     heights: np.ndarray
@@ -65,12 +68,29 @@ class Dsm:
     posting_m: float = 0.0
     geoid: str | None = None
     info: dict = field(default_factory=dict)
+    counts: dict | None = None
+
+    @property
+    def shape(self) -> tuple:
+        """(rows, cols) of the grid."""
+        return tuple(self.heights.shape) if self.heights is not None else tuple(self.counts["shape"])
+
+    def cells(self, what: str) -> int:
+        """Cells ``seen`` by every image, ``matched`` or ``filled`` among them."""
+        if self.counts is not None:
+            return int(self.counts[what])
+        if self.seen is None:
+            return 0
+        if what == "seen":
+            return int(self.seen.sum())
+        value = MASK_MATCHED if what == "matched" else MASK_FILLED
+        return int(((self.mask == value) & self.seen).sum()) if self.mask is not None else 0
 
     @property
     def fill_fraction(self) -> float:
         """Share of the seen cells with a matched (not filled) height."""
-        n = int(self.seen.sum()) if self.seen is not None else 0
-        return float(((self.mask == MASK_MATCHED) & self.seen).sum() / n) if n else 0.0
+        n = self.cells("seen")
+        return self.cells("matched") / n if n else 0.0
 
 
 def grid_dsm(heights, seen, quality, transform, crs: str, posting_m: float, info: dict, *, mask=None,

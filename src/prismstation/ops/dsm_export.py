@@ -22,7 +22,7 @@ from prismstation.io.atomic import check_writable
 from prismstation.io.dsm import write_dsm
 from prismstation.io.project import project_geoid
 from prismstation.ops import dsm as engine
-from prismstation.ops.dsm import HEIGHT_MODELS, MASK_FILLED, Dsm
+from prismstation.ops.dsm import HEIGHT_MODELS, Dsm
 from prismstation.ops.progress import checkpoint, scaled
 
 __all__ = ["HEIGHT_MODELS", "DsmExport", "DsmRequest", "export_dsm"]
@@ -66,8 +66,8 @@ class DsmExport:
 
     @property
     def seen_cells(self) -> int:
-        """Cells all three images see."""
-        return int(self.dsm.seen.sum()) if self.dsm.seen is not None else 0
+        """Cells all the images see."""
+        return self.dsm.cells("seen")
 
     @property
     def fill_percent(self) -> float:
@@ -77,9 +77,7 @@ class DsmExport:
     @property
     def filled_percent(self) -> float:
         """Share of the seen cells filled by interpolation, percent."""
-        if self.dsm.mask is None or self.dsm.seen is None:
-            return 0.0
-        return 100.0 * int(((self.dsm.mask == MASK_FILLED) & self.dsm.seen).sum()) / max(self.seen_cells, 1)
+        return 100.0 * self.dsm.cells("filled") / max(self.seen_cells, 1)
 
     @property
     def low_fill(self) -> bool:

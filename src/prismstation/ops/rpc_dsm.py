@@ -36,8 +36,9 @@ from prismstation.core.models.rpc_bias import as_biased
 from prismstation.core.adjustment.stats import nmad
 from prismstation.errors import InputError, ModelError
 from prismstation.io.dem import read_dem
-from prismstation.io.rpc_scene import to_map, utm_crs
-from prismstation.ops.dsm import Dsm, grid_dsm
+from prismstation.io.rpc_scene import to_lonlat, to_map, utm_crs
+from prismstation.core.surfaces.dsm_grid import fill_voids_in_blocks
+from prismstation.ops.dsm import MASK_FILLED, MASK_MATCHED, Dsm, grid_dsm
 from prismstation.ops.dsm_tiles import run_tiles
 from prismstation.ops.rpc_dsm_tiles import BlockTile, Grid, image_shape, run_block_tile
 
@@ -51,6 +52,16 @@ MIN_TILE_POINTS = 5
 PRIOR_MARGIN_M = 40.0
 #: output cells per tile side
 TILE_CELLS = 256
+#: a posting under this many of the first image's pixels is fine (a cell holds a few samples,
+#: some none): each triangulated point is spread over the cells around it by a Gaussian of
+#: :data:`SPLAT_CELLS` cells (:func:`~prismstation.core.surfaces.rpc_epipolar.grid_heights`:
+#: no holes between the scattered points, each cell the mean of its neighbourhood) and the
+#: disparities pass a :data:`MEDIAN_PX` median filter (the usual SGM chain's outlier filter,
+#: :func:`~prismstation.core.matching.sgm.median_filter`); a coarser posting averages enough
+#: samples per cell for neither to matter
+FINE_POSTING_PX = 2.5
+SPLAT_CELLS = 0.5
+MEDIAN_PX = 3
 
 
 def rpc_height_domain(models) -> tuple[float, float]:
@@ -63,14 +74,19 @@ def rpc_height_domain(models) -> tuple[float, float]:
     return lo, hi
 
 
-def footprint_grid(models, shapes, posting: float, height: float, crs: str | None = None) -> Grid:
+def footprint_grid(models, shapes, posting: float, height: float, crs: str | None = None,
+                   window=None) -> Grid:
     """The grid (``posting`` m) over the ground all images see at ``height`` (the intersection
-    of their footprints' bounding boxes); ``crs`` default the UTM zone of the centre."""
+    of their footprints' bounding boxes), the first image's limited to ``window`` (col0, row0,
+    cols, rows) px when given; ``crs`` default the UTM zone of the centre."""
     boxes, centres = [], []
-    for model, (rows, cols) in zip(models, shapes):
+    for k, (model, (rows, cols)) in enumerate(zip(models, shapes)):
         m = as_biased(model)
-        x = np.array([0, cols, 0, cols, cols / 2])
-        y = np.array([0, 0, rows, rows, rows / 2])
+        x0, y0 = 0, 0
+        if k == 0 and window is not None:
+            x0, y0, cols, rows = window
+        x = x0 + np.array([0, cols, 0, cols, cols / 2])
+        y = y0 + np.array([0, 0, rows, rows, rows / 2])
         lon, lat = m.localize(x, y, np.full(5, float(height)))
         boxes.append((lon, lat))
         centres.append((lon[-1], lat[-1]))
@@ -90,14 +106,15 @@ def footprint_grid(models, shapes, posting: float, height: float, crs: str | Non
 
 
 def tile_height_range(grid: Grid, window, height_range, points, prior=None,
-                      prior_margin_m: float = PRIOR_MARGIN_M) -> tuple[float, float]:
+                      prior_margin_m: float = PRIOR_MARGIN_M, prior_step: int = 1) -> tuple[float, float]:
     """The tile's a-priori height range, inside ``height_range``: the union of
 
     - the heights of ``points`` (E, N, h arrays) within the tile widened by half its size on
       every side, widened by ``max(POINT_MARGIN_M, 25 % of their spread)`` (when
       :data:`MIN_TILE_POINTS` or more are near);
-    - the reference DEM ``prior`` (an array on ``grid``, NaN void) over the same cells,
-      widened by ``prior_margin_m``;
+    - the reference DEM ``prior`` (an array on ``grid`` taken every ``prior_step`` cells: cell
+      ``(i, j)`` of it covers the grid's rows ``i·step …`` and columns ``j·step …``; NaN void)
+      over the same cells, widened by ``prior_margin_m``;
 
     the whole ``height_range`` where neither says anything."""
     lo, hi = (float(v) for v in height_range)
@@ -114,7 +131,9 @@ def tile_height_range(grid: Grid, window, height_range, points, prior=None,
             m = max(POINT_MARGIN_M, 0.25 * (hmax - hmin))
             ranges.append((hmin - m, hmax + m))
     if prior is not None:
-        sub = prior[max(0, r0 - rows // 2):r0 + rows + rows // 2, max(0, c0 - cols // 2):c0 + cols + cols // 2]
+        k = int(prior_step)
+        sub = prior[max(0, r0 - rows // 2) // k:-(-(r0 + rows + rows // 2) // k),
+                    max(0, c0 - cols // 2) // k:-(-(c0 + cols + cols // 2) // k)]
         if np.isfinite(sub).any():
             ranges.append((float(np.nanmin(sub)) - prior_margin_m, float(np.nanmax(sub)) + prior_margin_m))
     if not ranges:
@@ -166,9 +185,13 @@ def tile_windows(grid: Grid, tile_cells: int = TILE_CELLS) -> list:
 
 
 #: pair grids are kept (and their agreement is exact) up to this many cells × pairs; beyond,
-#: the agreement comes from up to :data:`AGREEMENT_SAMPLES` differences per tile
+#: the agreement comes from a sample of at most :data:`AGREEMENT_SAMPLES` differences per two
+#: pairs, spread over the tiles
 KEEP_PAIRS_CELLS = 30_000_000
-AGREEMENT_SAMPLES = 4096
+AGREEMENT_SAMPLES = 200_000
+#: the reference DEM is read onto the grid taken every k cells, k the smallest that keeps it
+#: to this many cells (a reference of 30–90 m cells, read at 0.5 m, adds nothing but memory)
+PRIOR_CELLS = 4_000_000
 
 
 @dataclass(frozen=True)
@@ -177,8 +200,10 @@ class RpcDsmPlan:
     :class:`Rpc` / :class:`BiasedRpc`, fitted biases applied — and ``shapes`` (rows, cols)),
     the index ``pairs`` matched, the output ``grid``, the whole DSM's a-priori
     ``height_range`` (lo, hi) ellipsoidal m, the matching (``margin_px``, ``refine``) and the
-    fusion's ``tau``, the tiling (``tile_cells``) and whether the pair DSMs are kept whole
-    (``keep_pairs``)."""
+    fusion's ``tau``, the tiling (``tile_cells``), whether the pair DSMs are kept whole
+    (``keep_pairs``), the ``crop`` (col0, row0, cols, rows) of the first image the DSM is
+    limited to (None: the images' whole common footprint), and the gridding's ``splat_cells``
+    and the disparities' ``median_px`` (:data:`FINE_POSTING_PX`)."""
 
     paths: tuple
     models: tuple
@@ -191,99 +216,164 @@ class RpcDsmPlan:
     tau: float
     tile_cells: int
     keep_pairs: bool
+    crop: tuple | None = None
+    splat_cells: float = 0.0
+    median_px: int = 0
+
+
+def check_crop(window, shape) -> tuple:
+    """``window`` (col0, row0, cols, rows) as integers, inside an image of ``shape`` (rows,
+    cols) and at least 16 px a side; else an :class:`InputError` saying why."""
+    c0, r0, w, h = (int(v) for v in window)
+    rows, cols = shape
+    if w < 16 or h < 16:
+        raise InputError(f"the window {c0} {r0} {w} {h} is too small: at least 16 × 16 pixels")
+    if c0 < 0 or r0 < 0 or c0 + w > cols or r0 + h > rows:
+        raise InputError(f"the window {c0} {r0} {w} {h} is not inside the first image ({cols} × {rows} px)")
+    return c0, r0, w, h
 
 
 def plan_rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=None,
                  grid: Grid | None = None, crs: str | None = None, margin_px: float = 2.0,
                  tile_cells: int = TILE_CELLS, refine: bool = True, tau: float = 3.0,
-                 keep_pairs: bool | None = None) -> RpcDsmPlan:
+                 keep_pairs: bool | None = None, window=None, splat_cells: float | None = None,
+                 median_px: int | None = None) -> RpcDsmPlan:
     """The plan (:func:`rpc_dsm` says what each argument is): the images' shapes, the height
     range (default the RPCs' own domain), the grid (default their common footprint at
-    ``posting``), the pairs (default every pair), the pair DSMs kept up to
-    :data:`KEEP_PAIRS_CELLS`."""
+    ``posting``, the first image's limited to ``window``), the pairs (default every pair), the
+    pair DSMs kept up to :data:`KEEP_PAIRS_CELLS`, the splat and the median filter at a fine
+    posting (:data:`FINE_POSTING_PX`) unless given."""
     if len(paths) != len(models) or len(paths) < 2:
         raise InputError("a DSM needs two or more images, each with its RPC model")
+    if not (posting > 0 and np.isfinite(posting)):
+        raise InputError(f"the posting must be a positive number of metres, got {posting}")
     shapes = tuple(image_shape(p) for p in paths)
+    crop = check_crop(window, shapes[0]) if window is not None else None
     height_range = tuple(height_range) if height_range is not None else rpc_height_domain(models)
     if grid is None:
-        grid = footprint_grid(models, shapes, posting, 0.5 * sum(height_range), crs)
+        grid = footprint_grid(models, shapes, posting, 0.5 * sum(height_range), crs, crop)
     pairs = tuple(tuple(map(int, p)) for p in pairs) if pairs is not None else \
         tuple(itertools.combinations(range(len(paths)), 2))
     cells = grid.shape[0] * grid.shape[1]
     keep = keep_pairs if keep_pairs is not None else cells * len(pairs) <= KEEP_PAIRS_CELLS
+    fine = grid.posting < FINE_POSTING_PX * pixel_size_m(models[0], shapes[0], 0.5 * sum(height_range))
+    splat = (SPLAT_CELLS if fine else 0.0) if splat_cells is None else float(splat_cells)
+    median = (MEDIAN_PX if fine else 0) if median_px is None else int(median_px)
     return RpcDsmPlan(tuple(str(p) for p in paths), tuple(models), shapes, pairs, grid, height_range,
-                      margin_px, refine, tau, tile_cells, keep)
+                      margin_px, refine, tau, tile_cells, keep, crop, splat, median)
 
 
-def reference_prior(plan: RpcDsmPlan, reference, geoid=None) -> np.ndarray | None:
-    """The reference DEM file ``reference`` read onto the plan's grid, ellipsoidal (``geoid``
-    for an orthometric one; float32, NaN void), or None without one."""
+def pixel_size_m(model, shape, height: float) -> float:
+    """The ground size (m) of a pixel at the image's centre at ``height``: the geometric mean of
+    its steps along the row and the column."""
+    rows, cols = shape
+    x = np.array([cols / 2, cols / 2 + 1, cols / 2])
+    y = np.array([rows / 2, rows / 2, rows / 2 + 1])
+    lon, lat = as_biased(model).localize(x, y, np.full(3, float(height)))
+    e, n = to_map(utm_crs(float(lon[0]), float(lat[0])))(lon, lat)
+    e, n = np.asarray(e), np.asarray(n)
+    return float(np.sqrt(np.hypot(e[1] - e[0], n[1] - n[0]) * np.hypot(e[2] - e[0], n[2] - n[0])))
+
+
+def reference_prior(plan: RpcDsmPlan, reference, geoid=None):
+    """The reference DEM file ``reference`` read onto the plan's grid taken every ``step``
+    cells (the smallest step that keeps it to :data:`PRIOR_CELLS`), ellipsoidal (``geoid`` for
+    an orthometric one): ``(heights, step)`` (float32, NaN void), or None without one."""
     if reference is None:
         return None
-    return read_dem(reference, plan.grid.crs, plan.grid.transform, plan.grid.shape, geoid=geoid,
-                    what="reference DEM").heights.astype(np.float32)
+    rows, cols = plan.grid.shape
+    step = max(1, int(np.ceil(np.sqrt(rows * cols / PRIOR_CELLS))))
+    a, b, c, d, e, f = plan.grid.transform
+    heights = read_dem(reference, plan.grid.crs, (a * step, b, c, d, e * step, f),
+                       (-(-rows // step), -(-cols // step)), geoid=geoid, what="reference DEM").heights
+    return heights.astype(np.float32), step
 
 
 def tile_specs(plan: RpcDsmPlan, prior=None, points=None) -> list:
     """Every tile of the grid (:func:`tile_windows`) as a :class:`BlockTile`, each with its own
     a-priori heights (:func:`tile_height_range`) from ``points`` (lon°, lat°, ellipsoidal h m
-    arrays: the bias fit's tie points) and the reference ``prior`` on the grid."""
+    arrays: the bias fit's tie points) and the reference ``prior`` (:func:`reference_prior`)."""
     grid = plan.grid
     if points is not None:
         lon, lat, hp = (np.asarray(v, float).ravel() for v in points)
         points = (*(np.asarray(v) for v in to_map(grid.crs)(lon, lat)), hp)
+    heights, step = prior if prior is not None else (None, 1)
     return [BlockTile(plan.paths, plan.models, plan.shapes, plan.pairs, grid, win,
-                      tile_height_range(grid, win, plan.height_range, points, prior),
-                      margin_px=plan.margin_px, refine=plan.refine, tau=plan.tau)
-            for win in tile_windows(grid, plan.tile_cells)]
+                      tile_height_range(grid, win, plan.height_range, points, heights, prior_step=step),
+                      margin_px=plan.margin_px, refine=plan.refine, tau=plan.tau, crop=plan.crop,
+                      splat_cells=plan.splat_cells, median_px=plan.median_px)
+            for win in tile_windows(grid, plan.tile_cells) if not unseen_tile(plan, win)]
+
+
+def unseen_tile(plan: RpcDsmPlan, window, margin_px: float = 8.0) -> bool:
+    """Whether some image (the first one's ``crop``) sees nothing of the tile ``window``: its
+    corners at both ends of the height range all lie more than ``margin_px`` beyond one edge of
+    that image. Such a tile is not matched: its cells stay void and unseen."""
+    r0, c0, rows, cols = window
+    a, _, c, _, e, f = plan.grid.transform
+    E = c + a * np.array([c0, c0 + cols, c0, c0 + cols] * 2, float)
+    N = f + e * np.array([r0, r0, r0 + rows, r0 + rows] * 2, float)
+    h = np.repeat(np.asarray(plan.height_range, float), 4)
+    lon, lat = to_lonlat(plan.grid.crs)(E, N)
+    for k, (model, (ih, iw)) in enumerate(zip(plan.models, plan.shapes)):
+        x0, y0, x1, y1 = (0, 0, iw, ih) if k or plan.crop is None else \
+            (plan.crop[0], plan.crop[1], plan.crop[0] + plan.crop[2], plan.crop[1] + plan.crop[3])
+        x, y = as_biased(model).project(lon, lat, h)
+        if (x < x0 - margin_px).all() or (x > x1 + margin_px).all() or \
+                (y < y0 - margin_px).all() or (y > y1 + margin_px).all():
+            return True
+    return False
 
 
 @dataclass
 class TileSums:
-    """What the tiles of :func:`match_tiles` add up to, on the plan's grid: the fused
-    ``heights`` (float32, NaN void), ``quality`` (pairs agreeing), ``seen`` (cells every
-    image sees); the pair DSMs (``pairs``, :class:`PairDsm`, when kept) or a sample of their
-    differences per two pairs (``samples``); the matched cells of each pair (``filled``), the
-    largest epipolar error (px) and the matching's ``seconds``."""
+    """What the tiles of :func:`match_tiles` add up to, grids aside (those go to the caller's
+    ``put``): the cells every image sees (``seen``) and with a height (``matched``); the pair
+    DSMs (``pairs``, :class:`PairDsm`, when kept) or a sample of their differences per two
+    pairs (``samples``); the matched cells of each pair (``filled``), the largest epipolar
+    error (px) and the matching's ``seconds``."""
 
-    heights: np.ndarray
-    quality: np.ndarray
-    seen: np.ndarray
     pairs: list
     samples: dict
     filled: np.ndarray
+    seen: int = 0
+    matched: int = 0
     epipolar_px: float = 0.0
     seconds: float = 0.0
 
 
-def match_tiles(plan: RpcDsmPlan, specs: list, *, scheduler=None, workers=None, progress=None) -> TileSums:
+def match_tiles(plan: RpcDsmPlan, specs: list, put, *, scheduler=None, workers=None, progress=None) -> TileSums:
     """Every tile matched and fused (:func:`~prismstation.ops.rpc_dsm_tiles.run_block_tile`,
-    as Dask tasks through :func:`~prismstation.ops.dsm_tiles.run_tiles`), each result added
-    into the grids as it arrives: only the fused grid (and the kept pair grids) are held whole."""
+    as Dask tasks through :func:`~prismstation.ops.dsm_tiles.run_tiles`), each result handed
+    to ``put(window, heights, quality, seen)`` as it arrives (``window`` (row0, col0, rows,
+    cols); heights float32 ellipsoidal m, NaN void; quality uint8 pairs agreeing; seen bool):
+    only the kept pair grids are held whole here."""
     shape = plan.grid.shape
     combos = list(itertools.combinations(range(len(plan.pairs)), 2))
-    sums = TileSums(np.full(shape, np.nan, np.float32), np.zeros(shape, np.uint8), np.zeros(shape, bool),
-                    [PairDsm(pr, np.full(shape, np.nan, np.float32), np.zeros(shape, np.int32),
+    sums = TileSums([PairDsm(pr, np.full(shape, np.nan, np.float32), np.zeros(shape, np.float32),
                              np.full(shape, np.nan, np.float32)) for pr in plan.pairs] if plan.keep_pairs else [],
                     {c: ([], []) for c in combos}, np.zeros(len(plan.pairs), np.int64))
+    per_tile = max(64, -(-AGREEMENT_SAMPLES // max(len(specs), 1)))
     rng = np.random.default_rng(0)
     t0 = time.perf_counter()
 
     def consume(k, res):
         th, tq, ts, vals, sig, cnt, stats = res
-        r0, c0, nr, nc = specs[k].window
-        sl = (slice(r0, r0 + nr), slice(c0, c0 + nc))
-        sums.heights[sl], sums.quality[sl], sums.seen[sl] = th, tq, ts
+        r0, c0, nr, nc = win = specs[k].window
+        put(win, th, tq, ts)
+        sums.seen += int(ts.sum())
+        sums.matched += int((np.isfinite(th) & ts).sum())
         sums.filled[:] += np.isfinite(vals[:, ts]).sum(axis=1)
         sums.epipolar_px = max([sums.epipolar_px] + [st.get("epipolar_error_px", 0.0) for st in stats])
+        sl = (slice(r0, r0 + nr), slice(c0, c0 + nc))
         for p, r in enumerate(sums.pairs):
             r.heights[sl], r.counts[sl], r.sigma[sl] = vals[p], cnt[p], sig[p]
-            r.tiles.append(dict(stats[p], window=specs[k].window))
+            r.tiles.append(dict(stats[p], window=win))
         if not plan.keep_pairs:
             for a, b in combos:
                 d, z = _differences(vals[a], vals[b], sig[a], sig[b])
-                if d.size > AGREEMENT_SAMPLES:
-                    pick = rng.choice(d.size, AGREEMENT_SAMPLES, replace=False)
+                if d.size > per_tile:
+                    pick = rng.choice(d.size, per_tile, replace=False)
                     d, z = d[pick], z[pick]
                 sums.samples[(a, b)][0].append(d.astype(np.float32))
                 sums.samples[(a, b)][1].append(z.astype(np.float32))
@@ -295,11 +385,9 @@ def match_tiles(plan: RpcDsmPlan, specs: list, *, scheduler=None, workers=None, 
     return sums
 
 
-def finish_rpc_dsm(plan: RpcDsmPlan, sums: TileSums, n_tiles: int) -> Dsm:
-    """The :class:`~prismstation.ops.dsm.Dsm` of the fused grid
-    (:func:`~prismstation.ops.dsm.grid_dsm`: the mask, the fill over the seen cells) and its
-    record: the pairs' agreement (exact from the kept pair DSMs, else from the samples), each
-    pair's fill, the largest epipolar error, the height range, the tiles."""
+def dsm_info(plan: RpcDsmPlan, sums: TileSums, n_tiles: int) -> dict:
+    """The record of a DSM: the pairs' agreement (exact from the kept pair DSMs, else from the
+    samples), each pair's fill, the largest epipolar error, the height range, the tiles."""
     pairs = plan.pairs
     if plan.keep_pairs:
         agreement = pair_agreement(sums.pairs)
@@ -307,28 +395,45 @@ def finish_rpc_dsm(plan: RpcDsmPlan, sums: TileSums, n_tiles: int) -> Dsm:
         agreement = {f"{pairs[a]}-{pairs[b]}": _agreement(np.concatenate(d or [np.zeros(0)]),
                                                           np.concatenate(z or [np.zeros(0)]))
                      for (a, b), (d, z) in sums.samples.items()}
-    n_seen = int(sums.seen.sum())
-    info = {"pairs": [list(p) for p in pairs], "pair_agreement": agreement,
+    return {"pairs": [list(p) for p in pairs], "pair_agreement": agreement,
             "agreement_sampled": not plan.keep_pairs,
-            "pair_fill": [float(f) / n_seen if n_seen else 0.0 for f in sums.filled],
+            "pair_fill": [float(f) / sums.seen if sums.seen else 0.0 for f in sums.filled],
             "seconds": sums.seconds, "epipolar_error_px": sums.epipolar_px, "height_range": list(plan.height_range),
             "tiles": n_tiles}
-    return grid_dsm(sums.heights, sums.seen, sums.quality, plan.grid.transform, plan.grid.crs, plan.grid.posting,
-                    info)
+
+
+def fill_grid(heights, mask, seen) -> int:
+    """The voids of the cells every image sees filled in place
+    (:func:`~prismstation.core.surfaces.dsm_grid.fill_voids_in_blocks`, as the DSM written
+    tile by tile is), their mask :data:`MASK_FILLED`; returns the cells filled."""
+    def read(r0, c0, rows, cols):
+        sl = (slice(r0, r0 + rows), slice(c0, c0 + cols))
+        return heights[sl], mask[sl] == MASK_MATCHED, seen[sl]
+
+    def write(r0, c0, h, new):
+        sl = (slice(r0, r0 + h.shape[0]), slice(c0, c0 + h.shape[1]))
+        heights[sl] = h
+        mask[sl][new] = MASK_FILLED
+    return fill_voids_in_blocks(heights.shape, read, write)
 
 
 def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=None, points=None,
             reference=None, geoid=None, grid: Grid | None = None, crs: str | None = None,
             margin_px: float = 2.0, tile_cells: int = TILE_CELLS, refine: bool = True, tau: float = 3.0,
-            keep_pairs: bool | None = None, scheduler=None, workers=None, progress=None) -> tuple[Dsm, list]:
-    """The fused DSM of two or more images with RPCs, and the pair DSMs it came from.
+            keep_pairs: bool | None = None, window=None, fill: bool = False, splat_cells: float | None = None,
+            median_px: int | None = None, scheduler=None, workers=None, progress=None) -> tuple[Dsm, list]:
+    """The fused DSM of two or more images with RPCs, in memory, and the pair DSMs it came
+    from (:mod:`prismstation.ops.rpc_dsm_export` writes one of any size tile by tile).
 
     ``paths`` image files; ``models`` their :class:`Rpc` / :class:`BiasedRpc` (fitted
     biases applied); ``pairs`` index pairs (default every pair); ``posting`` metres;
     ``grid`` (default: the images' common footprint in the UTM zone of its centre, or
-    ``crs``). ``height_range``, ``points`` (lon°, lat°, ellipsoidal h m arrays: the bias fit's
+    ``crs``; the first image's limited to ``window`` (col0, row0, cols, rows) px).
+    ``height_range``, ``points`` (lon°, lat°, ellipsoidal h m arrays: the bias fit's
     tie points), ``margin_px``, ``reference`` (a reference DEM
-    file; ``geoid`` makes an orthometric one ellipsoidal): the module docstring.
+    file; ``geoid`` makes an orthometric one ellipsoidal): the module docstring. ``fill``:
+    voids filled by interpolation (mask 2, :func:`fill_grid`). ``splat_cells``, ``median_px``:
+    the gridding and the disparities' filter (default: :data:`FINE_POSTING_PX`).
 
     Each tile matches every pair and fuses them as the PRISM DSM does
     (:func:`prismstation.core.matching.sgm.fuse`): the pair heights within ``tau`` σ of their median,
@@ -341,11 +446,22 @@ def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=Non
     :data:`KEEP_PAIRS_CELLS`), else an empty list.
 
     The steps, as the PRISM DSM's (:func:`prismstation.ops.dsm.make_dsm`): :func:`plan_rpc_dsm`,
-    :func:`reference_prior`, :func:`tile_specs`, :func:`match_tiles`, :func:`finish_rpc_dsm`.
+    :func:`reference_prior`, :func:`tile_specs`, :func:`match_tiles`, :func:`dsm_info`.
     """
     plan = plan_rpc_dsm(paths, models, posting=posting, pairs=pairs, height_range=height_range, grid=grid,
                         crs=crs, margin_px=margin_px, tile_cells=tile_cells, refine=refine, tau=tau,
-                        keep_pairs=keep_pairs)
+                        keep_pairs=keep_pairs, window=window, splat_cells=splat_cells, median_px=median_px)
     specs = tile_specs(plan, reference_prior(plan, reference, geoid), points)
-    sums = match_tiles(plan, specs, scheduler=scheduler, workers=workers, progress=progress)
-    return finish_rpc_dsm(plan, sums, len(specs)), sums.pairs
+    shape = plan.grid.shape
+    heights, quality, seen = np.full(shape, np.nan, np.float32), np.zeros(shape, np.uint8), np.zeros(shape, bool)
+
+    def put(win, h, q, s):
+        sl = (slice(win[0], win[0] + win[2]), slice(win[1], win[1] + win[3]))
+        heights[sl], quality[sl], seen[sl] = h, q, s
+    sums = match_tiles(plan, specs, put, scheduler=scheduler, workers=workers, progress=progress)
+    mask = (np.isfinite(heights) & seen).astype(np.uint8) * MASK_MATCHED
+    if fill:
+        fill_grid(heights, mask, seen)
+    g = plan.grid
+    return grid_dsm(heights, seen, quality, g.transform, g.crs, g.posting, dsm_info(plan, sums, len(specs)),
+                    mask=mask), sums.pairs

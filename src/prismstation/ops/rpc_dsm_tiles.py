@@ -54,7 +54,10 @@ class PairTile:
     """One tile of one pair (everything a worker needs): image ``paths`` and ``models``
     (left, right), output cells ``window`` (row0, col0, rows, cols) of ``grid``, the height
     range (m), the disparity margin (px), SGBM's block, the subpixel refinement, and the
-    disparity σ (px) for the heights' σ."""
+    disparity σ (px) for the heights' σ, and the σ (cells) of the Gaussian that spreads each
+    triangulated point over the cells around it (:func:`~prismstation.core.surfaces.rpc_epipolar.grid_heights`;
+    0: each point in its own cell), and the size of the median filter of the disparities
+    (:func:`~prismstation.core.matching.sgm.median_filter`; 0 or 1: none)."""
 
     paths: tuple
     models: tuple
@@ -65,6 +68,8 @@ class PairTile:
     block: int = 5
     refine: bool = True
     sigma_px: float = sgm.SIGMA_DISPARITY_PX
+    splat_cells: float = 0.0
+    median_px: int = 0
 
 
 def _read(path, win) -> np.ndarray:
@@ -102,7 +107,7 @@ def run_pair_tile(spec: PairTile):
     cv2.setNumThreads(1)
     t0 = time.perf_counter()
     rows, cols = spec.window[2], spec.window[3]
-    empty = (np.full((rows, cols), np.nan, np.float32), np.zeros((rows, cols), np.int32),
+    empty = (np.full((rows, cols), np.nan, np.float32), np.zeros((rows, cols), np.float32),
              np.full((rows, cols), np.nan, np.float32))
     with gdal_env():
         shape_a = image_shape(spec.paths[0])
@@ -124,6 +129,8 @@ def run_pair_tile(spec: PairTile):
     if spec.refine:
         f32 = [np.where(ok, v, 0).astype(np.float32) for v, ok in zip(views, valid)]
         d = sgm.refine_subpixel(f32[0], f32[1], d)
+    if spec.median_px > 1:
+        d = sgm.median_filter(d, spec.median_px)
     # no match within two blocks of either image's edge (SGBM's paths run through the blank)
     kernel = np.ones((2 * spec.block, 2 * spec.block), np.uint8)
     bad = [cv2.dilate((~ok).astype(np.uint8), kernel) for ok in valid]
@@ -136,7 +143,8 @@ def run_pair_tile(spec: PairTile):
     r0, c0 = spec.window[:2]
     gt = spec.grid.transform
     tile_t = (gt[0], 0.0, gt[2] + gt[0] * c0, 0.0, gt[4], gt[5] + gt[4] * r0)
-    h, cnt, mpp = grid_heights(tri.e, tri.n, tri.h, tile_t, (rows, cols), extra=tri.m_per_px)
+    h, cnt, mpp = grid_heights(tri.e, tri.n, tri.h, tile_t, (rows, cols), extra=tri.m_per_px,
+                               sigma_cells=spec.splat_cells)
     sigma = (spec.sigma_px * mpp / np.sqrt(np.maximum(cnt, 1))).astype(np.float32)
     stats = {"epipolar_error_px": rect.epipolar_error_px, "search": rect.search,
              "height_range": tuple(rect.heights), "px_per_m": rect.px_per_m,
@@ -144,16 +152,20 @@ def run_pair_tile(spec: PairTile):
     return h, cnt, sigma, stats
 
 
-def seen_by_all(models, shapes, grid: Grid, heights, window=None) -> np.ndarray:
+def seen_by_all(models, shapes, grid: Grid, heights, window=None, crop=None) -> np.ndarray:
     """Cells (of ``window`` = (row0, col0, rows, cols), default the grid) whose centre at
-    ``heights`` (NaN → their median) falls inside every image."""
+    ``heights`` (NaN → their median) falls inside every image, and inside ``crop`` (col0, row0,
+    cols, rows) of the first one when given."""
     E, N = grid.cell_centres(window)
     lon, lat = to_lonlat(grid.crs)(E, N)
     h = np.where(np.isfinite(heights), heights, np.nanmedian(heights) if np.isfinite(heights).any() else 0.0)
     seen = np.ones(E.shape, bool)
-    for model, (rows, cols) in zip(models, shapes):
+    for k, (model, (rows, cols)) in enumerate(zip(models, shapes)):
+        x0, y0, x1, y1 = 0, 0, cols, rows
+        if k == 0 and crop is not None:
+            x0, y0, x1, y1 = crop[0], crop[1], crop[0] + crop[2], crop[1] + crop[3]
         x, y = as_biased(model).project(lon, lat, h)
-        seen &= (x >= 0) & (x < cols) & (y >= 0) & (y < rows)
+        seen &= (x >= x0) & (x < x1) & (y >= y0) & (y < y1)
     return seen
 
 
@@ -173,7 +185,9 @@ def fuse_pairs(vals, sig, tau: float, posting: float):
 class BlockTile:
     """One output tile of every pair (what a worker needs): the images' ``paths``,
     ``models`` and ``shapes``, the index ``pairs``, the cells ``window`` of ``grid``, the
-    tile's height range (m), the disparity margin (px), the refinement and the fusion's τ."""
+    tile's height range (m), the disparity margin (px), the refinement, the fusion's τ and the
+    ``crop`` (col0, row0, cols, rows) of the first image the DSM is limited to (None: all) and
+    the gridding's ``splat_cells`` and the disparities' ``median_px`` (:class:`PairTile`)."""
 
     paths: tuple
     models: tuple
@@ -185,6 +199,9 @@ class BlockTile:
     margin_px: float = 2.0
     refine: bool = True
     tau: float = 3.0
+    crop: tuple | None = None
+    splat_cells: float = 0.0
+    median_px: int = 0
 
 
 def run_block_tile(spec: BlockTile):
@@ -192,13 +209,14 @@ def run_block_tile(spec: BlockTile):
     pair counts, pair stats)`` on the tile's cells (pair arrays (P, rows, cols))."""
     outs = [run_pair_tile(PairTile((spec.paths[i], spec.paths[j]), (spec.models[i], spec.models[j]),
                                    spec.grid, spec.window, spec.height_range, margin_px=spec.margin_px,
-                                   refine=spec.refine))
+                                   refine=spec.refine, splat_cells=spec.splat_cells,
+                                   median_px=spec.median_px))
             for i, j in spec.pairs]
     vals = np.stack([o[0] for o in outs])
     counts = np.stack([o[1] for o in outs])
     sig = np.stack([o[2] for o in outs])
     h, q = fuse_pairs(vals, sig, spec.tau, spec.grid.posting)
-    seen = seen_by_all(spec.models, spec.shapes, spec.grid, h, spec.window)
+    seen = seen_by_all(spec.models, spec.shapes, spec.grid, h, spec.window, spec.crop)
     h[~seen] = np.nan
     q[~seen] = 0
     return h, q, seen, vals, sig, counts, [o[3] for o in outs]

@@ -12,7 +12,6 @@ image's a-priori bias (:func:`prismstation.core.models.rpc_solve.control_from_re
 from __future__ import annotations
 
 from dataclasses import replace
-from types import SimpleNamespace
 
 import numpy as np
 
@@ -20,16 +19,14 @@ from prismstation.core.orientation import conditioning as cond
 from prismstation.core.models.rpc_bias import BIAS_NAMES
 from prismstation.errors import InputError, ModelError
 from prismstation.io.atomic import check_writable
-from prismstation.io.dsm import write_dsm
-from prismstation.io.geoid import undulation_on_grid
 from prismstation.io.jsonfile import plain
 from prismstation.io.project import project_geoid
 from prismstation.ops.coregister import result_dict
-from prismstation.ops.dsm_export import COMPUTE_SHARE, DsmExport, DsmRequest
+from prismstation.ops.dsm_export import DsmExport, DsmRequest
 from prismstation.ops.fit import stored_solution
 from prismstation.ops.orientation import Orientation, OrientRequest
-from prismstation.ops.progress import checkpoint, scaled
-from prismstation.ops.rpc_dsm import rpc_dsm
+from prismstation.ops.progress import checkpoint
+from prismstation.ops.rpc_dsm_export import write_rpc_dsm
 from prismstation.ops.rpc_orient import DEFAULT_MAX_SHIFT_M, orient_rpc_from_dem
 
 #: widening (m) of the tie points' height range into the DSM's a-priori range (tiles narrow it
@@ -71,18 +68,13 @@ def height_range(points, margin_m: float | None) -> tuple | None:
 
 def export_dsm(sol, project, request: DsmRequest, *, reference=None, progress=None) -> DsmExport:
     """:func:`prismstation.ops.dsm_export.export_dsm` for images with RPCs: every pair matched
-    and fused (:func:`~prismstation.ops.rpc_dsm.rpc_dsm`) through the fitted biases over the
-    images' common footprint, the search from the fit's tie points (± the request's height
-    uncertainty, default :func:`height_range`) and the reference DEM's heights (``reference``:
-    a :class:`~prismstation.ops.reference_heights.DemHeights`, its file read again on the DSM's
-    grid through the project's geoid). ``dsm.info`` is JSON-safe; the pairs' agreement is
-    ``info["pair_agreement"]``."""
-    if request.window is not None:
-        raise InputError("a window is an N-image window of a PRISM triplet; the DSM of images with RPCs "
-                         "covers their common footprint")
-    if request.fill:
-        raise InputError("void filling is not available for images with RPCs (the voids stay marked 0 "
-                         "in the mask band)")
+    and fused through the fitted biases over the images' common footprint (the first image's
+    limited to the request's window), written tile by tile
+    (:func:`~prismstation.ops.rpc_dsm_export.write_rpc_dsm`), the search from the fit's tie
+    points (± the request's height uncertainty, default :func:`height_range`) and the reference
+    DEM's heights (``reference``: a :class:`~prismstation.ops.reference_heights.DemHeights`,
+    its file read again on the DSM's grid through the project's geoid). ``dsm.info`` is
+    JSON-safe; the pairs' agreement is ``info["pair_agreement"]``."""
     if request.heights != "auto":
         raise InputError("images with RPCs have one height model, the rays' intersection (--heights auto)")
     if not sol.ok and project.settings.orientation != "dem":
@@ -91,19 +83,14 @@ def export_dsm(sol, project, request: DsmRequest, *, reference=None, progress=No
     paths, models = images_and_models(sol, project)
     points = tie_points(sol, project)
     geoid = project_geoid(project)
-    dsm, _ = rpc_dsm(paths, models, posting=request.posting_m,
-                     height_range=height_range(points, request.height_uncertainty_m), points=points,
-                     reference=None if reference is None else reference.path, geoid=geoid,
-                     scheduler=request.scheduler, workers=request.workers,
-                     progress=scaled(progress, 0.0, COMPUTE_SHARE))
-    dsm = replace(dsm, info=plain(dsm.info))
-    if request.orthometric:
-        grid = SimpleNamespace(shape=dsm.heights.shape, transform=tuple(dsm.transform)[:6], crs=dsm.crs)
-        dsm = replace(dsm, heights=dsm.heights - undulation_on_grid(geoid, grid).astype(np.float32),
-                      height_kind="orthometric", geoid=geoid.describe() if hasattr(geoid, "describe") else "geoid")
-    checkpoint(progress, COMPUTE_SHARE, "writing")
-    write_dsm(request.output, dsm, before_keep=lambda: checkpoint(progress, 1.0, "written"))
-    return DsmExport(str(request.output), dsm, request)
+    dsm = write_rpc_dsm(request.output, paths, models, posting=request.posting_m, window=request.window,
+                        fill=request.fill, orthometric_geoid=geoid if request.orthometric else None,
+                        height_range=height_range(points, request.height_uncertainty_m), points=points,
+                        reference=None if reference is None else reference.path, geoid=geoid,
+                        scheduler=request.scheduler, workers=request.workers,
+                        progress=progress,
+                        before_keep=lambda: checkpoint(progress, 1.0, "written"))
+    return DsmExport(str(request.output), replace(dsm, info=plain(dsm.info)), request)
 
 
 def orient_rpc_project(sol, project, reference, *, posting_m: float | None = None,

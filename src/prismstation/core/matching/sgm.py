@@ -154,3 +154,13 @@ def _nanmedian0(v: np.ndarray) -> np.ndarray:
     hi = np.clip(n // 2, 0, len(v) - 1)[None]
     m = 0.5 * (np.take_along_axis(srt, lo, 0)[0] + np.take_along_axis(srt, hi, 0)[0])
     return np.where(n > 0, m, np.nan)
+
+
+def median_filter(disparity: np.ndarray, size: int = 3) -> np.ndarray:
+    """Each disparity replaced by the median of the ``size × size`` window around it, NaN
+    (no match) left out and kept NaN (the outlier filter of the usual SGM chains; float32)."""
+    rows, cols = disparity.shape
+    r = size // 2
+    pad = np.pad(np.asarray(disparity, np.float32), r, constant_values=np.nan)
+    med = _nanmedian0(np.stack([pad[i:i + rows, j:j + cols] for i in range(size) for j in range(size)]))
+    return np.where(np.isfinite(disparity), med, np.nan).astype(np.float32)

@@ -141,3 +141,37 @@ def drop_unconfirmed(heights, quality, tolerance_m: float) -> None:
         bad = (q < 3) & ~(np.abs(h - r) <= tolerance_m)
         h[bad] = np.nan
         q[bad] = 0
+
+
+#: cells per side of a block, and of the halo read around it, when a grid's voids are filled
+#: block by block (:func:`fill_voids_in_blocks`): a void is filled from cells at most
+#: ``FILL_HALO`` cells beyond its block
+FILL_BLOCK, FILL_HALO = 1024, 256
+
+
+def fill_voids_in_blocks(shape, read, write, block: int = FILL_BLOCK, halo: int = FILL_HALO,
+                         after=None) -> int:
+    """The voids of a grid of ``shape`` (rows, cols), which need not be in memory, filled block
+    by block (:func:`fill_voids` over each block and its halo). ``read(r0, c0, rows, cols)``
+    returns a window's ``(heights, valid, wanted)``: heights (float32), the cells to fill from
+    (matched heights), the voids to fill; ``write(r0, c0, heights, new)`` receives a block's
+    heights and the cells filled in it; ``after()`` is called after each block. A block whose
+    halo holds no valid cell stays void.
+    Returns the number of cells filled. On a grid of one block (and its halo) the result is
+    :func:`fill_voids`' of the whole grid."""
+    rows, cols = shape
+    filled = 0
+    for r0 in range(0, rows, block):
+        for c0 in range(0, cols, block):
+            a, b = max(r0 - halo, 0), min(r0 + block + halo, rows)
+            c, d = max(c0 - halo, 0), min(c0 + block + halo, cols)
+            h, valid, wanted = read(a, c, b - a, d - c)
+            core = (slice(r0 - a, min(r0 + block, rows) - a), slice(c0 - c, min(c0 + block, cols) - c))
+            new = wanted[core] & ~valid[core]
+            if new.any() and valid.any():
+                out = fill_voids(np.where(valid, h, np.nan).astype(np.float32))[core]
+                write(r0, c0, np.where(new, out, h[core]), new)
+                filled += int(new.sum())
+            if after is not None:
+                after()
+    return filled

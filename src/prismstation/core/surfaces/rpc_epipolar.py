@@ -284,21 +284,52 @@ def triangulate(rect: PairRectification, lattice: RayLattice, disparity: np.ndar
     return Triangulated(h, e, n, np.where(ok, m_per_px, np.nan).astype(np.float32))
 
 
-def grid_heights(e, n, h, transform, shape, extra=None):
+def grid_heights(e, n, h, transform, shape, extra=None, sigma_cells: float = 0.0):
     """Bin points (map ``e``, ``n`` m, height ``h``; any shape, NaN skipped) into the
     north-up grid ``transform`` (rasterio order a, b, c, d, e, f; b = d = 0), ``shape``:
-    ``(mean height, count, mean of extra)`` per cell (float32, int32, float32), NaN / 0
-    where none (the third is None without ``extra``, an array like ``h``)."""
+    ``(mean height, samples, mean of extra)`` per cell (float32, float32, float32), NaN / 0
+    where none (the third is None without ``extra``, an array like ``h``).
+
+    ``sigma_cells`` 0: each point counts in the cell it falls in (plain means, integer counts).
+    Above 0: each point counts in the 3 × 3 cells around the nearest one with the Gaussian
+    weight ``exp(−r²/2σ²)`` of its distance ``r`` (cells) to their centres — points scattered
+    about as densely as the cells (a posting at the images' pixel) leave no holes and every
+    cell averages its neighbourhood's samples; a cell is kept where some point lies within
+    one cell of its centre, its samples the weights' effective number ``(Σw)²/Σw²``."""
     a, _, c, _, ee, f = (float(v) for v in tuple(transform)[:6])
     ok = np.isfinite(h) & np.isfinite(e) & np.isfinite(n)
-    ci = np.floor((e[ok] - c) / a).astype(np.int64)
-    ri = np.floor((n[ok] - f) / ee).astype(np.int64)
-    inside = (ci >= 0) & (ci < shape[1]) & (ri >= 0) & (ri < shape[0])
-    k = ri[inside] * shape[1] + ci[inside]
+    u = (np.asarray(e)[ok] - c) / a - 0.5          # cell-centre coordinates
+    v = (np.asarray(n)[ok] - f) / ee - 0.5
+    hv = np.asarray(h)[ok]
+    xv = None if extra is None else np.asarray(extra)[ok]
     size = shape[0] * shape[1]
-    cnt = np.bincount(k, minlength=size).reshape(shape)
-    s = np.bincount(k, weights=h[ok][inside], minlength=size).reshape(shape)
-    mean = lambda v: np.where(cnt > 0, v / np.maximum(cnt, 1), np.nan).astype(np.float32)  # noqa: E731
-    sx = None if extra is None else mean(
-        np.bincount(k, weights=np.asarray(extra)[ok][inside], minlength=size).reshape(shape))
-    return mean(s), cnt.astype(np.int32), sx
+    if sigma_cells <= 0:
+        offsets, ci0, ri0 = [(0, 0)], np.floor(u + 0.5).astype(np.int64), np.floor(v + 0.5).astype(np.int64)
+    else:
+        offsets = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1)]
+        ci0, ri0 = np.rint(u).astype(np.int64), np.rint(v).astype(np.int64)
+    sw = np.zeros(size)
+    sw2 = np.zeros(size)
+    sh = np.zeros(size)
+    sx = None if xv is None else np.zeros(size)
+    near = np.zeros(size, bool)
+    for dr, dc in offsets:
+        ci, ri = ci0 + dc, ri0 + dr
+        inside = (ci >= 0) & (ci < shape[1]) & (ri >= 0) & (ri < shape[0])
+        k = ri[inside] * shape[1] + ci[inside]
+        if sigma_cells <= 0:
+            w = np.ones(k.size)
+        else:
+            r2 = (u[inside] - ci[inside]) ** 2 + (v[inside] - ri[inside]) ** 2
+            w = np.exp(-0.5 * r2 / sigma_cells ** 2)
+            near[k[r2 <= 1.0]] = True
+        sw += np.bincount(k, weights=w, minlength=size)
+        sw2 += np.bincount(k, weights=w * w, minlength=size)
+        sh += np.bincount(k, weights=w * hv[inside], minlength=size)
+        if sx is not None:
+            sx += np.bincount(k, weights=w * xv[inside], minlength=size)
+    keep = sw > 0 if sigma_cells <= 0 else near & (sw > 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = lambda s: np.where(keep, s / np.where(keep, sw, 1.0), np.nan).reshape(shape).astype(np.float32)  # noqa: E731
+        cnt = np.where(keep, sw * sw / np.where(keep, sw2, 1.0), 0.0).reshape(shape).astype(np.float32)
+    return mean(sh), cnt, None if sx is None else mean(sx)

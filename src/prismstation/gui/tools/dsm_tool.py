@@ -57,12 +57,13 @@ class DsmDialog(QDialog):
 
     def __init__(self, parent, default_path: str, visible: tuple | None, reference: str | None = None,
                  *, geoid: str | None = None, orthometric: bool = False, triplet: bool = True,
-                 gsd_m: float = 2.5):
+                 gsd_m: float = 2.5, view: str = "N"):
         """``geoid``: the project's geoid, described (None: it cannot be used, orthometric
         heights are off); ``orthometric``: the heights kind to preselect; ``triplet`` False
-        (images with RPCs): the height model and void filling, a triplet's, are off, and the
-        extent is the ground every image sees (no N view to take a visible area from);
-        ``gsd_m``: the images' pixel on the ground (the coarsest), the default posting twice it."""
+        (images with RPCs): the height model, a triplet's, is off, and the extent is the ground
+        every image sees or the part of it ``view`` (the first image) shows; ``visible`` is
+        that view's visible window; ``gsd_m``: the images' pixel on the ground (the coarsest),
+        the default posting twice it."""
         super().__init__(parent)
         self.setWindowTitle("Export DSM")
         self.visible = visible
@@ -72,12 +73,9 @@ class DsmDialog(QDialog):
         row = QHBoxLayout()
         row.addWidget(self.path, 1)
         row.addWidget(browse)
-        if not triplet:
-            visible = None
         self.whole = QRadioButton("whole image" if triplet else "the ground every image sees")
-        self.area = QRadioButton("visible N area" + (f" ({visible[2]} × {visible[3]} px)" if visible else ""))
+        self.area = QRadioButton(f"visible {view} area" + (f" ({visible[2]} × {visible[3]} px)" if visible else ""))
         self.area.setEnabled(visible is not None)
-        self.area.setVisible(triplet)
         (self.area if visible is not None else self.whole).setChecked(True)
         ext = QHBoxLayout()
         ext.addWidget(self.whole)
@@ -112,8 +110,7 @@ class DsmDialog(QDialog):
         self.heights.setToolTip("heights from the model's parallax line, the rays through its biases, or the "
                                 "one the GCPs predict better, left out in turn")
         self.fill = QCheckBox("fill voids by interpolation (marked 2 in the mask band)")
-        for w in (self.heights, self.fill):
-            w.setEnabled(triplet)
+        self.heights.setEnabled(triplet)
         self.min_fill = QDoubleSpinBox(decimals=0, minimum=0.0, maximum=100.0, singleStep=5.0, suffix=" %")
         self.min_fill.setValue(90.0)
         self.reference = QCheckBox(f"the loaded reference DEM ({reference})" if reference else "no reference DEM loaded")
@@ -163,7 +160,7 @@ def result_message(out) -> tuple[str, bool]:
     and whether it filled less than the minimum."""
     dsm, path, fill, seen, filled = out.dsm, out.path, out.fill_percent, out.seen_cells, out.filled_percent
     min_fill_percent = out.request.min_fill_percent
-    rows, cols = dsm.heights.shape
+    rows, cols = dsm.shape
     pairs = len((dsm.info or {}).get("pairs") or [[0, 1], [0, 2], [1, 2]])     # a triplet's three
     every = {1: "both", 3: "all three"}.get(pairs, "all")
     text = (f"Wrote {path}: {cols} × {rows} cells at {dsm.posting_m:g} m, {dsm.height_kind} heights; "
@@ -244,8 +241,9 @@ class DsmTool:
         kinds = [q.height_kind for q in self.ctx.project.points.values() if has_ground(q)]
         orthometric = bool(kinds) and kinds.count("orthometric") >= kinds.count("ellipsoidal")
         sc = self.ctx.project.scene
-        dlg = DsmDialog(self.ctx.widget, str(self.default_path()), visible_window(self.ctx), name,
-                        geoid=self.geoid(), orthometric=orthometric, triplet=sc.is_triplet,
+        view = "N" if sc.is_triplet else next(iter(sc.views))   # images with RPCs: the first one's
+        dlg = DsmDialog(self.ctx.widget, str(self.default_path()), visible_window(self.ctx, view), name,
+                        geoid=self.geoid(), orthometric=orthometric, triplet=sc.is_triplet, view=view,
                         gsd_m=max(v.pixel_size_m for v in sc.views.values()))
         if dlg.exec() == QDialog.DialogCode.Accepted:
             self.start(dlg.request(), use_reference=dlg.use_reference())
