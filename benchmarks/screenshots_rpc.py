@@ -12,7 +12,7 @@ def rpc_window(images, out: Path, tmp: Path, size=(1600, 1000), cell: int = 64) 
     (:func:`prismstation.core.matching.rpc_tiepoints.match_tie_points`, one per ``cell`` px) and given
     to ``new --images``; the reference DEM is the tie points' own heights by the unbiased RPCs
     (``fit --bias none``), gridded at 5 m (no DEM covering such crops is at hand: a DEM with no
-    offset to the RPCs). The window opens the project with shift biases, the first image held
+    offset to the RPCs), then ``fit --bias shift`` stored. The window opens the project with shift biases, the first image held
     fixed, the DEM loaded; a new point is measured in the first image and predicted in the
     others with its 95 % ellipse, the views at 4:1 on it.
     """
@@ -56,6 +56,7 @@ def rpc_window(images, out: Path, tmp: Path, size=(1600, 1000), cell: int = 64) 
     with rasterio.open(tmp / "dem.tif", "w", driver="GTiff", width=nx, height=ny, count=1, dtype="float32",
                        crs=report["crs"], transform=from_origin(x0, y1, 5, 5)) as ds:
         ds.write(grid.astype("float32"), 1)
+    assert cli(["fit", str(project), "--bias", "shift"]) == 0  # fit keeps its settings: shift again
 
     make_app()
     win = MainWindow(interactive=False)
