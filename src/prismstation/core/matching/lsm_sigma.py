@@ -151,12 +151,9 @@ def sampling_px(a, noise: float):
 def block_sums(a, block: int):
     """Sums of ``a`` (``(n, n, …)``) over ``block × block`` blocks (the last ones partial),
     ``(m², …)``."""
-    n = a.shape[0]
-    m = -(-n // block)
-    pad = m * block - n
-    if pad:
-        a = np.pad(a, [(0, pad), (0, pad)] + [(0, 0)] * (a.ndim - 2))
-    return a.reshape(m, block, m, block, *a.shape[2:]).sum(axis=(1, 3)).reshape(m * m, *a.shape[2:])
+    starts = np.arange(0, a.shape[0], block)       # reduceat: no padded copy
+    m = starts.size
+    return np.add.reduceat(np.add.reduceat(a, starts, axis=0), starts, axis=1).reshape(m * m, *a.shape[2:])
 
 
 def sampling_scatter(J, gx, gy, ex, ey, block: int = SAMPLING_BLOCK):
