@@ -10,7 +10,6 @@ DSM − reference median measures the orientation alone.
 """
 from __future__ import annotations
 
-import csv
 import json
 from dataclasses import replace
 
@@ -22,7 +21,7 @@ from prismstation.cli import main
 from prismstation.core.models.rpc_bias import metres_per_degree
 from prismstation.io.project import load_project, save_project
 from prismstation.io.rpc_scene import to_lonlat
-from tests.cli.test_rpc_workflows import write_tagged
+from tests.cli.test_rpc_workflows import write_tagged, write_ties
 from tests.ops.rpc_synth import World, dem_terrain, make_rpc, render
 
 LON0, LAT0 = 5.27, 44.17          # the southern slopes of Mont Ventoux, on tile N44E005
@@ -50,13 +49,7 @@ def make_pair(d, srtm):
     e, n = np.meshgrid(np.linspace(-110, 110, 7), np.linspace(-110, 110, 7))
     lon, lat = LON0 + e.ravel() / ke, LAT0 + n.ravel() / kn
     h = world.height(lon, lat)
-    with open(d / "ties.csv", "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["id", "view", "x", "y"])
-        for p, rpc in zip(paths, true):
-            x, y = rpc.project(lon, lat, h)
-            for j in range(len(lon)):
-                w.writerow([f"T{j:02d}", p.stem, x[j] + rng.normal(0, 0.05), y[j] + rng.normal(0, 0.05)])
+    write_ties(d / "ties.csv", paths, true, lon, lat, h, rng)
     assert main(["new", str(d / "p.prismproj"), "--images", *map(str, paths), "--no-ties", "--geoid", "0",
                  "--measurements", str(d / "ties.csv")]) == 0
     return d, world, srtm

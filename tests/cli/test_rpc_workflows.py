@@ -27,6 +27,18 @@ from tests.ops.rpc_synth import World, analytic_terrain, make_rpc, render
 from tests.ops.test_rpc_dsm import GSD, LAT0, LON0, SHIFT, SIZE, TANS, write_reference
 
 
+def write_ties(path, paths, rpcs, lon, lat, h, rng, noise_px=0.05) -> None:
+    """``path``: a tie-point CSV (id, view, x, y) of the ground points (lon, lat, h) projected
+    by each image's true RPC, plus ``noise_px`` of normal noise on each coordinate."""
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["id", "view", "x", "y"])
+        for p, rpc in zip(paths, rpcs):
+            x, y = rpc.project(lon, lat, h)
+            for j in range(len(lon)):
+                w.writerow([f"T{j:02d}", p.stem, x[j] + rng.normal(0, noise_px), y[j] + rng.normal(0, noise_px)])
+
+
 def write_tagged(path, image, rpc) -> None:
     """The image as a GeoTIFF with ``rpc`` in its tags (GDAL's conventions, as :class:`Rpc`'s)."""
     tags = RPC(height_off=rpc.h_off, height_scale=rpc.h_scale, lat_off=rpc.lat_off, lat_scale=rpc.lat_scale,
@@ -56,13 +68,7 @@ def make_block(d):
     e, n = np.meshgrid(np.linspace(-420, 420, 8), np.linspace(-420, 420, 8))
     lon, lat = LON0 + e.ravel() / ke, LAT0 + n.ravel() / kn
     h = world.height(lon, lat)
-    with open(d / "ties.csv", "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["id", "view", "x", "y"])
-        for p, rpc in zip(paths, true):
-            x, y = rpc.project(lon, lat, h)
-            for j in range(len(lon)):
-                w.writerow([f"T{j:02d}", p.stem, x[j] + rng.normal(0, 0.05), y[j] + rng.normal(0, 0.05)])
+    write_ties(d / "ties.csv", paths, true, lon, lat, h, rng)
     write_reference(d / "ref.tif", world)
     assert main(["new", str(d / "b.prismproj"), "--images", *map(str, paths), "--no-ties", "--measurements",
                  str(d / "ties.csv")]) == 0
