@@ -88,6 +88,15 @@ class CoregResult:
         return bool(self.converged)
 
 
+def _grids(reference, dem, transform) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(reference, dem, pixel)``: the two 2-D float grids of one shape and the grid's cell
+    size (m, the square root of the transform's cell area)."""
+    ref, dm = np.asarray(reference, float), np.asarray(dem, float)
+    if ref.shape != dm.shape or ref.ndim != 2:
+        raise ValueError(f"reference {ref.shape} and dem {dm.shape} must be 2-D arrays on one grid")
+    a, b, _, d, e, _ = (float(t) for t in tuple(transform)[:6])
+    return ref, dm, float(np.sqrt(abs(a * e - b * d)))
+
 def shift_grid(a: np.ndarray, dcol: float, drow: float) -> np.ndarray:
     """Return ``out(col, row) = a(col − dcol, row − drow)``, bilinear, NaN outside or near voids.
 
@@ -199,12 +208,7 @@ def coregister(reference: np.ndarray, dem: np.ndarray, transform=IDENTITY, *, le
     -------
     CoregResult
     """
-    ref = np.asarray(reference, float)
-    dm = np.asarray(dem, float)
-    if ref.shape != dm.shape or ref.ndim != 2:
-        raise ValueError(f"reference {ref.shape} and dem {dm.shape} must be 2-D arrays on one grid")
-    a, b, _, d, e, _ = (float(t) for t in tuple(transform)[:6])
-    pixel = np.sqrt(abs(a * e - b * d))
+    ref, dm, pixel = _grids(reference, dem, transform)
     bound = (min(ref.shape) / 4 if max_shift is None else float(max_shift) / pixel)
     if levels is None:
         levels = 1
@@ -310,12 +314,7 @@ def nuth_kaab(reference: np.ndarray, dem: np.ndarray, transform=IDENTITY, *, max
     median of ``dh``. Same arguments, conventions and result as :func:`coregister`; flat cells
     (slope below ``min_slope_deg``) are left out. σ's come from the last fit.
     """
-    ref = np.asarray(reference, float)
-    dm = np.asarray(dem, float)
-    if ref.shape != dm.shape or ref.ndim != 2:
-        raise ValueError(f"reference {ref.shape} and dem {dm.shape} must be 2-D arrays on one grid")
-    a, b, _, d, e, _ = (float(t) for t in tuple(transform)[:6])
-    pixel = np.sqrt(abs(a * e - b * d))
+    ref, dm, pixel = _grids(reference, dem, transform)
     lo, hi = (np.tan(np.radians(v)) * pixel for v in (min_slope_deg, max_slope_deg))
     dcol = drow = 0.0
     dz = float(np.nanmedian(ref - dm))
