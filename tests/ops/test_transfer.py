@@ -60,6 +60,24 @@ def test_a_slope_foreshortens_forward_and_backward_views_oppositely(synth_sol):
         assert np.hypot(*steep[v].dh) == pytest.approx(view.tan_theta / view.pixel_size_m, rel=0.02)
 
 
+def test_a_void_beside_the_point_leaves_the_slope_known(synth_sol):
+    # a void of the reference on one side of the template's footprint: the slope from the
+    # other side and the point's own height (before: no slope, the search made for no reference)
+    sol = synth_sol
+    xy = np.array([7000.0, 7000.0])
+    en = sol.image_to_ground("N", xy, 500.0)
+    grad = np.array([0.3, -0.2])
+
+    def holed(p):
+        p = np.atleast_2d(np.asarray(p, float))
+        z = 500.0 + (p - en) @ grad
+        return np.where(p[:, 0] > en[0] + 20.0, np.nan, z)      # a void east of the point
+    _, _, shapes = local_shape(sol, "N", xy, "F", h=500.0, height_of=holed)
+    assert shapes["F"].slope == pytest.approx(tuple(grad), abs=1e-6)
+    gone = lambda p: np.where(np.abs(np.atleast_2d(p)[:, 1] - en[1]) > 20.0, np.nan, holed(p))  # noqa: E731
+    assert local_shape(sol, "N", xy, "F", h=500.0, height_of=gone)[2]["F"].slope is None
+
+
 @pytest.fixture(scope="module")
 def steep(tmp_path_factory, shared_data):
     """A steep simulated project (a real DEM's relief, 42 % mean slope on 4,000 px), its fit on

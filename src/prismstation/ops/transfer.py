@@ -174,13 +174,25 @@ class LocalShape:
 
 
 def terrain_gradient(height_of, en, radius_m: float):
-    """(dh/dE, dh/dN) of the reference heights by central differences over ``±radius_m``
-    (None where a height is missing)."""
-    pts = np.array([en + [radius_m, 0], en - [radius_m, 0], en + [0, radius_m], en - [0, radius_m]])
+    """(dh/dE, dh/dN) of the reference heights by central differences over ``±radius_m``; where
+    a void takes one side, the one-sided difference from the height at ``en`` (None where a
+    direction has no height on either side, or ``en`` none). A void beside a point would
+    otherwise send it to the search without a slope, which is made for no reference at all."""
+    pts = np.array([en + [radius_m, 0], en - [radius_m, 0], en + [0, radius_m], en - [0, radius_m], en])
     z = np.asarray(height_of(pts), float)
-    if not np.all(np.isfinite(z)):
+    if np.all(np.isfinite(z[:4])):
+        return ((z[0] - z[1]) / (2 * radius_m), (z[2] - z[3]) / (2 * radius_m))
+    if not math.isfinite(z[4]):
         return None
-    return ((z[0] - z[1]) / (2 * radius_m), (z[2] - z[3]) / (2 * radius_m))
+    out = []
+    for up, down in ((z[0], z[1]), (z[2], z[3])):
+        if math.isfinite(up) and math.isfinite(down):
+            out.append((up - down) / (2 * radius_m))
+        elif math.isfinite(up) or math.isfinite(down):
+            out.append((up - z[4]) / radius_m if math.isfinite(up) else (z[4] - down) / radius_m)
+        else:
+            return None
+    return tuple(out)
 
 
 def local_shape(sol: Solution, source: str, xy, views, *, h: float, height_of=None,
