@@ -40,7 +40,7 @@ import numpy as np
 from scipy import stats
 
 from prismstation.core.matching.coarse import search_radius_px
-from prismstation.core.matching.lsm import LsmResult
+from prismstation.core.matching.lsm import LsmResult, refine
 from prismstation.core.matching.lsm_search import best_score, match
 from prismstation.core.models.solution import Solution
 from prismstation.io.windows import ImageWindows
@@ -329,8 +329,10 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
                       coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0)
         if adaptive and not free and m.ok and _sigma_max(m) > SECOND_OPINION_PX and h_noise < half_window:
             # relief within a template grown for point-sampled edges may spoil it: the size the
-            # noise alone asks for is matched too, and the smaller σ stated wins
-            m2 = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], s.A, d, half=h_noise, **resize)
+            # noise alone asks for is matched too, from the first's position (a search of the band
+            # and its peaks cost as much again), and the smaller σ stated wins
+            m2 = refine(ref, xy[0] - rc0, xy[1] - rr0, win, (m.x, m.y), s.A, parallax=d, half=h_noise,
+                        max_sigma=MAX_SIGMA_PX, max_shape_change=DEM_SHAPE_CHANGE)
             if m2.ok and _sigma_max(m2) < _sigma_max(m):
                 m = m2
         # with no DEM each size is a search over hundreds of pixels: only the edges' size

@@ -16,7 +16,11 @@ NOT_CONVERGED, TEXTURE, SHAPE, MOVED, LOW_CORRELATION, OUTSIDE = (
 
 STEP_TOL = 1e-2
 """Converged when the position moves less than this (px) in an iteration, and the shape less
-than 2.5 times this at the template's edge."""
+than 2.5 times this at :data:`SHAPE_REACH` px from the point."""
+SHAPE_REACH = 12
+"""Where the shape's step is measured (px from the point, at most the template's half size):
+the 25 × 25 px every template holds. At a large template's edge a shape still creeping by
+0.001 (0.03 px at 32 px) kept it iterating on aliased texture while the position had stopped."""
 WANDER_ITER = 6
 """Iterations after which a patch still moving by 0.1 px per step is given up."""
 MAX_BEND = 1.0
@@ -119,7 +123,8 @@ class Fit:
                 return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else
                                f"the shape degenerated (changed by {change:.0%})"), it
             step = math.hypot(dp[0], dp[1])
-            shape_still = self.w is not None or np.abs(dp[2:6 + nb]).max() * self.half < 2.5 * STEP_TOL
+            shape_still = (self.w is not None
+                           or np.abs(dp[2:6 + nb]).max() * min(self.half, SHAPE_REACH) < 2.5 * STEP_TOL)
             if max(abs(dp[0]), abs(dp[1])) < STEP_TOL and shape_still:
                 return OK, "", it
             if it >= WANDER_ITER and step > 0.1:
