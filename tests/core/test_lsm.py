@@ -340,3 +340,26 @@ def test_point_sampled_parcels_are_placed_with_a_sigma_that_covers_the_error():
     rms = np.sqrt(np.mean(np.sum(err ** 2, 1)))
     assert len(err) >= 20 and rms < 0.27, (len(err), rms)
     assert np.mean(z2 < 5.991) >= 0.9 and np.sqrt(np.mean(z2) / 2) < 1.2, (np.mean(z2 < 5.991), np.mean(z2))
+
+
+def test_a_shape_step_too_small_to_move_the_point_ends_a_large_templates_iterations():
+    # a 65 × 65 px template 0.12 % larger than the search patch: from the exact position the
+    # first step finds the scale, which moves the pixels 12 px from the point by 0.014 px and the
+    # template's edge by 0.04 px. Before, the edge's 0.04 px kept it iterating (on aliased
+    # texture for several more steps while the position had stopped)
+    from prismstation.core.matching.lsm_fit import OK, Fit
+    from prismstation.core.matching.lsm_spline import Spline
+    rng = np.random.default_rng(5)
+    img = ndimage.gaussian_filter(rng.normal(0, 60, (140, 140)), 1.2) + 500
+    sp = Spline(img)
+    half, t = 32, np.array([70.3, 69.8])
+    k = np.arange(-half, half + 1, dtype=float)
+    v, u = np.meshgrid(k, k, indexing="ij")
+    A_true = np.array([[1.0012, 0.0], [0.0, 1.0012]])
+    q = A_true @ np.vstack([u.ravel(), v.ravel()]) + t[:, None]
+    T = sp.sample(q[0], q[1])[0].reshape(u.shape)
+    fit = Fit(T, u, v, sp, np.array([0.0, 1.0]), half)
+    fit.t, fit.A = t.copy(), np.eye(2)
+    status, _, it = fit.run(False, 20, t, 3.0, np.eye(2), 0.25)
+    assert status == OK and it == 1
+    assert fit.A == pytest.approx(A_true, abs=2e-4) and fit.t == pytest.approx(t, abs=1e-3)
