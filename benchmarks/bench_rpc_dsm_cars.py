@@ -2,7 +2,7 @@
 
 Ours through the command line only, each step its own process: ``new --images`` (automatic
 tie points, the biases fitted) and ``dsm --posting P``. CARS (``cars`` from a separate
-environment: ``--cars PATH``, default ``/work/cars-venv/bin/cars`` or ``cars`` on the PATH;
+environment: ``--cars PATH``, default ``cars-venv/bin/cars`` beside the checkout or ``cars`` on the PATH;
 skipped with a message when there is none) on the same three images, every pair, RPCs from the
 TIFF tags, ellipsoidal heights (``geoid: false``), UTM 31N at the same posting, two local
 workers. Printed: each one's wall and CPU time (the child processes' own, ``RUSAGE_CHILDREN``),
@@ -35,7 +35,7 @@ from rasterio.warp import Resampling, reproject
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "real" / "pleiades_triplet"
 IMAGES = [DATA / f"img_0{i}.tif" for i in (1, 2, 3)]
-DEFAULT_CARS = Path("/work/cars-venv/bin/cars")
+DEFAULT_CARS = ROOT.parent / "cars-venv" / "bin" / "cars"
 
 
 def timed(cmd, **kw) -> tuple[float, float, subprocess.CompletedProcess]:
@@ -51,20 +51,45 @@ def timed(cmd, **kw) -> tuple[float, float, subprocess.CompletedProcess]:
     return wall, cpu, res
 
 
-def ours(out: Path, posting: float):
-    exe = [sys.executable, "-m", "prismstation.cli"] if not shutil.which("prismstation") else ["prismstation"]
-    exe = [str(Path(sys.executable).parent / "prismstation")] if (Path(sys.executable).parent / "prismstation").exists() else exe
-    proj, dsm = out / "p.prismproj", out / "ours.tif"
-    for f in (proj, dsm):
-        if f.exists():
-            f.unlink()
-    w1, c1, r1 = timed(exe + ["new", proj, "--images", *IMAGES])
-    w2, c2, r2 = timed(exe + ["dsm", proj, "-o", dsm, "--posting", str(posting)])
-    print(f"prismstation: new --images {w1:.1f} s wall / {c1:.1f} s CPU; dsm --posting {posting:g} "
-          f"{w2:.1f} s / {c2:.1f} s; total {w1 + w2:.1f} s / {c1 + c2:.1f} s")
-    for line in (r1.stdout + r2.stdout).splitlines():
-        if any(k in line for k in ("tie point", "wrote", "pairs (")):
+def our_exe() -> list:
+    """The prismstation command of this environment."""
+    exe = Path(sys.executable).parent / "prismstation"
+    if exe.exists():
+        return [str(exe)]
+    return ["prismstation"] if shutil.which("prismstation") else [sys.executable, "-m", "prismstation.cli"]
+
+
+def ours_new(out: Path):
+    """``new --images`` on the triplet: the project, its wall and CPU time (s)."""
+    proj = out / "p.prismproj"
+    if proj.exists():
+        proj.unlink()
+    wall, cpu, res = timed(our_exe() + ["new", proj, "--images", *IMAGES])
+    print(f"prismstation new --images: {wall:.1f} s wall / {cpu:.1f} s CPU")
+    for line in res.stdout.splitlines():
+        if "tie point" in line:
             print("   " + line.strip())
+    return proj, wall, cpu
+
+
+def ours_dsm(proj: Path, dsm: Path, posting: float):
+    """``dsm --posting`` of the project (exit 3, heights not fixed by a reference, is
+    expected: the DSM is written): its wall and CPU time (s)."""
+    if dsm.exists():
+        dsm.unlink()
+    wall, cpu, res = timed(our_exe() + ["dsm", proj, "-o", dsm, "--posting", str(posting)])
+    print(f"prismstation dsm --posting {posting:g}: {wall:.1f} s wall / {cpu:.1f} s CPU")
+    for line in res.stdout.splitlines():
+        if any(k in line for k in ("wrote", "pairs (")):
+            print("   " + line.strip())
+    return wall, cpu
+
+
+def ours(out: Path, posting: float):
+    proj, w1, c1 = ours_new(out)
+    dsm = out / "ours.tif"
+    w2, c2 = ours_dsm(proj, dsm, posting)
+    print(f"prismstation total: {w1 + w2:.1f} s wall / {c1 + c2:.1f} s CPU")
     return proj, dsm, w1 + w2, c1 + c2
 
 
@@ -83,12 +108,14 @@ def cars(out: Path, posting: float, exe: Path):
 
 
 def on_grid(path, like):
-    """``path``'s band 1 resampled (bilinear) onto ``like``'s grid (float32, NaN no data)."""
+    """``path``'s band 1 resampled onto ``like``'s grid (float32, NaN no data): bilinear, or
+    the mean of the cells each target cell covers when that grid is 1.5 × coarser or more."""
     with rasterio.open(like) as ref, rasterio.open(path) as src:
         out = np.full((ref.height, ref.width), np.nan, np.float32)
+        coarser = abs(ref.transform.a) >= 1.5 * abs(src.transform.a)
         reproject(rasterio.band(src, 1), out, src_transform=src.transform, src_crs=src.crs,
                   src_nodata=src.nodata, dst_transform=ref.transform, dst_crs=ref.crs, dst_nodata=np.nan,
-                  resampling=Resampling.bilinear)
+                  resampling=Resampling.average if coarser else Resampling.bilinear)
     return out
 
 
@@ -121,7 +148,7 @@ def pair_dsms(proj: Path, posting: float, like: Path):
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--posting", type=float, default=0.5)
-    ap.add_argument("--cars", type=Path, help="the cars executable (default: /work/cars-venv/bin/cars or PATH)")
+    ap.add_argument("--cars", type=Path, help="the cars executable (default: cars-venv/bin/cars beside the checkout, or PATH)")
     ap.add_argument("--cars-dsm", type=Path, help="a DSM CARS made before (not run again)")
     ap.add_argument("--out")
     args = ap.parse_args(argv)
