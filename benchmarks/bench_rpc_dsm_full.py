@@ -1,8 +1,10 @@
 """The RPC DSM of a large simulated scene, written tile by tile: time and peak memory.
 
-A triplet of ``--size`` × ``--size`` images of 0.5 m pixels (forward, nadir, backward: B/H
-0.15 and 0.3, the synthetic world and cubic RPCs of ``prismstation.sim.rpc_synth``: rolling hills
-250–600 m, a random ground texture of 0.5 m cells), rendered strip by strip into tiled uint16
+A triplet of ``--size`` × ``--size`` images of ``--gsd`` m pixels (forward, nadir, backward
+looking ``±--tan`` along the track — by default 0.5 m and 0.15, a Pléiades-like B/H of 0.15 and
+0.3; ``--gsd 2.5 --tan 0.44 --size 14000`` is a PRISM triplet's size and geometry, as JAXA ships
+it with RPC files —, the synthetic world and cubic RPCs of ``prismstation.sim.rpc_synth``:
+rolling hills 250–600 m, a random ground texture of one-pixel cells), rendered strip by strip into tiled uint16
 GeoTIFFs with their RPCs in the tags (kept in ``--out`` and not rendered again). Then, in a
 child process per run, ``ops.rpc_dsm_export.write_rpc_dsm`` — what ``prismstation dsm`` runs
 on a project of images with RPCs — at ``--posting``, every pair, first over a centred
@@ -13,7 +15,7 @@ parent's), fill, the heights against the true terrain (median, NMAD, every 4th c
 pairs' agreement.
 
 Run: ``.venv/bin/python benchmarks/bench_rpc_dsm_full.py [--size 8000] [--windows 2000 4000] [--fill]
-[--posting 0.5] [--workers 2] [--out DIR]``. Times are wall-clock on a shared machine.
+[--gsd 0.5] [--tan 0.15] [--posting 0.5] [--workers 2] [--out DIR]``. Times are wall-clock on a shared machine.
 """
 from __future__ import annotations
 
@@ -37,8 +39,6 @@ sys.path.insert(0, str(ROOT / "src"))
 from prismstation.sim.rpc_synth import World, analytic_terrain, make_rpc  # noqa: E402
 
 LON0, LAT0 = 5.27, 44.17
-GSD = 0.5
-TANS = (0.15, 0.0, -0.15)
 H_OFF, H_SCALE = 400.0, 500.0
 
 
@@ -68,17 +68,30 @@ def render_strips(path, rpc, world, size: int, strip: int = 512, step: int = 8) 
             ds.write(img, 1, window=rasterio.windows.Window(0, r0, size, rows))
 
 
-def make_scene(out: Path, size: int):
-    world = World(LON0, LAT0, analytic_terrain, extent_m=size * GSD * 1.3, texture_cell_m=GSD)
+class LeanWorld(World):
+    """:class:`World` with its texture made in float32 (a 45 km world of 2.5 m cells is 330 M
+    cells: float64 temporaries would take ~10 GB)."""
+
+    def __init__(self, lon0, lat0, height, extent_m, texture_cell_m, seed=0):
+        super().__init__(lon0, lat0, height, extent_m=1.0, texture_cell_m=1.0, seed=seed)
+        rng = np.random.default_rng(seed)
+        n = int(extent_m / texture_cell_m)
+        t = ndimage.gaussian_filter(rng.standard_normal((n, n), dtype=np.float32), 1.2)
+        t += 3.0 * ndimage.gaussian_filter(rng.standard_normal((n, n), dtype=np.float32), 6.0)
+        self.tex, self.cell, self.half = t, texture_cell_m, extent_m / 2
+
+
+def make_scene(out: Path, size: int, gsd: float, tan: float):
+    world = LeanWorld(LON0, LAT0, analytic_terrain, extent_m=size * gsd * 1.3, texture_cell_m=gsd)
     paths = []
     t0 = time.perf_counter()
-    for k, t in enumerate(TANS):
-        rpc = make_rpc(LON0, LAT0, gsd=GSD, size=size, tan_along=t, h_off=H_OFF, h_scale=H_SCALE, seed=k + 1)
+    for k, t in enumerate((tan, 0.0, -tan)):
+        rpc = make_rpc(LON0, LAT0, gsd=gsd, size=size, tan_along=t, h_off=H_OFF, h_scale=H_SCALE, seed=k + 1)
         p = out / f"img{k}.tif"
         if not p.exists():
             render_strips(p, rpc, world, size)
         paths.append(p)
-    print(f"scene: 3 images of {size} × {size} px at {GSD} m ({size * GSD / 1000:.1f} km), "
+    print(f"scene: 3 images of {size} × {size} px at {gsd} m ({size * gsd / 1000:.1f} km, tan ±{tan}), "
           f"rendered in {time.perf_counter() - t0:.0f} s, in {out}")
     return paths
 
@@ -130,7 +143,9 @@ def run_child(paths, output, posting, window, fill, workers) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--size", type=int, default=6000, help="image side, px (0.5 m)")
+    ap.add_argument("--size", type=int, default=6000, help="image side, px")
+    ap.add_argument("--gsd", type=float, default=0.5, help="pixel size, m")
+    ap.add_argument("--tan", type=float, default=0.15, help="forward and backward views' tangent along track")
     ap.add_argument("--windows", type=int, nargs="*", default=[2000], help="also crops of this side (px)")
     ap.add_argument("--posting", type=float, default=0.5)
     ap.add_argument("--workers", type=int, default=2)
@@ -139,7 +154,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     out = Path(args.out or tempfile.mkdtemp(prefix="bench_rpc_dsm_full_"))
     out.mkdir(parents=True, exist_ok=True)
-    paths = make_scene(out, args.size)
+    paths = make_scene(out, args.size, args.gsd, args.tan)
     runs = [(w, False) for w in sorted(args.windows)] + [(None, False)]
     if args.fill:
         runs.append((min(args.windows) if args.windows else None, True))

@@ -117,6 +117,12 @@ def test_orient_then_dsm(block, capsys):
     assert main(["fit", proj, "--json", str(d / "fit.json")]) == 0
     rep = json.loads((d / "fit.json").read_text())
     assert "no view held fixed" in " ".join(rep["messages"])
+    # the reference entered through the orientation: a fit that also names it holds no tie
+    # point to it (the DEM counted once, its σ not shrunk by a second look)
+    assert main(["fit", proj, "--dem", str(d / "ref.tif"), "--json", str(d / "fit2.json")]) == 0
+    rep2 = json.loads((d / "fit2.json").read_text())
+    assert load_project(proj).orientation["reference_heights"] == 0
+    assert "carries it already" in " ".join(rep2["messages"]), rep2["messages"]
     from prismstation.ops.fit import solve_project
     sol = solve_project(p)
     ke, kn = metres_per_degree(LAT0)

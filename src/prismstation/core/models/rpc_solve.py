@@ -121,6 +121,12 @@ def fit_block(scene, points, settings: Settings = Settings(), *, height_of=None,
     if not run.gcps and settings.fixed_view is None and kind != "none" and run.block and not prior:
         messages.append(f"no GCP: view {ref} held fixed; the other views' biases are relative to its RPC")
     use_dem = height_of is not None and dem_needed(len(run.gcps), kind)
+    if use_dem and prior:
+        # the orientation from the reference DEM carries what the DEM says: holding the tie
+        # points to it again would count it twice (and the σ would shrink for nothing)
+        use_dem = False
+        messages.append("tie points not held to the reference DEM: the orientation from a reference DEM "
+                        "carries it already")
     if use_dem and not (callable(height_sigma_m) or (height_sigma_m is not None and height_sigma_m > 0)):
         use_dem = False
         messages.append("the reference DEM's heights come without their σ: tie points are not held to "
