@@ -2,6 +2,7 @@
 line on stderr, the verdict in the JSON; and a clear error when the views cannot be found."""
 import json
 
+import numpy as np
 import pytest
 
 from prismstation.cli import main
@@ -42,6 +43,11 @@ def test_too_few_patches_exit_3_with_the_verdict(project, capsys):
     assert len(pairs["theta_change"]) == 9 and 0 < pairs["rms_m"] < 5 and not pairs["reason"]
     assert 0 < pairs["sigma_m"]["plan"] <= rec["sigma_m"]["plan"]
     assert "as the pair DEMs disagree" in rec["verdict"]["message"]
+    # where the adjustment was started: run again from 30 m away east and north, its response
+    start = rec["adjustment"]["start"]
+    assert start["kick_m"] == 30.0 and start["start_sigma_m"] == 30.0 and not start["reason"]
+    assert np.shape(start["k"]) == (2, 2) and np.shape(start["theta_change"]) == (2, 9)
+    assert "where the adjustment was started" in rec["verdict"]["message"]
 
 
 @pytest.mark.slow  # ~40 s: the whole orientation runs and the flat reference is refused (too_smooth)

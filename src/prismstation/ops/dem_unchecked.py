@@ -5,7 +5,8 @@ scatter, their random shifts ``Σ_b`` nor the jackknife sees them (docs/orientat
 step 6). Each is the field's change when the run's data are moved by one draw of the error:
 
 * :func:`prior_pull` — the dense matcher's pull toward its prior (the prior moved);
-* :func:`pair_term` — the relative DEMs' own height errors (the pair DEMs' disagreement).
+* :func:`pair_term` — the relative DEMs' own height errors (the pair DEMs' disagreement);
+* :func:`start_term` — where the adjustment was started (it may stay near wherever it starts).
 
 :func:`add_to_covariances` adds them to the field's covariances at a lattice and says what was
 added in the verdict's words.
@@ -80,23 +81,66 @@ def pair_term(pcs, index, fit, refit) -> dict:
     return out
 
 
+def start_term(fit, refit_from, kick_m: float, start_sigma_m: float) -> dict:
+    """How far the field stays where the adjustment was started, measured: the adjustment run
+    again from ``fit``'s field moved by ``±kick_m`` east and north (``refit_from(theta0)``), the
+    ends' difference over ``2·kick_m`` the field's response ``K`` to its start (a column per
+    horizontal component). Where the reference's gradients are mostly its noise, the
+    cost has a ripple of one grid cell (the noise sampled bilinearly) over a relief trend too
+    weak to leave it, and Gauss–Newton stays in the basin it starts in: the field then follows
+    its start — the whole mosaic's search, whose σ is the a-priori one — by ``K``, the same
+    in every patch, so neither their scatter nor ``Σ_b`` sees it. The term is ``K`` times
+    ``start_sigma_m`` per component: ``{"kick_m", "start_sigma_m", "theta_change" (9,) m per
+    component (two rows, the E and N starts' response times ``start_sigma_m``), "k" (2, 2),
+    "reason"}`` (``theta_change`` None and ``reason`` why when it could not be measured)."""
+    out = {"kick_m": float(kick_m), "start_sigma_m": float(start_sigma_m), "theta_change": None, "k": None,
+           "reason": ""}
+    ends = []
+    for j in (0, 3):                                  # the field's constant east, then north
+        pair = []
+        for sign in (1.0, -1.0):
+            theta0 = np.array(fit.theta, float)
+            theta0[j] += sign * kick_m
+            moved = refit_from(theta0)
+            if not moved:
+                out["reason"] = f"the adjustment started {kick_m:.0f} m away failed ({moved.reason})"
+                return out
+            pair.append(moved.theta)
+        ends.append((pair[0] - pair[1]) / (2.0 * kick_m))
+    resp = np.array(ends)                             # (2, 9): per unit of the start's E, N
+    out["k"] = resp[:, [0, 3]].T.tolist()             # rows: the field's E, N; columns: the start's
+    out["theta_change"] = (resp * start_sigma_m).tolist()
+    return out
+
+
 def add_to_covariances(covs: np.ndarray, basis, terms: dict | None, lx, ly, along) -> str:
-    """Add each measured term of ``terms`` (``{"prior": …, "pairs": …}``, as :func:`prior_pull`
-    and :func:`pair_term` return them) to ``covs`` (n, 3, 3) at the lattice ``lx, ly`` as the
-    outer product of the field's change, store each one's summary as ``"sigma_m"``; return
-    what the verdict says of them ("" when none was measured or tried)."""
+    """Add each measured term of ``terms`` (``{"prior": …, "pairs": …, "start": …}``, as
+    :func:`prior_pull`, :func:`pair_term` and :func:`start_term` return them) to ``covs`` (n, 3,
+    3) at the lattice ``lx, ly`` as the outer product of the field's change (summed over the
+    rows of a (k, 9) change), store each one's summary as ``"sigma_m"``; return what the verdict
+    says of them ("" when none was measured or tried)."""
     added, missing = [], []
     for key, what in (("prior", "the matcher's pull toward its prior"),
-                      ("pairs", "the relative DEMs' own errors, as the pair DEMs disagree")):
+                      ("pairs", "the relative DEMs' own errors, as the pair DEMs disagree"),
+                      ("start", "where the adjustment was started")):
         term = (terms or {}).get(key)
         if term is None:
             continue
         if term["theta_change"] is None:
             missing.append(f"{what} was not measured: {term['reason']}")
             continue
-        dv = basis.predict(np.asarray(term["theta_change"]), lx, ly)        # (n, 3)
-        outer = dv[:, :, None] * dv[:, None, :]
+        outer = np.zeros_like(covs)
+        for change in np.atleast_2d(np.asarray(term["theta_change"], float)):
+            dv = basis.predict(change, lx, ly)                               # (n, 3)
+            outer += dv[:, :, None] * dv[:, None, :]
         covs += outer
+        if key == "start":
+            k = np.asarray(term["k"])
+            stay = float(np.abs(np.diag(k)).max())
+            if stay >= 0.5:          # more than half the way: the start, not the terrain, placed it
+                what += (f" (started {term['kick_m']:.0f} m away, the adjustment stayed {100 * stay:.0f} % of "
+                         "the way there: the terrain does not fix the field, it follows its start, the whole "
+                         f"mosaic's search over the a-priori {term['start_sigma_m']:.0f} m)")
         term["sigma_m"] = cond.summarise(outer, along).to_dict()
         added.append(f"{term['sigma_m']['plan']:.1f} m planimetric, {term['sigma_m']['h']:.1f} m in height "
                      f"for {what}")

@@ -202,8 +202,11 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     if fit:
         pcs, index, fit, record = second_pass(run, pcs, index, fit, patch_m, gcps)  # 5.
         refit = lambda cells, n: adjust(run, cells, n, fit.theta, gcps)  # noqa: E731
+        cells, _ = join_cells(pcs)
+        refit_from = lambda theta0: adjust(run, cells, len(index), theta0, gcps)  # noqa: E731
         pull = {"prior": unchecked.prior_pull(run, patch_m, fit, refit),
-                "pairs": unchecked.pair_term(pcs, index, fit, refit)}
+                "pairs": unchecked.pair_term(pcs, index, fit, refit),
+                "start": unchecked.start_term(fit, refit_from, run.posting_m, run.sigma_apriori_m)}
     checkpoint(progress, 1.0, "done")
     return make_result(run, pcs, index, fit, expected, record, target_m, gcps, pull)  # 6.
 
@@ -445,4 +448,5 @@ def make_result(run: OrientRun, pcs, index, fit, expected, record, target_m, gcp
                                "sigma_m": np.sqrt(np.clip(np.diag(fit.cov)[12:], 0, None)).tolist(),
                                "a_priori_sigma_m": run.distortion_sigma_m},
          "rejected": [index[j] for j in fit.rejected], "gcp_observations": 0 if gcps is None else len(gcps),
-         "reason": fit.reason, "prior_pull": (pull or {}).get("prior"), "pair_dems": (pull or {}).get("pairs")})
+         "reason": fit.reason, "prior_pull": (pull or {}).get("prior"), "pair_dems": (pull or {}).get("pairs"),
+         "start": (pull or {}).get("start")})
