@@ -184,7 +184,7 @@ def test_the_template_grows_until_its_texture_fixes_the_point(parcels):
     with ImageWindows(project.scene) as im:
         for p in points:
             xy = p["image"]["N"]
-            both, noise = template_halves(im, "N", xy)
+            both, noise = template_halves(im.around("N", xy[0], xy[1], 40), xy)
             fixed += noise == 12
             assert both >= noise            # point-sampled edges only ever ask for more
             for half in (12, None):
