@@ -231,3 +231,29 @@ def test_tile_height_range_from_points_and_reference():
     assert tile_height_range(grid, window, (0.0, 1000.0), None, prior) == (460.0, 540.0)
     # the union of both, inside the stated range
     assert tile_height_range(grid, window, (0.0, 520.0), (e, n, h), prior) == (280.0, 520.0)
+
+
+def test_cells_two_images_of_three_see_keep_that_pairs_heights(synthetic, tmp_path):
+    """A third image looking 400 m further east: on the grid of the first two, the cells west of
+    its footprint are seen by one pair alone and keep that pair's heights (quality 1), as a pair
+    DSM would (before, only cells every image sees had a height)."""
+    world, rpcs, paths = synthetic
+    ke, _ = metres_per_degree(LAT0)
+    east = make_rpc(LON0 + 400.0 / ke, LAT0, gsd=GSD, size=SIZE, tan_along=TANS[2], h_off=world.h_off,
+                    h_scale=world.h_scale, seed=3)
+    write_image(tmp_path / "east.tif", render(east, world, SIZE))
+    two, _ = rpc_dsm(paths[:2], rpcs[:2], posting=8.0, height_range=(200.0, 700.0))
+    grid = Grid(two.crs, tuple(two.transform)[:6], two.heights.shape)
+    dsm, _ = rpc_dsm([*paths[:2], tmp_path / "east.tif"], [*rpcs[:2], east], posting=8.0,
+                     height_range=(200.0, 700.0), grid=grid)
+    E, N = np.meshgrid(grid.transform[2] + 8.0 * (np.arange(grid.shape[1]) + 0.5),
+                       grid.transform[5] - 8.0 * (np.arange(grid.shape[0]) + 0.5))
+    lon, lat = to_lonlat(grid.crs)(E, N)
+    x, _ = east.project(lon, lat, world.height(lon, lat))
+    alone = (x < -2) & two.seen                  # west of the third image: images 0 and 1 only
+    assert alone.sum() > 0.2 * two.seen.sum()
+    assert np.isfinite(dsm.heights[alone]).mean() > 0.85 and dsm.seen[alone].mean() > 0.97
+    assert (dsm.quality[alone & np.isfinite(dsm.heights)] == 1).all()
+    d = truth_diff(dsm, world)[alone]
+    assert nmad(d[np.isfinite(d)]) * TANS[0] / GSD < 0.2
+    assert dsm.info["seen_by"] == "two or more"

@@ -5,7 +5,7 @@ The export is the sensor model's (:func:`prismstation.ops.sensors.workflows_of`:
 triplet's :func:`prismstation.ops.dsm_export.export_dsm`, images with RPCs
 :func:`prismstation.ops.rpc_project.export_dsm`, which prints the pairs' agreement), the same
 as the window's. Exit status 3 (after writing the file) when fewer than ``--min-fill``
-percent of the cells all images see got a matched height, or when a bias the data cannot
+percent of the seen cells (all images, or for images with RPCs any two) got a matched height, or when a bias the data cannot
 determine decides the heights (:func:`prismstation.ops.fit.heights_not_fixed`: no GCP, no
 reference DEM in the project's stored orientation), said in one line. ``--window``, ``--fill``,
 ``--scheduler`` and ``--workers`` mean the same for both models; the RPC DSM is written tile
@@ -75,8 +75,9 @@ def run(args) -> int:
     fill = out.fill_percent
     rows, cols = dsm.shape
     n = len(project.scene.views)
+    seen_by = dsm.info.get("seen_by") or ('both' if n == 2 else 'all three' if n == 3 else f'all {n}')
     print(f"wrote {args.output}: {cols} × {rows} cells at {args.posting:g} m, {dsm.height_kind} heights, "
-          f"{fill:.1f} % of the {out.seen_cells} cells {'both' if n == 2 else 'all three' if n == 3 else f'all {n}'} "
+          f"{fill:.1f} % of the {out.seen_cells} cells {seen_by} "
           "images see matched" + (f", {out.filled_percent:.1f} % filled" if args.fill else ""))
     hm = dsm.info.get("heights")
     if hm:

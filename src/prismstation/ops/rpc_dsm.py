@@ -77,8 +77,9 @@ def rpc_height_domain(models) -> tuple[float, float]:
 def footprint_grid(models, shapes, posting: float, height: float, crs: str | None = None,
                    window=None) -> Grid:
     """The grid (``posting`` m) over the ground all images see at ``height`` (the intersection
-    of their footprints' bounding boxes), the first image's limited to ``window`` (col0, row0,
-    cols, rows) px when given; ``crs`` default the UTM zone of the centre."""
+    of their footprints' bounding boxes: the corners of skewed footprints in it are seen by a
+    pair only), the first image's limited to ``window`` (col0, row0, cols, rows) px when given;
+    ``crs`` default the UTM zone of the centre."""
     boxes, centres = [], []
     for k, (model, (rows, cols)) in enumerate(zip(models, shapes)):
         m = as_biased(model)
@@ -306,29 +307,32 @@ def tile_specs(plan: RpcDsmPlan, prior=None, points=None) -> list:
 
 
 def unseen_tile(plan: RpcDsmPlan, window, margin_px: float = 8.0) -> bool:
-    """Whether some image (the first one's ``crop``) sees nothing of the tile ``window``: its
-    corners at both ends of the height range all lie more than ``margin_px`` beyond one edge of
-    that image. Such a tile is not matched: its cells stay void and unseen."""
+    """Whether no pair of the plan sees the tile ``window`` (the first image only within its
+    ``crop``): an image misses it when its corners at both ends of the height range all lie more
+    than ``margin_px`` beyond one edge of that image. Such a tile is not matched: its cells
+    stay void and unseen."""
     r0, c0, rows, cols = window
     a, _, c, _, e, f = plan.grid.transform
     E = c + a * np.array([c0, c0 + cols, c0, c0 + cols] * 2, float)
     N = f + e * np.array([r0, r0, r0 + rows, r0 + rows] * 2, float)
     h = np.repeat(np.asarray(plan.height_range, float), 4)
     lon, lat = to_lonlat(plan.grid.crs)(E, N)
+    sees = []
     for k, (model, (ih, iw)) in enumerate(zip(plan.models, plan.shapes)):
         x0, y0, x1, y1 = (0, 0, iw, ih) if k or plan.crop is None else \
             (plan.crop[0], plan.crop[1], plan.crop[0] + plan.crop[2], plan.crop[1] + plan.crop[3])
         x, y = as_biased(model).project(lon, lat, h)
-        if (x < x0 - margin_px).all() or (x > x1 + margin_px).all() or \
-                (y < y0 - margin_px).all() or (y > y1 + margin_px).all():
-            return True
-    return False
+        sees.append(not ((x < x0 - margin_px).all() or (x > x1 + margin_px).all() or
+                         (y < y0 - margin_px).all() or (y > y1 + margin_px).all()))
+    if plan.crop is not None and not sees[0]:
+        return True
+    return not any(sees[i] and sees[j] for i, j in plan.pairs)
 
 
 @dataclass
 class TileSums:
     """What the tiles of :func:`match_tiles` add up to, grids aside (those go to the caller's
-    ``put``): the cells every image sees (``seen``) and with a height (``matched``); the pair
+    ``put``): the cells a pair of images sees (``seen``) and with a height (``matched``); the pair
     DSMs (``pairs``, :class:`PairDsm`, when kept) or a sample of their differences per two
     pairs (``samples``); the matched cells of each pair (``filled``), the largest epipolar
     error (px) and the matching's ``seconds``."""
@@ -395,7 +399,8 @@ def dsm_info(plan: RpcDsmPlan, sums: TileSums, n_tiles: int) -> dict:
         agreement = {f"{pairs[a]}-{pairs[b]}": _agreement(np.concatenate(d or [np.zeros(0)]),
                                                           np.concatenate(z or [np.zeros(0)]))
                      for (a, b), (d, z) in sums.samples.items()}
-    return {"pairs": [list(p) for p in pairs], "pair_agreement": agreement,
+    return {"pairs": [list(p) for p in pairs], "seen_by": "both" if len(plan.paths) == 2 else "two or more",
+            "pair_agreement": agreement,
             "agreement_sampled": not plan.keep_pairs,
             "pair_fill": [float(f) / sums.seen if sums.seen else 0.0 for f in sums.filled],
             "seconds": sums.seconds, "epipolar_error_px": sums.epipolar_px, "height_range": list(plan.height_range),
@@ -403,7 +408,7 @@ def dsm_info(plan: RpcDsmPlan, sums: TileSums, n_tiles: int) -> dict:
 
 
 def fill_grid(heights, mask, seen) -> int:
-    """The voids of the cells every image sees filled in place
+    """The voids of the seen cells filled in place
     (:func:`~prismstation.core.surfaces.dsm_grid.fill_voids_in_blocks`, as the DSM written
     tile by tile is), their mask :data:`MASK_FILLED`; returns the cells filled."""
     def read(r0, c0, rows, cols):
@@ -440,7 +445,8 @@ def rpc_dsm(paths, models, *, posting: float = 1.0, pairs=None, height_range=Non
     σ-weighted; a cell with one height (or two that disagree) keeps the one nearest its
     neighbours' fused surface within 3σ or three postings. The
     :class:`~prismstation.ops.dsm.Dsm` holds ellipsoidal heights on ``grid``, ``quality``
-    the pairs agreeing, ``seen`` the cells all images see, ``info["pair_agreement"]``
+    the pairs agreeing (a cell one pair alone sees keeps that pair's height),
+    ``seen`` the cells a pair of images sees, ``info["pair_agreement"]``
     (:func:`pair_agreement`), ``info["pair_fill"]`` and the tiles' largest epipolar error.
     The pair DSMs (:class:`PairDsm`) are returned when kept (``keep_pairs``, default: up to
     :data:`KEEP_PAIRS_CELLS`), else an empty list.

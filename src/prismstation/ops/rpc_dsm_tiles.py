@@ -152,21 +152,23 @@ def run_pair_tile(spec: PairTile):
     return h, cnt, sigma, stats
 
 
-def seen_by_all(models, shapes, grid: Grid, heights, window=None, crop=None) -> np.ndarray:
-    """Cells (of ``window`` = (row0, col0, rows, cols), default the grid) whose centre at
-    ``heights`` (NaN → their median) falls inside every image, and inside ``crop`` (col0, row0,
-    cols, rows) of the first one when given."""
+def seen_by(models, shapes, grid: Grid, heights, window=None, crop=None) -> np.ndarray:
+    """``(n_images, rows, cols)`` bool: which image sees each cell (of ``window`` = (row0, col0,
+    rows, cols), default the grid) — its centre at ``heights`` (NaN → their median) inside the
+    image — all False outside ``crop`` (col0, row0, cols, rows) of the first image when given."""
     E, N = grid.cell_centres(window)
     lon, lat = to_lonlat(grid.crs)(E, N)
     h = np.where(np.isfinite(heights), heights, np.nanmedian(heights) if np.isfinite(heights).any() else 0.0)
-    seen = np.ones(E.shape, bool)
+    inside = np.zeros((len(models),) + E.shape, bool)
     for k, (model, (rows, cols)) in enumerate(zip(models, shapes)):
-        x0, y0, x1, y1 = 0, 0, cols, rows
-        if k == 0 and crop is not None:
-            x0, y0, x1, y1 = crop[0], crop[1], crop[0] + crop[2], crop[1] + crop[3]
         x, y = as_biased(model).project(lon, lat, h)
-        seen &= (x >= x0) & (x < x1) & (y >= y0) & (y < y1)
-    return seen
+        inside[k] = (x >= 0) & (x < cols) & (y >= 0) & (y < rows)
+        if k == 0 and crop is not None:
+            c0, r0, w, hh = crop
+            in_crop = (x >= c0) & (x < c0 + w) & (y >= r0) & (y < r0 + hh)
+    if crop is not None:
+        inside &= in_crop[None]
+    return inside
 
 
 def fuse_pairs(vals, sig, tau: float, posting: float):
@@ -216,7 +218,15 @@ def run_block_tile(spec: BlockTile):
     counts = np.stack([o[1] for o in outs])
     sig = np.stack([o[2] for o in outs])
     h, q = fuse_pairs(vals, sig, spec.tau, spec.grid.posting)
-    seen = seen_by_all(spec.models, spec.shapes, spec.grid, h, spec.window, spec.crop)
+    with np.errstate(invalid="ignore"):
+        where = np.where(np.isfinite(h), h, np.fmax.reduce(vals, axis=0))     # where to look
+    inside = seen_by(spec.models, spec.shapes, spec.grid, where, spec.window, spec.crop)
+    pair_sees = np.stack([inside[i] & inside[j] for i, j in spec.pairs])
+    # a cell one pair alone sees (two images of three) keeps that pair's height, as a pair DSM
+    alone = pair_sees.sum(axis=0) == 1
+    only = np.take_along_axis(np.where(pair_sees, vals, np.nan), np.argmax(pair_sees, axis=0)[None], 0)[0]
+    h[alone], q[alone] = only[alone], np.isfinite(only[alone])
+    seen = pair_sees.any(axis=0)
     h[~seen] = np.nan
     q[~seen] = 0
     return h, q, seen, vals, sig, counts, [o[3] for o in outs]

@@ -162,7 +162,7 @@ def result_message(out) -> tuple[str, bool]:
     min_fill_percent = out.request.min_fill_percent
     rows, cols = dsm.shape
     pairs = len((dsm.info or {}).get("pairs") or [[0, 1], [0, 2], [1, 2]])     # a triplet's three
-    every = {1: "both", 3: "all three"}.get(pairs, "all")
+    every = (dsm.info or {}).get("seen_by") or {1: "both", 3: "all three"}.get(pairs, "all")
     text = (f"Wrote {path}: {cols} × {rows} cells at {dsm.posting_m:g} m, {dsm.height_kind} heights; "
             f"{fill:.1f} % of the {seen} cells {every} images see matched"
             + (f", {filled:.1f} % filled by interpolation" if filled else ""))
