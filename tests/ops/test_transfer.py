@@ -184,7 +184,7 @@ def test_the_template_grows_until_its_texture_fixes_the_point(parcels):
     with ImageWindows(project.scene) as im:
         for p in points:
             xy = p["image"]["N"]
-            both, noise = template_halves(im, "N", xy)
+            both, noise = template_halves(im.around("N", xy[0], xy[1], 40), xy)
             fixed += noise == 12
             assert both >= noise            # point-sampled edges only ever ask for more
             for half in (12, None):
@@ -256,3 +256,23 @@ def test_the_second_opinion_is_one_match_from_the_first_not_another_search(parce
     assert seconds
     for start, end, smaller, ok in seconds:
         assert ok and smaller and start == pytest.approx(end)
+
+
+def test_a_transfer_reads_the_source_view_once(parcels, monkeypatch):
+    """The source's window serves the template's size and every template: one read of the
+    source a point (its tiles are decoded once, but each read costs; it was read twice)."""
+    from prismstation.io.windows import ImageWindows
+    project, sol, dem, points = parcels
+    reads = []
+    read = ImageWindows.read
+
+    def counted(self, view, *a, **k):
+        reads.append(view)
+        return read(self, view, *a, **k)
+    monkeypatch.setattr(ImageWindows, "read", counted)
+    with ImageWindows(project.scene) as im:
+        for p in points[:8]:
+            reads.clear()
+            tr = transfer(sol, im, "N", p["image"]["N"], height_of=dem)
+            assert reads.count("N") == 1 and set(tr) == {"F", "B"}
+            assert all(reads.count(v) in (1, 2) for v in "FB"), reads   # twice: searched again at a found view's height

@@ -45,7 +45,7 @@ from prismstation.core.matching.lsm_search import best_score, match
 from prismstation.core.models.solution import Solution
 from prismstation.io.windows import ImageWindows
 from prismstation.ops.transfer_slope import fitted_slope, plane, slope_shapes
-from prismstation.ops.transfer_template import TEMPLATE_HALVES, template_halves
+from prismstation.ops.transfer_template import SOURCE_MARGIN, TEMPLATE_HALVES, template_halves
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 from prismstation.ops.predict import DEFAULT_HEIGHT_SPREAD_M, dem_sigma, ground_jacobian, height_spread
 
@@ -271,7 +271,9 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     adaptive = half_window is None
     h_noise = None
     if adaptive:
-        half_window, h_noise = template_halves(images, source, xy)
+        # the source read once: for the template's size and for the templates
+        source_window = images.around(source, xy[0], xy[1], TEMPLATE_HALVES[-1] + SOURCE_MARGIN)
+        half_window, h_noise = template_halves(source_window, xy)
     # a failing match is tried with the smaller sizes, the nearest first (relief within the
     # template spoils a large one)
     others = sorted((h for h in TEMPLATE_HALVES if h < half_window), reverse=True) if adaptive else []
@@ -294,7 +296,7 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
         # starts): the size the noise asks for, the one point-sampled edges ask for its second
         half_window, h_noise = h_noise, half_window
     radius = search_radius_px(model_sigma_m(sol) * np.sqrt(2), sc.views[source].pixel_size_m)
-    ref, rc0, rr0 = images.around(source, xy[0], xy[1], biggest + 8)
+    ref, rc0, rr0 = source_window if adaptive else images.around(source, xy[0], xy[1], biggest + SOURCE_MARGIN)
     out, guided = {}, set()
     for v in targets:
         if v in out and out[v].ok:

@@ -5,11 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 from prismstation.core.matching.lsm_sigma import template_sigmas
-from prismstation.io.windows import ImageWindows
 
 TEMPLATE_HALVES = (12, 18, 24, 32)
 """Template half sizes (px), tried smallest first: a template grows until its texture can fix
 the point in every direction (:func:`template_halves`)."""
+SOURCE_MARGIN = 8
+"""Pixels of the source view read beyond a template's half size (a smoothed pass's template is
+``⌈3 × 1.5⌉`` px larger)."""
 TEXTURE_SIGMA_PX = 0.05
 """The σ (px) a template's texture must promise in its weakest direction
 (:func:`prismstation.core.matching.lsm_sigma.template_sigmas`) to be used: a third of the
@@ -17,10 +19,9 @@ TEXTURE_SIGMA_PX = 0.05
 model (shape, relief)."""
 
 
-def template_halves(images: ImageWindows, source: str, xy, halves=TEMPLATE_HALVES,
-                    target: float = TEXTURE_SIGMA_PX) -> tuple[int, int]:
+def template_halves(window, xy, halves=TEMPLATE_HALVES, target: float = TEXTURE_SIGMA_PX) -> tuple[int, int]:
     """``(with sampling, noise only)``: the smallest template half sizes of ``halves`` whose
-    texture around ``xy`` of ``source`` promises ``target`` px or better in its weakest
+    texture around image pixel ``xy`` promises ``target`` px or better in its weakest
     direction — from the image noise and the place of point-sampled edges, and from the noise
     alone (the largest that fits in the image when none does).
 
@@ -28,11 +29,15 @@ def template_halves(images: ImageWindows, source: str, xy, halves=TEMPLATE_HALVE
     edge, they hold nothing that fixes the point — on another simulator's triplet a third of the
     points failed so (``texture``, ``shape``) — and where each pixel is one point of the ground
     (no optical blur) an edge lies anywhere between two samples: a position is then the mean
-    over many edges' phases."""
-    big = images.around(source, xy[0], xy[1], halves[-1] + 3)
-    if big[0] is None:
+    over many edges' phases.
+
+    ``window``: ``(array, col0, row0)`` of the source view around ``xy`` as
+    :meth:`~prismstation.io.windows.ImageWindows.around` returns it, at least
+    ``halves[-1] + 3`` px each side where the image has them (the transfer reads it once for
+    this and for its templates: :data:`SOURCE_MARGIN`)."""
+    a, c0, r0 = window
+    if a is None:
         return halves[0], halves[0]
-    a, c0, r0 = big
     i0, j0 = int(np.floor(xy[0])) - c0, int(np.floor(xy[1])) - r0
     fit = [h for h in halves if i0 - h - 2 >= 0 and j0 - h - 2 >= 0 and i0 + h + 3 <= a.shape[1]
            and j0 + h + 3 <= a.shape[0]]
@@ -44,8 +49,3 @@ def template_halves(images: ImageWindows, source: str, xy, halves=TEMPLATE_HALVE
     noise = next((h for h, s in zip(fit, sig) if s[0] <= target), fit[-1])
     return both, noise
 
-
-def template_half(images: ImageWindows, source: str, xy, halves=TEMPLATE_HALVES,
-                  target: float = TEXTURE_SIGMA_PX) -> int:
-    """The template half size for ``xy`` of ``source``: the first of :func:`template_halves`."""
-    return template_halves(images, source, xy, halves, target)[0]
