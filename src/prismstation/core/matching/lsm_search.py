@@ -57,10 +57,10 @@ def correlate(reference, x: float, y: float, search, pred, A0, direction, along:
     l1 = int(np.ceil(corners[:, 1].max())) + 1
     # R[l, k] = S(pred + A0·(w_tl + (k0 + k, l0 + l)) + …): the template's top-left offset w_tl
     ou, ov = i0 - half + 0.5 - x, j0 - half + 0.5 - y
-    kk, ll = np.meshgrid(np.arange(k1 - k0 + 2 * half + 1) + k0 + ou,
-                         np.arange(l1 - l0 + 2 * half + 1) + l0 + ov)
-    mx = (pred[0] + A0[0, 0] * kk + A0[0, 1] * ll - 0.5).astype(np.float32)
-    my = (pred[1] + A0[1, 0] * kk + A0[1, 1] * ll - 0.5).astype(np.float32)
+    kk = (np.arange(k1 - k0 + 2 * half + 1) + k0 + ou)[None, :]        # broadcast, not meshed:
+    ll = (np.arange(l1 - l0 + 2 * half + 1) + l0 + ov)[:, None]        # the same sums, fewer passes
+    mx = ((pred[0] - 0.5 + A0[0, 0] * kk) + A0[0, 1] * ll).astype(np.float32)
+    my = ((pred[1] - 0.5 + A0[1, 0] * kk) + A0[1, 1] * ll).astype(np.float32)
     lo_x, lo_y = int(max(np.floor(mx.min()) - 2, 0)), int(max(np.floor(my.min()) - 2, 0))
     hi_x = int(min(np.ceil(mx.max()) + 3, search.shape[1]))
     hi_y = int(min(np.ceil(my.max()) + 3, search.shape[0]))
@@ -75,11 +75,11 @@ def correlate(reference, x: float, y: float, search, pred, A0, direction, along:
     # cells whose window holds a pixel from outside the search image are not allowed
     full = (np.full(ncc.shape, tpl.size, np.float32) if valid.all() else
             cv2.matchTemplate(valid.astype(np.float32), np.ones_like(tpl), cv2.TM_CCORR))
-    sk, sl = np.meshgrid(np.arange(ncc.shape[1]) + k0, np.arange(ncc.shape[0]) + l0)
-    off_x = A0[0, 0] * sk + A0[0, 1] * sl
-    off_y = A0[1, 0] * sk + A0[1, 1] * sl
-    allowed = ((np.abs(off_x * d[0] + off_y * d[1]) <= along + 0.5)
-               & (np.abs(off_x * c[0] + off_y * c[1]) <= across + 0.5)
+    # each cell's offset A0·(k, l) along d and across c: a row term plus a column term
+    sk, sl = (np.arange(ncc.shape[1]) + k0)[None, :], (np.arange(ncc.shape[0]) + l0)[:, None]
+    ad, ac = A0.T @ d, A0.T @ c
+    allowed = ((np.abs(ad[0] * sk + ad[1] * sl) <= along + 0.5)
+               & (np.abs(ac[0] * sk + ac[1] * sl) <= across + 0.5)
                & (full > tpl.size - 0.5) & np.isfinite(ncc))
 
     def shifts(k, l):
