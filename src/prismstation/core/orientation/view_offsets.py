@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 from prismstation.core.lazy_cv2 import cv2  # imported at first use: start-up saving
 import numpy as np
-from scipy import ndimage, stats
+from scipy import ndimage, special   # special.fdtri is stats.f.ppf without importing scipy.stats (~0.3 s)
 
 from prismstation.core.models import prism
 from prismstation.core.matching.coarse import K_SIGMA, Offset, image_offset, search_radius_px
@@ -268,7 +268,7 @@ def gradient(offsets: list[ViewOffset], centre) -> tuple[np.ndarray, np.ndarray]
         ssr_a = float(np.sum((d[:, k] - A @ coef) ** 2))
         ssr_c = float(np.sum((d[:, k] - mean[k]) ** 2))
         f = (ssr_c - ssr_a) / 2 / max(ssr_a / (n - 3), 1e-12)
-        if f > stats.f.ppf(1 - GRADIENT_ALPHA, 2, n - 3):
+        if f > special.fdtri(2, n - 3, 1 - GRADIENT_ALPHA):
             o[k], G[k] = coef[0], coef[1:]
     return o, G
 
