@@ -36,7 +36,7 @@ from rasterio.transform import RPCTransformer
 from scipy.optimize import least_squares
 
 from prismstation.core.models.rpc_adjust import adjust, adjust_snooping
-from prismstation.core.models.rpc_bias import BiasedRpc, intersect_points
+from prismstation.core.models.rpc_bias import intersect_points
 from prismstation.core.matching.rpc_tiepoints import match_tie_points
 from prismstation.io.rpc import read_rpc, read_rpc_file
 

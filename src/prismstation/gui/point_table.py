@@ -18,7 +18,7 @@ from PySide6.QtGui import QBrush, QColor
 from prismstation.core.models.scene import reference_view
 from prismstation.gui.overlays import KIND_COLORS
 from prismstation.gui.plain import plain
-from prismstation.gui.static_text import ALIGN_LEFT, ALIGN_RIGHT
+from prismstation.gui.static_text import ALIGN_RIGHT
 
 COLUMNS = ("ID", "Kind", "Views", "vx (px)", "vy (px)", "|v| max (px)", "E est (m)", "N est (m)",
            "h est (m)", "dh (m)", "std. res.", "E (m)", "N (m)", "H (m)", "Height", "σ plan (m)",

@@ -16,7 +16,6 @@ def make_scene(heading_deg=192.0, path_oriented=True, size=14000, p=2.5):
     hd = np.radians(heading_deg)
     t = np.array([np.sin(hd), np.cos(hd)])
     across = np.array([t[1], -t[0]])  # to the left of flight
-    rot = np.arctan2(t[0], t[1]) if path_oriented else 0.0
     views = {}
     for name, ang, off in (("N", 0.0, 0.0), ("F", 26.4, 13.0), ("B", 26.8, -9.0)):
         # image axes: x across (to the right of flight), y along flight (path-oriented)

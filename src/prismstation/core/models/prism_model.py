@@ -13,7 +13,7 @@ import numpy as np
 
 from prismstation.core.orientation import dem_orient
 from prismstation.core.models import prism
-from prismstation.core.models.prism import BiasFit, FixedPrism, ParallaxLine
+from prismstation.core.models.prism import BiasFit, ParallaxLine
 from prismstation.core.models.ray_dem import ray_meets_surface
 from prismstation.core.models.recent import Recent, key_of
 from prismstation.core.models.results import PointColumns, rows_array

@@ -80,7 +80,6 @@ class PointColumns:
         """The columns of :class:`PointResult` ``results`` (their own objects are kept: the
         results read back are these)."""
         results = list(results)
-        n = len(results)
 
         nan2, nan3 = (math.nan,) * 2, (math.nan,) * 3
 

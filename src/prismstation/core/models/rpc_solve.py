@@ -264,7 +264,7 @@ class _Block:
     def evaluate(self, model, res, height_of, settings):
         """The :class:`PointResult` of every point through the fitted ``model`` (an
         :class:`~prismstation.core.models.rpc_model.RpcModel`), and the mean height."""
-        pts, names, proj = self.points, self.names, self.projection
+        pts, proj = self.points, self.projection
         n = len(pts)
         est = np.full((n, 3), np.nan)
         sig = np.full((n, 3), np.nan)

@@ -133,7 +133,7 @@ class Control:
     """An orientation made elsewhere (from a reference DEM, docs/model.md §3) as a model's fit
     takes it: ``source`` in words (the fit's messages say it), ``part`` the model's own (the
     PRISM model: its bias per view and parallax line, which the fit then only evaluates —
-    :class:`~prismstation.core.models.prism_model.FixedPrism`; the RPC model: each view's a-priori
+    :class:`~prismstation.core.models.prism.FixedPrism`; the RPC model: each view's a-priori
     bias, view → :class:`~prismstation.core.models.rpc_solve.BiasPrior`, which the fit adjusts with),
     ``mean_height`` the height of points nothing else places (m, ellipsoidal; None: the fit's
     own). Made by the model's ``control_from_record`` from a project's saved record."""
