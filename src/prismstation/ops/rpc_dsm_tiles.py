@@ -224,7 +224,7 @@ def run_block_tile(spec: BlockTile):
     pair_sees = np.stack([inside[i] & inside[j] for i, j in spec.pairs])
     # a cell one pair alone sees (two images of three) keeps that pair's height, as a pair DSM
     alone = pair_sees.sum(axis=0) == 1
-    only = np.take_along_axis(np.where(pair_sees, vals, np.nan), np.argmax(pair_sees, axis=0)[None], 0)[0]
+    only = np.take_along_axis(vals, np.argmax(pair_sees, axis=0)[None], 0)[0]       # the one pair seeing
     h[alone], q[alone] = only[alone], np.isfinite(only[alone])
     seen = pair_sees.any(axis=0)
     h[~seen] = np.nan

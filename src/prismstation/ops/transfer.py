@@ -180,15 +180,11 @@ def terrain_gradient(height_of, en, radius_m: float):
     otherwise send it to the search without a slope, which is made for no reference at all."""
     pts = np.array([en + [radius_m, 0], en - [radius_m, 0], en + [0, radius_m], en - [0, radius_m], en])
     z = np.asarray(height_of(pts), float)
-    if np.all(np.isfinite(z[:4])):
-        return ((z[0] - z[1]) / (2 * radius_m), (z[2] - z[3]) / (2 * radius_m))
-    if not math.isfinite(z[4]):
-        return None
     out = []
     for up, down in ((z[0], z[1]), (z[2], z[3])):
         if math.isfinite(up) and math.isfinite(down):
             out.append((up - down) / (2 * radius_m))
-        elif math.isfinite(up) or math.isfinite(down):
+        elif math.isfinite(z[4]) and (math.isfinite(up) or math.isfinite(down)):
             out.append((up - z[4]) / radius_m if math.isfinite(up) else (z[4] - down) / radius_m)
         else:
             return None
