@@ -29,6 +29,15 @@ from prismstation.core.matching.lsm_spline import search_spline
 
 AMBIGUOUS, BORDER, LOW_SCORE = "ambiguous", "border", "low_score"
 
+MISFIT_FLOOR = 1e-6
+"""The least misfit ``1 − ρ²`` two matches are compared by: below it (a thousandth of a grey
+value on a texture of 30) the difference is the float32 interpolation's arithmetic, not the
+images' (exact copies of a patch)."""
+
+
+def _misfit(rho: float) -> float:
+    return max(1.0 - rho ** 2, MISFIT_FLOOR)
+
 
 def _frame(direction):
     d = np.asarray(direction, float)
@@ -164,7 +173,7 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
         t0 = pred + shifts(k, l)
         # a rival of a converged best matters only if it correlates nearly as well
         top = max((r.rho for r in results if r.ok), default=None)
-        need = None if top is None else float(np.sqrt(max(1.0 - ambiguity * (1.0 - top ** 2), 0.0)))
+        need = None if top is None else float(np.sqrt(max(1.0 - ambiguity * _misfit(top), 0.0)))
         r = lsm.refine(reference, x, y, search, t0, A0, half=half, spline=spline,
                        max_shape_change=max_shape_change, need_rho=need, **options)
         if not r.ok and coarse > 0 and r.status != lsm.OUTSIDE and not results:
@@ -189,7 +198,7 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
     if abs(off @ d) > along + 0.5 or abs(off @ c) > across + 0.5:
         return replace(best, status=BORDER, reason="the match lies at the end of the search range")
     for r in good[1:]:
-        if np.hypot(r.x - best.x, r.y - best.y) > 1.0 and 1 - r.rho ** 2 <= ambiguity * (1 - best.rho ** 2):
+        if np.hypot(r.x - best.x, r.y - best.y) > 1.0 and _misfit(r.rho) <= ambiguity * _misfit(best.rho):
             return replace(best, status=AMBIGUOUS, reason=f"two matches {np.hypot(r.x - best.x, r.y - best.y):.1f} px "
                            f"apart correlate alike ({best.rho:.3f}, {r.rho:.3f}): repetitive or flat texture")
     return best
