@@ -96,9 +96,10 @@ SETS = {
                ("dem", 25, (5.90, 44.85))],
     # the simulator's options for what another renderer differs by (tuning): each pixel one
     # point of the ground (no point spread: edges alias), flat parcels with hard edges, 2 DN of
-    # noise, JPEG block noise
+    # noise, JPEG block noise; and real relief (a place of the SRTM tile tuned on before) so drawn
     "options": [("smooth", 31, None, dict(texture="parcels", psf_px=0.0, noise_dn=2.0)),
                 ("fractal", 32, None, dict(texture="parcels", psf_px=0.0, noise_dn=2.0)),
+                ("dem", 35, (5.63, 44.48), dict(texture="parcels", psf_px=0.0, noise_dn=2.0)),
                 ("smooth", 33, None, dict(psf_px=0.0, noise_dn=2.0)),
                 ("smooth", 34, None, dict(jpeg_quality=75))],
 }
