@@ -96,3 +96,22 @@ def test_fit_with_too_few_gcps_exits_2(tmp_path, capsys):
     assert main(["fit", str(proj)]) == 2
     assert "at least 3 GCPs" in capsys.readouterr().err
     assert main(["fit", str(proj), "--bias", "shift"]) == 0
+
+
+def test_a_reader_that_stops_early_ends_the_command_quietly(tmp_path):
+    """`prismstation fit p | head -0`: the pipe closes under the report; the command ends with
+    the shell's status for SIGPIPE (141), prints nothing more and logs no crash (it did: a
+    traceback in the state folder and a line naming a broken pipe as the command's error)."""
+    import os
+    import subprocess
+    from pathlib import Path
+    import sys
+    from prismstation.sim.small_project import make_project
+    proj = make_project(tmp_path / "p", images=False).path
+    env = {**os.environ, "XDG_STATE_HOME": str(tmp_path / "state")}
+    proc = subprocess.Popen([str(Path(sys.executable).with_name("prismstation")), "fit", str(proj)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    proc.stdout.close()                       # the reader goes away before the report is written
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141 and err == "", err
+    assert not (tmp_path / "state").exists() or not any((tmp_path / "state").rglob("crash-*"))

@@ -51,6 +51,11 @@ def main(argv: list[str] | None = None) -> int:
         _end_progress()
         print(f"prismstation {_command(argv)}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of the output went away (`prismstation fit p | head`): quietly, as other
+        # commands do, with the shell's status for SIGPIPE; nothing more is written to the pipe
+        _silence_stdio()
+        return 141
     except (Exception, MemoryError) as exc:  # a bug or the memory: one line, the traceback logged
         _end_progress()
         print(unexpected_line(_command(argv), _subject(_kept[-1] if _kept else None), exc), file=sys.stderr)
@@ -60,6 +65,18 @@ def main(argv: list[str] | None = None) -> int:
 
 
 _kept: list = []  # the parsed arguments, for the line of an unexpected error
+
+
+def _silence_stdio() -> None:
+    """Point stdout and stderr at the null device, so that the interpreter's last flush finds
+    no closed pipe."""
+    import os
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            os.dup2(devnull, stream.fileno())
+        except (OSError, ValueError):   # not a file (captured in tests): nothing to flush there
+            pass
 
 
 def _keep(args):
@@ -147,6 +164,8 @@ def _main(argv: list[str], keep) -> int:
         for line in gdal_lines.kept:  # no error to carry them: as GDAL printed them
             print(line, file=sys.stderr)
         return status
+    except BrokenPipeError:
+        raise
     except (PrismError, OSError) as exc:
         end_progress()
         text, cause = str(exc), gdal_lines.cause()
