@@ -54,3 +54,25 @@ def test_json_keeps_each_models_layout_beside_the_report():
     rpc = _orientation({"biases": {}}, report_key="report")
     assert rpc.json(report) == {"dem_control": {"biases": {}}, "report": report}
     assert rpc.json(None) == {"dem_control": {"biases": {}}}
+
+
+@pytest.mark.parametrize("size, pixel_m, expected_m", [(2000, 5.0, 2500.0), (1200, 20.0, 4000.0), (1000, 2.5, 1000.0)])
+def test_orient_dem_cuts_patches_of_a_quarter_of_the_scene_by_default(tmp_path, monkeypatch, size, pixel_m, expected_m):
+    """`orient-dem` without --patch-km: a quarter of the scene's shorter side, 1–4 km, as the
+    window offers (a 10 km scene: 2.5 km, 16 patches; before, 4 km on every scene: 4 patches
+    on a 10 km one, refused as too few); --patch-km still rules."""
+    import prismstation.ops.prism_project as pp
+    from prismstation.cli import main
+    from prismstation.errors import InputError
+    from prismstation.sim.small_project import make_project
+    proj = make_project(tmp_path / "p", size=size, p=pixel_m).path
+    (tmp_path / "ref.tif").write_bytes(b"")
+    asked = []
+
+    def engine(*args, **kw):
+        asked.append(kw["patch_m"])
+        raise InputError("stopped here")
+    monkeypatch.setattr(pp, "orient_from_dem", engine)
+    assert main(["orient-dem", str(proj), str(tmp_path / "ref.tif")]) == 2
+    assert main(["orient-dem", str(proj), str(tmp_path / "ref.tif"), "--patch-km", "3"]) == 2
+    assert asked == [expected_m, 3000.0]

@@ -34,7 +34,9 @@ def register(sub) -> None:
                         "every search covers 3 σ (default 50: the ~50 m shifts Gonçalves reports "
                         "for uncalibrated products; about 10 for calibrated ones; images with RPCs: "
                         "a 100 m search)")
-    p.add_argument("--patch-km", type=float, default=4.0, help="patch size (default 4 km)")
+    p.add_argument("--patch-km", type=float,
+                   help="patch size, km (default: a quarter of the scene's shorter side, between 1 and 4 km: "
+                        "4 km on a full PRISM scene, 2.5 km on a 10 km one)")
     p.add_argument("--posting", type=float,
                    help="grid posting of the matching, m (default 30; images with RPCs: 8 pixels)")
     p.add_argument("--target-m", type=float, default=TARGET_M, metavar="M",
@@ -55,8 +57,8 @@ def run(args) -> int:
     project = load_project(existing(args.project, "project"))
     require_workflow(project, "orient-dem", args.project)
     existing(args.reference, "reference DEM")
-    request = OrientRequest(args.geolocation_sigma_m, args.posting, args.patch_km * 1000, args.target_m,
-                            args.with_gcps)
+    patch_m = None if args.patch_km is None else args.patch_km * 1000
+    request = OrientRequest(args.geolocation_sigma_m, args.posting, patch_m, args.target_m, args.with_gcps)
     result = workflows_of(project).orient(project, args.reference, request, progress=progress_printer())
     end_progress()
     if result.record is None:

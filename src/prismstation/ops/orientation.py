@@ -11,6 +11,7 @@ window's tool never ask which model it is.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 from prismstation.core.orientation.conditioning import TARGET_M, OrientVerdict
@@ -24,14 +25,14 @@ class OrientRequest:
     ``sigma_apriori_m``: each view's a-priori geolocation σ per component (m); every search
     covers 3 σ (PRISM default 50 m; images with RPCs: a 100 m bound of the block's shift).
     ``posting_m``: the matching's grid posting (m; PRISM 30 m, RPC 8 pixels). ``patch_m``:
-    the patch size (m; a PRISM triplet). ``target_m``: the planimetric and height σ an
+    the patch size (m; a PRISM triplet; None: :func:`default_patch_km` of the scene). ``target_m``: the planimetric and height σ an
     orientation must reach to be trusted (m; a PRISM triplet). ``with_gcps``: the project's
     GCPs adjusted together with the reference (a PRISM triplet; the RPC fit uses its GCPs
     anyway)."""
 
     sigma_apriori_m: float | None = None
     posting_m: float | None = None
-    patch_m: float = 4000.0
+    patch_m: float | None = None
     target_m: float = TARGET_M
     with_gcps: bool = False
 
@@ -86,3 +87,22 @@ def apply_orientation(project: Project, orientation: Orientation) -> None:
     with project.batch():
         project.set_dem_control(orientation.record)
         project.set_settings(replace(project.settings, orientation="dem"))
+
+
+def scene_km(scene) -> tuple[float, float]:
+    """The reference image's extent on the ground, (across, along) kilometres."""
+    n = scene.views[scene.reference_view]
+    rows, cols = n.shape
+    return cols * n.pixel_size_m / 1000.0, rows * n.pixel_size_m / 1000.0
+
+
+def default_patch_km(scene) -> float:
+    """A quarter of the scene's shorter side, between 1 and 4 km, in 0.05 km steps: 4 × 4
+    patches on a small scene (the demo's 5 km: 1.25 km; a 10 km scene: 2.5 km), 4 km patches
+    on a full PRISM scene. (4 km on a 10 km scene was 4 patches, refused as too few; on the
+    5 km demo one patch: minutes of matching for a verdict of "too few".) 4 km where the
+    image's size is not known."""
+    if scene.views[scene.reference_view].shape is None:
+        return 4.0
+    side = min(scene_km(scene))
+    return float(min(4.0, max(1.0, math.floor(side / 4.0 / 0.05) * 0.05)))

@@ -138,7 +138,8 @@ def test_the_default_patch_size_follows_the_scene(window):
     'too few'); a full 35 km PRISM scene: 4 km; the dialog says when a size gives too few."""
     from dataclasses import replace
 
-    from prismstation.gui.tools.dem_orientation import OrientDialog, default_patch_km, patch_count
+    from prismstation.gui.tools.dem_orientation import OrientDialog, patch_count
+    from prismstation.ops.orientation import default_patch_km
     scene = window.project.scene
 
     def sized(px):

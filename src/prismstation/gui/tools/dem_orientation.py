@@ -44,6 +44,7 @@ from prismstation.gui.titles import fit_title
 from prismstation.gui.tools._worker import run_with_progress
 from prismstation.io.jsonfile import number
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
+from prismstation.ops.orientation import default_patch_km, scene_km
 from prismstation.ops.sensors import workflows_of
 
 VECTOR_FRACTION = 0.08  # the longest shift vector is drawn this fraction of the N image width
@@ -71,21 +72,6 @@ class SetDemOrientation(QUndoCommand):
 
     def undo(self) -> None:
         self._apply(self.old_record, self.old_settings)
-
-
-def scene_km(scene) -> tuple[float, float]:
-    """The N image's extent on the ground, (across, along) kilometres."""
-    n = scene.views[scene.reference_view]
-    rows, cols = n.shape
-    return cols * n.pixel_size_m / 1000.0, rows * n.pixel_size_m / 1000.0
-
-
-def default_patch_km(scene) -> float:
-    """A quarter of the scene's shorter side, between 1 and 4 km, in 0.05 km steps: 4 × 4
-    patches on a small scene (the demo's 5 km: 1.25 km), 4 km patches on a full PRISM scene.
-    (4 km on the 5 km demo was one patch: minutes of matching for a verdict of "too few".)"""
-    side = min(scene_km(scene))
-    return float(min(4.0, max(1.0, np.floor(side / 4.0 / 0.05) * 0.05)))
 
 
 def patch_count(scene, patch_km: float) -> tuple[int, int]:
