@@ -44,6 +44,7 @@ from prismstation.core.matching.lsm import LsmResult, refine
 from prismstation.core.matching.lsm_search import best_score, match
 from prismstation.core.models.solution import Solution
 from prismstation.io.windows import ImageWindows
+from prismstation.ops.transfer_relief import source_axes, with_relief
 from prismstation.ops.transfer_slope import fitted_slope, plane, slope_shapes
 from prismstation.ops.transfer_template import SOURCE_MARGIN, TEMPLATE_HALVES, template_halves
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
@@ -350,6 +351,13 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     if check and len(targets) >= 2 and len(found) == 1:
         out = _confirm(sol, images, source, xy, ref, (rc0, rr0), out, found[0], shapes, (en_pt, h_pt),
                        half_window, free, search=found[0] not in guided)
+    if not free and any(t.ok for t in out.values()):
+        # the relief within each template that its patch cannot follow, as the DEM shows it
+        sigma_dem = dem_sigma(height_of, known_ground(sol)) if sigma_dem is None else sigma_dem
+        axes = source_axes(sol, source, (*en_pt, h_pt))
+        out = {v: replace(t, match=with_relief(t.match, ref, xy - (rc0, rr0), axes, (*en_pt, h_pt), shapes[v].dh,
+                                               height_of, sigma_dem, MAX_SIGMA_PX)) if t.ok else t
+               for v, t in out.items()}
     if check and len([t for t in out.values() if t.ok]) >= 2:
         out = consistency(sol, source, xy, out, h_pt, en0=en_pt)
     return out

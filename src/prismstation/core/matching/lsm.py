@@ -94,7 +94,7 @@ class LsmResult:
     ``g1``, ``g0``; ``rho``: correlation of the template with the fitted patch;
     ``iterations``; ``status`` / ``reason``; ``score``: the correlation peak the search started
     from (:mod:`prismstation.core.matching.lsm_search`); ``extra``: ``bend`` (c1, c2, c3), ``sigma_relief``,
-    ``sigma_across`` (px) and the parallax direction ``d``."""
+    ``sigma_across`` (px), the parallax direction ``d`` and the template's ``half`` size."""
 
     x: float
     y: float
@@ -308,7 +308,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     res = LsmResult(float(t[0]), float(t[1]), cov, formal, fit.A.copy(), float(fit.g1), float(fit.g0),
                     rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),
                                            "sigma_relief": s_relief, "sigma_across": s_across, "d": d,
-                                           "taper": local})
+                                           "taper": local, "half": half})
     if rho < min_rho:
         return _as_failure(res, LOW_CORRELATION, f"correlation {rho:.2f} below {min_rho:.2f}")
     smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))

@@ -1,0 +1,115 @@
+"""The relief within a transfer's template that its patch cannot follow, as the reference DEM
+shows it (:func:`relief_bias_px`): a term of the transferred point's σ along the parallax.
+
+An affine patch (and its bend along the parallax) follows a plane (and a quadratic) of
+heights over the template; the rest of the relief moves the search image's texture along the
+parallax by ``k·Δh`` (``k`` px per metre of height), and the fit places the point where the
+texture's information is, not at the point: on steep relief with few edges (field parcels)
+that is pixels. Coordinates: image ``x`` = column, ``y`` = row, pixels (docs/model.md §1).
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from prismstation.core.matching.lsm import LsmResult, template
+from prismstation.core.models.solution import Solution
+from prismstation.ops.predict import ground_jacobian
+
+RELIEF = "relief"
+"""The status of a match whose σ, the relief's term in it, is above the largest accepted."""
+
+
+def source_axes(sol: Solution, source: str, ground) -> np.ndarray:
+    """``(2, 2)`` px per map metre of ``source`` at ``ground`` ``(E, N, h)``: what
+    :func:`with_relief` carries the template's pixels to the ground with."""
+    return ground_jacobian(sol, source, np.asarray(ground, float))[1][:, :2]
+
+
+def with_relief(m: LsmResult, reference, xy, axes, ground, dh, height_of, sigma_dem: float,
+                max_sigma: float) -> LsmResult:
+    """``m`` (a match of a source view's point ``xy`` — in ``reference``'s pixels) with the
+    relief's term along its parallax in its covariance: :func:`relief_bias_px`, less what the
+    reference's own noise (σ ``sigma_dem`` m per source cell) would make of it
+    (``extra["relief_px"]``); a failure (:data:`RELIEF`) when its σ then exceeds ``max_sigma``
+    px. ``axes``: :func:`source_axes`; ``ground``: the point's ``(E, N, h)`` on the reference
+    DEM ``height_of``; ``dh``: px per metre of height in the matched view."""
+    d = np.asarray(m.extra["d"], float)
+    tpl = template(reference, xy[0], xy[1], int(m.extra["half"]))
+    if tpl is None:
+        return m
+    bias, noise = relief_bias_px(axes, float(np.hypot(*dh)), ground, tpl, d, bool(np.any(m.extra["bend"])),
+                                 height_of, sigma_dem)
+    b2 = max(bias * bias - noise * noise, 0.0)
+    if b2 == 0.0:
+        return replace(m, extra={**m.extra, "relief_px": 0.0})
+    cov = m.cov + b2 * np.outer(d, d)
+    out = replace(m, cov=cov, extra={**m.extra, "relief_px": float(np.sqrt(b2))})
+    smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
+    if smax > max_sigma:
+        return replace(out, status=RELIEF, reason=f"the relief within the template, as the reference DEM shows it, "
+                       f"may move the point by {np.sqrt(b2):.2f} px along the parallax: σ {smax:.2f} px above "
+                       f"{max_sigma:.2f}")
+    return out
+
+
+#: the cell (m) of a reference DEM whose own is not known: SRTM's 3″
+DEFAULT_CELL_M = 90.0
+#: template pixels per side pooled into one height sample (the relief varies over tens of metres)
+POOL_PX = 4
+
+
+def relief_bias_px(axes, k: float, ground, template, d, bend: bool, height_of,
+                   sigma_dem: float = 0.0) -> tuple[float, float]:
+    """``(bias, noise)`` px: the displacement along the parallax direction ``d`` (unit, in
+    ``view``) that the reference DEM's relief within ``template`` leaves at the point — the
+    displacement ``k·(h(u, v) − h(0, 0))`` of the template's pixels (pooled
+    :data:`POOL_PX` square), fitted by the patch's model (a plane in ``u, v``; with ``bend`` a
+    quadratic) weighted by the template's information along the parallax (its squared gradient
+    along ``d``), at the point — and the σ of that figure that white noise of ``sigma_dem`` m
+    per cell of the reference's own grid would give. ``axes``: the source's px per map metre
+    (:func:`source_axes`); ``k``: px along ``d`` per metre of height in the matched view;
+    ``ground``: the point's ``(E, N, h)``;
+    ``template``: ``(T, u, v)`` of :func:`prismstation.core.matching.lsm.template`;
+    ``height_of``: the reference DEM (map metres ``(n, 2)`` → ellipsoidal metres). ``(0, 0)``
+    where the DEM has no height at the point or under a quarter of the template."""
+    T, u, v = template
+    g = np.asarray(ground, float)
+    gv, gu = np.gradient(np.asarray(T, float))
+    w = (gu * d[0] + gv * d[1]) ** 2
+    n = T.shape[0] // POOL_PX * POOL_PX
+    lo = (T.shape[0] - n) // 2
+
+    def pool(a, how):
+        return how(a[lo:lo + n, lo:lo + n].reshape(n // POOL_PX, POOL_PX, n // POOL_PX, POOL_PX), axis=(1, 3)).ravel()
+
+    w, uv = pool(w, np.sum), np.vstack([pool(u, np.mean), pool(v, np.mean)])
+    # the pooled pixels on the ground: the source's own relief shift is the point's (a nadir
+    # view), its image axes carried by the planar part of its Jacobian
+    en = g[:2, None] + np.linalg.solve(axes, uv)
+    h = np.asarray(height_of(np.vstack([en.T, g[None, :2]])), float)
+    h0, h = h[-1], h[:-1]
+    ok = np.isfinite(h)
+    if not np.isfinite(h0) or ok.mean() < 0.75 or not np.any(w[ok] > 0):
+        return 0.0, 0.0
+    half = max(float(np.abs(uv).max()), 1.0)
+    a, b = uv[0, ok] / half, uv[1, ok] / half
+    A = np.vstack([np.ones_like(a), a, b] + ([a * a, a * b, b * b] if bend else [])).T
+    wo = w[ok]
+    N = A.T @ (A * wo[:, None])
+    if np.linalg.cond(N) > 1e10:        # the texture fixes no patch (the match refuses it)
+        return 0.0, 0.0
+    beta = np.linalg.solve(N, (A * wo[:, None]).T)[0]                 # the fit at the point
+    bias = k * float(beta @ (h[ok] - h0))
+    # the reference's noise, white per cell of its own grid, each cell's height whole over it
+    # (an upper bound: a DEM interpolates between its posts, which leaves less bend): each
+    # cell's share of the fitted value, less the point's own cell (heights are relative to it)
+    cell = np.asarray(getattr(getattr(height_of, "grid", None), "source_cell_m", None)
+                      or (DEFAULT_CELL_M, DEFAULT_CELL_M), float)
+    ids = np.floor(np.hstack([en[:, ok], g[:2, None]]) / cell[:, None]).astype(np.int64)
+    _, inv = np.unique(ids[0] * 1_000_003 + ids[1], return_inverse=True)
+    share = np.bincount(inv, weights=np.append(beta, -1.0))
+    noise = k * float(sigma_dem) * float(np.sqrt(np.sum(share ** 2)))
+    return bias, noise
+
