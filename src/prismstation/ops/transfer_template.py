@@ -44,7 +44,7 @@ def template_halves(window, xy, halves=TEMPLATE_HALVES, target: float = TEXTURE_
     if not fit:
         return halves[0], halves[0]
     m = fit[-1] + 2
-    sig = template_sigmas(a[j0 - m:j0 + m + 1, i0 - m:i0 + m + 1], fit)
+    sig = template_sigmas(a[j0 - m:j0 + m + 1, i0 - m:i0 + m + 1], fit, stop=target)
     both = next((h for h, s in zip(fit, sig) if s[1] <= target), fit[-1])
     noise = next((h for h, s in zip(fit, sig) if s[0] <= target), fit[-1])
     return both, noise

@@ -168,12 +168,13 @@ def sampling_scatter(J, gx, gy, ex, ey, block: int = SAMPLING_BLOCK):
     return cx.T @ cx + cy.T @ cy
 
 
-def template_sigmas(a, halves, block: int = 4) -> list[tuple[float, float]]:
+def template_sigmas(a, halves, block: int = 4, stop: float = 0.0) -> list[tuple[float, float]]:
     """For each half size ``h`` of ``halves``, the σ (px) the ``(2h+1)²`` template centred in
     ``a`` (grey values, square, odd side) can fix a position to in its weakest direction before
     any match: ``(from the noise, from the noise and point sampling)`` — the first as
     :func:`texture_sigma`, the second adding :func:`sampling_px`'s displacements in both views
-    (the position alone; the match's shape adds to it). One pass over ``a`` for all sizes."""
+    (the position alone; the match's shape adds to it). One pass over ``a`` for all sizes;
+    with ``stop`` > 0, none after the first size whose two σ are both at most ``stop``."""
     a = np.asarray(a, np.float64)
     c = a.shape[0] // 2
     lap = np.abs(ndimage.correlate(a, _LAPLACE, mode="nearest"))
@@ -198,9 +199,13 @@ def template_sigmas(a, halves, block: int = 4) -> list[tuple[float, float]]:
         ex, ey = edges[0][sl, sl], edges[1][sl, sl]
         if not (ex.any() or ey.any()):
             out.append((s_noise, s_noise))
+            if s_noise <= stop:
+                break
             continue
         J = np.stack([gx[sl, sl], gy[sl, sl]], -1)
         Mi = np.linalg.inv(np.einsum("ijk,ijl->kl", J, J))
         C = 2.0 * Mi @ sampling_scatter(J, J[..., 0], J[..., 1], ex, ey, block) @ Mi
         out.append((s_noise, float(np.hypot(s_noise, np.sqrt(max(np.linalg.eigvalsh(C)[-1], 0.0))))))
+        if out[-1][1] <= stop:
+            break
     return out
