@@ -1,11 +1,14 @@
 """Another simulator's scene in the real window: its project opened, the SRTM-like reference
 chosen from View ▸ Reference DEM…, points placed in N by a click and transferred with Ctrl+T,
-accepted with Return — against the scene's exact image positions."""
+accepted with Return — against the scene's exact image positions; and, on request
+(``PRISMSTATION_FOREIGN_ORIENT=1``: minutes), oriented from that reference through the menu."""
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
+import pytest
 from PySide6.QtCore import Qt
 
 from tests.gui.test_reference_dem_and_lock import choose_dem, close_windows
@@ -44,4 +47,53 @@ def test_another_simulators_points_transfer_in_the_window(qtbot, foreign_data, t
         # carried into F and B as a shift: good to about a hundredth of a pixel here)
         assert found == 2 * len(chosen) and max(errors) < 1.0, (found, np.round(errors, 2))
     finally:
+        close_windows(qtbot, win)
+
+
+@pytest.mark.skipif(os.environ.get("PRISMSTATION_FOREIGN_ORIENT") != "1",
+                    reason="minutes of matching: run with PRISMSTATION_FOREIGN_ORIENT=1")
+def test_another_simulators_scene_orients_honestly_in_the_window(qtbot, foreign_data, tmp_path, monkeypatch, job_done):
+    """Tools ▸ Orient from reference DEM… on another simulator's 10 km scene, as offered (its
+    SRTM-like reference, a patch of a quarter of the scene: 2.5 km, 16 patches): the terrain
+    cannot fix it, the verdict says so and why, and — applied on the operator's yes — its
+    check points lie within twice the σ it states."""
+    from PySide6.QtWidgets import QDialog, QMessageBox
+
+    from prismstation.gui.tools import dem_orientation as mod
+    from prismstation.ops.fit import project_report, stored_solution
+    from prismstation.ops.project import create
+    from tests.gui.boxes import answer_next_box
+    d = foreign_data / "smooth_hills_10km"
+    pts = tmp_path / "points.csv"
+    pts.write_text((d / "points.csv").read_text().replace(",GCP,", ",ICP,"))
+    create(tmp_path / "f.prismproj", d / "scene.json", pts, d / "measurements.csv", geoid="auto")
+    truth = json.loads((d / "truth.json").read_text())
+    win = open_window(qtbot, tmp_path / "f.prismproj")
+    offered = {}
+
+    def accept(dlg):
+        dlg.path.setText(str(d / "srtm_like.tif"))
+        offered.update(km=dlg.patch.value(), count=dlg.patches.text())
+        return QDialog.DialogCode.Accepted
+    monkeypatch.setattr(mod.OrientDialog, "exec", accept)
+    tool, asked = win.tools["dem_orientation"], []
+    win.interactive = True
+    try:
+        answer_next_box(asked, QMessageBox.StandardButton.Yes, tries=100000)
+        tool.a_orient.trigger()
+        job_done(tool.job, stall_s=900)
+        qtbot.waitUntil(lambda: bool(asked), timeout=20000)
+        qtbot.waitUntil(lambda: win.project.settings.orientation == "dem", timeout=20000)
+        assert offered["km"] == 2.5 and offered["count"].startswith("16 patches (4 × 4)")
+        assert "NOT TRUSTED" in asked[0][1] and "follows its start" in asked[0][1]
+        sol, _ = stored_solution(win.project)
+        rep = project_report(win.project, sol)
+        err = [np.hypot(p["E_est"] - truth[p["id"]][0], p["N_est"] - truth[p["id"]][1])
+               for p in rep["points"] if p.get("E_est") is not None]
+        sigma = win.project.dem_control["sigma_m"]["plan"]
+        rms = float(np.sqrt(np.mean(np.square(err))))
+        assert len(err) == 50 and rms <= 2.0 * sigma, (rms, sigma)
+        print(f"foreign scene in the window: {rms:.1f} m at a stated σ of {sigma:.1f} m")
+    finally:
+        win.interactive = False
         close_windows(qtbot, win)
