@@ -37,7 +37,7 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 from prismstation.core.matching.coarse import search_radius_px
 from prismstation.core.matching.lsm import LsmResult, refine
@@ -480,7 +480,7 @@ def consistency(sol: Solution, source: str, xy, found: dict[str, Transfer], h0: 
                                          en0=None if h0 is None else en0)
     except np.linalg.LinAlgError:
         return found
-    limit = float(stats.chi2.ppf(CONSISTENCY_P, dof))
+    limit = float(special.chdtri(dof, 1.0 - CONSISTENCY_P))      # the χ² quantile, as scipy.stats gives it
     if chi2 <= limit:
         return found
     words = ", ".join(f"{v} {np.hypot(*r):.2f} px" for v, r in res.items())
