@@ -25,8 +25,9 @@ class OrientRequest:
     ``sigma_apriori_m``: each view's a-priori geolocation σ per component (m); every search
     covers 3 σ (PRISM default 50 m; images with RPCs: a 100 m bound of the block's shift).
     ``posting_m``: the matching's grid posting (m; PRISM 30 m, RPC 8 pixels). ``patch_m``:
-    the patch size (m; a PRISM triplet; None: :func:`default_patch_km` of the scene). ``target_m``: the planimetric and height σ an
-    orientation must reach to be trusted (m; a PRISM triplet). ``with_gcps``: the project's
+    the patch size (m; a PRISM triplet; None: :func:`default_patch_km` of the scene).
+    ``target_m``: the planimetric and height σ an orientation must reach to be trusted (m; a
+    PRISM triplet). ``with_gcps``: the project's
     GCPs adjusted together with the reference (a PRISM triplet; the RPC fit uses its GCPs
     anyway)."""
 

@@ -30,8 +30,8 @@ def orient(project: Project, reference, request: OrientRequest = OrientRequest()
     operator decides)."""
     sigma = SIGMA_APRIORI_M if request.sigma_apriori_m is None else request.sigma_apriori_m
     gcps = control_points(project) if request.with_gcps else None
-    result = orient_from_dem(project, reference, sigma_apriori_m=sigma, gcps=gcps,
-                             patch_m=default_patch_km(project.scene) * 1000.0 if request.patch_m is None else request.patch_m,
+    patch_m = default_patch_km(project.scene) * 1000.0 if request.patch_m is None else request.patch_m
+    result = orient_from_dem(project, reference, sigma_apriori_m=sigma, gcps=gcps, patch_m=patch_m,
                              posting_m=POSTING_M if request.posting_m is None else request.posting_m,
                              target_m=request.target_m, progress=progress)
     record = result.to_dict()

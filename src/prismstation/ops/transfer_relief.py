@@ -62,8 +62,8 @@ POOL_PX = 4
 
 def relief_bias_px(axes, k: float, ground, template, d, bend: bool, height_of,
                    sigma_dem: float = 0.0) -> tuple[float, float]:
-    """``(bias, noise)`` px: the displacement along the parallax direction ``d`` (unit, in
-    ``view``) that the reference DEM's relief within ``template`` leaves at the point — the
+    """``(bias, noise)`` px: the displacement along the parallax direction ``d`` (unit, in the
+    matched view) that the reference DEM's relief within ``template`` leaves at the point — the
     displacement ``k·(h(u, v) − h(0, 0))`` of the template's pixels (pooled
     :data:`POOL_PX` square), fitted by the patch's model (a plane in ``u, v``; with ``bend`` a
     quadratic) weighted by the template's information along the parallax (its squared gradient
@@ -73,7 +73,8 @@ def relief_bias_px(axes, k: float, ground, template, d, bend: bool, height_of,
     ``ground``: the point's ``(E, N, h)``;
     ``template``: ``(T, u, v)`` of :func:`prismstation.core.matching.lsm.template`;
     ``height_of``: the reference DEM (map metres ``(n, 2)`` → ellipsoidal metres). ``(0, 0)``
-    where the DEM has no height at the point or under a quarter of the template."""
+    where the DEM has no height at the point or under more than a quarter of the template, or
+    where the texture fixes no patch."""
     T, u, v = template
     g = np.asarray(ground, float)
     gv, gu = np.gradient(np.asarray(T, float))
@@ -82,7 +83,8 @@ def relief_bias_px(axes, k: float, ground, template, d, bend: bool, height_of,
     lo = (T.shape[0] - n) // 2
 
     def pool(a, how):
-        return how(a[lo:lo + n, lo:lo + n].reshape(n // POOL_PX, POOL_PX, n // POOL_PX, POOL_PX), axis=(1, 3)).ravel()
+        blocks = a[lo:lo + n, lo:lo + n].reshape(n // POOL_PX, POOL_PX, n // POOL_PX, POOL_PX)
+        return how(blocks, axis=(1, 3)).ravel()
 
     w, uv = pool(w, np.sum), np.vstack([pool(u, np.mean), pool(v, np.mean)])
     # the pooled pixels on the ground: the source's own relief shift is the point's (a nadir
