@@ -364,3 +364,36 @@ def test_a_shape_step_too_small_to_move_the_point_ends_a_large_templates_iterati
     status, _, it = fit.run(False, 20, t, 3.0, np.eye(2), 0.25)
     assert status == OK and it == 1
     assert fit.A == pytest.approx(A_true, abs=2e-4) and fit.t == pytest.approx(t, abs=1e-3)
+
+
+def test_the_sample_kept_at_convergence_is_the_search_image_where_the_patch_ends():
+    # the converged iteration's sample, carried by its last step to first order, serves the
+    # covariance and a bend started from there: it must be the search image at the final
+    # position and shape (a stale sample would give the covariance of another place)
+    from prismstation.core.matching.lsm_fit import OK, Fit
+    from prismstation.core.matching.lsm_spline import Spline
+    rng = np.random.default_rng(8)
+    img = ndimage.gaussian_filter(rng.normal(0, 60, (160, 160)), 1.0) + 500
+    sp = Spline(img)
+    half, t = 24, np.array([80.4, 79.6])
+    k = np.arange(-half, half + 1, dtype=float)
+    v, u = np.meshgrid(k, k, indexing="ij")
+    A_true = np.array([[1.03, 0.02], [-0.01, 0.98]])
+    y_bend = 0.4 * (u / half) ** 2                          # a bend along the parallax (rows)
+    q = A_true @ np.vstack([u.ravel(), v.ravel()]) + t[:, None] + np.vstack([0 * u.ravel(), y_bend.ravel()])
+    T = sp.sample(q[0], q[1])[0].reshape(u.shape) + rng.normal(0, 1.0, u.shape)
+    fit = Fit(T, u, v, sp, np.array([0.0, 1.0]), half)
+    fit.t, fit.A = t + [0.6, -0.5], np.eye(2)
+    for bend in (False, True):
+        status, _, it = fit.run(bend, 20, t, 3.0, np.eye(2), 0.25)
+        assert status == OK and it > 1
+        kept, fresh = fit.sample(), fit._sample()
+        # the values to first order in a step under 0.01 px, the gradients as sampled a step before
+        for a, b, tol in zip(kept, fresh, (1e-3, 1e-2, 1e-2)):
+            assert np.abs(a - b).max() < tol * float(np.ptp(b)), (tol, np.abs(a - b).max())
+    assert fit.t == pytest.approx(t, abs=0.02)
+    # a parameter set from elsewhere drops the kept sample
+    other = fit.copy()
+    other.t = other.t + 1.0
+    fit.take(other)
+    assert fit.sample()[0] == pytest.approx(fit._sample()[0])

@@ -49,8 +49,15 @@ class Fit:
         self.Q = np.vstack([self.u ** 2, self.u * self.v, self.v ** 2]) / half    # (3, n) bend terms
         self.c = np.zeros(3)
         self.g0, self.g1 = 0.0, None
+        self.smp = None         # the search image sampled at the current t, A, c (None: not yet)
 
     def sample(self):
+        """``(S, Sx, Sy)`` at the patch's pixels for the current ``t, A, c`` (None: outside)."""
+        if self.smp is None:
+            self.smp = self._sample()
+        return self.smp
+
+    def _sample(self):
         q = self.A @ self.uv
         q += self.t[:, None]
         if self.c.any():
@@ -109,6 +116,7 @@ class Fit:
                 dp = np.linalg.solve(Jw @ Jt.T, Jw @ r)
             except np.linalg.LinAlgError:
                 return TEXTURE, "singular normal matrix (no texture)", it
+            self.smp = None
             self.t += dp[0:2]
             self.A += dp[2:6].reshape(2, 2)
             if bend:
@@ -122,11 +130,18 @@ class Fit:
             if change > 2 * max_shape_change or self.g1 <= 0 or bent:
                 return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else
                                f"the shape degenerated (changed by {change:.0%})"), it
-            step = math.hypot(dp[0], dp[1])
             shape_still = (self.w is not None
                            or np.abs(dp[2:6 + nb]).max() * min(self.half, SHAPE_REACH) < 2.5 * STEP_TOL)
             if max(abs(dp[0]), abs(dp[1])) < STEP_TOL and shape_still:
+                # converged: the last step (under the tolerance) carries the sample to first
+                # order — S + ∇S·δq, the gradients kept — for the covariance and a bend started
+                # from here, rather than sampling again
+                dq = dp[2:6].reshape(2, 2) @ self.uv + dp[0:2, None]
+                if bend:
+                    dq += np.outer(self.d, dp[6:9] @ self.Q)
+                self.smp = (S + Sx * dq[0] + Sy * dq[1], Sx, Sy)
                 return OK, "", it
+            step = math.hypot(dp[0], dp[1])
             if it >= WANDER_ITER and step > 0.1:
                 break   # still wandering
         return NOT_CONVERGED, f"no convergence in {it} iterations", it
@@ -147,6 +162,7 @@ class Fit:
         """A copy iterating on the pixels ``keep`` (boolean, ``(n²,)``) only: the pixels whose
         weight is negligible cost iterations and move nothing."""
         other = self.copy()
+        other.smp = None
         for name in ("T", "u", "v", "Tu", "Tv", "w", "pw"):
             a = getattr(self, name)
             if a is not None:
@@ -157,6 +173,7 @@ class Fit:
     def take(self, other):
         """Adopt ``other``'s parameters (a :meth:`subset`'s after its iterations)."""
         self.t, self.A, self.c, self.g0, self.g1 = other.t, other.A, other.c, other.g0, other.g1
+        self.smp = None
 
     def final(self, bend: bool):
         """``(r, J, rho)`` at the current state: residuals, design (search-image gradients),
