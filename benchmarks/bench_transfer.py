@@ -64,7 +64,8 @@ from prismstation.ops.reference_heights import load_for_scene  # noqa: E402
 from prismstation.ops.transfer import (FREE_SHAPE_CHANGE, MAX_SIGMA_PX, local_shape, model_sigma_m,  # noqa: E402
                                        search_height, search_sigmas, transfer)
 from prismstation.sim import simulate  # noqa: E402
-from prismstation.sim.reference import make_reference_dem  # noqa: E402
+from prismstation.io.geoid import GridGeoid, find_grid  # noqa: E402
+from prismstation.sim.reference import make_geographic_reference, make_reference_dem  # noqa: E402
 from prismstation.core.matching.coarse import search_radius_px  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "real"
@@ -100,6 +101,10 @@ SETS = {
     "options": [("smooth", 31, None, dict(texture="parcels", psf_px=0.0, noise_dn=2.0)),
                 ("fractal", 32, None, dict(texture="parcels", psf_px=0.0, noise_dn=2.0)),
                 ("dem", 35, (5.63, 44.48), dict(texture="parcels", psf_px=0.0, noise_dn=2.0)),
+                # the same scene against the other renderer's kind of reference: 3″ geographic,
+                # EGM96, 4 m of noise (its figure of the relief within a template is mostly noise)
+                ("dem", 35, (5.63, 44.48), dict(texture="parcels", psf_px=0.0, noise_dn=2.0,
+                                                reference="geographic")),
                 ("smooth", 33, None, dict(psf_px=0.0, noise_dn=2.0)),
                 ("smooth", 34, None, dict(jpeg_quality=75))],
 }
@@ -196,9 +201,14 @@ def print_rows(name, method, tallies, ms, cpu, views=("F", "B")):
 
 
 # ---------------------------------------------------------------------------- simulated scenes
-def scene(work: Path, terrain: str, seed: int, centre, size: int, options=None) -> Path:
+def scene(work: Path, terrain: str, seed: int, centre, size: int, options=None) -> tuple[Path, Path]:
+    """The scene's folder (simulated once) and its reference DEM: SRTM-like on the scene's own
+    grid, or with ``options["reference"] == "geographic"`` on a 3″ EPSG:4326 grid with EGM96
+    heights and 4 m of noise."""
+    options = dict(options or {})
+    geographic = options.pop("reference", "projected") == "geographic"
     tag = (f"{terrain}_s{seed}_{size}" + (f"_{centre[0]:g}_{centre[1]:g}" if centre else "")
-           + "".join(f"_{k}{v}" for k, v in sorted((options or {}).items())))
+           + "".join(f"_{k}{v}" for k, v in sorted(options.items())))
     d = work / tag
     if not (d / "truth.json").exists():
         kw = dict(terrain=terrain, **(options or {}))
@@ -208,9 +218,11 @@ def scene(work: Path, terrain: str, seed: int, centre, size: int, options=None) 
         simulate(d, size=size, seed=seed, **kw)
     if not (d / "srtm.tif").exists():
         make_reference_dem(d / "truth_dem.tif", d / "srtm.tif", seed=seed)
+    if geographic and not (d / "srtm_geo.tif").exists():
+        make_geographic_reference(d / "truth_dem.tif", d / "srtm_geo.tif", GridGeoid(find_grid()), seed=seed)
     if not (d / "p.prismproj").exists():
         create(d / "p.prismproj", d / "scene.json", d / "points.csv", d / "measurements.csv")
-    return d
+    return d, d / ("srtm_geo.tif" if geographic else "srtm.tif")
 
 
 def foreign_scene(d: Path, work: Path) -> tuple[Path, list, Path]:
@@ -223,7 +235,7 @@ def foreign_scene(d: Path, work: Path) -> tuple[Path, list, Path]:
     return proj, [{"image": v} for v in exact.values()], d / "srtm_like.tif"
 
 
-def run_scene(d: Path, foreign_work: Path | None = None) -> None:
+def run_scene(d: Path, foreign_work: Path | None = None, ref: Path | None = None) -> None:
     if foreign_work is not None:
         proj, pts, ref = foreign_scene(d, foreign_work)
         project = load_project(proj)
@@ -238,7 +250,9 @@ def run_scene(d: Path, foreign_work: Path | None = None) -> None:
                        if k in args and args[k] != defaults[k].default)
         name = (f"{truth.get('terrain', {}).get('kind', 'fractal')} seed {args['seed']}, "
                 f"slope {st.get('mean_slope_pct', float('nan')):.0f} %{opts}")
-        ref, pts = d / "srtm.tif", truth["points"]
+        if ref is not None and ref.name == "srtm_geo.tif":
+            name += ", 3″ geographic reference"
+        ref, pts = ref or d / "srtm.tif", truth["points"]
     sol = solve_project(project)
     dem = load_for_scene(ref, project)
     with ImageWindows(project.scene) as im:
@@ -453,7 +467,8 @@ def main(argv=None) -> None:
     if not args.no_sim:
         print(header("scene") + "   failures")
         for terrain, seed, centre, *options in SETS[args.set]:
-            run_scene(scene(args.work, terrain, seed, centre, args.size, *options))
+            d, ref = scene(args.work, terrain, seed, centre, args.size, *options)
+            run_scene(d, ref=ref)
     if args.foreign:
         print(header("another simulator's scene") + "   failures")
         for d in args.foreign:
@@ -462,7 +477,7 @@ def main(argv=None) -> None:
         from bench_transfer_cells import orient_cells
         for terrain, seed, centre, *_ in SETS[args.set]:
             if terrain == "dem":
-                orient_cells(scene(args.work, terrain, seed, centre, args.size))
+                orient_cells(scene(args.work, terrain, seed, centre, args.size)[0])
     if not args.no_pleiades and PLEIADES.is_dir():
         pleiades()
     print(f"\nmachine reference at the end: {reference_ms():.1f} ms CPU")

@@ -276,3 +276,48 @@ def test_a_transfer_reads_the_source_view_once(parcels, monkeypatch):
             tr = transfer(sol, im, "N", p["image"]["N"], height_of=dem)
             assert reads.count("N") == 1 and set(tr) == {"F", "B"}
             assert all(reads.count(v) in (1, 2) for v in "FB"), reads   # twice: searched again at a found view's height
+
+
+def test_a_match_found_in_one_view_only_must_lie_on_its_epipolar_line(steep):
+    # two rays meet at any height, but only where the match lies across the parallax as the
+    # model says: one found 3 px across it (a false match where the other view failed) is
+    # inconsistent, one moved 3 px along it (another height) is not
+    from prismstation.io.windows import ImageWindows
+    project, sol, dem, points = steep
+    p = points[5]
+    with ImageWindows(project.scene) as im:
+        tr = transfer(sol, im, "N", p["image"]["N"], height_of=dem)
+    assert tr["F"].ok and tr["B"].ok
+    d = np.asarray(tr["B"].match.extra["d"], float)
+    one = {"F": replace(tr["F"], match=replace(tr["F"].match, status="texture"))}
+    for shift, ok in ((np.array([-d[1], d[0]]) * 3, False), (d * 3, True)):
+        moved = dict(one, B=replace(tr["B"], x=tr["B"].x + shift[0], y=tr["B"].y + shift[1]))
+        out = consistency(sol, "N", p["image"]["N"], moved, p["h"])
+        assert out["B"].ok == ok, out["B"].match.reason
+        assert out["F"].match.status == "texture"
+    assert "do not meet" in consistency(sol, "N", p["image"]["N"], dict(one, B=replace(
+        tr["B"], x=tr["B"].x - 3 * d[1], y=tr["B"].y + 3 * d[0])), p["h"])["B"].match.reason
+
+
+def test_transfer_refuses_a_single_view_match_off_its_epipolar_line(steep, monkeypatch):
+    # F fails and B's match lands 3 px across its parallax (as a false match on repeated
+    # texture would): before, a point found in one view was never tested
+    import prismstation.ops.transfer as tr_mod
+    from prismstation.io.windows import ImageWindows
+    project, sol, dem, points = steep
+    real, calls = tr_mod.match, []
+
+    def fake(ref, x, y, win, pred, A, d, **kw):
+        calls.append(len(calls))
+        m = real(ref, x, y, win, pred, A, d, **kw)
+        if len(calls) != 2:                   # the second search is B's; F's and any retry fail
+            return replace(m, status="texture", reason="made to fail")
+        e = np.asarray(d, float) / np.hypot(*d)
+        return replace(m, x=m.x - 3 * e[1], y=m.y + 3 * e[0])
+
+    monkeypatch.setattr(tr_mod, "match", fake)
+    p = points[5]
+    with ImageWindows(project.scene) as im:
+        out = transfer(sol, im, "N", p["image"]["N"], height_of=dem, half_window=12)
+    assert not out["F"].ok
+    assert out["B"].match.status == "inconsistent" and "do not meet" in out["B"].match.reason

@@ -65,7 +65,7 @@ FREE_SHAPE_CHANGE = 0.6
 """The same with no DEM: the slope is unknown (60 % slope foreshortens by about 30 %)."""
 MODEL_SIGMA_PX = 0.5
 """σ (px) of a view's model where its bias fit gives none (the views' relative orientation
-enters the three-ray consistency test)."""
+enters the rays' consistency test)."""
 CONSISTENCY_P = 0.999
 """The three rays of a transfer are rejected beyond this χ² quantile."""
 CONFIRM_ALONG_PX = 30.0
@@ -260,8 +260,9 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     (px; default as large as its texture needs,
     :func:`~prismstation.ops.transfer_template.template_halves`; a failing match is tried with
     the other sizes, :data:`RESIZE_STATUSES`, and one stating more than
-    :data:`SECOND_OPINION_PX` with the noise's size). ``check``: the three-ray
-    consistency test when the point is found in two other views (:func:`consistency`).
+    :data:`SECOND_OPINION_PX` with the noise's size). ``check``: the rays' consistency
+    test (:func:`consistency`): in height and across the parallax when the point is found in
+    two other views, across the parallax when in one.
     """
     sc = sol.scene
     xy = np.asarray(xy, float)
@@ -358,7 +359,8 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
         out = {v: replace(t, match=with_relief(t.match, ref, xy - (rc0, rr0), axes, (*en_pt, h_pt), shapes[v].dh,
                                                height_of, sigma_dem, MAX_SIGMA_PX)) if t.ok else t
                for v, t in out.items()}
-    if check and len([t for t in out.values() if t.ok]) >= 2:
+    if check and any(t.ok for t in out.values()):
+        # the rays must meet: with two views found, in height; with one, across its parallax
         out = consistency(sol, source, xy, out, h_pt, en0=en_pt)
     return out
 
@@ -466,11 +468,13 @@ def intersect(sol: Solution, obs: dict, h0: float, en0=None) -> tuple[np.ndarray
 
 def consistency(sol: Solution, source: str, xy, found: dict[str, Transfer], h0: float | None = None,
                 en0=None) -> dict[str, Transfer]:
-    """The three-ray test: the source point and its matches in the other views intersected
+    """The rays' test: the source point and its matches in the other views intersected
     (:func:`intersect` from height ``h0``, default the mean height; each view weighted by its
     match covariance plus its model σ², :func:`view_sigma_px`; ``en0``: the source point's ground
     at ``h0``, when known); a χ² beyond :data:`CONSISTENCY_P` marks every match ``inconsistent``
-    with the residuals in its reason."""
+    with the residuals in its reason. With one match the two rays meet at any height: what they
+    test is the match's place across its parallax (the epipolar line), which the model fixes
+    to its σ; with two, the heights the matches imply as well."""
     ok = {v: t for v, t in found.items() if t.ok}
     obs = {source: (np.asarray(xy, float), view_sigma_px(sol, source) ** 2 * np.eye(2))}
     for v, t in ok.items():
