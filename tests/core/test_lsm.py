@@ -343,23 +343,30 @@ def test_point_sampled_parcels_are_placed_with_a_sigma_that_covers_the_error():
     assert np.mean(z2 < 5.991) >= 0.9 and np.sqrt(np.mean(z2) / 2) < 1.2, (np.mean(z2 < 5.991), np.mean(z2))
 
 
+def _warped_patch(seed, size, blur, half, t, A, bend_px=0.0, noise=0.0):
+    """A smooth random image's spline, and the ``(2·half+1)²`` template it shows at ``t`` under
+    the shape ``A`` and a bend of ``bend_px`` along the rows at the template's edge: the
+    :class:`~prismstation.core.matching.lsm_fit.Fit` of it, unstarted."""
+    from prismstation.core.matching.lsm_fit import Fit
+    from prismstation.core.matching.lsm_spline import Spline
+    rng = np.random.default_rng(seed)
+    sp = Spline(ndimage.gaussian_filter(rng.normal(0, 60, (size, size)), blur) + 500)
+    k = np.arange(-half, half + 1, dtype=float)
+    v, u = np.meshgrid(k, k, indexing="ij")
+    q = A @ np.vstack([u.ravel(), v.ravel()]) + np.asarray(t, float)[:, None]
+    q[1] += bend_px * (u.ravel() / half) ** 2
+    T = sp.sample(q[0], q[1])[0].reshape(u.shape) + (rng.normal(0, noise, u.shape) if noise else 0.0)
+    return Fit(T, u, v, sp, np.array([0.0, 1.0]), half)
+
+
 def test_a_shape_step_too_small_to_move_the_point_ends_a_large_templates_iterations():
     # a 65 × 65 px template 0.12 % larger than the search patch: from the exact position the
     # first step finds the scale, which moves the pixels 12 px from the point by 0.014 px and the
     # template's edge by 0.04 px. Before, the edge's 0.04 px kept it iterating (on aliased
     # texture for several more steps while the position had stopped)
-    from prismstation.core.matching.lsm_fit import OK, Fit
-    from prismstation.core.matching.lsm_spline import Spline
-    rng = np.random.default_rng(5)
-    img = ndimage.gaussian_filter(rng.normal(0, 60, (140, 140)), 1.2) + 500
-    sp = Spline(img)
-    half, t = 32, np.array([70.3, 69.8])
-    k = np.arange(-half, half + 1, dtype=float)
-    v, u = np.meshgrid(k, k, indexing="ij")
-    A_true = np.array([[1.0012, 0.0], [0.0, 1.0012]])
-    q = A_true @ np.vstack([u.ravel(), v.ravel()]) + t[:, None]
-    T = sp.sample(q[0], q[1])[0].reshape(u.shape)
-    fit = Fit(T, u, v, sp, np.array([0.0, 1.0]), half)
+    from prismstation.core.matching.lsm_fit import OK
+    t, A_true = np.array([70.3, 69.8]), np.array([[1.0012, 0.0], [0.0, 1.0012]])
+    fit = _warped_patch(5, 140, 1.2, 32, t, A_true)
     fit.t, fit.A = t.copy(), np.eye(2)
     status, _, it = fit.run(False, 20, t, 3.0, np.eye(2), 0.25)
     assert status == OK and it == 1
@@ -370,19 +377,9 @@ def test_the_sample_kept_at_convergence_is_the_search_image_where_the_patch_ends
     # the converged iteration's sample, carried by its last step to first order, serves the
     # covariance and a bend started from there: it must be the search image at the final
     # position and shape (a stale sample would give the covariance of another place)
-    from prismstation.core.matching.lsm_fit import OK, Fit
-    from prismstation.core.matching.lsm_spline import Spline
-    rng = np.random.default_rng(8)
-    img = ndimage.gaussian_filter(rng.normal(0, 60, (160, 160)), 1.0) + 500
-    sp = Spline(img)
-    half, t = 24, np.array([80.4, 79.6])
-    k = np.arange(-half, half + 1, dtype=float)
-    v, u = np.meshgrid(k, k, indexing="ij")
-    A_true = np.array([[1.03, 0.02], [-0.01, 0.98]])
-    y_bend = 0.4 * (u / half) ** 2                          # a bend along the parallax (rows)
-    q = A_true @ np.vstack([u.ravel(), v.ravel()]) + t[:, None] + np.vstack([0 * u.ravel(), y_bend.ravel()])
-    T = sp.sample(q[0], q[1])[0].reshape(u.shape) + rng.normal(0, 1.0, u.shape)
-    fit = Fit(T, u, v, sp, np.array([0.0, 1.0]), half)
+    from prismstation.core.matching.lsm_fit import OK
+    t = np.array([80.4, 79.6])
+    fit = _warped_patch(8, 160, 1.0, 24, t, np.array([[1.03, 0.02], [-0.01, 0.98]]), bend_px=0.4, noise=1.0)
     fit.t, fit.A = t + [0.6, -0.5], np.eye(2)
     for bend in (False, True):
         status, _, it = fit.run(bend, 20, t, 3.0, np.eye(2), 0.25)
