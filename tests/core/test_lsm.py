@@ -315,6 +315,24 @@ def test_sampling_tells_a_point_sampled_edge_from_a_blurred_one():
         assert np.mean(ey > 0.01) < 0.15 and np.mean(ex[:, :8] > 0.01) < 0.15
 
 
+def _parcel_matches(rng, size, cells, waves, reps, per, where, **kw):
+    """``(result, truth)`` of each converged match of a point at a random place within
+    ``where`` (px) between two point-sampled views of ``reps`` parcel grounds
+    (:func:`_parcels`, 2 DN of noise each), the second shifted by up to ±0.5 px, ``per`` points
+    a ground; ``kw``: :func:`refine`'s."""
+    yy, xx = np.mgrid[0:size, 0:size] + 0.5
+    for rep in range(reps):
+        ground = _parcels(rng, size, cells=cells, waves=waves)
+        ref = ground(xx, yy) + rng.normal(0, 2, xx.shape)
+        for k in range(per):
+            off = rng.uniform(-0.5, 0.5, 2)
+            srch = ground(xx + off[0], yy + off[1]) + rng.normal(0, 2, xx.shape)
+            p = rng.uniform(*where, 2)
+            r = refine(ref, p[0], p[1], srch, p - off + rng.normal(0, 0.3, 2), np.eye(2), **kw)
+            if r.ok:
+                yield r, p - off
+
+
 def test_point_sampled_parcels_are_placed_with_a_sigma_that_covers_the_error():
     """Hard-edged parcels with faint band-limited waves, point-sampled in two views at random
     sub-pixel phases (no optical blur): the matched position's error is the mean of the edges'
@@ -322,21 +340,11 @@ def test_point_sampled_parcels_are_placed_with_a_sigma_that_covers_the_error():
     weighted down and the stated σ counts the rest (before: RMS 0.35 px, 72 % inside the
     95 % ellipse, z 2.2)."""
     rng = np.random.default_rng(0)
-    size, half = 160, 12
     err, z2 = [], []
-    yy, xx = np.mgrid[0:size, 0:size] + 0.5
-    for rep in range(2):
-        ground = _parcels(rng, size, cells=45, waves=4.0)
-        ref = ground(xx, yy) + rng.normal(0, 2, xx.shape)
-        for k in range(20):
-            off = rng.uniform(-0.5, 0.5, 2)
-            srch = ground(xx + off[0], yy + off[1]) + rng.normal(0, 2, xx.shape)
-            p = rng.uniform(50, 110, 2)
-            r = refine(ref, p[0], p[1], srch, p - off + rng.normal(0, 0.3, 2), np.eye(2), half=half, taper=0)
-            if r.ok:
-                e = np.array([r.x, r.y]) - (p - off)
-                err.append(e)
-                z2.append(e @ np.linalg.solve(r.cov, e))
+    for r, truth in _parcel_matches(rng, 160, 45, 4.0, 2, 20, (50, 110), half=12, taper=0):
+        e = np.array([r.x, r.y]) - truth
+        err.append(e)
+        z2.append(e @ np.linalg.solve(r.cov, e))
     err, z2 = np.array(err), np.array(z2)
     rms = np.sqrt(np.mean(np.sum(err ** 2, 1)))
     assert len(err) >= 20 and rms < 0.27, (len(err), rms)
@@ -350,21 +358,9 @@ def test_large_parcels_state_a_sigma_across_the_parallax_that_covers_the_error()
     another simulator's scene 26 of 100 matches stated 0.04 px for errors of 0.10 px). Its
     standard error is now its floor."""
     rng = np.random.default_rng(0)
-    size = 200
-    yy, xx = np.mgrid[0:size, 0:size] + 0.5
-    z = []
-    for rep in range(6):
-        ground = _parcels(rng, size, cells=12, waves=2.0)
-        ref = ground(xx, yy) + rng.normal(0, 2, xx.shape)
-        for k in range(15):
-            off = rng.uniform(-0.5, 0.5, 2)
-            srch = ground(xx + off[0], yy + off[1]) + rng.normal(0, 2, xx.shape)
-            p = rng.uniform(60, 140, 2)
-            r = refine(ref, p[0], p[1], srch, p - off + rng.normal(0, 0.3, 2), np.eye(2), half=24,
-                       parallax=(0.0, 1.0))
-            if r.ok:
-                z.append((r.x - (p[0] - off[0])) / np.sqrt(r.cov[0, 0]))     # across: x
-    z = np.array(z)
+    z = np.array([(r.x - truth[0]) / np.sqrt(r.cov[0, 0])                  # across: x
+                  for r, truth in _parcel_matches(rng, 200, 12, 2.0, 6, 15, (60, 140), half=24,
+                                                  parallax=(0.0, 1.0))])
     assert len(z) >= 60 and np.sqrt(np.mean(z ** 2)) < 1.2, (len(z), np.sqrt(np.mean(z ** 2)))
     assert np.mean(np.abs(z) < 1.96) >= 0.87, np.mean(np.abs(z) < 1.96)
 
