@@ -67,7 +67,7 @@ MODEL_SIGMA_PX = 0.5
 """σ (px) of a view's model where its bias fit gives none (the views' relative orientation
 enters the rays' consistency test)."""
 CONSISTENCY_P = 0.999
-"""The three rays of a transfer are rejected beyond this χ² quantile."""
+"""The rays of a transfer (two or three) are rejected beyond this χ² quantile."""
 CONFIRM_ALONG_PX = 30.0
 """A match found in one view only, over a search longer than this (px, ±) along the parallax,
 is ``unconfirmed`` (a failure): with no reference DEM the band spans hundreds of pixels."""
