@@ -266,6 +266,8 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     """
     sc = sol.scene
     xy = np.asarray(xy, float)
+    if height_of is not None and sigma_dem is None:
+        sigma_dem = dem_sigma(height_of, known_ground(sol))      # for the search and the relief
     adaptive = half_window is None
     h_noise = None
     if adaptive:
@@ -354,7 +356,6 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
                        half_window, free, search=found[0] not in guided)
     if not free and any(t.ok for t in out.values()):
         # the relief within each template that its patch cannot follow, as the DEM shows it
-        sigma_dem = dem_sigma(height_of, known_ground(sol)) if sigma_dem is None else sigma_dem
         axes = source_axes(sol, source, (*en_pt, h_pt))
         out = {v: replace(t, match=with_relief(t.match, ref, xy - (rc0, rr0), axes, (*en_pt, h_pt), shapes[v].dh,
                                                height_of, sigma_dem, MAX_SIGMA_PX)) if t.ok else t
