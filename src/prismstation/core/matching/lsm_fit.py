@@ -92,9 +92,11 @@ class Fit:
         return J.T
 
     def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float,
-            need_rho: float | None = None):
+            need_rho: float | None = None, tol: float = STEP_TOL):
         """Iterate to convergence: ``(status, reason, iterations)``, status ``OK`` or a failure;
-        ``need_rho``: give up as :data:`RIVAL_ITER` and :data:`RIVAL_MARGIN` say."""
+        ``need_rho``: give up as :data:`RIVAL_ITER` and :data:`RIVAL_MARGIN` say; ``tol``: the
+        position's step (px) counted as converged, the shape's 2.5 times it at
+        :data:`SHAPE_REACH` px."""
         nb = 3 if bend else 0
         for it in range(1, max_iter + 1):
             smp = self.sample()
@@ -131,8 +133,8 @@ class Fit:
                 return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else
                                f"the shape degenerated (changed by {change:.0%})"), it
             shape_still = (self.w is not None
-                           or np.abs(dp[2:6 + nb]).max() * min(self.half, SHAPE_REACH) < 2.5 * STEP_TOL)
-            if max(abs(dp[0]), abs(dp[1])) < STEP_TOL and shape_still:
+                           or np.abs(dp[2:6 + nb]).max() * min(self.half, SHAPE_REACH) < 2.5 * tol)
+            if max(abs(dp[0]), abs(dp[1])) < tol and shape_still:
                 # converged: the last step (under the tolerance) carries the sample to first
                 # order — S + ∇S·δq, the gradients kept — for the covariance and a bend started
                 # from here, rather than sampling again
