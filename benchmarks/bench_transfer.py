@@ -105,6 +105,12 @@ SETS = {
                 # EGM96, 4 m of noise (its figure of the relief within a template is mostly noise)
                 ("dem", 35, (5.63, 44.48), dict(texture="parcels", psf_px=0.0, noise_dn=2.0,
                                                 reference="geographic")),
+                # parcels as another renderer draws them (larger, of lower contrast, a faint grain
+                # inside: ``simulate --texture mottled``), on smooth hills and on the steep relief
+                ("smooth", 36, None, dict(texture="mottled", psf_px=0.0, noise_dn=2.0)),
+                ("dem", 37, (5.63, 44.48), dict(texture="mottled", psf_px=0.0, noise_dn=2.0)),
+                ("dem", 37, (5.63, 44.48), dict(texture="mottled", psf_px=0.0, noise_dn=2.0,
+                                                reference="geographic")),
                 ("smooth", 33, None, dict(psf_px=0.0, noise_dn=2.0)),
                 ("smooth", 34, None, dict(jpeg_quality=75))],
 }

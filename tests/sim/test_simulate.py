@@ -304,3 +304,25 @@ def test_rendering_options_alias_block_and_bend(tmp_path, capsys):
         assert np.abs(bend).max() > 1e-6, view                            # rad: 0.7 m at 690 km
     assert main(["simulate", str(tmp_path / "x"), "--psf-px", "-1", "--quiet"]) == 2
     assert "--psf-px" in capsys.readouterr().err
+
+
+def test_mottled_parcels_are_larger_fainter_and_grained_inside():
+    """``texture="mottled"`` (another renderer's parcels as measured): parcels further apart and
+    of less contrast than ``parcels``, and inside them a grain of a few metres where flat
+    parcels hold only their slow modulation."""
+    from scipy import ndimage
+
+    from prismstation.sim.texture import MOTTLED, ParcelTexture
+    e, n = np.meshgrid(np.arange(0.0, 3000.0, 2.5), -np.arange(0.0, 3000.0, 2.5))
+    out = {}
+    for kind, kw in (("parcels", {}), ("mottled", MOTTLED)):
+        img = ParcelTexture(np.random.default_rng(3), (0.0, 0.0), **kw)(e, n).astype(float)
+        edge = np.hypot(ndimage.sobel(img, 0), ndimage.sobel(img, 1)) / 8 > 3
+        inside = ~ndimage.binary_dilation(edge, iterations=6)
+        grain = ndimage.gaussian_filter(img, 0.7) - ndimage.gaussian_filter(img, 2)
+        starts = [np.flatnonzero(np.diff(row.astype(int)) == 1) for row in edge[::40]]
+        out[kind] = (np.median(np.concatenate([np.diff(s) for s in starts])),
+                     ndimage.median_filter(img[::2, ::2], 9).std(), grain[inside].std())
+    (gap0, spread0, grain0), (gap1, spread1, grain1) = out["parcels"], out["mottled"]
+    assert gap1 > 1.3 * gap0 and spread1 < 0.75 * spread0, out
+    assert grain1 > 0.6 and grain1 > 3 * grain0, out

@@ -60,9 +60,10 @@ def register(sub) -> None:
     p.add_argument("--terrain-wavelength-m", type=float, default=None, metavar="M",
                    help="the smooth terrain's shortest wavelength, metres (default 1200; 5000: hills "
                         "that are nearly a plane over a few kilometres)")
-    p.add_argument("--texture", choices=["fields", "parcels"], default="fields",
+    p.add_argument("--texture", choices=["fields", "parcels", "mottled"], default="fields",
                    help="fields: field patchworks with hedges, roads and forest (default); parcels: "
-                        "flat parcels with hard edges and no texture inside")
+                        "flat parcels with hard edges and no texture inside; mottled: larger parcels "
+                        "of lower contrast with a faint grain inside")
     p.add_argument("--psf-px", type=float, default=0.6, metavar="SIGMA",
                    help="σ of the sensor's Gaussian point spread, pixels (default 0.6; 0 = each pixel "
                         "one point of the ground: sharp edges alias)")

@@ -14,7 +14,7 @@ from prismstation.sim.scenario import (ALTITUDE, ANGLES_DEG, CENTRE, CRS, GEOID,
                                        build_scenario, image_to_map_transform)
 from prismstation.sim.scene_terrain import check_terrain, grid_over, make_terrain, scene_relief
 from prismstation.sim.terrain import Grid, hillshade
-from prismstation.sim.texture import ParcelTexture, make_texture
+from prismstation.sim.texture import MOTTLED, ParcelTexture, make_texture
 
 __all__ = ["simulate", "scene_relief"]
 
@@ -22,7 +22,7 @@ TEXTURE_SPACING = 2.5
 PSF_SIGMA_PX = 0.6
 IMAGE_NOISE_DN = 1.2
 VIEWS = ("N", "F", "B")
-TEXTURES = ("fields", "parcels")
+TEXTURES = ("fields", "parcels", "mottled")
 
 
 def _check_rendering(psf_px, noise_dn, texture, attitude_accel, jpeg_quality, terrain_wavelength_m):
@@ -90,7 +90,8 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
     noise_dn : σ (DN) of the images' Gaussian noise.
     texture : ``"fields"`` (field patchworks, hedges, roads, forest on a 2.5 m grid) or
         ``"parcels"`` (flat parcels with hard edges, no texture inside; see
-        :class:`prismstation.sim.texture.ParcelTexture`).
+        :class:`prismstation.sim.texture.ParcelTexture`) or ``"mottled"`` (larger parcels of
+        lower contrast with a faint grain inside, :data:`prismstation.sim.texture.MOTTLED`).
     attitude_accel : σ (rad/s²) of each view's own roll and pitch acceleration: attitude not
         linear in time (0: linear drift only).
     jpeg_quality : JPEG quality (1–100) the images go through (8 × 8 block noise), or None.
@@ -139,8 +140,8 @@ def simulate(outdir, *, size=2000, seed=0, n_gcp=9, n_icp=41, n_tie=20, noise_px
 
     te0, tn0, tshape = grid_over(lo, hi, TEXTURE_SPACING)
     kind = texture
-    if kind == "parcels":
-        texture = ParcelTexture(r_texture, (te0, tn0), shade=shade)
+    if kind in ("parcels", "mottled"):
+        texture = ParcelTexture(r_texture, (te0, tn0), shade=shade, **(MOTTLED if kind == "mottled" else {}))
     else:
         texture = make_texture(r_texture, te0, tn0, tshape, TEXTURE_SPACING, ortho_grid, shade,
                                slope, progress=lambda f: report(0.03 + 0.12 * f))

@@ -5,7 +5,9 @@ grid of 2.5 m cells — field patchworks in two orientations with hedges and plo
 forest on steep and wet ground, bare rock on the summits, two road networks, brightness noise at
 several scales, all multiplied by hill shading from a sun direction; generated in row blocks
 (bounded memory). ``parcels`` (:class:`ParcelTexture`): flat parcels with hard edges, a function
-of map position with no grid, so that pixels sampled without a point spread alias.
+of map position with no grid, so that pixels sampled without a point spread alias;
+``mottled`` (:data:`MOTTLED`): larger parcels of lower contrast with a faint grain inside, as
+another renderer's parcels were measured.
 """
 from __future__ import annotations
 
@@ -112,6 +114,17 @@ def make_texture(rng, e0: float, n0: float, shape, spacing: float, heights: Grid
     return Grid(out, e0, n0, spacing)
 
 
+GRAIN_M = 7.0
+"""Feature size (m) of the ``mottled`` parcels' grain."""
+MOTTLED = dict(size=150.0, contrast=24.0, grain_dn=1.9)
+"""``mottled`` parcels: measured on another renderer's 10 km scene (its N image, 2,000 px
+square), beside ``parcels``: edges 59 px apart along a row (``parcels`` 39), the parcels'
+brightness spread (a 9 px median, every other pixel) 14 DN (24), and inside the parcels, 12 px
+from any edge, a grain of about 0.9 DN in each of the bands 1.4–4 px and 4–10 px
+(differences of Gaussians; its noise's share taken out) where ``parcels`` hold none at the
+finest."""
+
+
 class ParcelTexture:
     """Ground brightness of flat parcels with hard edges, as a function of map position (no
     grid: sampled at each pixel's own ground point, edges stay sharp at any resolution).
@@ -125,12 +138,15 @@ class ParcelTexture:
     """
 
     def __init__(self, rng, origin, size: float = 100.0, level: float = 115.0, contrast: float = 40.0,
-                 shade: Grid | None = None, table: int = 1024):
+                 shade: Grid | None = None, table: int = 1024, grain_dn: float = 0.0):
         self.origin = (float(origin[0]), float(origin[1]))
         self.size, self.level, self.contrast, self.shade, self.n = size, level, contrast, shade, table
         self.jitter = rng.uniform(0.0, 1.0, (table, table, 2)).astype(np.float32)
         self.value = rng.uniform(-1.0, 1.0, (table, table)).astype(np.float32)
         self.fine, self.broad = _Noise(rng, 25.0), _Noise(rng, 1500.0, 256)
+        # a grain of a few metres (``grain_dn`` DN): what a template inside a parcel can hold on to
+        self.grain_dn = grain_dn
+        self.grain = _Noise(rng, GRAIN_M, 4096) if grain_dn > 0 else None
 
     def __call__(self, e, n) -> np.ndarray:
         """Brightness (DN, float32) at map points ``e, n`` (any shape, metres)."""
@@ -150,6 +166,8 @@ class ParcelTexture:
                 val = np.where(closer, self.value[cy, cx], val)
         x, y = x.astype(np.float32), y.astype(np.float32)
         out = self.level + self.contrast * val + 2.0 * self.fine(x, y) + 6.0 * self.broad(x, y)
+        if self.grain is not None:
+            out = out + self.grain_dn * self.grain(x, y)
         if self.shade is not None:
             out = out * self.shade.sample(e, n).astype(np.float32)
         return out.astype(np.float32)
