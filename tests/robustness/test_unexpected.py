@@ -65,6 +65,36 @@ def test_ctrl_c_is_one_line_and_130(sim, tmp_path):
     assert p.returncode == 130 and err.strip() == "prismstation fit: interrupted", err
 
 
+
+_HELPER_SIGNAL = """
+import os, signal, time
+from prismstation.cli._gdal_lines import GdalLines
+from prismstation.io.atomic import FreeSpaceWatch
+with GdalLines(), FreeSpaceWatch(os.getcwd()):
+    # the main thread blocks SIGINT: the kernel must hand it to another thread of the process
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    os.kill(os.getpid(), signal.SIGINT)
+    try:
+        t = time.monotonic()
+        while time.monotonic() - t < 0.5:   # bytecode: a signal a helper took would raise here
+            pass
+        print("held", flush=True)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        time.sleep(10)
+        print("slept", flush=True)
+    except KeyboardInterrupt:
+        print("interrupted", flush=True)
+"""
+
+
+def test_a_commands_helper_threads_leave_ctrl_c_to_the_main_thread(tmp_path):
+    """A SIGINT the kernel hands to a helper thread (stderr's pump, the free-space sampler)
+    left a main thread asleep in C asleep: Ctrl+C waited for its call to return (the test
+    above timed out once under load). The helpers block it: it waits for the main thread."""
+    r = subprocess.run([sys.executable, "-c", _HELPER_SIGNAL], capture_output=True, text=True, timeout=60,
+                       cwd=tmp_path, env=_env(tmp_path))
+    assert r.stdout.split() == ["held", "interrupted"], (r.stdout, r.stderr[-800:])
+
 def _limit_memory():
     resource.setrlimit(resource.RLIMIT_AS, (400_000 * 1024, resource.RLIM_INFINITY))
 

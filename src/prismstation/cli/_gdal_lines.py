@@ -12,7 +12,8 @@ from __future__ import annotations
 import os
 import re
 import sys
-import threading
+
+from prismstation.io.threads import helper_thread
 
 #: lines of GDAL (``ERROR 1: …``) and of libtiff (``TIFFWriteDirectory: …``, ``_tiffWriteProc: …``)
 GDAL_LINE = re.compile(rb"^(ERROR \d+: |Warning \d+: |_?TIFF\w*: |_tiff\w+: )")
@@ -53,9 +54,7 @@ class GdalLines:
         except (OSError, ValueError, AttributeError):
             self._saved = None
             return self
-        self._thread = threading.Thread(target=self._pump, args=(r,), daemon=True,
-                                        name="gdal-stderr")
-        self._thread.start()
+        self._thread = helper_thread(self._pump, r, name="gdal-stderr")
         return self
 
     def __exit__(self, *exc):

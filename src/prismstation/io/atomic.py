@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 from prismstation.errors import PrismError, WriteError
+from prismstation.io.threads import helper_thread
 
 #: side files GDAL may write beside a raster
 SIDE_FILES = (".aux.xml", ".ovr", ".msk")
@@ -114,8 +115,7 @@ class FreeSpaceWatch:
         def run():
             while not self._stop.wait(self.interval):
                 self._sample()
-        self._thread = threading.Thread(target=run, daemon=True, name="free space")
-        self._thread.start()
+        self._thread = helper_thread(run, name="free space")
         return self
 
     def __exit__(self, *exc):
