@@ -16,13 +16,16 @@ ANSWERED = {signal.SIGINT, signal.SIGTERM}
 
 
 def helper_thread(target, *args, name: str) -> threading.Thread:
-    """A started daemon thread running ``target(*args)`` with :data:`ANSWERED` blocked."""
-    def run():
-        try:
-            signal.pthread_sigmask(signal.SIG_BLOCK, ANSWERED)
-        except (AttributeError, OSError, ValueError):     # no POSIX thread signals here
-            pass
-        target(*args)
-    thread = threading.Thread(target=run, daemon=True, name=name)
-    thread.start()
+    """A started daemon thread running ``target(*args)`` with :data:`ANSWERED` blocked (from
+    its first instruction: it inherits the mask its creator holds while starting it)."""
+    thread = threading.Thread(target=target, args=args, daemon=True, name=name)
+    try:
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, ANSWERED)
+    except (AttributeError, OSError, ValueError):     # no POSIX thread signals here
+        thread.start()
+        return thread
+    try:
+        thread.start()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
     return thread
