@@ -114,15 +114,18 @@ def make_texture(rng, e0: float, n0: float, shape, spacing: float, heights: Grid
     return Grid(out, e0, n0, spacing)
 
 
-GRAIN_M = 7.0
-"""Feature size (m) of the ``mottled`` parcels' grain."""
-MOTTLED = dict(size=150.0, contrast=24.0, grain_dn=1.9)
+GRAIN_M = (4.0, 9.0)
+"""Feature sizes (m) of the ``mottled`` parcels' grain: two octaves of value noise."""
+MOTTLED = dict(size=150.0, contrast=24.0, grain_dn=(1.5, 1.5))
 """``mottled`` parcels: measured on another renderer's 10 km scene (its N image, 2,000 px
-square), beside ``parcels``: edges 59 px apart along a row (``parcels`` 39), the parcels'
+square), beside ``parcels``: edges 55–59 px apart along a row (``parcels`` 39), the parcels'
 brightness spread (a 9 px median, every other pixel) 14 DN (24), and inside the parcels, 12 px
-from any edge, a grain of about 0.9 DN in each of the bands 1.4–4 px and 4–10 px
-(differences of Gaussians; its noise's share taken out) where ``parcels`` hold none at the
-finest."""
+from any edge, a grain of 1.13, 0.95 and 1.56 DN in the bands of Gaussians 0.7–2, 2–5 and
+5–10 px (with 2 DN of noise, which alone gives 0.68, 0.22 and 0.08; these parcels: 1.12, 0.91,
+1.46), where ``parcels`` hold only their noise at the finest. One octave of 7 m at 1.9 DN
+matched those bands as well, but its misfit had minima tenths of a pixel apart at 27 % of the
+matches of two views of it (``benchmarks/bench_transfer_minima.py --pairs``), where the other
+renderer's scene shows them at 6 %; these two octaves at 2 %."""
 
 
 class ParcelTexture:
@@ -138,15 +141,15 @@ class ParcelTexture:
     """
 
     def __init__(self, rng, origin, size: float = 100.0, level: float = 115.0, contrast: float = 40.0,
-                 shade: Grid | None = None, table: int = 1024, grain_dn: float = 0.0):
+                 shade: Grid | None = None, table: int = 1024, grain_dn=(0.0, 0.0)):
         self.origin = (float(origin[0]), float(origin[1]))
         self.size, self.level, self.contrast, self.shade, self.n = size, level, contrast, shade, table
         self.jitter = rng.uniform(0.0, 1.0, (table, table, 2)).astype(np.float32)
         self.value = rng.uniform(-1.0, 1.0, (table, table)).astype(np.float32)
         self.fine, self.broad = _Noise(rng, 25.0), _Noise(rng, 1500.0, 256)
-        # a grain of a few metres (``grain_dn`` DN): what a template inside a parcel can hold on to
-        self.grain_dn = grain_dn
-        self.grain = _Noise(rng, GRAIN_M, 4096) if grain_dn > 0 else None
+        # a grain of a few metres (``grain_dn`` DN at each of :data:`GRAIN_M`): what a template
+        # inside a parcel can hold on to
+        self.grain = [(dn, _Noise(rng, m, 4096)) for dn, m in zip(grain_dn, GRAIN_M) if dn > 0]
 
     def __call__(self, e, n) -> np.ndarray:
         """Brightness (DN, float32) at map points ``e, n`` (any shape, metres)."""
@@ -166,8 +169,8 @@ class ParcelTexture:
                 val = np.where(closer, self.value[cy, cx], val)
         x, y = x.astype(np.float32), y.astype(np.float32)
         out = self.level + self.contrast * val + 2.0 * self.fine(x, y) + 6.0 * self.broad(x, y)
-        if self.grain is not None:
-            out = out + self.grain_dn * self.grain(x, y)
+        for dn, grain in self.grain:
+            out = out + dn * grain(x, y)
         if self.shade is not None:
             out = out * self.shade.sample(e, n).astype(np.float32)
         return out.astype(np.float32)
