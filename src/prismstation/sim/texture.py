@@ -121,8 +121,8 @@ MOTTLED = dict(size=150.0, contrast=24.0, grain_dn=(1.5, 1.5))
 square), beside ``parcels``: edges 55–59 px apart along a row (``parcels`` 39), the parcels'
 brightness spread (a 9 px median, every other pixel) 14 DN (24), and inside the parcels, 12 px
 from any edge, a grain of 1.13, 0.95 and 1.56 DN in the bands of Gaussians 0.7–2, 2–5 and
-5–10 px (with 2 DN of noise, which alone gives 0.68, 0.22 and 0.08; these parcels: 1.12, 0.91,
-1.46), where ``parcels`` hold only their noise at the finest. One octave of 7 m at 1.9 DN
+5–10 px (with 2 DN of noise, which alone gives 0.68, 0.22 and 0.08; these parcels rendered so:
+1.12, 0.91, 1.41), where ``parcels`` hold only their noise at the finest. One octave of 7 m at 1.9 DN
 matched those bands as well, but its misfit had minima tenths of a pixel apart at 27 % of the
 matches of two views of it (``benchmarks/bench_transfer_minima.py --pairs``), where the other
 renderer's scene shows them at 6 %; these two octaves at 2 %."""
