@@ -313,14 +313,14 @@ def test_mottled_parcels_are_larger_fainter_and_grained_inside():
     from scipy import ndimage
 
     from prismstation.sim.texture import MOTTLED, ParcelTexture
-    e, n = np.meshgrid(np.arange(0.0, 3000.0, 2.5), -np.arange(0.0, 3000.0, 2.5))
+    e, n = np.meshgrid(np.arange(0.0, 2000.0, 2.5), -np.arange(0.0, 2000.0, 2.5))
     out = {}
     for kind, kw in (("parcels", {}), ("mottled", MOTTLED)):
         img = ParcelTexture(np.random.default_rng(3), (0.0, 0.0), **kw)(e, n).astype(float)
         edge = np.hypot(ndimage.sobel(img, 0), ndimage.sobel(img, 1)) / 8 > 5
         inside = ~ndimage.binary_dilation(edge, iterations=6)
         grain = ndimage.gaussian_filter(img, 0.7) - ndimage.gaussian_filter(img, 2)
-        starts = [np.flatnonzero(np.diff(row.astype(int)) == 1) for row in edge[::40]]
+        starts = [np.flatnonzero(np.diff(row.astype(int)) == 1) for row in edge[::20]]
         out[kind] = (np.median(np.concatenate([np.diff(s) for s in starts])),
                      ndimage.median_filter(img[::2, ::2], 9).std(), grain[inside].std())
     (gap0, spread0, grain0), (gap1, spread1, grain1) = out["parcels"], out["mottled"]
