@@ -22,10 +22,10 @@ def helper_thread(target, *args, name: str) -> threading.Thread:
     try:
         previous = signal.pthread_sigmask(signal.SIG_BLOCK, ANSWERED)
     except (AttributeError, OSError, ValueError):     # no POSIX thread signals here
-        thread.start()
-        return thread
+        previous = None
     try:
         thread.start()
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        if previous is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
     return thread
