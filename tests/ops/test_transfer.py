@@ -237,35 +237,6 @@ def test_another_simulators_scene_has_no_confident_wrong_transfer(foreign_data, 
     assert not wrong and found >= 0.95 * 2 * len(exact), (found, wrong)
 
 
-def test_the_second_opinion_is_one_match_from_the_first_not_another_search(parcels, monkeypatch):
-    """A match from a template grown for point-sampled edges stating more than 0.25 px is made
-    again at the noise's size: one least-squares match started where the first ended, at the
-    smaller size (before, a correlation over the whole band and a match from each of its peaks:
-    as much again)."""
-    import prismstation.ops.transfer as tr_mod
-    from prismstation.io.windows import ImageWindows
-    project, sol, dem, points = parcels
-    last, seconds = [], []
-    match, refine = tr_mod.match, tr_mod.refine
-
-    def first(*a, **k):
-        last.append((match(*a, **k), k["half"]))
-        return last[-1][0]
-
-    def second(*a, **k):
-        m, h = last[-1]
-        seconds.append((np.asarray(a[4], float), (m.x, m.y), k["half"] < h, m.ok))
-        return refine(*a, **k)
-    monkeypatch.setattr(tr_mod, "match", first)
-    monkeypatch.setattr(tr_mod, "refine", second)
-    with ImageWindows(project.scene) as im:
-        for p in points:
-            transfer(sol, im, "N", p["image"]["N"], height_of=dem, check=False)
-    assert seconds
-    for start, end, smaller, ok in seconds:
-        assert ok and smaller and start == pytest.approx(end)
-
-
 def test_a_transfer_reads_the_source_view_once(parcels, monkeypatch):
     """The source's window serves the template's size and every template: one read of the
     source a point (its tiles are decoded once, but each read costs; it was read twice)."""

@@ -40,7 +40,7 @@ import numpy as np
 from scipy import special
 
 from prismstation.core.matching.coarse import search_radius_px
-from prismstation.core.matching.lsm import LsmResult, refine
+from prismstation.core.matching.lsm import LsmResult
 from prismstation.core.matching.lsm_search import best_score, match
 from prismstation.core.models.solution import Solution
 from prismstation.io.windows import ImageWindows
@@ -74,16 +74,12 @@ is ``unconfirmed`` (a failure): with no reference DEM the band spans hundreds of
 RETRY_STATUSES = ("not_converged", "shape", "texture", "low_correlation", "low_score", "moved")
 """The failures a different start shape may cure."""
 MAX_SIGMA_PX = 0.5
-SECOND_OPINION_PX = 0.25
-"""A match from a template grown for point-sampled edges that states a σ (px) above this — half
-the refusal limit, :data:`MAX_SIGMA_PX`: relief within it spoils it — is made again with the
-template the noise alone asks for, and the smaller σ stated wins."""
+"""A match stating a larger σ (px) is a failure (``texture``)."""
 RESIZE_STATUSES = ("texture", "not_converged", "shape", "low_correlation")
 """A match failing so is tried with the smaller template sizes, the nearest first (with no
 reference DEM: with the other of the two sizes of
 :func:`~prismstation.ops.transfer_template.template_halves`): relief within a template grown
 for point-sampled edges may spoil it."""
-"""A match stating a larger σ (px) is a failure (``texture``)."""
 
 
 def model_sigma_m(sol: Solution) -> float:
@@ -259,8 +255,8 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     ``sigma_mean``: passed to :func:`search_height`. ``half_window``: the template's half size
     (px; default as large as its texture needs,
     :func:`~prismstation.ops.transfer_template.template_halves`; a failing match is tried with
-    the other sizes, :data:`RESIZE_STATUSES`, and one stating more than
-    :data:`SECOND_OPINION_PX` with the noise's size). ``check``: the rays' consistency
+    the other sizes, :data:`RESIZE_STATUSES`; relief within a large one is weighed by its
+    central part, :func:`~prismstation.core.matching.lsm.refine`). ``check``: the rays' consistency
     test (:func:`consistency`): in height and across the parallax when the point is found in
     two other views, across the parallax when in one.
     """
@@ -329,14 +325,6 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
         resize = dict(along=along, across=radius, max_sigma=MAX_SIGMA_PX, parallax=d,
                       max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
                       coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0)
-        if adaptive and not free and m.ok and _sigma_max(m) > SECOND_OPINION_PX and h_noise < half_window:
-            # relief within a template grown for point-sampled edges may spoil it: the size the
-            # noise alone asks for is matched too, from the first's position (a search of the band
-            # and its peaks cost as much again), and the smaller σ stated wins
-            m2 = refine(ref, xy[0] - rc0, xy[1] - rr0, win, (m.x, m.y), s.A, parallax=d, half=h_noise,
-                        max_sigma=MAX_SIGMA_PX, max_shape_change=DEM_SHAPE_CHANGE)
-            if m2.ok and _sigma_max(m2) < _sigma_max(m):
-                m = m2
         # with no DEM each size is a search over hundreds of pixels: only the edges' size
         for h in ([h_noise] if adaptive and h_noise != half_window else []) if free else others:
             if m.ok or m.status not in RESIZE_STATUSES:
@@ -364,11 +352,6 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
         # the rays must meet: with two views found, in height; with one, across its parallax
         out = consistency(sol, source, xy, out, h_pt, en0=en_pt)
     return out
-
-
-def _sigma_max(m: LsmResult) -> float:
-    """The larger semi-axis (px) of a match's stated covariance."""
-    return float(np.sqrt(np.linalg.eigvalsh(m.cov)[-1]))
 
 
 def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, ground, half_window, free, mark=True,

@@ -84,6 +84,10 @@ the whole template's σ larger than that."""
 NEAR_RELIEF = 0.7
 """The weighted fit's error along the parallax as a share of its disagreement with the whole
 template's (measured on mounds 3–8 px wide on warped real texture: 0.4–0.7)."""
+MID_HALF = 18
+"""Half size (px) of the central part of a larger template fitted again from its end
+(:func:`_mid_check`): relief within 65 px on steep slopes moves the whole template's position
+by its mean over them."""
 BEND_TRIGGER = 0.03
 """A bend is tried when the affine patch leaves this much unmodelled relief (px)."""
 
@@ -99,7 +103,8 @@ class LsmResult:
     ``g1``, ``g0``; ``rho``: correlation of the template with the fitted patch;
     ``iterations``; ``status`` / ``reason``; ``score``: the correlation peak the search started
     from (:mod:`prismstation.core.matching.lsm_search`); ``extra``: ``bend`` (c1, c2, c3), ``sigma_relief``,
-    ``sigma_across`` (px), the parallax direction ``d`` and the template's ``half`` size."""
+    ``sigma_across`` (px), the parallax direction ``d``, the template's ``half`` size and ``mid``
+    (px: the central part's disagreement along the parallax where it entered, else 0)."""
 
     x: float
     y: float
@@ -311,16 +316,55 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
             sampled = None
     if sampled is not None:
         cov = cov + sampled
+    mid = 0.0
+    if parallax is not None and half > MID_HALF:
+        t, cov, mid, it4 = _mid_check(fit, t, cov, bend, (max_iter, t0, max_move, A0inv, max_shape_change),
+                                      noise, e1, e2, n, aliasing)
+        it += it4
     res = LsmResult(float(t[0]), float(t[1]), cov, formal, fit.A.copy(), float(fit.g1), float(fit.g0),
                     rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),
                                            "sigma_relief": s_relief, "sigma_across": s_across, "d": d,
-                                           "taper": local, "half": half})
+                                           "taper": local, "half": half, "mid": mid})
     if rho < min_rho:
         return _as_failure(res, LOW_CORRELATION, f"correlation {rho:.2f} below {min_rho:.2f}")
     smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
     if not np.isfinite(smax) or smax > max_sigma:
         return _as_failure(res, TEXTURE, f"too little texture: σ {smax:.2f} px above {max_sigma:.2f}")
     return res
+
+
+def _mid_check(fit: Fit, t, cov, bend: bool, run_args, noise: float, e1, e2, n: int, aliasing):
+    """The template's central :data:`MID_HALF` px fitted from the whole one's end: relief
+    within a large template moves its position along the parallax by the relief's mean over
+    it. Their disagreement ``Δ`` beyond what both state (``Δ² − σ² − σ_mid²``, along the
+    parallax) is relief that neither σ holds: it is added to both, and the one stating less
+    gives the position along the parallax (across, the whole template). Returns ``(t, cov,
+    Δ or 0 when it was not used, iterations)``."""
+    inside = (np.abs(fit.u) <= MID_HALF) & (np.abs(fit.v) <= MID_HALF)
+    mid = fit.copy()
+    mid.w = inside.astype(float).ravel()
+    part = mid.subset(inside.ravel())
+    status, _, it = part.run(bend, *run_args)
+    if status != OK:
+        return t, cov, 0.0, it
+    mid.take(part)
+    delta = float(e1 @ (mid.t - t))
+    var_whole = float(e1 @ cov @ e1)
+    if delta ** 2 <= var_whole:
+        return t, cov, 0.0, it          # within the whole template's own σ: nothing to add
+    r, J, _ = mid.final(bend)
+    st = _stated(mid, r, J, noise, e1, e2, n, aliasing) if r is not None else None
+    if st is None:
+        return t, cov, 0.0, it
+    var_mid = float(e1 @ (st[0] + st[4]) @ e1)
+    excess = delta ** 2 - var_whole - var_mid
+    if excess <= 0:
+        return t, cov, 0.0, it
+    P1 = np.outer(e1, e1)
+    if var_mid < var_whole:
+        t = t + P1 @ (mid.t - t)
+    cov = (min(var_mid, var_whole) + excess) * P1 + float(e2 @ cov @ e2) * np.outer(e2, e2)
+    return t, cov, delta, it
 
 
 def _stated(fit: Fit, r, J, noise: float, e1, e2, n: int, aliasing=None):
