@@ -205,6 +205,39 @@ def test_the_template_grows_until_its_texture_fixes_the_point(parcels):
     assert found[None] >= found[12] + 0.15 * 2 * len(points) and wrong[None] <= wrong[12], (found, wrong)
 
 
+def test_a_match_refused_for_relief_is_made_again_smaller_keeping_the_relief_scaled(parcels, monkeypatch):
+    """A 65 px template refused because the reference DEM shows relief within it is matched
+    again, from where it ended, with the smaller sizes. The DEM's cells see no relief within
+    the smaller template (here: none at all), so the refused template's relief, scaled by the
+    sizes' ratio, stays in its σ along the parallax: 0.9 px at 65 px is 0.35 px at 25 px, kept;
+    0.51–0.68 px at 37–49 px, refused. Before, the point was lost in that view."""
+    import prismstation.ops.transfer as tr_mod
+    import prismstation.ops.transfer_relief as rel
+    from prismstation.io.windows import ImageWindows
+    project, sol, dem, points = parcels
+    monkeypatch.setattr(rel, "relief_bias_px", lambda axes, k, ground, tpl, *a: (0.9 if len(tpl[0]) == 65 else 0.0, 0.0))
+
+    def run():
+        kept, refused = [], 0
+        with ImageWindows(project.scene) as im:
+            for p in points:
+                tr = transfer(sol, im, "N", p["image"]["N"], height_of=dem, check=False)
+                for v in "FB":
+                    m = tr[v].match
+                    refused += m.status == rel.RELIEF
+                    if m.ok and m.extra["relief_px"] > 0:
+                        d = np.asarray(m.extra["d"], float)
+                        e = np.subtract((tr[v].x, tr[v].y), p["image"][v])
+                        kept.append((m.extra["half"], m.extra["relief_px"], float(np.sqrt(d @ m.cov @ d)), np.hypot(*e)))
+        return kept, refused
+    kept, refused = run()
+    assert len(kept) >= 5 and refused >= 1, (len(kept), refused)
+    for half, relief, sigma_along, err in kept:
+        assert half == 12 and relief == pytest.approx(0.9 * 25 / 65) and sigma_along >= relief and err < 1.0
+    monkeypatch.setattr(tr_mod, "smaller_on_relief", lambda m, *a: m)      # the old behaviour
+    assert run() == ([], refused + len(kept))
+
+
 def test_another_simulators_scene_has_no_confident_wrong_transfer(foreign_data, tmp_path):
     """Another simulator's 10 km triplet (each pixel one point of the ground, hard-edged
     parcels): its 50 points from N to F and B as the window transfers them (the 9 GCPs' fit,

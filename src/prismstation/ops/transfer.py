@@ -44,7 +44,7 @@ from prismstation.core.matching.lsm import LsmResult
 from prismstation.core.matching.lsm_search import best_score, match
 from prismstation.core.models.solution import Solution
 from prismstation.io.windows import ImageWindows
-from prismstation.ops.transfer_relief import source_axes, with_relief
+from prismstation.ops.transfer_relief import RELIEF, smaller_on_relief, source_axes, with_relief
 from prismstation.ops.transfer_slope import fitted_slope, plane, slope_shapes
 from prismstation.ops.transfer_template import SOURCE_MARGIN, TEMPLATE_HALVES, template_halves
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
@@ -348,6 +348,13 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
         out = {v: replace(t, match=with_relief(t.match, ref, xy - (rc0, rr0), axes, (*en_pt, h_pt), shapes[v].dh,
                                                height_of, sigma_dem, MAX_SIGMA_PX)) if t.ok else t
                for v, t in out.items()}
+        for v, t in out.items():
+            if adaptive and t.match.status == RELIEF:     # a smaller template sees less relief
+                win = images.around(v, t.x, t.y, int(2 * biggest * np.abs(shapes[v].A).max() + 12))
+                m = smaller_on_relief(t.match, ref, xy - (rc0, rr0), win, TEMPLATE_HALVES, shapes[v].A,
+                                      (axes, (*en_pt, h_pt), shapes[v].dh, height_of, sigma_dem), MAX_SIGMA_PX,
+                                      DEM_SHAPE_CHANGE)
+                out[v] = replace(t, x=m.x, y=m.y, match=m) if m.ok else t
     if check and any(t.ok for t in out.values()):
         # the rays must meet: with two views found, in height; with one, across its parallax
         out = consistency(sol, source, xy, out, h_pt, en0=en_pt)

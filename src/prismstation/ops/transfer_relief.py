@@ -13,7 +13,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from prismstation.core.matching.lsm import LsmResult, template
+from prismstation.core.matching.lsm import LsmResult, refine, template
 from prismstation.core.models.solution import Solution
 from prismstation.ops.predict import ground_jacobian
 
@@ -52,6 +52,40 @@ def with_relief(m: LsmResult, reference, xy, axes, ground, dh, height_of, sigma_
                        f"may move the point by {np.sqrt(b2):.2f} px along the parallax: σ {smax:.2f} px above "
                        f"{max_sigma:.2f}")
     return out
+
+
+def smaller_on_relief(m: LsmResult, reference, xy, window, halves, shape, relief: tuple, max_sigma: float,
+                      max_shape_change: float) -> LsmResult:
+    """A match refused for its template's relief (:data:`RELIEF`), made again from where it
+    ended with the smaller template sizes ``halves`` (the largest first) until one is kept.
+    Its own relief term (:func:`with_relief`) is taken from the reference DEM, whose cells see
+    less and less of a smaller template's relief: the refused template's term, scaled by the
+    sizes' ratio (linear: between a rough surface's power under 1 and a smooth one's square),
+    is kept in its σ along the parallax where it is the larger. ``xy``: the point in
+    ``reference``; ``window``: ``(array, col0, row0)`` of the matched view about the match;
+    ``shape``: the predicted shape to start from; ``relief``: ``(axes, ground, dh, height_of,
+    sigma_dem)`` as :func:`with_relief` takes them. Returns ``m`` when no size is kept."""
+    win, c0, r0 = window
+    if m.status != RELIEF or win is None:
+        return m
+    d = np.asarray(m.extra["d"], float)
+    big, bias = int(m.extra["half"]), float(m.extra.get("relief_px", 0.0))
+    for half in sorted((h for h in halves if h < big), reverse=True):
+        m2 = refine(reference, xy[0], xy[1], win, (m.x - c0, m.y - r0), shape, parallax=d, half=half,
+                    max_sigma=max_sigma, max_shape_change=max_shape_change)
+        if not m2.ok:
+            continue
+        m2 = with_relief(replace(m2, x=m2.x + c0, y=m2.y + r0, extra={**m2.extra, "along": m.extra.get("along")}),
+                         reference, xy, *relief, max_sigma)
+        scaled = bias * (2 * half + 1) / (2 * big + 1)
+        if not m2.ok or scaled <= m2.extra.get("relief_px", 0.0):
+            if m2.ok:
+                return m2
+            continue
+        cov = m2.cov + (scaled ** 2 - m2.extra.get("relief_px", 0.0) ** 2) * np.outer(d, d)
+        if float(np.sqrt(np.linalg.eigvalsh(cov)[-1])) <= max_sigma:
+            return replace(m2, cov=cov, extra={**m2.extra, "relief_px": scaled})
+    return m
 
 
 #: the cell (m) of a reference DEM whose own is not known: SRTM's 3″
