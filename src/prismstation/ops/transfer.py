@@ -348,7 +348,7 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
         out = {v: replace(t, match=with_relief(t.match, ref, xy - (rc0, rr0), axes, (*en_pt, h_pt), shapes[v].dh,
                                                height_of, sigma_dem, MAX_SIGMA_PX)) if t.ok else t
                for v, t in out.items()}
-        for v, t in out.items():
+        for v, t in list(out.items()):
             if adaptive and t.match.status == RELIEF:     # a smaller template sees less relief
                 win = images.around(v, t.x, t.y, int(2 * biggest * np.abs(shapes[v].A).max() + 12))
                 m = smaller_on_relief(t.match, ref, xy - (rc0, rr0), win, TEMPLATE_HALVES, shapes[v].A,

@@ -1,5 +1,6 @@
 """The relief within a transfer's template that its patch cannot follow, as the reference DEM
-shows it (:func:`relief_bias_px`): a term of the transferred point's σ along the parallax.
+shows it (:func:`relief_bias_px`): a term of the transferred point's σ along the parallax; a
+match it refuses is made again with a smaller template (:func:`smaller_on_relief`).
 
 An affine patch (and its bend along the parallax) follows a plane (and a quadratic) of
 heights over the template; the rest of the relief moves the search image's texture along the
@@ -77,12 +78,12 @@ def smaller_on_relief(m: LsmResult, reference, xy, window, halves, shape, relief
             continue
         m2 = with_relief(replace(m2, x=m2.x + c0, y=m2.y + r0, extra={**m2.extra, "along": m.extra.get("along")}),
                          reference, xy, *relief, max_sigma)
-        scaled = bias * (2 * half + 1) / (2 * big + 1)
-        if not m2.ok or scaled <= m2.extra.get("relief_px", 0.0):
-            if m2.ok:
-                return m2
+        if not m2.ok:
             continue
-        cov = m2.cov + (scaled ** 2 - m2.extra.get("relief_px", 0.0) ** 2) * np.outer(d, d)
+        own, scaled = m2.extra.get("relief_px", 0.0), bias * (2 * half + 1) / (2 * big + 1)
+        if scaled <= own:
+            return m2
+        cov = m2.cov + (scaled ** 2 - own ** 2) * np.outer(d, d)
         if float(np.sqrt(np.linalg.eigvalsh(cov)[-1])) <= max_sigma:
             return replace(m2, cov=cov, extra={**m2.extra, "relief_px": scaled})
     return m

@@ -342,8 +342,8 @@ def _mid_check(fit: Fit, t, cov, bend: bool, run_args, noise: float, e1, e2, n: 
     Δ or 0 when it was not used, iterations)``."""
     inside = (np.abs(fit.u) <= MID_HALF) & (np.abs(fit.v) <= MID_HALF)
     mid = fit.copy()
-    mid.w = inside.astype(float).ravel()
-    part = mid.subset(inside.ravel())
+    mid.w = inside.astype(float)
+    part = mid.subset(inside)
     status, _, it = part.run(bend, *run_args)
     if status != OK:
         return t, cov, 0.0, it
