@@ -481,3 +481,21 @@ def test_relief_within_a_large_template_is_weighed_by_its_central_part(monkeypat
     monkeypatch.setattr(lsm, "MID_HALF", 99)        # no central fit: the old behaviour
     e = _hollow_matches(np.random.default_rng(0), 1.5, 60)
     assert np.sqrt(np.mean((e[:, 0] / e[:, 1]) ** 2)) > 1.8
+
+
+def test_a_better_fit_refused_only_for_its_sigma_makes_the_match_ambiguous(texture, monkeypatch):
+    """Two converged fits 2.3 px apart: the better one (ρ 0.983) states more than the σ allowed
+    and is refused (``texture``), the worse (ρ 0.973) is kept. The texture fits as well at both
+    places, so the kept one is not a match but an ambiguity (on another renderer's scene, with no
+    reference DEM, the kept one was 1.94 px off at a stated 0.43 px). A rival refused for its
+    shape says nothing of where the texture fits and changes nothing."""
+    from dataclasses import replace
+    img = texture[0]
+    ref = np.tile(img[400:440, 400:412], (1, 10))[:, :120]      # peaks 12 px apart: both tried
+    kept = replace(lsm.failed(40.5, 20.5, lsm.OK, "", rho=0.973), cov=np.eye(2) * 0.43 ** 2)
+    for status, expected in ((lsm.TEXTURE, "ambiguous"), (lsm.SHAPE, "ok")):
+        rival = lsm.failed(42.8, 20.5, status, "refused", rho=0.983)
+        answers = iter([kept, rival, rival])
+        monkeypatch.setattr(lsm, "refine", lambda *a, **k: next(answers))
+        r = match(ref, 40.5, 20.5, ref, (40.5, 20.5), np.eye(2), (1, 0), along=20, across=1, half=8)
+        assert r.status == expected, (status, r.status, r.reason)

@@ -142,7 +142,8 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
     region; ``half``: template half size; ``candidates``: correlation peaks tried (at least
     ``min_ncc``); ``ambiguity``: a second match whose residual variance (``1 − ρ²``) is within
     this factor of the best one's makes the result ambiguous (1.5: an F test at 99 % on the
-    template's pixels, their correlation allowed for);
+    template's pixels, their correlation allowed for), a converged one refused only for its σ
+    (``texture``) too;
     ``max_shape_change``: how far the shape may move from ``A0`` (:func:`lsm.refine`);
     ``coarse``: σ (px) of a smoothed first pass of the best peak's least-squares match when
     the shape is known only roughly (0: none); ``rival``: once the best peak converged, a peak
@@ -197,7 +198,10 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
     off = np.array([best.x, best.y]) - pred
     if abs(off @ d) > along + 0.5 or abs(off @ c) > across + 0.5:
         return replace(best, status=BORDER, reason="the match lies at the end of the search range")
-    for r in good[1:]:
+    # a rival refused only for its σ (converged, too little texture in one direction) still says
+    # the texture fits there: one that fits as well is as much an ambiguity as a kept one
+    vague = [r for r in results if r.status == lsm.TEXTURE and np.isfinite(r.rho)]
+    for r in good[1:] + vague:
         if np.hypot(r.x - best.x, r.y - best.y) > 1.0 and _misfit(r.rho) <= ambiguity * _misfit(best.rho):
             return replace(best, status=AMBIGUOUS, reason=f"two matches {np.hypot(r.x - best.x, r.y - best.y):.1f} px "
                            f"apart correlate alike ({best.rho:.3f}, {r.rho:.3f}): repetitive or flat texture")
