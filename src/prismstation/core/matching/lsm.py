@@ -291,12 +291,9 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         # parallax measures that relief: the whole template's may be off by all of it, the
         # weighted one by :data:`NEAR_RELIEF` of it. The one stating the smaller σ gives the
         # position along the parallax (across, where relief moves nothing, the whole template)
-        near = fit.copy()
         r2 = fit.u ** 2 + fit.v ** 2
-        near.w = np.exp(-r2 / (2 * taper ** 2))
-        inner = near.subset(r2 <= (TAPER_REACH * taper) ** 2)       # iterate where the weight is
-        status, _, it3 = inner.run(bend, max_iter, t0, max_move, A0inv, max_shape_change)
-        near.take(inner)
+        near, status, it3 = _refit(fit, np.exp(-r2 / (2 * taper ** 2)), r2 <= (TAPER_REACH * taper) ** 2, bend,
+                                   (max_iter, t0, max_move, A0inv, max_shape_change))
         r3, J3, _ = near.final(bend) if status == OK else (None, None, None)
         st3 = _stated(near, r3, J3, noise, e1, e2, n, aliasing) if r3 is not None else None
         if st3 is not None:
@@ -333,6 +330,18 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     return res
 
 
+def _refit(fit: Fit, w, keep, bend: bool, run_args):
+    """``(copy, status, iterations)``: ``fit`` fitted again from its end with the pixel weights
+    ``w`` ``(n²,)``, iterating on the pixels ``keep`` only (beyond them the weight is nil or
+    negligible); the copy holds the result on all the pixels."""
+    other = fit.copy()
+    other.w = w
+    part = other.subset(keep)
+    status, _, it = part.run(bend, *run_args)
+    other.take(part)
+    return other, status, it
+
+
 def _mid_check(fit: Fit, t, cov, bend: bool, run_args, noise: float, e1, e2, n: int, aliasing):
     """The template's central :data:`MID_HALF` px fitted from the whole one's end: relief
     within a large template moves its position along the parallax by the relief's mean over
@@ -341,13 +350,9 @@ def _mid_check(fit: Fit, t, cov, bend: bool, run_args, noise: float, e1, e2, n: 
     gives the position along the parallax (across, the whole template). Returns ``(t, cov,
     Δ or 0 when it was not used, iterations)``."""
     inside = (np.abs(fit.u) <= MID_HALF) & (np.abs(fit.v) <= MID_HALF)
-    mid = fit.copy()
-    mid.w = inside.astype(float)
-    part = mid.subset(inside)
-    status, _, it = part.run(bend, *run_args)
+    mid, status, it = _refit(fit, inside.astype(float), inside, bend, run_args)
     if status != OK:
         return t, cov, 0.0, it
-    mid.take(part)
     delta = float(e1 @ (mid.t - t))
     var_whole = float(e1 @ cov @ e1)
     if delta ** 2 <= var_whole:
