@@ -7,7 +7,7 @@ import pytest
 import rasterio
 
 from prismstation.cli import main
-from prismstation.core.surfaces.dsmstats import residual_sd_by_view, sample_stats, validate_dsm
+from prismstation.core.surfaces.dsmstats import residual_sd_by_view, sample_stats, validate_dsm, white_noise_sigma
 from prismstation.errors import InputError
 from prismstation.io.dem import DemGrid, read_dem, resample_to_grid
 from prismstation.io.geoid import undulation_on_grid
@@ -223,3 +223,21 @@ def test_hillshade_and_histogram_by_hand():
     assert np.allclose(s, math.sin(math.radians(45) - slope))
     counts, edges = histogram([0, 1, 1, 2, 2, 2, np.nan], bins=3, clip_percent=0)
     assert list(counts) == [1, 2, 3] and edges[0] == 0 and edges[-1] == 2
+
+
+def test_a_dems_own_white_noise_is_told_from_its_relief():
+    rng = np.random.default_rng(3)
+    y, x = np.mgrid[0:300, 0:300].astype(float)
+    hills = 500.0 + 40.0 * np.sin(x / 30.0) * np.cos(y / 40.0) + 0.02 * (x - 150.0) ** 2 + 0.3 * y
+    assert white_noise_sigma(0.01 * (x - 150.0) ** 2 + 0.5 * x * y + 3.0 * y) == pytest.approx(0.0, abs=1e-9)
+    assert white_noise_sigma(hills) < 0.05                        # the hills' own curvature, little
+    for sigma in (1.0, 4.0):
+        noisy = hills + rng.normal(0.0, sigma, hills.shape)
+        assert white_noise_sigma(noisy) == pytest.approx(sigma, rel=0.05)
+        # rounded to whole metres (as SRTM stores them): the rounding's 0.29 m adds in quadrature
+        assert white_noise_sigma(np.round(noisy)) == pytest.approx(math.hypot(sigma, 12 ** -0.5), rel=0.05)
+    # voids and what touches them are left out; too few cells give NaN
+    holes = hills + rng.normal(0.0, 4.0, hills.shape)
+    holes[100:200, 50:250] = np.nan
+    assert white_noise_sigma(holes) == pytest.approx(4.0, rel=0.05)
+    assert np.isnan(white_noise_sigma(hills[:8, :8]))

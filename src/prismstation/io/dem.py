@@ -22,10 +22,11 @@ from rasterio.transform import Affine
 from rasterio.warp import transform_bounds
 from rasterio.windows import Window, from_bounds
 
+from prismstation.core.surfaces.dsmstats import white_noise_sigma
 from prismstation.errors import InputError, RasterReadError
 from prismstation.io.atomic import atomic_path, cause_text, raster_check
 from prismstation.io.geoid import to_ellipsoidal
-from prismstation.io.reproject import warp_array, warp_band
+from prismstation.io.reproject import grid_pixels, warp_array, warp_band
 from prismstation.io.georef import height_metres_per_unit
 from prismstation.io.windows import CheckedRaster
 
@@ -52,6 +53,11 @@ class DemGrid:
         The file's own cell size in metres (along its columns, along its rows; geographic
         grids at their centre latitude): what detail the heights can hold, whatever grid
         they were resampled onto.
+    source_crs, source_transform : CRS, Affine or None
+        The file's own grid (where its posts are: :meth:`source_pixels`).
+    source_noise_m : float or None
+        σ (m) of the white noise in the file's own heights, post by post, estimated from them
+        (:func:`~prismstation.core.surfaces.dsmstats.white_noise_sigma`; NaN: too few).
     """
 
     heights: np.ndarray
@@ -60,10 +66,22 @@ class DemGrid:
     height_kind: str = "orthometric"
     path: str | None = None
     source_cell_m: tuple[float, float] | None = None
+    source_crs: CRS | None = None
+    source_transform: Affine | None = None
+    source_noise_m: float | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
         return self.heights.shape
+
+    def source_pixels(self, en) -> np.ndarray | None:
+        """``(2, n)`` continuous ``(col, row)`` on the file's own grid (a cell's centre at
+        ``+0.5``) of the map points ``en`` ``(n, 2)`` of this grid's CRS; None when that grid
+        is not known."""
+        if self.source_crs is None or self.source_transform is None:
+            return None
+        en = np.asarray(en, float)
+        return np.vstack(grid_pixels(en[:, 0], en[:, 1], self.crs, self.source_crs, self.source_transform))
 
 
 def grid_coordinates(transform, shape) -> tuple[np.ndarray, np.ndarray]:
@@ -187,7 +205,8 @@ def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
             heights = to_ellipsoidal(heights, geoid, E, N, out_crs)
         kind = "ellipsoidal"
     a, b, _, d, e, _ = local_metric_transform(src_crs, src_transform, src.shape)
-    return DemGrid(heights, out_crs, out_t, kind, str(path), (float(np.hypot(a, d)), float(np.hypot(b, e))))
+    return DemGrid(heights, out_crs, out_t, kind, str(path), (float(np.hypot(a, d)), float(np.hypot(b, e))),
+                   src_crs, src_transform, white_noise_sigma(src))
 
 
 def resample_to_grid(path, grid: DemGrid, *, resampling: str = "bilinear",

@@ -32,7 +32,7 @@ def with_relief(m: LsmResult, reference, xy, axes, ground, dh, height_of, sigma_
                 max_sigma: float) -> LsmResult:
     """``m`` (a match of a source view's point ``xy`` — in ``reference``'s pixels) with the
     relief's term along its parallax in its covariance: :func:`relief_bias_px`, less what the
-    reference's own noise (σ ``sigma_dem`` m per source cell) would make of it
+    reference's own noise (its own σ, else ``sigma_dem`` m per post) would make of it
     (``extra["relief_px"]``); a failure (:data:`RELIEF`) when its σ then exceeds ``max_sigma``
     px. ``axes``: :func:`source_axes`; ``ground``: the point's ``(E, N, h)`` on the reference
     DEM ``height_of``; ``dh``: px per metre of height in the matched view."""
@@ -102,10 +102,11 @@ def relief_bias_px(axes, k: float, ground, template, d, bend: bool, height_of,
     displacement ``k·(h(u, v) − h(0, 0))`` of the template's pixels (pooled
     :data:`POOL_PX` square), fitted by the patch's model (a plane in ``u, v``; with ``bend`` a
     quadratic) weighted by the template's information along the parallax (its squared gradient
-    along ``d``), at the point — and the σ of that figure that white noise of ``sigma_dem`` m
-    per cell of the reference's own grid would give. ``axes``: the source's px per map metre
-    (:func:`source_axes`); ``k``: px along ``d`` per metre of height in the matched view;
-    ``ground``: the point's ``(E, N, h)``;
+    along ``d``), at the point — and the σ of that figure that the reference's white noise
+    gives: post by post of its own grid, bilinear between them as the DEM is read, of its own
+    σ (:attr:`~prismstation.io.dem.DemGrid.source_noise_m`), else ``sigma_dem`` m.
+    ``axes``: the source's px per map metre (:func:`source_axes`); ``k``: px along ``d`` per
+    metre of height in the matched view; ``ground``: the point's ``(E, N, h)``;
     ``template``: ``(T, u, v)`` of :func:`prismstation.core.matching.lsm.template`;
     ``height_of``: the reference DEM (map metres ``(n, 2)`` → ellipsoidal metres). ``(0, 0)``
     where the DEM has no height at the point or under more than a quarter of the template, or
@@ -139,14 +140,32 @@ def relief_bias_px(axes, k: float, ground, template, d, bend: bool, height_of,
         return 0.0, 0.0
     beta = np.linalg.solve(N, (A * wo[:, None]).T)[0]                 # the fit at the point
     bias = k * float(beta @ (h[ok] - h0))
-    # the reference's noise, white per cell of its own grid, each cell's height whole over it
-    # (an upper bound: a DEM interpolates between its posts, which leaves less bend): each
-    # cell's share of the fitted value, less the point's own cell (heights are relative to it)
-    cell = np.asarray(getattr(getattr(height_of, "grid", None), "source_cell_m", None)
-                      or (DEFAULT_CELL_M, DEFAULT_CELL_M), float)
-    ids = np.floor(np.hstack([en[:, ok], g[:2, None]]) / cell[:, None]).astype(np.int64)
-    _, inv = np.unique(ids[0] * 1_000_003 + ids[1], return_inverse=True)
-    share = np.bincount(inv, weights=np.append(beta, -1.0))
-    noise = k * float(sigma_dem) * float(np.sqrt(np.sum(share ** 2)))
+    # the reference's noise, white per post of its own grid, carried by the bilinear reading
+    # between its posts: each post's share of the fitted value, less the point's own (heights
+    # are relative to it), times the file's own noise (else ``sigma_dem``)
+    grid = getattr(height_of, "grid", None)
+    pts = np.hstack([en[:, ok], g[:2, None]])
+    post = grid.source_pixels(pts.T) if hasattr(grid, "source_pixels") else None
+    if post is None or not np.all(np.isfinite(post)):
+        cell = np.asarray(getattr(grid, "source_cell_m", None) or (DEFAULT_CELL_M, DEFAULT_CELL_M), float)
+        post = pts / cell[:, None]
+    share = _post_shares(post - 0.5, np.append(beta, -1.0))
+    own = getattr(grid, "source_noise_m", None)
+    sigma = float(own) if own is not None and np.isfinite(own) else float(sigma_dem)
+    noise = k * sigma * float(np.sqrt(np.sum(share ** 2)))
     return bias, noise
 
+
+
+def _post_shares(p, weights) -> np.ndarray:
+    """Each post's total weight in ``Σ weights_i · h(p_i)``, ``h`` bilinear between posts at
+    integer coordinates; ``p`` ``(2, n)`` the points in post units (x, y), ``weights`` ``(n,)``."""
+    f = np.floor(p)
+    t = p - f
+    f = f.astype(np.int64)
+    ids, vals = [], []
+    for dx, dy in ((0, 0), (1, 0), (0, 1), (1, 1)):
+        ids.append((f[0] + dx) * 1_000_003 + (f[1] + dy))
+        vals.append(weights * (t[0] if dx else 1.0 - t[0]) * (t[1] if dy else 1.0 - t[1]))
+    _, inv = np.unique(np.concatenate(ids), return_inverse=True)
+    return np.bincount(inv, weights=np.concatenate(vals))

@@ -184,3 +184,29 @@ def hillshade(z, cellsize: float, azimuth_deg: float = 315.0, altitude_deg: floa
     # unit normal of the surface (−∂z/∂E, −∂z/∂N, 1) / norm, dotted with the light direction
     shade = (-dz_dx * lx - dz_dn * ly + lz) / np.sqrt(1 + dz_dx ** 2 + dz_dn ** 2)
     return np.clip(shade, 0.0, 1.0)
+
+
+#: the difference of two Laplacians (Immerkær 1996): nil on any surface linear in x or in y
+#: (planes, quadratics), ``6σ`` of white noise of σ
+_NOISE_MASK = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
+#: the most cells the estimate reads (a centred window): the noise is the grid's everywhere
+NOISE_CELLS = 1024
+
+
+def white_noise_sigma(z) -> float:
+    """σ of the white noise in a grid of heights ``z`` ``(rows, cols)`` (NaN: void), in the
+    heights' units, cell by cell: ``√(π/2)/6 · mean|z ∗ M|`` (Immerkær's estimator, ``M`` the
+    difference of two Laplacians) over the cells whose 3 × 3 neighbourhood is all heights, in
+    the centred :data:`NOISE_CELLS` square at most. Relief finer than three cells counts as
+    noise (an upper bound on rough ground); rounding to whole units adds its 0.29. NaN when
+    fewer than 100 cells qualify."""
+    z = np.asarray(z, float)
+    r0, c0 = (max((s - NOISE_CELLS) // 2, 0) for s in z.shape)
+    z = z[r0:r0 + NOISE_CELLS, c0:c0 + NOISE_CELLS]
+    if min(z.shape) < 3:
+        return float("nan")
+    r = sum(_NOISE_MASK[i, j] * z[i:z.shape[0] - 2 + i, j:z.shape[1] - 2 + j] for i in range(3) for j in range(3))
+    r = r[np.isfinite(r)]
+    if r.size < 100:
+        return float("nan")
+    return float(np.sqrt(np.pi / 2.0) / 6.0 * np.mean(np.abs(r)))
