@@ -25,6 +25,9 @@ or, on the real triplet, from the intersection), flagged (a failure, with its re
 the found-and-right ones, and the σ check (RMS of error/σ along and across the parallax, the
 share inside the 95 % ellipse: honest σ gives about 1, 1 and 95 %). ms per point is wall-clock
 for both views and the consistency test (CPU time beside it: the machine may be shared).
+Under each of ours, the F and B errors along their parallaxes at the points right in both:
+their correlation, and the RMS of their mean and of half their difference (a common part is a
+height error the three rays cannot see).
 
     python benchmarks/bench_transfer.py                       # judged set, 4,000 px scenes
     python benchmarks/bench_transfer.py --set tuning
@@ -192,6 +195,18 @@ class Tally:
         return s
 
 
+def common_along(pairs) -> str:
+    """A note on the F and B errors along their parallaxes at the points right in both (at least
+    two): their correlation, the RMS of their mean and of half their difference (px). Relief
+    within a template moves both views' matches to one wrong height: a common part the rays
+    cannot see."""
+    a = np.asarray(pairs, float)
+    r = float(np.corrcoef(a[:, 0], a[:, 1])[0, 1])
+    common, half = (a[:, 0] + a[:, 1]) / 2, (a[:, 0] - a[:, 1]) / 2
+    return (f"{'':<57} F, B along the parallax at {len(a)} points: correlation {r:+.2f}, "
+            f"mean {np.sqrt(np.mean(common ** 2)):.3f} px, half difference {np.sqrt(np.mean(half ** 2)):.3f} px RMS")
+
+
 def header(first: str) -> str:
     cols = "found  wrong flag  RMS px   z∥   z⊥   in95"
     return f"{first:<34} {'method':<22} {'view':<4} {cols}   ms/pt (cpu)"
@@ -264,12 +279,14 @@ def run_scene(d: Path, foreign_work: Path | None = None, ref: Path | None = None
     with ImageWindows(project.scene) as im:
         for label, height_of in (("ours, reference DEM", dem), ("ours, no DEM", None)):
             tal = {v: Tally() for v in "FB"}
+            along = []          # (F, B) errors along each view's parallax where both are right
             t0, c0 = time.perf_counter(), time.process_time()
             # as the window: the σ of the DEM and of the mean height measured once
             sigma_dem, sigma_mean = search_sigmas(sol, height_of)
             for p in pts:
                 tr = transfer(sol, im, "N", p["image"]["N"], height_of=height_of, sigma_dem=sigma_dem,
                               sigma_mean=sigma_mean, half_window=HALF_WINDOW)
+                pair = {}
                 for v in "FB":
                     t = tr.get(v)
                     if t is None:
@@ -277,9 +294,16 @@ def run_scene(d: Path, foreign_work: Path | None = None, ref: Path | None = None
                         continue
                     err = np.subtract((t.x, t.y), p["image"][v])
                     tal[v].add(err, t.ok, t.match.cov, t.match.extra.get("d"), t.match.status)
+                    if t.ok and np.hypot(*err) <= 1.0 and t.match.extra.get("d") is not None:
+                        d = np.asarray(t.match.extra["d"], float)
+                        pair[v] = float(err @ d / np.hypot(*d))
+                if len(pair) == 2:
+                    along.append((pair["F"], pair["B"]))
             ms = (time.perf_counter() - t0) / len(pts) * 1e3
             cpu = (time.process_time() - c0) / len(pts) * 1e3
             print_rows(name, label, tal, ms, cpu)
+            if len(along) >= 10:
+                print(common_along(along))
             name = ""
         # the peer on the same points, the same prediction and the same band as ours with the DEM
         tal = {v: Tally() for v in "FB"}
