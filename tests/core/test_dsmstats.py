@@ -236,8 +236,15 @@ def test_a_dems_own_white_noise_is_told_from_its_relief():
         assert white_noise_sigma(noisy) == pytest.approx(sigma, rel=0.05)
         # rounded to whole metres (as SRTM stores them): the rounding's 0.29 m adds in quadrature
         assert white_noise_sigma(np.round(noisy)) == pytest.approx(math.hypot(sigma, 12 ** -0.5), rel=0.05)
-    # voids and what touches them are left out; too few cells give NaN
+    # voids and what touches them are left out, and so is flat water (one height); too few
+    # cells give NaN
     holes = hills + rng.normal(0.0, 4.0, hills.shape)
     holes[100:200, 50:250] = np.nan
     assert white_noise_sigma(holes) == pytest.approx(4.0, rel=0.05)
+    coast = np.round(hills + rng.normal(0.0, 4.0, hills.shape))
+    coast[:, :200] = 0.0                                      # two thirds of it sea
+    assert white_noise_sigma(coast) == pytest.approx(math.hypot(4.0, 12 ** -0.5), rel=0.07)
     assert np.isnan(white_noise_sigma(hills[:8, :8]))
+    # a grid too large to read whole is read in 4 × 4 windows spread over it
+    big = np.add.outer(np.linspace(0.0, 300.0, 1500), np.linspace(0.0, 200.0, 1300)) + rng.normal(0.0, 2.0, (1500, 1300))
+    assert white_noise_sigma(big) == pytest.approx(2.0, rel=0.03)

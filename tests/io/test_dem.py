@@ -29,7 +29,7 @@ def test_hgt_resampled_to_utm_agrees_with_the_independent_utm_product(shared_dat
     assert dx == pytest.approx(3 / 3600 * 111_320 * np.cos(np.radians(44.5)), rel=0.01)   # m per degree
     assert dy == pytest.approx(92.5, abs=0.5)
     assert utm.source_cell_m == pytest.approx((abs(utm.transform.a), abs(utm.transform.e)))
-    # and where its own posts are, and their own noise: the real tile's 3″ posts hold 1.7 m of
+    # and where its own posts are, and their own noise: the real tile's 3″ posts hold 1.6 m of
     # white noise by Immerkær's estimator (its relief counts as noise where finer than 3 cells)
     assert str(geo.source_crs) == "EPSG:4326" and geo.source_transform.a == pytest.approx(3 / 3600)
     assert 1.0 < geo.source_noise_m < 2.5

@@ -189,24 +189,43 @@ def hillshade(z, cellsize: float, azimuth_deg: float = 315.0, altitude_deg: floa
 #: the difference of two Laplacians (Immerkær 1996): nil on any surface linear in x or in y
 #: (planes, quadratics), ``6σ`` of white noise of σ
 _NOISE_MASK = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
-#: the most cells the estimate reads (a centred window): the noise is the grid's everywhere
-NOISE_CELLS = 1024
+#: the side (cells) of the windows the estimate reads on a larger grid: 4 × 4 of them spread
+#: over it (the noise is the grid's everywhere; reading a 2²⁸-cell DSM whole would take seconds)
+NOISE_WINDOW = 256
 
 
 def white_noise_sigma(z) -> float:
     """σ of the white noise in a grid of heights ``z`` ``(rows, cols)`` (NaN: void), in the
     heights' units, cell by cell: ``√(π/2)/6 · mean|z ∗ M|`` (Immerkær's estimator, ``M`` the
-    difference of two Laplacians) over the cells whose 3 × 3 neighbourhood is all heights, in
-    the centred :data:`NOISE_CELLS` square at most. Relief finer than three cells counts as
-    noise (an upper bound on rough ground); rounding to whole units adds its 0.29. NaN when
-    fewer than 100 cells qualify."""
+    difference of two Laplacians) over the cells whose 3 × 3 neighbourhood is all heights, not
+    all one height (water, a constant fill); on a grid larger than
+    4 :data:`NOISE_WINDOW` a side, over 4 × 4 windows spread across it. Relief finer than three
+    cells counts as noise (an upper bound on rough ground); rounding to whole units adds its
+    0.29. NaN when fewer than 100 cells qualify."""
     z = np.asarray(z, float)
-    r0, c0 = (max((s - NOISE_CELLS) // 2, 0) for s in z.shape)
-    z = z[r0:r0 + NOISE_CELLS, c0:c0 + NOISE_CELLS]
-    if min(z.shape) < 3:
-        return float("nan")
-    r = sum(_NOISE_MASK[i, j] * z[i:z.shape[0] - 2 + i, j:z.shape[1] - 2 + j] for i in range(3) for j in range(3))
+    rows = _windows(z.shape[0])
+    cols = _windows(z.shape[1])
+    r = np.concatenate([_laplacians(z[a:b, c:d]).ravel() for a, b in rows for c, d in cols])
     r = r[np.isfinite(r)]
     if r.size < 100:
         return float("nan")
     return float(np.sqrt(np.pi / 2.0) / 6.0 * np.mean(np.abs(r)))
+
+
+def _windows(n: int) -> list[tuple[int, int]]:
+    """``(start, stop)`` of the windows along an axis of ``n`` cells: all of it, or 4 of
+    :data:`NOISE_WINDOW` spread evenly."""
+    if n <= 4 * NOISE_WINDOW:
+        return [(0, n)]
+    return [(int(a), int(a) + NOISE_WINDOW) for a in np.linspace(0, n - NOISE_WINDOW, 4)]
+
+
+def _laplacians(z) -> np.ndarray:
+    """``z ∗ M`` on the interior cells of ``z``: NaN where a neighbour is a void or where all
+    nine are one height."""
+    if min(z.shape) < 3:
+        return np.empty(0)
+    shifted = [z[i:z.shape[0] - 2 + i, j:z.shape[1] - 2 + j] for i in range(3) for j in range(3)]
+    r = sum(m * a for m, a in zip(_NOISE_MASK.ravel(), shifted))
+    flat = np.max(shifted, axis=0) == np.min(shifted, axis=0)
+    return np.where(flat, np.nan, r)
