@@ -6,9 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pyproj import Transformer
+from rasterio.transform import from_origin
 from scipy import ndimage
 
 from prismstation.core.matching.lsm import LsmResult
+from prismstation.io.dem import read_dem, write_dem
+from prismstation.ops.reference_heights import DemHeights
 from prismstation.ops.transfer_relief import RELIEF, relief_bias_px, with_relief
 
 AXES = np.diag([0.4, -0.4])            # 2.5 m pixels, rows southwards
@@ -80,11 +84,6 @@ def test_a_geographic_references_own_noise_and_posts_give_the_noise_term(tmp_pat
     # metres, read onto a 30 m UTM grid as a scene's: its noise comes from the file itself (the
     # transfer's σ of the DEM, measured at GCPs, holds the error of its cells on slopes as
     # well) and its posts where the file has them (not a lattice in map metres)
-    from pyproj import Transformer
-    from rasterio.transform import from_origin
-
-    from prismstation.io.dem import read_dem, write_dem
-    from prismstation.ops.reference_heights import DemHeights
     rng = np.random.default_rng(11)
     z = np.round(300.0 + rng.normal(0.0, 4.0, (200, 200)))
     cell = 3.0 / 3600.0

@@ -156,7 +156,6 @@ def relief_bias_px(axes, k: float, ground, template, d, bend: bool, height_of,
     return bias, noise
 
 
-
 def _post_shares(p, weights) -> np.ndarray:
     """Each post's total weight in ``Σ weights_i · h(p_i)``, ``h`` bilinear between posts at
     integer coordinates; ``p`` ``(2, n)`` the points in post units (x, y), ``weights`` ``(n,)``."""

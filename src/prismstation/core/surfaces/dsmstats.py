@@ -197,11 +197,12 @@ NOISE_WINDOW = 256
 def white_noise_sigma(z) -> float:
     """σ of the white noise in a grid of heights ``z`` ``(rows, cols)`` (NaN: void), in the
     heights' units, cell by cell: ``√(π/2)/6 · mean|z ∗ M|`` (Immerkær's estimator, ``M`` the
-    difference of two Laplacians) over the cells whose 3 × 3 neighbourhood is all heights, not
-    all one height (water, a constant fill); on a grid larger than
-    4 :data:`NOISE_WINDOW` a side, over 4 × 4 windows spread across it. Relief finer than three
-    cells counts as noise (an upper bound on rough ground); rounding to whole units adds its
-    0.29. NaN when fewer than 100 cells qualify."""
+    difference of two Laplacians) over the cells whose 3 × 3 neighbourhood is all heights and
+    not all one (water, a constant fill) — on a grid over 4 :data:`NOISE_WINDOW` a side, in
+    4 × 4 windows spread across it. Relief finer than three cells counts as noise (an upper
+    bound on rough ground), and so does rounding to whole units (0.29); a flat plain rounded
+    to whole units, its neighbourhoods mostly one height, reads high. NaN when fewer than 100
+    cells qualify."""
     z = np.asarray(z, float)
     rows = _windows(z.shape[0])
     cols = _windows(z.shape[1])
