@@ -48,6 +48,12 @@ def test_the_reference_dem_is_kept_in_the_project(qtbot, sim, monkeypatch):
         assert win.project.reference_dem is None and win.undo_stack.isClean()
         choose_dem(qtbot, win, monkeypatch, sim / "srtm.tif")
         assert win.project.reference_dem == str((sim / "srtm.tif").resolve())
+        # the status bar says what the DEM holds: its own cells and noise (the simulator's 90 m
+        # reference carries 2 m of noise; its relief finer than three cells reads as more: 3.2)
+        said = win.statusBar().currentMessage()
+        assert said.startswith("Reference DEM: ") and "cells 90 × 9" in said, said
+        noise = float(said.split("its own noise ")[1].split(" m")[0])
+        assert 1.5 < noise < 6.0, said
         assert not win.undo_stack.isClean() and win.isWindowModified()   # a change to save
         key(qtbot, win, "Ctrl+S")
         assert win.undo_stack.isClean()

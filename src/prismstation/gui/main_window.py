@@ -17,7 +17,7 @@ from PySide6.QtWidgets import (QDockWidget, QHBoxLayout, QMainWindow, QMessageBo
 from prismstation import __version__
 from prismstation.errors import PrismError
 from prismstation.gui import commands as cmd
-from prismstation.gui import io_actions, menus, window_layout
+from prismstation.gui import io_actions, menus, reference_dem, window_layout
 from prismstation.gui.accuracy_strip import AccuracyStrip
 from prismstation.gui.tools import install_tools
 from prismstation.gui import settings as st
@@ -387,7 +387,7 @@ class MainWindow(QMainWindow):
     def _on_dem(self, heights) -> None:
         self.views.height_of = heights
         self.solver.set_height_of(heights)
-        self.statusBar().showMessage(f"Reference DEM: {heights.path}", 8000)
+        self.statusBar().showMessage(reference_dem.describe(heights), 8000)
 
     def _on_exaggeration(self, k) -> None:
         self.views.set_exaggeration(k)

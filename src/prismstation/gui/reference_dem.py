@@ -3,6 +3,8 @@ loaded in a worker (:class:`DemLoader`) by :func:`prismstation.ops.reference_hei
 """
 from __future__ import annotations
 
+import math
+
 from PySide6.QtCore import QObject, Signal
 
 from prismstation.errors import PrismError
@@ -54,3 +56,15 @@ class DemLoader(QObject):
         """Join the load (it reads the project's scene); its outcome is dropped."""
         self._request += 1
         self._jobs.close()
+
+
+def describe(heights) -> str:
+    """The status bar's words for a loaded reference DEM: its file, its own cells and its own
+    noise (the point transfer weighs the relief it shows against that noise)."""
+    grid = heights.grid
+    words = []
+    if grid.source_cell_m:
+        words.append("cells {:.0f} × {:.0f} m".format(*grid.source_cell_m))
+    if grid.source_noise_m is not None and math.isfinite(grid.source_noise_m):
+        words.append(f"its own noise {grid.source_noise_m:.1f} m")
+    return f"Reference DEM: {heights.path}" + (" — " + ", ".join(words) if words else "")
