@@ -10,6 +10,7 @@ coordinates; arrays are ``(rows, cols)`` float64 with NaN for voids.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +27,7 @@ from prismstation.core.surfaces.dsmstats import white_noise_sigma
 from prismstation.errors import InputError, RasterReadError
 from prismstation.io.atomic import atomic_path, cause_text, raster_check
 from prismstation.io.geoid import to_ellipsoidal
-from prismstation.io.reproject import grid_pixels, warp_array, warp_band
+from prismstation.io.reproject import transformer, warp_array, warp_band
 from prismstation.io.georef import height_metres_per_unit
 from prismstation.io.windows import CheckedRaster
 
@@ -78,10 +79,22 @@ class DemGrid:
         """``(2, n)`` continuous ``(col, row)`` on the file's own grid (a cell's centre at
         ``+0.5``) of the map points ``en`` ``(n, 2)`` of this grid's CRS; None when that grid
         is not known."""
+        if self._to_source is None:
+            return None
+        to_crs, inv = self._to_source
+        x, y = np.asarray(en, float).T
+        if to_crs is not None:
+            x, y = (np.asarray(v, float) for v in to_crs.transform(x, y))
+        return np.vstack([inv.a * x + inv.b * y + inv.c, inv.d * x + inv.e * y + inv.f])
+
+    @cached_property
+    def _to_source(self):
+        """``(transformer or None when the CRSs are one, inverse of the file's transform)``,
+        made once (a transfer asks for every template's posts)."""
         if self.source_crs is None or self.source_transform is None:
             return None
-        en = np.asarray(en, float)
-        return np.vstack(grid_pixels(en[:, 0], en[:, 1], self.crs, self.source_crs, self.source_transform))
+        same = self.source_crs == self.crs
+        return (None if same else transformer(self.crs, self.source_crs)), ~Affine(*tuple(self.source_transform)[:6])
 
 
 def grid_coordinates(transform, shape) -> tuple[np.ndarray, np.ndarray]:
