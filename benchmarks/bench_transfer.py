@@ -212,10 +212,14 @@ def header(first: str) -> str:
     return f"{first:<34} {'method':<22} {'view':<4} {cols}   ms/pt (cpu)"
 
 
-def print_rows(name, method, tallies, ms, cpu, views=("F", "B")):
+def print_rows(name, method, tallies, ms, cpu, views=("F", "B"), reading=None):
+    """A method's rows, one per view; ``reading``: CPU ms per point of it spent reading the
+    images' pixels (shown on the second row)."""
     for v in views:
         t = tallies[v]
         extra = f"   {ms:6.1f} ({cpu:5.1f})" if v == views[0] else ""
+        if v != views[0] and reading is not None:
+            extra = f"   reading ({reading:4.1f})"
         reasons = ", ".join(f"{k} {n}" for k, n in sorted(t.reasons.items()))
         print(f"{name:<34} {method:<22} {v:<4} {t.row()}{extra}   {reasons}")
         name = method = ""
@@ -256,6 +260,20 @@ def foreign_scene(d: Path, work: Path) -> tuple[Path, list, Path]:
     return proj, [{"image": v} for v in exact.values()], d / "srtm_like.tif"
 
 
+class TimedWindows(ImageWindows):
+    """:class:`ImageWindows` that counts the CPU seconds of its reads (``cpu``): the files'
+    own cost (a compressed tile is inflated once, on the first read that touches it)."""
+
+    cpu = 0.0
+
+    def read(self, *args, **kw):
+        c0 = time.process_time()
+        try:
+            return super().read(*args, **kw)
+        finally:
+            self.cpu += time.process_time() - c0
+
+
 def run_scene(d: Path, foreign_work: Path | None = None, ref: Path | None = None) -> None:
     if foreign_work is not None:
         proj, pts, ref = foreign_scene(d, foreign_work)
@@ -276,11 +294,11 @@ def run_scene(d: Path, foreign_work: Path | None = None, ref: Path | None = None
         ref, pts = ref or d / "srtm.tif", truth["points"]
     sol = solve_project(project)
     dem = load_for_scene(ref, project)
-    with ImageWindows(project.scene) as im:
+    with TimedWindows(project.scene) as im:
         for label, height_of in (("ours, reference DEM", dem), ("ours, no DEM", None)):
             tal = {v: Tally() for v in "FB"}
             along = []          # (F, B) errors along each view's parallax where both are right
-            t0, c0 = time.perf_counter(), time.process_time()
+            t0, c0, r0 = time.perf_counter(), time.process_time(), im.cpu
             # as the window: the σ of the DEM and of the mean height measured once
             sigma_dem, sigma_mean = search_sigmas(sol, height_of)
             for p in pts:
@@ -301,7 +319,7 @@ def run_scene(d: Path, foreign_work: Path | None = None, ref: Path | None = None
                     along.append((pair["F"], pair["B"]))
             ms = (time.perf_counter() - t0) / len(pts) * 1e3
             cpu = (time.process_time() - c0) / len(pts) * 1e3
-            print_rows(name, label, tal, ms, cpu)
+            print_rows(name, label, tal, ms, cpu, reading=(im.cpu - r0) / len(pts) * 1e3)
             if len(along) >= 10:
                 print(common_along(along))
             name = ""

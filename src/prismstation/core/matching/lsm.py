@@ -26,8 +26,11 @@ blur) lie between their samples in both views, and the pixels on such edges are 
 in the fit by that variance (all in :mod:`prismstation.core.matching.lsm_sigma`). Along ``d``
 a second fit weighted to the point's surroundings (Gaussian of σ :data:`TAPER` px) gives the
 position and σ when it states the smaller σ there, the two fits' disagreement counted in
-both (relief finer than the template). The factors were calibrated on simulated PRISM triplets (the
-fractal relief, smooth hills, a real DEM's relief); ``tests/core/test_lsm.py`` and
+both (relief finer than the template). Where the images are point-sampled (no optical blur),
+the point is then moved by how far its fit moves on both images low-passed
+(:mod:`prismstation.core.matching.lsm_sampled`): the pull of the two pixel grids, which the
+stated covariance (built before) still holds. The factors were calibrated on simulated PRISM
+triplets (the fractal relief, smooth hills, a real DEM's relief); ``tests/core/test_lsm.py`` and
 ``benchmarks/bench_transfer.py`` check the σ against the scatter on other scenes, on warped
 real Pléiades texture and on the real Pléiades triplet (docs/matching.md).
 
@@ -46,7 +49,9 @@ import numpy as np
 from scipy import ndimage, stats
 
 from prismstation.core.matching.lsm_fit import (LOW_CORRELATION, MAX_BEND, MOVED, NOT_CONVERGED, OK,  # noqa: F401
-                                                OUTSIDE, RIVAL_ITER, RIVAL_MARGIN, SHAPE, STEP_TOL, TEXTURE, Fit)
+                                                OUTSIDE, RIVAL_ITER, RIVAL_MARGIN, SHAPE, STEP_TOL, TEXTURE, Fit,
+                                                template)
+from prismstation.core.matching.lsm_sampled import POINT_SAMPLED, edge_sigma, smoothed_shift
 from prismstation.core.matching.lsm_sigma import (gradient_noise_inflation, noise_sigma, sampling_px,
                                                   sampling_scatter, unmodelled_sigma)
 from prismstation.core.matching.lsm_spline import Spline, search_spline
@@ -90,8 +95,6 @@ MID_HALF = 18
 by its mean over them."""
 BEND_TRIGGER = 0.03
 """A bend is tried when the affine patch leaves this much unmodelled relief (px)."""
-
-
 @dataclass(frozen=True)
 class LsmResult:
     """Outcome of :func:`refine`.
@@ -103,8 +106,11 @@ class LsmResult:
     ``g1``, ``g0``; ``rho``: correlation of the template with the fitted patch;
     ``iterations``; ``status`` / ``reason``; ``score``: the correlation peak the search started
     from (:mod:`prismstation.core.matching.lsm_search`); ``extra``: ``bend`` (c1, c2, c3), ``sigma_relief``,
-    ``sigma_across`` (px), the parallax direction ``d``, the template's ``half`` size and ``mid``
-    (px: the central part's disagreement along the parallax where it entered, else 0)."""
+    ``sigma_across`` (px), the parallax direction ``d``, the template's ``half`` size, ``mid``
+    (px: the central part's disagreement along the parallax where it entered, else 0),
+    ``edges`` (px: the template's mean σ of where its edges lie between samples,
+    :func:`~prismstation.core.matching.lsm_sampled.edge_sigma`) and ``smoothed`` ((2,) px: how
+    far the low-passed last fit moved the point, zeros where the images are not point-sampled)."""
 
     x: float
     y: float
@@ -149,18 +155,6 @@ def failed(x, y, status, reason, *, shape=None, rho=np.nan, iterations=0, score=
     """A failed :class:`LsmResult` at the best estimate ``(x, y)``."""
     return LsmResult(float(x), float(y), _NAN2, _NAN2, np.eye(2) if shape is None else np.asarray(shape, float),
                      np.nan, np.nan, float(rho), iterations, status, reason, float(score))
-
-
-def template(reference, x: float, y: float, half: int):
-    """``(T, u, v)``: the ``(2·half+1)²`` reference pixels around ``(x, y)`` (float64) and
-    their centres' offsets from the point (pixels), or None when the window leaves the image."""
-    i0, j0 = int(np.floor(x)), int(np.floor(y))
-    if not (half <= j0 < reference.shape[0] - half and half <= i0 < reference.shape[1] - half):
-        return None
-    t = np.asarray(reference[j0 - half:j0 + half + 1, i0 - half:i0 + half + 1], np.float64)
-    k = np.arange(-half, half + 1, dtype=float)
-    v, u = np.meshgrid(k + j0 + 0.5 - y, k + i0 + 0.5 - x, indexing="ij")
-    return t, u, v
 
 
 def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half: int = 12,
@@ -285,6 +279,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     cov, formal, s_relief, s_across, sampled = stated
     t = fit.t.copy()
     local = 0.0
+    along_fit = fit           # the fit whose position along the parallax is kept
     if taper > 0 and parallax is not None and e1 @ cov @ e1 > NEAR_GAIN ** 2 * SIGMA_SCALE ** 2 * (e1 @ formal @ e1):
         # the relief the patch leaves moves the point along the parallax: a fit weighted to the
         # point's surroundings follows it closer. How far the two fits disagree along the
@@ -306,7 +301,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
             if var_near < var_whole:
                 t = t + P1 @ (near.t - fit.t)
                 formal = (e1 @ st3[1] @ e1) * P1 + (e2 @ formal @ e2) * P2
-                s_relief, local, along = st3[2], taper, st3[4]
+                s_relief, local, along, along_fit = st3[2], taper, st3[4], near
             # the sampling of the fit that gives the position along the parallax, the whole
             # template's across
             cov = (min(var_near, var_whole) + e1 @ along @ e1) * P1 + (e2 @ (cov + sampled) @ e2) * P2
@@ -315,13 +310,29 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         cov = cov + sampled
     mid = 0.0
     if parallax is not None and half > MID_HALF:
-        t, cov, mid, it4 = _mid_check(fit, t, cov, bend, (max_iter, t0, max_move, A0inv, max_shape_change),
-                                      noise, e1, e2, n, aliasing)
+        t, cov, mid, it4, central = _mid_check(fit, t, cov, bend, (max_iter, t0, max_move, A0inv, max_shape_change),
+                                               noise, e1, e2, n, aliasing)
+        along_fit = central or along_fit
         it += it4
+    shift = np.zeros(2)
+    edges = edge_sigma(T, aliasing)
+    if smooth == 0 and edges > POINT_SAMPLED:
+        # the point-sampled images' sub-pixel pull: across the parallax the whole template's;
+        # along it that of the fit that gave the position there, where the relief it leaves is
+        # under its edges' σ (beyond, the low-pass moves the fit by the relief it weighs anew)
+        run_args = (max_iter, t0, max_move, A0inv, max_shape_change)
+        shift, it5 = smoothed_shift(reference, x, y, search, fit, bend, run_args)
+        along_shift = float(e1 @ shift) if along_fit is fit else 0.0
+        if along_fit is not fit and s_relief < edges:
+            along_shift, it6 = smoothed_shift(reference, x, y, search, along_fit, bend, run_args)
+            along_shift, it5 = float(e1 @ along_shift), it5 + it6
+        shift = e2 * float(e2 @ shift) + (e1 * along_shift if s_relief < edges else 0.0)
+        t, it = t + shift, it + it5
     res = LsmResult(float(t[0]), float(t[1]), cov, formal, fit.A.copy(), float(fit.g1), float(fit.g0),
                     rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),
                                            "sigma_relief": s_relief, "sigma_across": s_across, "d": d,
-                                           "taper": local, "half": half, "mid": mid})
+                                           "taper": local, "half": half, "mid": mid, "smoothed": shift,
+                                           "edges": edges})
     if rho < min_rho:
         return _as_failure(res, LOW_CORRELATION, f"correlation {rho:.2f} below {min_rho:.2f}")
     smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
@@ -335,7 +346,7 @@ def _refit(fit: Fit, w, keep, bend: bool, run_args):
     ``w`` ``(n²,)``, iterating on the pixels ``keep`` only (beyond them the weight is nil or
     negligible); the copy holds the result on all the pixels."""
     other = fit.copy()
-    other.w = w
+    other.w, other.keep = w, keep
     part = other.subset(keep)
     status, _, it = part.run(bend, *run_args)
     other.take(part)
@@ -352,24 +363,24 @@ def _mid_check(fit: Fit, t, cov, bend: bool, run_args, noise: float, e1, e2, n: 
     inside = (np.abs(fit.u) <= MID_HALF) & (np.abs(fit.v) <= MID_HALF)
     mid, status, it = _refit(fit, inside.astype(float), inside, bend, run_args)
     if status != OK:
-        return t, cov, 0.0, it
+        return t, cov, 0.0, it, None
     delta = float(e1 @ (mid.t - t))
     var_whole = float(e1 @ cov @ e1)
     if delta ** 2 <= var_whole:
-        return t, cov, 0.0, it          # within the whole template's own σ: nothing to add
+        return t, cov, 0.0, it, None    # within the whole template's own σ: nothing to add
     r, J, _ = mid.final(bend)
     st = _stated(mid, r, J, noise, e1, e2, n, aliasing) if r is not None else None
     if st is None:
-        return t, cov, 0.0, it
+        return t, cov, 0.0, it, None
     var_mid = float(e1 @ (st[0] + st[4]) @ e1)
     excess = delta ** 2 - var_whole - var_mid
     if excess <= 0:
-        return t, cov, 0.0, it
+        return t, cov, 0.0, it, None
     P1 = np.outer(e1, e1)
     if var_mid < var_whole:
         t = t + P1 @ (mid.t - t)
     cov = (min(var_mid, var_whole) + excess) * P1 + float(e2 @ cov @ e2) * np.outer(e2, e2)
-    return t, cov, delta, it
+    return t, cov, delta, it, (mid if var_mid < var_whole else None)
 
 
 def _stated(fit: Fit, r, J, noise: float, e1, e2, n: int, aliasing=None):

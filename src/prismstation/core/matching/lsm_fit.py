@@ -35,6 +35,18 @@ iteration)."""
 _I2 = np.eye(2)
 
 
+def template(reference, x: float, y: float, half: int):
+    """``(T, u, v)``: the ``(2·half+1)²`` reference pixels around ``(x, y)`` (float64) and
+    their centres' offsets from the point (pixels), or None when the window leaves the image."""
+    i0, j0 = int(np.floor(x)), int(np.floor(y))
+    if not (half <= j0 < reference.shape[0] - half and half <= i0 < reference.shape[1] - half):
+        return None
+    t = np.asarray(reference[j0 - half:j0 + half + 1, i0 - half:i0 + half + 1], np.float64)
+    k = np.arange(-half, half + 1, dtype=float)
+    v, u = np.meshgrid(k + j0 + 0.5 - y, k + i0 + 0.5 - x, indexing="ij")
+    return t, u, v
+
+
 class Fit:
     """The Gauss–Newton state of one patch: position ``t``, shape ``A``, bend ``c`` (3 or 0
     terms), offset ``g0`` and gain ``g1``, on a fixed template and search spline."""
@@ -44,6 +56,7 @@ class Fit:
         self.uv = np.vstack([self.u, self.v])                  # (2, n) template offsets
         self.w = None if w is None else np.asarray(w, float).ravel()     # None: uniform
         self.pw = None                                     # the pixels' weights (aliasing), None: uniform
+        self.keep = None                                   # the pixels iterated on (:meth:`subset`), None: all
         gv, gu = np.gradient(T)                            # template gradients (grey values per px)
         self.Tu, self.Tv = gu.ravel(), gv.ravel()
         self.Q = np.vstack([self.u ** 2, self.u * self.v, self.v ** 2]) / half    # (3, n) bend terms

@@ -1,0 +1,65 @@
+"""A point-sampled template's last fit, on both images low-passed (:func:`smoothed_shift`):
+the sub-pixel pull of two views' pixel grids taken out of a least-squares match
+(:mod:`prismstation.core.matching.lsm`; docs/matching.md, the pull of two pixel grids).
+
+Coordinates as there (docs/model.md §1): image ``x`` = column, ``y`` = row, pixels.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from prismstation.core.matching.lsm_fit import OK, Fit, template
+from prismstation.core.matching.lsm_spline import search_spline
+
+POINT_SAMPLED = 0.03
+"""The template's gradient-weighted mean σ (px) of where its edges lie between their samples
+(:func:`~prismstation.core.matching.lsm_sigma.sampling_px`) above which its images are taken as point-sampled: 0.003–0.027 px on the
+simulator's blurred views (medians and 90 % points), 0.04–0.25 px (10 % points and medians) on
+its point-sampled ones and on another renderer's."""
+SAMPLED_SMOOTH = 0.6
+"""σ (px) of the Gaussian low-pass of both images in a point-sampled template's last fit
+(:func:`smoothed_shift`): from about 0.55 px of blur on, the spline places an edge between
+its samples where they put it (the table behind
+:func:`~prismstation.core.matching.lsm_sigma.sampling_px`)."""
+
+
+def edge_sigma(T, aliasing) -> float:
+    """The gradient-weighted mean over the template ``T`` (grey values, ``(n, n)``) of the σ (px)
+    ``aliasing`` (``(ex, ey)``, :func:`~prismstation.core.matching.lsm_sigma.sampling_px`) gives its
+    pixels along x and y."""
+    gv, gu = np.gradient(T)
+    energy = float((gu * gu + gv * gv).sum())
+    return float((gu * gu * aliasing[0] + gv * gv * aliasing[1]).sum()) / energy if energy > 0 else 0.0
+
+
+def smoothed_shift(reference, x: float, y: float, search, fit: Fit, bend: bool, run_args):
+    """``(shift (2,) px, iterations)``: how far ``fit`` (converged on the point-sampled images)
+    moves when both images are low-passed by a Gaussian of :data:`SAMPLED_SMOOTH` px and it is
+    fitted again from its end (the same parameters, pixel weights and pixels: the whole template
+    or a weighted part of it, as ``lsm._refit`` made it); zero where that fit fails.
+    ``run_args``: ``(max_iter, t0, max_move, A0inv, max_shape_change)`` of
+    :meth:`~prismstation.core.matching.lsm_fit.Fit.run`.
+
+    Sampled without blur, an edge lies anywhere between two samples, and the spline between
+    them is not the edge: a patch matched on such samples is drawn by a sub-pixel amount that
+    depends on where the two views' pixel grids fall on each other (the fraction of the shift
+    between them). Across the parallax, where the views' grids run parallel at the same spacing,
+    that fraction is the same over the whole template and the error does not average out: on
+    point-sampled scenes of two simulators it followed ``0.10–0.14·sin(2π·fraction)`` px. The
+    low-pass makes the spline a faithful interpolant of what the samples show, and each edge
+    then counts by its samples' own place."""
+    m = int(np.ceil(3 * SAMPLED_SMOOTH))
+    tpl = template(reference, x, y, fit.half + m)
+    max_iter, t0, max_move, A0inv, max_shape_change = run_args
+    spline = search_spline(search, fit.t, fit.A, fit.half, max_move + 1.0 + 3 * SAMPLED_SMOOTH
+                           + 1.5 * max_shape_change * fit.half, SAMPLED_SMOOTH)
+    if tpl is None or spline is None:
+        return np.zeros(2), 0
+    T = ndimage.gaussian_filter(tpl[0], SAMPLED_SMOOTH, mode="nearest")[m:-m, m:-m]
+    smoothed = Fit(T, fit.u.reshape(T.shape), fit.v.reshape(T.shape), spline, fit.d, fit.half, fit.w)
+    smoothed.t, smoothed.A, smoothed.c = fit.t.copy(), fit.A.copy(), fit.c.copy()
+    smoothed.pw = fit.pw
+    part = smoothed if fit.keep is None else smoothed.subset(fit.keep)
+    status, _, it = part.run(bend, *run_args)
+    return (part.t - fit.t if status == OK else np.zeros(2)), it
