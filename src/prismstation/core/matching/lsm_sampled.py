@@ -59,6 +59,7 @@ def smoothed_shift(reference, x: float, y: float, search, fit: Fit, bend: bool, 
     T = ndimage.gaussian_filter(tpl[0], SAMPLED_SMOOTH, mode="nearest")[m:-m, m:-m]
     smoothed = Fit(T, fit.u.reshape(T.shape), fit.v.reshape(T.shape), spline, fit.d, fit.half, fit.w)
     smoothed.t, smoothed.A, smoothed.c = fit.t.copy(), fit.A.copy(), fit.c.copy()
+    smoothed.g0, smoothed.g1 = fit.g0, fit.g1          # one low-pass on both: the radiometry holds
     smoothed.pw = fit.pw
     part = smoothed if fit.keep is None else smoothed.subset(fit.keep)
     status, _, it = part.run(bend, *run_args)
