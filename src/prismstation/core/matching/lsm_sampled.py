@@ -51,9 +51,9 @@ def smoothed_shift(reference, x: float, y: float, search, fit: Fit, bend: bool, 
     then counts by its samples' own place."""
     m = int(np.ceil(3 * SAMPLED_SMOOTH))
     tpl = template(reference, x, y, fit.half + m)
-    max_iter, t0, max_move, A0inv, max_shape_change = run_args
-    spline = search_spline(search, fit.t, fit.A, fit.half, max_move + 1.0 + 3 * SAMPLED_SMOOTH
-                           + 1.5 * max_shape_change * fit.half, SAMPLED_SMOOTH)
+    # it moves by tenths of a pixel and its shape by a few per cent: room for 2 px and 5 %
+    spline = search_spline(search, fit.t, fit.A, fit.half, 2.0 + 3 * SAMPLED_SMOOTH + 0.05 * fit.half,
+                           SAMPLED_SMOOTH)
     if tpl is None or spline is None:
         return np.zeros(2), 0
     T = ndimage.gaussian_filter(tpl[0], SAMPLED_SMOOTH, mode="nearest")[m:-m, m:-m]
