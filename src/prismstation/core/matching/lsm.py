@@ -95,6 +95,8 @@ MID_HALF = 18
 by its mean over them."""
 BEND_TRIGGER = 0.03
 """A bend is tried when the affine patch leaves this much unmodelled relief (px)."""
+
+
 @dataclass(frozen=True)
 class LsmResult:
     """Outcome of :func:`refine`.

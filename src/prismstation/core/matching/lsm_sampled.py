@@ -14,9 +14,14 @@ from prismstation.core.matching.lsm_spline import search_spline
 
 POINT_SAMPLED = 0.03
 """The template's gradient-weighted mean σ (px) of where its edges lie between their samples
-(:func:`~prismstation.core.matching.lsm_sigma.sampling_px`) above which its images are taken as point-sampled: 0.003–0.027 px on the
+(:func:`edge_sigma`) above which its images are taken as point-sampled: 0.003–0.027 px on the
 simulator's blurred views (medians and 90 % points), 0.04–0.25 px (10 % points and medians) on
 its point-sampled ones and on another renderer's."""
+MAX_PULL = 1.0
+"""The farthest (px) the low-passed fit may move: each view's samples place an edge within half
+a pixel of where it is, so the two views' misplace it by a pixel at most; a fit that moves
+farther has left for another minimum, and its shift is not taken (on the tuning scenes the
+largest taken was 0.82 px)."""
 SAMPLED_SMOOTH = 0.6
 """σ (px) of the Gaussian low-pass of both images in a point-sampled template's last fit
 (:func:`smoothed_shift`): from about 0.55 px of blur on, the spline places an edge between
@@ -37,7 +42,8 @@ def smoothed_shift(reference, x: float, y: float, search, fit: Fit, bend: bool, 
     """``(shift (2,) px, iterations)``: how far ``fit`` (converged on the point-sampled images)
     moves when both images are low-passed by a Gaussian of :data:`SAMPLED_SMOOTH` px and it is
     fitted again from its end (the same parameters, pixel weights and pixels: the whole template
-    or a weighted part of it, as ``lsm._refit`` made it); zero where that fit fails.
+    or a weighted part of it, as ``lsm._refit`` made it); zero where that fit fails or moves
+    farther than :data:`MAX_PULL`.
     ``run_args``: ``(max_iter, t0, max_move, A0inv, max_shape_change)`` of
     :meth:`~prismstation.core.matching.lsm_fit.Fit.run`.
 
@@ -62,5 +68,6 @@ def smoothed_shift(reference, x: float, y: float, search, fit: Fit, bend: bool, 
     smoothed.g0, smoothed.g1 = fit.g0, fit.g1          # one low-pass on both: the radiometry holds
     smoothed.pw = fit.pw
     part = smoothed if fit.keep is None else smoothed.subset(fit.keep)
-    status, _, it = part.run(bend, *run_args)
+    max_iter, _, _, A0inv, max_shape_change = run_args
+    status, _, it = part.run(bend, max_iter, fit.t.copy(), MAX_PULL, A0inv, max_shape_change)
     return (part.t - fit.t if status == OK else np.zeros(2)), it
