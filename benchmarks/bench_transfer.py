@@ -24,7 +24,9 @@ Columns: found (a match the method stands by), wrong (found but more than 1 px f
 or, on the real triplet, from the intersection), flagged (a failure, with its reason), RMS of
 the found-and-right ones, and the σ check (RMS of error/σ along and across the parallax, the
 share inside the 95 % ellipse: honest σ gives about 1, 1 and 95 %). ms per point is wall-clock
-for both views and the consistency test (CPU time beside it: the machine may be shared).
+for both views and the consistency test (CPU time beside it: the machine may be shared); under
+it, "reading": the CPU ms per point of it spent reading the images' pixels (a compressed file's
+tiles are inflated on the first read that touches them, so the first method pays for them).
 Under each of ours, the F and B errors along their parallaxes at the points right in both:
 their correlation, and the RMS of their mean and of half their difference (a common part is a
 height error the three rays cannot see).
