@@ -19,7 +19,7 @@ simulator's blurred views (medians and 90 % points), 0.04–0.25 px (10 % points
 its point-sampled ones and on another renderer's."""
 MAX_PULL = 1.0
 """The farthest (px) the low-passed fit may move: each view's samples place an edge within half
-a pixel of where it is, so the two views' misplace it by a pixel at most; a fit that moves
+a pixel of where it is, so the two views misplace it by a pixel at most; a fit that moves
 farther has left for another minimum, and its shift is not taken (on the tuning scenes the
 largest taken was 0.82 px)."""
 SAMPLED_SMOOTH = 0.6
