@@ -228,8 +228,9 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     # texture that samples place well counts more
     t_noise = noise_sigma(T)
     aliasing = sampling_px(T, t_noise)
+    gv, gu = np.gradient(T)
+    edges = edge_sigma(gu, gv, aliasing)
     if t_noise > 0 and (aliasing[0].any() or aliasing[1].any()):
-        gv, gu = np.gradient(T)
         edge_var = 2.0 * ((gu * aliasing[0]) ** 2 + (gv * aliasing[1]) ** 2)
         fit.pw = (t_noise ** 2 / (t_noise ** 2 + edge_var)).ravel()
     A0inv = np.linalg.inv(A0)
@@ -317,18 +318,17 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         along_fit = central or along_fit
         it += it4
     shift = np.zeros(2)
-    edges = edge_sigma(T, aliasing)
     if smooth == 0 and edges > POINT_SAMPLED:
         # the point-sampled images' sub-pixel pull: across the parallax the whole template's;
         # along it that of the fit that gave the position there, where the relief it leaves is
         # under its edges' σ (beyond, the low-pass moves the fit by the relief it weighs anew)
         run_args = (max_iter, t0, max_move, A0inv, max_shape_change)
-        shift, it5 = smoothed_shift(reference, x, y, search, fit, bend, run_args)
-        along_shift = float(e1 @ shift) if along_fit is fit else 0.0
+        whole, it5 = smoothed_shift(reference, x, y, search, fit, bend, run_args)
+        along = whole if along_fit is fit else np.zeros(2)
         if along_fit is not fit and s_relief < edges:
-            along_shift, it6 = smoothed_shift(reference, x, y, search, along_fit, bend, run_args)
-            along_shift, it5 = float(e1 @ along_shift), it5 + it6
-        shift = e2 * float(e2 @ shift) + (e1 * along_shift if s_relief < edges else 0.0)
+            along, it6 = smoothed_shift(reference, x, y, search, along_fit, bend, run_args)
+            it5 += it6
+        shift = e2 * float(e2 @ whole) + (e1 * float(e1 @ along) if s_relief < edges else 0.0)
         t, it = t + shift, it + it5
     res = LsmResult(float(t[0]), float(t[1]), cov, formal, fit.A.copy(), float(fit.g1), float(fit.g0),
                     rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),

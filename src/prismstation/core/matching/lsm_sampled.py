@@ -29,13 +29,12 @@ its samples where they put it (the table behind
 :func:`~prismstation.core.matching.lsm_sigma.sampling_px`)."""
 
 
-def edge_sigma(T, aliasing) -> float:
-    """The gradient-weighted mean over the template ``T`` (grey values, ``(n, n)``) of the σ (px)
-    ``aliasing`` (``(ex, ey)``, :func:`~prismstation.core.matching.lsm_sigma.sampling_px`) gives its
-    pixels along x and y."""
-    gv, gu = np.gradient(T)
-    energy = float((gu * gu + gv * gv).sum())
-    return float((gu * gu * aliasing[0] + gv * gv * aliasing[1]).sum()) / energy if energy > 0 else 0.0
+def edge_sigma(gx, gy, aliasing) -> float:
+    """The mean, weighted by a template's squared gradients ``gx``, ``gy`` (``(n, n)``, grey
+    values per px), of the σ (px) ``aliasing`` (``(ex, ey)``,
+    :func:`~prismstation.core.matching.lsm_sigma.sampling_px`) gives its pixels along x and y."""
+    energy = float((gx * gx + gy * gy).sum())
+    return float((gx * gx * aliasing[0] + gy * gy * aliasing[1]).sum()) / energy if energy > 0 else 0.0
 
 
 def smoothed_shift(reference, x: float, y: float, search, fit: Fit, bend: bool, run_args):
