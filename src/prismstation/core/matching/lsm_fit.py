@@ -10,6 +10,8 @@ import math
 
 import numpy as np
 
+from prismstation.core.matching.lsm_kernel import design_rows, sample_patch
+
 OK = "ok"
 NOT_CONVERGED, TEXTURE, SHAPE, MOVED, LOW_CORRELATION, OUTSIDE = (
     "not_converged", "texture", "shape", "moved", "low_correlation", "outside")
@@ -71,38 +73,26 @@ class Fit:
         return self.smp
 
     def _sample(self):
-        q = self.A @ self.uv
-        q += self.t[:, None]
-        if self.c.any():
-            q += np.outer(self.d, self.c @ self.Q)
-        lo, hi = q.min(axis=1), q.max(axis=1)
+        n = self.T.size
+        S, Sx, Sy = np.empty(n), np.empty(n), np.empty(n)
         sp = self.spline
-        if lo[0] < sp.lo[0] or lo[1] < sp.lo[1] or hi[0] > sp.hi[0] or hi[1] > sp.hi[1]:
+        if not sample_patch(sp.flat, sp.width, sp.c0, sp.r0, sp.lo, sp.hi, self.t, self.A, self.c, self.d,
+                            self.u, self.v, self.Q, bool(self.c.any()), S, Sx, Sy):
             return None
-        return sp.sample(q[0], q[1])
+        return S, Sx, Sy
 
     def design(self, S, Sx, Sy, bend: bool, esm: bool):
-        """Rows ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)`` ``(n, 8 or 11)`` (a transposed view);
-        with ``esm`` the gradient is the mean of the search image's and the template's carried
-        into the search image (Benhimane and Malis 2004: faster convergence); without, the
-        search image's alone (the covariance)."""
-        gx, gy = self.g1 * Sx, self.g1 * Sy
-        if esm:
-            a, b, c, d = self.A.ravel()
-            det = a * d - b * c
-            gx = 0.5 * (gx + (d / det) * self.Tu - (c / det) * self.Tv)
-            gy = 0.5 * (gy - (b / det) * self.Tu + (a / det) * self.Tv)
-        u, v = self.u, self.v
-        J = np.empty((11 if bend else 8, S.size))
-        J[0], J[1] = gx, gy
-        np.multiply(gx, u, out=J[2])
-        np.multiply(gx, v, out=J[3])
-        np.multiply(gy, u, out=J[4])
-        np.multiply(gy, v, out=J[5])
-        if bend:
-            np.multiply(gx * self.d[0] + gy * self.d[1], self.Q, out=J[6:9])
-        J[-2], J[-1] = 1.0, S
-        return J.T
+        """``(r, J)``: the residuals ``T − (g0 + g1·S)`` ``(n,)`` and the design
+        ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)`` ``(8 or 11, n)``; with ``esm`` the gradient is
+        the mean of the search image's and the template's carried into the search image
+        (Benhimane and Malis 2004: faster convergence); without, the search image's alone (the
+        covariance)."""
+        J, r = np.empty((11 if bend else 8, S.size)), np.empty(S.size)
+        a, b, c, d = self.A.ravel()
+        E = np.array([[d, -c], [-b, a]]) / (a * d - b * c) if esm else _I2      # A⁻ᵀ
+        design_rows(S, Sx, Sy, self.T, self.Tu, self.Tv, self.u, self.v, self.Q, self.d, self.g0, self.g1, E,
+                    esm, bend, J, r)
+        return r, J
 
     def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float,
             need_rho: float | None = None, tol: float = STEP_TOL):
@@ -123,8 +113,7 @@ class Fit:
             if self.g1 is None:
                 self.g1 = self.T.std() / max(S.std(), 1e-12)
                 self.g0 = self.T.mean() - self.g1 * S.mean()
-            r = self.T - (self.g0 + self.g1 * S)
-            Jt = self.design(S, Sx, Sy, bend, esm=True).T
+            r, Jt = self.design(S, Sx, Sy, bend, esm=True)
             wt = self.weights()
             Jw = Jt if wt is None else Jt * wt
             try:
@@ -182,7 +171,7 @@ class Fit:
             a = getattr(self, name)
             if a is not None:
                 setattr(other, name, a[keep])
-        other.uv, other.Q = self.uv[:, keep], self.Q[:, keep]
+        other.uv, other.Q = np.ascontiguousarray(self.uv[:, keep]), np.ascontiguousarray(self.Q[:, keep])
         return other
 
     def take(self, other):
@@ -197,8 +186,8 @@ class Fit:
         if smp is None:
             return None, None, np.nan
         S, Sx, Sy = smp
-        r = self.T - (self.g0 + self.g1 * S)
-        return r, self.design(S, Sx, Sy, bend, esm=False), correlation(self.T, S)
+        r, J = self.design(S, Sx, Sy, bend, esm=False)
+        return r, J.T, correlation(self.T, S)
 
 
 def correlation(a, b) -> float:

@@ -4,13 +4,15 @@ image of least-squares matching (:mod:`prismstation.core.matching.lsm`).
 Coordinates as there (docs/model.md §1): image ``x`` = column, ``y`` = row, pixels,
 continuous, array element ``[j, i]`` centred at ``(i + 0.5, j + 0.5)``. Values and gradients
 are the spline's to float32's precision, 2⁻²⁴ of the grey values (grey values, grey values
-per pixel); the window's coefficients are computed in float64 and sampled in float32.
+per pixel): the window's coefficients are computed in float64 and kept in float32, and sampled
+by :mod:`prismstation.core.matching.lsm_kernel`.
 """
 from __future__ import annotations
 
 import numpy as np
 from scipy import ndimage
 
+from prismstation.core.matching.lsm_kernel import spline_points
 from prismstation.core.matching.lsm_sigma import noise_sigma
 
 
@@ -25,11 +27,9 @@ class Spline:
         self.coef = ndimage.spline_filter(self.raw, order=3, mode="mirror")
         self.c0, self.r0 = c0, r0
         rows, cols = self.coef.shape
-        # sampled in float32: half the memory traffic of the gather and the contractions, grey
-        # values to 1e-4 DN (their noise is a DN or more)
-        self._flat, self._w = self.coef.astype(np.float32).ravel(), cols
-        k = np.arange(-1, 3)
-        self._taps = (k[:, None] * cols + k[None, :]).reshape(16, 1)   # [row tap, col tap] flat
+        # kept in float32: half the memory traffic of the sampling, grey values to 1e-4 DN (their
+        # noise is a DN or more)
+        self.flat, self.width = self.coef.astype(np.float32).ravel(), cols
         self.lo = (c0 + 1.5, r0 + 1.5)                  # where the 4×4 support stays inside (image px)
         self.hi = (c0 + cols - 2.5, r0 + rows - 2.5)
 
@@ -39,31 +39,10 @@ class Spline:
         return noise_sigma(self.raw[max(j - half, 0):j + half + 1, max(i - half, 0):i + half + 1])
 
     def sample(self, x, y):
-        """``(S, ∂S/∂x, ∂S/∂y)`` at image points ``x, y`` (same shape, inside)."""
-        col = np.ravel(x) - (0.5 + self.c0)
-        row = np.ravel(y) - (0.5 + self.r0)
-        i, j = np.floor(col), np.floor(row)
-        n = col.size
-        p = np.empty((2, 4, n), np.float32)      # [x, y] × [1, t, t², t³] of the fractions t
-        p[:, 0] = 1.0
-        np.subtract(col, i, out=p[0, 1], casting="same_kind")
-        np.subtract(row, j, out=p[1, 1], casting="same_kind")
-        np.multiply(p[:, 1], p[:, 1], out=p[:, 2])
-        np.multiply(p[:, 2], p[:, 1], out=p[:, 3])
-        w = (_BWD @ p).reshape(2, 2, 4, n)       # [x, y] × [weight, derivative] × tap × point
-        k = j.astype(np.intp) * self._w + i.astype(np.intp)
-        g = np.take(self._flat, self._taps + k).reshape(4, 4, n)                 # [row, col, point]
-        rows = np.einsum("mkn,jmn->jkn", g, w[1])          # the 4 columns' taps by row weight, derivative
-        out = np.einsum("jkn,ikn->jin", rows, w[0])        # [row weight, derivative] × [col weight, derivative]
-        shape = np.shape(x)
-        return out[0, 0].reshape(shape), out[0, 1].reshape(shape), out[1, 0].reshape(shape)
-
-
-#: cubic B-spline weights of taps −1..2 as polynomials in the fraction t: [1, t, t², t³] @ _BW
-_BW = np.array([[1, 4, 1, 0], [-3, 0, 3, 0], [3, -6, 3, 0], [-1, 3, -3, 1]], float) / 6.0
-_BD = np.array([[-3, 0, 3, 0], [6, -12, 6, 0], [-3, 9, -9, 3]], float) / 6.0   # d/dt: [1, t, t²] @ _BD
-#: the weights (rows 0–3) and their derivatives (rows 4–7) from [1, t, t², t³] (a column)
-_BWD = np.vstack([_BW.T, np.hstack([_BD.T, np.zeros((4, 1))])]).astype(np.float32)
+        """``(S, ∂S/∂x, ∂S/∂y)`` at image points ``x, y`` (same shape; NaN outside
+        :attr:`lo`–:attr:`hi`)."""
+        out = spline_points(self.flat, self.width, self.c0, self.r0, self.lo, self.hi, x, y)
+        return tuple(a.reshape(np.shape(x)) for a in out)
 
 
 def search_spline(search, t0, A0, half: int, margin: float, smooth: float = 0.0) -> Spline | None:

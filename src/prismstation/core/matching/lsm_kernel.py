@@ -1,0 +1,138 @@
+"""The compiled inner loops of least-squares matching (:mod:`prismstation.core.matching.lsm`):
+a cubic B-spline sampled with its derivatives, at points or over a patch's pixels, and the rows
+of a Gauss–Newton design. Numba compiles them on first use (cached on disk): each is one pass
+over the pixels, where the same work in array operations made a dozen passes and as many
+temporary arrays (the transfer's matching took 2–3 times as long so).
+
+Coordinates (docs/model.md §1): image ``x`` = column, ``y`` = row, pixels, continuous; the
+spline's coefficient array ``flat`` is row-major with ``width`` columns, its element
+``[j, i]`` centred at image point ``(c0 + i + 0.5, r0 + j + 0.5)``. Values are grey values,
+gradients grey values per pixel, computed in float64 from the (float32) coefficients.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# no 'nnan' among the fast-math flags: the bounds checks must see a NaN position (it is outside)
+_OPTS = dict(cache=True, nogil=True, fastmath={"contract", "reassoc", "nsz", "arcp", "afn"})
+
+
+@njit(inline="always", **_OPTS)
+def _at(flat, width, col, row):
+    """``(S, ∂S/∂col, ∂S/∂row)`` of the spline at coefficient-array coordinates ``col, row``
+    (the first coefficient's centre at 0, 0)."""
+    fi, fj = math.floor(col), math.floor(row)
+    x, y = col - fi, row - fj
+    x2, y2 = x * x, y * y
+    x3, y3 = x2 * x, y2 * y
+    wx0, wx1 = (1 - 3 * x + 3 * x2 - x3) / 6, (4 - 6 * x2 + 3 * x3) / 6
+    wx2, wx3 = (1 + 3 * x + 3 * x2 - 3 * x3) / 6, x3 / 6
+    dx0, dx1 = (-3 + 6 * x - 3 * x2) / 6, (-12 * x + 9 * x2) / 6
+    dx2, dx3 = (3 + 6 * x - 9 * x2) / 6, x2 / 2
+    wy0, wy1 = (1 - 3 * y + 3 * y2 - y3) / 6, (4 - 6 * y2 + 3 * y3) / 6
+    wy2, wy3 = (1 + 3 * y + 3 * y2 - 3 * y3) / 6, y3 / 6
+    dy0, dy1 = (-3 + 6 * y - 3 * y2) / 6, (-12 * y + 9 * y2) / 6
+    dy2, dy3 = (3 + 6 * y - 9 * y2) / 6, y2 / 2
+    o = (int(fj) - 1) * width + int(fi) - 1
+    s = sx = sy = 0.0
+    for m in range(4):
+        wy = wy0 if m == 0 else wy1 if m == 1 else wy2 if m == 2 else wy3
+        dy = dy0 if m == 0 else dy1 if m == 1 else dy2 if m == 2 else dy3
+        c0, c1, c2, c3 = flat[o], flat[o + 1], flat[o + 2], flat[o + 3]
+        v = wx0 * c0 + wx1 * c1 + wx2 * c2 + wx3 * c3
+        s += wy * v
+        sx += wy * (dx0 * c0 + dx1 * c1 + dx2 * c2 + dx3 * c3)
+        sy += dy * v
+        o += width
+    return s, sx, sy
+
+
+@njit(**_OPTS)
+def sample_points(flat, width, c0, r0, lo, hi, x, y, S, Sx, Sy):
+    """The spline and its gradient at image points ``x, y`` ``(n,)`` into ``S, Sx, Sy``
+    ``(n,)``; NaN at a point outside ``lo``–``hi`` (image px, x then y: where the spline's
+    support stays inside)."""
+    for p in range(x.size):
+        if lo[0] <= x[p] <= hi[0] and lo[1] <= y[p] <= hi[1]:
+            S[p], Sx[p], Sy[p] = _at(flat, width, x[p] - 0.5 - c0, y[p] - 0.5 - r0)
+        else:
+            S[p] = Sx[p] = Sy[p] = np.nan
+
+
+@njit(**_OPTS)
+def sample_patch(flat, width, c0, r0, lo, hi, t, A, c, d, u, v, Q, bend, S, Sx, Sy):
+    """The spline and its gradient at a patch's pixels ``q = t + A·(u, v) [+ d·(c @ Q)]``
+    (``u, v`` ``(n,)`` template offsets, ``Q`` ``(3, n)`` bend terms, used when ``bend``) into
+    ``S, Sx, Sy``; False (nothing written) when a pixel falls outside ``lo``–``hi`` (image px,
+    x then y: where the spline's support stays inside)."""
+    n = u.size
+    a00, a01, a10, a11 = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
+    for p in range(n):
+        qx = t[0] + a00 * u[p] + a01 * v[p]
+        qy = t[1] + a10 * u[p] + a11 * v[p]
+        if bend:
+            b = c[0] * Q[0, p] + c[1] * Q[1, p] + c[2] * Q[2, p]
+            qx += d[0] * b
+            qy += d[1] * b
+        if not (lo[0] <= qx <= hi[0] and lo[1] <= qy <= hi[1]):      # NaN is outside
+            return False
+    for p in range(n):
+        qx = t[0] + a00 * u[p] + a01 * v[p]
+        qy = t[1] + a10 * u[p] + a11 * v[p]
+        if bend:
+            b = c[0] * Q[0, p] + c[1] * Q[1, p] + c[2] * Q[2, p]
+            qx += d[0] * b
+            qy += d[1] * b
+        S[p], Sx[p], Sy[p] = _at(flat, width, qx - 0.5 - c0, qy - 0.5 - r0)
+    return True
+
+
+@njit(**_OPTS)
+def design_rows(S, Sx, Sy, T, Tu, Tv, u, v, Q, d, g0, g1, E, esm, bend, J, r):
+    """The design ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)`` into ``J`` ``(8 or 11, n)`` and the
+    residuals ``T − (g0 + g1·S)`` into ``r`` ``(n,)``, from the patch's values and gradients
+    ``S, Sx, Sy``. With ``esm`` the gradient is the mean of the search image's and the
+    template's (``Tu, Tv``) carried into the search image by ``E`` = A⁻ᵀ."""
+    k = J.shape[0]
+    for p in range(S.size):
+        a, b = g1 * Sx[p], g1 * Sy[p]
+        if esm:
+            a = 0.5 * (a + E[0, 0] * Tu[p] + E[0, 1] * Tv[p])
+            b = 0.5 * (b + E[1, 0] * Tu[p] + E[1, 1] * Tv[p])
+        J[0, p] = a
+        J[1, p] = b
+        J[2, p] = a * u[p]
+        J[3, p] = a * v[p]
+        J[4, p] = b * u[p]
+        J[5, p] = b * v[p]
+        if bend:
+            g = a * d[0] + b * d[1]
+            J[6, p] = g * Q[0, p]
+            J[7, p] = g * Q[1, p]
+            J[8, p] = g * Q[2, p]
+        J[k - 2, p] = 1.0
+        J[k - 1, p] = S[p]
+        r[p] = T[p] - (g0 + g1 * S[p])
+
+
+def spline_points(flat, width: int, c0: int, r0: int, lo, hi, x, y):
+    """``(S, Sx, Sy)`` (float64, ``(n,)``) of the spline at image points ``x, y`` (NaN outside
+    ``lo``–``hi``)."""
+    x, y = np.ascontiguousarray(x, np.float64).ravel(), np.ascontiguousarray(y, np.float64).ravel()
+    S, Sx, Sy = np.empty(x.size), np.empty(x.size), np.empty(x.size)
+    sample_points(flat, width, c0, r0, (float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1])), x, y, S, Sx, Sy)
+    return S, Sx, Sy
+
+
+def compile_kernels() -> None:
+    """Compile the loops for the argument types matching passes them (or load them from the disk
+    cache): a few tenths of a second once per process, which the first match pays otherwise."""
+    flat, u = np.zeros(64, np.float32), np.zeros(1)
+    Q, J, out = np.zeros((3, 1)), np.empty((8, 1)), [np.empty(1) for _ in range(4)]
+    spline_points(flat, 8, 0, 0, (1.5, 1.5), (5.5, 5.5), np.array([3.0]), np.array([3.0]))
+    sample_patch(flat, 8, 0, 0, (1.5, 1.5), (5.5, 5.5), np.full(2, 3.0), np.eye(2), np.zeros(3), np.zeros(2),
+                 u, u, Q, False, *out[:3])
+    design_rows(*out[:3], u, u, u, u, u, Q, np.zeros(2), 0.0, 1.0, np.eye(2), True, False, J, out[3])

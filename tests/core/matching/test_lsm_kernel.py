@@ -1,0 +1,50 @@
+"""The compiled loops of least-squares matching: outside points and NaN positions are refused,
+never read past the window, and the types compile_kernels prepares are the ones matching uses."""
+import numpy as np
+from scipy import ndimage
+
+from prismstation.core.matching import lsm_kernel as K
+from prismstation.core.matching.lsm import refine
+from prismstation.core.matching.lsm_fit import Fit
+from prismstation.core.matching.lsm_sampled import POINT_SAMPLED
+from prismstation.core.matching.lsm_spline import Spline
+
+
+def _spline():
+    rng = np.random.default_rng(5)
+    return Spline(ndimage.gaussian_filter(rng.normal(100, 30, (30, 40)), 1.0), c0=10, r0=20)
+
+
+def test_points_outside_the_window_or_nan_give_nan():
+    sp = _spline()
+    x = np.array([30.0, sp.lo[0] - 0.01, sp.hi[0] + 0.01, np.nan, 30.0, 1e300])
+    y = np.array([35.0, 35.0, 35.0, 35.0, np.nan, 35.0])
+    s, sx, sy = sp.sample(x, y)
+    assert np.isfinite([s[0], sx[0], sy[0]]).all()
+    assert np.isnan(s[1:]).all() and np.isnan(sx[1:]).all() and np.isnan(sy[1:]).all()
+
+
+def test_a_patch_with_a_nan_position_or_beyond_the_window_is_outside():
+    sp = _spline()
+    k = np.arange(-3, 4.0)
+    v, u = np.meshgrid(k, k, indexing="ij")
+    fit = Fit(np.ones((7, 7)) + u, u, v, sp, np.array([1.0, 0.0]), 3)
+    fit.A = np.eye(2)
+    for t in ([30.0, 35.0], [np.nan, 35.0], [30.0, np.inf], [sp.hi[0] - 1.0, 35.0]):
+        fit.t, fit.smp = np.array(t), None
+        assert (fit.sample() is None) == (t != [30.0, 35.0]), t
+
+
+def test_the_prepared_types_are_the_ones_a_match_uses():
+    # a match of point-sampled texture takes every path (the coarse pass, the bend, the taper,
+    # the central part, the low-passed fit): none of them may compile another signature
+    K.compile_kernels()
+    kernels = (K.sample_points, K.sample_patch, K.design_rows)
+    before = [len(f.signatures) for f in kernels]
+    rng = np.random.default_rng(2)
+    img = np.kron(rng.normal(100, 30, (60, 60)), np.ones((4, 4)))        # hard edges, no blur
+    shifted = ndimage.shift(img, (0.3, 0.45), order=1)
+    r = refine(img, 120.2, 119.7, shifted, [120.6, 120.1], np.eye(2), parallax=(1.0, 0.1), half=24)
+    assert r.ok, r.reason
+    assert r.extra["edges"] > POINT_SAMPLED and r.extra["smoothed"].any()
+    assert [len(f.signatures) for f in kernels] == before
