@@ -231,8 +231,7 @@ def test_the_spline_gives_the_interpolating_spline_and_its_gradients():
     x, y = rng.uniform(103, 146, 300), rng.uniform(203, 236, 300)
     s, sx, sy = sp.sample(x, y)
     at = lambda xx, yy: ndimage.map_coordinates(img, [yy - 200.5, xx - 100.5], order=3, mode="mirror")  # noqa: E731
-    # sampled in float32: to its precision, 2⁻²⁴ of the grey values
-    assert s == pytest.approx(at(x, y), rel=3e-7)
+    assert s == pytest.approx(at(x, y), rel=1e-10)
     e = 1e-4
     assert sx == pytest.approx((at(x + e, y) - at(x - e, y)) / (2 * e), abs=2e-4)
     assert sy == pytest.approx((at(x, y + e) - at(x, y - e)) / (2 * e), abs=2e-4)

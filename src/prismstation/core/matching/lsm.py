@@ -228,7 +228,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     # texture that samples place well counts more
     t_noise = noise_sigma(T)
     aliasing = sampling_px(T, t_noise)
-    gv, gu = np.gradient(T)
+    gu, gv = fit.Tu.reshape(T.shape), fit.Tv.reshape(T.shape)        # the template's gradients
     edges = edge_sigma(gu, gv, aliasing)
     if t_noise > 0 and (aliasing[0].any() or aliasing[1].any()):
         edge_var = 2.0 * ((gu * aliasing[0]) ** 2 + (gv * aliasing[1]) ** 2)

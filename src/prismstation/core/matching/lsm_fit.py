@@ -131,7 +131,7 @@ class Fit:
             self.g1 += dp[7 + nb]
             if math.hypot(self.t[0] - t0[0], self.t[1] - t0[1]) > max_move:
                 return MOVED, f"the patch moved more than {max_move:g} px from its start", it
-            change = np.linalg.norm(A0inv @ self.A - _I2)      # ≥ the largest singular value
+            change = math.sqrt(float(np.square(A0inv @ self.A - _I2).sum()))   # ≥ the largest singular value
             bent = bend and np.abs(self.c).max() * self.half > 2 * MAX_BEND
             if change > 2 * max_shape_change or self.g1 <= 0 or bent:
                 return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else

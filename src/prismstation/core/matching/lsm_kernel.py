@@ -7,7 +7,7 @@ temporary arrays (the transfer's matching took 2–3 times as long so).
 Coordinates (docs/model.md §1): image ``x`` = column, ``y`` = row, pixels, continuous; the
 spline's coefficient array ``flat`` is row-major with ``width`` columns, its element
 ``[j, i]`` centred at image point ``(c0 + i + 0.5, r0 + j + 0.5)``. Values are grey values,
-gradients grey values per pixel, computed in float64 from the (float32) coefficients.
+gradients grey values per pixel, float64.
 """
 from __future__ import annotations
 
@@ -66,11 +66,10 @@ def sample_points(flat, width, c0, r0, lo, hi, x, y, S, Sx, Sy):
 def sample_patch(flat, width, c0, r0, lo, hi, t, A, c, d, u, v, Q, bend, S, Sx, Sy):
     """The spline and its gradient at a patch's pixels ``q = t + A·(u, v) [+ d·(c @ Q)]``
     (``u, v`` ``(n,)`` template offsets, ``Q`` ``(3, n)`` bend terms, used when ``bend``) into
-    ``S, Sx, Sy``; False (nothing written) when a pixel falls outside ``lo``–``hi`` (image px,
+    ``S, Sx, Sy``; False (what was written meaningless) when a pixel falls outside ``lo``–``hi`` (image px,
     x then y: where the spline's support stays inside)."""
-    n = u.size
     a00, a01, a10, a11 = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
-    for p in range(n):
+    for p in range(u.size):
         qx = t[0] + a00 * u[p] + a01 * v[p]
         qy = t[1] + a10 * u[p] + a11 * v[p]
         if bend:
@@ -79,13 +78,6 @@ def sample_patch(flat, width, c0, r0, lo, hi, t, A, c, d, u, v, Q, bend, S, Sx, 
             qy += d[1] * b
         if not (lo[0] <= qx <= hi[0] and lo[1] <= qy <= hi[1]):      # NaN is outside
             return False
-    for p in range(n):
-        qx = t[0] + a00 * u[p] + a01 * v[p]
-        qy = t[1] + a10 * u[p] + a11 * v[p]
-        if bend:
-            b = c[0] * Q[0, p] + c[1] * Q[1, p] + c[2] * Q[2, p]
-            qx += d[0] * b
-            qy += d[1] * b
         S[p], Sx[p], Sy[p] = _at(flat, width, qx - 0.5 - c0, qy - 0.5 - r0)
     return True
 
@@ -136,7 +128,7 @@ def spline_points(flat, width: int, c0: int, r0: int, lo, hi, x, y):
 def compile_kernels() -> None:
     """Compile the loops for the argument types matching passes them (or load them from the disk
     cache): a few tenths of a second once per process, which the first match pays otherwise."""
-    flat, u = np.zeros(64, np.float32), np.zeros(1)
+    flat, u = np.zeros(64), np.zeros(1)
     Q, J, out = np.zeros((3, 1)), np.empty((8, 1)), [np.empty(1) for _ in range(4)]
     spline_points(flat, 8, 0, 0, (1.5, 1.5), (5.5, 5.5), np.array([3.0]), np.array([3.0]))
     sample_patch(flat, 8, 0, 0, (1.5, 1.5), (5.5, 5.5), np.full(2, 3.0), np.eye(2), np.zeros(3), np.zeros(2),

@@ -31,8 +31,8 @@ AMBIGUOUS, BORDER, LOW_SCORE = "ambiguous", "border", "low_score"
 
 MISFIT_FLOOR = 1e-6
 """The least misfit ``1 − ρ²`` two matches are compared by: below it (a thousandth of a grey
-value on a texture of 30) the difference is the float32 interpolation's arithmetic, not the
-images' (exact copies of a patch)."""
+value on a texture of 30) the difference is the interpolation's arithmetic, not the images'
+(exact copies of a patch)."""
 
 
 def _misfit(rho: float) -> float:

@@ -3,9 +3,8 @@ image of least-squares matching (:mod:`prismstation.core.matching.lsm`).
 
 Coordinates as there (docs/model.md §1): image ``x`` = column, ``y`` = row, pixels,
 continuous, array element ``[j, i]`` centred at ``(i + 0.5, j + 0.5)``. Values and gradients
-are the spline's to float32's precision, 2⁻²⁴ of the grey values (grey values, grey values
-per pixel): the window's coefficients are computed in float64 and kept in float32, and sampled
-by :mod:`prismstation.core.matching.lsm_kernel`.
+in float64 (grey values, grey values per pixel), sampled by
+:mod:`prismstation.core.matching.lsm_kernel`.
 """
 from __future__ import annotations
 
@@ -27,9 +26,7 @@ class Spline:
         self.coef = ndimage.spline_filter(self.raw, order=3, mode="mirror")
         self.c0, self.r0 = c0, r0
         rows, cols = self.coef.shape
-        # kept in float32: half the memory traffic of the sampling, grey values to 1e-4 DN (their
-        # noise is a DN or more)
-        self.flat, self.width = self.coef.astype(np.float32).ravel(), cols
+        self.flat, self.width = self.coef.ravel(), cols
         self.lo = (c0 + 1.5, r0 + 1.5)                  # where the 4×4 support stays inside (image px)
         self.hi = (c0 + cols - 2.5, r0 + rows - 2.5)
 
