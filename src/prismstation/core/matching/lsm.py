@@ -42,6 +42,8 @@ allowance), ``moved`` (the patch ran away from its start), ``low_correlation``, 
 """
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -221,18 +223,9 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         if spline is None:
             return failed(t0[0], t0[1], OUTSIDE, "patch leaves the search image", shape=A0)
     d = np.zeros(2) if parallax is None else np.asarray(parallax, float) / np.hypot(*parallax)
-    fit = Fit(T, u, v, spline, d, half)
-    fit.t, fit.A = t0.copy(), A0.copy()
-    # point-sampled edges (:func:`sampling_px`): a pixel on one is weighted by the inverse of its
-    # variance, the noise's plus the edge's unknown place in both views (gradient × σ), so the
-    # texture that samples place well counts more
-    t_noise = noise_sigma(T)
-    aliasing = sampling_px(T, t_noise)
-    gu, gv = fit.Tu.reshape(T.shape), fit.Tv.reshape(T.shape)        # the template's gradients
-    edges = edge_sigma(gu, gv, aliasing)
-    if t_noise > 0 and (aliasing[0].any() or aliasing[1].any()):
-        edge_var = 2.0 * ((gu * aliasing[0]) ** 2 + (gv * aliasing[1]) ** 2)
-        fit.pw = (t_noise ** 2 / (t_noise ** 2 + edge_var)).ravel()
+    t_noise, aliasing, grads, edges, pw = template_stats(T)
+    fit = Fit(T, u, v, spline, d, half, grads=grads)
+    fit.t, fit.A, fit.pw = t0.copy(), A0.copy(), pw
     A0inv = np.linalg.inv(A0)
     it = 0
     if half >= COARSE_HALF:
@@ -341,6 +334,43 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     if not np.isfinite(smax) or smax > max_sigma:
         return _as_failure(res, TEXTURE, f"too little texture: σ {smax:.2f} px above {max_sigma:.2f}")
     return res
+
+
+_STATS: OrderedDict = OrderedDict()
+_STATS_LOCK = threading.Lock()
+STATS_KEPT = 4
+"""Templates whose statistics :func:`template_stats` keeps (a point's matches in its other
+views use the same template)."""
+
+
+def template_stats(T):
+    """``(noise, aliasing, (gu, gv), edges, pw)`` of the template ``T`` ``(n, n)``: the image
+    noise σ (:func:`noise_sigma`, grey values), where its point-sampled edges lie
+    (:func:`sampling_px`, px), its gradients (grey values per px), their mean edge σ
+    (:func:`edge_sigma`, px) and the pixels' weights in the fit ``(n²,)`` (None: uniform) —
+    a pixel on a point-sampled edge weighted by the inverse of its variance, the noise's plus
+    the edge's unknown place in both views (gradient × σ), so the texture that samples place
+    well counts more. Kept for the last :data:`STATS_KEPT` templates (by their grey values):
+    the F and B matches of a point share one."""
+    key = (T.shape, T.tobytes())
+    with _STATS_LOCK:
+        if key in _STATS:
+            _STATS.move_to_end(key)
+            return _STATS[key]
+    noise = noise_sigma(T)
+    aliasing = sampling_px(T, noise)
+    gv, gu = np.gradient(T)
+    edges = edge_sigma(gu, gv, aliasing)
+    pw = None
+    if noise > 0 and (aliasing[0].any() or aliasing[1].any()):
+        edge_var = 2.0 * ((gu * aliasing[0]) ** 2 + (gv * aliasing[1]) ** 2)
+        pw = (noise ** 2 / (noise ** 2 + edge_var)).ravel()
+    out = (noise, aliasing, (gu, gv), edges, pw)
+    with _STATS_LOCK:
+        _STATS[key] = out
+        while len(_STATS) > STATS_KEPT:
+            _STATS.popitem(last=False)
+    return out
 
 
 def _refit(fit: Fit, w, keep, bend: bool, run_args):

@@ -52,15 +52,17 @@ def template(reference, x: float, y: float, half: int):
 
 class Fit:
     """The Gauss–Newton state of one patch: position ``t``, shape ``A``, bend ``c`` (3 or 0
-    terms), offset ``g0`` and gain ``g1``, on a fixed template and search spline."""
+    terms), offset ``g0`` and gain ``g1``, on a fixed template and search spline. ``grads``:
+    the template's gradients ``(gu, gv)`` along x and y (``np.gradient``'s, grey values per px;
+    shared, never written), computed here when None."""
 
-    def __init__(self, T, u, v, spline, d, half, w=None):
+    def __init__(self, T, u, v, spline, d, half, w=None, grads=None):
         self.T, self.u, self.v, self.spline, self.d, self.half = T.ravel(), u.ravel(), v.ravel(), spline, d, half
         self.uv = np.vstack([self.u, self.v])                  # (2, n) template offsets
         self.w = None if w is None else np.asarray(w, float).ravel()     # None: uniform
         self.pw = None                                     # the pixels' weights (aliasing), None: uniform
         self.keep = None                                   # the pixels iterated on (:meth:`subset`), None: all
-        gv, gu = np.gradient(T)                            # template gradients (grey values per px)
+        gu, gv = grads if grads is not None else np.gradient(T)[::-1]    # template gradients (grey values per px)
         self.Tu, self.Tv = gu.ravel(), gv.ravel()
         self.Q = np.vstack([self.u ** 2, self.u * self.v, self.v ** 2]) / half    # (3, n) bend terms
         self.c = np.zeros(3)
