@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
-from scipy import ndimage, stats
+from scipy import stats
 
 from prismstation.core.matching.lsm_fit import (LOW_CORRELATION, MAX_BEND, MOVED, NOT_CONVERGED, OK,  # noqa: F401
                                                 OUTSIDE, RIVAL_ITER, RIVAL_MARGIN, SHAPE, STEP_TOL, TEXTURE, Fit,
@@ -56,7 +56,7 @@ from prismstation.core.matching.lsm_fit import (LOW_CORRELATION, MAX_BEND, MOVED
 from prismstation.core.matching.lsm_sampled import POINT_SAMPLED, edge_sigma, smoothed_shift
 from prismstation.core.matching.lsm_sigma import (gradient_noise_inflation, noise_sigma, sampling_px,
                                                   sampling_scatter, unmodelled_sigma)
-from prismstation.core.matching.lsm_spline import Spline, search_spline
+from prismstation.core.matching.lsm_spline import Spline, low_pass, search_spline
 
 SIGMA_SCALE = 1.5
 """Factor on the formal σ: the views differ by more than noise (point spread, resampling),
@@ -213,7 +213,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         return failed(t0[0], t0[1], OUTSIDE, "template leaves the reference image", shape=A0)
     T, u, v = tpl
     if m:
-        T, u, v = ndimage.gaussian_filter(T, smooth, mode="nearest")[m:-m, m:-m], u[m:-m, m:-m], v[m:-m, m:-m]
+        T, u, v = low_pass(T, smooth)[m:-m, m:-m], u[m:-m, m:-m], v[m:-m, m:-m]
     if float(T.std()) <= 1e-6 * (abs(float(T.mean())) + 1.0):
         return failed(t0[0], t0[1], TEXTURE, "template has no contrast", shape=A0)
     if spline is None or smooth > 0:

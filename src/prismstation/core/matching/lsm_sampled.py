@@ -7,10 +7,9 @@ Coordinates as there (docs/model.md §1): image ``x`` = column, ``y`` = row, pix
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 
 from prismstation.core.matching.lsm_fit import OK, Fit, template
-from prismstation.core.matching.lsm_spline import search_spline
+from prismstation.core.matching.lsm_spline import low_pass, search_spline
 
 POINT_SAMPLED = 0.03
 """The template's gradient-weighted mean σ (px) of where its edges lie between their samples
@@ -61,7 +60,7 @@ def smoothed_shift(reference, x: float, y: float, search, fit: Fit, bend: bool, 
                            SAMPLED_SMOOTH)
     if tpl is None or spline is None:
         return np.zeros(2), 0
-    T = ndimage.gaussian_filter(tpl[0], SAMPLED_SMOOTH, mode="nearest")[m:-m, m:-m]
+    T = low_pass(tpl[0], SAMPLED_SMOOTH)[m:-m, m:-m]
     smoothed = Fit(T, fit.u.reshape(T.shape), fit.v.reshape(T.shape), spline, fit.d, fit.half, fit.w)
     smoothed.t, smoothed.A, smoothed.c = fit.t.copy(), fit.A.copy(), fit.c.copy()
     smoothed.g0, smoothed.g1 = fit.g0, fit.g1          # one low-pass on both: the radiometry holds
