@@ -35,7 +35,6 @@ the tuning scenes and the Pléiades triplet the correlation rose by at most 0.06
 iteration)."""
 
 _I2 = np.eye(2)
-_NONE = np.empty(0)          # no weights, to the compiled loops
 
 
 def template(reference, x: float, y: float, half: int):
@@ -84,20 +83,18 @@ class Fit:
             return None
         return S, Sx, Sy
 
-    def design(self, S, Sx, Sy, bend: bool, esm: bool, w=None):
-        """``(r, J, Jw)``: the residuals ``T − (g0 + g1·S)`` ``(n,)``, the design
-        ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)`` ``(8 or 11, n)`` and that times the pixels'
-        weights ``w`` ``(n,)`` (None: uniform; a copy of ``J``); with ``esm`` the gradient is
+    def design(self, S, Sx, Sy, bend: bool, esm: bool):
+        """``(r, J)``: the residuals ``T − (g0 + g1·S)`` ``(n,)`` and the design
+        ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)`` ``(8 or 11, n)``; with ``esm`` the gradient is
         the mean of the search image's and the template's carried into the search image
         (Benhimane and Malis 2004: faster convergence); without, the search image's alone (the
         covariance)."""
         J, r = np.empty((11 if bend else 8, S.size)), np.empty(S.size)
-        Jw = np.empty_like(J)
         a, b, c, d = self.A.ravel()
         E = np.array([[d, -c], [-b, a]]) / (a * d - b * c) if esm else _I2      # A⁻ᵀ
         design_rows(S, Sx, Sy, self.T, self.Tu, self.Tv, self.u, self.v, self.Q, self.d, self.g0, self.g1, E,
-                    esm, bend, _NONE if w is None else w, J, Jw, r)
-        return r, J, Jw
+                    esm, bend, J, r)
+        return r, J
 
     def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float,
             need_rho: float | None = None, tol: float = STEP_TOL):
@@ -119,7 +116,8 @@ class Fit:
             if self.g1 is None:
                 self.g1 = self.T.std() / max(S.std(), 1e-12)
                 self.g0 = self.T.mean() - self.g1 * S.mean()
-            r, J, Jw = self.design(S, Sx, Sy, bend, esm=True, w=wt)
+            r, J = self.design(S, Sx, Sy, bend, esm=True)
+            Jw = J if wt is None else J * wt
             try:
                 dp = np.linalg.solve(Jw @ J.T, Jw @ r)
             except np.linalg.LinAlgError:
@@ -190,7 +188,7 @@ class Fit:
         if smp is None:
             return None, None, np.nan
         S, Sx, Sy = smp
-        r, J, _ = self.design(S, Sx, Sy, bend, esm=False)
+        r, J = self.design(S, Sx, Sy, bend, esm=False)
         return r, J.T, correlation(self.T, S)
 
 

@@ -83,15 +83,12 @@ def sample_patch(flat, width, c0, r0, lo, hi, t, A, c, d, u, v, Q, bend, S, Sx, 
 
 
 @njit(**_OPTS)
-def design_rows(S, Sx, Sy, T, Tu, Tv, u, v, Q, d, g0, g1, E, esm, bend, w, J, Jw, r):
+def design_rows(S, Sx, Sy, T, Tu, Tv, u, v, Q, d, g0, g1, E, esm, bend, J, r):
     """The design ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)`` into ``J`` ``(8 or 11, n)`` and the
     residuals ``T − (g0 + g1·S)`` into ``r`` ``(n,)``, from the patch's values and gradients
     ``S, Sx, Sy``. With ``esm`` the gradient is the mean of the search image's and the
-    template's (``Tu, Tv``) carried into the search image by ``E`` = A⁻ᵀ. ``Jw``: ``J`` times
-    the pixels' weights ``w`` ``(n,)`` (``J`` itself where ``w`` is empty): the normal equations
-    are ``Jw Jᵀ``, ``Jw r`` (two arrays, where ``J Jᵀ`` of one took twice as long in BLAS)."""
+    template's (``Tu, Tv``) carried into the search image by ``E`` = A⁻ᵀ."""
     k = J.shape[0]
-    weighted = w.size > 0
     for p in range(S.size):
         a, b = g1 * Sx[p], g1 * Sy[p]
         if esm:
@@ -111,9 +108,6 @@ def design_rows(S, Sx, Sy, T, Tu, Tv, u, v, Q, d, g0, g1, E, esm, bend, w, J, Jw
         J[k - 2, p] = 1.0
         J[k - 1, p] = S[p]
         r[p] = T[p] - (g0 + g1 * S[p])
-        wp = w[p] if weighted else 1.0
-        for i in range(k):
-            Jw[i, p] = wp * J[i, p]
 
 
 def spline_points(flat, width: int, c0: int, r0: int, lo, hi, x, y):
@@ -133,4 +127,4 @@ def compile_kernels() -> None:
     spline_points(flat, 8, 0, 0, (1.5, 1.5), (5.5, 5.5), np.array([3.0]), np.array([3.0]))
     sample_patch(flat, 8, 0, 0, (1.5, 1.5), (5.5, 5.5), np.full(2, 3.0), np.eye(2), np.zeros(3), np.zeros(2),
                  u, u, Q, False, *out[:3])
-    design_rows(*out[:3], u, u, u, u, u, Q, np.zeros(2), 0.0, 1.0, np.eye(2), True, False, np.empty(0), J, J.copy(), out[3])
+    design_rows(*out[:3], u, u, u, u, u, Q, np.zeros(2), 0.0, 1.0, np.eye(2), True, False, J, out[3])
