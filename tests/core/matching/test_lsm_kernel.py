@@ -39,7 +39,7 @@ def test_the_prepared_types_are_the_ones_a_match_uses():
     # a match of point-sampled texture takes every path (the coarse pass, the bend, the taper,
     # the central part, the low-passed fit): none of them may compile another signature
     K.compile_kernels()
-    kernels = (K.sample_points, K.sample_patch, K.design_rows)
+    kernels = (K.sample_points, K.sample_patch, K.design_rows, K.block_moments, K.edge_sums)
     before = [len(f.signatures) for f in kernels]
     rng = np.random.default_rng(2)
     img = np.kron(rng.normal(100, 30, (60, 60)), np.ones((4, 4)))        # hard edges, no blur
@@ -48,3 +48,21 @@ def test_the_prepared_types_are_the_ones_a_match_uses():
     assert r.ok, r.reason
     assert r.extra["edges"] > POINT_SAMPLED and r.extra["smoothed"].any()
     assert [len(f.signatures) for f in kernels] == before
+
+
+def test_the_edge_scatter_is_the_block_sums_of_the_weighted_design():
+    # sampling_scatter against its definition: Σ over 8 × 8 blocks (the last ones partial) of
+    # the design rows times gradient × σ, their outer products summed
+    from prismstation.core.matching.lsm_sigma import sampling_scatter
+    rng = np.random.default_rng(7)
+    n, k, b = 29, 5, 8
+    J, gx, gy = rng.normal(size=(n, n, k)), rng.normal(size=(n, n)), rng.normal(size=(n, n))
+    ex, ey = rng.random((n, n)), rng.random((n, n))
+    want = np.zeros((k, k))
+    for i in range(0, n, b):
+        for j in range(0, n, b):
+            blk = (slice(i, i + b), slice(j, j + b))
+            cx = (J[blk] * (gx * ex)[blk][..., None]).sum(axis=(0, 1))
+            cy = (J[blk] * (gy * ey)[blk][..., None]).sum(axis=(0, 1))
+            want += np.outer(cx, cx) + np.outer(cy, cy)
+    assert np.allclose(sampling_scatter(J, gx, gy, ex, ey, b), want, rtol=1e-12, atol=1e-12)

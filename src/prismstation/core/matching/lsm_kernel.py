@@ -110,6 +110,50 @@ def design_rows(S, Sx, Sy, T, Tu, Tv, u, v, Q, d, g0, g1, E, esm, bend, J, r):
         r[p] = T[p] - (g0 + g1 * S[p])
 
 
+@njit(**_OPTS)
+def block_moments(G, r, O, lo, m, b, out):
+    """Sums over the ``m × m`` blocks of ``b × b`` pixels of the ``(n, n)`` grids from row and
+    column ``lo`` on, into ``out`` ``(3 or 6, m²)``: ``G², G·r, r²`` and, where ``O`` is not
+    empty, ``O², G·O, O·r``."""
+    other = O.size > 0
+    for bi in range(m):
+        for bj in range(m):
+            s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+            for i in range(lo + bi * b, lo + bi * b + b):
+                for j in range(lo + bj * b, lo + bj * b + b):
+                    g, e = G[i, j], r[i, j]
+                    s0 += g * g
+                    s1 += g * e
+                    s2 += e * e
+                    if other:
+                        o = O[i, j]
+                        s3 += o * o
+                        s4 += g * o
+                        s5 += o * e
+            k = bi * m + bj
+            out[0, k], out[1, k], out[2, k] = s0, s1, s2
+            if other:
+                out[3, k], out[4, k], out[5, k] = s3, s4, s5
+
+
+@njit(**_OPTS)
+def edge_sums(J, ax, ay, b, cx, cy):
+    """Sums over blocks of ``b × b`` pixels (the last ones partial, ``mb = ⌈n/b⌉`` a side) of
+    the design rows ``J`` ``(n, n, k)`` times ``ax`` and times ``ay`` ``(n, n)``, into ``cx``,
+    ``cy`` ``(mb², k)``."""
+    n, k = J.shape[0], J.shape[2]
+    mb = (n + b - 1) // b
+    cx[:] = 0.0
+    cy[:] = 0.0
+    for i in range(n):
+        for j in range(n):
+            B = (i // b) * mb + j // b
+            a, c = ax[i, j], ay[i, j]
+            for q in range(k):
+                cx[B, q] += J[i, j, q] * a
+                cy[B, q] += J[i, j, q] * c
+
+
 def spline_points(flat, width: int, c0: int, r0: int, lo, hi, x, y):
     """``(S, Sx, Sy)`` (float64, ``(n,)``) of the spline at image points ``x, y`` (NaN outside
     ``lo``–``hi``)."""
@@ -128,3 +172,7 @@ def compile_kernels() -> None:
     sample_patch(flat, 8, 0, 0, (1.5, 1.5), (5.5, 5.5), np.full(2, 3.0), np.eye(2), np.zeros(3), np.zeros(2),
                  u, u, Q, False, *out[:3])
     design_rows(*out[:3], u, u, u, u, u, Q, np.zeros(2), 0.0, 1.0, np.eye(2), True, False, J, out[3])
+    g = np.zeros((8, 8))
+    block_moments(g, g, g, 0, 2, 4, np.empty((6, 4)))
+    block_moments(g, g, np.empty((0, 0)), 0, 2, 4, np.empty((3, 4)))
+    edge_sums(np.zeros((8, 8, 2)), g, g, 8, np.empty((1, 2)), np.empty((1, 2)))

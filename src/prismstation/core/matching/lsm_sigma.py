@@ -8,9 +8,12 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
+from prismstation.core.matching.lsm_kernel import block_moments, edge_sums
+
 GRADIENT_NOISE = 2.18
 """Variance of a gradient component of the cubic B-spline interpolating unit white noise, over
 all sub-pixel positions (numerically: 2.18; the interpolated values themselves 0.77)."""
+_EMPTY = np.empty((0, 0))
 _LAPLACE = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
 
 
@@ -63,18 +66,17 @@ def unmodelled_sigma(G, r, n_params: int, block: int = 4, w=None, other=None, fl
         return 0.0
     lo = (n - m * block) // 2
 
-    def sums(a):
-        """Sums of ``a`` over the ``m × m`` blocks, ``(m²,)``."""
-        return a[lo:lo + m * block, lo:lo + m * block].reshape(m, block, m, block).sum(axis=(1, 3)).ravel()
-
-    g2, p, rr = sums(G * G), sums(G * r), float(sums(r * r).sum())
+    mom = np.empty((3 if other is None else 6, m * m))
+    block_moments(np.ascontiguousarray(G, float), np.ascontiguousarray(r, float),
+                  _EMPTY if other is None else np.ascontiguousarray(other, float), lo, m, block, mom)
+    g2, p, rr = mom[0], mom[1], float(mom[2].sum())
     if np.any(g2 <= 0):
         return 0.0
     if other is None:
         delta = p / g2
         rss, unknowns = rr - float(delta @ p), m * m
     else:
-        go, gc, q = sums(other * other), sums(G * other), sums(other * r)
+        go, gc, q = mom[3], mom[4], mom[5]
         det = g2 * go - gc ** 2
         if np.any(det <= 1e-9 * g2 * go):
             return 0.0
@@ -83,7 +85,10 @@ def unmodelled_sigma(G, r, n_params: int, block: int = 4, w=None, other=None, fl
         g2 = det / go                                   # the information on δ left by the other
     # the residuals less each block's fitted displacement: noise
     noise = rss / max(m * m * block * block - unknowns - n_params, 1)
-    wb = np.ones_like(g2) if w is None else sums(w) / block ** 2
+    if w is None:
+        wb = np.ones_like(g2)
+    else:
+        wb = w[lo:lo + m * block, lo:lo + m * block].reshape(m, block, m, block).sum(axis=(1, 3)).ravel() / block ** 2
     excess = np.sum(wb * (g2 * delta ** 2 - noise)) / np.sum(wb * g2)
     if floor:
         # the estimate's own standard error where no block displacement shows: each block's
@@ -154,14 +159,6 @@ def sampling_px(a, noise: float):
     return out[0], out[1].T
 
 
-def block_sums(a, block: int):
-    """Sums of ``a`` (``(n, n, …)``) over ``block × block`` blocks (the last ones partial),
-    ``(m², …)``."""
-    starts = np.arange(0, a.shape[0], block)       # reduceat: no padded copy
-    m = starts.size
-    return np.add.reduceat(np.add.reduceat(a, starts, axis=0), starts, axis=1).reshape(m * m, *a.shape[2:])
-
-
 def sampling_scatter(J, gx, gy, ex, ey, block: int = SAMPLING_BLOCK):
     """``Σ_B c cᵀ`` ``(k, k)``: the covariance of ``Jᵀr`` for the residuals point sampling
     leaves, ``r = gx·ux + gy·uy`` with ``ux``, ``uy`` the edges' displacements (σ ``ex``,
@@ -169,8 +166,9 @@ def sampling_scatter(J, gx, gy, ex, ey, block: int = SAMPLING_BLOCK):
     between blocks. ``J`` ``(n, n, k)``: the (weighted) design on the template grid; ``gx``,
     ``gy`` ``(n, n)``: the gradients (grey values per px). The position's covariance in one
     view is ``N⁻¹ Σ N⁻¹`` (``N`` the normal matrix)."""
-    cx = block_sums(J * (gx * ex)[..., None], block)
-    cy = block_sums(J * (gy * ey)[..., None], block)
+    mb = -(-J.shape[0] // block)
+    cx, cy = np.empty((mb * mb, J.shape[2])), np.empty((mb * mb, J.shape[2]))
+    edge_sums(np.ascontiguousarray(J, float), np.ascontiguousarray(gx * ex), np.ascontiguousarray(gy * ey), block, cx, cy)
     return cx.T @ cx + cy.T @ cy
 
 
