@@ -122,10 +122,11 @@ def test_a_command_out_of_memory_at_start_is_one_line(sim, tmp_path):
         assert len(lines) == 1 and lines[0].startswith("prismstation fit: ") and "memory" in lines[0], r.stderr
 
 
-def test_opencv_is_not_imported_at_start(tmp_path):
-    code = "import sys; from prismstation.cli import build_parser; build_parser(); print('cv2' in sys.modules)"
+def test_opencv_and_numba_are_not_imported_at_start(tmp_path):
+    code = ("import sys; from prismstation.cli import build_parser; build_parser(); "
+            "print('cv2' in sys.modules, 'numba' in sys.modules)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_env(tmp_path))
-    assert r.stdout.strip() == "False", r.stderr
+    assert r.stdout.strip() == "False False", r.stderr
 
 
 def test_a_json_nested_too_deep(tmp_path):

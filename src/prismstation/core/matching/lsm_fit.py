@@ -10,7 +10,9 @@ import math
 
 import numpy as np
 
-from prismstation.core.matching.lsm_kernel import design_rows, sample_patch
+from prismstation.core.lazy_cv2 import lazy_module
+
+kernel = lazy_module("prismstation.core.matching.lsm_kernel")  # numba at first use: start-up saving
 
 OK = "ok"
 NOT_CONVERGED, TEXTURE, SHAPE, MOVED, LOW_CORRELATION, OUTSIDE = (
@@ -78,7 +80,7 @@ class Fit:
         n = self.T.size
         S, Sx, Sy = np.empty(n), np.empty(n), np.empty(n)
         sp = self.spline
-        if not sample_patch(sp.flat, sp.width, sp.c0, sp.r0, sp.lo, sp.hi, self.t, self.A, self.c, self.d,
+        if not kernel.sample_patch(sp.flat, sp.width, sp.c0, sp.r0, sp.lo, sp.hi, self.t, self.A, self.c, self.d,
                             self.u, self.v, self.Q, bool(self.c.any()), S, Sx, Sy):
             return None
         return S, Sx, Sy
@@ -92,7 +94,7 @@ class Fit:
         J, r = np.empty((11 if bend else 8, S.size)), np.empty(S.size)
         a, b, c, d = self.A.ravel()
         E = np.array([[d, -c], [-b, a]]) / (a * d - b * c) if esm else _I2      # A⁻ᵀ
-        design_rows(S, Sx, Sy, self.T, self.Tu, self.Tv, self.u, self.v, self.Q, self.d, self.g0, self.g1, E,
+        kernel.design_rows(S, Sx, Sy, self.T, self.Tu, self.Tv, self.u, self.v, self.Q, self.d, self.g0, self.g1, E,
                     esm, bend, J, r)
         return r, J
 

@@ -8,7 +8,9 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from prismstation.core.matching.lsm_kernel import block_moments, edge_sums
+from prismstation.core.lazy_cv2 import lazy_module
+
+kernel = lazy_module("prismstation.core.matching.lsm_kernel")  # numba at first use: start-up saving
 
 GRADIENT_NOISE = 2.18
 """Variance of a gradient component of the cubic B-spline interpolating unit white noise, over
@@ -67,7 +69,7 @@ def unmodelled_sigma(G, r, n_params: int, block: int = 4, w=None, other=None, fl
     lo = (n - m * block) // 2
 
     mom = np.empty((3 if other is None else 6, m * m))
-    block_moments(np.ascontiguousarray(G, float), np.ascontiguousarray(r, float),
+    kernel.block_moments(np.ascontiguousarray(G, float), np.ascontiguousarray(r, float),
                   _EMPTY if other is None else np.ascontiguousarray(other, float), lo, m, block, mom)
     g2, p, rr = mom[0], mom[1], float(mom[2].sum())
     if np.any(g2 <= 0):
@@ -168,7 +170,7 @@ def sampling_scatter(J, gx, gy, ex, ey, block: int = SAMPLING_BLOCK):
     view is ``N⁻¹ Σ N⁻¹`` (``N`` the normal matrix)."""
     mb = -(-J.shape[0] // block)
     cx, cy = np.empty((mb * mb, J.shape[2])), np.empty((mb * mb, J.shape[2]))
-    edge_sums(np.ascontiguousarray(J, float), np.ascontiguousarray(gx * ex), np.ascontiguousarray(gy * ey), block, cx, cy)
+    kernel.edge_sums(np.ascontiguousarray(J, float), np.ascontiguousarray(gx * ex), np.ascontiguousarray(gy * ey), block, cx, cy)
     return cx.T @ cx + cy.T @ cy
 
 

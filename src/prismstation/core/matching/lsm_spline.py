@@ -8,12 +8,13 @@ in float64 (grey values, grey values per pixel), sampled by
 """
 from __future__ import annotations
 
-import cv2
 import numpy as np
 from scipy import ndimage
 
-from prismstation.core.matching.lsm_kernel import spline_points
+from prismstation.core.lazy_cv2 import cv2, lazy_module  # imported at first use: start-up saving
 from prismstation.core.matching.lsm_sigma import noise_sigma
+
+kernel = lazy_module("prismstation.core.matching.lsm_kernel")
 
 
 class Spline:
@@ -39,7 +40,7 @@ class Spline:
     def sample(self, x, y):
         """``(S, ∂S/∂x, ∂S/∂y)`` at image points ``x, y`` (same shape; NaN outside
         :attr:`lo`–:attr:`hi`)."""
-        out = spline_points(self.flat, self.width, self.c0, self.r0, self.lo, self.hi, x, y)
+        out = kernel.spline_points(self.flat, self.width, self.c0, self.r0, self.lo, self.hi, x, y)
         return tuple(a.reshape(np.shape(x)) for a in out)
 
 
