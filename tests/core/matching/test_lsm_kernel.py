@@ -39,7 +39,7 @@ def test_the_prepared_types_are_the_ones_a_match_uses():
     # a match of point-sampled texture takes every path (the coarse pass, the bend, the taper,
     # the central part, the low-passed fit): none of them may compile another signature
     K.compile_kernels()
-    kernels = (K.sample_points, K.sample_patch, K.design_rows, K.block_moments, K.edge_sums)
+    kernels = (K.sample_points, K.sample_patch, K.design_rows, K.block_moments, K.edge_sums, K.spline_coefficients)
     before = [len(f.signatures) for f in kernels]
     rng = np.random.default_rng(2)
     img = np.kron(rng.normal(100, 30, (60, 60)), np.ones((4, 4)))        # hard edges, no blur
@@ -66,3 +66,11 @@ def test_the_edge_scatter_is_the_block_sums_of_the_weighted_design():
             cy = (J[blk] * (gy * ey)[blk][..., None]).sum(axis=(0, 1))
             want += np.outer(cx, cx) + np.outer(cy, cy)
     assert np.allclose(sampling_scatter(J, gx, gy, ex, ey, b), want, rtol=1e-12, atol=1e-12)
+
+
+def test_the_spline_coefficients_are_scipys():
+    rng = np.random.default_rng(8)
+    for shape in ((2, 2), (2, 9), (7, 3), (85, 87)):
+        img = rng.normal(100, 30, shape)
+        want = ndimage.spline_filter(img, order=3, mode="mirror")
+        assert np.allclose(K.spline_coefficients(img), want, rtol=0, atol=1e-12 * np.abs(want).max())

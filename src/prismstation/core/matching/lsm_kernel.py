@@ -154,6 +154,49 @@ def edge_sums(J, ax, ay, b, cx, cy):
                 cy[B, q] += J[i, j, q] * c
 
 
+@njit(**_OPTS)
+def _prefilter_rows(c, z, gain):
+    """Each column of ``c`` ``(n, m)`` (n ≥ 2) replaced in place by its cubic B-spline
+    coefficients along the rows, the signal mirrored at both ends: scipy's
+    ``spline_filter1d(..., axis=0, mode="mirror")`` (its gain, causal and anticausal passes and
+    their mirrored starts, in its order), the inner loops running along a row."""
+    n, m = c.shape
+    for i in range(n):
+        for j in range(m):
+            c[i, j] *= gain
+    zn = z ** (n - 1)
+    first = c[0] + zn * c[n - 1]
+    zi = z
+    for i in range(1, n - 1):
+        for j in range(m):
+            first[j] += zi * (c[i, j] + zn * c[n - 1 - i, j])
+        zi *= z
+    for j in range(m):
+        c[0, j] = first[j] / (1 - zn * zn)
+    for i in range(1, n):
+        for j in range(m):
+            c[i, j] += z * c[i - 1, j]
+    for j in range(m):
+        c[n - 1, j] = (z * c[n - 2, j] + c[n - 1, j]) * z / (z * z - 1)
+    for i in range(n - 2, -1, -1):
+        for j in range(m):
+            c[i, j] = z * (c[i + 1, j] - c[i, j])
+
+
+@njit(**_OPTS)
+def spline_coefficients(img):
+    """The cubic B-spline coefficients ``(rows, cols)`` (float64) of ``img`` (each side at
+    least 2), the image mirrored at its edges: scipy's ``ndimage.spline_filter(img, 3,
+    mode="mirror")`` to rounding, about twice as fast."""
+    z = math.sqrt(3.0) - 2.0
+    gain = (1.0 - z) * (1.0 - 1.0 / z)
+    c = img.astype(np.float64)
+    _prefilter_rows(c, z, gain)
+    t = np.ascontiguousarray(c.T)
+    _prefilter_rows(t, z, gain)
+    return np.ascontiguousarray(t.T)
+
+
 def spline_points(flat, width: int, c0: int, r0: int, lo, hi, x, y):
     """``(S, Sx, Sy)`` (float64, ``(n,)``) of the spline at image points ``x, y`` (NaN outside
     ``lo``–``hi``)."""
@@ -173,6 +216,7 @@ def compile_kernels() -> None:
                  u, u, Q, False, *out[:3])
     design_rows(*out[:3], u, u, u, u, u, Q, np.zeros(2), 0.0, 1.0, np.eye(2), True, False, J, out[3])
     g = np.zeros((8, 8))
+    spline_coefficients(g)
     block_moments(g, g, g, 0, 2, 4, np.empty((6, 4)))
     block_moments(g, g, np.empty((0, 0)), 0, 2, 4, np.empty((3, 4)))
     edge_sums(np.zeros((8, 8, 2)), g, g, 8, np.empty((1, 2)), np.empty((1, 2)))

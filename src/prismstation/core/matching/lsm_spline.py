@@ -9,7 +9,6 @@ in float64 (grey values, grey values per pixel), sampled by
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 
 from prismstation.core.lazy_cv2 import cv2, lazy_module  # imported at first use: start-up saving
 from prismstation.core.matching.lsm_sigma import noise_sigma
@@ -24,8 +23,8 @@ class Spline:
     takes image coordinates (continuous, docs/model.md §1)."""
 
     def __init__(self, img, c0: int = 0, r0: int = 0):
-        self.raw = np.asarray(img, np.float64)
-        self.coef = ndimage.spline_filter(self.raw, order=3, mode="mirror")
+        self.raw = np.ascontiguousarray(img, np.float64)
+        self.coef = kernel.spline_coefficients(self.raw)
         self.c0, self.r0 = c0, r0
         rows, cols = self.coef.shape
         self.flat, self.width = self.coef.ravel(), cols
