@@ -39,6 +39,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import special
 
+from prismstation.core.lazy_cv2 import lazy_module
 from prismstation.core.matching.coarse import search_radius_px
 from prismstation.core.matching.lsm import LsmResult
 from prismstation.core.matching.lsm_search import best_score, match
@@ -49,6 +50,8 @@ from prismstation.ops.transfer_slope import fitted_slope, plane, slope_shapes
 from prismstation.ops.transfer_template import SOURCE_MARGIN, TEMPLATE_HALVES, template_halves
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 from prismstation.ops.predict import DEFAULT_HEIGHT_SPREAD_M, dem_sigma, ground_jacobian, height_spread
+
+kernel = lazy_module("prismstation.core.matching.lsm_kernel")  # numba at first use: start-up saving
 
 #: σ (m, per component) of a view's geolocation once its bias is fitted: the check-point
 #: accuracy of the empirical model without and with GCPs (Gonçalves 2008: under 5 m)
@@ -260,6 +263,7 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     test (:func:`consistency`): in height and across the parallax when the point is found in
     two other views, across the parallax when in one.
     """
+    kernel.compile_kernels()      # once per process (and the start-up's objects out of the collector)
     sc = sol.scene
     xy = np.asarray(xy, float)
     if height_of is not None and sigma_dem is None:

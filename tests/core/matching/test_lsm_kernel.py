@@ -39,7 +39,8 @@ def test_the_prepared_types_are_the_ones_a_match_uses():
     # a match of point-sampled texture takes every path (the coarse pass, the bend, the taper,
     # the central part, the low-passed fit): none of them may compile another signature
     K.compile_kernels()
-    kernels = (K.sample_points, K.sample_patch, K.design_rows, K.block_moments, K.edge_sums, K.spline_coefficients)
+    kernels = (K.sample_points, K.sample_patch, K.design_rows, K.block_moments, K.edge_sums, K.spline_coefficients,
+               K.crossing_sigma)
     before = [len(f.signatures) for f in kernels]
     rng = np.random.default_rng(2)
     img = np.kron(rng.normal(100, 30, (60, 60)), np.ones((4, 4)))        # hard edges, no blur
@@ -74,3 +75,47 @@ def test_the_spline_coefficients_are_scipys():
         img = rng.normal(100, 30, shape)
         want = ndimage.spline_filter(img, order=3, mode="mirror")
         assert np.allclose(K.spline_coefficients(img), want, rtol=0, atol=1e-12 * np.abs(want).max())
+
+
+def _sampling_px_by_arrays(a, noise):
+    """sampling_px as array operations (its definition, written out once more)."""
+    from prismstation.core.matching.lsm_sigma import _SAMPLING_PX, _SAMPLING_RATIO
+    v = 2.0 * noise ** 2
+    out = []
+    for arr in (a, a.T):
+        d = np.diff(arr, axis=1)
+        d0 = d[:, 2:-2] ** 2
+        side = np.maximum(d[:, :-4] ** 2 + d[:, 1:-3] ** 2 + d[:, 3:-1] ** 2 + d[:, 4:] ** 2 - 4 * v, 0.0)
+        ratio = np.where(d0 > 4 * v, side / np.maximum(d0 - v, 1e-12), np.inf)
+        e = np.zeros_like(d)
+        e[:, 2:-2] = np.interp(ratio, _SAMPLING_RATIO, _SAMPLING_PX, right=0.0)
+        px = np.zeros_like(arr)
+        for k in range(-1, 3):
+            lo, hi = max(k, 0), min(arr.shape[1] - 1 + k, arr.shape[1])
+            px[:, lo:hi] = np.maximum(px[:, lo:hi], e[:, lo - k:hi - k])
+        out.append(px)
+    return out[0], out[1].T
+
+
+def test_the_edges_sigma_is_its_definition():
+    from prismstation.core.matching.lsm_sigma import sampling_px
+    rng = np.random.default_rng(9)
+    for trial in range(40):
+        n = int(rng.integers(6, 50))
+        blocks = np.kron(rng.normal(100, 30, (n // 4 + 2, n // 4 + 2)), np.ones((4, 4)))[:n, :n]
+        a = [blocks, ndimage.gaussian_filter(rng.normal(100, 30, (n, n)), rng.uniform(0.2, 1.5)),
+             rng.normal(100, 30, (n, n))][trial % 3] + rng.normal(0, 2, (n, n))
+        noise = float(rng.uniform(0, 5))
+        for got, want in zip(sampling_px(a, noise), _sampling_px_by_arrays(a, noise)):
+            assert np.allclose(got, want, rtol=0, atol=1e-12)
+
+
+def test_the_loops_are_prepared_once_and_the_collector_left_what_was_alive(monkeypatch):
+    import gc
+    monkeypatch.setattr(K, "_READY", False)
+    gc.unfreeze()
+    K.compile_kernels()
+    frozen = gc.get_freeze_count()
+    assert frozen > 10_000 and K._READY
+    K.compile_kernels()                      # at once: nothing loaded or frozen again
+    assert gc.get_freeze_count() == frozen

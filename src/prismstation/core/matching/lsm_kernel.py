@@ -11,6 +11,7 @@ gradients grey values per pixel, float64.
 """
 from __future__ import annotations
 
+import gc
 import math
 
 import numpy as np
@@ -197,6 +198,40 @@ def spline_coefficients(img):
     return np.ascontiguousarray(t.T)
 
 
+@njit(**_OPTS)
+def crossing_sigma(a, v, ratio_tab, px_tab, out):
+    """:func:`~prismstation.core.matching.lsm_sigma.sampling_px` along the rows of ``a``
+    ``(rows, cols)`` into ``out`` (same shape): for each crossing ``k`` (between columns ``k``
+    and ``k + 1``, two from either end) whose squared difference exceeds ``4v``, the table's σ
+    (``px_tab`` at ``ratio_tab``, linear between, 0 beyond) of the ratio of its four
+    neighbours' squared differences less ``4v`` (at least 0) to its own less ``v``; each
+    pixel the largest σ of the crossings ``k`` with it among ``k − 1 … k + 2``."""
+    rows, cols = a.shape
+    out[:] = 0.0
+    last = ratio_tab.size - 1
+    for i in range(rows):
+        for k in range(2, cols - 3):
+            d0 = (a[i, k + 1] - a[i, k]) ** 2
+            if not d0 > 4 * v:
+                continue
+            side = ((a[i, k - 1] - a[i, k - 2]) ** 2 + (a[i, k] - a[i, k - 1]) ** 2
+                    + (a[i, k + 2] - a[i, k + 1]) ** 2 + (a[i, k + 3] - a[i, k + 2]) ** 2 - 4 * v)
+            ratio = max(side, 0.0) / max(d0 - v, 1e-12)
+            if ratio > ratio_tab[last]:
+                continue                                 # beyond the table: 0
+            j = 0
+            while j < last - 1 and ratio >= ratio_tab[j + 1]:
+                j += 1
+            if ratio == ratio_tab[last]:
+                e = px_tab[last]
+            else:
+                slope = (px_tab[j + 1] - px_tab[j]) / (ratio_tab[j + 1] - ratio_tab[j])
+                e = slope * (ratio - ratio_tab[j]) + px_tab[j]
+            for c in range(k - 1, k + 3):
+                if e > out[i, c]:
+                    out[i, c] = e
+
+
 def spline_points(flat, width: int, c0: int, r0: int, lo, hi, x, y):
     """``(S, Sx, Sy)`` (float64, ``(n,)``) of the spline at image points ``x, y`` (NaN outside
     ``lo``–``hi``)."""
@@ -206,9 +241,20 @@ def spline_points(flat, width: int, c0: int, r0: int, lo, hi, x, y):
     return S, Sx, Sy
 
 
+_READY = False
+
+
 def compile_kernels() -> None:
     """Compile the loops for the argument types matching passes them (or load them from the disk
-    cache): a few tenths of a second once per process, which the first match pays otherwise."""
+    cache): a few tenths of a second once per process, which the first match pays otherwise.
+    Then every object alive (numba's types and dispatchers, about 50,000 of the process's
+    160,000) is left out of the cycle collector's passes (``gc.freeze``, as the window does
+    after each of its full collections): a full pass over them took 57 ms of CPU, at random
+    moments of a run of transfers (a millisecond a point of the foreign scene's 50). Once per
+    process; later calls return at once."""
+    global _READY
+    if _READY:
+        return
     flat, u = np.zeros(64), np.zeros(1)
     Q, J, out = np.zeros((3, 1)), np.empty((8, 1)), [np.empty(1) for _ in range(4)]
     spline_points(flat, 8, 0, 0, (1.5, 1.5), (5.5, 5.5), np.array([3.0]), np.array([3.0]))
@@ -217,6 +263,9 @@ def compile_kernels() -> None:
     design_rows(*out[:3], u, u, u, u, u, Q, np.zeros(2), 0.0, 1.0, np.eye(2), True, False, J, out[3])
     g = np.zeros((8, 8))
     spline_coefficients(g)
+    crossing_sigma(g, 1.0, np.arange(3.0), np.zeros(3), np.empty((8, 8)))
     block_moments(g, g, g, 0, 2, 4, np.empty((6, 4)))
     block_moments(g, g, np.empty((0, 0)), 0, 2, 4, np.empty((3, 4)))
     edge_sums(np.zeros((8, 8, 2)), g, g, 8, np.empty((1, 2)), np.empty((1, 2)))
+    gc.freeze()
+    _READY = True

@@ -143,22 +143,12 @@ def sampling_px(a, noise: float):
     side hold (none for a hard edge; white texture rarely has four quiet neighbours); the σ
     from that share is the table above, given to the four pixels whose values the crossing's
     place moves. 0 away from crossings (and for any band-limited texture)."""
-    a = np.asarray(a, np.float64)
+    a = np.ascontiguousarray(a, np.float64)
     v = 2.0 * noise ** 2                                  # noise variance of a difference
-    out = []
-    for arr in (a, a.T):
-        d = np.diff(arr, axis=1)                          # (n, n-1): crossing k between k, k+1
-        d0 = d[:, 2:-2] ** 2
-        side = np.maximum(d[:, :-4] ** 2 + d[:, 1:-3] ** 2 + d[:, 3:-1] ** 2 + d[:, 4:] ** 2 - 4 * v, 0.0)
-        ratio = np.where(d0 > 4 * v, side / np.maximum(d0 - v, 1e-12), np.inf)
-        e = np.zeros_like(d)
-        e[:, 2:-2] = np.interp(ratio, _SAMPLING_RATIO, _SAMPLING_PX, right=0.0)
-        px = np.zeros_like(arr)
-        for k in range(-1, 3):                            # pixels k-1 … k+2 of crossing k
-            lo, hi = max(k, 0), min(arr.shape[1] - 1 + k, arr.shape[1])
-            px[:, lo:hi] = np.maximum(px[:, lo:hi], e[:, lo - k:hi - k])
-        out.append(px)
-    return out[0], out[1].T
+    ex, ey = np.empty_like(a), np.empty(a.shape[::-1])
+    kernel.crossing_sigma(a, v, _SAMPLING_RATIO, _SAMPLING_PX, ex)
+    kernel.crossing_sigma(np.ascontiguousarray(a.T), v, _SAMPLING_RATIO, _SAMPLING_PX, ey)
+    return ex, ey.T
 
 
 def sampling_scatter(J, gx, gy, ex, ey, block: int = SAMPLING_BLOCK):
