@@ -29,4 +29,6 @@ py=${PYTHON:-python3}
 [ -x .venv/bin/python ] || "$py" -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip
 .venv/bin/python -m pip install -q -e ".$extras"
+# matching's compiled loops into numba's disk cache now, not at the first match (a few seconds)
+.venv/bin/python -c "from prismstation.core.matching.lsm_kernel import compile_kernels; compile_kernels()"
 echo "prismstation installed in .venv"

@@ -81,7 +81,8 @@ def _build() -> None:
 
 @pytest.mark.slow
 def test_built_program_opens_the_demo(tmp_path):
-    """One test (one xdist worker builds): demo report without a window, then a screenshot."""
+    """One test (one xdist worker builds): demo report without a window, tie points matched (the
+    compiled loops), then a screenshot."""
     if os.environ.get("PRISMSTATION_REBUILD") == "1":
         _build()
     elif not EXE.exists() or _stale():
@@ -103,6 +104,12 @@ def test_built_program_opens_the_demo(tmp_path):
     assert "Table 1" in r.stdout and "Table 2" in r.stdout and "Table 3" in r.stdout
     assert "Traceback" not in r.stderr
     assert (demo / "demo.prismproj").exists()
+    # matching's compiled loops (numba) in the frozen program: tie points on a copy of the demo
+    ties = demo / "ties.prismproj"
+    ties.write_bytes((demo / "demo.prismproj").read_bytes())
+    r = subprocess.run([str(EXE), "ties", "--grid", "3", str(ties)], capture_output=True, text=True,
+                       timeout=600, env=env, cwd=tmp_path)
+    assert r.returncode == 0 and "tie points:" in r.stdout, r.stderr[-3000:]
     # the command line of the same executable: one clear line for bad input
     r = subprocess.run([str(EXE), "fit", str(tmp_path / "missing.prismproj")], capture_output=True,
                        text=True, timeout=300, env=env)
