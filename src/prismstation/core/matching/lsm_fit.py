@@ -81,7 +81,7 @@ class Fit:
         S, Sx, Sy = np.empty(n), np.empty(n), np.empty(n)
         sp = self.spline
         if not kernel.sample_patch(sp.flat, sp.width, sp.c0, sp.r0, sp.lo, sp.hi, self.t, self.A, self.c, self.d,
-                            self.u, self.v, self.Q, bool(self.c.any()), S, Sx, Sy):
+                                   self.u, self.v, self.Q, bool(self.c.any()), S, Sx, Sy):
             return None
         return S, Sx, Sy
 
@@ -94,8 +94,8 @@ class Fit:
         J, r = np.empty((11 if bend else 8, S.size)), np.empty(S.size)
         a, b, c, d = self.A.ravel()
         E = np.array([[d, -c], [-b, a]]) / (a * d - b * c) if esm else _I2      # A⁻ᵀ
-        kernel.design_rows(S, Sx, Sy, self.T, self.Tu, self.Tv, self.u, self.v, self.Q, self.d, self.g0, self.g1, E,
-                    esm, bend, J, r)
+        kernel.design_rows(S, Sx, Sy, self.T, self.Tu, self.Tv, self.u, self.v, self.Q, self.d, self.g0, self.g1,
+                           E, esm, bend, J, r)
         return r, J
 
     def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float,
