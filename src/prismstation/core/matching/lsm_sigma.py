@@ -160,7 +160,8 @@ def sampling_scatter(J, gx, gy, ex, ey, block: int = SAMPLING_BLOCK):
     view is ``N⁻¹ Σ N⁻¹`` (``N`` the normal matrix)."""
     mb = -(-J.shape[0] // block)
     cx, cy = np.empty((mb * mb, J.shape[2])), np.empty((mb * mb, J.shape[2]))
-    kernel.edge_sums(np.ascontiguousarray(J, float), np.ascontiguousarray(gx * ex), np.ascontiguousarray(gy * ey), block, cx, cy)
+    kernel.edge_sums(np.ascontiguousarray(J, float), np.ascontiguousarray(gx * ex), np.ascontiguousarray(gy * ey),
+                     block, cx, cy)
     return cx.T @ cx + cy.T @ cy
 
 
