@@ -310,8 +310,13 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
                                                noise, e1, e2, n, aliasing)
         along_fit = central or along_fit
         it += it4
+    # the checks before the low-passed fit, which moves the point and not its σ
+    smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
+    why = ((LOW_CORRELATION, f"correlation {rho:.2f} below {min_rho:.2f}") if rho < min_rho else
+           (TEXTURE, f"too little texture: σ {smax:.2f} px above {max_sigma:.2f}")
+           if not np.isfinite(smax) or smax > max_sigma else None)
     shift = np.zeros(2)
-    if smooth == 0 and edges > POINT_SAMPLED:
+    if why is None and smooth == 0 and edges > POINT_SAMPLED:
         # the point-sampled images' sub-pixel pull: across the parallax the whole template's;
         # along it that of the fit that gave the position there, where the relief it leaves is
         # under its edges' σ (beyond, the low-pass moves the fit by the relief it weighs anew)
@@ -328,12 +333,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
                                            "sigma_relief": s_relief, "sigma_across": s_across, "d": d,
                                            "taper": local, "half": half, "mid": mid, "smoothed": shift,
                                            "edges": edges})
-    if rho < min_rho:
-        return _as_failure(res, LOW_CORRELATION, f"correlation {rho:.2f} below {min_rho:.2f}")
-    smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
-    if not np.isfinite(smax) or smax > max_sigma:
-        return _as_failure(res, TEXTURE, f"too little texture: σ {smax:.2f} px above {max_sigma:.2f}")
-    return res
+    return res if why is None else _as_failure(res, *why)
 
 
 _STATS: OrderedDict = OrderedDict()
