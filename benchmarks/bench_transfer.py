@@ -119,6 +119,11 @@ SETS = {
                                                 reference="geographic")),
                 ("smooth", 33, None, dict(psf_px=0.0, noise_dn=2.0)),
                 ("smooth", 34, None, dict(jpeg_quality=75))],
+    # the other renderer's kind of parcels on steep relief at the two places of "judged" (never
+    # tuned on with this texture), against both kinds of reference: judges the steep targets
+    "judged_mottled": [(*place, dict(texture="mottled", psf_px=0.0, noise_dn=2.0, **ref))
+                       for place in (("dem", 41, (5.35, 44.20)), ("dem", 42, (5.90, 44.85)))
+                       for ref in ({}, {"reference": "geographic"})],
 }
 
 
