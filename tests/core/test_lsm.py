@@ -516,6 +516,34 @@ def test_point_sampled_views_are_matched_without_the_pull_of_their_pixel_grids()
     assert np.sqrt(np.mean(err[:, 1] ** 2)) < 0.16, np.sqrt(np.mean(err[:, 1] ** 2))
 
 
+
+def test_a_match_refused_for_its_sigma_does_not_pay_for_the_low_passed_fit(monkeypatch):
+    """The low-passed last fit moves a point-sampled match and not its σ: a match whose σ is
+    over the limit (or whose correlation is under it) is refused before it, with the status
+    and reason it had after it (on steep relief the low-pass cost a refused 65 px match up to
+    two more fits of the whole template)."""
+    rng = np.random.default_rng(0)
+    yy, xx = np.mgrid[0:200, 0:200] + 0.5
+    ground = _parcels(rng, 200, cells=20, waves=2.0)
+    ref = ground(xx, yy) + rng.normal(0, 2, xx.shape)
+    off = rng.uniform(-0.5, 0.5, 2)
+    srch = ground(xx + off[0], yy + off[1]) + rng.normal(0, 2, xx.shape)
+    p = rng.uniform(60, 140, 2)
+
+    def run(**kw):
+        return refine(ref, p[0], p[1], srch, p - off + (0.2, -0.1), np.eye(2), half=24, parallax=(0.0, 1.0), **kw)
+
+    kept = run()
+    assert kept.ok and np.any(kept.extra["smoothed"] != 0)
+    calls = []
+    real = lsm.smoothed_shift
+    monkeypatch.setattr(lsm, "smoothed_shift", lambda *a, **k: calls.append(1) or real(*a, **k))
+    for kw, status in ((dict(max_sigma=1e-3), lsm.TEXTURE), (dict(min_rho=0.9999), lsm.LOW_CORRELATION)):
+        r = run(**kw)
+        assert r.status == status and not np.any(r.extra["smoothed"]), (r.status, r.reason)
+        assert np.allclose((r.x, r.y), np.subtract((kept.x, kept.y), kept.extra["smoothed"]))
+    assert not calls
+
 def test_blurred_views_are_not_low_passed():
     """Parcels blurred by 0.7 px before sampling: the spline places their edges (the sampling σ
     under 0.01 px), and the match is the raw images' (no low-passed last fit)."""
