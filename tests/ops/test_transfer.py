@@ -321,3 +321,29 @@ def test_transfer_refuses_a_single_view_match_off_its_epipolar_line(steep, monke
         out = transfer(sol, im, "N", p["image"]["N"], height_of=dem, half_window=12)
     assert not out["F"].ok
     assert out["B"].match.status == "inconsistent" and "do not meet" in out["B"].match.reason
+
+
+def test_the_relief_one_view_shows_is_in_the_others_sigma(steep):
+    """The relief within N's template moves the point in F and in B by one height (``k·Δh``
+    px along each one's parallax): what each match's σ along the parallax holds beyond its
+    noise, in metres, is at least the two views' mean (half the larger) where their templates are
+    one size."""
+    from prismstation.io.windows import ImageWindows
+    from prismstation.ops.transfer import local_shape
+    project, sol, dem, points = steep
+    checked = 0
+    with ImageWindows(project.scene) as im:
+        for p in points:
+            tr = transfer(sol, im, "N", p["image"]["N"], height_of=dem)
+            if not (tr["F"].ok and tr["B"].ok) or tr["F"].match.extra["half"] != tr["B"].match.extra["half"]:
+                continue
+            shapes = local_shape(sol, "N", np.asarray(p["image"]["N"], float), ["F", "B"],
+                                 h=float(sol.mean_height), height_of=dem)[2]
+            rel = {}
+            for v in "FB":
+                m = tr[v].match
+                d = np.asarray(m.extra["d"], float) / np.hypot(*m.extra["d"])
+                rel[v] = (d @ m.cov @ d - m.extra["noise_along"] ** 2) / np.hypot(*shapes[v].dh) ** 2
+            assert min(rel.values()) >= 0.499 * max(rel.values()) - 1e-9, (p["id"], rel)
+            checked += 1
+    assert checked >= 0.8 * len(points)

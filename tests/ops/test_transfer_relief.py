@@ -1,8 +1,11 @@
 """The relief within a transfer's template that its patch cannot follow, as the reference DEM
 shows it (ops.transfer_relief): what a plane or a quadratic leaves (nothing), what a ridge
 beside the template's edges leaves (its height times the parallax per metre), and what the
-reference's own noise makes of it (the noise term: the file's own noise, at its own posts)."""
+reference's own noise makes of it (the noise term: the file's own noise, at its own posts);
+and the relief one view's match shows, shared with the other's (one height moves both)."""
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -13,7 +16,8 @@ from scipy import ndimage
 from prismstation.core.matching.lsm import LsmResult
 from prismstation.io.dem import read_dem, write_dem
 from prismstation.ops.reference_heights import DemHeights
-from prismstation.ops.transfer_relief import RELIEF, relief_bias_px, with_relief
+from prismstation.ops.transfer import Transfer
+from prismstation.ops.transfer_relief import RELIEF, relief_bias_px, shared_relief, with_relief
 
 AXES = np.diag([0.4, -0.4])            # 2.5 m pixels, rows southwards
 K = 0.18                               # px along the parallax per metre of height (B of PRISM)
@@ -113,3 +117,47 @@ def test_a_match_the_relief_may_move_past_its_limit_is_refused_with_the_reason()
     flat = _heights(lambda e, n: np.full(len(e), 300.0))
     kept = with_relief(m, ref, xy, AXES, g, K * D, flat, 2.0, 0.5)
     assert kept.ok and np.allclose(kept.cov, m.cov) and kept.extra["relief_px"] == 0.0
+
+
+def _found(view, relief_px, noise_px=0.05, half=32, d=(0.0, 1.0)):
+    """A match along the parallax ``d`` stating ``noise_px`` of noise and ``relief_px`` of
+    relief along it, 0.1 px across."""
+    d = np.asarray(d, float)
+    e = np.array([-d[1], d[0]])
+    cov = (noise_px ** 2 + relief_px ** 2) * np.outer(d, d) + 0.01 * np.outer(e, e)
+    m = LsmResult(10.0, 20.0, cov, cov, np.eye(2), 1.0, 0.0, 0.9, 5, "ok",
+                  extra={"d": d, "half": half, "bend": np.zeros(3), "noise_along": noise_px})
+    return Transfer(view, 10.0, 20.0, (10.0, 20.0), m)
+
+
+def _relief_m(t, k):
+    d = np.asarray(t.match.extra["d"], float)
+    return np.sqrt(d @ t.match.cov @ d - t.match.extra["noise_along"] ** 2) / k
+
+
+def test_the_relief_one_view_shows_raises_the_others_sigma_to_their_mean():
+    """F's blocks saw 0.40 px of relief, B's (a little steeper, k 0.20) nothing: one height
+    moves both, so B states their mean in metres; F keeps its own, nothing changes across."""
+    kf, kb = 0.18, 0.20
+    found = {"F": _found("F", 0.40), "B": _found("B", 0.0, d=(0.6, 0.8))}
+    out = shared_relief(found, {"F": kf * np.array([0.0, 1.0]), "B": kb * np.array([0.6, 0.8])}, 0.5)
+    assert out["F"].match is found["F"].match
+    mean_m = np.sqrt((0.40 / kf) ** 2 / 2)
+    assert out["B"].ok and _relief_m(out["B"], kb) == pytest.approx(mean_m)
+    e = np.array([-0.8, 0.6])
+    assert e @ out["B"].match.cov @ e == pytest.approx(0.01)
+    # a larger template's relief is scaled down by the sizes' ratio for a smaller one
+    found = {"F": _found("F", 0.40, half=32), "B": _found("B", 0.0, half=12)}
+    out = shared_relief(found, {"F": kf * np.array([0.0, 1.0]), "B": kf * np.array([0.0, 1.0])}, 0.5)
+    assert _relief_m(out["B"], kf) == pytest.approx(np.sqrt(((0.40 / kf) * 25 / 65) ** 2 / 2))
+
+
+def test_a_match_the_other_views_relief_takes_past_its_limit_is_refused_naming_it():
+    found = {"F": _found("F", 0.49, noise_px=0.1), "B": _found("B", 0.30, noise_px=0.3)}
+    out = shared_relief(found, {v: 0.18 * np.array([0.0, 1.0]) for v in "FB"}, 0.5)
+    assert out["F"].ok
+    assert out["B"].match.status == RELIEF and "the match in F" in out["B"].match.reason
+    # alone, or beside a failure, a match keeps its σ
+    found["B"] = Transfer("B", 0, 0, (0, 0), replace(found["B"].match, status="texture"))
+    out = shared_relief({"F": _found("F", 0.0), "B": found["B"]}, {v: 0.18 * np.array([0.0, 1.0]) for v in "FB"}, 0.5)
+    assert out["F"].match.cov[1, 1] == pytest.approx(0.05 ** 2)

@@ -45,7 +45,7 @@ from prismstation.core.matching.lsm import LsmResult
 from prismstation.core.matching.lsm_search import best_score, match
 from prismstation.core.models.solution import Solution
 from prismstation.io.windows import ImageWindows
-from prismstation.ops.transfer_relief import RELIEF, smaller_on_relief, source_axes, with_relief
+from prismstation.ops.transfer_relief import RELIEF, shared_relief, smaller_on_relief, source_axes, with_relief
 from prismstation.ops.transfer_slope import fitted_slope, plane, slope_shapes
 from prismstation.ops.transfer_template import SOURCE_MARGIN, TEMPLATE_HALVES, template_halves
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
@@ -359,6 +359,8 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
                                       (axes, (*en_pt, h_pt), shapes[v].dh, height_of, sigma_dem), MAX_SIGMA_PX,
                                       DEM_SHAPE_CHANGE)
                 out[v] = replace(t, x=m.x, y=m.y, match=m) if m.ok else t
+    # the relief within the template moves the point in every view by one height
+    out = shared_relief(out, {v: shapes[v].dh for v in out}, MAX_SIGMA_PX)
     if check and any(t.ok for t in out.values()):
         # the rays must meet: with two views found, in height; with one, across its parallax
         out = consistency(sol, source, xy, out, h_pt, en0=en_pt)

@@ -168,3 +168,46 @@ def _post_shares(p, weights) -> np.ndarray:
         vals.append(weights * (t[0] if dx else 1.0 - t[0]) * (t[1] if dy else 1.0 - t[1]))
     _, inv = np.unique(np.concatenate(ids), return_inverse=True)
     return np.bincount(inv, weights=np.concatenate(vals))
+
+
+def shared_relief(found: dict, dh: dict, max_sigma: float) -> dict:
+    """``found`` (view → :class:`~prismstation.ops.transfer.Transfer`) with each match's
+    relief share of its σ along the parallax raised to the mean of the views' (in metres).
+
+    The relief within the source template moves the point in every view by one height: by
+    ``k·Δh`` px along each view's parallax (``k`` = ``|dh[view]|``, px per metre of height).
+    What a match's σ along the parallax holds beyond its noise (``extra["noise_along"]``) is
+    that relief as its own image let the blocks and the central fit see it — an estimate of
+    one quantity, which on weak texture one view may miss where the other sees it. Their mean
+    (in m², a larger template's scaled down by the sizes' ratio as :func:`smaller_on_relief`
+    scales it) is the better estimate; a view's own is kept where it is the larger (a σ is
+    never lowered). A match whose σ then exceeds ``max_sigma`` px is refused
+    (:data:`RELIEF`)."""
+    ok = {v: t for v, t in found.items() if t.ok and "noise_along" in t.match.extra
+          and float(np.hypot(*dh[v])) > 1e-6}
+    if len(ok) < 2:
+        return found
+    rel, unit = {}, {}
+    for v, t in ok.items():
+        d = np.asarray(t.match.extra["d"], float)
+        unit[v] = d / np.hypot(*d)
+        var = float(unit[v] @ t.match.cov @ unit[v]) - t.match.extra["noise_along"] ** 2
+        rel[v] = max(var, 0.0) / float(np.hypot(*dh[v])) ** 2          # m²
+    out = dict(found)
+    for v, t in ok.items():
+        size = 2 * int(t.match.extra["half"]) + 1
+        seen = {w: rel[w] * min(1.0, size / (2 * int(ok[w].match.extra["half"]) + 1)) ** 2 for w in ok}
+        mean = sum(seen.values()) / len(seen)
+        if mean <= rel[v]:
+            continue
+        k2 = float(np.hypot(*dh[v])) ** 2
+        cov = t.match.cov + (mean - rel[v]) * k2 * np.outer(unit[v], unit[v])
+        m = replace(t.match, cov=cov)
+        smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
+        if smax > max_sigma:
+            src = " and ".join(w for w in ok if w != v)
+            m = replace(m, status=RELIEF, reason=f"the relief within the template, as the match in {src} shows it, "
+                        f"may move the point by {np.sqrt(mean * k2):.2f} px along the parallax: σ {smax:.2f} px "
+                        f"above {max_sigma:.2f}")
+        out[v] = replace(t, match=m)
+    return out

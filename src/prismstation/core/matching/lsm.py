@@ -113,8 +113,9 @@ class LsmResult:
     ``sigma_across`` (px), the parallax direction ``d``, the template's ``half`` size, ``mid``
     (px: the central part's disagreement along the parallax where it entered, else 0),
     ``edges`` (px: the template's mean σ of where its edges lie between samples,
-    :func:`~prismstation.core.matching.lsm_sampled.edge_sigma`) and ``smoothed`` ((2,) px: how
-    far the low-passed last fit moved the point, zeros where the images are not point-sampled)."""
+    :func:`~prismstation.core.matching.lsm_sampled.edge_sigma`), ``smoothed`` ((2,) px: how
+    far the low-passed last fit moved the point, zeros where the images are not point-sampled)
+    and ``noise_along`` (px: the noise's share of the σ along the parallax, the rest relief)."""
 
     x: float
     y: float
@@ -276,6 +277,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     t = fit.t.copy()
     local = 0.0
     along_fit = fit           # the fit whose position along the parallax is kept
+    kept_sampled = sampled    # the sampling share of that fit
     if taper > 0 and parallax is not None and e1 @ cov @ e1 > NEAR_GAIN ** 2 * SIGMA_SCALE ** 2 * (e1 @ formal @ e1):
         # the relief the patch leaves moves the point along the parallax: a fit weighted to the
         # point's surroundings follows it closer. How far the two fits disagree along the
@@ -298,12 +300,15 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
                 t = t + P1 @ (near.t - fit.t)
                 formal = (e1 @ st3[1] @ e1) * P1 + (e2 @ formal @ e2) * P2
                 s_relief, local, along, along_fit = st3[2], taper, st3[4], near
+                kept_sampled = along
             # the sampling of the fit that gives the position along the parallax, the whole
             # template's across
             cov = (min(var_near, var_whole) + e1 @ along @ e1) * P1 + (e2 @ (cov + sampled) @ e2) * P2
             sampled = None
     if sampled is not None:
         cov = cov + sampled
+    # the noise's share of the σ along the parallax: the rest is relief the patch leaves
+    noise_along = float(np.sqrt(SIGMA_SCALE ** 2 * (e1 @ formal @ e1) + e1 @ kept_sampled @ e1))
     mid = 0.0
     if parallax is not None and half > MID_HALF:
         t, cov, mid, it4, central = _mid_check(fit, t, cov, bend, (max_iter, t0, max_move, A0inv, max_shape_change),
@@ -332,7 +337,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
                     rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),
                                            "sigma_relief": s_relief, "sigma_across": s_across, "d": d,
                                            "taper": local, "half": half, "mid": mid, "smoothed": shift,
-                                           "edges": edges})
+                                           "edges": edges, "noise_along": noise_along})
     return res if why is None else _as_failure(res, *why)
 
 
