@@ -557,3 +557,31 @@ def test_blurred_views_are_not_low_passed():
                for p in rng.uniform(50, 90, (6, 2))]
     assert sum(r.ok for r in results) >= 4
     assert all(r.extra["edges"] < lsm.POINT_SAMPLED and not np.any(r.extra["smoothed"]) for r in results if r.ok)
+
+
+def test_a_match_off_the_prediction_whose_texture_fits_there_as_well_is_ambiguous(texture, monkeypatch):
+    """The correlation peak lies 2 px from the prediction and starts a fit that ends there
+    (ρ 0.982, kept); started from the prediction itself, the fit ends there and fits as well
+    (ρ 0.983, refused only for its σ). No peak started from the prediction: on a 51 % slope of
+    another renderer's kind of parcels such a match was 1.85 px off at a stated 0.17 px.
+    Probed, it is ambiguous; a match within 1 px of the prediction is not probed (one fit)."""
+    from dataclasses import replace
+    ref = texture[0][300:380, 300:380].astype(float)
+    pred = np.array([40.5, 40.5])
+    calls = []
+
+    def fit(*a, **k):
+        t0 = np.asarray(a[4], float)
+        calls.append(t0)
+        if np.hypot(*(t0 - pred)) < 0.3:
+            return lsm.failed(*pred, lsm.TEXTURE, "refused", rho=0.983)
+        return replace(lsm.failed(*t0, lsm.OK, "", rho=0.982), cov=np.eye(2) * 0.17 ** 2)
+
+    monkeypatch.setattr(lsm, "refine", fit)
+    for shift, probe, expected, fits in ((2.0, True, "ambiguous", 2), (2.0, False, "ok", 1), (0.6, True, "ok", 1)):
+        search = ndimage.shift(ref, (0.0, shift), order=3, mode="nearest")     # the point at pred + (shift, 0)
+        calls.clear()
+        r = match(ref, 40.5, 40.5, search, pred, np.eye(2), (1, 0), along=4, across=1, half=12,
+                  candidates=1, probe=probe)
+        assert r.status == expected and len(calls) == fits, (shift, probe, r.status, r.reason, calls)
+        assert abs(r.x - pred[0] - shift) < 0.2

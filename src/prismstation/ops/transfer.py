@@ -313,7 +313,7 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
         m = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], s.A, d, along=along,
                   across=radius, half=half_window, max_sigma=MAX_SIGMA_PX,
                   max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
-                  coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, parallax=d)
+                  coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, parallax=d, probe=not free)
         if free and not m.ok and m.status in RETRY_STATUSES:
             # the level start may be too far from a steep slope's shape: start from slopes,
             # the one correlating best first (a cheap test), until one is found
@@ -328,7 +328,7 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
                     break
         resize = dict(along=along, across=radius, max_sigma=MAX_SIGMA_PX, parallax=d,
                       max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
-                      coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0)
+                      coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, probe=not free)
         # with no DEM each size is a search over hundreds of pixels: only the edges' size
         for h in ([h_noise] if adaptive and h_noise != half_window else []) if free else others:
             if m.ok or m.status not in RESIZE_STATUSES:
@@ -405,7 +405,7 @@ def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, ground, 
         m = match(ref, xy[0] - ref_origin[0], xy[1] - ref_origin[1], win, pred - [c0, r0], A, d,
                   along=along, across=2.0, half=half_window, max_sigma=MAX_SIGMA_PX,
                   max_shape_change=DEM_SHAPE_CHANGE if guided else FREE_SHAPE_CHANGE,
-                  coarse=0.0 if guided else 1.5, rival=3.0 if guided else 6.0, parallax=d)
+                  coarse=0.0 if guided else 1.5, rival=3.0 if guided else 6.0, parallax=d, probe=not free)
         if m.ok:
             m = replace(m, x=m.x + c0, y=m.y + r0, extra={**m.extra, "along": along})
             out = dict(out)

@@ -134,7 +134,7 @@ def peaks(ncc, allowed, n: int, min_score: float):
 def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0), *,
           along: float = 10.0, across: float = 1.5, half: int = 12, candidates: int = 3,
           min_ncc: float = 0.3, ambiguity: float = 1.5, max_shape_change: float = 0.25,
-          coarse: float = 0.0, rival: float = 3.0, **options) -> LsmResult:
+          coarse: float = 0.0, rival: float = 3.0, probe: bool = False, **options) -> LsmResult:
     """Find the point ``(x, y)`` of ``reference`` in ``search``.
 
     ``pred``: predicted position (px), ``A0``: predicted shape (2×2), ``direction``: search
@@ -148,7 +148,10 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
     ``coarse``: σ (px) of a smoothed first pass of the best peak's least-squares match when
     the shape is known only roughly (0: none); ``rival``: once the best peak converged, a peak
     whose misfit ``1 − NCC²`` exceeds this factor times the best peak's is not tried (the
-    matching improves both alike). Other ``options`` go to :func:`lsm.refine`.
+    matching improves both alike); ``probe``: the prediction is a start too when the best
+    match lies more than 1 px from it (a prediction from a reference DEM: the texture may fit
+    there as well, a minimum no correlation peak starts from). Other ``options`` go to
+    :func:`lsm.refine`.
     The result's ``score`` is the best peak's NCC, ``rho`` the fitted correlation.
     """
     pred = np.asarray(pred, float)
@@ -198,6 +201,11 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
     off = np.array([best.x, best.y]) - pred
     if abs(off @ d) > along + 0.5 or abs(off @ c) > across + 0.5:
         return replace(best, status=BORDER, reason="the match lies at the end of the search range")
+    if probe and np.hypot(*off) > 1.0:
+        need = float(np.sqrt(max(1.0 - ambiguity * _misfit(best.rho), 0.0)))
+        results.append(lsm.refine(reference, x, y, search, pred, A0, half=half, spline=spline,
+                                  max_shape_change=max_shape_change, need_rho=need, **options))
+        good = good + [results[-1]] if results[-1].ok else good
     # a rival refused only for its σ (converged, too little texture in one direction) still says
     # the texture fits there: one that fits as well is as much an ambiguity as a kept one
     vague = [r for r in results if r.status == lsm.TEXTURE and np.isfinite(r.rho)]
