@@ -124,6 +124,12 @@ SETS = {
     "judged_mottled": [(*place, dict(texture="mottled", psf_px=0.0, noise_dn=2.0, **ref))
                        for place in (("dem", 41, (5.35, 44.20)), ("dem", 42, (5.90, 44.85)))
                        for ref in ({}, {"reference": "geographic"})],
+    # Alpine relief (51 % mean slope on 30 m cells, 550–1940 m; the tile's steepest place clear
+    # of the scenes above, voids filled) with the other renderer's kind of parcels and with the
+    # simulator's default fields: like the other renderer's hidden Alpine scene, never tuned on
+    "judged_alpine": [("dem", seed, (5.55, 44.725), dict(texture=texture, psf_px=0.0, noise_dn=2.0, **ref))
+                      for seed, texture in ((46, "mottled"), (48, "fields"))
+                      for ref in ({}, {"reference": "geographic"})],
 }
 
 
