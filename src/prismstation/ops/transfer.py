@@ -23,7 +23,11 @@ by shape-aware least-squares matching (:func:`prismstation.core.matching.lsm_sea
   (:func:`~prismstation.ops.transfer_slope.fitted_slope`), the
   slope the other view is then searched at, over a short band.
 
-Every match states its covariance; a match that fails says why (``status``, ``reason``).
+Every match states its covariance; a match that fails says why (``status``, ``reason``). With
+a reference DEM the prediction is a start of the search too, where the match ends more than
+1 px from it (:func:`~prismstation.core.matching.lsm_search.match`, ``probe``). The relief
+within the source template moves the point in every view by one height: each view's σ holds
+the relief the views' matches show (:func:`~prismstation.ops.transfer_relief.shared_relief`).
 Transferred from N to both F and B, the three rays must meet: :func:`consistency` intersects
 them through the model (least squares on ``(E, N, h)``) and a χ² of the image residuals
 beyond :data:`CONSISTENCY_P` rejects both (``inconsistent``). Found in one view only, the
