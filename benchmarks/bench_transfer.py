@@ -130,6 +130,11 @@ SETS = {
     "judged_alpine": [("dem", seed, (5.55, 44.725), dict(texture=texture, psf_px=0.0, noise_dn=2.0, **ref))
                       for seed, texture in ((46, "mottled"), (48, "fields"))
                       for ref in ({}, {"reference": "geographic"})],
+    # JPEG block noise (8 × 8, as compressed PRISM products carry) on the other renderer's kind
+    # of parcels: on smooth hills and on steep relief at two qualities (found on these; a gap)
+    "jpeg_mottled": [("smooth", 54, None, dict(texture="mottled", psf_px=0.0, noise_dn=2.0, jpeg_quality=75)),
+                     ("dem", 51, (5.35, 44.62), dict(texture="mottled", psf_px=0.0, noise_dn=2.0, jpeg_quality=75)),
+                     ("dem", 51, (5.35, 44.62), dict(texture="mottled", psf_px=0.0, noise_dn=2.0, jpeg_quality=90))],
 }
 
 
