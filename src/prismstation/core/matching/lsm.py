@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import threading
 from collections import OrderedDict
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
@@ -338,7 +338,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
                                            "sigma_relief": s_relief, "sigma_across": s_across, "d": d,
                                            "taper": local, "half": half, "mid": mid, "smoothed": shift,
                                            "edges": edges, "noise_along": noise_along})
-    return res if why is None else _as_failure(res, *why)
+    return res if why is None else replace(res, status=why[0], reason=why[1])
 
 
 _STATS: OrderedDict = OrderedDict()
@@ -495,8 +495,3 @@ def _significant(r0, r1) -> bool:
 @lru_cache(maxsize=64)
 def _f_quantile(dof: int) -> float:
     return float(stats.f.ppf(BEND_P, 3, dof))
-
-
-def _as_failure(res: LsmResult, status: str, reason: str) -> LsmResult:
-    from dataclasses import replace
-    return replace(res, status=status, reason=reason)
