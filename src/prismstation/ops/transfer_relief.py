@@ -45,14 +45,20 @@ def with_relief(m: LsmResult, reference, xy, axes, ground, dh, height_of, sigma_
     b2 = max(bias * bias - noise * noise, 0.0)
     if b2 == 0.0:
         return replace(m, extra={**m.extra, "relief_px": 0.0})
-    cov = m.cov + b2 * np.outer(d, d)
-    out = replace(m, cov=cov, extra={**m.extra, "relief_px": float(np.sqrt(b2))})
+    return _with_relief_var(replace(m, extra={**m.extra, "relief_px": float(np.sqrt(b2))}), d, b2,
+                            "the reference DEM", float(np.sqrt(b2)), max_sigma)
+
+
+def _with_relief_var(m: LsmResult, d, var: float, seen_by: str, move: float, max_sigma: float) -> LsmResult:
+    """``m`` with ``var`` px² more along the unit parallax ``d`` in its covariance; refused
+    (:data:`RELIEF`) when its σ then exceeds ``max_sigma`` px, the reason naming what showed the
+    relief (``seen_by``) and how far it may move the point (``move`` px)."""
+    cov = m.cov + var * np.outer(d, d)
     smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
-    if smax > max_sigma:
-        return replace(out, status=RELIEF, reason=f"the relief within the template, as the reference DEM shows it, "
-                       f"may move the point by {np.sqrt(b2):.2f} px along the parallax: σ {smax:.2f} px above "
-                       f"{max_sigma:.2f}")
-    return out
+    if smax <= max_sigma:
+        return replace(m, cov=cov)
+    return replace(m, cov=cov, status=RELIEF, reason=f"the relief within the template, as {seen_by} shows it, may "
+                   f"move the point by {move:.2f} px along the parallax: σ {smax:.2f} px above {max_sigma:.2f}")
 
 
 def smaller_on_relief(m: LsmResult, reference, xy, window, halves, shape, relief: tuple, max_sigma: float,
@@ -201,13 +207,7 @@ def shared_relief(found: dict, dh: dict, max_sigma: float) -> dict:
         if mean <= rel[v]:
             continue
         k2 = float(np.hypot(*dh[v])) ** 2
-        cov = t.match.cov + (mean - rel[v]) * k2 * np.outer(unit[v], unit[v])
-        m = replace(t.match, cov=cov)
-        smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
-        if smax > max_sigma:
-            src = " and ".join(w for w in ok if w != v)
-            m = replace(m, status=RELIEF, reason=f"the relief within the template, as the match in {src} shows it, "
-                        f"may move the point by {np.sqrt(mean * k2):.2f} px along the parallax: σ {smax:.2f} px "
-                        f"above {max_sigma:.2f}")
-        out[v] = replace(t, match=m)
+        others = " and ".join(w for w in ok if w != v)
+        out[v] = replace(t, match=_with_relief_var(t.match, unit[v], (mean - rel[v]) * k2, f"the match in {others}",
+                                                   float(np.sqrt(mean * k2)), max_sigma))
     return out
