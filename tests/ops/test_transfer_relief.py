@@ -119,6 +119,25 @@ def test_a_match_the_relief_may_move_past_its_limit_is_refused_with_the_reason()
     assert kept.ok and np.allclose(kept.cov, m.cov) and kept.extra["relief_px"] == 0.0
 
 
+def test_a_smaller_template_the_scaled_relief_already_refuses_is_not_fitted(monkeypatch):
+    """A 65 px template refused for 0.9 px of relief: at 49 and 37 px the term scaled by the
+    sizes' ratio (0.68, 0.51 px) alone exceeds 0.5 px, so only 25 px is fitted."""
+    import prismstation.ops.transfer_relief as mod
+    tried = []
+
+    def refine(reference, x, y, win, t0, shape, *, half, **kw):
+        tried.append(half)
+        return replace(m, status="texture")
+
+    monkeypatch.setattr(mod, "refine", refine)
+    m = LsmResult(30.0, 40.0, np.diag([0.01, 0.9 ** 2]), np.diag([0.01, 0.04]), np.eye(2), 1.0, 0.0, 0.95, 5,
+                  RELIEF, extra={"d": D, "half": 32, "bend": np.zeros(3), "relief_px": 0.9})
+    win = (np.zeros((80, 80)), 0, 0)
+    out = mod.smaller_on_relief(m, np.zeros((80, 80)), (40.0, 40.0), win, (12, 18, 24, 32), np.eye(2),
+                                (AXES, (0.0, 0.0, 0.0), K * D, None, 2.0), 0.5, 0.1)
+    assert tried == [12] and out is m
+
+
 def _found(view, relief_px, noise_px=0.05, half=32, d=(0.0, 1.0)):
     """A match along the parallax ``d`` stating ``noise_px`` of noise and ``relief_px`` of
     relief along it, 0.1 px across."""

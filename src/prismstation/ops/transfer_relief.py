@@ -78,6 +78,9 @@ def smaller_on_relief(m: LsmResult, reference, xy, window, halves, shape, relief
     d = np.asarray(m.extra["d"], float)
     big, bias = int(m.extra["half"]), float(m.extra.get("relief_px", 0.0))
     for half in sorted((h for h in halves if h < big), reverse=True):
+        scaled = bias * (2 * half + 1) / (2 * big + 1)
+        if scaled > max_sigma:
+            continue        # the scaled term alone takes its σ along the unit parallax past the limit
         m2 = refine(reference, xy[0], xy[1], win, (m.x - c0, m.y - r0), shape, parallax=d, half=half,
                     max_sigma=max_sigma, max_shape_change=max_shape_change)
         if not m2.ok:
@@ -86,7 +89,7 @@ def smaller_on_relief(m: LsmResult, reference, xy, window, halves, shape, relief
                          reference, xy, *relief, max_sigma)
         if not m2.ok:
             continue
-        own, scaled = m2.extra.get("relief_px", 0.0), bias * (2 * half + 1) / (2 * big + 1)
+        own = m2.extra.get("relief_px", 0.0)
         if scaled <= own:
             return m2
         cov = m2.cov + (scaled ** 2 - own ** 2) * np.outer(d, d)
