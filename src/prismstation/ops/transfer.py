@@ -46,11 +46,11 @@ from scipy import special
 from prismstation.core.lazy_cv2 import lazy_module
 from prismstation.core.matching.coarse import search_radius_px
 from prismstation.core.matching.lsm import LsmResult
-from prismstation.core.matching.lsm_search import best_score, match
+from prismstation.core.matching.lsm_search import match
 from prismstation.core.models.solution import Solution
 from prismstation.io.windows import ImageWindows
 from prismstation.ops.transfer_relief import RELIEF, shared_relief, smaller_on_relief, source_axes, with_relief
-from prismstation.ops.transfer_slope import fitted_slope, plane, slope_shapes
+from prismstation.ops.transfer_slope import fitted_slope, from_slopes, plane, slope_shapes
 from prismstation.ops.transfer_template import SOURCE_MARGIN, TEMPLATE_HALVES, template_halves
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 from prismstation.ops.predict import DEFAULT_HEIGHT_SPREAD_M, dem_sigma, ground_jacobian, height_spread
@@ -318,18 +318,12 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
                   across=radius, half=half_window, max_sigma=MAX_SIGMA_PX,
                   max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
                   coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, parallax=d, probe=not free)
-        if free and not m.ok and m.status in RETRY_STATUSES:
-            # the level start may be too far from a steep slope's shape: start from slopes,
-            # the one correlating best first (a cheap test), until one is found
-            band = (ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0])
-            starts = slope_shapes(sol, source, xy, v, h_pt, half_window)
-            scores = [best_score(*band, A, d, along, radius, half_window) for A in starts]
-            for k in np.argsort(scores)[::-1]:
-                m2 = match(*band, starts[k], d, along=along, across=radius, half=half_window,
-                           max_sigma=MAX_SIGMA_PX, max_shape_change=DEM_SHAPE_CHANGE, rival=6.0, parallax=d)
-                if m2.ok:
-                    m = m2
-                    break
+        if free:
+            # the level start may miss a steep slope's shape: start from slopes too
+            m = from_slopes(m, slope_shapes(sol, source, xy, v, h_pt, half_window),
+                            (ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0]), d, along, radius,
+                            half_window, RETRY_STATUSES, FREE_SHAPE_CHANGE * half_window, max_sigma=MAX_SIGMA_PX,
+                            max_shape_change=DEM_SHAPE_CHANGE, rival=6.0, parallax=d)
         resize = dict(along=along, across=radius, max_sigma=MAX_SIGMA_PX, parallax=d,
                       max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
                       coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, probe=not free)

@@ -7,8 +7,11 @@ through their points at ``h`` and ``h + 100`` m; gradients are (dh/dE, dh/dN).
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
+from prismstation.core.matching.lsm_search import AMBIGUOUS, best_score, match
 from prismstation.core.models.solution import Solution
 
 SLOPE_HYPOTHESIS = 0.4
@@ -25,6 +28,48 @@ def slope_shapes(sol: Solution, source: str, xy, view: str, h: float, half_windo
              for sign in (1.0, -1.0)]
     shapes = plane_shapes(sol, source, xy, view, g[0], h, half_window)
     return [A for A in shapes(grads) if np.all(np.isfinite(A))]
+
+
+def from_slopes(m, starts, band, d, along: float, across: float, half: int, retry: tuple, reach: float,
+                ambiguity: float = 1.5, **options):
+    """With no reference DEM: ``m``, the match from the level plane's shape, weighed against
+    matches from the shapes ``starts`` of :func:`slope_shapes`, the one correlating best first
+    (:func:`~prismstation.core.matching.lsm_search.best_score`, a cheap test). ``band``:
+    ``(reference, x, y, search, pred)`` of :func:`~prismstation.core.matching.lsm_search.match`,
+    which ``options`` go to as well; ``reach``: how far (px) along the parallax from a found
+    ``m`` the slopes' peaks are looked for.
+
+    A failed ``m`` (its status in ``retry``) becomes the first of them found. A found ``m`` may
+    be the level shape's minimum only: on a 50 % slope the true shape stretches the patch by a
+    quarter, and its peak, never started from, correlates better. A start whose correlation
+    peak beats ``m``'s score is matched; more than 1 px from ``m``, its match replaces ``m``
+    where its misfit ``1 − ρ²`` is under ``m``'s by the factor ``ambiguity``, and makes ``m``
+    ambiguous where it is within that factor of it."""
+    if not m.ok and m.status not in retry:
+        return m
+    if m.ok:
+        # the slope's stretch moves the template's peak by at most its change over the
+        # template's half (FREE_SHAPE_CHANGE of transfer): a shorter band about the match
+        band, along = (*band[:4], np.array([m.x, m.y])), min(along, reach)
+    scores = [best_score(*band, A, d, along, across, half) for A in starts]
+    for k in np.argsort(scores)[::-1]:
+        if m.ok and scores[k] <= m.score:
+            break
+        m2 = match(*band, starts[k], d, along=along, across=across, half=half, ambiguity=ambiguity, **options)
+        if not m.ok:
+            if m2.ok:
+                return m2
+            continue
+        if not m2.ok or np.hypot(m2.x - m.x, m2.y - m.y) <= 1.0:
+            break
+        misfit, misfit2 = 1.0 - m.rho ** 2, 1.0 - m2.rho ** 2
+        if misfit2 * ambiguity < misfit:
+            return m2
+        if misfit2 <= misfit * ambiguity:
+            return replace(m, status=AMBIGUOUS, reason=f"from a slope's shape the texture fits "
+                           f"{np.hypot(m2.x - m.x, m2.y - m.y):.1f} px away as well ({m.rho:.3f}, {m2.rho:.3f})")
+        break
+    return m
 
 
 def plane(en0, h0: float, grad):
