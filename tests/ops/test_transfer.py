@@ -347,3 +347,44 @@ def test_the_relief_one_view_shows_is_in_the_others_sigma(steep):
             assert min(rel.values()) >= 0.499 * max(rel.values()) - 1e-9, (p["id"], rel)
             checked += 1
     assert checked >= 0.8 * len(points)
+
+
+def test_without_a_dem_a_view_whose_shape_no_plane_shares_is_searched_again(steep, monkeypatch):
+    """No reference DEM: F's match stuck in the level shape 3 px off (the start's own minimum,
+    a worse fit), B right on the slope. One plane gives both shapes, so F is searched again
+    at the height and in the slope B's match implies, and the better fit replaces it."""
+    import prismstation.ops.transfer as tr_mod
+    from prismstation.io.windows import ImageWindows
+    from prismstation.ops.transfer_slope import slopes_disagree
+    project, sol, _, points = steep
+    real = tr_mod.from_slopes
+
+    def stuck(m, starts, band, d, *a, **kw):
+        m = real(m, starts, band, d, *a, **kw)
+        if not stuck.on or abs(d[1]) < abs(d[0]) or np.sign(d[1]) != stuck.sign:
+            return m
+        e = np.asarray(d, float) / np.hypot(*d)
+        return replace(m, x=m.x + 3 * e[0], y=m.y + 3 * e[1], shape=stuck.level, rho=np.sqrt(1 - 3 * (1 - m.rho ** 2)))
+
+    tried = 0
+    with ImageWindows(project.scene) as im:
+        for p in points:
+            stuck.on = False
+            right = transfer(sol, im, "N", p["image"]["N"])
+            if not (right["F"].ok and right["B"].ok):
+                continue
+            en = sol.image_to_ground("N", np.asarray(p["image"]["N"], float), p["h"])
+            stuck.level = local_shape(sol, "N", p["image"]["N"], ["F"], h=p["h"])[2]["F"].A
+            if not slopes_disagree(sol, "N", p["image"]["N"], {"F": stuck.level, "B": right["B"].match.shape},
+                                   en, p["h"], 32, 0.25):
+                continue                 # gentle here: the level shape is the slope's
+            stuck.on, stuck.sign = True, np.sign(right["F"].match.extra["d"][1])
+            monkeypatch.setattr(tr_mod, "from_slopes", stuck)
+            out = transfer(sol, im, "N", p["image"]["N"])
+            monkeypatch.setattr(tr_mod, "from_slopes", real)
+            assert out["F"].ok and np.hypot(*np.subtract((out["F"].x, out["F"].y), p["image"]["F"])) < 0.5, p["id"]
+            assert out["B"].ok
+            tried += 1
+            if tried == 2:
+                break
+    assert tried == 2

@@ -46,11 +46,11 @@ from scipy import special
 from prismstation.core.lazy_cv2 import lazy_module
 from prismstation.core.matching.coarse import search_radius_px
 from prismstation.core.matching.lsm import LsmResult
-from prismstation.core.matching.lsm_search import match
+from prismstation.core.matching.lsm_search import AMBIGUITY, match
 from prismstation.core.models.solution import Solution
 from prismstation.io.windows import ImageWindows
 from prismstation.ops.transfer_relief import RELIEF, shared_relief, smaller_on_relief, source_axes, with_relief
-from prismstation.ops.transfer_slope import fitted_slope, from_slopes, plane, slope_shapes
+from prismstation.ops.transfer_slope import fitted_slope, from_slopes, plane, slope_shapes, slopes_disagree
 from prismstation.ops.transfer_template import SOURCE_MARGIN, TEMPLATE_HALVES, template_halves
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
 from prismstation.ops.predict import DEFAULT_HEIGHT_SPREAD_M, dem_sigma, ground_jacobian, height_spread
@@ -341,6 +341,14 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
                            half_window, free, mark=False)
             guided.add(v)
     found = [v for v in targets if v in out and out[v].ok]
+    if check and free and len(found) == 2 and slopes_disagree(sol, source, xy, {v: out[v].match.shape for v in found},
+                                                               en_pt, h_pt, half_window, DEM_SHAPE_CHANGE):
+        # one plane gives both shapes: each view searched again at the height and slope the
+        # other's match implies replaces its match where it fits clearly better
+        again = {v: _confirm(sol, images, source, xy, ref, (rc0, rr0), {w: out[w]}, w, shapes, (en_pt, h_pt),
+                             half_window, free, mark=False).get(v) for v, w in (found, found[::-1])}
+        out = {**out, **{v: t for v, t in again.items() if t is not None and t.ok
+                         and 1.0 - t.match.rho ** 2 < (1.0 - out[v].match.rho ** 2) / AMBIGUITY}}
     if check and len(targets) >= 2 and len(found) == 1:
         out = _confirm(sol, images, source, xy, ref, (rc0, rr0), out, found[0], shapes, (en_pt, h_pt),
                        half_window, free, search=found[0] not in guided)

@@ -11,7 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from prismstation.core.matching.lsm_search import AMBIGUOUS, best_score, match
+from prismstation.core.matching.lsm_search import AMBIGUITY, AMBIGUOUS, best_score, match
 from prismstation.core.models.solution import Solution
 
 SLOPE_HYPOTHESIS = 0.4
@@ -31,7 +31,7 @@ def slope_shapes(sol: Solution, source: str, xy, view: str, h: float, half_windo
 
 
 def from_slopes(m, starts, band, d, along: float, across: float, half: int, retry: tuple, reach: float,
-                ambiguity: float = 1.5, **options):
+                ambiguity: float = AMBIGUITY, **options):
     """With no reference DEM: ``m``, the match from the level plane's shape, weighed against
     matches from the shapes ``starts`` of :func:`slope_shapes`, the one correlating best first
     (:func:`~prismstation.core.matching.lsm_search.best_score`, a cheap test). ``band``:
@@ -70,6 +70,26 @@ def from_slopes(m, starts, band, d, along: float, across: float, half: int, retr
                            f"{np.hypot(m2.x - m.x, m2.y - m.y):.1f} px away as well ({m.rho:.3f}, {m2.rho:.3f})")
         break
     return m
+
+
+def slopes_disagree(sol: Solution, source: str, xy, shapes: dict, en, h: float, half_window: int,
+                    limit: float) -> bool:
+    """Whether two views' matched shapes ``shapes`` (view → 2×2) are more than ``limit`` apart
+    as one plane would make them: each view's shape against the one the other's fitted slope
+    (:func:`fitted_slope`) predicts for it, as the largest singular value of ``A_pred⁻¹A − I``
+    (one terrain plane under the template gives both; the limit a reference DEM's slope
+    allows). False when a slope cannot be fitted."""
+    (v, A), (w, B) = shapes.items()
+    g = {v: fitted_slope(sol, source, xy, v, A, en, h, half_window=half_window),
+         w: fitted_slope(sol, source, xy, w, B, en, h, half_window=half_window)}
+    if g[v] is None or g[w] is None:
+        return False
+    for a, b in ((v, w), (w, v)):
+        pred = plane_shapes(sol, source, xy, a, en, h, half_window)([g[b]])[0]
+        change = np.linalg.svd(np.linalg.solve(pred, np.asarray(shapes[a], float)) - np.eye(2), compute_uv=False)[0]
+        if change > limit:
+            return True
+    return False
 
 
 def plane(en0, h0: float, grad):

@@ -29,6 +29,10 @@ from prismstation.core.matching.lsm_spline import search_spline
 
 AMBIGUOUS, BORDER, LOW_SCORE = "ambiguous", "border", "low_score"
 
+AMBIGUITY = 1.5
+"""Two matches whose misfits ``1 − ρ²`` lie within this factor fit alike (an F test at 99 % on
+a template's pixels, their correlation allowed for); beyond it one fits clearly better."""
+
 MISFIT_FLOOR = 1e-6
 """The least misfit ``1 − ρ²`` two matches are compared by: below it (a thousandth of a grey
 value on a texture of 30) the difference is the interpolation's arithmetic, not the images'
@@ -133,7 +137,7 @@ def peaks(ncc, allowed, n: int, min_score: float):
 
 def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0), *,
           along: float = 10.0, across: float = 1.5, half: int = 12, candidates: int = 3,
-          min_ncc: float = 0.3, ambiguity: float = 1.5, max_shape_change: float = 0.25,
+          min_ncc: float = 0.3, ambiguity: float = AMBIGUITY, max_shape_change: float = 0.25,
           coarse: float = 0.0, rival: float = 3.0, probe: bool = False, **options) -> LsmResult:
     """Find the point ``(x, y)`` of ``reference`` in ``search``.
 
