@@ -130,6 +130,20 @@ SETS = {
     "judged_alpine": [("dem", seed, (5.55, 44.725), dict(texture=texture, psf_px=0.0, noise_dn=2.0, **ref))
                       for seed, texture in ((46, "mottled"), (48, "fields"))
                       for ref in ({}, {"reference": "geographic"})],
+    # eight scenes never looked at before their figures were taken (new seeds, new places of
+    # the tile 0.1° or more from every scene above): the other renderer's kind of parcels on
+    # steep relief (31–34 % mean slope; one ascending), its flat parcels on gentler relief
+    # (14 %), the default fields, and JPEG at quality 90, each against both kinds of reference
+    "judged_fresh": [(*scene_, {**options, **ref}) for *scene_, options in (
+        ("dem", 71, (5.15, 44.85), dict(texture="mottled", psf_px=0.0, noise_dn=2.0)),
+        ("dem", 72, (5.70, 44.15), dict(texture="mottled", psf_px=0.0, noise_dn=2.0)),
+        ("dem", 73, (5.45, 44.40), {}),
+        ("dem", 74, (5.10, 44.30), dict(texture="parcels", psf_px=0.0, noise_dn=2.0)),
+        ("dem", 75, (5.70, 44.15), dict(jpeg_quality=90)),
+        ("dem", 76, (5.45, 44.40), dict(texture="mottled", psf_px=0.0, noise_dn=2.0, ascending=True)),
+        ("smooth", 77, None, dict(texture="mottled", psf_px=0.0, noise_dn=2.0)),
+        ("fractal", 78, None, dict(texture="mottled", psf_px=0.0, noise_dn=2.0)))
+        for ref in ({}, {"reference": "geographic"})],
     # JPEG block noise (8 × 8, as compressed PRISM products carry) on the other renderer's kind
     # of parcels: on smooth hills and on steep relief at two qualities (found on these; a gap)
     "jpeg_mottled": [("smooth", 54, None, dict(texture="mottled", psf_px=0.0, noise_dn=2.0, jpeg_quality=75)),
