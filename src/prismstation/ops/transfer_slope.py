@@ -1,5 +1,6 @@
 """The terrain slope with no reference DEM (:mod:`prismstation.ops.transfer`): the shapes a
-point's patch takes on sloping planes through the model, and the slope a matched shape implies.
+point's patch takes on sloping planes through the model, the matches started from them beside
+the level plane's, the slope a matched shape implies, and whether two views' shapes share one.
 
 Shapes are 2×2 (target px per source px) as :func:`prismstation.ops.transfer.local_shape` makes
 them (the mapping's central difference over ±``half_window`` px), the rays as straight lines
