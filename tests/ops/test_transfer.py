@@ -160,6 +160,22 @@ def test_the_slope_is_recovered_from_a_matched_shape(synth_sol):
         assert fitted_slope(sol, "N", xy, "F", A, en, 600.0) == pytest.approx(grad, abs=0.01)
 
 
+def test_two_views_shapes_share_one_plane_or_not(synth_sol):
+    """F's and B's shapes on one plane agree; F's on the level plane beside B's on a 50 %
+    slope do not."""
+    from prismstation.ops.transfer_slope import plane as _plane, slopes_disagree
+    sol = synth_sol
+    xy = np.array([6500.0, 7200.0])
+    en = sol.image_to_ground("N", xy, 600.0)
+
+    def shape(view, grad):
+        return local_shape(sol, "N", xy, [view], h=600.0, height_of=_plane(en, 600.0, grad))[2][view].A
+
+    slope = (0.0, 0.5)
+    assert not slopes_disagree(sol, "N", xy, {"F": shape("F", slope), "B": shape("B", slope)}, en, 600.0, 12, 0.25)
+    assert slopes_disagree(sol, "N", xy, {"F": shape("F", (0.0, 0.0)), "B": shape("B", slope)}, en, 600.0, 12, 0.25)
+
+
 @pytest.fixture(scope="module")
 def parcels(tmp_path_factory):
     """Flat parcels with hard edges, each pixel one point of the ground (no point spread, 2 DN

@@ -87,6 +87,8 @@ def slopes_disagree(sol: Solution, source: str, xy, shapes: dict, en, h: float, 
         return False
     for a, b in ((v, w), (w, v)):
         pred = plane_shapes(sol, source, xy, a, en, h, half_window)([g[b]])[0]
+        if not np.all(np.isfinite(pred)) or abs(np.linalg.det(pred)) < 1e-9:
+            return False
         change = np.linalg.svd(np.linalg.solve(pred, np.asarray(shapes[a], float)) - np.eye(2), compute_uv=False)[0]
         if change > limit:
             return True
