@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 
 from prismstation.core.matching.lsm_search import AMBIGUOUS, match
+from prismstation.ops.transfer import RETRY_STATUSES as RETRY
 from prismstation.ops.transfer_slope import from_slopes
 
 DATA = Path(__file__).parent / "data" / "steep_level_minimum.npz"
-RETRY = ("not_converged", "shape", "texture", "low_correlation", "low_score", "moved")
 
 
 def _case():
