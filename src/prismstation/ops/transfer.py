@@ -46,7 +46,7 @@ from scipy import special
 from prismstation.core.lazy_cv2 import lazy_module
 from prismstation.core.matching.coarse import search_radius_px
 from prismstation.core.matching.lsm import LsmResult
-from prismstation.core.matching.lsm_search import AMBIGUITY, match
+from prismstation.core.matching.lsm_search import AMBIGUITY, match, misfit
 from prismstation.core.models.solution import Solution
 from prismstation.io.windows import ImageWindows
 from prismstation.ops.transfer_relief import RELIEF, shared_relief, smaller_on_relief, source_axes, with_relief
@@ -348,7 +348,7 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
         again = {v: _confirm(sol, images, source, xy, ref, (rc0, rr0), {w: out[w]}, w, shapes, (en_pt, h_pt),
                              half_window, free, mark=False).get(v) for v, w in (found, found[::-1])}
         out = {**out, **{v: t for v, t in again.items() if t is not None and t.ok
-                         and 1.0 - t.match.rho ** 2 < (1.0 - out[v].match.rho ** 2) / AMBIGUITY}}
+                         and misfit(t.match.rho) * AMBIGUITY < misfit(out[v].match.rho)}}
     if check and len(targets) >= 2 and len(found) == 1:
         out = _confirm(sol, images, source, xy, ref, (rc0, rr0), out, found[0], shapes, (en_pt, h_pt),
                        half_window, free, search=found[0] not in guided)

@@ -12,7 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from prismstation.core.matching.lsm_search import AMBIGUITY, AMBIGUOUS, best_score, match
+from prismstation.core.matching.lsm_search import AMBIGUITY, AMBIGUOUS, best_score, match, misfit
 from prismstation.core.models.solution import Solution
 
 SLOPE_HYPOTHESIS = 0.4
@@ -63,10 +63,10 @@ def from_slopes(m, starts, band, d, along: float, across: float, half: int, retr
             continue
         if not m2.ok or np.hypot(m2.x - m.x, m2.y - m.y) <= 1.0:
             break
-        misfit, misfit2 = 1.0 - m.rho ** 2, 1.0 - m2.rho ** 2
-        if misfit2 * ambiguity < misfit:
+        first, second = misfit(m.rho), misfit(m2.rho)
+        if second * ambiguity < first:
             return m2
-        if misfit2 <= misfit * ambiguity:
+        if second <= first * ambiguity:
             return replace(m, status=AMBIGUOUS, reason=f"from a slope's shape the texture fits "
                            f"{np.hypot(m2.x - m.x, m2.y - m.y):.1f} px away as well ({m.rho:.3f}, {m2.rho:.3f})")
         break

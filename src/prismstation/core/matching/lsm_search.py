@@ -39,7 +39,9 @@ value on a texture of 30) the difference is the interpolation's arithmetic, not 
 (exact copies of a patch)."""
 
 
-def _misfit(rho: float) -> float:
+def misfit(rho: float) -> float:
+    """The residual variance share ``1 − ρ²`` two matches are compared by (at least
+    :data:`MISFIT_FLOOR`)."""
     return max(1.0 - rho ** 2, MISFIT_FLOOR)
 
 
@@ -181,7 +183,7 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
         t0 = pred + shifts(k, l)
         # a rival of a converged best matters only if it correlates nearly as well
         top = max((r.rho for r in results if r.ok), default=None)
-        need = None if top is None else float(np.sqrt(max(1.0 - ambiguity * _misfit(top), 0.0)))
+        need = None if top is None else float(np.sqrt(max(1.0 - ambiguity * misfit(top), 0.0)))
         r = lsm.refine(reference, x, y, search, t0, A0, half=half, spline=spline,
                        max_shape_change=max_shape_change, need_rho=need, **options)
         if not r.ok and coarse > 0 and r.status != lsm.OUTSIDE and not results:
@@ -206,7 +208,7 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
     if abs(off @ d) > along + 0.5 or abs(off @ c) > across + 0.5:
         return replace(best, status=BORDER, reason="the match lies at the end of the search range")
     if probe and np.hypot(*off) > 1.0:
-        need = float(np.sqrt(max(1.0 - ambiguity * _misfit(best.rho), 0.0)))
+        need = float(np.sqrt(max(1.0 - ambiguity * misfit(best.rho), 0.0)))
         results.append(lsm.refine(reference, x, y, search, pred, A0, half=half, spline=spline,
                                   max_shape_change=max_shape_change, need_rho=need, **options))
         good = good + [results[-1]] if results[-1].ok else good
@@ -214,7 +216,7 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
     # the texture fits there: one that fits as well is as much an ambiguity as a kept one
     vague = [r for r in results if r.status == lsm.TEXTURE and np.isfinite(r.rho)]
     for r in good[1:] + vague:
-        if np.hypot(r.x - best.x, r.y - best.y) > 1.0 and _misfit(r.rho) <= ambiguity * _misfit(best.rho):
+        if np.hypot(r.x - best.x, r.y - best.y) > 1.0 and misfit(r.rho) <= ambiguity * misfit(best.rho):
             return replace(best, status=AMBIGUOUS, reason=f"two matches {np.hypot(r.x - best.x, r.y - best.y):.1f} px "
                            f"apart correlate alike ({best.rho:.3f}, {r.rho:.3f}): repetitive or flat texture")
     return best
