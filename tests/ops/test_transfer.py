@@ -225,13 +225,14 @@ def test_a_match_refused_for_relief_is_made_again_smaller_keeping_the_relief_sca
     """A 65 px template refused because the reference DEM shows relief within it is matched
     again, from where it ended, with the smaller sizes. The DEM's cells see no relief within
     the smaller template (here: none at all), so the refused template's relief, scaled by the
-    sizes' ratio, stays in its σ along the parallax: 0.9 px at 65 px is 0.35 px at 25 px, kept;
-    0.51–0.68 px at 37–49 px, refused. Before, the point was lost in that view."""
+    sizes' ratio, stays in its σ along the parallax: a figure of 1.2 px at a noise of 0.5 px
+    (within 3 times it: a σ term of 1.09 px, the match not moved) is 0.42 px at 25 px, kept;
+    0.62–0.82 px at 37–49 px, refused. Before, the point was lost in that view."""
     import prismstation.ops.transfer as tr_mod
     import prismstation.ops.transfer_relief as rel
     from prismstation.io.windows import ImageWindows
     project, sol, dem, points = parcels
-    monkeypatch.setattr(rel, "relief_bias_px", lambda axes, k, ground, tpl, *a: (0.9 if len(tpl[0]) == 65 else 0.0, 0.0))
+    monkeypatch.setattr(rel, "relief_bias_px", lambda axes, k, ground, tpl, *a: (1.2, 0.5) if len(tpl[0]) == 65 else (0.0, 0.0))
 
     def run():
         kept, refused = [], 0
@@ -249,7 +250,8 @@ def test_a_match_refused_for_relief_is_made_again_smaller_keeping_the_relief_sca
     kept, refused = run()
     assert len(kept) >= 5 and refused >= 1, (len(kept), refused)
     for half, relief, sigma_along, err in kept:
-        assert half == 12 and relief == pytest.approx(0.9 * 25 / 65) and sigma_along >= relief and err < 1.0
+        assert half == 12 and relief == pytest.approx(np.sqrt(1.2 ** 2 - 0.5 ** 2) * 25 / 65)
+        assert sigma_along >= relief and err < 1.0
     monkeypatch.setattr(tr_mod, "smaller_on_relief", lambda m, *a: m)      # the old behaviour
     assert run() == ([], refused + len(kept))
 

@@ -17,7 +17,8 @@ from prismstation.core.matching.lsm import LsmResult
 from prismstation.io.dem import read_dem, write_dem
 from prismstation.ops.reference_heights import DemHeights
 from prismstation.ops.transfer import Transfer
-from prismstation.ops.transfer_relief import RELIEF, relief_bias_px, shared_relief, with_relief
+from prismstation.ops.transfer_relief import (RELIEF, SIGNIFICANT, UNSEEN_SHARE, relief_bias_px, shared_relief,
+                                              with_relief)
 
 AXES = np.diag([0.4, -0.4])            # 2.5 m pixels, rows southwards
 K = 0.18                               # px along the parallax per metre of height (B of PRISM)
@@ -104,18 +105,50 @@ def test_a_geographic_references_own_noise_and_posts_give_the_noise_term(tmp_pat
     assert covered >= 0.92 and 0.7 < np.sqrt(np.mean(ratios ** 2)) < 1.25, (covered, ratios)
 
 
-def test_a_match_the_relief_may_move_past_its_limit_is_refused_with_the_reason():
+def _ridge_match(height_m, along_half=24, sigma_dem=2.0):
+    """A match of :func:`_template`'s point (σ 0.2 px along the parallax) whose texture lies on a
+    ridge ``height_m`` high 35 m east of the point; ``along_half``: the uniformly weighted fit
+    that gave its position along the parallax (0: the fit weighted to the point's surroundings)."""
     g = (1000.0, 2000.0, 300.0)
-    ridge = _heights(lambda e, n: 300.0 + 8.0 * np.exp(-0.5 * ((e - 1035.0) / 12.0) ** 2))
+    ridge = _heights(lambda e, n: 300.0 + height_m * np.exp(-0.5 * ((e - 1035.0) / 12.0) ** 2))
     T, u, v = _template()
-    ref = np.pad(T, 10, mode="edge")
     m = LsmResult(30.0, 40.0, np.diag([0.01, 0.04]), np.diag([0.01, 0.04]), np.eye(2), 1.0, 0.0, 0.95, 5, "ok",
-                  extra={"d": D, "half": 24, "bend": np.zeros(3)})
+                  extra={"d": D, "half": 24, "bend": np.zeros(3), "along_half": along_half})
     xy = (24.5 + 10, 24.5 + 10)
-    out = with_relief(m, ref, xy, AXES, g, K * D, ridge, 2.0, 0.5)
-    assert out.status == RELIEF and "relief" in out.reason and out.extra["relief_px"] > 0.7
+    out = with_relief(m, np.pad(T, 10, mode="edge"), xy, AXES, g, K * D, ridge, sigma_dem, 0.5)
+    return m, out, relief_bias_px(AXES, K, g, (T, u, v), D, False, ridge, sigma_dem)
+
+
+def test_the_relief_the_reference_shows_moves_the_match_back():
+    """The ridge under the template's texture displaces the whole template's fit by its figure
+    (``k·Δh`` px along the parallax): the match is moved back by it, and its σ along the parallax
+    gains what the reference cannot tell of it — its noise's figure and the relief finer than
+    its posts (:data:`UNSEEN_SHARE` of the figure). Before, the figure was a σ term only and the
+    match stayed where the ridge had put it (here 0.9 px off, refused)."""
+    m, out, (bias, noise) = _ridge_match(8.0)
+    assert 0.5 < bias and out.ok
+    assert (out.x, out.y) == pytest.approx((30.0, 40.0 - bias))
+    term = np.hypot(noise, UNSEEN_SHARE * bias)
+    assert out.extra["relief_shift"] == pytest.approx(bias) and out.extra["relief_px"] == pytest.approx(term)
+    assert out.cov == pytest.approx(m.cov + np.diag([0.0, term ** 2]))
+    # a reference too noisy to tell that figure from its noise (within 3 times it) moves nothing
+    m, noisy, (bias, noise) = _ridge_match(8.0, sigma_dem=40.0)
+    assert abs(bias) <= SIGNIFICANT * noise and (noisy.x, noisy.y) == (m.x, m.y)
+    assert noisy.extra["relief_px"] == pytest.approx(np.sqrt(max(bias ** 2 - noise ** 2, 0.0)))
+
+
+def test_a_match_the_relief_may_move_past_its_limit_is_refused_with_the_reason():
+    _, out, (bias, _) = _ridge_match(20.0)          # the relief the reference cannot see: > 0.5 px
+    assert out.status == RELIEF and f"moved the point by {bias:+.2f} px" in out.reason
+    # the fit weighted to the point's surroundings gave the position: the whole template's
+    # figure is a σ term only, the match not moved
+    m, near, (bias, noise) = _ridge_match(8.0, along_half=0)
+    assert near.status == RELIEF and (near.x, near.y) == (m.x, m.y)
+    assert near.extra["relief_px"] == pytest.approx(np.sqrt(bias ** 2 - noise ** 2))
     flat = _heights(lambda e, n: np.full(len(e), 300.0))
-    kept = with_relief(m, ref, xy, AXES, g, K * D, flat, 2.0, 0.5)
+    T, _, _ = _template()
+    kept = with_relief(m, np.pad(T, 10, mode="edge"), (34.5, 34.5), AXES, (1000.0, 2000.0, 300.0), K * D, flat,
+                       2.0, 0.5)
     assert kept.ok and np.allclose(kept.cov, m.cov) and kept.extra["relief_px"] == 0.0
 
 

@@ -1,6 +1,8 @@
 """The relief within a transfer's template that its patch cannot follow, as the reference DEM
-shows it (:func:`relief_bias_px`): a term of the transferred point's σ along the parallax; a
-match it refuses is made again with a smaller template (:func:`smaller_on_relief`).
+shows it (:func:`relief_bias_px`): the displacement it gives the match, moved back, and what
+the reference cannot tell of it, a term of the point's σ along the parallax
+(:func:`with_relief`); a match that term refuses is made again with a smaller template
+(:func:`smaller_on_relief`).
 
 An affine patch (and its bend along the parallax) follows a plane (and a quadratic) of
 heights over the template; the rest of the relief moves the search image's texture along the
@@ -31,34 +33,49 @@ def source_axes(sol: Solution, source: str, ground) -> np.ndarray:
 def with_relief(m: LsmResult, reference, xy, axes, ground, dh, height_of, sigma_dem: float,
                 max_sigma: float) -> LsmResult:
     """``m`` (a match of a source view's point ``xy`` — in ``reference``'s pixels) with the
-    relief's term along its parallax in its covariance: :func:`relief_bias_px`, less what the
-    reference's own noise (its own σ, else ``sigma_dem`` m per post) would make of it
-    (``extra["relief_px"]``); a failure (:data:`RELIEF`) when its σ then exceeds ``max_sigma``
-    px. ``axes``: :func:`source_axes`; ``ground``: the point's ``(E, N, h)`` on the reference
-    DEM ``height_of``; ``dh``: px per metre of height in the matched view."""
+    relief the reference DEM shows within its template (:func:`relief_bias_px`).
+
+    Where a uniformly weighted fit gave the position along the parallax (the template's, or
+    its central part's: ``extra["along_half"]``) and that relief's displacement of the fit
+    exceeds :data:`SIGNIFICANT` times what the reference's noise makes of it (its own σ, else
+    ``sigma_dem`` m per post), the point is moved back by it (``extra["relief_shift"]``, px
+    along the unit parallax) and its covariance gains that noise's figure and the relief the
+    reference cannot see (:data:`UNSEEN_SHARE`). Elsewhere — a figure within its noise, or the
+    fit weighted to the point's surroundings (whose relief is not the template's) — the figure
+    less that noise is a σ term instead, the point not moved. The term is
+    ``extra["relief_px"]``; a match whose σ then exceeds ``max_sigma`` px is refused
+    (:data:`RELIEF`). ``axes``: :func:`source_axes`; ``ground``: the point's ``(E, N, h)`` on
+    the reference DEM ``height_of``; ``dh``: px per metre of height in the matched view."""
     d = np.asarray(m.extra["d"], float)
-    tpl = template(reference, xy[0], xy[1], int(m.extra["half"]))
+    own = int(m.extra.get("along_half", m.extra["half"]))
+    tpl = template(reference, xy[0], xy[1], own or int(m.extra["half"]))
     if tpl is None:
         return m
     bias, noise = relief_bias_px(axes, float(np.hypot(*dh)), ground, tpl, d, bool(np.any(m.extra["bend"])),
                                  height_of, sigma_dem)
+    if own and abs(bias) > SIGNIFICANT * noise:
+        sigma = float(np.hypot(noise, UNSEEN_SHARE * bias))
+        m = replace(m, x=m.x - bias * d[0], y=m.y - bias * d[1],
+                    extra={**m.extra, "relief_px": sigma, "relief_shift": float(bias)})
+        return _with_relief_var(m, d, sigma * sigma, f"the reference DEM shows it, moved the point by {bias:+.2f} px "
+                                f"along the parallax; the figure is uncertain by", sigma, max_sigma)
     b2 = max(bias * bias - noise * noise, 0.0)
     if b2 == 0.0:
         return replace(m, extra={**m.extra, "relief_px": 0.0})
     return _with_relief_var(replace(m, extra={**m.extra, "relief_px": float(np.sqrt(b2))}), d, b2,
-                            "the reference DEM", float(np.sqrt(b2)), max_sigma)
+                            "the reference DEM shows it, may move the point by", float(np.sqrt(b2)), max_sigma)
 
 
-def _with_relief_var(m: LsmResult, d, var: float, seen_by: str, move: float, max_sigma: float) -> LsmResult:
+def _with_relief_var(m: LsmResult, d, var: float, what: str, move: float, max_sigma: float) -> LsmResult:
     """``m`` with ``var`` px² more along the unit parallax ``d`` in its covariance; refused
-    (:data:`RELIEF`) when its σ then exceeds ``max_sigma`` px, the reason naming what showed the
-    relief (``seen_by``) and how far it may move the point (``move`` px)."""
+    (:data:`RELIEF`) when its σ then exceeds ``max_sigma`` px, the reason saying what showed the
+    relief and what it did (``what``, ending before ``move`` px)."""
     cov = m.cov + var * np.outer(d, d)
     smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
     if smax <= max_sigma:
         return replace(m, cov=cov)
-    return replace(m, cov=cov, status=RELIEF, reason=f"the relief within the template, as {seen_by} shows it, may "
-                   f"move the point by {move:.2f} px along the parallax: σ {smax:.2f} px above {max_sigma:.2f}")
+    return replace(m, cov=cov, status=RELIEF, reason=f"the relief within the template, as {what} {move:.2f} px "
+                   f"along the parallax: σ {smax:.2f} px above {max_sigma:.2f}")
 
 
 def smaller_on_relief(m: LsmResult, reference, xy, window, halves, shape, relief: tuple, max_sigma: float,
@@ -98,6 +115,16 @@ def smaller_on_relief(m: LsmResult, reference, xy, window, halves, shape, relief
     return m
 
 
+SIGNIFICANT = 3.0
+"""The reference's figure of a template's relief moves a match only where it exceeds this many
+times what the reference's noise makes of it: on smooth ground it is that noise alone (on the
+other renderer's 3″ reference 0.26 px, as large as the figure), which would move every match
+by it; noise passes 3 σ at 0.3 % of the matches."""
+UNSEEN_SHARE = 0.3
+"""σ of the reference DEM's figure of a template's relief (:func:`relief_bias_px`) beyond what
+its noise makes of it, as a share of the figure: the relief finer than its posts, which it
+cannot show, grows with what it shows (on the tuning scenes' 3″ and 90 m references, against
+the same figure from the true terrain: 0.17–0.35)."""
 #: the cell (m) of a reference DEM whose own is not known: SRTM's 3″
 DEFAULT_CELL_M = 90.0
 #: template pixels per side pooled into one height sample (the relief varies over tens of metres)
@@ -211,6 +238,7 @@ def shared_relief(found: dict, dh: dict, max_sigma: float) -> dict:
             continue
         k2 = float(np.hypot(*dh[v])) ** 2
         others = " and ".join(w for w in ok if w != v)
-        out[v] = replace(t, match=_with_relief_var(t.match, unit[v], (mean - rel[v]) * k2, f"the match in {others}",
+        out[v] = replace(t, match=_with_relief_var(t.match, unit[v], (mean - rel[v]) * k2,
+                                                   f"the match in {others} shows it, may move the point by",
                                                    float(np.sqrt(mean * k2)), max_sigma))
     return out

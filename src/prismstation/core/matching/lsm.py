@@ -115,7 +115,10 @@ class LsmResult:
     ``edges`` (px: the template's mean σ of where its edges lie between samples,
     :func:`~prismstation.core.matching.lsm_sampled.edge_sigma`), ``smoothed`` ((2,) px: how
     far the low-passed last fit moved the point, zeros where the images are not point-sampled)
-    and ``noise_along`` (px: the noise's share of the σ along the parallax, the rest relief)."""
+    ``noise_along`` (px: the noise's share of the σ along the parallax, the rest relief) and
+    ``along_half`` (the half size of the square of template pixels, fitted uniformly, whose
+    fit gave the position along the parallax: the template's own, :data:`MID_HALF` for its
+    central part; 0 for the fit weighted to the point's surroundings)."""
 
     x: float
     y: float
@@ -277,6 +280,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     t = fit.t.copy()
     local = 0.0
     along_fit = fit           # the fit whose position along the parallax is kept
+    near_fit = None
     kept_sampled = sampled    # the sampling share of that fit
     if taper > 0 and parallax is not None and e1 @ cov @ e1 > NEAR_GAIN ** 2 * SIGMA_SCALE ** 2 * (e1 @ formal @ e1):
         # the relief the patch leaves moves the point along the parallax: a fit weighted to the
@@ -300,6 +304,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
                 t = t + P1 @ (near.t - fit.t)
                 formal = (e1 @ st3[1] @ e1) * P1 + (e2 @ formal @ e2) * P2
                 s_relief, local, along, along_fit = st3[2], taper, st3[4], near
+                near_fit = near
                 kept_sampled = along
             # the sampling of the fit that gives the position along the parallax, the whole
             # template's across
@@ -337,7 +342,9 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
                     rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),
                                            "sigma_relief": s_relief, "sigma_across": s_across, "d": d,
                                            "taper": local, "half": half, "mid": mid, "smoothed": shift,
-                                           "edges": edges, "noise_along": noise_along})
+                                           "edges": edges, "noise_along": noise_along,
+                                           "along_half": (half if along_fit is fit else MID_HALF
+                                                          if along_fit is not near_fit else 0)})
     return res if why is None else replace(res, status=why[0], reason=why[1])
 
 
