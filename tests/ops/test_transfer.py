@@ -226,13 +226,14 @@ def test_a_match_refused_for_relief_is_made_again_smaller_keeping_the_relief_sca
     again, from where it ended, with the smaller sizes. The DEM's cells see no relief within
     the smaller template (here: none at all), so the refused template's relief, scaled by the
     sizes' ratio, stays in its σ along the parallax: a figure of 1.2 px at a noise of 0.5 px
-    (within 3 times it: a σ term of 1.09 px, the match not moved) is 0.42 px at 25 px, kept;
+    (not trusted to move the match: a σ term of 1.09 px) is 0.42 px at 25 px, kept;
     0.62–0.82 px at 37–49 px, refused. Before, the point was lost in that view."""
     import prismstation.ops.transfer as tr_mod
     import prismstation.ops.transfer_relief as rel
     from prismstation.io.windows import ImageWindows
     project, sol, dem, points = parcels
     monkeypatch.setattr(rel, "relief_bias_px", lambda axes, k, ground, tpl, *a: (1.2, 0.5) if len(tpl[0]) == 65 else (0.0, 0.0))
+    monkeypatch.setattr(rel, "relief_signal_share", lambda *a: 0.0)       # a figure not trusted to move it
 
     def run():
         kept, refused = [], 0

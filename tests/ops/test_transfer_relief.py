@@ -17,7 +17,7 @@ from prismstation.core.matching.lsm import LsmResult
 from prismstation.io.dem import read_dem, write_dem
 from prismstation.ops.reference_heights import DemHeights
 from prismstation.ops.transfer import Transfer
-from prismstation.ops.transfer_relief import (RELIEF, SIGNIFICANT, UNSEEN_SHARE, relief_bias_px, shared_relief,
+from prismstation.ops.transfer_relief import (RELIEF, UNSEEN_SHARE, relief_bias_px, relief_signal_share, shared_relief,
                                               with_relief)
 
 AXES = np.diag([0.4, -0.4])            # 2.5 m pixels, rows southwards
@@ -105,50 +105,82 @@ def test_a_geographic_references_own_noise_and_posts_give_the_noise_term(tmp_pat
     assert covered >= 0.92 and 0.7 < np.sqrt(np.mean(ratios ** 2)) < 1.25, (covered, ratios)
 
 
-def _ridge_match(height_m, along_half=24, sigma_dem=2.0):
-    """A match of :func:`_template`'s point (σ 0.2 px along the parallax) whose texture lies on a
-    ridge ``height_m`` high 35 m east of the point; ``along_half``: the uniformly weighted fit
-    that gave its position along the parallax (0: the fit weighted to the point's surroundings)."""
+def _ridge(height_m):
+    """A ridge ``height_m`` high along the template's texture, 35 m east of the point."""
+    return _heights(lambda e, n: 300.0 + height_m * np.exp(-0.5 * ((e - 1035.0) / 12.0) ** 2))
+
+
+def _rough(height_m):
+    """Relief everywhere: hills and hollows ``height_m`` high, 60–80 m across."""
+    return _heights(lambda e, n: 300.0 + height_m * np.sin(e / 9.0) * np.cos(n / 13.0))
+
+
+def _relief_match(terrain, along_half=24, sigma_dem=2.0):
+    """A match of :func:`_template`'s point (σ 0.2 px along the parallax) on ``terrain``;
+    ``along_half``: the uniformly weighted fit that gave its position along the parallax (0: the
+    fit weighted to the point's surroundings). Returns the match, it with the relief and the
+    reference's ``(figure, noise)`` and share of relief at the point."""
     g = (1000.0, 2000.0, 300.0)
-    ridge = _heights(lambda e, n: 300.0 + height_m * np.exp(-0.5 * ((e - 1035.0) / 12.0) ** 2))
     T, u, v = _template()
     m = LsmResult(30.0, 40.0, np.diag([0.01, 0.04]), np.diag([0.01, 0.04]), np.eye(2), 1.0, 0.0, 0.95, 5, "ok",
                   extra={"d": D, "half": 24, "bend": np.zeros(3), "along_half": along_half})
     xy = (24.5 + 10, 24.5 + 10)
-    out = with_relief(m, np.pad(T, 10, mode="edge"), xy, AXES, g, K * D, ridge, sigma_dem, 0.5)
-    return m, out, relief_bias_px(AXES, K, g, (T, u, v), D, False, ridge, sigma_dem)
+    out = with_relief(m, np.pad(T, 10, mode="edge"), xy, AXES, g, K * D, terrain, sigma_dem, 0.5)
+    return (m, out, relief_bias_px(AXES, K, g, (T, u, v), D, False, terrain, sigma_dem),
+            relief_signal_share(AXES, g, 24, False, terrain, sigma_dem))
 
 
 def test_the_relief_the_reference_shows_moves_the_match_back():
-    """The ridge under the template's texture displaces the whole template's fit by its figure
-    (``k·Δh`` px along the parallax): the match is moved back by it, and its σ along the parallax
-    gains what the reference cannot tell of it — its noise's figure and the relief finer than
-    its posts (:data:`UNSEEN_SHARE` of the figure). Before, the figure was a σ term only and the
-    match stayed where the ridge had put it (here 0.9 px off, refused)."""
-    m, out, (bias, noise) = _ridge_match(8.0)
-    assert 0.5 < bias and out.ok
-    assert (out.x, out.y) == pytest.approx((30.0, 40.0 - bias))
-    term = np.hypot(noise, UNSEEN_SHARE * bias)
-    assert out.extra["relief_shift"] == pytest.approx(bias) and out.extra["relief_px"] == pytest.approx(term)
-    assert out.cov == pytest.approx(m.cov + np.diag([0.0, term ** 2]))
-    # a reference too noisy to tell that figure from its noise (within 3 times it) moves nothing
-    m, noisy, (bias, noise) = _ridge_match(8.0, sigma_dem=40.0)
-    assert abs(bias) <= SIGNIFICANT * noise and (noisy.x, noisy.y) == (m.x, m.y)
+    """Where the reference shows relief about the point well beyond its noise, its figure of
+    the relief under the template's texture (``k·Δh`` px along the parallax) moves the match
+    back, shrunk by that share; its σ along the parallax gains the noise left in the move, the
+    relief finer than the reference's posts (:data:`UNSEEN_SHARE` of the move) and, as a σ
+    term, the figure's unmoved rest. Before, the figure was a σ term only and the match stayed
+    where the relief had put it (here 0.9 px off)."""
+    m, out, (bias, noise), share = _relief_match(_rough(8.0))
+    assert abs(bias) > 0.5 and share > 0.9 and out.ok
+    shift = share * bias
+    assert (out.x, out.y) == pytest.approx((30.0, 40.0 - shift))
+    var = share * noise ** 2 + (UNSEEN_SHARE * shift) ** 2 + (1 - share) ** 2 * (bias ** 2 - noise ** 2)
+    assert out.extra["relief_shift"] == pytest.approx(shift) and out.extra["relief_px"] == pytest.approx(np.sqrt(var))
+    assert out.cov == pytest.approx(m.cov + np.diag([0.0, var]))
+    # a reference too noisy to tell that relief from its noise moves nothing
+    m, noisy, (bias, noise), share = _relief_match(_rough(8.0), sigma_dem=40.0)
+    assert share == 0.0 and (noisy.x, noisy.y) == (m.x, m.y)
     assert noisy.extra["relief_px"] == pytest.approx(np.sqrt(max(bias ** 2 - noise ** 2, 0.0)))
 
 
+def test_the_share_of_relief_is_nil_on_a_noisy_flat_reference_and_near_one_on_relief():
+    rng = np.random.default_rng(5)
+    flat, hilly = [], []
+    for _ in range(100):
+        noise = rng.normal(0.0, 4.0, (20, 20))
+
+        def height_of(en, noise=noise):
+            en = np.asarray(en, float)
+            return ndimage.map_coordinates(noise, [en[:, 1] / 90.0 - 0.5, en[:, 0] / 90.0 - 0.5], order=1)
+
+        def relief(en, height_of=height_of):
+            en = np.asarray(en, float)
+            return height_of(en) + 15.0 * np.sin(en[:, 0] / 40.0) * np.cos(en[:, 1] / 55.0)
+        height_of.grid = relief.grid = type("G", (), {"source_cell_m": (90.0, 90.0)})()
+        g = (*rng.uniform(700.0, 1100.0, 2), 0.0)
+        flat.append(relief_signal_share(AXES, g, 32, False, height_of, 4.0))
+        hilly.append(relief_signal_share(AXES, g, 32, False, relief, 4.0))
+    # measured: flat median 0, 90 % under 0.33; hills 250–350 m across, 15 m high: median 0.92
+    assert np.median(flat) == 0.0 and np.quantile(flat, 0.9) < 0.4
+    assert np.median(hilly) > 0.85 and np.min(hilly) > np.quantile(flat, 0.9)
+
+
 def test_a_match_the_relief_may_move_past_its_limit_is_refused_with_the_reason():
-    _, out, (bias, _) = _ridge_match(20.0)          # the relief the reference cannot see: > 0.5 px
-    assert out.status == RELIEF and f"moved the point by {bias:+.2f} px" in out.reason
+    _, out, (bias, _), share = _relief_match(_rough(20.0))    # what the reference cannot see: > 0.5 px
+    assert out.status == RELIEF and f"moved the point by {share * bias:+.2f} px" in out.reason
     # the fit weighted to the point's surroundings gave the position: the whole template's
     # figure is a σ term only, the match not moved
-    m, near, (bias, noise) = _ridge_match(8.0, along_half=0)
+    m, near, (bias, noise), _ = _relief_match(_ridge(8.0), along_half=0)
     assert near.status == RELIEF and (near.x, near.y) == (m.x, m.y)
     assert near.extra["relief_px"] == pytest.approx(np.sqrt(bias ** 2 - noise ** 2))
-    flat = _heights(lambda e, n: np.full(len(e), 300.0))
-    T, _, _ = _template()
-    kept = with_relief(m, np.pad(T, 10, mode="edge"), (34.5, 34.5), AXES, (1000.0, 2000.0, 300.0), K * D, flat,
-                       2.0, 0.5)
+    m, kept, _, _ = _relief_match(_heights(lambda e, n: np.full(len(e), 300.0)))
     assert kept.ok and np.allclose(kept.cov, m.cov) and kept.extra["relief_px"] == 0.0
 
 

@@ -12,6 +12,7 @@ that is pixels. Coordinates: image ``x`` = column, ``y`` = row, pixels (docs/mod
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 
 import numpy as np
@@ -36,13 +37,14 @@ def with_relief(m: LsmResult, reference, xy, axes, ground, dh, height_of, sigma_
     relief the reference DEM shows within its template (:func:`relief_bias_px`).
 
     Where a uniformly weighted fit gave the position along the parallax (the template's, or
-    its central part's: ``extra["along_half"]``) and that relief's displacement of the fit
-    exceeds :data:`SIGNIFICANT` times what the reference's noise makes of it (its own σ, else
-    ``sigma_dem`` m per post), the point is moved back by it (``extra["relief_shift"]``, px
-    along the unit parallax) and its covariance gains that noise's figure and the relief the
-    reference cannot see (:data:`UNSEEN_SHARE`). Elsewhere — a figure within its noise, or the
-    fit weighted to the point's surroundings (whose relief is not the template's) — the figure
-    less that noise is a σ term instead, the point not moved. The term is
+    its central part's: ``extra["along_half"]``), the point is moved back by the displacement
+    that relief gives that fit, shrunk by the share of the reference's figures about the point
+    that is relief rather than its noise (:func:`relief_signal_share`; ``extra["relief_shift"]``,
+    px along the unit parallax), and its covariance gains the noise left in that move (its own
+    σ, else ``sigma_dem`` m per post), the relief the reference cannot see
+    (:data:`UNSEEN_SHARE` of the move) and the figure's unmoved rest as a σ term. Where the fit
+    weighted to the point's surroundings gave it (its relief is not the template's), or on
+    smooth ground (a share of 0), the figure less its noise is a σ term only. The term is
     ``extra["relief_px"]``; a match whose σ then exceeds ``max_sigma`` px is refused
     (:data:`RELIEF`). ``axes``: :func:`source_axes`; ``ground``: the point's ``(E, N, h)`` on
     the reference DEM ``height_of``; ``dh``: px per metre of height in the matched view."""
@@ -51,15 +53,21 @@ def with_relief(m: LsmResult, reference, xy, axes, ground, dh, height_of, sigma_
     tpl = template(reference, xy[0], xy[1], own or int(m.extra["half"]))
     if tpl is None:
         return m
-    bias, noise = relief_bias_px(axes, float(np.hypot(*dh)), ground, tpl, d, bool(np.any(m.extra["bend"])),
-                                 height_of, sigma_dem)
-    if own and abs(bias) > SIGNIFICANT * noise:
-        sigma = float(np.hypot(noise, UNSEEN_SHARE * bias))
-        m = replace(m, x=m.x - bias * d[0], y=m.y - bias * d[1],
-                    extra={**m.extra, "relief_px": sigma, "relief_shift": float(bias)})
-        return _with_relief_var(m, d, sigma * sigma, f"the reference DEM shows it, moved the point by {bias:+.2f} px "
-                                f"along the parallax; the figure is uncertain by", sigma, max_sigma)
+    bend = bool(np.any(m.extra["bend"]))
+    bias, noise = relief_bias_px(axes, float(np.hypot(*dh)), ground, tpl, d, bend, height_of, sigma_dem)
     b2 = max(bias * bias - noise * noise, 0.0)
+    gain = relief_signal_share(axes, ground, own, bend, height_of, sigma_dem) if own and bias else 0.0
+    if gain > 0.0:
+        # the figure, shrunk by the share of it that is relief about the point, moves the point;
+        # the σ holds the noise left in that move, the relief the reference cannot see and, as
+        # a figure the point is not moved by, the rest
+        shift = gain * bias
+        var = gain * noise * noise + (UNSEEN_SHARE * shift) ** 2 + (1.0 - gain) ** 2 * b2
+        m = replace(m, x=m.x - shift * d[0], y=m.y - shift * d[1],
+                    extra={**m.extra, "relief_px": float(np.sqrt(var)), "relief_shift": float(shift)})
+        return _with_relief_var(m, d, var, f"the reference DEM shows it, moved the point by {shift:+.2f} px along "
+                                f"the parallax ({gain:.0%} of its figure); what is left may move it by",
+                                float(np.sqrt(var)), max_sigma)
     if b2 == 0.0:
         return replace(m, extra={**m.extra, "relief_px": 0.0})
     return _with_relief_var(replace(m, extra={**m.extra, "relief_px": float(np.sqrt(b2))}), d, b2,
@@ -115,11 +123,6 @@ def smaller_on_relief(m: LsmResult, reference, xy, window, halves, shape, relief
     return m
 
 
-SIGNIFICANT = 3.0
-"""The reference's figure of a template's relief moves a match only where it exceeds this many
-times what the reference's noise makes of it: on smooth ground it is that noise alone (on the
-other renderer's 3″ reference 0.26 px, as large as the figure), which would move every match
-by it; noise passes 3 σ at 0.3 % of the matches."""
 UNSEEN_SHARE = 0.3
 """σ of the reference DEM's figure of a template's relief (:func:`relief_bias_px`) beyond what
 its noise makes of it, as a share of the figure: the relief finer than its posts, which it
@@ -150,60 +153,128 @@ def relief_bias_px(axes, k: float, ground, template, d, bend: bool, height_of,
     T, u, v = template
     g = np.asarray(ground, float)
     gv, gu = np.gradient(np.asarray(T, float))
-    w = (gu * d[0] + gv * d[1]) ** 2
-    n = T.shape[0] // POOL_PX * POOL_PX
-    lo = (T.shape[0] - n) // 2
-
-    def pool(a, how):
-        blocks = a[lo:lo + n, lo:lo + n].reshape(n // POOL_PX, POOL_PX, n // POOL_PX, POOL_PX)
-        return how(blocks, axis=(1, 3)).ravel()
-
-    w, uv = pool(w, np.sum), np.vstack([pool(u, np.mean), pool(v, np.mean)])
+    w, uv = _pooled((gu * d[0] + gv * d[1]) ** 2, u, v)
     # the pooled pixels on the ground: the source's own relief shift is the point's (a nadir
     # view), its image axes carried by the planar part of its Jacobian
     en = g[:2, None] + np.linalg.solve(axes, uv)
     h = np.asarray(height_of(np.vstack([en.T, g[None, :2]])), float)
     h0, h = h[-1], h[:-1]
     ok = np.isfinite(h)
-    if not np.isfinite(h0) or ok.mean() < 0.75 or not np.any(w[ok] > 0):
+    if not np.isfinite(h0) or ok.mean() < 0.75:
         return 0.0, 0.0
-    half = max(float(np.abs(uv).max()), 1.0)
-    a, b = uv[0, ok] / half, uv[1, ok] / half
-    A = np.vstack([np.ones_like(a), a, b] + ([a * a, a * b, b * b] if bend else [])).T
-    wo = w[ok]
-    N = A.T @ (A * wo[:, None])
-    if np.linalg.cond(N) > 1e10:        # the texture fixes no patch (the match refuses it)
+    beta = _fit_at_point(uv[:, ok], w[ok], bend)
+    if beta is None:
         return 0.0, 0.0
-    beta = np.linalg.solve(N, (A * wo[:, None]).T)[0]                 # the fit at the point
     bias = k * float(beta @ (h[ok] - h0))
-    # the reference's noise, white per post of its own grid, carried by the bilinear reading
-    # between its posts: each post's share of the fitted value, less the point's own (heights
-    # are relative to it), times the file's own noise (else ``sigma_dem``)
+    return bias, k * _noise_m(height_of, np.hstack([en[:, ok], g[:2, None]]), np.append(beta, -1.0), sigma_dem)
+
+
+SIGNAL_REACH = 2
+"""The templates about a point whose relief figures give its share of relief
+(:func:`relief_signal_share`): this many a side, one template apart (a 5 × 5 square)."""
+
+
+def relief_signal_share(axes, ground, half: int, bend: bool, height_of, sigma_dem: float = 0.0) -> float:
+    """How much of the reference DEM's relief figure (:func:`relief_bias_px`) about the point
+    is relief rather than the reference's noise: the Wiener gain ``r / (1 + r)`` in [0, 1],
+    ``r`` the ratio of the figures' mean square less their noise's to their noise's — the
+    figure taken for a template of ``half`` px with its information spread evenly, at the point
+    and at the templates about it (:data:`SIGNAL_REACH`), each with its own noise (it varies
+    by a third with where the posts fall). On smooth ground the figures are the noise alone
+    (0); where the reference shows relief well beyond its noise, near 1. Arguments as
+    :func:`relief_bias_px`; 0 where the DEM has no height at the point."""
+    return _signal_share(tuple(np.asarray(axes, float).ravel()), tuple(float(c) for c in ground[:2]), int(half),
+                         bool(bend), height_of, float(sigma_dem))
+
+
+@functools.lru_cache(maxsize=8)         # a point's views share it
+def _signal_share(axes, en, half, bend, height_of, sigma_dem) -> float:
+    axes = np.reshape(axes, (2, 2))
+    k = np.arange(-half, half + 1, dtype=float)
+    v, u = np.meshgrid(k, k, indexing="ij")
+    w, uv = _pooled(np.ones_like(u), u, v)
+    ring = range(-SIGNAL_REACH, SIGNAL_REACH + 1)
+    offsets = (2 * half + 1) * np.array([(i, j) for j in ring for i in ring], float).T      # (2, q) px
+    q = offsets.shape[1]
+    centres = np.asarray(en)[:, None] + np.linalg.solve(axes, offsets)                      # (2, q) m
+    pixels = centres[:, :, None] + np.linalg.solve(axes, uv)[:, None, :]                     # (2, q, P) m
+    h = np.asarray(height_of(np.vstack([pixels.reshape(2, -1).T, centres.T])), float)
+    H, h0 = h[:-q].reshape(q, -1), h[-q:]
+    rows = np.isfinite(h0) & np.all(np.isfinite(H), axis=1)
+    beta = _fit_at_point(uv, w, bend)
+    if not rows[q // 2] or beta is None:
+        return 0.0
+    figure2 = float(np.mean(((H[rows] - h0[rows, None]) @ beta) ** 2))
+    pts = np.concatenate([pixels, centres[:, :, None]], axis=2)[:, rows].reshape(2, -1)
+    noise2 = float(np.mean(_noise_m(height_of, pts, np.append(beta, -1.0), sigma_dem, int(rows.sum())) ** 2))
+    if noise2 <= 0:
+        return 1.0 if figure2 > 0 else 0.0
+    r = max(figure2 - noise2, 0.0) / noise2
+    return r / (1.0 + r)
+
+
+def _pooled(w, u, v):
+    """``(w, uv)``: the pixel weights ``w`` summed and the offsets ``u, v`` ``(n, n)`` averaged
+    over :data:`POOL_PX` square blocks (the template's central ``⌊n / POOL_PX⌋`` blocks a side):
+    ``(m,)`` and ``(2, m)``."""
+    n = w.shape[0] // POOL_PX * POOL_PX
+    lo = (w.shape[0] - n) // 2
+
+    def pool(a, how):
+        blocks = a[lo:lo + n, lo:lo + n].reshape(n // POOL_PX, POOL_PX, n // POOL_PX, POOL_PX)
+        return how(blocks, axis=(1, 3)).ravel()
+
+    return pool(w, np.sum), np.vstack([pool(u, np.mean), pool(v, np.mean)])
+
+
+def _fit_at_point(uv, w, bend: bool):
+    """``(m,)``: each pooled pixel's weight in the patch model's weighted least-squares fit
+    (a plane in ``u, v``; with ``bend`` a quadratic) read at the point; None where the weights
+    fix no such fit."""
+    if not np.any(w > 0):
+        return None
+    half = max(float(np.abs(uv).max()), 1.0)
+    a, b = uv / half
+    A = np.vstack([np.ones_like(a), a, b] + ([a * a, a * b, b * b] if bend else [])).T
+    N = A.T @ (A * w[:, None])
+    if np.linalg.cond(N) > 1e10:        # the texture fixes no patch (the match refuses it)
+        return None
+    return np.linalg.solve(N, (A * w[:, None]).T)[0]
+
+
+def _noise_m(height_of, pts, weights, sigma_dem: float, groups: int = 1):
+    """σ (m) of ``Σ weights_i · h(pts_i)`` (``pts`` ``(2, n)`` map metres) that the reference's
+    noise gives: white per post of its own grid, carried by the bilinear reading between its
+    posts (each post's share of the sum), of the file's own σ, else ``sigma_dem``; with
+    ``groups``, ``(groups,)`` of as many such sums, their points consecutive."""
     grid = getattr(height_of, "grid", None)
-    pts = np.hstack([en[:, ok], g[:2, None]])
     post = grid.source_pixels(pts.T) if hasattr(grid, "source_pixels") else None
     if post is None or not np.all(np.isfinite(post)):
         cell = np.asarray(getattr(grid, "source_cell_m", None) or (DEFAULT_CELL_M, DEFAULT_CELL_M), float)
         post = pts / cell[:, None]
-    share = _post_shares(post - 0.5, np.append(beta, -1.0))
+    share = _post_shares(post - 0.5, np.tile(weights, groups), groups)
     own = getattr(grid, "source_noise_m", None)
     sigma = float(own) if own is not None and np.isfinite(own) else float(sigma_dem)
-    noise = k * sigma * float(np.sqrt(np.sum(share ** 2)))
-    return bias, noise
+    out = sigma * np.sqrt(np.sum(share ** 2, axis=1))
+    return float(out[0]) if groups == 1 else out
 
 
-def _post_shares(p, weights) -> np.ndarray:
-    """Each post's total weight in ``Σ weights_i · h(p_i)``, ``h`` bilinear between posts at
-    integer coordinates; ``p`` ``(2, n)`` the points in post units (x, y), ``weights`` ``(n,)``."""
+def _post_shares(p, weights, groups: int = 1) -> np.ndarray:
+    """``(groups, posts)``: each post's total weight in ``Σ weights_i · h(p_i)``, ``h`` bilinear
+    between posts at integer coordinates, for each of ``groups`` sums of equal length; ``p``
+    ``(2, n)`` the points in post units (x, y), ``weights`` ``(n,)``, the groups consecutive."""
     f = np.floor(p)
     t = p - f
     f = f.astype(np.int64)
+    lo = f.min(axis=1)
+    cols, rows = (f.max(axis=1) - lo + 2)
+    group = np.repeat(np.arange(groups), p.shape[1] // groups)
     ids, vals = [], []
     for dx, dy in ((0, 0), (1, 0), (0, 1), (1, 1)):
-        ids.append((f[0] + dx) * 1_000_003 + (f[1] + dy))
+        ids.append((group * rows + f[1] - lo[1] + dy) * cols + f[0] - lo[0] + dx)
         vals.append(weights * (t[0] if dx else 1.0 - t[0]) * (t[1] if dy else 1.0 - t[1]))
-    _, inv = np.unique(np.concatenate(ids), return_inverse=True)
-    return np.bincount(inv, weights=np.concatenate(vals))
+    return np.bincount(np.concatenate(ids), weights=np.concatenate(vals),
+                       minlength=groups * rows * cols).reshape(groups, -1)
 
 
 def shared_relief(found: dict, dh: dict, max_sigma: float) -> dict:
