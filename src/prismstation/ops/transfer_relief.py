@@ -169,6 +169,9 @@ def relief_bias_px(axes, k: float, ground, template, d, bend: bool, height_of,
     return bias, k * _noise_m(height_of, np.hstack([en[:, ok], g[:2, None]]), np.append(beta, -1.0), sigma_dem)
 
 
+SIGNAL_POOL_PX = 8
+"""Template pixels per side pooled into one height sample for that share (20 m: the reference's
+posts lie 70–90 m apart)."""
 SIGNAL_REACH = 2
 """The templates about a point whose relief figures give its share of relief
 (:func:`relief_signal_share`): this many a side, one template apart (a 5 × 5 square)."""
@@ -192,7 +195,7 @@ def _signal_share(axes, en, half, bend, height_of, sigma_dem) -> float:
     axes = np.reshape(axes, (2, 2))
     k = np.arange(-half, half + 1, dtype=float)
     v, u = np.meshgrid(k, k, indexing="ij")
-    w, uv = _pooled(np.ones_like(u), u, v)
+    w, uv = _pooled(np.ones_like(u), u, v, SIGNAL_POOL_PX)
     ring = range(-SIGNAL_REACH, SIGNAL_REACH + 1)
     offsets = (2 * half + 1) * np.array([(i, j) for j in ring for i in ring], float).T      # (2, q) px
     q = offsets.shape[1]
@@ -213,15 +216,15 @@ def _signal_share(axes, en, half, bend, height_of, sigma_dem) -> float:
     return r / (1.0 + r)
 
 
-def _pooled(w, u, v):
+def _pooled(w, u, v, block: int = POOL_PX):
     """``(w, uv)``: the pixel weights ``w`` summed and the offsets ``u, v`` ``(n, n)`` averaged
-    over :data:`POOL_PX` square blocks (the template's central ``⌊n / POOL_PX⌋`` blocks a side):
+    over ``block`` px square blocks (the template's central ``⌊n / block⌋`` blocks a side):
     ``(m,)`` and ``(2, m)``."""
-    n = w.shape[0] // POOL_PX * POOL_PX
+    n = w.shape[0] // block * block
     lo = (w.shape[0] - n) // 2
 
     def pool(a, how):
-        blocks = a[lo:lo + n, lo:lo + n].reshape(n // POOL_PX, POOL_PX, n // POOL_PX, POOL_PX)
+        blocks = a[lo:lo + n, lo:lo + n].reshape(n // block, block, n // block, block)
         return how(blocks, axis=(1, 3)).ravel()
 
     return pool(w, np.sum), np.vstack([pool(u, np.mean), pool(v, np.mean)])
