@@ -56,7 +56,7 @@ def with_relief(m: LsmResult, reference, xy, axes, ground, dh, height_of, sigma_
     bend = bool(np.any(m.extra["bend"]))
     bias, noise = relief_bias_px(axes, float(np.hypot(*dh)), ground, tpl, d, bend, height_of, sigma_dem)
     b2 = max(bias * bias - noise * noise, 0.0)
-    gain = relief_signal_share(axes, ground, own, bend, height_of, sigma_dem) if own and bias else 0.0
+    gain = relief_signal_share(axes, ground, own, False, height_of, sigma_dem) if own and bias else 0.0
     if gain > 0.0:
         # the figure, shrunk by the share of it that is relief about the point, moves the point;
         # the σ holds the noise left in that move, the relief the reference cannot see and, as
