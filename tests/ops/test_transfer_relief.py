@@ -127,7 +127,7 @@ def _relief_match(terrain, along_half=24, sigma_dem=2.0):
     xy = (24.5 + 10, 24.5 + 10)
     out = with_relief(m, np.pad(T, 10, mode="edge"), xy, AXES, g, K * D, terrain, sigma_dem, 0.5)
     return (m, out, relief_bias_px(AXES, K, g, (T, u, v), D, False, terrain, sigma_dem),
-            relief_signal_share(AXES, g, 24, False, terrain, sigma_dem))
+            relief_signal_share(AXES, g, 24, terrain, sigma_dem))
 
 
 def test_the_relief_the_reference_shows_moves_the_match_back():
@@ -165,8 +165,8 @@ def test_the_share_of_relief_is_nil_on_a_noisy_flat_reference_and_near_one_on_re
             return height_of(en) + 15.0 * np.sin(en[:, 0] / 40.0) * np.cos(en[:, 1] / 55.0)
         height_of.grid = relief.grid = type("G", (), {"source_cell_m": (90.0, 90.0)})()
         g = (*rng.uniform(700.0, 1100.0, 2), 0.0)
-        flat.append(relief_signal_share(AXES, g, 32, False, height_of, 4.0))
-        hilly.append(relief_signal_share(AXES, g, 32, False, relief, 4.0))
+        flat.append(relief_signal_share(AXES, g, 32, height_of, 4.0))
+        hilly.append(relief_signal_share(AXES, g, 32, relief, 4.0))
     # measured: flat median 0, 90 % under 0.33; hills 250–350 m across, 15 m high: median 0.92
     assert np.median(flat) == 0.0 and np.quantile(flat, 0.9) < 0.4
     assert np.median(hilly) > 0.85 and np.min(hilly) > np.quantile(flat, 0.9)

@@ -355,8 +355,9 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
     if not free and any(t.ok for t in out.values()):
         # the relief within each template that its patch cannot follow, as the DEM shows it
         axes = source_axes(sol, source, (*en_pt, h_pt))
+        shares = {}         # the point's share of relief, one for its views
         kept = {v: with_relief(t.match, ref, xy - (rc0, rr0), axes, (*en_pt, h_pt), shapes[v].dh, height_of,
-                               sigma_dem, MAX_SIGMA_PX) for v, t in out.items() if t.ok}
+                               sigma_dem, MAX_SIGMA_PX, shares) for v, t in out.items() if t.ok}
         out = {**out, **{v: replace(out[v], x=m.x, y=m.y, match=m) for v, m in kept.items()}}
         for v, t in list(out.items()):
             if adaptive and t.match.status == RELIEF:     # a smaller template sees less relief

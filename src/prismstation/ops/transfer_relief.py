@@ -12,7 +12,6 @@ that is pixels. Coordinates: image ``x`` = column, ``y`` = row, pixels (docs/mod
 """
 from __future__ import annotations
 
-import functools
 from dataclasses import replace
 
 import numpy as np
@@ -32,7 +31,7 @@ def source_axes(sol: Solution, source: str, ground) -> np.ndarray:
 
 
 def with_relief(m: LsmResult, reference, xy, axes, ground, dh, height_of, sigma_dem: float,
-                max_sigma: float) -> LsmResult:
+                max_sigma: float, shares: dict | None = None) -> LsmResult:
     """``m`` (a match of a source view's point ``xy`` — in ``reference``'s pixels) with the
     relief the reference DEM shows within its template (:func:`relief_bias_px`).
 
@@ -47,7 +46,8 @@ def with_relief(m: LsmResult, reference, xy, axes, ground, dh, height_of, sigma_
     smooth ground (a share of 0), the figure less its noise is a σ term only. The term is
     ``extra["relief_px"]``; a match whose σ then exceeds ``max_sigma`` px is refused
     (:data:`RELIEF`). ``axes``: :func:`source_axes`; ``ground``: the point's ``(E, N, h)`` on
-    the reference DEM ``height_of``; ``dh``: px per metre of height in the matched view."""
+    the reference DEM ``height_of``; ``dh``: px per metre of height in the matched view;
+    ``shares``: the point's shares of relief by template half size, kept for its other views."""
     d = np.asarray(m.extra["d"], float)
     own = int(m.extra.get("along_half", m.extra["half"]))
     tpl = template(reference, xy[0], xy[1], own or int(m.extra["half"]))
@@ -56,7 +56,12 @@ def with_relief(m: LsmResult, reference, xy, axes, ground, dh, height_of, sigma_
     bend = bool(np.any(m.extra["bend"]))
     bias, noise = relief_bias_px(axes, float(np.hypot(*dh)), ground, tpl, d, bend, height_of, sigma_dem)
     b2 = max(bias * bias - noise * noise, 0.0)
-    gain = relief_signal_share(axes, ground, own, False, height_of, sigma_dem) if own and bias else 0.0
+    gain = 0.0
+    if own and bias:
+        shares = {} if shares is None else shares
+        if own not in shares:
+            shares[own] = relief_signal_share(axes, ground, own, height_of, sigma_dem)
+        gain = shares[own]
     if gain > 0.0:
         # the figure, shrunk by the share of it that is relief about the point, moves the point;
         # the σ holds the noise left in that move, the relief the reference cannot see and, as
@@ -177,34 +182,27 @@ SIGNAL_REACH = 2
 (:func:`relief_signal_share`): this many a side, one template apart (a 5 × 5 square)."""
 
 
-def relief_signal_share(axes, ground, half: int, bend: bool, height_of, sigma_dem: float = 0.0) -> float:
+def relief_signal_share(axes, ground, half: int, height_of, sigma_dem: float = 0.0) -> float:
     """How much of the reference DEM's relief figure (:func:`relief_bias_px`) about the point
     is relief rather than the reference's noise: the Wiener gain ``r / (1 + r)`` in [0, 1],
     ``r`` the ratio of the figures' mean square less their noise's to their noise's — the
-    figure taken for a template of ``half`` px with its information spread evenly, at the point
-    and at the templates about it (:data:`SIGNAL_REACH`), each with its own noise (it varies
-    by a third with where the posts fall). On smooth ground the figures are the noise alone
-    (0); where the reference shows relief well beyond its noise, near 1. Arguments as
-    :func:`relief_bias_px`; 0 where the DEM has no height at the point."""
-    return _signal_share(tuple(np.asarray(axes, float).ravel()), tuple(float(c) for c in ground[:2]), int(half),
-                         bool(bend), height_of, float(sigma_dem))
-
-
-@functools.lru_cache(maxsize=8)         # a point's views share it
-def _signal_share(axes, en, half, bend, height_of, sigma_dem) -> float:
-    axes = np.reshape(axes, (2, 2))
+    figure (the relief beyond a plane) taken for a template of ``half`` px with its information
+    spread evenly, at the point and at the templates about it (:data:`SIGNAL_REACH`), each with
+    its own noise (it varies by a third with where the posts fall). On smooth ground the figures
+    are the noise alone (0); where the reference shows relief well beyond its noise, near 1.
+    Arguments as :func:`relief_bias_px`; 0 where the DEM has no height at the point."""
     k = np.arange(-half, half + 1, dtype=float)
     v, u = np.meshgrid(k, k, indexing="ij")
     w, uv = _pooled(np.ones_like(u), u, v, SIGNAL_POOL_PX)
     ring = range(-SIGNAL_REACH, SIGNAL_REACH + 1)
     offsets = (2 * half + 1) * np.array([(i, j) for j in ring for i in ring], float).T      # (2, q) px
     q = offsets.shape[1]
-    centres = np.asarray(en)[:, None] + np.linalg.solve(axes, offsets)                      # (2, q) m
+    centres = np.asarray(ground, float)[:2, None] + np.linalg.solve(axes, offsets)          # (2, q) m
     pixels = centres[:, :, None] + np.linalg.solve(axes, uv)[:, None, :]                     # (2, q, P) m
     h = np.asarray(height_of(np.vstack([pixels.reshape(2, -1).T, centres.T])), float)
     H, h0 = h[:-q].reshape(q, -1), h[-q:]
     rows = np.isfinite(h0) & np.all(np.isfinite(H), axis=1)
-    beta = _fit_at_point(uv, w, bend)
+    beta = _fit_at_point(uv, w, False)
     if not rows[q // 2] or beta is None:
         return 0.0
     figure2 = float(np.mean(((H[rows] - h0[rows, None]) @ beta) ** 2))
