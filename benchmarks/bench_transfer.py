@@ -144,6 +144,13 @@ SETS = {
         ("smooth", 77, None, dict(texture="mottled", psf_px=0.0, noise_dn=2.0)),
         ("fractal", 78, None, dict(texture="mottled", psf_px=0.0, noise_dn=2.0)))
         for ref in ({}, {"reference": "geographic"})],
+    # five more places never looked at (0.1° or more from every scene above), the other
+    # renderer's kind of parcels, both references: drawn after the relief the reference shows
+    # moved matches back, to judge that once
+    "judged_fresh2": [("dem", seed, centre, dict(texture="mottled", psf_px=0.0, noise_dn=2.0, **ref))
+                      for seed, centre in ((81, (5.22, 44.10)), (82, (5.60, 44.90)), (83, (5.85, 44.25)),
+                                           (84, (5.75, 44.56)), (85, (5.10, 44.62)))
+                      for ref in ({}, {"reference": "geographic"})],
     # JPEG block noise (8 × 8, as compressed PRISM products carry) on the other renderer's kind
     # of parcels: on smooth hills and on steep relief at two qualities (found on these; a gap)
     "jpeg_mottled": [("smooth", 54, None, dict(texture="mottled", psf_px=0.0, noise_dn=2.0, jpeg_quality=75)),
