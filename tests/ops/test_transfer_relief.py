@@ -172,6 +172,20 @@ def test_the_share_of_relief_is_nil_on_a_noisy_flat_reference_and_near_one_on_re
     assert np.median(hilly) > 0.85 and np.min(hilly) > np.quantile(flat, 0.9)
 
 
+def test_the_share_of_relief_beside_voids_comes_from_the_templates_with_heights():
+    relief = _rough(8.0)
+    g = (1000.0, 2000.0, 300.0)
+    full = relief_signal_share(AXES, g, 24, relief, 2.0)
+
+    def west_void(en):                  # no heights 100 m west of the point and beyond
+        h = relief(en)
+        return np.where(np.asarray(en, float)[:, 0] < 900.0, np.nan, h)
+    beside = relief_signal_share(AXES, g, 24, west_void, 2.0)
+    assert full > 0.9 and beside > 0.9
+    # the point itself in a void: nothing to tell
+    assert relief_signal_share(AXES, g, 24, _heights(lambda e, n: np.full(len(e), np.nan)), 2.0) == 0.0
+
+
 def test_a_match_the_relief_may_move_past_its_limit_is_refused_with_the_reason():
     _, out, (bias, _), share = _relief_match(_rough(20.0))    # what the reference cannot see: > 0.5 px
     assert out.status == RELIEF and f"moved the point by {share * bias:+.2f} px" in out.reason
