@@ -42,8 +42,6 @@ allowance), ``moved`` (the patch ran away from its start), ``low_correlation``, 
 """
 from __future__ import annotations
 
-import threading
-from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
@@ -53,8 +51,8 @@ from scipy import stats
 from prismstation.core.matching.lsm_fit import (LOW_CORRELATION, MAX_BEND, MOVED, NOT_CONVERGED, OK,  # noqa: F401
                                                 OUTSIDE, RIVAL_ITER, RIVAL_MARGIN, SHAPE, STEP_TOL, TEXTURE, Fit,
                                                 template)
-from prismstation.core.matching.lsm_sampled import POINT_SAMPLED, edge_sigma, smoothed_shift
-from prismstation.core.matching.lsm_sigma import (gradient_noise_inflation, noise_sigma, sampling_px,
+from prismstation.core.matching.lsm_sampled import POINT_SAMPLED, smoothed_shift, template_stats
+from prismstation.core.matching.lsm_sigma import (gradient_noise_inflation, sampling_px,
                                                   sampling_scatter, unmodelled_sigma)
 from prismstation.core.matching.lsm_spline import Spline, low_pass, search_spline
 
@@ -346,43 +344,6 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
                                            "along_half": (half if along_fit is fit else MID_HALF
                                                           if along_fit is not near_fit else 0)})
     return res if why is None else replace(res, status=why[0], reason=why[1])
-
-
-_STATS: OrderedDict = OrderedDict()
-_STATS_LOCK = threading.Lock()
-STATS_KEPT = 4
-"""Templates whose statistics :func:`template_stats` keeps (a point's matches in its other
-views use the same template)."""
-
-
-def template_stats(T):
-    """``(noise, aliasing, (gu, gv), edges, pw)`` of the template ``T`` ``(n, n)``: the image
-    noise σ (:func:`noise_sigma`, grey values), where its point-sampled edges lie
-    (:func:`sampling_px`, px), its gradients (grey values per px), their mean edge σ
-    (:func:`edge_sigma`, px) and the pixels' weights in the fit ``(n²,)`` (None: uniform) —
-    a pixel on a point-sampled edge weighted by the inverse of its variance, the noise's plus
-    the edge's unknown place in both views (gradient × σ), so the texture that samples place
-    well counts more. Kept for the last :data:`STATS_KEPT` templates (by their grey values):
-    the F and B matches of a point share one."""
-    key = (T.shape, T.tobytes())
-    with _STATS_LOCK:
-        if key in _STATS:
-            _STATS.move_to_end(key)
-            return _STATS[key]
-    noise = noise_sigma(T)
-    aliasing = sampling_px(T, noise)
-    gv, gu = np.gradient(T)
-    edges = edge_sigma(gu, gv, aliasing)
-    pw = None
-    if noise > 0 and (aliasing[0].any() or aliasing[1].any()):
-        edge_var = 2.0 * ((gu * aliasing[0]) ** 2 + (gv * aliasing[1]) ** 2)
-        pw = (noise ** 2 / (noise ** 2 + edge_var)).ravel()
-    out = (noise, aliasing, (gu, gv), edges, pw)
-    with _STATS_LOCK:
-        _STATS[key] = out
-        while len(_STATS) > STATS_KEPT:
-            _STATS.popitem(last=False)
-    return out
 
 
 def _refit(fit: Fit, w, keep, bend: bool, run_args):

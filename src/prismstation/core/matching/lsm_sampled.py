@@ -1,14 +1,20 @@
-"""A point-sampled template's last fit, on both images low-passed (:func:`smoothed_shift`):
-the sub-pixel pull of two views' pixel grids taken out of a least-squares match
-(:mod:`prismstation.core.matching.lsm`; docs/matching.md, the pull of two pixel grids).
+"""A point-sampled template's statistics (:func:`template_stats`: its noise, where its edges
+lie between samples, its pixels' weights) and its last fit, on both images low-passed
+(:func:`smoothed_shift`): the sub-pixel pull of two views' pixel grids taken out of a
+least-squares match (:mod:`prismstation.core.matching.lsm`; docs/matching.md, the pull of two
+pixel grids).
 
 Coordinates as there (docs/model.md §1): image ``x`` = column, ``y`` = row, pixels.
 """
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
+
 import numpy as np
 
 from prismstation.core.matching.lsm_fit import OK, Fit, template
+from prismstation.core.matching.lsm_sigma import noise_sigma, sampling_px
 from prismstation.core.matching.lsm_spline import low_pass, search_spline
 
 POINT_SAMPLED = 0.03
@@ -69,3 +75,40 @@ def smoothed_shift(reference, x: float, y: float, search, fit: Fit, bend: bool, 
     max_iter, _, _, A0inv, max_shape_change = run_args
     status, _, it = part.run(bend, max_iter, fit.t.copy(), MAX_PULL, A0inv, max_shape_change)
     return (part.t - fit.t if status == OK else np.zeros(2)), it
+
+
+_STATS: OrderedDict = OrderedDict()
+_STATS_LOCK = threading.Lock()
+STATS_KEPT = 4
+"""Templates whose statistics :func:`template_stats` keeps (a point's matches in its other
+views use the same template)."""
+
+
+def template_stats(T):
+    """``(noise, aliasing, (gu, gv), edges, pw)`` of the template ``T`` ``(n, n)``: the image
+    noise σ (:func:`noise_sigma`, grey values), where its point-sampled edges lie
+    (:func:`sampling_px`, px), its gradients (grey values per px), their mean edge σ
+    (:func:`edge_sigma`, px) and the pixels' weights in the fit ``(n²,)`` (None: uniform) —
+    a pixel on a point-sampled edge weighted by the inverse of its variance, the noise's plus
+    the edge's unknown place in both views (gradient × σ), so the texture that samples place
+    well counts more. Kept for the last :data:`STATS_KEPT` templates (by their grey values):
+    the F and B matches of a point share one."""
+    key = (T.shape, T.tobytes())
+    with _STATS_LOCK:
+        if key in _STATS:
+            _STATS.move_to_end(key)
+            return _STATS[key]
+    noise = noise_sigma(T)
+    aliasing = sampling_px(T, noise)
+    gv, gu = np.gradient(T)
+    edges = edge_sigma(gu, gv, aliasing)
+    pw = None
+    if noise > 0 and (aliasing[0].any() or aliasing[1].any()):
+        edge_var = 2.0 * ((gu * aliasing[0]) ** 2 + (gv * aliasing[1]) ** 2)
+        pw = (noise ** 2 / (noise ** 2 + edge_var)).ravel()
+    out = (noise, aliasing, (gu, gv), edges, pw)
+    with _STATS_LOCK:
+        _STATS[key] = out
+        while len(_STATS) > STATS_KEPT:
+            _STATS.popitem(last=False)
+    return out
