@@ -64,11 +64,9 @@ RELIEF_SCALE = 2.0
 finest relief (calibrated on the simulator's fractal relief)."""
 BEND_P = 0.99
 """Confidence of the F test that keeps a bend."""
-MAX_ACROSS_CHANGE = 0.08
+MAX_ACROSS_CHANGE = 0.06
 """Largest change of the shape across the parallax (relief changes it along the parallax; the
-model's views are right to 10⁻³ across): what the fit's own scatter reaches on weak texture
-(right matches of the tuning scenes with the other renderer's kind of parcels on steep relief:
-3.5 % at the 95th percentile, 7.5 % at the 99th)."""
+model's views are right to 10⁻³ across)."""
 TAPER = 3.0
 """σ (px) of the Gaussian weight about the point in the fit that gives the position along the
 parallax: relief finer than the template moves the point by its own height, which an average
