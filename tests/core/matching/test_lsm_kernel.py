@@ -39,8 +39,8 @@ def test_the_prepared_types_are_the_ones_a_match_uses():
     # a match of point-sampled texture takes every path (the coarse pass, the bend, the taper,
     # the central part, the low-passed fit): none of them may compile another signature
     K.compile_kernels()
-    kernels = (K.sample_points, K.sample_patch, K.design_rows, K.block_moments, K.edge_sums, K.spline_coefficients,
-               K.crossing_sigma)
+    kernels = (K.sample_points, K.sample_patch, K.design_rows, K.solve_small, K.block_moments, K.edge_sums,
+               K.spline_coefficients, K.crossing_sigma)
     before = [len(f.signatures) for f in kernels]
     rng = np.random.default_rng(2)
     img = np.kron(rng.normal(100, 30, (60, 60)), np.ones((4, 4)))        # hard edges, no blur
@@ -119,3 +119,14 @@ def test_the_loops_are_prepared_once_and_the_collector_left_what_was_alive(monke
     assert frozen > 10_000 and K._READY
     K.compile_kernels()                      # at once: nothing loaded or frozen again
     assert gc.get_freeze_count() == frozen
+
+
+def test_the_small_solver_is_lapacks_and_says_when_a_matrix_is_singular():
+    rng = np.random.default_rng(3)
+    for k in (8, 11):
+        J = rng.normal(size=(k, 200))
+        N, b, x = J @ J.T, rng.normal(size=k), np.empty(k)
+        assert K.solve_small(N, b, x)
+        assert np.allclose(x, np.linalg.solve(N, b), rtol=1e-10, atol=1e-12)
+    assert not K.solve_small(np.zeros((3, 3)), np.ones(3), np.empty(3))
+    assert not K.solve_small(np.array([[1.0, 1.0], [0.0, 0.0]]), np.ones(2), np.empty(2))    # a zero row

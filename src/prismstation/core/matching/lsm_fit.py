@@ -37,6 +37,7 @@ the tuning scenes and the Pléiades triplet the correlation rose by at most 0.06
 iteration)."""
 
 _I2 = np.eye(2)
+_NONE = np.empty(0)
 
 
 def template(reference, x: float, y: float, half: int):
@@ -85,17 +86,17 @@ class Fit:
             return None
         return S, Sx, Sy
 
-    def design(self, S, Sx, Sy, bend: bool, esm: bool):
+    def design(self, S, Sx, Sy, bend: bool, esm: bool, sw=None):
         """``(r, J)``: the residuals ``T − (g0 + g1·S)`` ``(n,)`` and the design
         ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)`` ``(8 or 11, n)``; with ``esm`` the gradient is
         the mean of the search image's and the template's carried into the search image
         (Benhimane and Malis 2004: faster convergence); without, the search image's alone (the
-        covariance)."""
+        covariance). ``sw`` ``(n,)``: each pixel's row and residual times it (None: 1)."""
         J, r = np.empty((11 if bend else 8, S.size)), np.empty(S.size)
         a, b, c, d = self.A.ravel()
         E = np.array([[d, -c], [-b, a]]) / (a * d - b * c) if esm else _I2      # A⁻ᵀ
         kernel.design_rows(S, Sx, Sy, self.T, self.Tu, self.Tv, self.u, self.v, self.Q, self.d, self.g0, self.g1,
-                           E, esm, bend, J, r)
+                           E, esm, bend, J, r, _NONE if sw is None else sw)
         return r, J
 
     def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float,
@@ -106,6 +107,7 @@ class Fit:
         :data:`SHAPE_REACH` px."""
         nb = 3 if bend else 0
         wt = self.weights()
+        sw = _NONE if wt is None else np.sqrt(wt)
         for it in range(1, max_iter + 1):
             smp = self.sample()
             if smp is None:
@@ -118,11 +120,9 @@ class Fit:
             if self.g1 is None:
                 self.g1 = self.T.std() / max(S.std(), 1e-12)
                 self.g0 = self.T.mean() - self.g1 * S.mean()
-            r, J = self.design(S, Sx, Sy, bend, esm=True)
-            Jw = J if wt is None else J * wt
-            try:
-                dp = np.linalg.solve(Jw @ J.T, Jw @ r)
-            except np.linalg.LinAlgError:
+            r, J = self.design(S, Sx, Sy, bend, esm=True, sw=sw)       # rows and residuals × √weight
+            dp = np.empty(J.shape[0])
+            if not kernel.solve_small(J @ J.T, J @ r, dp):
                 return TEXTURE, "singular normal matrix (no texture)", it
             self.smp = None
             self.t += dp[0:2]

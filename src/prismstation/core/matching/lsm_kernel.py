@@ -86,17 +86,22 @@ def sample_patch(flat, width, c0, r0, lo, hi, t, A, c, d, u, v, Q, bend, S, Sx, 
 
 
 @njit(**_OPTS)
-def design_rows(S, Sx, Sy, T, Tu, Tv, u, v, Q, d, g0, g1, E, esm, bend, J, r):
+def design_rows(S, Sx, Sy, T, Tu, Tv, u, v, Q, d, g0, g1, E, esm, bend, J, r, sw):
     """The design ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)`` into ``J`` ``(8 or 11, n)`` and the
     residuals ``T − (g0 + g1·S)`` into ``r`` ``(n,)``, from the patch's values and gradients
-    ``S, Sx, Sy``. With ``esm`` the gradient is the mean of the search image's and the
-    template's (``Tu, Tv``) carried into the search image by ``E`` = A⁻ᵀ."""
+    ``S, Sx, Sy``, each pixel's row and residual times ``sw`` ``(n,)`` (the square roots of
+    its weight: ``JJᵀ`` and ``Jr`` are then the weighted normal equations; empty: 1). With
+    ``esm`` the gradient is the mean of the search image's and the template's (``Tu, Tv``)
+    carried into the search image by ``E`` = A⁻ᵀ."""
     k = J.shape[0]
+    weighted = sw.size > 0
     for p in range(S.size):
+        s = sw[p] if weighted else 1.0
         a, b = g1 * Sx[p], g1 * Sy[p]
         if esm:
             a = 0.5 * (a + E[0, 0] * Tu[p] + E[0, 1] * Tv[p])
             b = 0.5 * (b + E[1, 0] * Tu[p] + E[1, 1] * Tv[p])
+        a, b = a * s, b * s
         J[0, p] = a
         J[1, p] = b
         J[2, p] = a * u[p]
@@ -108,9 +113,40 @@ def design_rows(S, Sx, Sy, T, Tu, Tv, u, v, Q, d, g0, g1, E, esm, bend, J, r):
             J[6, p] = g * Q[0, p]
             J[7, p] = g * Q[1, p]
             J[8, p] = g * Q[2, p]
-        J[k - 2, p] = 1.0
-        J[k - 1, p] = S[p]
-        r[p] = T[p] - (g0 + g1 * S[p])
+        J[k - 2, p] = s
+        J[k - 1, p] = S[p] * s
+        r[p] = (T[p] - (g0 + g1 * S[p])) * s
+
+
+@njit(**_OPTS)
+def solve_small(N, b, x):
+    """``N x = b`` for a small square ``N`` (copied, not written) by Gaussian elimination with
+    partial pivoting (LAPACK's ``gesv``): False when a pivot is exactly 0 (singular)."""
+    k = b.size
+    M = N.copy()
+    y = b.copy()
+    for c in range(k):
+        piv, big = c, abs(M[c, c])
+        for i in range(c + 1, k):
+            if abs(M[i, c]) > big:
+                piv, big = i, abs(M[i, c])
+        if big == 0.0:
+            return False
+        if piv != c:
+            for j in range(k):
+                M[c, j], M[piv, j] = M[piv, j], M[c, j]
+            y[c], y[piv] = y[piv], y[c]
+        for i in range(c + 1, k):
+            f = M[i, c] / M[c, c]
+            for j in range(c, k):
+                M[i, j] -= f * M[c, j]
+            y[i] -= f * y[c]
+    for i in range(k - 1, -1, -1):
+        acc = y[i]
+        for j in range(i + 1, k):
+            acc -= M[i, j] * x[j]
+        x[i] = acc / M[i, i]
+    return True
 
 
 @njit(**_OPTS)
@@ -263,7 +299,9 @@ def compile_kernels() -> None:
     spline_points(flat, 8, 0, 0, (1.5, 1.5), (5.5, 5.5), np.array([3.0]), np.array([3.0]))
     sample_patch(flat, 8, 0, 0, (1.5, 1.5), (5.5, 5.5), np.full(2, 3.0), np.eye(2), np.zeros(3), np.zeros(2),
                  u, u, Q, False, *out[:3])
-    design_rows(*out[:3], u, u, u, u, u, Q, np.zeros(2), 0.0, 1.0, np.eye(2), True, False, J, out[3])
+    design_rows(*out[:3], u, u, u, u, u, Q, np.zeros(2), 0.0, 1.0, np.eye(2), True, False, J, out[3], u[:0])
+    design_rows(*out[:3], u, u, u, u, u, Q, np.zeros(2), 0.0, 1.0, np.eye(2), True, False, J, out[3], u)
+    solve_small(np.eye(2), np.ones(2), np.empty(2))
     g = np.zeros((8, 8))
     spline_coefficients(g)
     crossing_sigma(g, 1.0, np.arange(3.0), np.zeros(3), np.empty((8, 8)))
