@@ -318,6 +318,13 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
                                                noise, e1, e2, n, aliasing)
         along_fit = central or along_fit
         it += it4
+    if parallax is not None and along_fit is fit:
+        # the relief the blocks read, no smaller than its own standard error under noise
+        # alone: where few blocks hold the information a nil reading is not a nil relief
+        # (as across: the floor is the reading's own noise, not relief the blocks smooth, so
+        # it is not scaled by RELIEF_SCALE)
+        s_floor = unmodelled_sigma(_along(J, e1, n), r.reshape(n, n), J.shape[1], floor=True)
+        cov = cov + max(s_floor ** 2 - (RELIEF_SCALE * s_relief) ** 2, 0.0) * np.outer(e1, e1)
     # the checks before the low-passed fit, which moves the point and not its σ
     smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
     why = ((LOW_CORRELATION, f"correlation {rho:.2f} below {min_rho:.2f}") if rho < min_rho else
