@@ -274,7 +274,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     if stated is None:
         return failed(fit.t[0], fit.t[1], TEXTURE, "too little texture: the image noise outweighs its gradients",
                       shape=fit.A, rho=rho, iterations=it)
-    cov, formal, s_relief, s_across, sampled = stated
+    cov, formal, s_relief, s_across, sampled, s_floor = stated
     t = fit.t.copy()
     local = 0.0
     along_fit = fit           # the fit whose position along the parallax is kept
@@ -323,7 +323,6 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         # alone: where few blocks hold the information a nil reading is not a nil relief
         # (as across: the floor is the reading's own noise, not relief the blocks smooth, so
         # it is not scaled by RELIEF_SCALE)
-        s_floor = unmodelled_sigma(_along(J, e1, n), r.reshape(n, n), J.shape[1], floor=True)
         cov = cov + max(s_floor ** 2 - (RELIEF_SCALE * s_relief) ** 2, 0.0) * np.outer(e1, e1)
     # the checks before the low-passed fit, which moves the point and not its σ
     smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
@@ -396,9 +395,10 @@ def _mid_check(fit: Fit, t, cov, bend: bool, run_args, noise: float, e1, e2, n: 
 
 
 def _stated(fit: Fit, r, J, noise: float, e1, e2, n: int, aliasing=None):
-    """``(cov, formal, σ_relief, σ_across, sampled)`` of the fitted position (see
-    :func:`refine`; ``noise``: the images' noise σ in the template's grey values; ``aliasing``:
-    :func:`sampling_px` of the template), None when the noise outweighs the gradients;
+    """``(cov, formal, σ_relief, σ_across, sampled, σ_floor)`` of the fitted position (see
+    :func:`refine`; ``σ_floor``: σ_relief no smaller than its own standard error; ``noise``:
+    the images' noise σ in the template's grey values; ``aliasing``: :func:`sampling_px` of
+    the template), None when the noise outweighs the gradients;
     ``sampled`` (2×2, px²), the point-sampled edges' share, is not in ``cov``."""
     k = J.shape[1]
     if fit.weights() is None:        # uniform weights: the sandwich is N⁻¹ itself
@@ -426,7 +426,7 @@ def _stated(fit: Fit, r, J, noise: float, e1, e2, n: int, aliasing=None):
         formal = s02 * (Ni @ (J.T @ (Jw * w[:, None])) @ Ni)[:2, :2] * inflation
         wn = None if fit.w is None else fit.w.reshape(n, n)
     # the displacement the patch's shape does not follow, along the parallax and across it
-    s_relief = unmodelled_sigma(_along(J, e1, n), r.reshape(n, n), k, w=wn)
+    s_relief, s_floor = unmodelled_sigma(_along(J, e1, n), r.reshape(n, n), k, w=wn, both=True)
     s_across = unmodelled_sigma(_along(J, e2, n), r.reshape(n, n), k, w=wn, other=_along(J, e1, n), floor=True)
     cov = (SIGMA_SCALE ** 2 * formal + (RELIEF_SCALE * s_relief) ** 2 * np.outer(e1, e1)
            + s_across ** 2 * np.outer(e2, e2))
@@ -435,7 +435,7 @@ def _stated(fit: Fit, r, J, noise: float, e1, e2, n: int, aliasing=None):
     if aliasing is not None and (aliasing[0].any() or aliasing[1].any()):
         K = sampling_scatter(Jw.reshape(n, n, k), J[:, 0].reshape(n, n), J[:, 1].reshape(n, n), *aliasing)
         sampled = 2.0 * (Ni @ K @ Ni)[:2, :2]
-    return cov, formal, s_relief, s_across, sampled
+    return cov, formal, s_relief, s_across, sampled, s_floor
 
 
 def shape_check(A0, A, parallax, max_change: float, max_across: float = MAX_ACROSS_CHANGE) -> str:

@@ -300,7 +300,6 @@ def compile_kernels() -> None:
     sample_patch(flat, 8, 0, 0, (1.5, 1.5), (5.5, 5.5), np.full(2, 3.0), np.eye(2), np.zeros(3), np.zeros(2),
                  u, u, Q, False, *out[:3])
     design_rows(*out[:3], u, u, u, u, u, Q, np.zeros(2), 0.0, 1.0, np.eye(2), True, False, J, out[3], u[:0])
-    design_rows(*out[:3], u, u, u, u, u, Q, np.zeros(2), 0.0, 1.0, np.eye(2), True, False, J, out[3], u)
     solve_small(np.eye(2), np.ones(2), np.empty(2))
     g = np.zeros((8, 8))
     spline_coefficients(g)

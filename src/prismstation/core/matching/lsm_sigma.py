@@ -45,7 +45,8 @@ def gradient_noise_inflation(gx, gy, var: float, count: float | None = None) -> 
     return lam / (lam - c) if lam > c else float("inf")
 
 
-def unmodelled_sigma(G, r, n_params: int, block: int = 4, w=None, other=None, floor: bool = False) -> float:
+def unmodelled_sigma(G, r, n_params: int, block: int = 4, w=None, other=None, floor: bool = False,
+                     both: bool = False):
     """σ (px) of the displacement in one direction that the patch's shape does not follow.
 
     ``G``: the fitted patch's gradient in that direction (e.g. the parallax) on the template grid
@@ -61,11 +62,12 @@ def unmodelled_sigma(G, r, n_params: int, block: int = 4, w=None, other=None, fl
     ``G`` is across the parallax) is not read into ``G``'s where the texture's gradients
     correlate. ``floor``: the variance no smaller than its own standard error under noise alone
     — where a few blocks hold the information (point-sampled parcels) the estimate is noisy,
-    and clipped at zero it stated 0.04 px for errors of 0.10 px on another simulator's scene."""
+    and clipped at zero it stated 0.04 px for errors of 0.10 px on another simulator's scene.
+    ``both``: ``(σ, σ with that floor)`` from one pass."""
     n = r.shape[0]
     m = n // block
     if m < 2:
-        return 0.0
+        return (0.0, 0.0) if both else 0.0
     lo = (n - m * block) // 2
 
     mom = np.empty((3 if other is None else 6, m * m))
@@ -73,7 +75,7 @@ def unmodelled_sigma(G, r, n_params: int, block: int = 4, w=None, other=None, fl
                   _EMPTY if other is None else np.ascontiguousarray(other, float), lo, m, block, mom)
     g2, p, rr = mom[0], mom[1], float(mom[2].sum())
     if np.any(g2 <= 0):
-        return 0.0
+        return (0.0, 0.0) if both else 0.0
     if other is None:
         delta = p / g2
         rss, unknowns = rr - float(delta @ p), m * m
@@ -81,7 +83,7 @@ def unmodelled_sigma(G, r, n_params: int, block: int = 4, w=None, other=None, fl
         go, gc, q = mom[3], mom[4], mom[5]
         det = g2 * go - gc ** 2
         if np.any(det <= 1e-9 * g2 * go):
-            return 0.0
+            return (0.0, 0.0) if both else 0.0
         delta, delta_o = (go * p - gc * q) / det, (g2 * q - gc * p) / det
         rss, unknowns = rr - float(delta @ p + delta_o @ q), 2 * m * m
         g2 = det / go                                   # the information on δ left by the other
@@ -92,11 +94,13 @@ def unmodelled_sigma(G, r, n_params: int, block: int = 4, w=None, other=None, fl
     else:
         wb = w[lo:lo + m * block, lo:lo + m * block].reshape(m, block, m, block).sum(axis=(1, 3)).ravel() / block ** 2
     excess = np.sum(wb * (g2 * delta ** 2 - noise)) / np.sum(wb * g2)
-    if floor:
-        # the estimate's own standard error where no block displacement shows: each block's
-        # term g2·δ² − σn² has variance 2σn⁴ when δ is noise alone
-        excess = max(excess, noise * np.sqrt(2.0 * np.sum(wb ** 2)) / np.sum(wb * g2))
-    return float(np.sqrt(max(excess, 0.0)))
+    plain = float(np.sqrt(max(excess, 0.0)))
+    if not (floor or both):
+        return plain
+    # the estimate's own standard error where no block displacement shows: each block's
+    # term g2·δ² − σn² has variance 2σn⁴ when δ is noise alone
+    floored = float(np.sqrt(max(excess, noise * np.sqrt(2.0 * np.sum(wb ** 2)) / np.sum(wb * g2))))
+    return (plain, floored) if both else floored
 
 
 def texture_sigma(a) -> float:
