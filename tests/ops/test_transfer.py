@@ -149,6 +149,30 @@ def test_rays_that_do_not_meet_are_rejected(steep):
         assert out["B"].ok == ok and out["F"].match.status == "texture", out["B"].match.reason
 
 
+def test_the_rays_test_weighs_a_views_model_by_its_prediction_not_a_gcps_sigma(steep):
+    # a tie point carries the model's error at it, not a GCP measurement's own: F and B at
+    # heights 1.5 px of F's parallax apart (on steep relief a template's relief does this) were
+    # passed when each view's model was given the σ of a GCP measurement
+    from prismstation.io.windows import ImageWindows
+    from prismstation.ops.transfer import view_cov_px, view_sigma_px
+    project, sol, dem, points = steep
+    p = points[3]
+    with ImageWindows(project.scene) as im:
+        tr = transfer(sol, im, "N", p["image"]["N"], height_of=dem)
+    assert tr["F"].ok and tr["B"].ok
+    for v in "NFB":
+        xy = p["image"][v] if v == "N" else (tr[v].x, tr[v].y)
+        cov = view_cov_px(sol, v, xy)
+        assert np.allclose(cov, cov.T) and np.all(np.linalg.eigvalsh(cov) > 0)
+        if sol.bias[v].sigma0 <= 1:                    # no misfit beyond the a-priori σ
+            assert np.sqrt(np.linalg.eigvalsh(cov)[-1]) < view_sigma_px(sol, v)
+    d = np.asarray(tr["F"].match.extra["d"], float)
+    for step, ok in ((0.5, True), (1.5, False)):
+        moved = dict(tr, F=replace(tr["F"], x=tr["F"].x + step * d[0], y=tr["F"].y + step * d[1]))
+        out = consistency(sol, "N", p["image"]["N"], moved, p["h"])
+        assert out["F"].ok == ok and out["B"].ok == ok, out["F"].match.reason
+
+
 def test_the_slope_is_recovered_from_a_matched_shape(synth_sol):
     # without a reference DEM the first view's matched shape tells the slope the other is searched on
     from prismstation.ops.transfer_slope import fitted_slope, plane as _plane

@@ -53,7 +53,7 @@ from prismstation.ops.transfer_relief import RELIEF, shared_relief, smaller_on_r
 from prismstation.ops.transfer_slope import fitted_slope, from_slopes, plane, slope_shapes, slopes_disagree
 from prismstation.ops.transfer_template import SOURCE_MARGIN, TEMPLATE_HALVES, template_halves
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
-from prismstation.ops.predict import DEFAULT_HEIGHT_SPREAD_M, dem_sigma, ground_jacobian, height_spread
+from prismstation.ops.predict import DEFAULT_HEIGHT_SPREAD_M, bias_cov, dem_sigma, ground_jacobian, height_spread
 
 kernel = lazy_module("prismstation.core.matching.lsm_kernel")  # numba at first use: start-up saving
 
@@ -434,13 +434,28 @@ def _mark_unconfirmed(out, v1):
 
 
 def view_sigma_px(sol: Solution, view: str) -> float:
-    """σ (px) of ``view``'s model for the consistency test: the a-priori geolocation σ
-    (:func:`model_sigma_m`) while its bias is not fitted, else the a-posteriori σ of a
-    measurement in its bias fit, :data:`MODEL_SIGMA_PX` where the fit gives none."""
+    """σ (px) of ``view``'s model where a search is guided by another view's match (its band's
+    height σ, :func:`_confirm`): the a-priori geolocation σ (:func:`model_sigma_m`) while its
+    bias is not fitted, else the a-posteriori σ of a measurement in its bias fit (a wide band:
+    it includes the GCPs' own error), :data:`MODEL_SIGMA_PX` where the fit gives none."""
     if not sol.model.fitted(view):
         return model_sigma_m(sol) / sol.scene.views[view].pixel_size_m
     s0 = sol.bias[view].sigma0
     return float(s0 * sol.settings.sigma_px) if s0 is not None and math.isfinite(s0) and s0 > 0 else MODEL_SIGMA_PX
+
+
+def view_cov_px(sol: Solution, view: str, xy) -> np.ndarray:
+    """``(2, 2)`` px²: the covariance of ``view``'s model at image ``xy`` in the rays' test — what
+    the error of its bias fit's parameters gives there (:func:`~prismstation.ops.predict.bias_cov`)
+    plus the misfit its residuals show beyond the GCP measurements' a-priori σ (``(σ0² − 1)·σ²``
+    where σ0 > 1): not the σ of a GCP measurement, whose own error a tie point does not carry.
+    While the bias is not fitted, or where its fit states no covariance (a reference-DEM
+    orientation), :func:`view_sigma_px` in both directions."""
+    cov = np.asarray(bias_cov(sol, view, np.asarray(xy, float)), float) if sol.model.fitted(view) else None
+    s0 = sol.bias[view].sigma0
+    if cov is None or not np.all(np.isfinite(cov)) or s0 is None or not (math.isfinite(s0) and s0 > 0):
+        return view_sigma_px(sol, view) ** 2 * np.eye(2)
+    return cov + max(s0 * s0 - 1.0, 0.0) * sol.settings.sigma_px ** 2 * np.eye(2)
 
 
 def intersect(sol: Solution, obs: dict, h0: float, en0=None) -> tuple[np.ndarray, dict, float, int]:
@@ -474,15 +489,15 @@ def consistency(sol: Solution, source: str, xy, found: dict[str, Transfer], h0: 
                 en0=None) -> dict[str, Transfer]:
     """The rays' test: the source point and its matches in the other views intersected
     (:func:`intersect` from height ``h0``, default the mean height; each view weighted by its
-    match covariance plus its model σ², :func:`view_sigma_px`; ``en0``: the source point's ground
+    match covariance plus its model's, :func:`view_cov_px`; ``en0``: the source point's ground
     at ``h0``, when known); a χ² beyond :data:`CONSISTENCY_P` marks every match ``inconsistent``
     with the residuals in its reason. With one match the two rays meet at any height: what they
     test is the match's place across its parallax (the epipolar line), which the model fixes
     to its σ; with two, the heights the matches imply as well."""
     ok = {v: t for v, t in found.items() if t.ok}
-    obs = {source: (np.asarray(xy, float), view_sigma_px(sol, source) ** 2 * np.eye(2))}
+    obs = {source: (np.asarray(xy, float), view_cov_px(sol, source, xy))}
     for v, t in ok.items():
-        obs[v] = ((t.x, t.y), t.match.cov + view_sigma_px(sol, v) ** 2 * np.eye(2))
+        obs[v] = ((t.x, t.y), t.match.cov + view_cov_px(sol, v, (t.x, t.y)))
     try:
         _, res, chi2, dof, _ = intersect(sol, obs, sol.mean_height if h0 is None else h0,
                                          en0=None if h0 is None else en0)
