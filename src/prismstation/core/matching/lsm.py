@@ -51,7 +51,7 @@ from scipy import stats
 from prismstation.core.matching.lsm_fit import (LOW_CORRELATION, MAX_BEND, MOVED, NOT_CONVERGED, OK,  # noqa: F401
                                                 OUTSIDE, RIVAL_ITER, RIVAL_MARGIN, SHAPE, STEP_TOL, TEXTURE, Fit,
                                                 template)
-from prismstation.core.matching.lsm_sampled import POINT_SAMPLED, smoothed_shift, template_stats
+from prismstation.core.matching.lsm_sampled import POINT_SAMPLED, PULL_SHARE, smoothed_shift, template_stats
 from prismstation.core.matching.lsm_sigma import (gradient_noise_inflation, sampling_px,
                                                   sampling_scatter, unmodelled_sigma)
 from prismstation.core.matching.lsm_spline import Spline, low_pass, search_spline
@@ -324,7 +324,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         # (as across: the floor is the reading's own noise, not relief the blocks smooth, so
         # it is not scaled by RELIEF_SCALE)
         cov = cov + max(s_floor ** 2 - (RELIEF_SCALE * s_relief) ** 2, 0.0) * np.outer(e1, e1)
-    # the checks before the low-passed fit, which moves the point and not its σ
+    # the checks before the low-passed fit (its shift's own σ is checked after it)
     smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
     why = ((LOW_CORRELATION, f"correlation {rho:.2f} below {min_rho:.2f}") if rho < min_rho else
            (TEXTURE, f"too little texture: σ {smax:.2f} px above {max_sigma:.2f}")
@@ -342,6 +342,12 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
             it5 += it6
         shift = e2 * float(e2 @ whole) + (e1 * float(e1 @ along) if s_relief < edges else 0.0)
         t, it = t + shift, it + it5
+        # what the shift leaves, in its direction: the σ may now refuse the match
+        cov = cov + PULL_SHARE ** 2 * np.outer(shift, shift)
+        smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
+        if smax > max_sigma:
+            why = (TEXTURE, f"too little texture: σ {smax:.2f} px above {max_sigma:.2f} (with the "
+                            f"low-passed fit's shift, {np.hypot(*shift):.2f} px)")
     res = LsmResult(float(t[0]), float(t[1]), cov, formal, fit.A.copy(), float(fit.g1), float(fit.g0),
                     rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),
                                            "sigma_relief": s_relief, "sigma_across": s_across, "d": d,
