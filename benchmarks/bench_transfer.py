@@ -151,6 +151,14 @@ SETS = {
                       for seed, centre in ((81, (5.22, 44.10)), (82, (5.60, 44.90)), (83, (5.85, 44.25)),
                                            (84, (5.75, 44.56)), (85, (5.10, 44.62)))
                       for ref in ({}, {"reference": "geographic"})],
+    # five more places never looked at (0.1° or more from every scene above; one ascending),
+    # the other renderer's kind of parcels, both references: drawn after the rays' test took the
+    # model's σ at the point and the low-passed fit's shift kept its own σ, to judge those once
+    "judged_fresh3": [("dem", seed, centre, dict(texture="mottled", psf_px=0.0, noise_dn=2.0, **extra, **ref))
+                      for seed, centre, extra in ((91, (5.90, 44.45), {}), (92, (5.30, 44.80), {}),
+                                                  (93, (5.55, 44.30), {"ascending": True}),
+                                                  (94, (5.10, 44.45), {}), (95, (5.42, 44.92), {}))
+                      for ref in ({}, {"reference": "geographic"})],
     # JPEG block noise (8 × 8, as compressed PRISM products carry) on the other renderer's kind
     # of parcels: on smooth hills and on steep relief at two qualities (found on these; a gap)
     "jpeg_mottled": [("smooth", 54, None, dict(texture="mottled", psf_px=0.0, noise_dn=2.0, jpeg_quality=75)),
