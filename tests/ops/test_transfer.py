@@ -124,13 +124,20 @@ def test_transfer_on_steep_relief_finds_the_points_and_says_how_well(steep, with
     assert 0.85 <= np.mean(np.array(z) < 5.991) <= 1.0    # the 95 % ellipse holds the errors
 
 
-def test_rays_that_do_not_meet_are_rejected(steep):
+@pytest.fixture(scope="module")
+def found_both(steep):
+    """``(sol, point, transfers)``: a point of the steep project transferred to F and B, both found."""
     from prismstation.io.windows import ImageWindows
     project, sol, dem, points = steep
     p = points[3]
     with ImageWindows(project.scene) as im:
         tr = transfer(sol, im, "N", p["image"]["N"], height_of=dem)
     assert tr["F"].ok and tr["B"].ok
+    return sol, p, tr
+
+
+def test_rays_that_do_not_meet_are_rejected(found_both):
+    sol, p, tr = found_both
     h = p["h"]
     assert all(t.ok for t in consistency(sol, "N", p["image"]["N"], tr, h).values())
     # F off by 3 px along its parallax: the height it implies is not B's
@@ -149,17 +156,12 @@ def test_rays_that_do_not_meet_are_rejected(steep):
         assert out["B"].ok == ok and out["F"].match.status == "texture", out["B"].match.reason
 
 
-def test_the_rays_test_weighs_a_views_model_by_its_prediction_not_a_gcps_sigma(steep):
+def test_the_rays_test_weighs_a_views_model_by_its_prediction_not_a_gcps_sigma(found_both):
     # a tie point carries the model's error at it, not a GCP measurement's own: F and B at
     # heights 1.5 px of F's parallax apart (on steep relief a template's relief does this) were
     # passed when each view's model was given the σ of a GCP measurement
-    from prismstation.io.windows import ImageWindows
     from prismstation.ops.transfer import view_cov_px, view_sigma_px
-    project, sol, dem, points = steep
-    p = points[3]
-    with ImageWindows(project.scene) as im:
-        tr = transfer(sol, im, "N", p["image"]["N"], height_of=dem)
-    assert tr["F"].ok and tr["B"].ok
+    sol, p, tr = found_both
     for v in "NFB":
         xy = p["image"][v] if v == "N" else (tr[v].x, tr[v].y)
         cov = view_cov_px(sol, v, xy)

@@ -9,22 +9,14 @@ fit moves it 0.42 px across the parallax, and it ends 0.80 px off across; before
 0.08 px there (z 9.5)."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from prismstation.core.matching.lsm import refine
 from prismstation.core.matching.lsm_sampled import PULL_SHARE
-
-DATA = Path(__file__).parent / "pull_shift.npz"
+from tests.core.matching.captured import refine_captured
 
 
 def test_the_low_passed_fits_shift_keeps_a_share_of_itself_in_the_sigma():
-    f = np.load(DATA)
-    x, y = f["point"]
-    r = refine(f["reference"].astype(np.float64), float(x), float(y), f["search"].astype(np.float64), f["t0"],
-               f["A0"], parallax=f["parallax"], half=int(f["half"]), max_sigma=0.5,
-               max_shape_change=float(f["max_shape_change"]))
+    f, r = refine_captured("pull_shift.npz")
     assert r.ok, r.reason
     shift = np.asarray(r.extra["smoothed"], float)
     d = np.asarray(r.extra["d"], float)

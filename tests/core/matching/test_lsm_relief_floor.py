@@ -10,21 +10,13 @@ position. Its blocks read nil relief; the match is 0.57 px off along the paralla
 alike (the three rays meet). Before, it stated 0.047 px there: the noise's share alone."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from prismstation.core.matching.lsm import refine
-
-DATA = Path(__file__).parent / "nil_relief_reading.npz"
+from tests.core.matching.captured import refine_captured
 
 
 def test_a_nil_relief_reading_keeps_its_own_noise_in_the_sigma_along():
-    f = np.load(DATA)
-    x, y = f["point"]
-    r = refine(f["reference"].astype(np.float64), float(x), float(y), f["search"].astype(np.float64), f["t0"],
-               f["A0"], parallax=f["parallax"], half=int(f["half"]), max_sigma=0.5,
-               max_shape_change=float(f["max_shape_change"]))
+    _, r = refine_captured("nil_relief_reading.npz")
     assert r.ok, r.reason
     d = r.extra["d"]
     along = float(np.sqrt(d @ r.cov @ d))
