@@ -175,6 +175,22 @@ def test_the_rays_test_weighs_a_views_model_by_its_prediction_not_a_gcps_sigma(f
         assert out["F"].ok == ok and out["B"].ok == ok, out["F"].match.reason
 
 
+def test_a_view_whose_fit_states_no_covariance_keeps_the_wide_sigma_in_the_rays_test():
+    # an orientation from a reference DEM fits the biases to exact virtual points and states no
+    # covariance (NaN, no σ0): the rays' test then weighs that view by MODEL_SIGMA_PX
+    from prismstation.core.models.prism import BiasFit
+    from prismstation.ops.transfer import MODEL_SIGMA_PX, view_cov_px
+    sc = make_scene()
+    sol = solve(sc, make_points(sc, noise_px=0.2))
+    xy = (7000.0, 7000.0)
+    assert np.sqrt(view_cov_px(sol, "F", xy)[0, 0]) < 0.5 * MODEL_SIGMA_PX     # fitted on GCPs
+    f = sol.bias["F"]
+    u = len(f.params)
+    sol.model.bias["F"] = BiasFit(f.model, f.M, f.b, f.params, np.full(u, np.nan), f.names, None,
+                                  np.full((u, u), np.nan))
+    assert np.allclose(view_cov_px(sol, "F", xy), MODEL_SIGMA_PX ** 2 * np.eye(2))
+
+
 def test_the_slope_is_recovered_from_a_matched_shape(synth_sol):
     # without a reference DEM the first view's matched shape tells the slope the other is searched on
     from prismstation.ops.transfer_slope import fitted_slope, plane as _plane
