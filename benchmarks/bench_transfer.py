@@ -67,8 +67,9 @@ from prismstation.io.project import load_project  # noqa: E402
 from prismstation.io.windows import ImageWindows  # noqa: E402
 from prismstation.ops.fit import solve_project  # noqa: E402
 from prismstation.ops.reference_heights import load_for_scene  # noqa: E402
-from prismstation.ops.transfer import (FREE_SHAPE_CHANGE, MAX_SIGMA_PX, local_shape, model_sigma_m,  # noqa: E402
+from prismstation.ops.transfer import (FREE_SHAPE_CHANGE, MAX_SIGMA_PX, local_shape,  # noqa: E402
                                        search_height, search_sigmas, transfer)
+from prismstation.ops.transfer_rays import model_sigma_m  # noqa: E402
 from prismstation.sim import simulate  # noqa: E402
 from prismstation.io.geoid import GridGeoid, find_grid  # noqa: E402
 from prismstation.sim.reference import make_geographic_reference, make_reference_dem  # noqa: E402

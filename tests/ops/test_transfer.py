@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from prismstation.core.models.solution import solve
-from prismstation.ops.transfer import (FALLBACK_HEIGHT_RANGE_M, MIN_HEIGHT_RANGE_M, consistency,
-                                       local_shape, search_height, transfer)
+from prismstation.ops.transfer import FALLBACK_HEIGHT_RANGE_M, MIN_HEIGHT_RANGE_M, local_shape, search_height, transfer
+from prismstation.ops.transfer_rays import consistency
 from prismstation.sim.model_triplet import make_points, make_scene
 
 
@@ -160,7 +160,7 @@ def test_the_rays_test_weighs_a_views_model_by_its_prediction_not_a_gcps_sigma(f
     # a tie point carries the model's error at it, not a GCP measurement's own: F and B at
     # heights 1.5 px of F's parallax apart (on steep relief a template's relief does this) were
     # passed when each view's model was given the σ of a GCP measurement
-    from prismstation.ops.transfer import view_cov_px, view_sigma_px
+    from prismstation.ops.transfer_rays import view_cov_px, view_sigma_px
     sol, p, tr = found_both
     for v in "NFB":
         xy = p["image"][v] if v == "N" else (tr[v].x, tr[v].y)
@@ -179,7 +179,7 @@ def test_a_view_whose_fit_states_no_covariance_keeps_the_wide_sigma_in_the_rays_
     # an orientation from a reference DEM fits the biases to exact virtual points and states no
     # covariance (NaN, no σ0): the rays' test then weighs that view by MODEL_SIGMA_PX
     from prismstation.core.models.prism import BiasFit
-    from prismstation.ops.transfer import MODEL_SIGMA_PX, view_cov_px
+    from prismstation.ops.transfer_rays import MODEL_SIGMA_PX, view_cov_px
     sc = make_scene()
     sol = solve(sc, make_points(sc, noise_px=0.2))
     xy = (7000.0, 7000.0)

@@ -10,7 +10,8 @@ from prismstation.core.models.solution import solve
 from prismstation.io.scene import read_scene
 from prismstation.io.windows import ImageWindows
 from prismstation.ops.coarse_offsets import SIGMA_APRIORI_M
-from prismstation.ops.transfer import FITTED_SIGMA_M, model_sigma_m, transfer
+from prismstation.ops.transfer import transfer
+from prismstation.ops.transfer_rays import FITTED_SIGMA_M, model_sigma_m
 from prismstation.sim import simulate
 
 
