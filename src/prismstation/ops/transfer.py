@@ -9,9 +9,10 @@ by shape-aware least-squares matching (:func:`prismstation.core.matching.lsm_sea
   at the GCPs, not at every tree); ±:data:`FALLBACK_HEIGHT_RANGE_M` when nothing predicts it.
   The height range is searched along the parallax direction (where a height error moves the
   point).
-* **geolocation** (:func:`~prismstation.ops.transfer_rays.model_sigma_m`): the model's σ per view — the ancillary model's
-  a-priori σ (±85 px between two views) until every view's bias is fitted, then
-  :data:`~prismstation.ops.transfer_rays.FITTED_SIGMA_M` (±9 px) — searched both along and across.
+* **geolocation** (:func:`~prismstation.ops.transfer_rays.model_sigma_m`): the model's σ per
+  view — the ancillary model's a-priori σ (±85 px between two views) until every view's bias is
+  fitted, then :data:`~prismstation.ops.transfer_rays.FITTED_SIGMA_M` (±9 px) — searched both
+  along and across.
 * **shape** (:func:`local_shape`): the 2×2 Jacobian of the source → target mapping at the
   point through the model, on the terrain plane the reference DEM gives around the point
   (its slope foreshortens F and B against N by ``tanθ × slope``: 15–30 % on mountains). With
@@ -31,9 +32,9 @@ the relief the views' matches show (:func:`~prismstation.ops.transfer_relief.sha
 Transferred from N to both F and B, the three rays must meet:
 :func:`~prismstation.ops.transfer_rays.consistency` intersects them through the model (least
 squares on ``(E, N, h)``) and a χ² of the image residuals beyond its quantile rejects both
-(``inconsistent``). Found in one view only, the
-other is searched again at the height the found one implies; a match still alone after a
-search band longer than :data:`CONFIRM_ALONG_PX` is ``unconfirmed``. docs/matching.md has the
+(``inconsistent``). Found in one view only, the other is searched again at the height the found
+one implies; a match still alone after a search band longer than :data:`CONFIRM_ALONG_PX` is
+``unconfirmed``. docs/matching.md has the
 method and its measured performance.
 """
 from __future__ import annotations
