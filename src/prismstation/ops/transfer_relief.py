@@ -17,6 +17,7 @@ from dataclasses import replace
 import numpy as np
 
 from prismstation.core.matching.lsm import LsmResult, refine, template
+from prismstation.core.matching.lsm_sigma import largest_sigma
 from prismstation.core.models.solution import Solution
 from prismstation.ops.predict import ground_jacobian
 
@@ -84,7 +85,7 @@ def _with_relief_var(m: LsmResult, d, var: float, what: str, move: float, max_si
     (:data:`RELIEF`) when its σ then exceeds ``max_sigma`` px, the reason saying what showed the
     relief and what it did (``what``, ending before ``move`` px)."""
     cov = m.cov + var * np.outer(d, d)
-    smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
+    smax = largest_sigma(cov)
     if smax <= max_sigma:
         return replace(m, cov=cov)
     return replace(m, cov=cov, status=RELIEF, reason=f"the relief within the template, as {what} {move:.2f} px "
@@ -123,7 +124,7 @@ def smaller_on_relief(m: LsmResult, reference, xy, window, halves, shape, relief
         if scaled <= own:
             return m2
         cov = m2.cov + (scaled ** 2 - own ** 2) * np.outer(d, d)
-        if float(np.sqrt(np.linalg.eigvalsh(cov)[-1])) <= max_sigma:
+        if largest_sigma(cov) <= max_sigma:
             return replace(m2, cov=cov, extra={**m2.extra, "relief_px": scaled})
     return m
 

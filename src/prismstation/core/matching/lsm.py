@@ -52,7 +52,7 @@ from prismstation.core.matching.lsm_fit import (LOW_CORRELATION, MAX_BEND, MOVED
                                                 OUTSIDE, RIVAL_ITER, RIVAL_MARGIN, SHAPE, STEP_TOL, TEXTURE, Fit,
                                                 template)
 from prismstation.core.matching.lsm_sampled import POINT_SAMPLED, PULL_SHARE, smoothed_shift, template_stats
-from prismstation.core.matching.lsm_sigma import (gradient_noise_inflation, sampling_px,
+from prismstation.core.matching.lsm_sigma import (gradient_noise_inflation, largest_sigma, sampling_px,
                                                   sampling_scatter, unmodelled_sigma)
 from prismstation.core.matching.lsm_spline import Spline, low_pass, search_spline
 
@@ -325,10 +325,9 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         # it is not scaled by RELIEF_SCALE)
         cov = cov + max(s_floor ** 2 - (RELIEF_SCALE * s_relief) ** 2, 0.0) * np.outer(e1, e1)
     # the checks before the low-passed fit (its shift's own σ is checked after it)
-    smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
+    smax = largest_sigma(cov)
     why = ((LOW_CORRELATION, f"correlation {rho:.2f} below {min_rho:.2f}") if rho < min_rho else
-           (TEXTURE, f"too little texture: σ {smax:.2f} px above {max_sigma:.2f}")
-           if not np.isfinite(smax) or smax > max_sigma else None)
+           (TEXTURE, _too_vague(smax, max_sigma)) if not np.isfinite(smax) or smax > max_sigma else None)
     shift = np.zeros(2)
     if why is None and smooth == 0 and edges > POINT_SAMPLED:
         # the point-sampled images' sub-pixel pull: across the parallax the whole template's;
@@ -344,10 +343,10 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         t, it = t + shift, it + it5
         # what the shift leaves, in its direction: the σ may now refuse the match
         cov = cov + PULL_SHARE ** 2 * np.outer(shift, shift)
-        smax = float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
+        smax = largest_sigma(cov)
         if smax > max_sigma:
-            why = (TEXTURE, f"too little texture: σ {smax:.2f} px above {max_sigma:.2f} (with the "
-                            f"low-passed fit's shift, {np.hypot(*shift):.2f} px)")
+            why = (TEXTURE, _too_vague(smax, max_sigma) + f" (with the low-passed fit's shift, "
+                            f"{np.hypot(*shift):.2f} px)")
     res = LsmResult(float(t[0]), float(t[1]), cov, formal, fit.A.copy(), float(fit.g1), float(fit.g0),
                     rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),
                                            "sigma_relief": s_relief, "sigma_across": s_across, "d": d,
@@ -356,6 +355,11 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
                                            "along_half": (half if along_fit is fit else MID_HALF
                                                           if along_fit is not near_fit else 0)})
     return res if why is None else replace(res, status=why[0], reason=why[1])
+
+
+def _too_vague(smax: float, max_sigma: float) -> str:
+    """The reason of a match refused for its σ (``texture``)."""
+    return f"too little texture: σ {smax:.2f} px above {max_sigma:.2f}"
 
 
 def _refit(fit: Fit, w, keep, bend: bool, run_args):

@@ -31,6 +31,11 @@ def noise_sigma(a) -> float:
     return 1.4826 * float(np.median(np.abs(L))) / 6.0
 
 
+def largest_sigma(cov) -> float:
+    """σ (px) of a 2 × 2 covariance ``cov`` (px²) in its weakest direction: the larger semi-axis."""
+    return float(np.sqrt(np.linalg.eigvalsh(cov)[-1]))
+
+
 def gradient_noise_inflation(gx, gy, var: float, count: float | None = None) -> float:
     """Factor on the position's covariance for the noise in the gradients ``gx, gy`` (the
     design's, grey values per px): their noise power, :data:`GRADIENT_NOISE` times the noise
