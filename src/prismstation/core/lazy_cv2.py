@@ -24,7 +24,9 @@ class _LazyModule:
         module = self.__dict__["_module"]
         if module is None:
             module = self.__dict__["_module"] = importlib.import_module(self.__dict__["_name"])
-        return getattr(module, attr)
+        value = getattr(module, attr)
+        self.__dict__[attr] = value       # read directly from here on (matching's inner loops)
+        return value
 
 
 def lazy_module(name: str):

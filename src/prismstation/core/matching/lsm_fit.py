@@ -171,11 +171,12 @@ class Fit:
         weight is negligible cost iterations and move nothing."""
         other = self.copy()
         other.smp = None
+        idx = np.flatnonzero(keep)       # one pass over the mask: integer takes are cheaper
         for name in ("T", "u", "v", "Tu", "Tv", "w", "pw"):
             a = getattr(self, name)
             if a is not None:
-                setattr(other, name, a[keep])
-        other.uv, other.Q = np.ascontiguousarray(self.uv[:, keep]), np.ascontiguousarray(self.Q[:, keep])
+                setattr(other, name, a.take(idx))
+        other.uv, other.Q = self.uv.take(idx, axis=1), self.Q.take(idx, axis=1)
         return other
 
     def take(self, other):

@@ -6,7 +6,6 @@ Arrays: template grids ``(n, n)`` (rows, columns), grey values; displacements in
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 
 from prismstation.core.lazy_cv2 import lazy_module
 
@@ -16,7 +15,6 @@ GRADIENT_NOISE = 2.18
 """Variance of a gradient component of the cubic B-spline interpolating unit white noise, over
 all sub-pixel positions (numerically: 2.18; the interpolated values themselves 0.77)."""
 _EMPTY = np.empty((0, 0))
-_LAPLACE = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
 
 
 def noise_sigma(a) -> float:
@@ -27,8 +25,16 @@ def noise_sigma(a) -> float:
     a = np.asarray(a, np.float64)
     if min(a.shape) < 3:
         return 0.0
-    L = ndimage.correlate(a, _LAPLACE, mode="nearest")[1:-1, 1:-1]
-    return 1.4826 * float(np.median(np.abs(L))) / 6.0
+    return 1.4826 * float(np.median(np.abs(_laplace_inner(a)))) / 6.0
+
+
+def _laplace_inner(a):
+    """The difference of Laplacians (the kernel ``[1, −2, 1]ᵀ[1, −2, 1]``: the second
+    difference down the columns, then along the rows) at the interior pixels of ``a``:
+    ``(rows − 2, cols − 2)``, what :func:`noise_sigma` takes the median of."""
+    r = a[1:-1]
+    v = a[:-2] + a[2:] - 2.0 * r                              # the column second difference
+    return (v[:, :-2] + v[:, 2:]) - 2.0 * v[:, 1:-1]
 
 
 def largest_sigma(cov) -> float:
@@ -183,14 +189,14 @@ def template_sigmas(a, halves, block: int = 4, stop: float = 0.0) -> list[tuple[
     with ``stop`` > 0, none after the first size whose two σ are both at most ``stop``."""
     a = np.asarray(a, np.float64)
     c = a.shape[0] // 2
-    lap = np.abs(ndimage.correlate(a, _LAPLACE, mode="nearest"))
+    lap = np.abs(_laplace_inner(a))        # at the pixels of a[1:-1, 1:-1]
     gy, gx = np.gradient(a)
     edges = None                # the crossings, once, at the largest template's noise
     out = []
     for h in halves:
         sl = slice(c - h, c + h + 1)
         inner = slice(c - h + 1, c + h)
-        noise = 1.4826 * float(np.median(lap[inner, inner])) / 6.0
+        noise = 1.4826 * float(np.median(lap[c - h:c + h - 1, c - h:c + h - 1])) / 6.0
         var = noise ** 2
         x, y = gx[inner, inner].ravel(), gy[inner, inner].ravel()
         G = np.array([[x @ x, x @ y], [x @ y, y @ y]])
@@ -201,7 +207,7 @@ def template_sigmas(a, halves, block: int = 4, stop: float = 0.0) -> list[tuple[
             continue
         if edges is None:
             top = max(halves)
-            edges = sampling_px(a, 1.4826 * float(np.median(lap[c - top + 1:c + top, c - top + 1:c + top])) / 6.0)
+            edges = sampling_px(a, 1.4826 * float(np.median(lap[c - top:c + top - 1, c - top:c + top - 1])) / 6.0)
         ex, ey = edges[0][sl, sl], edges[1][sl, sl]
         if not (ex.any() or ey.any()):
             out.append((s_noise, s_noise))
