@@ -25,7 +25,13 @@ def noise_sigma(a) -> float:
     a = np.asarray(a, np.float64)
     if min(a.shape) < 3:
         return 0.0
-    return 1.4826 * float(np.median(np.abs(_laplace_inner(a)))) / 6.0
+    return _noise_of(np.abs(_laplace_inner(a)))
+
+
+def _noise_of(lap) -> float:
+    """The noise σ (grey values) from absolute differences of Laplacians ``lap``: their median
+    as a normal σ (× 1.4826), over the kernel's gain on white noise (6)."""
+    return 1.4826 * float(np.median(lap)) / 6.0
 
 
 def _laplace_inner(a):
@@ -196,7 +202,7 @@ def template_sigmas(a, halves, block: int = 4, stop: float = 0.0) -> list[tuple[
     for h in halves:
         sl = slice(c - h, c + h + 1)
         inner = slice(c - h + 1, c + h)
-        noise = 1.4826 * float(np.median(lap[c - h:c + h - 1, c - h:c + h - 1])) / 6.0
+        noise = _noise_of(lap[c - h:c + h - 1, c - h:c + h - 1])
         var = noise ** 2
         x, y = gx[inner, inner].ravel(), gy[inner, inner].ravel()
         G = np.array([[x @ x, x @ y], [x @ y, y @ y]])
@@ -207,7 +213,7 @@ def template_sigmas(a, halves, block: int = 4, stop: float = 0.0) -> list[tuple[
             continue
         if edges is None:
             top = max(halves)
-            edges = sampling_px(a, 1.4826 * float(np.median(lap[c - top:c + top - 1, c - top:c + top - 1])) / 6.0)
+            edges = sampling_px(a, _noise_of(lap[c - top:c + top - 1, c - top:c + top - 1]))
         ex, ey = edges[0][sl, sl], edges[1][sl, sl]
         if not (ex.any() or ey.any()):
             out.append((s_noise, s_noise))
