@@ -121,8 +121,10 @@ class Fit:
                 self.g1 = self.T.std() / max(S.std(), 1e-12)
                 self.g0 = self.T.mean() - self.g1 * S.mean()
             r, J = self.design(S, Sx, Sy, bend, esm=True, sw=sw)       # rows and residuals × √weight
-            dp = np.empty(J.shape[0])
-            if not kernel.solve_small(J @ J.T, J @ r, dp):
+            k = J.shape[0]
+            N, b, dp = np.empty((k, k)), np.empty(k), np.empty(k)
+            kernel.normals(J, r, N, b)
+            if not kernel.solve_small(N, b, dp):
                 return TEXTURE, "singular normal matrix (no texture)", it
             self.smp = None
             self.t += dp[0:2]
