@@ -38,6 +38,18 @@ iteration)."""
 
 _I2 = np.eye(2)
 _NONE = np.empty(0)
+_STATUS = (
+    lambda it, v, mm: (OK, "", it),
+    lambda it, v, mm: (OUTSIDE, "patch left the search image", it),
+    lambda it, v, mm: (LOW_CORRELATION, f"correlation {v:.2f} after {it - 1} iterations: no rival", it),
+    lambda it, v, mm: (TEXTURE, "singular normal matrix (no texture)", it),
+    lambda it, v, mm: (MOVED, f"the patch moved more than {mm:g} px from its start", it),
+    lambda it, v, mm: (SHAPE, "the patch's contrast inverted", it),
+    lambda it, v, mm: (SHAPE, f"the shape degenerated (changed by {v:.0%})", it),
+    lambda it, v, mm: (NOT_CONVERGED, f"no convergence in {it} iterations", it),
+)
+"""What :meth:`Fit.run` returns for each code of ``lsm_kernel.gauss_newton``: ``(status,
+reason, iterations)`` from the iterations, the code's value and the largest move."""
 
 
 def template(reference, x: float, y: float, half: int):
@@ -101,60 +113,37 @@ class Fit:
 
     def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float,
             need_rho: float | None = None, tol: float = STEP_TOL):
-        """Iterate to convergence: ``(status, reason, iterations)``, status ``OK`` or a failure;
-        ``need_rho``: give up as :data:`RIVAL_ITER` and :data:`RIVAL_MARGIN` say; ``tol``: the
-        position's step (px) counted as converged, the shape's 2.5 times it at
-        :data:`SHAPE_REACH` px."""
-        nb = 3 if bend else 0
+        """Iterate to convergence: ``(status, reason, iterations)``, status ``OK`` or a failure.
+
+        Each iteration samples the search image at the patch, solves the normal equations of
+        the residuals' design (the gradient the mean of both images', carried into the search
+        image: Benhimane and Malis 2004, faster convergence) and steps. It stops: converged when
+        the position moved less than ``tol`` (px) and the shape less than 2.5 times it at
+        :data:`SHAPE_REACH` px (the last step then carries the sample to first order — the
+        covariance and a bend started from here use it); ``moved`` beyond ``max_move`` px from
+        ``t0``; ``shape`` when the shape changed by more than twice ``max_shape_change``, bent
+        past twice :data:`MAX_BEND` or inverted the contrast; still moving 0.1 px a step after
+        :data:`WANDER_ITER`; with ``need_rho``, as :data:`RIVAL_ITER` and :data:`RIVAL_MARGIN`
+        say. The loop is compiled (``lsm_kernel.gauss_newton``)."""
         wt = self.weights()
-        sw = _NONE if wt is None else np.sqrt(wt)
-        for it in range(1, max_iter + 1):
-            smp = self.sample()
-            if smp is None:
-                return OUTSIDE, "patch left the search image", it
-            S, Sx, Sy = smp
-            if need_rho is not None and it >= RIVAL_ITER:
-                rho = correlation(self.T, S)
-                if rho < need_rho - RIVAL_MARGIN:
-                    return LOW_CORRELATION, f"correlation {rho:.2f} after {it - 1} iterations: no rival", it
-            if self.g1 is None:
-                self.g1 = self.T.std() / max(S.std(), 1e-12)
-                self.g0 = self.T.mean() - self.g1 * S.mean()
-            r, J = self.design(S, Sx, Sy, bend, esm=True, sw=sw)       # rows and residuals × √weight
-            k = J.shape[0]
-            N, b, dp = np.empty((k, k)), np.empty(k), np.empty(k)
-            kernel.normals(J, r, N, b)
-            if not kernel.solve_small(N, b, dp):
-                return TEXTURE, "singular normal matrix (no texture)", it
-            self.smp = None
-            self.t += dp[0:2]
-            self.A += dp[2:6].reshape(2, 2)
-            if bend:
-                self.c += dp[6:9]
-            self.g0 += dp[6 + nb]
-            self.g1 += dp[7 + nb]
-            if math.hypot(self.t[0] - t0[0], self.t[1] - t0[1]) > max_move:
-                return MOVED, f"the patch moved more than {max_move:g} px from its start", it
-            change = math.sqrt(float(np.square(A0inv @ self.A - _I2).sum()))   # ≥ the largest singular value
-            bent = bend and np.abs(self.c).max() * self.half > 2 * MAX_BEND
-            if change > 2 * max_shape_change or self.g1 <= 0 or bent:
-                return SHAPE, ("the patch's contrast inverted" if self.g1 <= 0 else
-                               f"the shape degenerated (changed by {change:.0%})"), it
-            shape_still = (self.w is not None
-                           or np.abs(dp[2:6 + nb]).max() * min(self.half, SHAPE_REACH) < 2.5 * tol)
-            if max(abs(dp[0]), abs(dp[1])) < tol and shape_still:
-                # converged: the last step (under the tolerance) carries the sample to first
-                # order — S + ∇S·δq, the gradients kept — for the covariance and a bend started
-                # from here, rather than sampling again
-                dq = dp[2:6].reshape(2, 2) @ self.uv + dp[0:2, None]
-                if bend:
-                    dq += np.outer(self.d, dp[6:9] @ self.Q)
-                self.smp = (S + Sx * dq[0] + Sy * dq[1], Sx, Sy)
-                return OK, "", it
-            step = math.hypot(dp[0], dp[1])
-            if it >= WANDER_ITER and step > 0.1:
-                break   # still wandering
-        return NOT_CONVERGED, f"no convergence in {it} iterations", it
+        n = self.T.size
+        S, Sx, Sy = np.empty(n), np.empty(n), np.empty(n)
+        have = self.smp is not None
+        if have:
+            S[:], Sx[:], Sy[:] = self.smp
+        g = np.array([self.g0, np.nan if self.g1 is None else self.g1])
+        sp = self.spline
+        code, it, value = kernel.gauss_newton(
+            sp.flat, sp.width, sp.c0, sp.r0, sp.lo, sp.hi, self.T, self.Tu, self.Tv, self.u, self.v, self.Q,
+            self.d, _NONE if wt is None else np.sqrt(wt), self.t, self.A, self.c, g, bend, have, S, Sx, Sy,
+            int(max_iter), np.asarray(t0, float), float(max_move), A0inv, float(max_shape_change),
+            np.nan if need_rho is None else float(need_rho), RIVAL_ITER, RIVAL_MARGIN, float(tol),
+            min(self.half, SHAPE_REACH), self.w is not None, WANDER_ITER, MAX_BEND, self.half)
+        if not math.isnan(g[1]):
+            self.g0, self.g1 = float(g[0]), float(g[1])
+        # the sample at the state reached: kept where it is that (converged: carried there)
+        self.smp = (S, Sx, Sy) if code in (0, 2, 3) else None
+        return _STATUS[code](it, value, max_move)
 
     def weights(self):
         """The pixels' weights in the fit: the taper's times the aliasing's (None: uniform)."""

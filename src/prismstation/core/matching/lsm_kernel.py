@@ -1,7 +1,7 @@
 """The compiled inner loops of least-squares matching (:mod:`prismstation.core.matching.lsm`):
 a window's cubic B-spline coefficients, the spline sampled with its derivatives at points or
-over a patch's pixels, the rows of a Gauss–Newton design, and the block sums and edge σ its
-covariance is made of (:mod:`prismstation.core.matching.lsm_sigma`). Numba compiles them on
+over a patch's pixels, the rows of a Gauss–Newton design, its normal equations and the whole
+loop of iterations, and the block sums and edge σ its covariance is made of (:mod:`prismstation.core.matching.lsm_sigma`). Numba compiles them on
 first use and caches them on disk (:func:`compile_kernels` loads them all): each is one pass
 over the pixels, where the same work in array operations made a dozen passes and as many
 temporary arrays (a transfer took 1.4–1.7 times as long so: docs/matching.md, speed).
@@ -191,6 +191,101 @@ def solve_small(N, b, x):
 
 
 @njit(**_OPTS)
+def _correlation(a, b):
+    """Correlation coefficient of ``a`` and ``b`` ``(n,)``."""
+    ma, mb = a.mean(), b.mean()
+    sab = saa = sbb = 0.0
+    for p in range(a.size):
+        x, y = a[p] - ma, b[p] - mb
+        sab += x * y
+        saa += x * x
+        sbb += y * y
+    return sab / math.sqrt(saa * sbb)
+
+
+@njit(**_OPTS)
+def gauss_newton(flat, width, c0, r0, lo, hi, T, Tu, Tv, u, v, Q, d, sw, t, A, c, g, bend, have, S, Sx, Sy,
+                 max_iter, t0, max_move, A0inv, max_shape_change, need_rho, rival_iter, rival_margin, tol,
+                 reach, shape_free, wander_iter, max_bend, half):
+    """The Gauss–Newton iterations of :meth:`~prismstation.core.matching.lsm_fit.Fit.run` (which
+    documents them), the design's gradient the mean of both images' (ESM). ``t`` ``(2,)``, ``A``
+    ``(2, 2)``, ``c`` ``(3,)`` and ``g`` = ``(g0, g1)`` (``g1`` NaN: not yet set) are updated in
+    place; ``S, Sx, Sy`` ``(n,)`` hold the search image sampled at the start when ``have`` and
+    the last sample at the end (converged: carried to first order by the last step).
+    ``need_rho`` NaN: no rival. Returns ``(code, iterations, value)``: code 0 converged, 1
+    outside, 2 low correlation (value: it), 3 singular, 4 moved, 5 contrast inverted, 6 shape
+    degenerated (value: the change), 7 not converged."""
+    k = 11 if bend else 8
+    nb = 3 if bend else 0
+    J, r = np.empty((k, S.size)), np.empty(S.size)
+    N, b, dp = np.empty((k, k)), np.empty(k), np.empty(k)
+    E = np.empty((2, 2))
+    it = 0
+    for it in range(1, max_iter + 1):
+        if not have:
+            curved = c[0] != 0.0 or c[1] != 0.0 or c[2] != 0.0
+            if not sample_patch(flat, width, c0, r0, lo, hi, t, A, c, d, u, v, Q, curved, S, Sx, Sy):
+                return 1, it, 0.0
+        have = False
+        if not math.isnan(need_rho) and it >= rival_iter:
+            rho = _correlation(T, S)
+            if rho < need_rho - rival_margin:
+                return 2, it, rho
+        if math.isnan(g[1]):
+            g[1] = T.std() / max(S.std(), 1e-12)
+            g[0] = T.mean() - g[1] * S.mean()
+        det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+        E[0, 0], E[0, 1], E[1, 0], E[1, 1] = A[1, 1] / det, -A[1, 0] / det, -A[0, 1] / det, A[0, 0] / det
+        design_rows(S, Sx, Sy, T, Tu, Tv, u, v, Q, d, g[0], g[1], E, True, bend, J, r, sw)
+        normals(J, r, N, b)
+        if not solve_small(N, b, dp):
+            return 3, it, 0.0
+        t[0] += dp[0]
+        t[1] += dp[1]
+        A[0, 0] += dp[2]
+        A[0, 1] += dp[3]
+        A[1, 0] += dp[4]
+        A[1, 1] += dp[5]
+        if bend:
+            c[0] += dp[6]
+            c[1] += dp[7]
+            c[2] += dp[8]
+        g[0] += dp[6 + nb]
+        g[1] += dp[7 + nb]
+        if math.hypot(t[0] - t0[0], t[1] - t0[1]) > max_move:
+            return 4, it, 0.0
+        change = 0.0
+        for i in range(2):
+            for j in range(2):
+                e = A0inv[i, 0] * A[0, j] + A0inv[i, 1] * A[1, j] - (1.0 if i == j else 0.0)
+                change += e * e
+        change = math.sqrt(change)
+        bent = bend and max(abs(c[0]), abs(c[1]), abs(c[2])) * half > 2 * max_bend
+        if g[1] <= 0:
+            return 5, it, change
+        if change > 2 * max_shape_change or bent:
+            return 6, it, change
+        shape_step = 0.0
+        for i in range(2, 6 + nb):
+            shape_step = max(shape_step, abs(dp[i]))
+        if max(abs(dp[0]), abs(dp[1])) < tol and (shape_free or shape_step * reach < 2.5 * tol):
+            # converged: the last step (under the tolerance) carries the sample to first order
+            # — S + ∇S·δq, the gradients kept — rather than sampling again
+            for p in range(S.size):
+                dqx = dp[2] * u[p] + dp[3] * v[p] + dp[0]
+                dqy = dp[4] * u[p] + dp[5] * v[p] + dp[1]
+                if bend:
+                    q = dp[6] * Q[0, p] + dp[7] * Q[1, p] + dp[8] * Q[2, p]
+                    dqx += d[0] * q
+                    dqy += d[1] * q
+                S[p] += Sx[p] * dqx + Sy[p] * dqy
+            return 0, it, 0.0
+        if it >= wander_iter and math.hypot(dp[0], dp[1]) > 0.1:
+            break   # still wandering
+    return 7, it, 0.0
+
+
+@njit(**_OPTS)
 def block_moments(G, r, O, lo, m, b, out):
     """Sums over the ``m × m`` blocks of ``b × b`` pixels of the ``(n, n)`` grids from row and
     column ``lo`` on, into ``out`` ``(3 or 6, m²)``: ``G², G·r, r²`` and, where ``O`` is not
@@ -342,6 +437,9 @@ def compile_kernels() -> None:
                  u, u, Q, False, *out[:3])
     design_rows(*out[:3], u, u, u, u, u, Q, np.zeros(2), 0.0, 1.0, np.eye(2), True, False, J, out[3], u[:0])
     normals(J, out[3], np.empty((8, 8)), np.empty(8))
+    gauss_newton(flat, 8, 0, 0, (1.5, 1.5), (5.5, 5.5), u, u, u, u, u, Q, np.zeros(2), u[:0],
+                 np.full(2, 3.0), np.eye(2), np.zeros(3), np.array([0.0, np.nan]), False, False, *out[:3], 1,
+                 np.full(2, 3.0), 3.0, np.eye(2), 0.25, np.nan, 3, 0.1, 0.01, 12, False, 6, 1.0, 12)
     solve_small(np.eye(2), np.ones(2), np.empty(2))
     g = np.zeros((8, 8))
     spline_coefficients(g)
