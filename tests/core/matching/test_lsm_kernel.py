@@ -39,8 +39,8 @@ def test_the_prepared_types_are_the_ones_a_match_uses():
     # a match of point-sampled texture takes every path (the coarse pass, the bend, the taper,
     # the central part, the low-passed fit): none of them may compile another signature
     K.compile_kernels()
-    kernels = (K.sample_points, K.sample_patch, K.design_rows, K.solve_small, K.block_moments, K.edge_sums,
-               K.spline_coefficients, K.crossing_sigma)
+    kernels = (K.sample_points, K.sample_patch, K.design_rows, K.normals, K.solve_small, K.gauss_newton,
+               K.block_moments, K.edge_sums, K.spline_coefficients, K.crossing_sigma)
     before = [len(f.signatures) for f in kernels]
     rng = np.random.default_rng(2)
     img = np.kron(rng.normal(100, 30, (60, 60)), np.ones((4, 4)))        # hard edges, no blur
