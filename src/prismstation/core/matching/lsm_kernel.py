@@ -1,9 +1,9 @@
 """The compiled inner loops of least-squares matching (:mod:`prismstation.core.matching.lsm`):
 a window's cubic B-spline coefficients, the spline sampled with its derivatives at points or
 over a patch's pixels, the rows of a Gauss–Newton design, its normal equations and the whole
-loop of iterations, and the block sums and edge σ its covariance is made of (:mod:`prismstation.core.matching.lsm_sigma`). Numba compiles them on
-first use and caches them on disk (:func:`compile_kernels` loads them all): each is one pass
-over the pixels, where the same work in array operations made a dozen passes and as many
+loop of iterations, and the block sums and edge σ its covariance is made of
+(:mod:`prismstation.core.matching.lsm_sigma`). Numba compiles them on first use and caches
+them on disk (:func:`compile_kernels` loads them all): each is one pass over the pixels, where the same work in array operations made a dozen passes and as many
 temporary arrays (a transfer took 1.4–1.7 times as long so: docs/matching.md, speed).
 
 Coordinates (docs/model.md §1): image ``x`` = column, ``y`` = row, pixels, continuous; the
