@@ -436,8 +436,9 @@ def _stated(fit: Fit, r, J, noise: float, e1, e2, n: int, aliasing=None):
         formal = s02 * (Ni @ (J.T @ (Jw * w[:, None])) @ Ni)[:2, :2] * inflation
         wn = None if fit.w is None else fit.w.reshape(n, n)
     # the displacement the patch's shape does not follow, along the parallax and across it
-    s_relief, s_floor = unmodelled_sigma(_along(J, e1, n), r.reshape(n, n), k, w=wn, both=True)
-    s_across = unmodelled_sigma(_along(J, e2, n), r.reshape(n, n), k, w=wn, other=_along(J, e1, n), floor=True)
+    g_along = _along(J, e1, n)
+    s_relief, s_floor = unmodelled_sigma(g_along, r.reshape(n, n), k, w=wn, both=True)
+    s_across = unmodelled_sigma(_along(J, e2, n), r.reshape(n, n), k, w=wn, other=g_along, floor=True)
     cov = (SIGMA_SCALE ** 2 * formal + (RELIEF_SCALE * s_relief) ** 2 * np.outer(e1, e1)
            + s_across ** 2 * np.outer(e2, e2))
     # where point-sampled edges lie between their samples, in both views (:func:`sampling_px`)
