@@ -97,6 +97,31 @@ def test_a_shape_off_by_a_quarter_is_found_with_a_coarse_pass(texture):
     assert found >= 8
 
 
+@pytest.mark.parametrize("first", [lsm.NOT_CONVERGED, lsm.SHAPE])
+def test_the_low_passed_pass_follows_only_the_failures_it_is_asked_for(texture, monkeypatch, first):
+    # the best peak's first fit fails (forced); a smoothed pass, then the full resolution from
+    # its end, follow only where its status is one of coarse_after (with a DEM: a fit that crept)
+    rng = np.random.default_rng(3)
+    A = np.array([[1.0, 0.0], [0.1, 1.05]])
+    ref, pt, srch, truth = warp(texture, (400.0, 500.0), A, (0.2, -0.3), 8.0, rng)
+    d = np.array([0.0, 1.0])
+    calls, real = [], lsm.refine
+
+    def refine(*a, **k):
+        calls.append(k.get("smooth", 0.0))
+        r = real(*a, **k)
+        return lsm.failed(r.x, r.y, first, "forced", shape=r.shape) if len(calls) == 1 else r
+
+    monkeypatch.setattr(lsm, "refine", refine)
+    r = match(ref, *pt, srch, truth + [0, 2.0], A, d, along=6, across=2, candidates=1, coarse=1.5,
+              coarse_after=(lsm.NOT_CONVERGED,), parallax=d)
+    if first == lsm.NOT_CONVERGED:
+        assert calls[:3] == [0.0, 1.5, 0.0] and r.ok, (calls, r.reason)
+        assert np.hypot(r.x - truth[0], r.y - truth[1]) < 0.05
+    else:
+        assert 1.5 not in calls and r.status == lsm.SHAPE
+
+
 def test_a_shape_that_shears_across_the_parallax_is_refused(texture):
     # relief moves points along the parallax only: a patch that found its fit by shearing
     # across it has matched something else

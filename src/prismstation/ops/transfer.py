@@ -75,6 +75,12 @@ RETRY_STATUSES = ("not_converged", "shape", "texture", "low_correlation", "low_s
 """The failures a different start shape may cure."""
 MAX_SIGMA_PX = 0.5
 """A match stating a larger σ (px) is a failure (``texture``)."""
+CREPT = ("not_converged",)
+"""With a reference DEM (the shape known), the failures of a match after which it is made
+again from the end of a pass on both images low-passed (σ 1.5 px, the search's ``coarse``):
+a fit still creeping after its iterations, which on point-sampled texture moves between
+minima a few tenths of a pixel apart that the low-pass removes (docs/matching.md). With no
+DEM every failure is (the shape is known only roughly)."""
 RESIZE_STATUSES = ("texture", "not_converged", "shape", "low_correlation")
 """A match failing so is tried with the smaller template sizes, the nearest first (with no
 reference DEM: with the other of the two sizes of
@@ -302,7 +308,8 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
         m = match(ref, xy[0] - rc0, xy[1] - rr0, win, s.pred - [c0, r0], s.A, d, along=along,
                   across=radius, half=half_window, max_sigma=MAX_SIGMA_PX,
                   max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
-                  coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, parallax=d, probe=not free)
+                  coarse=1.5, coarse_after=None if free else CREPT, rival=6.0 if free else 3.0, parallax=d,
+                  probe=not free)
         if free:
             # the level start may miss a steep slope's shape: start from slopes too
             m = from_slopes(m, slope_shapes(sol, source, xy, v, h_pt, half_window),
@@ -311,7 +318,8 @@ def transfer(sol: Solution, images: ImageWindows, source: str, xy, *, h=None, h_
                             max_shape_change=DEM_SHAPE_CHANGE, rival=6.0, parallax=d)
         resize = dict(along=along, across=radius, max_sigma=MAX_SIGMA_PX, parallax=d,
                       max_shape_change=FREE_SHAPE_CHANGE if free else DEM_SHAPE_CHANGE,
-                      coarse=1.5 if free else 0.0, rival=6.0 if free else 3.0, probe=not free)
+                      coarse=1.5, coarse_after=None if free else CREPT, rival=6.0 if free else 3.0,
+                      probe=not free)
         # with no DEM each size is a search over hundreds of pixels: only the edges' size
         for h in ([h_noise] if adaptive and h_noise != half_window else []) if free else others:
             if m.ok or m.status not in RESIZE_STATUSES:

@@ -140,7 +140,8 @@ def peaks(ncc, allowed, n: int, min_score: float):
 def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0), *,
           along: float = 10.0, across: float = 1.5, half: int = 12, candidates: int = 3,
           min_ncc: float = 0.3, ambiguity: float = AMBIGUITY, max_shape_change: float = 0.25,
-          coarse: float = 0.0, rival: float = 3.0, probe: bool = False, **options) -> LsmResult:
+          coarse: float = 0.0, coarse_after: tuple | None = None, rival: float = 3.0, probe: bool = False,
+          **options) -> LsmResult:
     """Find the point ``(x, y)`` of ``reference`` in ``search``.
 
     ``pred``: predicted position (px), ``A0``: predicted shape (2×2), ``direction``: search
@@ -152,7 +153,8 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
     (``texture``) too;
     ``max_shape_change``: how far the shape may move from ``A0`` (:func:`lsm.refine`);
     ``coarse``: σ (px) of a smoothed first pass of the best peak's least-squares match when
-    the shape is known only roughly (0: none); ``rival``: once the best peak converged, a peak
+    the shape is known only roughly (0: none), made when that match failed with a status of
+    ``coarse_after`` (None: any but ``outside``); ``rival``: once the best peak converged, a peak
     whose misfit ``1 − NCC²`` exceeds this factor times the best peak's is not tried (the
     matching improves both alike); ``probe``: the prediction is a start too when the best
     match lies more than 1 px from it (a prediction from a reference DEM: the texture may fit
@@ -186,7 +188,8 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
         need = None if top is None else float(np.sqrt(max(1.0 - ambiguity * misfit(top), 0.0)))
         r = lsm.refine(reference, x, y, search, t0, A0, half=half, spline=spline,
                        max_shape_change=max_shape_change, need_rho=need, **options)
-        if not r.ok and coarse > 0 and r.status != lsm.OUTSIDE and not results:
+        if (not r.ok and coarse > 0 and r.status != lsm.OUTSIDE and not results
+                and (coarse_after is None or r.status in coarse_after)):
             # the shape known only roughly: a smoothed pass first, then the full resolution
             # (for the best peak only: the others are there to expose an ambiguity)
             r0 = lsm.refine(reference, x, y, search, t0, A0, half=half, smooth=coarse,
