@@ -405,7 +405,8 @@ def _confirm(sol, images, source, xy, ref, ref_origin, out, v1, shapes, ground, 
         m = match(ref, xy[0] - ref_origin[0], xy[1] - ref_origin[1], win, pred - [c0, r0], A, d,
                   along=along, across=2.0, half=half_window, max_sigma=MAX_SIGMA_PX,
                   max_shape_change=DEM_SHAPE_CHANGE if guided else FREE_SHAPE_CHANGE,
-                  coarse=0.0 if guided else 1.5, rival=3.0 if guided else 6.0, parallax=d, probe=not free)
+                  coarse=1.5, coarse_after=CREPT if guided else None, rival=3.0 if guided else 6.0, parallax=d,
+                  probe=not free)
         if m.ok:
             m = replace(m, x=m.x + c0, y=m.y + r0, extra={**m.extra, "along": along})
             out = dict(out)
