@@ -3,8 +3,9 @@ a window's cubic B-spline coefficients, the spline sampled with its derivatives 
 over a patch's pixels, the rows of a Gauss–Newton design, its normal equations and the whole
 loop of iterations, and the block sums and edge σ its covariance is made of
 (:mod:`prismstation.core.matching.lsm_sigma`). Numba compiles them on first use and caches
-them on disk (:func:`compile_kernels` loads them all): each is one pass over the pixels, where the same work in array operations made a dozen passes and as many
-temporary arrays (a transfer took 1.4–1.7 times as long so: docs/matching.md, speed).
+them on disk (:func:`compile_kernels` loads them all): each is one pass over the pixels, where
+the same work in array operations made a dozen passes and as many temporary arrays (a
+transfer took 1.4–1.7 times as long so: docs/matching.md, speed).
 
 Coordinates (docs/model.md §1): image ``x`` = column, ``y`` = row, pixels, continuous; the
 spline's coefficient array ``flat`` is row-major with ``width`` columns, its element
@@ -213,7 +214,7 @@ def gauss_newton(flat, width, c0, r0, lo, hi, T, Tu, Tv, u, v, Q, d, sw, t, A, c
     place; ``S, Sx, Sy`` ``(n,)`` hold the search image sampled at the start when ``have`` and
     the last sample at the end (converged: carried to first order by the last step).
     ``need_rho`` NaN: no rival. Returns ``(code, iterations, value)``: code 0 converged, 1
-    outside, 2 low correlation (value: it), 3 singular, 4 moved, 5 contrast inverted, 6 shape
+    outside, 2 low correlation (value: the correlation), 3 singular, 4 moved, 5 contrast inverted, 6 shape
     degenerated (value: the change), 7 not converged."""
     k = 11 if bend else 8
     nb = 3 if bend else 0

@@ -152,11 +152,12 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
     template's pixels, their correlation allowed for), a converged one refused only for its σ
     (``texture``) too;
     ``max_shape_change``: how far the shape may move from ``A0`` (:func:`lsm.refine`);
-    ``coarse``: σ (px) of a smoothed first pass of the best peak's least-squares match when
-    the shape is known only roughly (0: none), made when that match failed with a status of
-    ``coarse_after`` (None: any but ``outside``); ``rival``: once the best peak converged, a peak
-    whose misfit ``1 − NCC²`` exceeds this factor times the best peak's is not tried (the
-    matching improves both alike); ``probe``: the prediction is a start too when the best
+    ``coarse``: σ (px) of a pass on both images smoothed, made when the best peak's
+    least-squares match failed, before the full resolution again from its end (0: none): for
+    a shape known only roughly, or a fit that crept between the minima of point-sampled
+    texture; ``coarse_after``: the failures that call it (None: any but ``outside``);
+    ``rival``: once the best peak converged, a peak whose misfit ``1 − NCC²`` exceeds this
+    factor times the best peak's is not tried (the matching improves both alike); ``probe``: the prediction is a start too when the best
     match lies more than 1 px from it (a prediction from a reference DEM: the texture may fit
     there as well, a minimum no correlation peak starts from). Other ``options`` go to
     :func:`lsm.refine`.
@@ -190,8 +191,8 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
                        max_shape_change=max_shape_change, need_rho=need, **options)
         if (not r.ok and coarse > 0 and r.status != lsm.OUTSIDE and not results
                 and (coarse_after is None or r.status in coarse_after)):
-            # the shape known only roughly: a smoothed pass first, then the full resolution
-            # (for the best peak only: the others are there to expose an ambiguity)
+            # a smoothed pass, then the full resolution from its end (for the best peak only:
+            # the others are there to expose an ambiguity)
             r0 = lsm.refine(reference, x, y, search, t0, A0, half=half, smooth=coarse,
                             max_shape_change=max_shape_change, **{**options, "min_rho": 0.0, "max_sigma": np.inf})
             if r0.ok:
