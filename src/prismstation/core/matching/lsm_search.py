@@ -157,10 +157,10 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
     a shape known only roughly, or a fit that crept between the minima of point-sampled
     texture; ``coarse_after``: the failures that call it (None: any but ``outside``);
     ``rival``: once the best peak converged, a peak whose misfit ``1 − NCC²`` exceeds this
-    factor times the best peak's is not tried (the matching improves both alike); ``probe``: the prediction is a start too when the best
-    match lies more than 1 px from it (a prediction from a reference DEM: the texture may fit
-    there as well, a minimum no correlation peak starts from). Other ``options`` go to
-    :func:`lsm.refine`.
+    factor times the best peak's is not tried (the matching improves both alike); ``probe``:
+    the prediction is a start too when the best match lies more than 1 px from it (a
+    prediction from a reference DEM: the texture may fit there as well, a minimum no
+    correlation peak starts from). Other ``options`` go to :func:`lsm.refine`.
     The result's ``score`` is the best peak's NCC, ``rho`` the fitted correlation.
     """
     pred = np.asarray(pred, float)
