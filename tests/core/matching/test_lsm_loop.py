@@ -31,7 +31,12 @@ def _run_by_python(fit, bend, max_iter, t0, max_move, A0inv, max_shape_change, n
         if fit.g1 is None:
             fit.g1 = fit.T.std() / max(S.std(), 1e-12)
             fit.g0 = fit.T.mean() - fit.g1 * S.mean()
-        r, J = fit.design(S, Sx, Sy, bend, esm=True, sw=sw)
+        # the design on the mean of both images' gradients (ESM), rows and residuals × √weight
+        J, r = np.empty((11 if bend else 8, S.size)), np.empty(S.size)
+        a, b, c, d = fit.A.ravel()
+        E = np.array([[d, -c], [-b, a]]) / (a * d - b * c)          # A⁻ᵀ
+        K.design_rows(S, Sx, Sy, fit.T, fit.Tu, fit.Tv, fit.u, fit.v, fit.Q, fit.d, fit.g0, fit.g1, E, True, bend,
+                      J, r, sw)
         dp = np.empty(J.shape[0])
         if not K.solve_small(J @ J.T, J @ r, dp):
             return F.TEXTURE, "singular normal matrix (no texture)", it

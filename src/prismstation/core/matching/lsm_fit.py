@@ -98,19 +98,6 @@ class Fit:
             return None
         return S, Sx, Sy
 
-    def design(self, S, Sx, Sy, bend: bool, esm: bool, sw=None):
-        """``(r, J)``: the residuals ``T − (g0 + g1·S)`` ``(n,)`` and the design
-        ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)`` ``(8 or 11, n)``; with ``esm`` the gradient is
-        the mean of the search image's and the template's carried into the search image
-        (Benhimane and Malis 2004: faster convergence); without, the search image's alone (the
-        covariance). ``sw`` ``(n,)``: each pixel's row and residual times it (None: 1)."""
-        J, r = np.empty((11 if bend else 8, S.size)), np.empty(S.size)
-        a, b, c, d = self.A.ravel()
-        E = np.array([[d, -c], [-b, a]]) / (a * d - b * c) if esm else _I2      # A⁻ᵀ
-        kernel.design_rows(S, Sx, Sy, self.T, self.Tu, self.Tv, self.u, self.v, self.Q, self.d, self.g0, self.g1,
-                           E, esm, bend, J, r, _NONE if sw is None else sw)
-        return r, J
-
     def run(self, bend: bool, max_iter: int, t0, max_move: float, A0inv, max_shape_change: float,
             need_rho: float | None = None, tol: float = STEP_TOL):
         """Iterate to convergence: ``(status, reason, iterations)``, status ``OK`` or a failure.
@@ -176,13 +163,16 @@ class Fit:
         self.smp = None
 
     def final(self, bend: bool):
-        """``(r, J, rho)`` at the current state: residuals, design (search-image gradients),
-        correlation of template and patch."""
+        """``(r, J, rho)`` at the current state: the residuals ``T − (g0 + g1·S)`` ``(n,)``, the
+        design ``∂(g0 + g1·S(q))/∂(t, A, [c], g0, g1)`` ``(n, 8 or 11)`` on the search image's
+        gradients alone (the covariance's), the correlation of template and patch."""
         smp = self.sample()
         if smp is None:
             return None, None, np.nan
         S, Sx, Sy = smp
-        r, J = self.design(S, Sx, Sy, bend, esm=False)
+        J, r = np.empty((11 if bend else 8, S.size)), np.empty(S.size)
+        kernel.design_rows(S, Sx, Sy, self.T, self.Tu, self.Tv, self.u, self.v, self.Q, self.d, self.g0, self.g1,
+                           _I2, False, bend, J, r, _NONE)
         return r, J.T, correlation(self.T, S)
 
 
