@@ -398,3 +398,36 @@ def test_a_match_off_the_prediction_whose_texture_fits_there_as_well_is_ambiguou
                   candidates=1, probe=probe)
         assert r.status == expected and len(calls) == fits, (shift, probe, r.status, r.reason, calls)
         assert abs(r.x - pred[0] - shift) < 0.2
+
+
+def test_a_start_that_ends_where_a_match_ended_is_that_match_and_stops_there(texture, monkeypatch):
+    """A rival peak whose fit converges where the best peak's ended is the same minimum: it is
+    given up once its whole template has converged (``same``), before the fits that follow, and
+    the match is the one every fit would have given."""
+    rng = np.random.default_rng(8)
+    A = np.array([[1.0, 0.0], [0.12, 1.04]])
+    ref, pt, srch, truth = warp(texture, (520.0, 430.0), A, (0.3, -0.2), 8.0, rng)
+    d = np.array([0.0, 1.0])
+    first = refine(ref, *pt, srch, truth + [0.4, 0.6], A, parallax=d)
+    assert first.ok and np.hypot(*(first.extra["fit"] - truth)) < 0.05
+    again = refine(ref, *pt, srch, truth + [-0.5, -0.3], A, parallax=d, found=[first.extra["fit"]])
+    assert again.status == lsm.SAME and again.iterations < first.iterations, (again.status, again.iterations)
+    elsewhere = refine(ref, *pt, srch, truth + [-0.5, -0.3], A, parallax=d, found=[first.extra["fit"] + 1.0])
+    assert elsewhere.ok
+    # in a search: the prediction 1.3 px off the peak's match is probed, ends there, and stops
+    # there; the result is the same
+    statuses, real = [], lsm.refine
+
+    def counted(*a, **k):
+        r = real(*a, **k)
+        statuses.append(r.status)
+        return r
+
+    monkeypatch.setattr(lsm, "refine", counted)
+    kw = dict(along=8, across=2, candidates=1, parallax=d, probe=True)
+    r = match(ref, *pt, srch, truth + [0.5, 1.2], A, d, **kw)
+    monkeypatch.setattr(lsm, "SAME_PX", 0.0)
+    statuses_fast, statuses[:] = list(statuses), []
+    r_all = match(ref, *pt, srch, truth + [0.5, 1.2], A, d, **kw)
+    assert lsm.SAME in statuses_fast and lsm.SAME not in statuses, (statuses_fast, statuses)
+    assert r.ok and (r.x, r.y) == (r_all.x, r_all.y) and np.array_equal(r.cov, r_all.cov)

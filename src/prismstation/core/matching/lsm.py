@@ -95,6 +95,12 @@ MID_HALF = 18
 by its mean over them."""
 BEND_TRIGGER = 0.03
 """A bend is tried when the affine patch leaves this much unmodelled relief (px)."""
+SAME = "same"
+"""Status of a fit from another start that ended where a match already made ended (``found``
+of :func:`refine`): that match again, given up before its further fits."""
+SAME_PX = 0.1
+"""How close (px) the whole template's affine fits must end to be one minimum: two minima of
+point-sampled texture lie a few tenths of a pixel apart, so closer than that is one."""
 
 
 @dataclass(frozen=True)
@@ -113,7 +119,8 @@ class LsmResult:
     ``edges`` (px: the template's mean σ of where its edges lie between samples,
     :func:`~prismstation.core.matching.lsm_sampled.edge_sigma`), ``smoothed`` ((2,) px: how
     far the low-passed last fit moved the point, zeros where the images are not point-sampled)
-    ``noise_along`` (px: the noise's share of the σ along the parallax, the rest relief) and
+    ``noise_along`` (px: the noise's share of the σ along the parallax, the rest relief),
+    ``fit`` ((2,) px: where the whole template's affine fit ended, before the later fits) and
     ``along_half`` (the half size of the square of template pixels, fitted uniformly, whose
     fit gave the position along the parallax: the template's own, :data:`MID_HALF` for its
     central part; 0 for the fit weighted to the point's surroundings)."""
@@ -166,7 +173,8 @@ def failed(x, y, status, reason, *, shape=None, rho=np.nan, iterations=0, score=
 def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half: int = 12,
            max_iter: int = 20, max_move: float = 3.0, max_shape_change: float = 0.25,
            min_rho: float = 0.6, max_sigma: float = 0.5, smooth: float = 0.0,
-           spline: Spline | None = None, taper: float = TAPER, need_rho: float | None = None) -> LsmResult:
+           spline: Spline | None = None, taper: float = TAPER, need_rho: float | None = None,
+           found=None) -> LsmResult:
     """Least-squares matching of the point ``(x, y)`` of ``reference`` in ``search``.
 
     Parameters
@@ -206,6 +214,10 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
     need_rho : float, optional
         The correlation the match must reach to matter (a rival of a match found already):
         given up early (``low_correlation``) when it falls far short (:data:`RIVAL_MARGIN`).
+    found : (k, 2), optional
+        Where the whole template's affine fits of matches already made (from other starts) ended
+        (``extra["fit"]``): a fit ending within :data:`SAME_PX` of one is that match again,
+        returned at once as :data:`SAME`.
     """
     A0 = np.asarray(A0, float)
     t0 = np.asarray(t0, float)
@@ -245,6 +257,10 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
             return failed(x_, y_, status, reason, shape=fit.A, iterations=it)
     status, reason, it2 = fit.run(False, max_iter, t0, max_move, A0inv, max_shape_change, need_rho)
     it += it2
+    if status == OK and found is not None and len(found) and np.min(np.hypot(*(np.asarray(found) - fit.t).T)) < SAME_PX:
+        return failed(fit.t[0], fit.t[1], SAME, "the match found already from another start", shape=fit.A,
+                      iterations=it)
+    fit_t = fit.t.copy()
     if status != OK:
         x_, y_ = (t0 if status == MOVED else fit.t)
         rho = fit.final(False)[2] if status == NOT_CONVERGED else np.nan
@@ -351,7 +367,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
                     rho, it, OK, "", rho, {"bend": fit.c.copy() if bend else np.zeros(3),
                                            "sigma_relief": s_relief, "sigma_across": s_across, "d": d,
                                            "taper": local, "half": half, "mid": mid, "smoothed": shift,
-                                           "edges": edges, "noise_along": noise_along,
+                                           "edges": edges, "noise_along": noise_along, "fit": fit_t,
                                            "along_half": (half if along_fit is fit else MID_HALF
                                                           if along_fit is not near_fit else 0)})
     return res if why is None else replace(res, status=why[0], reason=why[1])

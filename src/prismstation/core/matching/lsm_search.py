@@ -137,6 +137,12 @@ def peaks(ncc, allowed, n: int, min_score: float):
     return out
 
 
+def _ends(results) -> list:
+    """Where the whole template's fits of the converged ``results`` ended (``extra["fit"]``):
+    a peak that ends there too is the same match (:data:`lsm.SAME`)."""
+    return [r.extra["fit"] for r in results if r.ok and "fit" in r.extra]
+
+
 def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0), *,
           along: float = 10.0, across: float = 1.5, half: int = 12, candidates: int = 3,
           min_ncc: float = 0.3, ambiguity: float = AMBIGUITY, max_shape_change: float = 0.25,
@@ -188,7 +194,7 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
         top = max((r.rho for r in results if r.ok), default=None)
         need = None if top is None else float(np.sqrt(max(1.0 - ambiguity * misfit(top), 0.0)))
         r = lsm.refine(reference, x, y, search, t0, A0, half=half, spline=spline,
-                       max_shape_change=max_shape_change, need_rho=need, **options)
+                       max_shape_change=max_shape_change, need_rho=need, found=_ends(results), **options)
         if (not r.ok and coarse > 0 and r.status != lsm.OUTSIDE and not results
                 and (coarse_after is None or r.status in coarse_after)):
             # a smoothed pass, then the full resolution from its end (for the best peak only:
@@ -214,7 +220,7 @@ def match(reference, x: float, y: float, search, pred, A0, direction=(0.0, 1.0),
     if probe and np.hypot(*off) > 1.0:
         need = float(np.sqrt(max(1.0 - ambiguity * misfit(best.rho), 0.0)))
         results.append(lsm.refine(reference, x, y, search, pred, A0, half=half, spline=spline,
-                                  max_shape_change=max_shape_change, need_rho=need, **options))
+                                  max_shape_change=max_shape_change, need_rho=need, found=_ends(results), **options))
         good = good + [results[-1]] if results[-1].ok else good
     # a rival refused only for its σ (converged, too little texture in one direction) still says
     # the texture fits there: one that fits as well is as much an ambiguity as a kept one
