@@ -206,6 +206,32 @@ def test_bend_follows_the_curvature_of_the_parallax(texture):
     assert np.median(errs[False]) > 3 * np.median(errs[True]), errs   # the affine patch averages the bend
 
 
+@pytest.mark.parametrize("half", [12, 32])
+def test_a_larger_template_follows_the_same_curvature(texture, half):
+    """The bend's limit is a curvature: the ridge that bends a 25 px template by 0.4 px at its
+    edge bends a 65 px one by 2.9 px there (the square of the distance), and both follow it.
+    Held to 1 px at every template's edge, the 65 px template left it to the affine patch,
+    whose σ then held the relief it averaged: refused (σ 0.9 px)."""
+    img, coef = texture
+    rng = np.random.default_rng(12)
+    errs = []
+    for _ in range(6):
+        p = rng.uniform(200, 800, 2)
+        c = rng.choice([-1, 1]) * 0.0028                  # 0.4 px at 12 px, 2.9 px at 32 px
+        r0 = (np.floor(p) - HALF).astype(int)
+        ref = img[r0[1]:r0[1] + 2 * HALF, r0[0]:r0[0] + 2 * HALF]
+        oy, ox = np.mgrid[0:2 * HALF, 0:2 * HALF]
+        xs, ys = ox + 0.5 + r0[0], oy + 0.5 + r0[1]
+        srch = ndimage.map_coordinates(coef, [ys - c * (xs - p[0]) ** 2 - 0.5, xs - 0.5], order=3, prefilter=False)
+        srch = np.clip(np.rint(srch + rng.normal(0, 8.0, srch.shape)), 0, 65535).astype(np.uint16)
+        truth = p - r0
+        r = refine(ref, *truth, srch, truth + [0.3, -0.4], np.eye(2), parallax=(0, 1), half=half)
+        assert r.ok, r.reason
+        assert abs(r.extra["bend"][0] * half - c * half ** 2) < max(0.1, 0.1 * abs(c) * half ** 2), (r.extra["bend"], c)
+        errs.append(np.hypot(r.x - truth[0], r.y - truth[1]))
+    assert np.max(errs) < 0.05, errs
+
+
 def test_a_bend_beyond_the_limit_is_flagged_not_returned(texture):
     img, coef = texture
     p = np.array([520.3, 610.8])

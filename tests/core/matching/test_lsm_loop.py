@@ -50,7 +50,7 @@ def _run_by_python(fit, bend, max_iter, t0, max_move, A0inv, max_shape_change, n
         if math.hypot(fit.t[0] - t0[0], fit.t[1] - t0[1]) > max_move:
             return F.MOVED, f"the patch moved more than {max_move:g} px from its start", it
         change = math.sqrt(float(np.square(A0inv @ fit.A - np.eye(2)).sum()))
-        bent = bend and np.abs(fit.c).max() * fit.half > 2 * F.MAX_BEND
+        bent = bend and np.abs(fit.c).max() * fit.half > 2 * F.max_bend(fit.half)
         if change > 2 * max_shape_change or fit.g1 <= 0 or bent:
             return F.SHAPE, ("the patch's contrast inverted" if fit.g1 <= 0 else
                              f"the shape degenerated (changed by {change:.0%})"), it

@@ -48,9 +48,9 @@ from functools import lru_cache
 import numpy as np
 from scipy import stats
 
-from prismstation.core.matching.lsm_fit import (LOW_CORRELATION, MAX_BEND, MOVED, NOT_CONVERGED, OK,  # noqa: F401
+from prismstation.core.matching.lsm_fit import (LOW_CORRELATION, MOVED, NOT_CONVERGED, OK,  # noqa: F401
                                                 OUTSIDE, RIVAL_ITER, RIVAL_MARGIN, SHAPE, STEP_TOL, TEXTURE, Fit,
-                                                template)
+                                                max_bend, template)
 from prismstation.core.matching.lsm_sampled import POINT_SAMPLED, PULL_SHARE, smoothed_shift, template_stats
 from prismstation.core.matching.lsm_sigma import (gradient_noise_inflation, largest_sigma, sampling_px,
                                                   sampling_scatter, unmodelled_sigma)
@@ -193,7 +193,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         c3·v²)/half`` (the terrain's curvature within the template, which an affine patch
         averages into its centre); the bend is kept when it is significant (F test at
         :data:`BEND_P`, on residuals scaled by :data:`SIGMA_SCALE`) and under
-        :data:`MAX_BEND` px at the template's edge.
+        :func:`~prismstation.core.matching.lsm_fit.max_bend` px at the template's edge.
     half : int
         Template half size: ``(2·half+1)²`` pixels.
     max_iter : int
@@ -274,7 +274,7 @@ def refine(reference, x: float, y: float, search, t0, A0, *, parallax=None, half
         curved = fit.copy()
         status, _, it2 = curved.run(True, max_iter, t0, max_move, A0inv, max_shape_change)
         it += it2
-        if status == OK and np.abs(curved.c).max() * half <= MAX_BEND:
+        if status == OK and np.abs(curved.c).max() * half <= max_bend(half):
             r1, J1, rho1 = curved.final(True)
             if r1 is not None and _significant(r, r1):
                 fit, bend, r, J, rho = curved, True, r1, J1, rho1

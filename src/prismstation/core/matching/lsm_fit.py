@@ -28,7 +28,17 @@ the 25 × 25 px every template holds. At a large template's edge a shape still c
 WANDER_ITER = 6
 """Iterations after which a patch still moving by 0.1 px per step is given up."""
 MAX_BEND = 1.0
-"""Largest bend (px) of the patch at the template's edge."""
+"""Largest bend (px) of the patch at the edge of a 25 px template (:data:`BEND_HALF`): a
+curvature of the terrain, 5 m off the plane 30 m from the point at 0.2 px of parallax per
+metre (a ridge of 90 m radius); a larger template's edge allows the same curvature
+(:func:`max_bend`)."""
+BEND_HALF = 12
+
+
+def max_bend(half: int) -> float:
+    """Largest bend (px) at the edge of a template of half size ``half``: :data:`MAX_BEND`
+    times ``(half / BEND_HALF)²`` (the bend grows as the square of the distance)."""
+    return MAX_BEND * (half / BEND_HALF) ** 2
 RIVAL_ITER = 3
 RIVAL_MARGIN = 0.1
 """A patch that must reach a correlation (``need_rho`` of :func:`~prismstation.core.matching.lsm.refine`: a rival peak) is given
@@ -109,7 +119,7 @@ class Fit:
         :data:`SHAPE_REACH` px (the last step then carries the sample to first order — the
         covariance and a bend started from here use it); ``moved`` beyond ``max_move`` px from
         ``t0``; ``shape`` when the shape changed by more than twice ``max_shape_change``, bent
-        past twice :data:`MAX_BEND` or inverted the contrast; still moving 0.1 px a step after
+        past twice :func:`max_bend` or inverted the contrast; still moving 0.1 px a step after
         :data:`WANDER_ITER`; with ``need_rho``, as :data:`RIVAL_ITER` and :data:`RIVAL_MARGIN`
         say. The loop is compiled (``lsm_kernel.gauss_newton``)."""
         wt = self.weights()
@@ -125,7 +135,7 @@ class Fit:
             self.d, _NONE if wt is None else np.sqrt(wt), self.t, self.A, self.c, g, bend, have, S, Sx, Sy,
             int(max_iter), np.asarray(t0, float), float(max_move), A0inv, float(max_shape_change),
             np.nan if need_rho is None else float(need_rho), RIVAL_ITER, RIVAL_MARGIN, float(tol),
-            min(self.half, SHAPE_REACH), self.w is not None, WANDER_ITER, MAX_BEND, self.half)
+            min(self.half, SHAPE_REACH), self.w is not None, WANDER_ITER, max_bend(self.half), self.half)
         if not math.isnan(g[1]):
             self.g0, self.g1 = float(g[0]), float(g[1])
         # the sample at the state reached: kept where it is that (converged: carried there)
