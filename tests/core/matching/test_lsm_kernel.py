@@ -1,6 +1,7 @@
 """The compiled loops of least-squares matching: outside points and NaN positions are refused,
 never read past the window, and the types compile_kernels prepares are the ones matching uses."""
 import numpy as np
+import pytest
 from scipy import ndimage
 
 from prismstation.core.matching import lsm_kernel as K
@@ -130,3 +131,10 @@ def test_the_small_solver_is_lapacks_and_says_when_a_matrix_is_singular():
         assert np.allclose(x, np.linalg.solve(N, b), rtol=1e-10, atol=1e-12)
     assert not K.solve_small(np.zeros((3, 3)), np.ones(3), np.empty(3))
     assert not K.solve_small(np.array([[1.0, 1.0], [0.0, 0.0]]), np.ones(2), np.empty(2))    # a zero row
+
+
+@pytest.mark.parametrize("shape", [(61, 61), (60, 62), (1,), (2,), (4095,)])
+def test_the_noise_median_is_numpys(shape):
+    from prismstation.core.matching.lsm_sigma import _median
+    a = np.abs(np.random.default_rng(sum(shape)).normal(size=shape))
+    assert _median(a) == float(np.median(a))

@@ -29,9 +29,20 @@ def noise_sigma(a) -> float:
 
 
 def _noise_of(lap) -> float:
-    """The noise σ (grey values) from absolute differences of Laplacians ``lap``: their median
-    as a normal σ (× 1.4826), over the kernel's gain on white noise (6)."""
-    return 1.4826 * float(np.median(lap)) / 6.0
+    """The noise σ (grey values) from absolute differences of Laplacians ``lap`` (finite): their
+    median as a normal σ (× 1.4826), over the kernel's gain on white noise (6)."""
+    return 1.4826 * _median(lap) / 6.0
+
+
+def _median(a) -> float:
+    """``np.median`` of the finite array ``a``, to the bit, without its generality's cost (a
+    quarter of the time for a template's few thousand values, called ten times a point)."""
+    a = np.asarray(a).ravel()
+    k = a.size // 2
+    if a.size % 2:
+        return float(np.partition(a, k)[k])
+    p = np.partition(a, (k - 1, k))
+    return float((p[k - 1] + p[k]) / 2)
 
 
 def _laplace_inner(a):
