@@ -151,16 +151,18 @@ def test_relief_within_a_large_template_is_weighed_by_its_central_part(monkeypat
     """A 65 px template grown for few edges on steep relief: its patch places the point by the
     relief's mean over the template. The central 37 px fitted from its end disagree by that
     relief, which then enters the σ (and the central fit gives the position when it states
-    less). Measured: 36 matches, z along 0.74, none more than 1 px off; without it z 1.22 and two
-    matches more than 1 px off at z over 3 (the bend takes part of the hollow either way)."""
+    less). Measured: 35 matches, 0.24 px RMS along, z 0.73, none more than 1 px off; without
+    it 0.30 px, z 0.94 and one match 1.02 px off at z over 3 (the bend takes part of the hollow
+    either way)."""
     e = _hollow_matches(np.random.default_rng(0), 1.5, 60)
     z = e[:, 0] / e[:, 1]
-    assert len(e) >= 30 and np.sqrt(np.mean(z ** 2)) < 1.0, (len(e), np.sqrt(np.mean(z ** 2)))
+    rms, zrms = np.sqrt(np.mean(e[:, 0] ** 2)), np.sqrt(np.mean(z ** 2))
+    assert len(e) >= 30 and zrms < 1.0, (len(e), zrms)
     assert not np.any((np.abs(e[:, 0]) > 1.0) & (np.abs(z) > 3)), e
     monkeypatch.setattr(lsm, "MID_HALF", 99)        # no central fit: the old behaviour
     e = _hollow_matches(np.random.default_rng(0), 1.5, 60)
     z = e[:, 0] / e[:, 1]
-    assert np.sqrt(np.mean(z ** 2)) > 1.1 and np.any((np.abs(e[:, 0]) > 1.0) & (np.abs(z) > 3))
+    assert np.sqrt(np.mean(e[:, 0] ** 2)) > 1.1 * rms and np.sqrt(np.mean(z ** 2)) > zrms + 0.1
 
 
 def test_point_sampled_views_are_matched_without_the_pull_of_their_pixel_grids():

@@ -1,6 +1,7 @@
 """The Gauss–Newton state of one least-squares patch (:mod:`prismstation.core.matching.lsm`):
 position, affine shape, bend along the parallax, offset and gain on a fixed template and
-search spline; its iterations and what they stop on.
+search spline; its iterations and what they stop on; how far its shape may move
+(:func:`shape_check`).
 
 Coordinates as in :mod:`prismstation.core.matching.lsm` (docs/model.md §1).
 """
@@ -45,6 +46,10 @@ RIVAL_MARGIN = 0.1
 up when, after :data:`RIVAL_ITER` iterations, its correlation lies more than this below it (on
 the tuning scenes and the Pléiades triplet the correlation rose by at most 0.06 after the third
 iteration)."""
+
+MAX_ACROSS_CHANGE = 0.06
+"""Largest change of the shape across the parallax (relief changes it along the parallax; the
+model's views are right to 10⁻³ across)."""
 
 _I2 = np.eye(2)
 _NONE = np.empty(0)
@@ -190,3 +195,19 @@ def correlation(a, b) -> float:
     """Correlation coefficient of the arrays ``a`` and ``b`` (same size)."""
     a, b = a - a.mean(), np.ravel(b) - b.mean()
     return float(a @ b / np.sqrt((a @ a) * (b @ b)))
+
+
+def shape_check(A0, A, parallax, max_change: float, max_across: float = MAX_ACROSS_CHANGE) -> str:
+    """Why the shape ``A`` is too far from ``A0`` ("" when it is not): its change
+    (largest singular value of ``A0⁻¹A − I``) beyond ``max_change``, or — given the parallax
+    direction — its change across the parallax beyond ``max_across`` (relief moves points
+    along the parallax only: a slope changes the row of ``A`` along it, nothing across)."""
+    change = float(np.linalg.svd(np.linalg.solve(A0, A) - _I2, compute_uv=False)[0])
+    if change > max_change:
+        return f"the shape changed by {change:.0%} (more than {max_change:.0%})"
+    if parallax is not None:
+        d = np.asarray(parallax, float) / np.hypot(*parallax)
+        across = float(np.hypot(*(np.array([-d[1], d[0]]) @ (A - A0))))
+        if across > max_across:
+            return f"the shape changed by {across:.0%} across the parallax (more than {max_across:.0%})"
+    return ""
