@@ -467,8 +467,6 @@ def _stated(fit: Fit, r, J, noise: float, e1, e2, n: int, aliasing=None):
     return cov, formal, s_relief, s_across, sampled, s_floor
 
 
-
-
 def _along(J, d, n: int):
     """The design's gradient along ``d`` on the template grid ``(n, n)``."""
     return (J[:, 0] * d[0] + J[:, 1] * d[1]).reshape(n, n)

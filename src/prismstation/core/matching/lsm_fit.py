@@ -34,12 +34,7 @@ curvature of the terrain, 5 m off the plane 30 m from the point at 0.2 px of par
 metre (a ridge of 90 m radius); a larger template's edge allows the same curvature
 (:func:`max_bend`)."""
 BEND_HALF = 12
-
-
-def max_bend(half: int) -> float:
-    """Largest bend (px) at the edge of a template of half size ``half``: :data:`MAX_BEND`
-    times ``(half / BEND_HALF)²`` (the bend grows as the square of the distance)."""
-    return MAX_BEND * (half / BEND_HALF) ** 2
+"""Half size (px) of the template whose edge :data:`MAX_BEND` is measured at."""
 RIVAL_ITER = 3
 RIVAL_MARGIN = 0.1
 """A patch that must reach a correlation (``need_rho`` of :func:`~prismstation.core.matching.lsm.refine`: a rival peak) is given
@@ -195,6 +190,12 @@ def correlation(a, b) -> float:
     """Correlation coefficient of the arrays ``a`` and ``b`` (same size)."""
     a, b = a - a.mean(), np.ravel(b) - b.mean()
     return float(a @ b / np.sqrt((a @ a) * (b @ b)))
+
+
+def max_bend(half: int) -> float:
+    """Largest bend (px) at the edge of a template of half size ``half``: :data:`MAX_BEND`
+    times ``(half / BEND_HALF)²`` (the bend grows as the square of the distance)."""
+    return MAX_BEND * (half / BEND_HALF) ** 2
 
 
 def shape_check(A0, A, parallax, max_change: float, max_across: float = MAX_ACROSS_CHANGE) -> str:
