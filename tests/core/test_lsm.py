@@ -43,6 +43,23 @@ def random_shape(rng, k=0.3):
     return R @ np.array([[1 + rng.uniform(-k, k), rng.uniform(-k, k)], [0, 1 + rng.uniform(-k, k)]])
 
 
+def ridge(texture, p, c):
+    """Reference crop around ``p``, the search crop bent along y by the ridge ``c·(x − p_x)²``
+    (float, unrounded: ``search(q) = ref(q − bend)``) and the point in both."""
+    img, coef = texture
+    r0 = (np.floor(p) - HALF).astype(int)
+    ref = img[r0[1]:r0[1] + 2 * HALF, r0[0]:r0[0] + 2 * HALF]
+    oy, ox = np.mgrid[0:2 * HALF, 0:2 * HALF]
+    xs, ys = ox + 0.5 + r0[0], oy + 0.5 + r0[1]
+    srch = ndimage.map_coordinates(coef, [ys - c * (xs - p[0]) ** 2 - 0.5, xs - 0.5], order=3, prefilter=False)
+    return ref, srch, p - r0
+
+
+def as_u16(a):
+    """``a`` rounded into uint16, as the Pléiades texture is stored."""
+    return np.clip(np.rint(a), 0, 65535).astype(np.uint16)
+
+
 def test_affine_warps_of_real_texture_are_recovered_with_a_sigma_that_holds(texture):
     rng = np.random.default_rng(27)
     err, cov = [], []
@@ -185,20 +202,13 @@ def test_repetitive_texture_is_ambiguous(texture):
 
 def test_bend_follows_the_curvature_of_the_parallax(texture):
     # the search image bent along y by a quadratic of x (a ridge across the template)
-    img, coef = texture
     rng = np.random.default_rng(3)
     errs = {True: [], False: []}
     for _ in range(8):
         p = rng.uniform(150, 850, 2)
         c = rng.choice([-1, 1]) * 0.006                 # 0.9 px of bend at the template's edge
-        r0 = (np.floor(p) - HALF).astype(int)
-        ref = img[r0[1]:r0[1] + 2 * HALF, r0[0]:r0[0] + 2 * HALF]
-        oy, ox = np.mgrid[0:2 * HALF, 0:2 * HALF]
-        xs, ys = ox + 0.5 + r0[0], oy + 0.5 + r0[1]
-        src_y = ys - c * (xs - p[0]) ** 2                   # search(q) = ref(q − bend)
-        srch = ndimage.map_coordinates(coef, [src_y - 0.5, xs - 0.5], order=3, prefilter=False)
-        srch = np.clip(np.rint(srch), 0, 65535).astype(np.uint16)
-        truth = p - r0
+        ref, srch, truth = ridge(texture, p, c)
+        srch = as_u16(srch)
         for bend in (True, False):
             r = refine(ref, *truth, srch, truth + [0.3, -0.4], np.eye(2), parallax=(0, 1) if bend else None)
             errs[bend].append(np.hypot(r.x - truth[0], r.y - truth[1]) if r.ok else np.inf)
@@ -212,19 +222,13 @@ def test_a_larger_template_follows_the_same_curvature(texture, half):
     edge bends a 65 px one by 2.9 px there (the square of the distance), and both follow it.
     Held to 1 px at every template's edge, the 65 px template left it to the affine patch,
     whose σ then held the relief it averaged: refused (σ 0.9 px)."""
-    img, coef = texture
     rng = np.random.default_rng(12)
     errs = []
     for _ in range(6):
         p = rng.uniform(200, 800, 2)
         c = rng.choice([-1, 1]) * 0.0028                  # 0.4 px at 12 px, 2.9 px at 32 px
-        r0 = (np.floor(p) - HALF).astype(int)
-        ref = img[r0[1]:r0[1] + 2 * HALF, r0[0]:r0[0] + 2 * HALF]
-        oy, ox = np.mgrid[0:2 * HALF, 0:2 * HALF]
-        xs, ys = ox + 0.5 + r0[0], oy + 0.5 + r0[1]
-        srch = ndimage.map_coordinates(coef, [ys - c * (xs - p[0]) ** 2 - 0.5, xs - 0.5], order=3, prefilter=False)
-        srch = np.clip(np.rint(srch + rng.normal(0, 8.0, srch.shape)), 0, 65535).astype(np.uint16)
-        truth = p - r0
+        ref, srch, truth = ridge(texture, p, c)
+        srch = as_u16(srch + rng.normal(0, 8.0, srch.shape))
         r = refine(ref, *truth, srch, truth + [0.3, -0.4], np.eye(2), parallax=(0, 1), half=half)
         assert r.ok, r.reason
         assert abs(r.extra["bend"][0] * half - c * half ** 2) < max(0.1, 0.1 * abs(c) * half ** 2), (r.extra["bend"], c)
@@ -238,15 +242,8 @@ def test_a_bend_that_does_not_settle_leaves_no_match(texture, monkeypatch):
     as not converged (a smaller template is tried next). On steep relief such positions were
     0.54 px RMS off against 0.24 px where a bend was kept, and held wrong matches."""
     from prismstation.core.matching import lsm_fit
-    img, coef = texture
-    p = np.array([430.2, 515.7])
-    r0 = (np.floor(p) - HALF).astype(int)
-    ref = img[r0[1]:r0[1] + 2 * HALF, r0[0]:r0[0] + 2 * HALF]
-    oy, ox = np.mgrid[0:2 * HALF, 0:2 * HALF]
-    xs, ys = ox + 0.5 + r0[0], oy + 0.5 + r0[1]
-    srch = ndimage.map_coordinates(coef, [ys - 0.0025 * (xs - p[0]) ** 2 - 0.5, xs - 0.5], order=3, prefilter=False)
-    srch = np.clip(np.rint(srch), 0, 65535).astype(np.uint16)
-    truth = p - r0
+    ref, srch, truth = ridge(texture, np.array([430.2, 515.7]), 0.0025)
+    srch = as_u16(srch)
     assert refine(ref, *truth, srch, truth + [0.3, -0.4], np.eye(2), parallax=(0, 1), half=24).ok
     real = lsm_fit.Fit.run
 
@@ -259,15 +256,9 @@ def test_a_bend_that_does_not_settle_leaves_no_match(texture, monkeypatch):
 
 
 def test_a_bend_beyond_the_limit_is_flagged_not_returned(texture):
-    img, coef = texture
-    p = np.array([520.3, 610.8])
-    r0 = (np.floor(p) - HALF).astype(int)
-    ref = img[r0[1]:r0[1] + 2 * HALF, r0[0]:r0[0] + 2 * HALF]
-    oy, ox = np.mgrid[0:2 * HALF, 0:2 * HALF]
-    xs, ys = ox + 0.5 + r0[0], oy + 0.5 + r0[1]
-    srch = ndimage.map_coordinates(coef, [ys - 0.015 * (xs - p[0]) ** 2 - 0.5, xs - 0.5], order=3, prefilter=False)
-    r = refine(ref, *(p - r0), np.clip(np.rint(srch), 0, 65535).astype(np.uint16), p - r0, np.eye(2), parallax=(0, 1))
-    err = np.hypot(r.x - (p - r0)[0], r.y - (p - r0)[1])
+    ref, srch, truth = ridge(texture, np.array([520.3, 610.8]), 0.015)
+    r = refine(ref, *truth, as_u16(srch), truth, np.eye(2), parallax=(0, 1))
+    err = np.hypot(r.x - truth[0], r.y - truth[1])
     # 2.2 px of bend at the edge: the affine patch is ~1 px off and its σ says so
     assert not r.ok or err < 3 * r.sigma_y, (r.status, err, r.sigma_y)
 
