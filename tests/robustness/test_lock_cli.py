@@ -44,6 +44,14 @@ def test_orient_dem_save_refuses_a_project_the_window_holds(held):
     assert ft.digest(project) == before
 
 
+def test_transfer_save_refuses_a_project_the_window_holds(held):
+    project, other = held
+    before = ft.digest(project)
+    line = ft.assert_clean_failure(ft.run_cli(["transfer", project, "--save"]), "transfer", "p.prismproj")
+    assert f"process {other.pid}" in line and "close it there" in line
+    assert ft.digest(project) == before
+
+
 def test_new_force_refuses_a_project_the_window_holds(held):
     project, _ = held
     before = ft.digest(project)

@@ -83,8 +83,8 @@ def match_and_save(project, path, grid: int, height_of=None, height_sigma_m=None
 
 
 def fit_line(project, height_of=None, height_sigma_m=None) -> str:
-    """One line: the refit's σ0 and each view's tie-point residual RMS (x / y px), or why the
-    fit failed."""
+    """One line: the refit's σ0 and each view's tie-point residual RMS (x / y px, where it has
+    tie points), or why the fit failed."""
     sol = solve_project(project, height_of=height_of, height_sigma_m=height_sigma_m)
     if not sol.ok:
         return "fit: " + "; ".join(sol.messages)
@@ -96,4 +96,4 @@ def fit_line(project, height_of=None, height_sigma_m=None) -> str:
             parts.append(f"{v} {st['px'].x.rms:.2f}/{st['px'].y.rms:.2f}")
     head = f"fit ({project.settings.bias_model} bias): σ0 {s0:.2f}" if s0 is not None and math.isfinite(s0) \
         else f"fit ({project.settings.bias_model} bias)"
-    return head + "; tie-point residual RMS x/y px: " + ", ".join(parts)
+    return head + ("; tie-point residual RMS x/y px: " + ", ".join(parts) if parts else "")
