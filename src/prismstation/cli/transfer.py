@@ -63,10 +63,11 @@ def run(args) -> int:
         print("prismstation transfer: interrupted: nothing written", file=sys.stderr)
         return 130
     end_progress()
-    print(f"{'id':<10} {'view':<4} {'status':<14} {'x':>10} {'y':>10} {'σ∥ px':>6} {'σ⊥ px':>6} {'ρ':>5}  why not")
+    wide = max(4, *(len(v) for v in project.scene.views))
+    print(f"{'id':<10} {'view':<{wide}} {'status':<14} {'x':>10} {'y':>10} {'σ∥ px':>6} {'σ⊥ px':>6} {'ρ':>5}  why not")
     for r in results:
         for v in r.targets:
-            print(_row(r.pid, v, r.found.get(v)))
+            print(_row(r.pid, f"{v:<{wide}}", r.found.get(v)))
     print(transfer_summary(results, project.scene.views))
     ms = found_measurements(results)
     if args.csv and ms:
@@ -97,14 +98,14 @@ def _model_line(project, sol) -> str:
 
 def _row(pid: str, view: str, t) -> str:
     if t is None:
-        return f"{pid:<10} {view:<4} {'outside':<14} {'—':>10} {'—':>10} {'—':>6} {'—':>6} {'—':>5}  " \
+        return f"{pid:<10} {view} {'outside':<14} {'—':>10} {'—':>10} {'—':>6} {'—':>6} {'—':>5}  " \
                "the prediction lies outside the image"
     if not t.ok:
-        return f"{pid:<10} {view:<4} {t.match.status:<14} {'—':>10} {'—':>10} {'—':>6} {'—':>6} {'—':>5}  " \
+        return f"{pid:<10} {view} {t.match.status:<14} {'—':>10} {'—':>10} {'—':>6} {'—':>6} {'—':>5}  " \
                f"{t.match.reason}"
     along, across = parallax_sigmas(t)
     rho = t.match.rho
-    return (f"{pid:<10} {view:<4} {'ok':<14} {t.x:10.3f} {t.y:10.3f} {_num(along, 6)} {_num(across, 6)} "
+    return (f"{pid:<10} {view} {'ok':<14} {t.x:10.3f} {t.y:10.3f} {_num(along, 6)} {_num(across, 6)} "
             f"{_num(rho, 5)}")
 
 
