@@ -18,8 +18,12 @@ from prismstation.ops import transfer_points
 def n_only(foreign_data, tmp_path):
     """The foreign scene's project with its check points measured in N only: ``(project path,
     scene folder, measured N positions)``."""
+    return n_only_project(foreign_data / "smooth_hills_10km", tmp_path)
+
+
+def n_only_project(d, tmp_path):
+    """:func:`n_only` of the scene folder ``d``, the project written in ``tmp_path``."""
     from prismstation.ops.project import create
-    d = foreign_data / "smooth_hills_10km"
     gcps = {r["id"] for r in csv.DictReader((d / "points.csv").open()) if r["kind"] == "GCP"}
     rows = list(csv.DictReader((d / "measurements.csv").open()))
     kept = [r for r in rows if r["id"] in gcps or r["view"] == "N"]

@@ -50,6 +50,37 @@ def test_another_simulators_points_transfer_in_the_window(qtbot, foreign_data, t
         close_windows(qtbot, win)
 
 
+def test_every_incomplete_point_transferred_from_the_tools_menu(qtbot, foreign_data, tmp_path, monkeypatch,
+                                                                job_done):
+    """Tools ▸ Transfer every incomplete point on the scene whose 41 check points are measured in
+    N only, the SRTM-like reference loaded: every one placed in F and B in one undo step, none
+    more than 1 px from the exact position; Ctrl+Z takes them all back."""
+    from tests.cli.test_transfer_cli import errors_px, n_only_project
+    proj, d, n = n_only_project(foreign_data / "smooth_hills_10km", tmp_path)
+    win = open_window(qtbot, proj)
+    try:
+        choose_dem(qtbot, win, monkeypatch, d / "srtm_like.tif")
+        qtbot.waitUntil(lambda: win.views.height_of is not None and not win.solver.busy(), timeout=20000)
+        tool = win.tools["transfer"]
+        assert tool.a_all in win.tools_menu.actions()
+        before = len(win.project.measurements)
+        tool.a_all.trigger()
+        job_done(tool.job)
+        qtbot.waitUntil(lambda: len(win.project.measurements) > before, timeout=20000)
+        assert len(win.project.measurements) == before + 82, tool.summary
+        assert "41 points searched; found: F 41 of 41, B 41 of 41" in tool.summary
+        rows = [(pid, v, win.project.measurement(pid, v).x, win.project.measurement(pid, v).y)
+                for pid in n if win.project.measurement(pid, "F") is not None and pid.startswith("C")
+                for v in "FB"]
+        assert len(rows) == 82 and errors_px(rows, d, n).max() < 1.0
+        win.activateWindow()                 # the progress dialog has gone: back to the window
+        qtbot.waitUntil(win.isActiveWindow, timeout=5000)
+        qtbot.keyClick(win, Qt.Key.Key_Z, Qt.KeyboardModifier.ControlModifier)  # Ctrl+Z: one step
+        qtbot.waitUntil(lambda: len(win.project.measurements) == before, timeout=5000)
+    finally:
+        close_windows(qtbot, win)
+
+
 @pytest.mark.skipif(os.environ.get("PRISMSTATION_FOREIGN_ORIENT") != "1",
                     reason="minutes of matching: run with PRISMSTATION_FOREIGN_ORIENT=1")
 def test_another_simulators_scene_orients_honestly_in_the_window(qtbot, foreign_data, tmp_path, monkeypatch, job_done):

@@ -17,6 +17,12 @@ source view's, at most one image pixel per screen pixel): a view left at the ove
 measured in (N first) to the views it is not — a point measured before automatic transfer was
 on, or whose transfer was rejected.
 
+*Transfer every incomplete point* (Tools): the same search for every point measured in some
+views and not in all (:mod:`prismstation.ops.transfer_points`, as ``prismstation transfer``
+does) in a worker with progress and Cancel; what it found is placed in one undoable step and
+a summary (how many each view found, why the rest were not) goes to the status line and,
+interactively, to a box.
+
 *Automatic tie points…*: a grid over the N image (the first of other scenes) transferred to
 the other views, blunders rejected
 (:func:`prismstation.ops.tie_points.find_tie_points`, as ``prismstation ties`` does, with the
@@ -37,6 +43,7 @@ from PySide6.QtWidgets import (QDialog, QDialogButtonBox, QFormLayout, QHBoxLayo
                                QVBoxLayout, QWidget)
 
 from prismstation.core.models.scene import reference_view
+from prismstation.errors import InputError
 from prismstation.gui import commands as cmd
 from prismstation.gui.tools._worker import Job, run_with_progress
 from prismstation.gui.views import DRIVE_TO_MAX_SCALE
@@ -45,6 +52,7 @@ from prismstation.io.windows import ImageWindows
 from prismstation.model.points import Measurement
 from prismstation.ops.tie_points import find_tie_points, tie_point_edits, ties_summary
 from prismstation.ops.transfer import search_height, transfer
+from prismstation.ops.transfer_points import found_measurements, to_transfer, transfer_points, transfer_summary
 
 CANDIDATE_COLOUR = "#39ff14"
 
@@ -113,9 +121,11 @@ class TransferTool:
         self.a_reject = ctx.add_action("Reject transferred point", self.reject, "Esc")
         self.a_this = ctx.add_action("Transfer t&his point", self.transfer_current, "Ctrl+T",
                                         tip="Search the current point, measured in one view, in the others")
+        self.a_all = ctx.add_action("Transfer every &incomplete point", self.start_all,
+                                    tip="Search every point measured in some views in the views it is not measured in")
         self.a_ties = ctx.add_action("Automatic tie &points…", self.choose_ties,
                                   tip="A grid of tie points over the N image, found in F and B")
-        ctx.tools_menu.addActions([self.a_auto, self.a_this, self.a_accept, self.a_reject])
+        ctx.tools_menu.addActions([self.a_auto, self.a_this, self.a_accept, self.a_reject, self.a_all])
         ctx.tools_menu.addSeparator()
         ctx.tools_menu.addAction(self.a_ties)
         self.panel.accept_button.clicked.connect(self.accept)
@@ -275,6 +285,46 @@ class TransferTool:
                 item.setZValue(600)
                 iv.vb.addItem(item)
                 self._items.append((iv.vb, item))
+
+    # ------------------------------------------------------------------ every incomplete point
+    def start_all(self):
+        """Search every point measured in some views and not in all, in a worker with a progress
+        dialog; returns the Job (None when there is nothing to search)."""
+        sol, project = self.ctx.solver.solution, self.ctx.project
+        if sol is None or project is None:
+            self.ctx.status("Point transfer needs a fitted model", 8000)
+            return None
+        snapshot = project.snapshot()
+        try:
+            todo = to_transfer(snapshot)
+        except InputError as exc:
+            self.ctx.status(f"Transfer: {exc}", 10000)
+            return None
+        if not todo:
+            self.ctx.status("Transfer: every point is measured in every view or in none", 8000)
+            return None
+        height_of = self.ctx.views.height_of
+
+        def work(progress):
+            return transfer_points(snapshot, sol, todo, height_of=height_of, progress=progress)
+
+        self.job = run_with_progress(self.ctx, "Point transfer", work, lambda out: self._add_all(project, out))
+        return self.job
+
+    def _add_all(self, project, results) -> None:
+        """Place what :meth:`start_all` found in one undoable step — where the point still exists
+        and the view is still unmeasured — and say what it did."""
+        if project is not self.ctx.project:
+            return
+        ms = [m for m in found_measurements(results)
+              if m.id in project.points and project.measurement(m.id, m.view) is None]
+        if ms:
+            self.ctx.undo_stack.push(cmd.Import(project, [], ms, text=f"Transfer {len({m.id for m in ms})} points"))
+        self.summary = f"{len(results)} points searched; " + transfer_summary(results, project.scene.views)
+        self.ctx.status(f"Point transfer: {self.summary}", 30000)
+        if self.ctx.interactive:
+            (QMessageBox.information if ms else QMessageBox.warning)(
+                self.ctx.widget, "Point transfer", plain(self.summary))
 
     # ------------------------------------------------------------------ automatic tie points
     def choose_ties(self) -> None:
