@@ -33,10 +33,6 @@ class PointTransfer:
     targets: tuple
     found: dict
 
-    def missing(self) -> list[str]:
-        """The target views the search could not reach (the point outside their images)."""
-        return [v for v in self.targets if v not in self.found]
-
 
 def to_transfer(project, ids=None) -> list[tuple[str, str, tuple, tuple]]:
     """``[(id, source view, (x, y), target views)]``: the points of ``project`` (``ids``, in
