@@ -53,7 +53,9 @@ def test_transfer_finds_the_check_points_in_f_and_b(n_only, tmp_path, capsys):
     proj, d, n = n_only
     before = proj.read_bytes()
     out_csv = tmp_path / "found.csv"
-    assert main(["transfer", str(proj), "--dem", str(d / "srtm_like.tif"), "--csv", str(out_csv)]) == 0
+    out_json = tmp_path / "found.json"
+    assert main(["transfer", str(proj), "--dem", str(d / "srtm_like.tif"), "--csv", str(out_csv),
+                 "--json", str(out_json)]) == 0
     out = capsys.readouterr().out
     assert "transfer: 41 points, through the fit (affine bias); reference DEM" in out
     assert "found: F 41 of 41, B 41 of 41" in out, out
@@ -62,6 +64,16 @@ def test_transfer_finds_the_check_points_in_f_and_b(n_only, tmp_path, capsys):
     err = errors_px(rows, d, n)
     assert err.max() < 1.0 and np.sqrt(np.mean(err ** 2)) <= 0.15, np.round(np.sort(err)[-5:], 2)
     assert proj.read_bytes() == before                    # without --save the project is not touched
+    # the JSON holds every search, the same positions, a σ and a covariance each, no NaN
+    text = out_json.read_text()
+    doc = json.loads(text)
+    assert "NaN" not in text and doc["summary"] == "found: F 41 of 41, B 41 of 41"
+    got = {(p["id"], v): r for p in doc["points"] for v, r in p["views"].items()}
+    assert len(got) == 82 and all(r["status"] == "ok" for r in got.values())
+    for pid, view, x, y in rows:
+        r = got[pid, view]
+        assert (r["x"], r["y"]) == (x, y) and 0 < r["sigma_along_px"] < 0.5
+        assert np.isclose(np.trace(r["cov_px2"]), r["sigma_along_px"] ** 2 + r["sigma_across_px"] ** 2)
 
 
 def test_save_adds_the_found_points_and_refits(n_only, capsys):
@@ -111,3 +123,12 @@ def test_nothing_found_is_exit_3_and_says_why(n_only, monkeypatch, capsys):
     assert "the prediction lies outside the image" in cap.out and "not found: 2 outside" in cap.out
     assert "no point found" in cap.err
     assert proj.read_bytes() == before
+
+
+def test_the_json_says_why_a_point_was_not_found(n_only, tmp_path, monkeypatch):
+    proj, _, _ = n_only
+    monkeypatch.setattr(transfer_points, "transfer", lambda *a, **k: {})     # every view outside
+    out_json = tmp_path / "r.json"
+    assert main(["transfer", str(proj), "--points", "C01", "--json", str(out_json)]) == 3
+    doc = json.loads(out_json.read_text())
+    assert doc["points"][0]["views"]["F"] == {"status": "outside", "reason": "the prediction lies outside the image"}

@@ -1,5 +1,5 @@
-"""``prismstation transfer PROJECT [--points ID ...] [--dem DEM] [--csv OUT] [--save]``: the
-project's points measured in some views searched in the others.
+"""``prismstation transfer PROJECT [--points ID ...] [--dem DEM] [--csv OUT] [--json OUT]
+[--save]``: the project's points measured in some views searched in the others.
 
 Each point measured in some views and not in all is searched from its measurement in N (else
 the first view it is in) in the views it lacks, as the window's Ctrl+T searches it
@@ -8,9 +8,10 @@ reference DEM or orientation from one; with no GCP, the products' own geometry a
 a-priori σ). ``--dem`` gives the searches a reference DEM's heights and slope (the project's
 own reference DEM otherwise, when it names one). One line per point and view: where it was
 found, its σ along the parallax (where a height moves it) and across, the correlation; or why
-it was not. ``--csv`` writes the found measurements in the measurement CSV form; ``--save``
-adds them to the project (saved atomically) and refits. Progress on stderr; Ctrl+C stops it
-and nothing is written (exit 130). Exit status 3 when no point was found.
+it was not. ``--csv`` writes the found measurements in the measurement CSV form, ``--json``
+every search's result (docs/formats.md); ``--save`` adds the found ones to the project (saved
+atomically) and refits. Progress on stderr; Ctrl+C stops it and nothing is written (exit
+130). Exit status 3 when no point was found.
 """
 from __future__ import annotations
 
@@ -20,13 +21,14 @@ import sys
 from prismstation.cli._common import end_progress, existing, progress_printer
 from prismstation.cli.ties import fit_line
 from prismstation.io.atomic import write_atomic
+from prismstation.io.jsonfile import write_json
 from prismstation.io.lock import refuse_if_held
 from prismstation.io.points import measurements_csv
 from prismstation.io.project import load_project, save_project
 from prismstation.ops.fit import stored_solution
 from prismstation.ops.reference_heights import load_for_scene
 from prismstation.ops.transfer_points import (found_measurements, parallax_sigmas, to_transfer,
-                                              transfer_points, transfer_summary)
+                                              transfer_points, transfer_record, transfer_summary)
 
 
 def register(sub) -> None:
@@ -39,6 +41,8 @@ def register(sub) -> None:
                         "searched around and the slope the matched shape is predicted from (default: the "
                         "project's reference DEM, when it names one)")
     p.add_argument("--csv", metavar="OUT", help="write the found measurements as a measurement CSV")
+    p.add_argument("--json", metavar="OUT", help="write every search's result (position, σ, covariance, "
+                                                "correlation, or why not) as JSON")
     p.add_argument("--save", action="store_true", help="add the found measurements to the project and refit")
     p.set_defaults(func=run)
 
@@ -64,12 +68,16 @@ def run(args) -> int:
         return 130
     end_progress()
     wide = max(4, *(len(v) for v in project.scene.views))
-    print(f"{'id':<10} {'view':<{wide}} {'status':<14} {'x':>10} {'y':>10} {'σ∥ px':>6} {'σ⊥ px':>6} {'ρ':>5}  why not")
+    print(f"{'id':<10} {'view':<{wide}} {'status':<14} {'x':>10} {'y':>10} {'σ∥ px':>6} {'σ⊥ px':>6} "
+          f"{'ρ':>5}  why not")
     for r in results:
         for v in r.targets:
             print(_row(r.pid, f"{v:<{wide}}", r.found.get(v)))
     print(transfer_summary(results, project.scene.views))
     ms = found_measurements(results)
+    if args.json:
+        write_json(args.json, {**transfer_record(results), "summary": transfer_summary(results, project.scene.views)},
+                   indent=1)
     if args.csv and ms:
         write_atomic(args.csv, measurements_csv(ms), keep_backup=False)
         print(f"{len(ms)} measurements written to {args.csv}")

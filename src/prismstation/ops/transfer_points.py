@@ -114,3 +114,23 @@ def transfer_summary(results: list[PointTransfer], views) -> str:
     if why:
         text += "; not found: " + ", ".join(f"{n} {s}" for s, n in why.most_common())
     return text
+
+
+def transfer_record(results: list[PointTransfer]) -> dict:
+    """The JSON document of a run (docs/formats.md, point transfer report): per point its source
+    view and position, and per target view the status, position (px; null where not found),
+    σ along and across the parallax (px), covariance (px², x then y), parallax direction (unit),
+    correlation and why it was not found."""
+    def view(t):
+        if t is None:
+            return {"status": "outside", "reason": "the prediction lies outside the image"}
+        along, across = parallax_sigmas(t)
+        ok = t.ok
+        return {"status": t.match.status, "x": float(t.x) if ok else None, "y": float(t.y) if ok else None,
+                "sigma_along_px": along if ok else None, "sigma_across_px": across if ok else None,
+                "cov_px2": np.asarray(t.match.cov, float).tolist() if ok else None,
+                "parallax": np.asarray(t.match.extra.get("d", (math.nan, math.nan)), float).tolist(),
+                "rho": float(t.match.rho), "reason": t.match.reason}
+    return {"points": [{"id": r.pid, "source": r.source, "x": r.xy[0], "y": r.xy[1],
+                        "views": {v: view(r.found.get(v)) for v in r.targets}} for r in results]}
+
