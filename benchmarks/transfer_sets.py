@@ -79,6 +79,13 @@ SETS = {
                                                   (93, (5.55, 44.30), {"ascending": True}),
                                                   (94, (5.10, 44.45), {}), (95, (5.42, 44.92), {}))
                       for ref in ({}, {"reference": "geographic"})],
+    # three more places never looked at (0.1° or more from every scene above and from the
+    # orientation sweeps'), the other renderer's kind of parcels, both references: to judge at
+    # 15 km (--size 6000) once, after the bend's limit became a curvature and a bend that does
+    # not settle left no match
+    "judged_fresh4": [("dem", seed, centre, dict(texture="mottled", psf_px=0.0, noise_dn=2.0, **ref))
+                      for seed, centre in ((101, (5.18, 44.82)), (102, (5.84, 44.12)), (103, (5.45, 44.11)))
+                      for ref in ({}, {"reference": "geographic"})],
     # JPEG block noise (8 × 8, as compressed PRISM products carry) on the other renderer's kind
     # of parcels: on smooth hills and on steep relief at two qualities (found on these; a gap)
     "jpeg_mottled": [("smooth", 54, None, dict(texture="mottled", psf_px=0.0, noise_dn=2.0, jpeg_quality=75)),
