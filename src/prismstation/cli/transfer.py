@@ -27,8 +27,9 @@ from prismstation.io.points import measurements_csv
 from prismstation.io.project import load_project, save_project
 from prismstation.ops.fit import stored_solution
 from prismstation.ops.reference_heights import load_for_scene
-from prismstation.ops.transfer_points import (found_measurements, parallax_sigmas, to_transfer,
-                                              transfer_points, transfer_record, transfer_summary)
+from prismstation.ops.transfer_points import (OUTSIDE_REASON, found_measurements, parallax_sigmas,
+                                              to_transfer, transfer_points, transfer_record,
+                                              transfer_summary)
 
 
 def register(sub) -> None:
@@ -105,16 +106,13 @@ def _model_line(project, sol) -> str:
 
 
 def _row(pid: str, view: str, t) -> str:
-    if t is None:
-        return f"{pid:<10} {view} {'outside':<14} {'—':>10} {'—':>10} {'—':>6} {'—':>6} {'—':>5}  " \
-               "the prediction lies outside the image"
-    if not t.ok:
-        return f"{pid:<10} {view} {t.match.status:<14} {'—':>10} {'—':>10} {'—':>6} {'—':>6} {'—':>5}  " \
-               f"{t.match.reason}"
+    """One line of the table: the match, or ``—`` in every column and why not."""
+    if t is None or not t.ok:
+        status, why = ("outside", OUTSIDE_REASON) if t is None else (t.match.status, t.match.reason)
+        return f"{pid:<10} {view} {status:<14} {'—':>10} {'—':>10} {'—':>6} {'—':>6} {'—':>5}  {why}"
     along, across = parallax_sigmas(t)
-    rho = t.match.rho
     return (f"{pid:<10} {view} {'ok':<14} {t.x:10.3f} {t.y:10.3f} {_num(along, 6)} {_num(across, 6)} "
-            f"{_num(rho, 5)}")
+            f"{_num(t.match.rho, 5)}")
 
 
 def _num(v: float, width: int) -> str:

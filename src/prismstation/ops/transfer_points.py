@@ -21,6 +21,10 @@ from prismstation.ops.progress import ProgressFn, checkpoint
 from prismstation.ops.transfer import Transfer, search_sigmas, transfer
 
 
+#: why a view was not searched: the model puts the point outside its image
+OUTSIDE_REASON = "the prediction lies outside the image"
+
+
 @dataclass(frozen=True)
 class PointTransfer:
     """One point's transfer: from ``source`` at ``xy`` (px) to the views it lacked
@@ -123,7 +127,7 @@ def transfer_record(results: list[PointTransfer]) -> dict:
     correlation and why it was not found."""
     def view(t):
         if t is None:
-            return {"status": "outside", "reason": "the prediction lies outside the image"}
+            return {"status": "outside", "reason": OUTSIDE_REASON}
         along, across = parallax_sigmas(t)
         ok = t.ok
         return {"status": t.match.status, "x": float(t.x) if ok else None, "y": float(t.y) if ok else None,
