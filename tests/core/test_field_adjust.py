@@ -203,6 +203,22 @@ def test_conditioning_on_a_ridge_fixes_the_shift_across_it_only():
     assert cond.judge(_summary(fit), 5.0, P, 50.0).ok
 
 
+def test_the_default_target_is_one_pixel():
+    """A field fixed to 4.1 m planimetric (a 10 km scene of 6 % hills: 4.0 m off at the check
+    points) is not trusted by default — the target is one PRISM pixel, 2.5 m — and the message
+    names the σ and the target; a user who asks for 5 m gets it trusted."""
+    s = cond.SigmaSummary(E=2.9, N=2.9, h=1.1, along=3.0, across=2.8, worst=3.1, worst_azimuth_deg=10.0)
+    assert cond.TARGET_M == 2.5
+    v = cond.judge(s, cond.TARGET_M, 16, 50.0)
+    assert v.status == cond.TOO_SMOOTH and v.exit_status == 3
+    assert "too smooth in both horizontal directions" in v.message and "the target is 2.5 m" in v.message
+    assert cond.judge(s, 5.0, 16, 50.0).ok
+    # each direction within the target, the two together not: the message still says where
+    s2 = cond.SigmaSummary(E=2.0, N=2.0, h=1.1, along=2.0, across=2.0, worst=2.1, worst_azimuth_deg=10.0)
+    v2 = cond.judge(s2, cond.TARGET_M, 16, 50.0)
+    assert not v2.ok and "too smooth in both horizontal directions together" in v2.message
+
+
 def test_height_distortion_along_the_track_is_not_taken_for_a_shift():
     """Gentle hills, nearly a plane over a patch, and relative DEMs bent along the track by a
     Legendre quadratic of 0.5 m (F's and B's offsets from N not linear in time): with the

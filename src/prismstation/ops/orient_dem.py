@@ -20,7 +20,7 @@ A-priori settings: ``sigma_apriori_m`` (each view's ancillary geolocation σ per
 by default, after the shifts of about 50 m Gonçalves reports with SRTM as control; Tadono et al.
 (2008) report ±10 m after calibration), ``sigma_height_m`` (the reference DEM's height σ, 10 m:
 SRTM's stated 16 m absolute at 90 %), ``k`` = 3 σ per search, ``target_m`` (the σ an
-orientation must reach to be trusted, 5 m). ``progress`` per :mod:`prismstation.ops.progress`;
+orientation must reach to be trusted, 2.5 m). ``progress`` per :mod:`prismstation.ops.progress`;
 a cancel raises :class:`~prismstation.errors.Cancelled`.
 """
 from __future__ import annotations

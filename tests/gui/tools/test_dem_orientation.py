@@ -166,7 +166,7 @@ def test_an_untrusted_orientation_is_applied_only_on_the_operators_yes(qtbot, wi
 
     def fake_exec(dlg):
         assert dlg.sigma.value() == 50.0                  # the default a-priori σ is shown
-        assert dlg.target.value() == 5.0                  # and the default target σ
+        assert dlg.target.value() == 2.5                  # and the default target σ (one pixel)
         dlg.path.setText(str(sim / "srtm.tif"))
         dlg.sigma.setValue(60.0)
         dlg.target.setValue(0.5)

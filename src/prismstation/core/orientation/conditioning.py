@@ -20,8 +20,9 @@ import numpy as np
 
 OK, TOO_SMOOTH, TOO_FEW, FAILED = "ok", "too_smooth", "too_few", "failed"
 EXIT_NOT_TRUSTED = 3
-#: the planimetric and height σ an orientation must reach to be trusted (m), by default
-TARGET_M = 5.0
+#: the planimetric and height σ an orientation must reach to be trusted (m), by default: one
+#: PRISM pixel, what the triplet's check points reach with GCPs (a user who needs less sets it)
+TARGET_M = 2.5
 #: patches needed to state the field's σ from the data (the jackknife, the patches' own shifts)
 MIN_PATCHES = 6
 #: a-priori σ (m) of a relative-DEM cell against a 90 m reference (SRTM: 6 m at 90 %)
@@ -145,6 +146,8 @@ def weak_directions(s: SigmaSummary, target_m: float) -> str:
     """Which way the terrain leaves the shift undetermined, in words ("" when it does not)."""
     weak = [name for name, v in (("along track", s.along), ("across track", s.across)) if not v <= target_m]
     if not weak:
+        if s.plan > target_m:
+            return "in both horizontal directions together"
         return "" if s.h <= target_m else "in height"
     if len(weak) == 1:
         return weak[0]
