@@ -212,6 +212,7 @@ def test_the_default_target_is_one_pixel():
     v = cond.judge(s, cond.TARGET_M, 16, 50.0)
     assert v.status == cond.TOO_SMOOTH and v.exit_status == 3
     assert "too smooth in both horizontal directions" in v.message and "the target is 2.5 m" in v.message
+    assert "a larger target σ where the use allows it" in v.advice
     assert cond.judge(s, 5.0, 16, 50.0).ok
     # each direction within the target, the two together not: the message still says where
     s2 = cond.SigmaSummary(E=2.0, N=2.0, h=1.1, along=2.0, across=2.0, worst=2.1, worst_azimuth_deg=10.0)

@@ -29,8 +29,9 @@ MIN_PATCHES = 6
 SIGMA_CELL_M = 3.6
 #: what helps a terrain too smooth for the target
 ADVICE = ("GCPs (three or more, spread over the scene, used together with the reference DEM), "
-          "a larger area (the σ falls with the square root of the area), or a finer reference "
-          "DEM (a 30 m DEM instead of 90 m SRTM sees more relief)")
+          "a larger area (the σ falls with the square root of the area), a finer reference "
+          "DEM (a 30 m DEM instead of 90 m SRTM sees more relief), or a larger target σ where "
+          "the use allows it")
 
 
 def information(gx, gy, phi, weight, psi=None) -> np.ndarray:
