@@ -102,9 +102,9 @@ def verdict_text(record) -> str:
                 f"height {s.h:.1f} m.")
     text = sigma("expected_sigma_m", "Expected from the terrain before the run") + sigma("sigma_m", "After the run")
     if v.get("status") == "ok":
-        return f"Verdict: trusted ({v.get('message', '')}).{text}"
+        return f"Verdict: trusted ({v.get('message', '').removeprefix('trusted: ')}).{text}"
     advice = f" What would help: {v['advice']}." if v.get("advice") else ""
-    return f"Verdict: NOT TRUSTED ({v.get('status')}) — {v.get('message', '')}.{text}{advice}"
+    return f"Verdict: NOT TRUSTED ({v.get('status')}) — {v.get('message', '').removeprefix('NOT TRUSTED: ')}.{text}{advice}"
 
 
 def plot_line(sol) -> tuple | None:

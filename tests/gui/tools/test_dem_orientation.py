@@ -40,7 +40,7 @@ def test_orient_from_srtm_in_the_window(qtbot, window, sim, truth, job_done):
     assert states.count("used") == len(used)
     # the a-priori σ and the verdict are shown
     assert "σ 50 m per view" in tool.panel.summary.text()
-    assert record["verdict"]["status"] == "ok" and "trusted" in tool.panel.verdict.text()
+    assert record["verdict"]["status"] == "ok" and tool.panel.verdict.text().startswith("Verdict: trusted (σ ")
     sg = record["sigma_m"]
     assert (f"After the run: planimetric {(sg['E'] ** 2 + sg['N'] ** 2) ** 0.5:.1f} m" in tool.panel.verdict.text()
             and f"height {sg['h']:.1f} m" in tool.panel.verdict.text())
@@ -187,11 +187,12 @@ def test_an_untrusted_orientation_is_applied_only_on_the_operators_yes(qtbot, wi
     title, text = asked[0]
     assert title == "Orientation from the reference DEM"
     assert "NOT TRUSTED (too_smooth)" in text and "What would help: GCPs" in text and "Apply it anyway?" in text
+    assert text.count("NOT TRUSTED") == 1                           # said once
     qtbot.waitUntil(lambda: tool.panel.apply_button.isVisible() or not tool.dock.isVisible(), timeout=5000)
     assert window.project.settings.orientation == "gcp" and window.project.dem_control is None
     assert "NOT APPLIED" in tool.panel.summary.text() and "σ 60 m per view" in tool.panel.summary.text()
     shown = tool.panel.verdict.text()
-    assert "NOT TRUSTED (too_smooth)" in shown and "target is 0.5 m" in shown
+    assert "NOT TRUSTED (too_smooth)" in shown and "target is 0.5 m" in shown and shown.count("NOT TRUSTED") == 1
     assert "Expected from the terrain before the run: planimetric" in shown and "After the run: planimetric" in shown
     assert "What would help" in shown
     assert window.statusBar().currentMessage().startswith("Not applied: Verdict: NOT TRUSTED")

@@ -112,8 +112,9 @@ class OrientDialog(QDialog):
                               "products; about 10 m for calibrated ones.")
         self.target = QDoubleSpinBox(decimals=1, minimum=0.5, maximum=100.0, singleStep=0.5, suffix=" m")
         self.target.setValue(target_m)
-        self.target.setToolTip("The planimetric and height σ the orientation must reach to be trusted: "
-                               "terrain too smooth to fix it that well is refused, with what would help.")
+        self.target.setToolTip("The planimetric and height σ the orientation must reach to be trusted "
+                               "(by default one PRISM pixel, 2.5 m): terrain too smooth to fix it that "
+                               "well is refused, with what would help.")
         form = QFormLayout(self)
         form.addRow(QLabel("Orientation with no GCP: the image DSM is matched to the reference\n"
                            "(SRTM .hgt or GeoTIFF, orthometric heights) patch by patch."))
@@ -329,7 +330,7 @@ class DemOrientationTool:
             now = "the GCP orientation (Edit ▸ Undo or Tools ▸ Back to GCP orientation return to it)"
         box = QMessageBox(QMessageBox.Icon.Warning, "Orientation from the reference DEM",
                           plain(f"The orientation from the reference DEM is NOT TRUSTED ({v.get('status')}): "
-                                f"{v.get('message', '')}."
+                                f"{v.get('message', '').removeprefix('NOT TRUSTED: ')}."
                                 + (f"\n\nWhat would help: {v['advice']}." if v.get("advice") else "")
                                 + f"\n\nApply it anyway? It would replace {now}."),
                           QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, self.ctx.widget)
