@@ -46,7 +46,7 @@ from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
-from scipy import stats
+from scipy import special   # special.fdtri is stats.f.ppf without importing scipy.stats (~0.3 s)
 
 from prismstation.core.matching.lsm_fit import (LOW_CORRELATION, MOVED, NOT_CONVERGED, OK,  # noqa: F401
                                                 OUTSIDE, RIVAL_ITER, RIVAL_MARGIN, SHAPE, STEP_TOL, TEXTURE, Fit,
@@ -482,4 +482,4 @@ def _significant(r0, r1) -> bool:
 
 @lru_cache(maxsize=64)
 def _f_quantile(dof: int) -> float:
-    return float(stats.f.ppf(BEND_P, 3, dof))
+    return float(special.fdtri(3, dof, BEND_P))
