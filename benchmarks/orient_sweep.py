@@ -23,7 +23,8 @@ failure). Beside each RMSE, the σ the orientation states for a check point (``o
 ``sigma_m`` with the check points' own measurement noise in quadrature: ``noise_px`` × GSD × √2
 planimetric, ``noise_px`` × c1 × √2 in height) and the ratio of the two: a case more than 2 σ off
 is marked; the σ expected from the terrain before the run; the mean check-point error along
-the flight direction and 90° to its left, and east and north. The terrain column gives the terrain's
+the flight direction and 90° to its left, and east and north; beside the verdict the planimetric
+σ it judged against the target (``sigma_m`` alone). The terrain column gives the terrain's
 mean slope over the ground N sees (30 m cells), as ``simulate`` states it.
 """
 from __future__ import annotations
@@ -210,7 +211,7 @@ def main_sweep(argv=None) -> int:
     base = Path(a.keep) if a.keep else Path(tempfile.mkdtemp(prefix="orient_sweep_"))
     print("| size | terrain (mean slope) | pass | seed | error m | reference | coarse F / B err px (σ) | "
           "expected σ plan m | plan m (σ) | plan err/σ | height m (σ) | height err/σ | along / across "
-          "mean m | mean E / N m | patches used | verdict | s | note |")
+          "mean m | mean E / N m | patches used | verdict (the planimetric σ it judged, m) | s | note |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     cases = [(size, terrain, pas, seed) for size in a.sizes for terrain in a.terrains
              for pas in a.passes for seed in a.seeds]
@@ -276,7 +277,7 @@ def _line(r: dict, slope: str, tgt) -> str:
             f"{r.get('along_mean', nan):+.2f} / {r.get('across_mean', nan):+.2f} | "
             f"{r.get('mean_E', nan):+.2f} / {r.get('mean_N', nan):+.2f} | "
             f"{r.get('used', '-')}/{r.get('patches', '-')} | "
-            f"{r.get('verdict', 'failed')} | {r['seconds']:.0f} | {note} |")
+            f"{r.get('verdict', 'failed')} ({r.get('sigma_plan', nan):.2f}) | {r['seconds']:.0f} | {note} |")
 
 
 if __name__ == "__main__":
