@@ -4,7 +4,8 @@
 height of G01 typed in the table, the views at 1:1 on it), ``predictions_dem_WxH.png`` (a new
 point measured in N, predicted in F and B at the reference DEM's height with its 95 % ellipse),
 ``predictions_intersection``, ``predictions_mean_height``, ``predictions_transfer`` (1600 × 1000),
-``editing_new_point.png`` (Edit ▸ New point from coordinates…: the dialog as filled in, drawn
+``orient_srtm_1600x1000.png`` (Tools ▸ Orient from reference DEM… with its defaults: the
+patches' dock and its verdict), ``editing_new_point.png`` (Edit ▸ New point from coordinates…: the dialog as filled in, drawn
 over the window once the point is added and the views are driven to where the model puts it,
 1600 × 1000), ``ortho_1600x1000.png`` (Tools ▸ Orthoimage… of N on the reference DEM, its dock
 with the GCPs and ICPs at their known positions, checked at them), ``start_page.png`` and ``image_view.png`` (three image views with their loupes
@@ -217,6 +218,13 @@ def main(argv=None) -> int:
         save(win, "ortho_1600x1000.png", (1600, 1000))
         close(win)
 
+    if wanted("orient_srtm"):
+        win = window()
+        lay_out(win, (1600, 1000))
+        orient_picture(win, project)
+        save(win, "orient_srtm_1600x1000.png", (1600, 1000))
+        close(win)
+
     if wanted("image_view"):
         save_image(image_views_picture(Path(args.triplet) if args.triplet else project.parent / "triplet"),
                    out / "image_view.png", (1500, 560))
@@ -247,6 +255,21 @@ def wait_job(job, timeout_s: float = 600.0):
     if not got or got[0][0] != "result":
         raise SystemExit(f"screenshots: the job ended with {got[0] if got else 'a timeout'}")
     return got[0][1]
+
+
+def orient_picture(win, project) -> None:
+    """Tools ▸ Orient from reference DEM… as its dialog's defaults make it (the demo's reference,
+    patches of a quarter of the scene, 50 m per view, the one-pixel target), its dock raised and
+    its verdict in view."""
+    from prismstation.gui.app import wait_settled
+    from prismstation.ops.orientation import default_patch_km
+
+    tool = win.tools["dem_orientation"]
+    ref = project.parent / "triplet" / "srtm.tif"
+    wait_job(tool.start(str(ref), default_patch_km(win.project.scene) * 1000.0))
+    tool.dock.raise_()
+    wait_settled(win)
+    win.statusBar().showMessage("Orientation from the reference DEM: trusted, applied")
 
 
 def ortho_picture(win, project, tmp: Path) -> None:
