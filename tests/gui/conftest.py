@@ -8,11 +8,20 @@ import shutil
 
 import pytest
 
+from tests.gui.boxes import stop_pollers
 from tests.qt_windows import close_windows, open_window
 
 from prismstation.sim.small_project import make_project
 
 UNMEASURED = ("G9",)
+
+
+@pytest.fixture(autouse=True)
+def _no_box_answered_for_another_test():
+    """A test that fails before its message box came leaves its poller polling: stopped here,
+    so that it cannot answer the next test's box."""
+    yield
+    stop_pollers()
 
 
 @pytest.fixture(scope="session")
