@@ -104,7 +104,8 @@ def verdict_text(record) -> str:
     if v.get("status") == "ok":
         return f"Verdict: trusted ({v.get('message', '').removeprefix('trusted: ')}).{text}"
     advice = f" What would help: {v['advice']}." if v.get("advice") else ""
-    return f"Verdict: NOT TRUSTED ({v.get('status')}) — {v.get('message', '').removeprefix('NOT TRUSTED: ')}.{text}{advice}"
+    message = v.get("message", "").removeprefix("NOT TRUSTED: ")
+    return f"Verdict: NOT TRUSTED ({v.get('status')}) — {message}.{text}{advice}"
 
 
 def plot_line(sol) -> tuple | None:
