@@ -13,6 +13,11 @@ and contrast panels, 1500 × 560, on ``--triplet``: a folder of three images, ``
 ``N.tif``, ``F.tif``, ``B.tif``; the demo's by default). Every window picture is checked to be
 exactly the size asked for (nothing below the screen's edge).
 
+Two docks' pictures come from their tests instead, on request: ``PRISMSTATION_SCREENSHOTS=1
+.venv/bin/python -m pytest tests/gui/tools/test_rectify_tools.py`` writes ``rectification.png``
+and ``dsm_validation.png`` (otherwise the tests grab into their own folders: a test run leaves
+the tree alone).
+
 With ``--rpc IMG IMG [IMG …]`` (images with RPCs) it makes ``rpc_window_1600x1000.png`` instead
 (:func:`screenshots_rpc.rpc_window`): the window on a project of those images.
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -37,7 +38,7 @@ def _cell(table, r, c):
     return table.item(r, c).text()
 
 
-def test_single_view_opens_and_transform_table_matches_engine(sv_window, qtbot):
+def test_single_view_opens_and_transform_table_matches_engine(sv_window, qtbot, tmp_path):
     window = sv_window
     assert list(window.views.views) == ["A"]
     assert window.views.views["A"].source is not None
@@ -72,7 +73,7 @@ def test_single_view_opens_and_transform_table_matches_engine(sv_window, qtbot):
     dock.setFloating(True)
     dock.resize(640, 620)
     qtbot.wait(50)
-    dock.grab().save(str(_DOCS / "rectification.png"))
+    assert dock.grab().save(_picture("rectification.png", tmp_path))
 
 
 def test_rectify_export_in_worker(sv_window, job_outcome, tmp_path):
@@ -140,6 +141,12 @@ def test_bh_from_two_resections(two_frame_window):
 from pathlib import Path  # noqa: E402
 
 _DOCS = Path(__file__).resolve().parents[3] / "docs"
+
+
+def _picture(name: str, tmp_path) -> str:
+    """Where a dock's grab goes: docs/ on request (PRISMSTATION_SCREENSHOTS=1, to bring the
+    docs' picture up to date), else the test's folder — a test run leaves the tree alone."""
+    return str((_DOCS if os.environ.get("PRISMSTATION_SCREENSHOTS") else tmp_path) / name)
 
 
 @pytest.fixture()
@@ -278,4 +285,4 @@ def test_dsm_validation_shows_known_bias(sv_window, qtbot, job_outcome, tmp_path
     tool.dock.setFloating(True)
     tool.dock.resize(1100, 560)
     qtbot.wait(50)
-    tool.dock.grab().save(str(_DOCS / "dsm_validation.png"))
+    assert tool.dock.grab().save(_picture("dsm_validation.png", tmp_path))
