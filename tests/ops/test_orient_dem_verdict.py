@@ -94,3 +94,19 @@ def test_flat_terrain_is_refused_with_the_reason(tmp_path, capsys):
     pts = [p for p in rep["points"] if p["kind"] in ("GCP", "ICP") and p.get("E_est") is not None]
     err = [(p["E_est"] - truth[p["id"]]["E"]) ** 2 + (p["N_est"] - truth[p["id"]]["N"]) ** 2 for p in pts]
     assert (sum(err) / len(err)) ** 0.5 < 2.0 * rec["sigma_m"]["plan"]
+
+
+@pytest.mark.parametrize("args, said", [
+    (["--geolocation-sigma-m", "600"], "asks for a search of"),   # 3 σ wider than the 3 km scene
+    (["--geolocation-sigma-m", "1e308"], "asks for a search of"),
+    (["--geolocation-sigma-m", "inf"], "the a-priori geolocation σ must be a positive number"),
+    (["--target-m", "inf"], "the target σ must be a positive number"),
+    (["--patch-km", "nan"], "the patch size must be a positive number"),
+])
+def test_a_priori_values_out_of_range_are_refused_in_one_line(project, capsys, args, said):
+    """A σ whose search the scene cannot hold, or a value that is not a finite positive number:
+    one line naming it, exit 2 (they ended in "unexpected error": an array of negative size)."""
+    d, proj = project
+    code = main(["orient-dem", str(proj), str(d / "srtm.tif"), *args])
+    err = capsys.readouterr().err
+    assert code == 2 and said in err and "unexpected" not in err and "Traceback" not in err, err

@@ -28,6 +28,8 @@ from prismstation.io.windows import open_image
 from prismstation.ops.progress import checkpoint
 
 SIGMA_APRIORI_M = 50.0
+#: the smallest N window the coarse search is cut into (px): a larger a-priori σ leaves no room
+MIN_WINDOW_PX = 32
 
 
 @dataclass(frozen=True)
@@ -72,6 +74,11 @@ def coarse_view_offsets(scene: Scene, reference_path, geoid, *, sigma_apriori_m:
     N = scene.views["N"]
     rows, cols = N.shape
     radius = search_radius_px(sigma_apriori_m * np.sqrt(2), N.pixel_size_m, k)
+    if not min(rows, cols) - 2 * (radius + 24) >= MIN_WINDOW_PX:
+        raise InputError(f"an a-priori geolocation σ of {sigma_apriori_m:g} m asks for a search of {radius:.0f} px "
+                         f"each way ({k:g} σ of F − N and B − N), more than N's {cols} × {rows} px can hold "
+                         f"with a window inside it: a smaller σ, or a larger scene")
+    margin = int(radius) + 24
     corners = N.map_to_image.inverse()(np.array([[0, 0], [cols, 0], [0, rows], [cols, rows]], float))
     pad = 1000.0 + 3 * sigma_apriori_m
     lo, hi = corners.min(0) - pad, corners.max(0) + pad
@@ -87,7 +94,6 @@ def coarse_view_offsets(scene: Scene, reference_path, geoid, *, sigma_apriori_m:
         return ndimage.map_coordinates(filled, [(hi[1] - n) / posting_m - 0.5, (e - lo[0]) / posting_m - 0.5],
                                        order=1, mode="nearest")
 
-    margin = int(radius) + 24
     wins = vo.lattice((rows, cols), window_px, k=grid, margin_px=margin)
     found = []
     ds = {v: open_image(scene.views[v].image, f"view {v}") for v in "NFB"}

@@ -25,6 +25,7 @@ a cancel raises :class:`~prismstation.errors.Cancelled`.
 """
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import asdict, dataclass
 
@@ -184,10 +185,10 @@ def orient_from_dem(project: Project, reference_path, *, sigma_apriori_m: float 
     missing = [v.image for v in scene.views.values() if not v.image or not os.path.exists(v.image)]
     if missing:
         raise InputError("image not found (relocate the scene's images)", missing[0])
-    if not sigma_apriori_m > 0:
-        raise InputError(f"the a-priori geolocation σ must be positive, got {sigma_apriori_m} m")
-    if not target_m > 0:
-        raise InputError(f"the target σ must be positive, got {target_m} m")
+    if not 0 < sigma_apriori_m < math.inf:
+        raise InputError(f"the a-priori geolocation σ must be a positive number of metres, got {sigma_apriori_m}")
+    if not 0 < target_m < math.inf:
+        raise InputError(f"the target σ must be a positive number of metres, got {target_m}")
     run = OrientRun(scene, reference_path, project_geoid(project), sigma_apriori_m, sigma_height_m,
                     posting_m, decimation, progress)
     relate_views(run)                                                   # 1.

@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass, replace
 
 from prismstation.core.orientation.conditioning import TARGET_M, OrientVerdict
+from prismstation.errors import InputError
 from prismstation.model.project import Project
 
 
@@ -36,6 +37,13 @@ class OrientRequest:
     patch_m: float | None = None
     target_m: float = TARGET_M
     with_gcps: bool = False
+
+    def __post_init__(self):
+        named = (("a-priori geolocation σ", self.sigma_apriori_m), ("posting", self.posting_m),
+                 ("patch size", self.patch_m), ("target σ", self.target_m))
+        for what, v in named:
+            if v is not None and not 0 < v < math.inf:
+                raise InputError(f"the {what} must be a positive number of metres, got {v}")
 
 
 @dataclass(frozen=True, eq=False)
