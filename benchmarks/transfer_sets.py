@@ -86,6 +86,16 @@ SETS = {
     "judged_fresh4": [("dem", seed, centre, dict(texture="mottled", psf_px=0.0, noise_dn=2.0, **ref))
                       for seed, centre in ((101, (5.18, 44.82)), (102, (5.84, 44.12)), (103, (5.45, 44.11)))
                       for ref in ({}, {"reference": "geographic"})],
+    # four more places never looked at (0.1° or more from every scene above and from the
+    # orientation sweeps'), the other renderer's kind of parcels, both references: drawn after
+    # the orientation's default target became one pixel, to judge the transfer once as it
+    # stands — two at 10 km (the default size), two at 15 km (--size 6000)
+    "judged_fresh5": [("dem", seed, centre, dict(texture="mottled", psf_px=0.0, noise_dn=2.0, **ref))
+                      for seed, centre in ((111, (5.64, 44.58)), (112, (5.32, 44.50)))
+                      for ref in ({}, {"reference": "geographic"})],
+    "judged_fresh6": [("dem", seed, centre, dict(texture="mottled", psf_px=0.0, noise_dn=2.0, **ref))
+                      for seed, centre in ((113, (5.20, 44.42)), (114, (5.68, 44.30)))
+                      for ref in ({}, {"reference": "geographic"})],
     # JPEG block noise (8 × 8, as compressed PRISM products carry) on the other renderer's kind
     # of parcels: on smooth hills and on steep relief at two qualities (found on these; a gap)
     "jpeg_mottled": [("smooth", 54, None, dict(texture="mottled", psf_px=0.0, noise_dn=2.0, jpeg_quality=75)),
