@@ -1,6 +1,6 @@
 """The planimetric σ of stored ``orient-dem`` runs with today's view-offset term, beside the σ
 they stated: for runs made before that term changed (``orient_sweep.py --keep DIR`` keeps each
-case's ``dem.json`` beside its scene).
+case's ``dem_p*_s*.json`` beside its scene).
 
 The offsets' term is added along track to the field's covariance at every lattice point, and
 the planimetric σ is the RMS over the lattice, so replacing the term is exact:
@@ -47,12 +47,12 @@ def offsets_sigma_then(run, record: dict) -> float:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("dirs", nargs="+", type=Path, help="folders holding */e*/dem.json (orient_sweep --keep)")
+    ap.add_argument("dirs", nargs="+", type=Path, help="folders holding */e*/dem*.json (orient_sweep --keep)")
     a = ap.parse_args(argv)
     ratios = []
     print("| case | planimetric m | σ stated (error / σ) | σ now (error / σ) | offsets' term then → now m |")
     print("|---|---|---|---|---|")
-    for f in sorted(p for d in a.dirs for p in d.glob("*/e*/dem.json")):
+    for f in sorted(p for d in a.dirs for p in d.glob("*/e*/dem*.json")):
         work, sim = f.parent, f.parent.parent
         rep = json.loads(f.read_text())
         dc = rep["dem_control"]

@@ -47,6 +47,7 @@ from prismstation.cli import main  # noqa: E402
 from prismstation.sim import simulate  # noqa: E402
 from prismstation.core.models.prism import theoretical_c1  # noqa: E402
 from prismstation.io.scene import read_scene  # noqa: E402
+from prismstation.ops.orientation import default_patch_km  # noqa: E402
 from prismstation.sim.perturb import perturb_geolocation, truth_geometry  # noqa: E402
 from prismstation.io.geoid import GridGeoid, find_grid  # noqa: E402
 from prismstation.sim.reference import make_geographic_reference, make_reference_dem  # noqa: E402
@@ -90,7 +91,7 @@ def run_case(sim: Path, ref: Path, errors: dict, work: Path, patch_km: float,
     stopped and run again) is scored instead of running the case again (its time: NaN)."""
     scene = perturb_geolocation(sim, errors, work / "scene.json")
     proj = work / "p.prismproj"
-    out = work / "dem.json"
+    out = work / f"dem_p{patch_km:g}_s{sigma_m:g}.json"   # a report is reused only for its own settings
     err = io.StringIO()
     t0 = time.perf_counter()
     if reuse and out.exists():
@@ -181,7 +182,8 @@ def main_sweep(argv=None) -> int:
                          "error directions with --seeds (the scene is the slow part)")
     ap.add_argument("--sigma-m", type=float, default=50.0, help="orient-dem --geolocation-sigma-m")
     ap.add_argument("--patch-km", type=float, default=None,
-                    help="patch size (default: 4 km, 1 km below 6,000 px)")
+                    help="patch size (default: orient-dem's own for the scene — a quarter of its "
+                         "shorter side, 1–4 km: 2.5 km at 4,000 px, 4 km at 6,000 px)")
     ap.add_argument("--terrains", nargs="+", default=["fractal"], choices=["fractal", "smooth", "dem"],
                     help="terrains of the scenes (simulate --terrain; dem needs --terrain-dem)")
     ap.add_argument("--terrain-dem", metavar="DEM", help="the DEM of the dem terrain (simulate --terrain-dem)")
@@ -211,12 +213,11 @@ def main_sweep(argv=None) -> int:
     base = Path(a.keep) if a.keep else Path(tempfile.mkdtemp(prefix="orient_sweep_"))
     print("| size | terrain (mean slope) | pass | seed | error m | reference | coarse F / B err px (σ) | "
           "expected σ plan m | plan m (σ) | plan err/σ | height m (σ) | height err/σ | along / across "
-          "mean m | mean E / N m | patches used | verdict (the planimetric σ it judged, m) | s | note |")
+          "mean m | mean E / N m | patches used (km) | verdict (the planimetric σ it judged, m) | s | note |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     cases = [(size, terrain, pas, seed) for size in a.sizes for terrain in a.terrains
              for pas in a.passes for seed in a.seeds]
     for size, terrain, pas, seed in cases:
-        patch_km = a.patch_km or (4.0 if size >= 6000 else 1.0)
         scene_seed = seed if a.scene_seed is None else a.scene_seed
         sim = scene_dir(base, size, terrain, pas, scene_seed, render)
         if not (sim / "truth.json").exists():
@@ -233,6 +234,7 @@ def main_sweep(argv=None) -> int:
         # scenes kept from before the terrains were stated have no statistics
         stats = json.loads((sim / "truth.json").read_text()).get("terrain", {}).get("statistics", {})
         slope = f"{stats['mean_slope_pct']:.1f} %" if stats else "?"
+        patch_km = a.patch_km or default_patch_km(read_scene(sim / "scene.json"))
         rng = np.random.default_rng(1000 + seed)
         for m in a.errors:
             errors = errors_of_magnitude(m, rng)
@@ -244,7 +246,7 @@ def main_sweep(argv=None) -> int:
                 ref, geoid = ((sim / "srtm.tif", None) if kind == "projected"
                               else (sim / "srtm_geo.tif", str(egm96)))
                 r = run_case(sim, ref, errors, work, patch_km, a.sigma_m, geoid, a.reuse)
-                r.update(size=size, terrain=terrain, terrain_statistics=stats, pass_=pas, seed=seed,
+                r.update(patch_km=patch_km, size=size, terrain=terrain, terrain_statistics=stats, pass_=pas, seed=seed,
                          scene_seed=scene_seed, error=m, reference=kind,
                          plan_ratio=_ratio(r.get("plan", np.nan), r.get("sigma_plan_check", np.nan)),
                          height_ratio=_ratio(r.get("height", np.nan), r.get("sigma_h_check", np.nan)))
@@ -276,7 +278,7 @@ def _line(r: dict, slope: str, tgt) -> str:
             f"{r.get('height', nan):.2f} ({r.get('sigma_h_check', nan):.1f}) | {r['height_ratio']:.2f} | "
             f"{r.get('along_mean', nan):+.2f} / {r.get('across_mean', nan):+.2f} | "
             f"{r.get('mean_E', nan):+.2f} / {r.get('mean_N', nan):+.2f} | "
-            f"{r.get('used', '-')}/{r.get('patches', '-')} | "
+            f"{r.get('used', '-')}/{r.get('patches', '-')} ({r['patch_km']:g}) | "
             f"{r.get('verdict', 'failed')} ({r.get('sigma_plan', nan):.2f}) | {r['seconds']:.0f} | {note} |")
 
 
