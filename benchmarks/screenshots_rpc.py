@@ -56,6 +56,7 @@ def rpc_window(images, out: Path, tmp: Path, size=(1600, 1000), cell: int = 64) 
     with rasterio.open(tmp / "dem.tif", "w", driver="GTiff", width=nx, height=ny, count=1, dtype="float32",
                        crs=report["crs"], transform=from_origin(x0, y1, 5, 5)) as ds:
         ds.write(grid.astype("float32"), 1)
+        ds.update_tags(HEIGHTS="ellipsoidal")    # the tie points' heights: the RPCs' datum
     assert cli(["fit", str(project), "--bias", "shift"]) == 0  # fit keeps its settings: shift again
 
     make_app()

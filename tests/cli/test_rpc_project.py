@@ -56,7 +56,8 @@ def block(request, shared_data, tmp_path_factory):
 
 
 def _reference_dem(report, path):
-    """A 5 m GeoTIFF of the tie points' heights (linear between them, nearest outside) + noise."""
+    """A 5 m GeoTIFF of the tie points' heights (linear between them, nearest outside) + noise;
+    ellipsoidal, as the RPCs' are, and the file says so."""
     pts = [p for p in report["points"] if p.get("h_est") is not None]
     en = np.array([(p["E_est"], p["N_est"]) for p in pts])
     h = np.array([p["h_est"] for p in pts])
@@ -69,6 +70,7 @@ def _reference_dem(report, path):
     with rasterio.open(path, "w", driver="GTiff", width=nx, height=ny, count=1, dtype="float32",
                        crs=report["crs"], transform=from_origin(x0, y1, 5, 5)) as ds:
         ds.write(grid.astype("float32"), 1)
+        ds.update_tags(HEIGHTS="ellipsoidal")
 
 
 def _fit(d, project, out, *extra):

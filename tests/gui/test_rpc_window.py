@@ -40,7 +40,8 @@ def terrain(en):
 
 def make_rpc_project(folder, images, n=5, gcps=(0, 4, 12, 20, 24), icps=(6, 8, 16, 18)):
     """An RPC project in ``folder``: ``n × n`` ground points inside every image (GCPs, ICPs,
-    the rest tie points) measured in every view; and ``dem.tif`` (5 m) of :func:`terrain`.
+    the rest tie points) measured in every view; and ``dem.tif`` (5 m) of :func:`terrain`, its
+    heights ellipsoidal and the file saying so.
     Returns ``(project path, scene)``."""
     scene_path = folder / "block.scene.json"
     write_scene_for_images(images, scene_path)
@@ -75,6 +76,7 @@ def make_rpc_project(folder, images, n=5, gcps=(0, 4, 12, 20, 24), icps=(6, 8, 1
     with rasterio.open(folder / "dem.tif", "w", driver="GTiff", width=nx, height=ny, count=1,
                        dtype="float32", crs=scene.crs, transform=from_origin(x0, y1, 5, 5)) as ds:
         ds.write(grid.astype("float32"), 1)
+        ds.update_tags(HEIGHTS="ellipsoidal")
     return folder / "block.prismproj", scene
 
 

@@ -71,6 +71,20 @@ def test_to_ellipsoidal_with_constant_and_with_a_geoid_object(tmp_path):
     assert g.height_kind == "ellipsoidal" and g.heights[1, 2] == pytest.approx(50.25)
 
 
+def test_a_dem_stating_ellipsoidal_heights_goes_through_no_geoid(tmp_path):
+    """A reference whose file says its heights are ellipsoidal (a DSM of our own: its HEIGHTS
+    tag) is read as it is, whatever the project's geoid; one that says nothing is orthometric."""
+    t = from_origin(600000, 5000000, 100, 100)
+    stated, plain = tmp_path / "e.tif", tmp_path / "o.tif"
+    write_dem(plain, np.full((2, 3), 100.0), "EPSG:32631", t)
+    write_dem(stated, np.full((2, 3), 100.0), "EPSG:32631", t)
+    with rasterio.open(stated, "r+") as ds:
+        ds.update_tags(HEIGHTS="ellipsoidal")
+    assert read_dem(plain, geoid=50.0).heights[0, 0] == 150.0
+    g = read_dem(stated, geoid=50.0)
+    assert g.height_kind == "ellipsoidal" and g.heights[0, 0] == 100.0
+
+
 def test_write_dem_round_trip_float32_nan(tmp_path):
     h = np.random.default_rng(0).normal(800, 100, (300, 280))
     h[5, 7] = np.nan

@@ -45,7 +45,8 @@ def triplet(tmp_path_factory, world, name):
 
 def write_reference(path, world, half_deg=0.012, step=1 / 3600, lon0=LON0):
     """The world's terrain as a 1″ geographic GeoTIFF (~22 × 31 m cells) centred at
-    ``(lon0, LAT0)``."""
+    ``(lon0, LAT0)``; its heights are the RPCs', ellipsoidal, and the file says so (a new
+    project reads an unstated reference through the EGM96 grid)."""
     n = int(2 * half_deg / step)
     lon = lon0 - half_deg + step * (np.arange(n) + 0.5)
     lat = LAT0 + half_deg - step * (np.arange(n) + 0.5)
@@ -54,6 +55,7 @@ def write_reference(path, world, half_deg=0.012, step=1 / 3600, lon0=LON0):
                        crs="EPSG:4326", transform=rasterio.Affine(step, 0, lon0 - half_deg, 0, -step,
                                                                   LAT0 + half_deg)) as ds:
         ds.write(world.height(L, P).astype(np.float32), 1)
+        ds.update_tags(HEIGHTS="ellipsoidal")
 
 
 @pytest.fixture(scope="module")

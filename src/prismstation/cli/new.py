@@ -13,7 +13,7 @@ from pathlib import Path
 
 from prismstation.cli.ties import add_tie_options, match_and_save
 from prismstation.errors import InputError
-from prismstation.io.project import SUFFIX
+from prismstation.io.project import SUFFIX, project_geoid
 from prismstation.io.rpc_scene import scene_dict_for_images
 from prismstation.model.points import HEIGHT_KINDS
 from prismstation.ops.project import create
@@ -55,7 +55,8 @@ def run(args) -> int:
     n_ms = len(project.measurements)
     kinds = [p.kind for p in project.points.values()]
     print(f"{args.project}: {kinds.count('GCP')} GCP, {kinds.count('ICP')} ICP, "
-          f"{kinds.count('TIE')} tie points, {n_ms} measurements")
+          f"{kinds.count('TIE')} tie points, {n_ms} measurements; geoid {project_geoid(project).describe()}"
+          f"{' (auto)' if project.geoid.get('kind') == 'auto' else ''}")
     if args.images:
         print(f"{scene_path}: {len(project.scene.views)} {project.scene.sensor.description} "
               f"({', '.join(project.scene.views)}), CRS {project.scene.crs}")

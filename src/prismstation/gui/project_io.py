@@ -39,7 +39,7 @@ from prismstation.ops.fit import orientation_record
 from prismstation.io.lock import ProjectLock, describe_holder
 from prismstation.io.recovery import Journal
 from prismstation.io.scene import read_scene
-from prismstation.model.project import Project
+from prismstation.model.project import Project, default_geoid
 from prismstation.gui.plain import plain
 
 FILTER = f"prismstation projects (*{SUFFIX});;All files (*)"
@@ -155,7 +155,7 @@ class ProjectFiles(QObject):
         except PrismError as exc:
             self.warn("New project", str(exc))
             return False
-        self._install(Project(scene, str(Path(scene_path).resolve())), None)
+        self._install(Project(scene, str(Path(scene_path).resolve()), geoid=default_geoid(scene)), None)
         self.message.emit(f"New project on {scene_path}")
         return True
 
@@ -368,7 +368,7 @@ class ProjectFiles(QObject):
         except (PrismError, OSError) as exc:
             self.warn("New project from product", str(exc))
             return False
-        project = Project(scene, str(scene_path.resolve()), product=str(product))
+        project = Project(scene, str(scene_path.resolve()), product=str(product), geoid=default_geoid(scene))
         self._install(project, None)
         self.message.emit(f"New project on the product {product.name} ({', '.join(scene.views)}); "
                           "Save as… to keep it")

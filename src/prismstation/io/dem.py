@@ -180,7 +180,9 @@ def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
     crs, transform, shape : optional
         Target grid (all three, or none for the file's own grid).
     geoid : float or object with ``undulation(E, N, crs)``, optional
-        If given, the stored (orthometric) heights are converted to ellipsoidal.
+        If given, the stored (orthometric) heights are converted to ellipsoidal — unless the
+        file states ellipsoidal heights (:func:`dem_height_kind`: a DSM of prismstation's own,
+        or a compound CRS whose vertical datum is an ellipsoid), which are taken as they are.
     resampling : str
         A ``rasterio.enums.Resampling`` name (``"bilinear"``, ``"average"``, ``"cubic"``...), or
         ``"auto"``: average when the source cells are finer than half the target cells (a
@@ -210,7 +212,9 @@ def read_dem(path, crs=None, transform=None, shape=None, *, geoid=None,
         except (RasterioError, CPLE_BaseError, KeyError) as exc:
             raise RasterReadError(f"{path}: cannot resample {what} ({cause_text(exc, str(path))})") from None
     kind = "orthometric"
-    if geoid is not None:
+    if geoid is not None and dem_height_kind(path) == "ellipsoidal":
+        kind = "ellipsoidal"       # the file says its heights are on the ellipsoid already
+    elif geoid is not None:
         if isinstance(geoid, (int, float)):
             heights = to_ellipsoidal(heights, geoid)
         else:

@@ -50,6 +50,16 @@ class Change:
                       self.control or other.control, self.files or other.files)
 
 
+def default_geoid(scene: Scene) -> dict:
+    """A new project's geoid setting: the scene's constant undulation where it states one, else
+    ``auto`` — the EGM96/EGM2008 grid found on PROJ's paths (0 m where none is), the datum of
+    SRTM-like reference DEMs. (A constant 0 m read such a DEM's heights tens of metres off
+    wherever the geoid is not near 0.) A project file without a setting keeps the constant."""
+    if scene.geoid_undulation_m is not None:
+        return {"kind": "constant", "value": float(scene.geoid_undulation_m)}
+    return {"kind": "auto", "value": 0.0}
+
+
 class Project:
     """Points (ordered by id of creation), measurements keyed ``(id, view)``, settings.
 

@@ -16,14 +16,15 @@ from prismstation.io.lock import refuse_if_held
 from prismstation.io.project import project_json
 from prismstation.io.ranges import outside_images
 from prismstation.io.scene import read_scene, scene_from_dict
-from prismstation.model.project import Project
+from prismstation.model.project import Project, default_geoid
 
 
 def geoid_setting(value: str | None, scene) -> dict:
-    """The project's geoid setting from the user's ``value``: None (the scene's constant
-    undulation, or 0), ``"auto"``, a number of metres, or the path of a geoid grid file."""
+    """The project's geoid setting from the user's ``value``: None (:func:`default_geoid`: the
+    scene's constant undulation, else ``auto``), ``"auto"``, a number of metres, or the path of a
+    geoid grid file."""
     if value is None:
-        return {"kind": "constant", "value": scene.geoid_undulation_m or 0.0}
+        return default_geoid(scene)
     if value == "auto":
         return {"kind": "auto", "value": scene.geoid_undulation_m or 0.0}
     try:

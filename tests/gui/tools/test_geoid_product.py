@@ -175,3 +175,20 @@ def test_a_folder_that_is_not_a_product_is_a_message(window, tmp_path):
     assert not win.files.new_project_from_product(str(tmp_path / "empty"))
     assert len(said) == 1 and "not a JAXA PRISM product" in said[0]
     assert win.project is before
+
+
+def test_a_new_project_on_a_scene_without_an_undulation_takes_the_grid(window, foreign_data):
+    """File ▸ New project… on a scene that states no geoid undulation (the other simulator's):
+    the project's geoid is ``auto`` — the EGM96 grid found, in which SRTM-like references hold
+    their heights — and the model panel names it (a constant 0 m before)."""
+    from prismstation.gui.app import wait_settled
+    from prismstation.io import geoid as geoid_mod
+    grid = geoid_mod.find_grid()
+    if grid is None:
+        pytest.skip("no geoid grid installed")
+    win = window
+    win.files.choose_open = lambda *a, **k: str(foreign_data / "smooth_hills_10km" / "scene.json")
+    win.a_new.trigger()
+    assert wait_settled(win)
+    assert win.project.geoid == {"kind": "auto", "value": 0.0}
+    assert win.panel.geoid.text() == f"automatic: grid {grid.name}"
