@@ -53,3 +53,14 @@ def test_a_stated_undulation_or_the_users_own_geoid_is_kept(foreign_data, tmp_pa
     assert main(["new", str(tmp_path / "b.prismproj"), "--scene", str(d / "scene.json"), "--geoid", "0"]) == 0
     assert load_project(tmp_path / "b.prismproj").geoid == {"kind": "constant", "value": 0.0}
     assert "geoid constant 0 m" in capsys.readouterr().out
+
+
+def test_no_grid_found_is_said(foreign_data, tmp_path, monkeypatch, capsys):
+    """``auto`` where PROJ's paths hold no grid: 0 m, and ``new`` says why and what to do."""
+    from prismstation.io import geoid as geoid_mod
+    monkeypatch.setattr(geoid_mod, "find_grid", lambda *a, **k: None)
+    d = foreign_data / "smooth_hills_10km"
+    assert main(["new", str(tmp_path / "a.prismproj"), "--scene", str(d / "scene.json")]) == 0
+    out = capsys.readouterr().out
+    assert "geoid constant 0 m (auto: no EGM96/EGM2008 grid on PROJ's data paths" in out, out
+    assert "--geoid" in out

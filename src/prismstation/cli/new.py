@@ -13,6 +13,7 @@ from pathlib import Path
 
 from prismstation.cli.ties import add_tie_options, match_and_save
 from prismstation.errors import InputError
+from prismstation.io.geoid import ConstantGeoid
 from prismstation.io.project import SUFFIX, project_geoid
 from prismstation.io.rpc_scene import scene_dict_for_images
 from prismstation.model.points import HEIGHT_KINDS
@@ -55,11 +56,21 @@ def run(args) -> int:
     n_ms = len(project.measurements)
     kinds = [p.kind for p in project.points.values()]
     print(f"{args.project}: {kinds.count('GCP')} GCP, {kinds.count('ICP')} ICP, "
-          f"{kinds.count('TIE')} tie points, {n_ms} measurements; geoid {project_geoid(project).describe()}"
-          f"{' (auto)' if project.geoid.get('kind') == 'auto' else ''}")
+          f"{kinds.count('TIE')} tie points, {n_ms} measurements; geoid {_geoid_text(project)}")
     if args.images:
         print(f"{scene_path}: {len(project.scene.views)} {project.scene.sensor.description} "
               f"({', '.join(project.scene.views)}), CRS {project.scene.crs}")
         if not args.no_ties:
             return match_and_save(project, args.project, args.grid, command="new")
     return 0
+
+
+def _geoid_text(project) -> str:
+    """The geoid the project took, in words; an automatic one that found no grid says so."""
+    geoid = project_geoid(project)
+    if project.geoid.get("kind") != "auto":
+        return geoid.describe()
+    if isinstance(geoid, ConstantGeoid):
+        return (f"{geoid.describe()} (auto: no EGM96/EGM2008 grid on PROJ's data paths — install "
+                "proj-data or give --geoid)")
+    return f"{geoid.describe()} (auto)"
