@@ -25,9 +25,9 @@ def grid():
 
 def test_a_scene_without_an_undulation_reads_its_srtm_through_egm96(foreign_data, grid, tmp_path, capsys):
     """The other simulator's scene (no undulation in its scene.json; points ellipsoidal; an
-    SRTM-like reference above EGM96, about 51 m below the ellipsoid there): ``new`` without
+    SRTM-like reference above EGM96, which lies 56 m above the ellipsoid there): ``new`` without
     ``--geoid`` says which geoid it took, and ``transfer`` then finds all 41 check points in F
-    and in B (with a constant 0 m it missed one in each, the search's heights 51 m off)."""
+    and in B (with a constant 0 m it missed one in each, the search's heights 56 m low)."""
     d = foreign_data / "smooth_hills_10km"
     made, _, _ = n_only_project(d, tmp_path)          # for its N-only measurements
     proj = tmp_path / "plain.prismproj"
