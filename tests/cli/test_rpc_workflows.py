@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 from dataclasses import replace
 
 import numpy as np
@@ -178,3 +179,20 @@ def test_dsm_window_and_fill(block, tmp_path, capsys):
         m, h = b.read(2), b.read(1)
     seen = np.isfinite(m)
     assert np.isfinite(h[seen]).all() and (m[seen] == 2).any() and set(np.unique(m[seen])) <= {1.0, 2.0}
+
+
+def test_a_height_datum_the_orientation_cannot_check_is_said(block, tmp_path, capsys):
+    """The block's reference without its statement of ellipsoidal heights, read through a
+    project geoid of a constant 0 m where EGM96 lies some 50 m above the ellipsoid: the
+    orientation cannot tell which datum is right, and says so in its result."""
+    d, _, _ = block
+    w = tmp_path / "copy"
+    shutil.copytree(d, w)
+    doc = json.loads((w / "b.prismproj").read_text())
+    doc["geoid"] = {"kind": "constant", "value": 0.0}
+    (w / "b.prismproj").write_text(json.dumps(doc))
+    with rasterio.open(w / "ref.tif", "r+") as ds:
+        ds.update_tags(HEIGHTS="")
+    assert main(["orient-dem", str(w / "b.prismproj"), str(w / "ref.tif")]) == 0
+    out = capsys.readouterr().out
+    assert "not checked: the reference's height datum" in out and "m low, and this orientation's heights" in out

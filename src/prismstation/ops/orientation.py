@@ -74,6 +74,17 @@ class Orientation:
     def ok(self) -> bool:
         return self.verdict.ok
 
+    def noting(self, note: str) -> Orientation:
+        """This orientation with ``note`` (what it could not check; "" leaves it as it is) in
+        its verdict's message — the stored record's too — and its lines."""
+        if not note:
+            return self
+        verdict = replace(self.verdict, message=f"{self.verdict.message}; {note}")
+        record = self.record
+        if record is not None and isinstance(record.get("verdict"), dict):
+            record = {**record, "verdict": {**record["verdict"], "message": verdict.message}}
+        return replace(self, verdict=verdict, record=record, lines=(*self.lines, note))
+
     @property
     def exit_status(self) -> int:
         return self.verdict.exit_status

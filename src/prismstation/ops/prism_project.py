@@ -14,6 +14,7 @@ from prismstation.ops.dsm_export import export_dsm
 from prismstation.ops.orient_dem import DemOrientation, control_points, orient_from_dem
 from prismstation.ops.orientation import Orientation, OrientRequest, default_patch_km
 from prismstation.ops.progress import ProgressFn
+from prismstation.ops.reference_heights import datum_note
 
 __all__ = ["export_dsm", "orient", "orientation_lines"]
 
@@ -36,8 +37,9 @@ def orient(project: Project, reference, request: OrientRequest = OrientRequest()
                              target_m=request.target_m, progress=progress)
     record = result.to_dict()
     used = sum(1 for p in result.patches if p.used)
-    return Orientation(result.verdict, record, tuple(orientation_lines(project, result, gcps is not None)),
-                       {"dem_control": record}, f"{used} patch{'' if used == 1 else 'es'}", result)
+    out = Orientation(result.verdict, record, tuple(orientation_lines(project, result, gcps is not None)),
+                      {"dem_control": record}, f"{used} patch{'' if used == 1 else 'es'}", result)
+    return out.noting("" if gcps else datum_note(project, reference))
 
 
 def orientation_lines(project: Project, result: DemOrientation, with_gcps: bool = False) -> list[str]:

@@ -10,8 +10,9 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from prismstation.errors import InputError
-from prismstation.io.dem import read_dem
+from prismstation.errors import InputError, PrismError
+from prismstation.io.dem import dem_height_kind, read_dem
+from prismstation.io.geoid import GridGeoid, find_grid
 from prismstation.io.project import project_geoid
 from prismstation.ops.progress import ProgressFn, checkpoint
 
@@ -81,3 +82,37 @@ def height_sigma(heights: DemHeights, sigma_m: float):
                                     mode="constant", cval=0.0, prefilter=False)
         return np.hypot(float(sigma_m), s * cell / math.sqrt(12.0))
     return sigma
+
+
+#: how far (m) a project's constant geoid may lie from EGM96 at the scene before an orientation
+#: from a reference DEM says its heights may be in another datum: beyond a reference's own
+#: height σ (SRTM 2–4 m) and the few metres that separate global and national geoids
+DATUM_TOLERANCE_M = 5.0
+
+
+def datum_note(project, reference) -> str:
+    """What an orientation from the reference DEM file ``reference`` could not check of its
+    height datum, "" when nothing is amiss: a reference not stated ellipsoidal
+    (:func:`~prismstation.io.dem.dem_height_kind`) is read through the project's geoid, and a
+    constant one more than :data:`DATUM_TOLERANCE_M` from EGM96 at the scene's centre reads an
+    SRTM-like reference (heights above EGM96) that far off — and the orientation's heights
+    with it, which nothing without GCPs can see. Nothing is said without a grid to compare."""
+    setting = project.geoid or {}
+    grid = find_grid()
+    if setting.get("kind") != "constant" or grid is None:
+        return ""
+    try:
+        if dem_height_kind(reference) == "ellipsoidal":
+            return ""
+        e, n = project.scene.views[project.scene.reference_view].footprint().mean(axis=0)
+        egm = float(GridGeoid(grid).undulation(np.array([e]), np.array([n]), project.scene.crs)[0])
+    except PrismError:
+        return ""
+    off = egm - float(setting.get("value") or 0.0)
+    if not math.isfinite(off) or abs(off) <= DATUM_TOLERANCE_M:
+        return ""
+    return (f"not checked: the reference's height datum — the project's geoid is a constant "
+            f"{float(setting.get('value') or 0.0):g} m where EGM96 lies {egm:.1f} m above the ellipsoid: a "
+            f"reference above EGM96 (SRTM, Copernicus) is read {abs(off):.0f} m {'low' if off > 0 else 'high'}, "
+            "and this orientation's heights with it; give the project its reference's geoid (Tools ▸ Geoid…, "
+            "new --geoid auto), or tag an ellipsoidal reference HEIGHTS=ellipsoidal")

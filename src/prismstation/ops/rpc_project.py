@@ -26,6 +26,7 @@ from prismstation.ops.dsm_export import DsmExport, DsmRequest
 from prismstation.ops.fit import stored_solution
 from prismstation.ops.orientation import Orientation, OrientRequest
 from prismstation.ops.progress import checkpoint
+from prismstation.ops.reference_heights import datum_note
 from prismstation.ops.rpc_dsm_export import write_rpc_dsm
 from prismstation.ops.rpc_orient import DEFAULT_MAX_SHIFT_M, orient_rpc_from_dem
 
@@ -160,4 +161,4 @@ def orient(project, reference, request: OrientRequest = OrientRequest(), *, solu
                                  f"({s[0]:+.2f}, {s[1]:+.2f}, {s[2]:+.2f}) ± ({sg[0]:.2f}, {sg[1]:.2f}, "
                                  f"{sg[2]:.2f}) m", "", request.target_m)
     return Orientation(verdict, orientation_record(project, o, reference), tuple(lines), plain(doc), "RPC biases",
-                       o, "report")
+                       o, "report").noting(datum_note(project, reference))
