@@ -64,3 +64,25 @@ def test_no_grid_found_is_said(foreign_data, tmp_path, monkeypatch, capsys):
     out = capsys.readouterr().out
     assert "geoid constant 0 m (auto: no EGM96/EGM2008 grid on PROJ's data paths" in out, out
     assert "--geoid" in out
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "1e308", "-160"])
+def test_an_undulation_no_geoid_has_is_refused_in_one_line(foreign_data, tmp_path, capsys, value):
+    """``--geoid nan`` was stored as null (a project the next command could not use);
+    ``inf``, ``1e308`` and ``-160`` as they were."""
+    d = foreign_data / "smooth_hills_10km"
+    assert main(["new", str(tmp_path / "a.prismproj"), "--scene", str(d / "scene.json"), "--geoid", value]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"--geoid {value}: a constant undulation must lie within -150 to 150 m" in err[0]
+    assert not (tmp_path / "a.prismproj").exists()
+
+
+def test_a_project_file_whose_constant_geoid_has_no_value_is_named(foreign_data, tmp_path, capsys):
+    d = foreign_data / "smooth_hills_10km"
+    proj = tmp_path / "a.prismproj"
+    assert main(["new", str(proj), "--scene", str(d / "scene.json"), "--geoid", "50"]) == 0
+    doc = json.loads(proj.read_text())
+    doc["geoid"] = {"kind": "constant", "value": None}
+    proj.write_text(json.dumps(doc, indent=1))
+    assert main(["fit", str(proj)]) == 2
+    assert '"geoid": expected {"kind": "constant", "value": metres}' in capsys.readouterr().err

@@ -26,7 +26,7 @@ from prismstation.io import geoid as geoid_mod
 from prismstation.io.atomic import write_atomic
 from prismstation.io.lock import refuse_if_held
 from prismstation.io.jsonfile import dumps, line_of, plain, read_json
-from prismstation.io.ranges import SIGMA_M, check_map, check_sigma, outside_images
+from prismstation.io.ranges import SIGMA_M, UNDULATION_M, check_map, check_sigma, outside_images
 from prismstation.io.scene import read_scene
 from prismstation.model.points import HEIGHT_KINDS, KINDS, GroundPoint, Measurement
 from prismstation.model.project import Project, has_ground
@@ -332,10 +332,12 @@ def _geoid(g, path, text):
     ok = isinstance(g, dict) and g.get("kind") in ("constant", "auto", "grid")
     if ok and g["kind"] == "grid":
         ok = isinstance(g.get("path"), str) and bool(g["path"])
-    elif ok:
-        ok = g.get("value") is None or _number(g["value"])
+    elif ok:   # a constant needs its value; an automatic one falls back on it (0 m if none)
+        v = g.get("value")
+        ok = (v is None and g["kind"] == "auto") or (_number(v) and UNDULATION_M[0] <= v <= UNDULATION_M[1])
     if not ok:
-        raise InputError(f'"geoid": expected {{"kind": "constant", "value": metres}}, {{"kind": "auto"}} '
+        raise InputError(f'"geoid": expected {{"kind": "constant", "value": metres}} (within '
+                         f'{UNDULATION_M[0]:g} to {UNDULATION_M[1]:g} m), {{"kind": "auto"}} '
                          f'or {{"kind": "grid", "path": file}}, found {g!r}', path, line_of(text, "geoid"))
     return g
 

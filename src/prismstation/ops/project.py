@@ -14,7 +14,7 @@ from prismstation.io.atomic import write_together
 from prismstation.io.jsonfile import dumps
 from prismstation.io.lock import refuse_if_held
 from prismstation.io.project import project_json
-from prismstation.io.ranges import outside_images
+from prismstation.io.ranges import UNDULATION_M, outside_images
 from prismstation.io.scene import read_scene, scene_from_dict
 from prismstation.model.project import Project, default_geoid
 
@@ -28,11 +28,17 @@ def geoid_setting(value: str | None, scene) -> dict:
     if value == "auto":
         return {"kind": "auto", "value": scene.geoid_undulation_m or 0.0}
     try:
-        return {"kind": "constant", "value": float(value)}
+        metres = float(value)
     except ValueError:
-        if not Path(value).is_file():
-            raise InputError("geoid grid not found", value) from None
-        return {"kind": "grid", "path": str(Path(value).resolve())}
+        metres = None
+    if metres is not None:
+        if not UNDULATION_M[0] <= metres <= UNDULATION_M[1]:     # NaN is outside too
+            raise InputError(f"--geoid {value}: a constant undulation must lie within {UNDULATION_M[0]:g} "
+                             f"to {UNDULATION_M[1]:g} m (the Earth's geoid: -107 to +86 m)")
+        return {"kind": "constant", "value": metres}
+    if not Path(value).is_file():
+        raise InputError("geoid grid not found", value)
+    return {"kind": "grid", "path": str(Path(value).resolve())}
 
 
 def create(project_path, scene_path, points=None, measurements=None, *, crs=None, height=None,

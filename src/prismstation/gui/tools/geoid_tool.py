@@ -21,6 +21,7 @@ from PySide6.QtWidgets import (QButtonGroup, QDialog, QDialogButtonBox, QDoubleS
 from prismstation.errors import PrismError
 from prismstation.io import geoid as geoid_mod
 from prismstation.io.project import project_geoid
+from prismstation.io.ranges import UNDULATION_M
 
 GRID_SUFFIXES = (".gtx", ".tif", ".tiff", ".gtx.gz")
 
@@ -103,7 +104,7 @@ class GeoidDialog(QDialog):
         self.setWindowTitle("Geoid")
         current = dict(current or {"kind": "constant", "value": 0.0})
         self.r_const = QRadioButton("Constant undulation")
-        self.value = QDoubleSpinBox(decimals=2, minimum=-200.0, maximum=200.0, suffix=" m")
+        self.value = QDoubleSpinBox(decimals=2, minimum=UNDULATION_M[0], maximum=UNDULATION_M[1], suffix=" m")
         self.r_auto = QRadioButton("Automatic (the first grid found, else the constant)")
         self.r_found = QRadioButton("A grid found on this computer")
         self.grids = QListWidget()
