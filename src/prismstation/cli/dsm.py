@@ -37,7 +37,7 @@ def register(sub) -> None:
                         "with RPCs); default the whole image")
     p.add_argument("--posting", type=float, default=5.0, help="grid posting, m (default 5 = 2 × GSD)")
     p.add_argument("--orthometric", action="store_true", help="orthometric heights through the project's geoid")
-    p.add_argument("--reference", metavar="DEM", help="reference DEM (orthometric) as the coarse prior")
+    p.add_argument("--reference", metavar="DEM", help="reference DEM (orthometric through the project's geoid, unless the file states ellipsoidal heights) as the coarse prior")
     p.add_argument("--height-uncertainty", type=float, metavar="M",
                    help="a-priori ± height uncertainty of the prior, m (default: from the points, or 40 m with --reference)")
     p.add_argument("--fill", action="store_true", help="fill voids by interpolation (mask value 2)")

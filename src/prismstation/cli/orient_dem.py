@@ -28,7 +28,8 @@ from prismstation.ops.sensors import workflows_of
 def register(sub) -> None:
     p = sub.add_parser("orient-dem", help="orient the triplet from a reference DEM (SRTM), no GCP")
     p.add_argument("project")
-    p.add_argument("reference", help="reference DEM: SRTM .hgt or GeoTIFF, orthometric heights")
+    p.add_argument("reference", help="reference DEM: SRTM .hgt or GeoTIFF, orthometric heights through the "
+                   "project's geoid (a file that states ellipsoidal heights: as they are)")
     p.add_argument("--geolocation-sigma-m", type=float, metavar="M",
                    help="a-priori σ of each view's ancillary geolocation, per component, metres; "
                         "every search covers 3 σ (default 50: the ~50 m shifts Gonçalves reports "
