@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import asdict
-from functools import lru_cache
 from pathlib import Path
 
 from prismstation import __version__
@@ -356,11 +355,6 @@ def _line_of_id(text, d):
     return None
 
 
-@lru_cache(maxsize=8)
-def _grid(path: str):
-    return geoid_mod.GridGeoid(path)
-
-
 def project_geoid(project: Project):
     """The geoid object of the project's setting (grids read once and cached)."""
     s = project.geoid or {}
@@ -375,5 +369,5 @@ def project_geoid(project: Project):
             found = False
         if not found:
             raise InputError(f"geoid grid not found: {p}")
-        return _grid(str(p))
+        return geoid_mod.grid_geoid(str(p))
     return geoid_mod.geoid_from_setting(s, base)

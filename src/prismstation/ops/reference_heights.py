@@ -12,7 +12,7 @@ from scipy import ndimage
 
 from prismstation.errors import InputError, PrismError
 from prismstation.io.dem import dem_height_kind, read_dem
-from prismstation.io.geoid import GridGeoid, find_grid
+from prismstation.io.geoid import find_grid, grid_geoid
 from prismstation.io.project import project_geoid
 from prismstation.ops.progress import ProgressFn, checkpoint
 
@@ -105,7 +105,7 @@ def datum_note(project, reference) -> str:
         if dem_height_kind(reference) == "ellipsoidal":
             return ""
         e, n = project.scene.views[project.scene.reference_view].footprint().mean(axis=0)
-        egm = float(GridGeoid(grid).undulation(np.array([e]), np.array([n]), project.scene.crs)[0])
+        egm = float(grid_geoid(str(grid)).undulation(np.array([e]), np.array([n]), project.scene.crs)[0])
     except PrismError:
         return ""
     off = egm - float(setting.get("value") or 0.0)
